@@ -1,0 +1,118 @@
+"""The ``simpro-sim`` command line: it only wires.
+
+Every subcommand lives in its own module under ``simpro_mj`` exposing
+
+* ``HELP``: one-line description,
+* ``add_arguments(parser)``: its own options,
+* ``run(args) -> int``: the job (exit code).
+
+Conventions shared by all subcommands (added here): ``--set KEY=VALUE``
+(dotted path, repeatable) overrides any parameter, ``--json`` prints exactly
+one JSON object on stdout and nothing else there, ``--out DIR`` chooses where
+files go. A user's mistake exits 2 with one line ``error: ...`` on stderr.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import json
+import os
+import sys
+
+from controllers.errors import KinematicsError
+
+from .errors import PhysicsError, UserInputError
+
+#: subcommand -> module; a module that does not exist yet is simply not offered.
+COMMANDS = {
+    "run": "simpro_mj.cmd_run",
+    "compare": "simpro_mj.cmd_compare",
+    "validate-ik": "simpro_mj.validate_ik",
+    "workspace": "simpro_mj.cmd_workspace",
+    "identify": "simpro_mj.identify",
+    "analyze": "simpro_mj.analyze",
+    "batch": "simpro_mj.batch",
+    "bench": "simpro_mj.bench",
+}
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse that reports mistakes on one line with exit status 2."""
+
+    def error(self, message: str):  # noqa: D401 - argparse API
+        sys.stderr.write(f"error: {self.prog}: {message}\n")
+        raise SystemExit(2)
+
+
+def _available() -> dict:
+    mods = {}
+    for name, path in COMMANDS.items():
+        try:
+            mods[name] = importlib.import_module(path)
+        except ModuleNotFoundError as exc:
+            if exc.name != path:
+                raise
+    return mods
+
+
+def build_parser() -> tuple[argparse.ArgumentParser, dict]:
+    mods = _available()
+    parser = _Parser(
+        prog="simpro-sim",
+        description="Co-simulation of the SIMPRO 3-DOF pneumatic motion platform (MuJoCo).",
+    )
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    sub.required = True
+    for name, mod in mods.items():
+        p = sub.add_parser(name, help=mod.HELP, description=mod.HELP)
+        p.add_argument(
+            "--set",
+            dest="sets",
+            action="append",
+            default=[],
+            metavar="KEY=VALUE",
+            help="override a parameter by dotted path (repeatable)",
+        )
+        p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+        mod.add_arguments(p)
+        p.set_defaults(_run=mod.run)
+    return parser, mods
+
+
+def emit_json(obj) -> None:
+    """Print one JSON object on stdout (the ``--json`` contract)."""
+    json.dump(obj, sys.stdout, indent=2, sort_keys=False, default=_json_default)
+    sys.stdout.write("\n")
+
+
+def _json_default(o):
+    import numpy as np
+
+    if isinstance(o, np.generic):
+        return o.item()
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    raise TypeError(f"not JSON serialisable: {type(o).__name__}")
+
+
+def main(argv=None) -> int:
+    os.environ.setdefault("MPLBACKEND", "Agg")
+    parser, _ = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args._run(args) or 0)
+    except (UserInputError, KinematicsError) as exc:
+        msg = " ".join(str(exc).split())
+        sys.stderr.write(f"error: {msg}\n")
+        return 2
+    except PhysicsError as exc:
+        sys.stderr.write(f"error: simulation diverged: {exc}\n")
+        return 1
+    except KeyboardInterrupt:
+        sys.stderr.write("error: interrupted\n")
+        return 130
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,120 @@
+"""Nested parameter trees and ``--set KEY=VALUE`` overrides.
+
+A parameter tree is a plain nested ``dict`` whose leaves are numbers, strings,
+booleans or lists. Units live in the key names at this edge (``pitch_deg``,
+``heave_mm``, ``mass_kg``); code converts to SI right after reading.
+"""
+
+from __future__ import annotations
+
+import copy
+import difflib
+from collections.abc import Iterable, Mapping
+from typing import Any
+
+import yaml
+
+from .errors import UserInputError
+
+__all__ = ["parse_set", "apply_overrides", "set_path", "get_path", "closest"]
+
+
+def closest(name: str, choices: Iterable[str]) -> str:
+    """A ' (did you mean X?)' hint, or '' when nothing is close."""
+    match = difflib.get_close_matches(name, list(choices), n=1, cutoff=0.5)
+    return f" (did you mean '{match[0]}'?)" if match else ""
+
+
+def parse_set(expr: str) -> tuple[str, Any]:
+    """Parse ``a.b.c=VALUE``; VALUE is read as YAML (numbers, lists, booleans).
+
+    Raises
+    ------
+    UserInputError
+        If the expression has no ``=`` or an empty key, or VALUE is not YAML.
+    """
+    if "=" not in expr:
+        raise UserInputError(
+            f"malformed --set at '{expr}': expected KEY=VALUE with a dotted KEY, e.g. "
+            "controller.mode=task_space"
+        )
+    key, _, raw = expr.partition("=")
+    key = key.strip()
+    if not key or any(not part for part in key.split(".")):
+        raise UserInputError(
+            f"malformed --set at '{expr}': KEY must be a dotted path like a.b.c"
+        )
+    try:
+        value = yaml.safe_load(raw) if raw.strip() else ""
+    except yaml.YAMLError as exc:
+        raise UserInputError(f"malformed --set at {key}: value {raw!r} is not valid YAML") from exc
+    return key, value
+
+
+def get_path(tree: Mapping, path: str) -> Any:
+    node: Any = tree
+    for part in path.split("."):
+        if not isinstance(node, Mapping) or part not in node:
+            raise KeyError(path)
+        node = node[part]
+    return node
+
+
+def set_path(tree: dict, path: str, value: Any, strict: bool = True) -> None:
+    """Set a dotted path in a nested dict.
+
+    With ``strict`` the path must already exist (unknown keys are refused with
+    the closest valid key) and the new value must have a compatible type.
+    """
+    parts = path.split(".")
+    node: Any = tree
+    for depth, part in enumerate(parts):
+        here = ".".join(parts[: depth + 1])
+        last = depth == len(parts) - 1
+        if not isinstance(node, dict):
+            raise UserInputError(f"unknown key at {here}: '{parts[depth - 1]}' has no sub-keys")
+        if part not in node:
+            if strict:
+                raise UserInputError(
+                    f"unknown key at {here}: allowed keys are {sorted(node)}{closest(part, node)}"
+                )
+            if last:
+                node[part] = value
+                return
+            node[part] = {}
+        if last:
+            if strict:
+                _check_type(here, node[part], value)
+            node[part] = value
+            return
+        node = node[part]
+
+
+def _check_type(path: str, old: Any, new: Any) -> None:
+    if old is None or new is None:
+        return
+    num = (int, float)
+    if isinstance(old, bool) or isinstance(new, bool):
+        ok = isinstance(old, bool) == isinstance(new, bool)
+    elif isinstance(old, num):
+        ok = isinstance(new, num)
+    elif isinstance(old, dict):
+        ok = isinstance(new, dict)
+    elif isinstance(old, list):
+        ok = isinstance(new, list)
+    else:
+        ok = isinstance(new, type(old))
+    if not ok:
+        raise UserInputError(
+            f"wrong type at {path}: got {type(new).__name__} {new!r}, "
+            f"expected {type(old).__name__} like {old!r}"
+        )
+
+
+def apply_overrides(tree: Mapping, sets: Iterable[str], strict: bool = True) -> dict:
+    """Return a deep copy of ``tree`` with every ``KEY=VALUE`` applied in order."""
+    out = copy.deepcopy(dict(tree))
+    for expr in sets or ():
+        key, value = parse_set(expr)
+        set_path(out, key, value, strict=strict)
+    return out
