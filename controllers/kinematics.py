@@ -74,9 +74,7 @@ def _rotation_derivatives(roll, pitch):
     z = np.zeros_like(ct + cp)
     d_roll = [[z, sp * ct, -sp * st], [z, -st + z, -ct + z], [z, cp * ct, -cp * st]]
     d_pitch = [[-sp + z, cp * st, cp * ct], [z, z, z], [-cp + z, -sp * st, -sp * ct]]
-    return tuple(
-        np.stack([np.stack(r, axis=-1) for r in m], axis=-2) for m in (d_roll, d_pitch)
-    )
+    return tuple(np.stack([np.stack(r, axis=-1) for r in m], axis=-2) for m in (d_roll, d_pitch))
 
 
 def line_circle_intersection(m, b, xc, zc, r, side: int = -1):

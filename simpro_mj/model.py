@@ -26,6 +26,8 @@ __all__ = [
     "DEFAULT_MODEL_PARAMS",
     "PlantIndex",
     "load_model",
+    "load_spec",
+    "add_slide_drives",
     "model_params",
     "loop_closure_error",
     "loop_closure_jacobian",
@@ -38,7 +40,9 @@ __all__ = [
 
 #: The shipped model; ``SIMPRO_MODEL`` in the environment points elsewhere.
 MODEL_PATH = Path(
-    os.environ.get("SIMPRO_MODEL", Path(__file__).resolve().parent.parent / "models" / "simpro_platform.xml")
+    os.environ.get(
+        "SIMPRO_MODEL", Path(__file__).resolve().parent.parent / "models" / "simpro_platform.xml"
+    )
 )
 
 LEG_POINTS = ("C1", "B2", "B3")  # moving attachment of legs 1..3
@@ -79,7 +83,9 @@ def _vec(params: dict, path: str, n: int) -> np.ndarray:
         node = node[part]
     arr = np.asarray(node, dtype=float)
     if arr.shape != (n,) or not np.all(np.isfinite(arr)):
-        raise UserInputError(f"invalid value at model.{path}: expected a list of {n} finite numbers")
+        raise UserInputError(
+            f"invalid value at model.{path}: expected a list of {n} finite numbers"
+        )
     return arr
 
 
@@ -151,6 +157,25 @@ def load_spec(params: dict | None = None, path: Path | str | None = None) -> muj
     for eq in spec.equalities:
         eq.solref = [tc, 1.0]
     return spec
+
+
+def add_slide_drives(spec: mujoco.MjSpec) -> None:
+    """Add one joint-equality constraint per slide (``drive1..3``) to impose q.
+
+    They are as stiff as the loop closures (same solref/solimp). Set the target
+    at run time with ``model.eq_data[id, 0] = q - model.qpos0[slide]`` (a joint
+    equality acts on ``qpos - qpos0``).
+    """
+    ref = spec.equalities[0]
+    for i in (1, 2, 3):
+        spec.add_equality(
+            type=mujoco.mjtEq.mjEQ_JOINT,
+            name=f"drive{i}",
+            name1=f"leg{i}",
+            objtype=mujoco.mjtObj.mjOBJ_JOINT,
+            solref=list(ref.solref),
+            solimp=list(ref.solimp),
+        )
 
 
 def load_model(params: dict | None = None, path: Path | str | None = None) -> mujoco.MjModel:
@@ -328,7 +353,11 @@ def check_physics(model, data, warnings_before=None, loop_bound: float | None = 
         )
     if not (np.all(np.isfinite(data.qpos)) and np.all(np.isfinite(data.qvel))):
         bad = np.flatnonzero(~np.isfinite(data.qpos))
-        which = model.joint(int(np.searchsorted(model.jnt_qposadr, bad[0], "right") - 1)).name if bad.size else "qvel"
+        which = (
+            model.joint(int(np.searchsorted(model.jnt_qposadr, bad[0], "right") - 1)).name
+            if bad.size
+            else "qvel"
+        )
         raise PhysicsError(f"non-finite state ({which}) at t = {data.time:.3f} s")
     if loop_bound is not None:
         err = loop_closure_error(model, data, index)

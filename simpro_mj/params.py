@@ -42,7 +42,7 @@ def parse_set(expr: str) -> tuple[str, Any]:
     key = key.strip()
     if not key or any(not part for part in key.split(".")):
         raise UserInputError(
-            f"malformed --set at '{expr}': KEY must be a dotted path like a.b.c"
+            f"malformed --set at '{expr}': expected KEY=VALUE with KEY a dotted path like a.b.c"
         )
     try:
         value = yaml.safe_load(raw) if raw.strip() else ""
