@@ -31,3 +31,17 @@ __all__ = [
     "paper_inverse_kinematics",
     "reachable",
 ]
+
+# Joint and task-space loops (issue 4); appended, numpy/scipy only.
+from .design import JointDesign, Plant, place_poles  # noqa: E402
+from .joint import JointControllers  # noqa: E402
+from .task_space import SamplingError, TaskSpaceController  # noqa: E402
+
+__all__ += [
+    "JointDesign",
+    "Plant",
+    "place_poles",
+    "JointControllers",
+    "SamplingError",
+    "TaskSpaceController",
+]

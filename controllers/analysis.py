@@ -1,0 +1,508 @@
+"""Stability and response analysis of the joint and task-space loops (paper section 4).
+
+Outer loop, per task axis (eqs. 21-27): the integrated pose is
+``x_c[k+1] = x_c[k] + T K_I e[k]`` (Fig. 7's ``T K_I / (z - 1)``, forward
+Euler), the inner loop is ``d`` samples of delay (eq. 21: ``d = 1``), the
+sensor a gain ``K``. With ``g = K K_I`` the loop gain is::
+
+    L(z) = g T N(z) / ((z - 1) z^d),   N = 1 (I, eq. 22),  N = z + c (PI, c = 0.2)
+
+and the characteristic polynomial ``P(z) = (z - 1) z^d + g T N(z)`` is linear
+in ``g``: ``P = A + g B``. For ``d = 1`` (eq. 24) it is second order and the
+Jury conditions ``|a0| < 1``, ``P(1) > 0``, ``P(-1) > 0`` give closed forms:
+
+* I:  ``z^2 - z + g T``:  ``g T < 1``,  so ``g < 1/T = 16.67`` for T = 60 ms;
+* PI: ``z^2 + (g T - 1) z + c g T``: ``g < min(1/(c T), 2/((1 - c) T))``
+  = ``min(83.3, 41.7) = 41.7``.
+
+For any order :func:`stability_limit` finds the first gain at which a root
+reaches the unit circle (``z = 1``, ``z = -1`` or a complex pair: zero of the
+imaginary part of ``-A/B`` on the circle, refined with ``brentq``) and checks
+it with :func:`jury_stable` on both sides.
+
+The "real inner loop" replaces the delay by the discretised joint controller
+and the identified plant (ZOH at 1 ms), lifted to the outer period
+(``Phi = A_cl^n``, ``Gamma = sum A_cl^i B_cl``), mapped to the task space
+with the IK Jacobian at home.
+
+Imports numpy and scipy only.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .design import (
+    ACTUATORS,
+    PLANTS,
+    JointDesign,
+    Plant,
+    closed_loop_poles,
+    closed_loop_tf,
+    damping,
+    design_for,
+)
+from .joint import discretise, leg_state_space
+
+__all__ = [
+    "jury_stable",
+    "outer_polynomials",
+    "closed_form_limit",
+    "stability_limit",
+    "outer_poles",
+    "outer_step",
+    "root_locus",
+    "tf_step",
+    "step_metrics",
+    "inner_summary",
+    "inner_discrete_loop",
+    "lift",
+    "lifted_inner",
+    "outer_closed_loop",
+    "spectral_radius",
+    "real_inner_closed_loop",
+    "real_inner_limit",
+    "real_inner_step",
+]
+
+
+# --------------------------------------------------------------------------
+# Outer loop with the inner loop as a delay (eqs. 21, 24-27)
+# --------------------------------------------------------------------------
+def jury_stable(coeffs, tol: float = 0.0) -> bool:
+    """Jury (Schur-Cohn) test: all roots of ``coeffs`` (highest power first) in |z| < 1.
+
+    With ``P(z) = a_n z^n + ... + a_0`` and its reciprocal
+    ``P*(z) = z^n P(1/z)``, ``P`` is Schur stable iff ``|a_0| < |a_n|`` and
+    ``(a_n P - a_0 P*) / z`` (degree n - 1, the next pair of rows of Jury's
+    table) is Schur stable. Coefficients of the reduced polynomial, low power
+    first: ``b_j = a_n a_{j+1} - a_0 a_{n-1-j}``.
+    """
+    a = np.trim_zeros(np.asarray(coeffs, dtype=float), "f")
+    if a.size == 0:
+        raise ValueError("jury_stable: zero polynomial")
+    a = a[::-1]  # low power first
+    while a.size > 1:
+        n = a.size - 1
+        if not abs(a[0]) < abs(a[n]) - tol:
+            return False
+        a = a[n] * a[1:] - a[0] * a[::-1][1:]
+        a = a / np.max(np.abs(a))  # keep the numbers O(1)
+    return True
+
+
+def outer_polynomials(
+    mode: str, period: float, delay: int = 1, pi_zero: float = 0.2
+) -> tuple[np.ndarray, np.ndarray]:
+    """``(A, B)`` with characteristic polynomial ``A(z) + g B(z)``, ``g = K K_I``.
+
+    ``A = (z - 1) z^delay``; ``B = T`` (I) or ``T (z + pi_zero)`` (PI).
+    """
+    if mode not in ("I", "PI"):
+        raise ValueError(f"mode must be 'I' or 'PI', got {mode!r}")
+    if delay < 1 or int(delay) != delay:
+        raise ValueError(f"delay must be a positive integer number of samples, got {delay}")
+    a = np.polymul([1.0, -1.0], np.r_[1.0, np.zeros(int(delay))])
+    b = np.array([period]) if mode == "I" else period * np.array([1.0, pi_zero])
+    return a, np.r_[np.zeros(a.size - b.size), b]
+
+
+def closed_form_limit(mode: str, period: float, delay: int = 1, pi_zero: float = 0.2) -> float:
+    """Largest stable ``K K_I`` from the Jury conditions worked by hand.
+
+    ``delay = 1``: I ``1/T``; PI ``min(1/(c T), 2/((1 - c) T))`` (``|c| < 1``).
+    ``delay = 2``, I: ``z^3 - z^2 + gT``: Jury's ``1 - (gT)^2 > gT`` gives
+    ``g T < (sqrt(5) - 1)/2``.
+    """
+    if delay == 1 and mode == "I":
+        return 1.0 / period
+    if delay == 1 and mode == "PI":
+        c = pi_zero
+        lims = [2.0 / ((1.0 - c) * period)] if c < 1 else []
+        if c > 0:
+            lims.append(1.0 / (c * period))
+        return min(lims) if lims else np.inf
+    if delay == 2 and mode == "I":
+        return (np.sqrt(5.0) - 1.0) / 2.0 / period
+    raise NotImplementedError("closed form only for delay 1 (I, PI) and delay 2 (I)")
+
+
+def _spectral_radius_poly(a, b, g) -> float:
+    return float(np.max(np.abs(np.roots(np.polyadd(a, g * b)))))
+
+
+def stability_limit(a, b, g_max: float = 1e4) -> float:
+    """Largest ``g > 0`` such that ``A + g' B`` is Schur for every ``0 < g' < g``.
+
+    Candidates are the gains at which a root lies on the unit circle:
+    ``g = -A(1)/B(1)``, ``g = -A(-1)/B(-1)``, and ``g = -A(e^jw)/B(e^jw)`` where
+    that is real (zeros of its imaginary part, refined by ``brentq``). The
+    smallest positive candidate at which the Jury test fails just above is
+    returned (``inf`` if none below ``g_max``).
+    """
+    from scipy.optimize import brentq
+
+    a = np.asarray(a, float)
+    b = np.asarray(b, float)
+
+    def gain(w):
+        z = np.exp(1j * w)
+        return -np.polyval(a, z) / np.polyval(b, z)
+
+    cands = []
+    for z in (1.0, -1.0):
+        bz = np.polyval(b, z)
+        if bz != 0:
+            cands.append(-np.polyval(a, z) / bz)
+    w = np.linspace(1e-6, np.pi - 1e-6, 4001)
+    im = gain(w).imag
+    for i in np.nonzero(np.sign(im[:-1]) * np.sign(im[1:]) < 0)[0]:
+        wi = brentq(lambda x: gain(x).imag, w[i], w[i + 1], xtol=1e-15)
+        cands.append(gain(wi).real)
+    cands = sorted(c for c in cands if 0 < c < g_max and np.isfinite(c))
+    for g in cands:
+        eps = 1e-9 * max(g, 1.0)
+        if not jury_stable(np.polyadd(a, (g + eps) * b)):
+            return float(g)
+    return float("inf")
+
+
+def outer_poles(mode: str, gain: float, period: float, delay: int = 1, pi_zero: float = 0.2):
+    """Closed-loop z-plane poles of one task axis."""
+    a, b = outer_polynomials(mode, period, delay, pi_zero)
+    return np.roots(np.polyadd(a, gain * b))
+
+
+def outer_step(
+    mode: str, gain: float, period: float, n: int, delay: int = 1, pi_zero: float = 0.2
+) -> np.ndarray:
+    """Unit-step response y[0..n-1] of one task axis (delay model), by the difference equation.
+
+    Same recursion as the implementation: the I law outputs ``x_c[k]`` then
+    integrates ``e[k]``; the PI law integrates ``e[k] + c e[k-1]`` first.
+    """
+    y = np.zeros(n)
+    qd = np.zeros(n)
+    xc, e_prev = 0.0, 0.0
+    for k in range(n):
+        y[k] = qd[k - delay] if k >= delay else 0.0
+        e = 1.0 - y[k]
+        if mode == "I":
+            qd[k] = xc
+            xc += period * gain * e
+        else:
+            xc += period * gain * (e + pi_zero * e_prev)
+            e_prev = e
+            qd[k] = xc
+    return y
+
+
+def root_locus(a, b, gains) -> np.ndarray:
+    """Roots (len(gains), order) of ``A + g B`` for each gain."""
+    gains = np.asarray(gains, float)
+    return np.array([np.sort_complex(np.roots(np.polyadd(a, g * b))) for g in gains])
+
+
+# --------------------------------------------------------------------------
+# Inner loops
+# --------------------------------------------------------------------------
+def _companion(num, den):
+    num = np.atleast_1d(np.asarray(num, float))
+    den = np.asarray(den, float)
+    num, den = num / den[0], den / den[0]
+    n = den.size - 1
+    num = np.r_[np.zeros(n + 1 - num.size), num]
+    d = num[0]
+    nn = num[1:] - d * den[1:]
+    a = np.zeros((n, n))
+    a[0, :] = -den[1:]
+    a[1:, :-1] = np.eye(n - 1)
+    b = np.zeros((n, 1))
+    b[0, 0] = 1.0
+    return a, b, nn[None, :], np.array([[d]])
+
+
+def tf_step(num, den, t) -> np.ndarray:
+    """Exact samples of the continuous unit-step response on a uniform grid t."""
+    t = np.asarray(t, float)
+    dt = t[1] - t[0]
+    a, b, c, d = _companion(num, den)
+    ad, bd, _, _ = discretise(a, b, c, d, dt, "zoh")
+    x = np.zeros(a.shape[0])
+    y = np.empty(t.size)
+    for k in range(t.size):
+        y[k] = (c @ x)[0] + d[0, 0]
+        x = ad @ x + bd[:, 0]
+    return y
+
+
+def step_metrics(t, y, final: float | None = None, settle: float = 0.02) -> dict:
+    """Rise time 10-90 %, settling time (band ``settle``), overshoot (%) of a step."""
+    t = np.asarray(t, float)
+    y = np.asarray(y, float)
+    yf = float(y[-1]) if final is None else float(final)
+    out = {"final": yf}
+    try:
+        t10 = t[np.nonzero(y >= 0.1 * yf)[0][0]]
+        t90 = t[np.nonzero(y >= 0.9 * yf)[0][0]]
+        out["rise_time_s"] = float(t90 - t10)
+    except IndexError:
+        out["rise_time_s"] = float("nan")
+    out["overshoot_pct"] = float(max(0.0, (y.max() - yf) / abs(yf) * 100.0)) if yf else 0.0
+    outside = np.nonzero(np.abs(y - yf) > settle * abs(yf))[0]
+    if not outside.size:
+        out["settling_time_s"] = float(t[0])
+    elif outside[-1] + 1 < t.size:
+        out["settling_time_s"] = float(t[outside[-1] + 1])
+    else:
+        out["settling_time_s"] = float("nan")  # not settled within the record
+    return out
+
+
+def inner_summary(
+    actuator: str, variant: str, t_end: float = 3.0, dt: float = 1e-3, spec=None
+) -> dict:
+    """Closed-loop poles, damping and step metrics of one continuous joint loop."""
+    plant = PLANTS[actuator]
+    des = design_for(actuator, variant, **(dict(spec or {}) if variant == "redesigned" else {}))
+    poles = closed_loop_poles(des, plant)
+    wn, zeta = damping(poles)
+    num, den = closed_loop_tf(des, plant)
+    t = np.arange(0.0, t_end + dt / 2, dt)
+    y = tf_step(num, den, t)
+    return {
+        "controller": des.as_dict(),
+        "closed_loop_poles": poles,
+        "wn_rad_s": wn,
+        "zeta": zeta,
+        "step": step_metrics(t, y, final=1.0),
+        "t": t,
+        "y": y,
+    }
+
+
+def inner_discrete_loop(
+    design: JointDesign, plant: Plant, dt: float = 1e-3, method: str = "tustin"
+):
+    """Linear closed joint loop at ``dt``: ``(A, B, C)`` from q_ref to q (no saturation).
+
+    Plant ZOH-discretised (exact for the held valve command), controller by
+    ``method`` (see :func:`controllers.joint.leg_state_space`).
+    """
+    ap, bp, cp, dp = _companion(plant.num, plant.den)
+    apd, bpd, cpd, _ = discretise(ap, bp, cp, dp, dt, "zoh")
+    ac, bc, cc, dc = leg_state_space(design, dt, method)
+    npl, nc = apd.shape[0], ac.shape[0]
+    a = np.zeros((npl + nc, npl + nc))
+    a[:npl, :npl] = apd - bpd @ dc @ cpd
+    a[:npl, npl:] = bpd @ cc
+    a[npl:, :npl] = -bc @ cpd
+    a[npl:, npl:] = ac
+    b = np.vstack([bpd @ dc, bc])
+    c = np.hstack([cpd, np.zeros((1, nc))])
+    return a, b, c
+
+
+def lift(a, b, n: int):
+    """State transition over ``n`` fast samples with the input held: ``(A^n, sum A^i B)``."""
+    phi = np.eye(a.shape[0])
+    gam = np.zeros_like(b)
+    for _ in range(n):
+        gam = a @ gam + b
+        phi = a @ phi
+    return phi, gam
+
+
+def _blockdiag(mats):
+    r = sum(m.shape[0] for m in mats)
+    c = sum(m.shape[1] for m in mats)
+    out = np.zeros((r, c))
+    i = j = 0
+    for m in mats:
+        out[i : i + m.shape[0], j : j + m.shape[1]] = m
+        i += m.shape[0]
+        j += m.shape[1]
+    return out
+
+
+def _legs(variant, dt, method, actuators, legs=None, spec=None):
+    if legs is not None:
+        return [tuple(np.atleast_2d(np.asarray(m, float)) for m in leg) for leg in legs]
+    spec = dict(spec or {}) if variant == "redesigned" else {}
+    return [
+        inner_discrete_loop(design_for(act, variant, **spec), PLANTS[act], dt, method)
+        for act in actuators
+    ]
+
+
+def lifted_inner(
+    period: float,
+    variant: str = "corrected",
+    dt: float = 1e-3,
+    method: str = "tustin",
+    actuators=ACTUATORS,
+    legs=None,
+    spec=None,
+):
+    """Inner loops lifted to the outer period: block-diagonal ``(Phi, Gamma, C_q)``.
+
+    ``legs`` (list of fast-rate ``(A, B, C)``) replaces the joint loops, e.g.
+    ``[(0, 1, 1)]`` is exactly the one-sample delay of eq. (21).
+    """
+    n = int(round(period / dt))
+    fast = _legs(variant, dt, method, actuators, legs, spec)
+    lifted = [lift(a, b, n) for a, b, _ in fast]
+    return (
+        _blockdiag([p for p, _ in lifted]),
+        _blockdiag([g for _, g in lifted]),
+        _blockdiag([c for _, _, c in fast]),
+    )
+
+
+def outer_closed_loop(mode: str, gain, period: float, lifted, jac=None, pi_zero: float = 0.2):
+    """Slow-rate closed loop ``(F, G, H)``: outer law around lifted inner loops.
+
+    State ``[xi; x_c]`` (I) or ``[xi; x_c[k-1]; e[k-1]]`` (PI), ``xi`` the
+    inner states at the outer sampling instants. ``jac`` (m x m) maps task to
+    joint deviations (``q_d = J x_c``, ``y = J^-1 q``); default identity
+    (per-leg analysis). ``gain`` is a scalar or one per axis.
+    """
+    phi, gam, cq = lifted
+    m = cq.shape[0]
+    jac = np.eye(m) if jac is None else np.asarray(jac, float)
+    hy = np.linalg.inv(jac) @ cq  # y = hy xi,  e = r - hy xi
+    g = np.diag(np.broadcast_to(np.asarray(gain, float), (m,))) * period
+    nx = phi.shape[0]
+    eye, zero = np.eye(m), np.zeros((m, m))
+    if mode == "I":
+        # q_d[k] = J x_c[k];  xi+ = phi xi + gam J x_c;  x_c+ = x_c + g (r - hy xi)
+        f = np.block([[phi, gam @ jac], [-g @ hy, eye]])
+        gr = np.vstack([np.zeros((nx, m)), g])
+        h = np.hstack([hy, zero])
+    elif mode == "PI":
+        # x_c[k] = x_c[k-1] + g (e[k] + c e[k-1]);  xi+ = phi xi + gam J x_c[k]
+        c = pi_zero
+        gj = gam @ jac
+        f = np.block(
+            [
+                [phi - gj @ g @ hy, gj, c * gj @ g],
+                [-g @ hy, eye, c * g],
+                [-hy, zero, zero],
+            ]
+        )
+        gr = np.vstack([gj @ g, g, eye])
+        h = np.hstack([hy, zero, zero])
+    else:
+        raise ValueError(f"mode must be 'I' or 'PI', got {mode!r}")
+    return f, gr, h
+
+
+def real_inner_closed_loop(
+    mode: str,
+    gain,
+    period: float,
+    variant: str = "corrected",
+    dt: float = 1e-3,
+    method: str = "tustin",
+    jac=None,
+    actuators=ACTUATORS,
+    pi_zero: float = 0.2,
+    legs=None,
+    spec=None,
+):
+    """:func:`outer_closed_loop` around :func:`lifted_inner` (see both)."""
+    lifted = lifted_inner(period, variant, dt, method, actuators, legs, spec)
+    return outer_closed_loop(mode, gain, period, lifted, jac, pi_zero)
+
+
+def spectral_radius(f) -> float:
+    return float(np.max(np.abs(np.linalg.eigvals(f))))
+
+
+def real_inner_limit(
+    mode: str,
+    period: float,
+    g_max: float = 200.0,
+    variant: str = "corrected",
+    dt: float = 1e-3,
+    method: str = "tustin",
+    jac=None,
+    actuators=ACTUATORS,
+    pi_zero: float = 0.2,
+    legs=None,
+    spec=None,
+) -> float:
+    """Largest common ``K K_I`` with the real-inner-loop closed loop stable (rho(F) < 1).
+
+    Scans ``g`` on a log grid from 1e-3 to ``g_max``, then refines the first
+    crossing of ``rho = 1`` with ``brentq`` (``inf`` if none).
+    """
+    from scipy.optimize import brentq
+
+    lifted = lifted_inner(period, variant, dt, method, actuators, legs, spec)
+
+    def rho(g):
+        return spectral_radius(outer_closed_loop(mode, g, period, lifted, jac, pi_zero)[0])
+
+    grid = np.geomspace(1e-3, g_max, 200)
+    vals = np.array([rho(g) for g in grid]) - 1.0
+    if vals[0] >= 0:
+        return 0.0
+    bad = np.nonzero(vals >= 0)[0]
+    if not bad.size:
+        return float("inf")
+    i = bad[0]
+    return float(brentq(lambda g: rho(g) - 1.0, grid[i - 1], grid[i], xtol=1e-10))
+
+
+def real_inner_step(
+    mode: str,
+    gain,
+    period: float,
+    t_end: float,
+    variant: str = "corrected",
+    dt: float = 1e-3,
+    method: str = "tustin",
+    jac=None,
+    actuators=ACTUATORS,
+    pi_zero: float = 0.2,
+    axis: int = 0,
+    legs=None,
+    spec=None,
+):
+    """Task-axis unit-step response at the fast rate with the real inner loops.
+
+    Returns ``(t, y)`` with ``y`` (len(t), m) the task deviations (linear model).
+    """
+    n = int(round(period / dt))
+    legs = _legs(variant, dt, method, actuators, legs, spec)
+    a = _blockdiag([x[0] for x in legs])
+    b = _blockdiag([x[1] for x in legs])
+    cq = _blockdiag([x[2] for x in legs])
+    m = cq.shape[0]
+    jac = np.eye(m) if jac is None else np.asarray(jac, float)
+    jinv = np.linalg.inv(jac)
+    g = np.broadcast_to(np.asarray(gain, float), (m,)) * period
+    r = np.zeros(m)
+    r[axis] = 1.0
+    steps = int(round(t_end / dt))
+    t = np.arange(steps) * dt
+    y = np.zeros((steps, m))
+    xi = np.zeros(a.shape[0])
+    xc = np.zeros(m)
+    e_prev = np.zeros(m)
+    qd = np.zeros(m)
+    for k in range(steps):
+        yk = jinv @ (cq @ xi)
+        y[k] = yk
+        if k % n == 0:
+            e = r - yk
+            if mode == "I":
+                qd = jac @ xc
+                xc = xc + g * e
+            else:
+                xc = xc + g * (e + pi_zero * e_prev)
+                e_prev = e
+                qd = jac @ xc
+        xi = a @ xi + b @ qd
+    return t, y

@@ -1,0 +1,309 @@
+"""Discrete joint controllers of the inner loops (1 ms), paper eqs. (28), (36)-(37).
+
+Each leg runs the eq. (28) controller::
+
+    C(s) = k_p (s + k_i)(s^2 + n1 s + n0) / (s (s^2 + c1 s + c0))
+
+split into an explicit integrator and a biproper, stable remainder
+(partial fractions)::
+
+    C(s) = r0 / s + C_r(s),      r0 = k_p k_i n0 / c0
+
+``C_r(s) = (k_p s^2 + m1 s + m0) / (s^2 + c1 s + c0)`` is realised in
+controllable canonical form. Both parts are discretised with the same method
+(``"tustin"``: bilinear, ``s = (2/T)(z - 1)/(z + 1)``; ``"zoh"``: exact
+zero-order-hold equivalent). Both maps are linear in the system, so the
+discretised sum equals the discretised controller. The integrator in discrete
+form is ``x_I[k+1] = x_I[k] + r0 T e[k]`` with output ``x_I[k] + d_I e[k]``
+(``d_I = r0 T / 2`` for Tustin, ``0`` for ZOH).
+
+The valve command is ``v = u_offset + u`` (5 V = closed centre of the
+MPYE-5 valve) saturated to ``[u_min, u_max]``. Anti-windup acts on the
+integrator state only:
+
+* ``"back_calculation"`` (default): ``x_I += (T / T_t)(v_sat - v)``, the
+  tracking time ``T_t`` a parameter (default 0.05 s);
+* ``"conditional"``: the integrator is held while the output is saturated
+  and the error would drive it further into saturation;
+* ``"none"``.
+
+All three legs are stacked into one 12 x 12 matrix ``M`` so that one step is
+``[x[k+1]; u[k]] = M [x[k]; e[k]]`` plus the saturation: a handful of numpy
+calls on preallocated buffers.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import numpy as np
+
+from .design import (
+    ACTUATORS,
+    PLANTS,
+    VARIANTS,
+    JointDesign,
+    Plant,
+    corrected_design,
+    printed_design,
+    redesigned_design,
+)
+
+__all__ = [
+    "JointControllers",
+    "discretise",
+    "split_integrator",
+    "leg_state_space",
+    "METHODS",
+    "ANTI_WINDUP",
+]
+
+METHODS = ("tustin", "zoh")
+ANTI_WINDUP = ("back_calculation", "conditional", "none")
+_NX = 3  # states per leg: two of C_r, one integrator (last)
+
+
+def discretise(a, b, c, d, dt: float, method: str = "tustin"):
+    """Discrete equivalent of a continuous state-space model.
+
+    Parameters
+    ----------
+    a, b, c, d : array_like
+        Continuous ``x' = a x + b u, y = c x + d u``.
+    dt : float
+        Sampling period (s).
+    method : {"tustin", "zoh"}
+        ``"tustin"``: ``Ad = (I - a T/2)^-1 (I + a T/2)``, ``Bd = (I - a T/2)^-1 b T``,
+        ``Cd = c (I - a T/2)^-1``, ``Dd = d + c (I - a T/2)^-1 b T/2``.
+        ``"zoh"``: ``[[Ad, Bd], [0, I]] = expm([[a, b], [0, 0]] T)``, ``Cd, Dd = c, d``.
+    """
+    a, b, c, d = (np.atleast_2d(np.asarray(m, dtype=float)) for m in (a, b, c, d))
+    n = a.shape[0]
+    if method == "tustin":
+        eye = np.eye(n)
+        inv = np.linalg.inv(eye - a * dt / 2.0)
+        return inv @ (eye + a * dt / 2.0), inv @ b * dt, c @ inv, d + c @ inv @ b * dt / 2.0
+    if method == "zoh":
+        from scipy.linalg import expm
+
+        m = b.shape[1]
+        big = np.zeros((n + m, n + m))
+        big[:n, :n], big[:n, n:] = a, b
+        e = expm(big * dt)
+        return e[:n, :n], e[:n, n:], c.copy(), d.copy()
+    raise ValueError(f"unknown discretisation method {method!r}; allowed: {list(METHODS)}")
+
+
+def split_integrator(design: JointDesign):
+    """Partial fractions ``C(s) = r0 / s + (k_p s^2 + m1 s + m0) / (s^2 + c1 s + c0)``.
+
+    Returns ``(r0, (kp, m1, m0))``.
+    """
+    r0 = design.kp * design.ki * design.n0 / design.c0
+    num = design.num  # degree 3
+    rest = np.polysub(num, r0 * np.array([1.0, design.c1, design.c0]))
+    # rest(0) == 0 by construction: divide by s
+    kp, m1, m0 = rest[0], rest[1], rest[2]
+    return float(r0), (float(kp), float(m1), float(m0))
+
+
+def leg_state_space(design: JointDesign, dt: float, method: str = "tustin"):
+    """Discrete ``(A, B, C, D)`` of one leg's controller, states ``[x_r1, x_r2, x_I]``."""
+    r0, (kp, m1, m0) = split_integrator(design)
+    c1, c0 = design.c1, design.c0
+    # C_r = kp + ((m1 - kp c1) s + (m0 - kp c0)) / (s^2 + c1 s + c0), controllable form
+    ar = np.array([[0.0, 1.0], [-c0, -c1]])
+    br = np.array([[0.0], [1.0]])
+    cr = np.array([[m0 - kp * c0, m1 - kp * c1]])
+    dr = np.array([[kp]])
+    ad, bd, cd, dd = discretise(ar, br, cr, dr, dt, method)
+    a = np.zeros((_NX, _NX))
+    a[:2, :2] = ad
+    a[2, 2] = 1.0
+    b = np.vstack([bd, [[r0 * dt]]])
+    c = np.hstack([cd, [[1.0]]])
+    d = dd + (r0 * dt / 2.0 if method == "tustin" else 0.0)
+    return a, b, c, d
+
+
+class JointControllers:
+    """The three discrete joint controllers (eq. 28), vectorised over the legs.
+
+    Parameters
+    ----------
+    variant : {"corrected", "printed", "redesigned"}
+        ``"printed"``: eqs. (36)-(37) verbatim (numerator ``s^2 + 7.726 s + a0``).
+        ``"corrected"``: the numerator quadratic equals the plant's
+        (27.72 for actuator 1, 7.276 for 2-3) so it cancels the plant poles.
+        ``"redesigned"``: pole placement for ``zeta = 0.7, wn = 10 rad/s``
+        (:func:`controllers.design.redesigned_design`; ``spec`` overrides).
+    dt : float
+        Sampling period, s (paper: 1 ms).
+    method : {"tustin", "zoh"}
+        Discretisation of the continuous controller.
+    u_offset, u_min, u_max : float
+        Valve command ``v = u_offset + u``, saturated to ``[u_min, u_max]`` V.
+    anti_windup : {"back_calculation", "conditional", "none"}
+    tracking_time : float
+        Back-calculation time constant ``T_t`` (s).
+    spec : mapping, optional
+        ``zeta, wn, p1, p2`` for ``variant="redesigned"``.
+    designs : sequence of 3 JointDesign, optional
+        Explicit controllers per leg (overrides ``variant``).
+    plants : sequence of 3 Plant, optional
+        Plants used by the ``corrected``/``redesigned`` designs (default eqs. 34-35).
+
+    Notes
+    -----
+    Per leg, with ``e = q_ref - q_meas`` (m)::
+
+        u[k]    = C x[k] + D e[k]
+        v[k]    = sat(u_offset + u[k])
+        x[k+1]  = A x[k] + B e[k] + L (v[k] - u_offset - u[k])   (back-calculation)
+
+    where ``L = T / T_t`` on the integrator state only.
+    """
+
+    def __init__(
+        self,
+        variant: str = "corrected",
+        *,
+        dt: float = 0.001,
+        method: str = "tustin",
+        u_offset: float = 5.0,
+        u_min: float = 0.0,
+        u_max: float = 10.0,
+        anti_windup: str = "back_calculation",
+        tracking_time: float = 0.05,
+        spec: Mapping | None = None,
+        designs=None,
+        plants=None,
+    ):
+        if variant not in VARIANTS:
+            raise ValueError(f"unknown variant {variant!r}; allowed: {list(VARIANTS)}")
+        if method not in METHODS:
+            raise ValueError(f"unknown method {method!r}; allowed: {list(METHODS)}")
+        if anti_windup not in ANTI_WINDUP:
+            raise ValueError(f"unknown anti_windup {anti_windup!r}; allowed: {list(ANTI_WINDUP)}")
+        if not (np.isfinite(dt) and dt > 0):
+            raise ValueError(f"dt must be a positive number of seconds, got {dt!r}")
+        if not (np.isfinite(tracking_time) and tracking_time > 0):
+            raise ValueError(f"tracking_time must be > 0 s, got {tracking_time!r}")
+        if not (u_min < u_max):
+            raise ValueError(f"need u_min < u_max, got {u_min} and {u_max}")
+        if spec is not None and variant != "redesigned":
+            raise ValueError("spec is only used with variant='redesigned'")
+        spec = dict(spec or {})
+        unknown = set(spec) - {"zeta", "wn", "p1", "p2"}
+        if unknown:
+            raise ValueError(f"unknown spec keys {sorted(unknown)}; allowed: zeta, wn, p1, p2")
+        self.variant = variant
+        self.dt = float(dt)
+        self.method = method
+        self.u_offset, self.u_min, self.u_max = float(u_offset), float(u_min), float(u_max)
+        self.anti_windup = anti_windup
+        self.tracking_time = float(tracking_time)
+        if plants is None:
+            plants = [PLANTS[a] for a in ACTUATORS]
+        plants = list(plants)
+        if len(plants) != 3 or not all(isinstance(p, Plant) for p in plants):
+            raise ValueError("plants must be a sequence of 3 Plant")
+        if designs is None:
+            designs = []
+            for act, plant in zip(ACTUATORS, plants, strict=True):
+                if variant == "printed":
+                    designs.append(printed_design(act))
+                elif variant == "corrected":
+                    designs.append(corrected_design(act, plant))
+                else:
+                    designs.append(redesigned_design(act, plant=plant, **spec))
+        designs = list(designs)
+        if len(designs) != 3 or not all(isinstance(d, JointDesign) for d in designs):
+            raise ValueError("designs must be a sequence of 3 JointDesign")
+        self.designs = tuple(designs)
+        self.plants = tuple(plants)
+
+        n = 3 * _NX
+        m = np.zeros((n + 3, n + 3))
+        r0 = np.empty(3)
+        for i, des in enumerate(self.designs):
+            a, b, c, d = leg_state_space(des, self.dt, method)
+            s = slice(_NX * i, _NX * (i + 1))
+            m[s, s] = a
+            m[s, n + i] = b[:, 0]
+            m[n + i, s] = c[0]
+            m[n + i, n + i] = d[0, 0]
+            r0[i] = split_integrator(des)[0]
+        self._m = m
+        self._n = n
+        self._int_idx = np.arange(_NX - 1, n, _NX)  # integrator states
+        self._int_gain = r0 * self.dt  # increment of x_I per unit error
+        self._r0 = r0
+        self._aw = self.dt / self.tracking_time
+        self._z = np.zeros(n + 3)  # [x; e]
+        self._w = np.zeros(n + 3)  # [x_next; u]
+        self._v = np.zeros(3)
+        self._corr = np.zeros(3)
+
+    # ------------------------------------------------------------------
+    @property
+    def matrices(self) -> np.ndarray:
+        """The stacked ``[[A, B], [C, D]]`` (12 x 12) of the three legs (copy)."""
+        return self._m.copy()
+
+    @property
+    def state(self) -> np.ndarray:
+        """Controller states (3 legs x 3), integrator last (copy)."""
+        return self._z[: self._n].reshape(3, _NX).copy()
+
+    @property
+    def integrator(self) -> np.ndarray:
+        """The integrator state of each leg, volts (copy)."""
+        return self._z[self._int_idx].copy()
+
+    @property
+    def last_unsaturated(self) -> np.ndarray:
+        """``u_offset + u`` before saturation at the last update (V, copy)."""
+        return self._w[self._n :] + self.u_offset
+
+    def reset(self) -> None:
+        """Zero every state: the next command is ``u_offset`` for zero error."""
+        self._z[:] = 0.0
+        self._w[:] = 0.0
+
+    def update(self, q_ref, q_meas) -> np.ndarray:
+        """One 1 ms step: joint references and measurements (m) -> valve volts (3,).
+
+        Parameters
+        ----------
+        q_ref, q_meas : array_like, (3,)
+            Desired and measured cylinder extensions (m).
+
+        Returns
+        -------
+        ndarray, (3,)
+            Valve commands in ``[u_min, u_max]`` V.
+        """
+        z, w, n = self._z, self._w, self._n
+        np.subtract(q_ref, q_meas, out=z[n:])
+        np.dot(self._m, z, out=w)  # w = [x_next; u]
+        v = self._v
+        np.add(w[n:], self.u_offset, out=v)
+        if self.anti_windup == "back_calculation":
+            corr = self._corr
+            np.clip(v, self.u_min, self.u_max, out=corr)
+            corr -= v  # v_sat - v
+            np.clip(v, self.u_min, self.u_max, out=v)
+            corr *= self._aw
+            w[self._int_idx] += corr
+        elif self.anti_windup == "conditional":
+            e = z[n:]
+            push = self._int_gain * e
+            hold = ((v > self.u_max) & (push > 0)) | ((v < self.u_min) & (push < 0))
+            if hold.any():
+                w[self._int_idx] -= np.where(hold, push, 0.0)
+            np.clip(v, self.u_min, self.u_max, out=v)
+        else:
+            np.clip(v, self.u_min, self.u_max, out=v)
+        z[:n] = w[:n]
+        return v.copy()

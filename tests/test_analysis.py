@@ -1,0 +1,149 @@
+"""Stability analysis: Jury limits worked by hand, lifted inner loops, CLI contract."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from controllers import analysis as an
+from controllers.analysis import (
+    closed_form_limit,
+    jury_stable,
+    outer_poles,
+    outer_polynomials,
+    real_inner_closed_loop,
+    real_inner_limit,
+    stability_limit,
+    step_metrics,
+    tf_step,
+)
+
+T = 0.06
+
+
+def test_jury_matches_roots_on_random_polynomials():
+    rng = np.random.default_rng(1)
+    checked = 0
+    for _ in range(500):
+        n = int(rng.integers(1, 6))
+        r = rng.uniform(0.1, 1.4, n) * np.exp(1j * rng.uniform(0, np.pi, n))
+        roots = np.r_[r, r.conj()]
+        if abs(np.abs(roots).max() - 1) < 1e-3:
+            continue
+        coeffs = np.real(np.poly(roots)) * rng.uniform(0.5, 3) * rng.choice([-1, 1])
+        assert jury_stable(coeffs) == (np.abs(roots).max() < 1)
+        checked += 1
+    assert checked > 400
+
+
+def test_I_limit_by_hand_jury():
+    """z^2 - z + gT: |a0| < 1 -> gT < 1; P(1) = gT > 0; P(-1) = 2 + gT > 0."""
+    hand = 1.0 / T  # 16.67, the paper says 20
+    a, b = outer_polynomials("I", T)
+    np.testing.assert_allclose(np.polyadd(a, 3.0 * b), [1, -1, 3.0 * T])
+    assert stability_limit(a, b) == pytest.approx(hand, rel=1e-9)
+    assert closed_form_limit("I", T) == pytest.approx(hand)
+    assert max(abs(outer_poles("I", hand * 0.999, T))) < 1
+    assert max(abs(outer_poles("I", hand * 1.001, T))) > 1
+    assert max(abs(outer_poles("I", 20.0, T))) > 1  # the paper's limit is already unstable
+    # at K K_I = 3 the poles are real (overdamped, as the paper says): 1 - 4 gT > 0
+    assert np.all(np.abs(outer_poles("I", 3.0, T).imag) < 1e-12)
+
+
+def test_PI_limit_by_hand_jury():
+    """z^2 + (gT - 1) z + c gT: c gT < 1 and P(-1) = 2 - gT + c gT > 0."""
+    c = 0.2
+    hand = min(1 / (c * T), 2 / ((1 - c) * T))  # min(83.3, 41.7)
+    a, b = outer_polynomials("PI", T, pi_zero=c)
+    np.testing.assert_allclose(np.polyadd(a, 20 * b), [1, 20 * T - 1, c * 20 * T])
+    assert stability_limit(a, b) == pytest.approx(hand, rel=1e-9)
+    assert hand == pytest.approx(41.667, abs=1e-3)
+    # at the limit a root sits at z = -1 (P(-1) = 0)
+    assert np.min(np.abs(outer_poles("PI", hand, T) + 1)) < 1e-9
+    assert max(abs(outer_poles("PI", 50.0, T))) > 1  # the paper's 50 is unstable
+
+
+def test_two_sample_delay_limit_by_hand():
+    """z^3 - z^2 + gT (T = 30 ms, q(k) = q_d(k-2)): Jury 1 - (gT)^2 > |gT * (-1) - 0|."""
+    t30 = 0.03
+    hand = (np.sqrt(5) - 1) / 2 / t30
+    a, b = outer_polynomials("I", t30, delay=2)
+    assert stability_limit(a, b) == pytest.approx(hand, rel=1e-9)
+    assert closed_form_limit("I", t30, delay=2) == pytest.approx(hand)
+
+
+@pytest.mark.parametrize("mode, gain", [("I", 3.0), ("PI", 20.0)])
+def test_lifted_pure_delay_reproduces_delay_model(mode, gain):
+    f, _, _ = real_inner_closed_loop(mode, gain, T, legs=[(0.0, 1.0, 1.0)])
+    ev = np.linalg.eigvals(f)
+    want = outer_poles(mode, gain, T)
+    ev = ev[np.abs(ev) > 1e-12]  # the PI realisation adds a pole at 0
+    np.testing.assert_allclose(np.sort_complex(ev), np.sort_complex(want), atol=1e-12)
+    assert real_inner_limit(mode, T, legs=[(0.0, 1.0, 1.0)]) == pytest.approx(
+        stability_limit(*outer_polynomials(mode, T)), rel=1e-6
+    )
+
+
+def test_real_inner_loop_lowers_limit_unless_inner_is_fast():
+    """The zeta~1, wn~6.7 rad/s joint loop reaches < 50 % of a step in 60 ms: not a delay."""
+    delay_lim = 1 / T
+    slow = real_inner_limit("I", T, variant="corrected", actuators=("actuator2",))
+    assert slow < 0.7 * delay_lim
+    wn = 160.0
+    spec = {"zeta": 0.7, "wn": wn, "p1": 7.6 * wn, "p2": 5.67 * wn}
+    fast = real_inner_limit("I", T, variant="redesigned", actuators=("actuator2",), spec=spec)
+    assert fast == pytest.approx(delay_lim, rel=0.01)
+
+
+def test_step_metrics_second_order():
+    zeta, wn = 0.5, 4.0
+    t = np.arange(0, 6, 1e-3)
+    y = tf_step([wn**2], [1, 2 * zeta * wn, wn**2], t)
+    m = step_metrics(t, y, final=1.0)
+    assert m["overshoot_pct"] == pytest.approx(
+        100 * np.exp(-np.pi * zeta / np.sqrt(1 - zeta**2)), abs=0.05
+    )
+    # 2 % settling of the envelope ~ 4 / (zeta wn) = 2 s (the last crossing is earlier)
+    assert 1.0 < m["settling_time_s"] < 2.1
+
+
+def test_inner_summary_corrected_cancels_plant():
+    s = an.inner_summary("actuator2", "corrected", t_end=1.0)
+    poles = s["closed_loop_poles"]
+    plant = np.roots([1, 7.276, 1349])
+    for p in plant:
+        assert np.min(np.abs(poles - p)) < 1e-9  # the cancelled mode stays in the loop
+
+
+def test_cli_json_contract(capsys, tmp_path):
+    from simpro_mj.cli import main
+
+    rc = main(["analyze", "--json", "--out", str(tmp_path)])
+    out = capsys.readouterr().out
+    assert rc == 0
+    d = json.loads(out)
+    assert d["outer"]["I"]["stability_limit"] == pytest.approx(1 / T)
+    assert d["outer"]["PI"]["stability_limit"] == pytest.approx(2 / (0.8 * T))
+    for act in ("actuator1", "actuator2"):
+        for var in ("printed", "corrected"):
+            poles = np.array(d["inner"][act][var]["closed_loop_poles"])
+            assert poles.shape == (6, 2)
+            assert np.all(poles[:, 0] < 0)
+    assert {p.split("/")[-1] for p in d["plots"]} >= {"root_locus_I.png", "root_locus_PI.png"}
+    for p in d["plots"]:
+        assert (tmp_path / p.split("/")[-1]).stat().st_size > 1000
+
+
+def test_cli_set_and_bad_set(capsys):
+    from simpro_mj.cli import main
+
+    rc = main(["analyze", "--json", "--no-plots", "--set", "outer.period_s=0.03"])
+    d = json.loads(capsys.readouterr().out)
+    assert rc == 0
+    assert d["outer"]["I"]["stability_limit"] == pytest.approx(1 / 0.03)
+    assert main(["analyze", "--no-plots", "--set", "outer.period_s=0.0305"]) == 2
+    assert "outer.period_s" in capsys.readouterr().err
+    assert main(["analyze", "--no-plots", "--set", "inner.varaint=printed"]) == 2
+    assert "inner.varaint" in capsys.readouterr().err
