@@ -1,0 +1,81 @@
+"""``simpro-sim compare SCENARIO``: joint-only vs task-space control (paper Fig. 15 a/b)."""
+
+from __future__ import annotations
+
+import copy
+from pathlib import Path
+
+HELP = "run a scenario with joint-only and with task-space control on the same plant and seed"
+
+
+def add_arguments(parser) -> None:
+    parser.add_argument("scenario", help="shipped scenario name or a path")
+    parser.add_argument(
+        "--out", default=None, help="result folder (default results/<name>-compare)"
+    )
+    parser.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
+
+
+def compare(scenario: dict, out: Path, plots: bool = True) -> dict:
+    """Run both modes into ``out/joint_only`` and ``out/task_space``; returns both metrics."""
+    from .cmd_run import execute
+
+    results, metrics = {}, {}
+    for mode in ("joint_only", "task_space"):
+        sc = copy.deepcopy(scenario)
+        sc["controller"]["mode"] = mode
+        res, met = execute(sc, out / mode, plots=plots)
+        results[mode], metrics[mode] = res, met
+    if plots:
+        from .plots import plot_compare
+
+        plot_compare(results["joint_only"].columns, results["task_space"].columns, scenario, out)
+    return {"metrics": metrics, "results": results}
+
+
+def _table(metrics: dict) -> str:
+    rows = ["axis   metric                 joint_only    task_space"]
+    units = {
+        "roll": ("deg", 57.29577951308232),
+        "pitch": ("deg", 57.29577951308232),
+        "heave": ("mm", 1e3),
+    }
+    for axis, (unit, scale) in units.items():
+        for key, label, s in (
+            ("steady_state_error", f"ss error [{unit}]", scale),
+            ("rise_time_s", "rise time [s]", 1.0),
+            ("settling_time_s", "settling [s]", 1.0),
+            ("overshoot_pct", "overshoot [%]", 1.0),
+        ):
+            vals = []
+            for mode in ("joint_only", "task_space"):
+                v = metrics[mode]["axes"][axis].get(key)
+                vals.append("-" if v is None else f"{v * s:.4g}")
+            rows.append(f"{axis:6s} {label:22s} {vals[0]:>10s}    {vals[1]:>10s}")
+    return "\n".join(rows)
+
+
+def run(args) -> int:
+    import json
+
+    from .scenario import load_scenario
+
+    scenario = load_scenario(args.scenario, args.sets)
+    out = Path(args.out) if args.out else Path("results") / f"{scenario['name']}-compare"
+    both = compare(scenario, out, plots=not args.no_plots)
+    metrics = both["metrics"]
+    table = _table(metrics)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "comparison.txt").write_text(table + "\n")
+    (out / "comparison.json").write_text(json.dumps(metrics, indent=2, default=float))
+    if args.json:
+        from .cli import emit_json
+
+        emit_json(metrics)
+    else:
+        print(table)
+        for mode, met in metrics.items():
+            if met["status"] != "ok":
+                print(f"{mode} DIVERGED: {met['reason']}")
+        print(f"results: {out}")
+    return 0 if all(m["status"] == "ok" for m in metrics.values()) else 1

@@ -1,0 +1,294 @@
+"""Writing a run's results folder, atomically, and printing its summary.
+
+A results folder holds:
+
+* ``timeseries.csv``: one row per logged sample, a header of column names
+  with their units (``time_s``, ``roll_rad``, ``p1a_pa``, ...), SI values with
+  12 significant digits;
+* ``metrics.json``: ``status`` (ok | diverged), ``reason``, the scenario's
+  name and hash, ``axes`` and ``joints`` (:func:`simpro_mj.metrics.compute_metrics`),
+  the metric ``definitions``, a ``sim`` block (deterministic figures, with the
+  wall-clock ones such as ``realtime_factor`` apart under ``sim.wall_clock``)
+  and ``versions``;
+* ``scenario.yaml``: the resolved scenario (loads back to the same hash);
+* the PNG figures of :func:`simpro_mj.plots.plot_run`.
+
+The folder is written under a temporary name next to ``out_dir`` and renamed
+into place when complete. An existing ``out_dir`` is first renamed aside and
+deleted only after the new folder is in place, so a reader never sees a
+partial folder (on POSIX, ``out_dir`` is briefly absent between the two
+renames: directories cannot be swapped atomically there).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import platform
+import shutil
+import sys
+import tempfile
+from collections.abc import Mapping
+from importlib import metadata
+from pathlib import Path
+from typing import Any, TextIO
+
+import numpy as np
+import yaml
+
+from .errors import UserInputError
+from .scenario import scenario_hash
+
+__all__ = [
+    "write_results",
+    "write_timeseries",
+    "read_timeseries",
+    "versions",
+    "print_summary",
+    "STATUSES",
+    "WALL_CLOCK_KEYS",
+]
+
+STATUSES = ("ok", "diverged")
+#: ``extra["sim"]`` keys that depend on the machine, not on the scenario.
+WALL_CLOCK_KEYS = ("realtime_factor", "wall_time_s", "wall_s", "elapsed_s", "steps_per_s", "host")
+_RESERVED = {"status", "reason", "scenario", "axes", "joints", "metrics", "sim", "versions"}
+
+
+def versions(resolved: Mapping | None = None) -> dict:
+    """Versions of simpro-sim and its numerical dependencies (and the scenario hash)."""
+
+    def dist(name: str) -> str | None:
+        try:
+            return metadata.version(name)
+        except metadata.PackageNotFoundError:
+            return None
+
+    from . import __version__
+
+    out = {
+        "simpro-sim": __version__,
+        "mujoco": dist("mujoco"),
+        "numpy": np.__version__,
+        "python-control": dist("control"),
+        "python": platform.python_version(),
+    }
+    if resolved is not None:
+        out["scenario_hash"] = scenario_hash(resolved)
+    return out
+
+
+def _jsonable(obj: Any) -> Any:
+    """Plain JSON types: numpy scalars/arrays converted, NaN and inf as null."""
+    if isinstance(obj, Mapping):
+        return {str(k): _jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_jsonable(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return _jsonable(obj.tolist())
+    if isinstance(obj, (bool, np.bool_)):
+        return bool(obj)
+    if isinstance(obj, (int, np.integer)):
+        return int(obj)
+    if isinstance(obj, (float, np.floating)):
+        x = float(obj)
+        return x if math.isfinite(x) else None
+    if isinstance(obj, Path):
+        return str(obj)
+    return obj
+
+
+def write_timeseries(path, columns: Mapping[str, np.ndarray]) -> Path:
+    """Write columns as CSV in one numpy call: header of names, ``%.12g`` values.
+
+    Raises
+    ------
+    ValueError
+        If the columns differ in length, are not 1-D, or a name contains a comma.
+    """
+    path = Path(path)
+    names = list(columns)
+    if "time_s" in names:  # time first
+        names.remove("time_s")
+        names.insert(0, "time_s")
+    for name in names:
+        if "," in name or "\n" in name:
+            raise ValueError(f"column name {name!r} cannot go into a CSV header")
+    arrays = [np.asarray(columns[n], dtype=float) for n in names]
+    lengths = {a.shape for a in arrays}
+    if len(lengths) > 1 or (arrays and arrays[0].ndim != 1):
+        shapes = {n: a.shape for n, a in zip(names, arrays, strict=True)}
+        raise ValueError(f"columns must be 1-D and of equal length, got {shapes}")
+    data = np.column_stack(arrays) if arrays else np.empty((0, 0))
+    np.savetxt(path, data, fmt="%.12g", delimiter=",", header=",".join(names), comments="")
+    return path
+
+
+def read_timeseries(path) -> dict[str, np.ndarray]:
+    """Read a ``timeseries.csv`` back into columns."""
+    path = Path(path)
+    with path.open(encoding="utf-8") as fh:
+        names = fh.readline().strip().split(",")
+    data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+    if data.size == 0:
+        return {n: np.empty(0) for n in names}
+    return {n: data[:, i] for i, n in enumerate(names)}
+
+
+def _sim_block(sim: Mapping | None) -> dict:
+    sim = dict(sim or {})
+    wall = dict(sim.pop("wall_clock", {}) or {})
+    for key in list(sim):
+        if key in WALL_CLOCK_KEYS:
+            wall[key] = sim.pop(key)
+    sim["wall_clock"] = wall
+    return sim
+
+
+def write_results(
+    out_dir,
+    columns: Mapping[str, np.ndarray],
+    metrics: Mapping,
+    scenario: Mapping,
+    extra: Mapping | None = None,
+) -> Path:
+    """Write a complete results folder atomically and return its path.
+
+    Parameters
+    ----------
+    out_dir : path
+        The folder to create (replaced if it exists; its parent is created).
+    columns : mapping of str to ndarray
+        Logged time series, SI, names with units (``time_s``, ``roll_rad``, ...).
+    metrics : mapping
+        :func:`simpro_mj.metrics.compute_metrics` output.
+    scenario : mapping
+        The resolved scenario.
+    extra : mapping, optional
+        ``status`` ("ok" or "diverged"; default ``metrics["status"]``, else
+        "ok"), ``reason`` (why it diverged; default ``metrics["reason"]``),
+        ``sim`` (figures of the simulation: steps, physics step, ...; wall-clock
+        keys go to ``sim.wall_clock``), ``plots`` (False: no PNGs). Any other
+        key is copied into ``metrics.json`` as is.
+
+    Returns
+    -------
+    Path
+        ``out_dir`` (absolute).
+
+    Raises
+    ------
+    UserInputError
+        If ``out_dir`` exists and is not a folder.
+    ValueError
+        Unknown status, or unequal column lengths.
+    """
+    extra = dict(extra or {})
+    out_dir = Path(out_dir).expanduser().absolute()
+    if out_dir.exists() and not out_dir.is_dir():
+        raise UserInputError(f"not a folder at {out_dir}: allowed: a new or existing folder")
+    status = extra.pop("status", metrics.get("status", "ok"))
+    if status not in STATUSES:
+        raise ValueError(f"status must be one of {STATUSES}, got {status!r}")
+    reason = extra.pop("reason", metrics.get("reason"))
+    make_plots = bool(extra.pop("plots", True))
+    doc: dict = {
+        "status": status,
+        "reason": reason,
+        "scenario": {"name": scenario.get("name"), "hash": scenario_hash(scenario)},
+        "axes": metrics.get("axes", {}),
+        "joints": metrics.get("joints", {}),
+        "metrics": {k: v for k, v in metrics.items() if k not in _RESERVED},
+        "sim": _sim_block(extra.pop("sim", None)),
+        "versions": versions(scenario),
+    }
+    for key, value in extra.items():
+        doc[key if key not in _RESERVED else f"extra_{key}"] = value
+
+    out_dir.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.tmp-", dir=out_dir.parent))
+    old = None
+    try:
+        write_timeseries(tmp / "timeseries.csv", columns)
+        text = json.dumps(_jsonable(doc), indent=2, allow_nan=False)
+        (tmp / "metrics.json").write_text(text + "\n", encoding="utf-8")
+        with (tmp / "scenario.yaml").open("w", encoding="utf-8") as fh:
+            fh.write(f"# resolved scenario, sha256 {doc['scenario']['hash']}\n")
+            yaml.safe_dump(_jsonable(scenario), fh, sort_keys=False, default_flow_style=None)
+        if make_plots:
+            from .plots import plot_run
+
+            plot_run(columns, scenario, tmp)
+        if out_dir.exists():
+            old = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.old-", dir=out_dir.parent))
+            old.rmdir()
+            out_dir.rename(old)
+        try:
+            tmp.rename(out_dir)
+        except OSError:
+            if old is not None:
+                old.rename(out_dir)  # put the previous results back
+                old = None
+            raise
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    if old is not None:
+        shutil.rmtree(old, ignore_errors=True)
+    return out_dir
+
+
+def _fmt(value, scale: float = 1.0, digits: int = 3) -> str:
+    if value is None or (isinstance(value, float) and not math.isfinite(value)):
+        return "-"
+    return f"{value * scale:.{digits}f}"
+
+
+def print_summary(metrics: Mapping, out_dir=None, file: TextIO | None = None) -> None:
+    """Print a short table of the figures per axis and where the files are.
+
+    Parameters
+    ----------
+    metrics : mapping
+        :func:`simpro_mj.metrics.compute_metrics` output or a loaded ``metrics.json``.
+    out_dir : path, optional
+        The results folder (listed if given).
+    file : text stream, optional
+        Default ``sys.stdout``.
+    """
+    file = sys.stdout if file is None else file
+    axes = metrics.get("axes", {})
+    status = metrics.get("status")
+    if status:
+        reason = metrics.get("reason")
+        print(f"status: {status}" + (f" ({reason})" if reason else ""), file=file)
+    header = f"{'axis':<6} {'ss error':>14} {'rise [s]':>9} {'settling [s]':>13} {'overshoot':>10}"
+    print(header, file=file)
+    print("-" * len(header), file=file)
+    for axis, unit, scale in (
+        ("roll", "deg", 180.0 / math.pi),
+        ("pitch", "deg", 180.0 / math.pi),
+        ("heave", "mm", 1e3),
+    ):
+        m = axes.get(axis)
+        if not m:
+            continue
+        sse = _fmt(m.get("steady_state_error"), scale, 4)
+        sse = f"{sse} {unit}" if sse != "-" else sse
+        over = _fmt(m.get("overshoot_pct"), 1.0, 1)
+        over = f"{over} %" if over != "-" else over
+        print(
+            f"{axis:<6} {sse:>14} {_fmt(m.get('rise_time_s')):>9} "
+            f"{_fmt(m.get('settling_time_s')):>13} {over:>10}",
+            file=file,
+        )
+    window = metrics.get("final_window_s") or metrics.get("metrics", {}).get("final_window_s")
+    if window:
+        print(f"(ss error: mean of reference - true pose over {window[0]:.2f}..{window[1]:.2f} s)",
+              file=file)  # fmt: skip
+    if out_dir is not None:
+        out_dir = Path(out_dir)
+        files = sorted(p.name for p in out_dir.iterdir()) if out_dir.is_dir() else []
+        print(f"results: {out_dir}", file=file)
+        if files:
+            print("  " + ", ".join(files), file=file)

@@ -1,0 +1,763 @@
+"""Scenarios: YAML documents describing one run, validated on load.
+
+A scenario names the controller, actuator model, as-built plant, sensors,
+set-point profile, duration and seed of one co-simulation run. Files carry
+units in the key names (``duration_s``, ``pitch_deg``, ``heave_mm``);
+:func:`reference` turns the set-point profile into SI poses.
+
+Resolution order (:func:`load_scenario`)
+----------------------------------------
+1. :data:`DEFAULT_SCENARIO` (every key, every default, in one place);
+2. the file, deep-merged over it (mappings merge key by key; lists and
+   scalars replace);
+3. ``--set KEY=VALUE`` overrides in order (a mapping value merges, anything
+   else replaces);
+4. validation: unknown keys (with the closest valid key), types, ranges,
+   enumerations, set-point components, and the reachability of the set-point
+   profile on the 1 ms physics grid (unless ``controller.clamp_setpoints``).
+
+The result is the *resolved* scenario: a plain, JSON-compatible dict with
+every key present, numbers normalised to the defaults' types (so that
+:func:`scenario_hash` does not depend on ``15`` vs ``15.0``) and every
+set-point component spelled out with its optional keys.
+
+Set-point components
+--------------------
+Each axis (``setpoint.roll_deg``, ``pitch_deg``, ``heave_mm``) is a list of
+components summed on top of the home pose (heave relative to the home height
+1265 mm), in the axis' unit:
+
+* ``{type: step, time_s, value}``: ``value`` from ``time_s`` on (t >= time_s);
+* ``{type: ramp, start_s, end_s, value}``: 0 before ``start_s``, linear to
+  ``value`` at ``end_s``, held after;
+* ``{type: sine, amplitude, period_s, phase_deg: 0, start_s: 0, end_s: null}``:
+  ``amplitude sin(2 pi (t - start_s) / period_s + phase)`` for
+  ``start_s <= t < end_s`` (``null``: to the end), 0 elsewhere; the phase is
+  counted from ``start_s``, so phase 0 starts at zero;
+* ``{type: table, times_s: [...], values: [...]}``: piecewise linear through
+  the points, times strictly increasing, the first/last value held outside.
+
+Every error is a :class:`~simpro_mj.errors.UserInputError` whose one-line
+message reads ``<what> at <dotted.path>: <what is allowed>``.
+"""
+
+from __future__ import annotations
+
+import copy
+import hashlib
+import json
+import math
+import os
+import re
+from collections.abc import Iterable, Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from controllers.errors import WorkspaceError
+from controllers.geometry import nominal_geometry
+from controllers.kinematics import check_reachable, reachable
+
+from .errors import UserInputError
+from .model import DEFAULT_MODEL_PARAMS
+from .params import closest, parse_set
+
+__all__ = [
+    "DEFAULT_SCENARIO",
+    "PHYSICS_DT_S",
+    "MODES",
+    "OUTER_TYPES",
+    "INNER_VARIANTS",
+    "DISCRETISATIONS",
+    "ACTUATOR_MODELS",
+    "COMPONENT_TYPES",
+    "SetpointError",
+    "scenarios_dir",
+    "shipped_scenarios",
+    "load_scenario",
+    "resolve_scenario",
+    "validate_scenario",
+    "check_setpoints",
+    "reference",
+    "scenario_hash",
+]
+
+#: Physics step of ``models/simpro_platform.xml`` (s); periods are multiples of it.
+PHYSICS_DT_S = 0.001
+_PHYSICS_DT_MS = 1
+
+MODES = ("joint_only", "task_space")
+OUTER_TYPES = ("I", "PI")
+INNER_VARIANTS = ("printed", "corrected", "redesigned")
+DISCRETISATIONS = ("tustin", "zoh")
+ACTUATOR_MODELS = ("nonlinear", "linear")
+DELAY_SAMPLES = (1, 2)
+SETPOINT_AXES = ("roll_deg", "pitch_deg", "heave_mm")
+
+#: Set-point component types: required keys, optional keys with their defaults.
+COMPONENT_TYPES: dict[str, tuple[tuple[str, ...], dict[str, Any]]] = {
+    "step": (("time_s", "value"), {}),
+    "ramp": (("start_s", "end_s", "value"), {}),
+    "sine": (("amplitude", "period_s"), {"phase_deg": 0.0, "start_s": 0.0, "end_s": None}),
+    "table": (("times_s", "values"), {}),
+}
+
+
+def _merge(base: Mapping, over: Mapping) -> dict:
+    """Deep merge: a copy of ``base`` with ``over`` applied (mappings merge, others replace)."""
+    out = copy.deepcopy(dict(base))
+    for key, value in over.items():
+        if isinstance(value, Mapping) and isinstance(out.get(key), Mapping):
+            out[key] = _merge(out[key], value)
+        else:
+            out[key] = copy.deepcopy(value)
+    return out
+
+
+#: Every key of a scenario with its default. A file is merged over this tree.
+DEFAULT_SCENARIO: dict = {
+    # a name for the run (file stem if empty); letters, digits, '_', '-', '.'
+    "name": "",
+    "description": "",
+    "duration_s": 15.0,
+    # seed of every random draw of the run (sensor noise)
+    "seed": 1,
+    "controller": {
+        "mode": "task_space",  # joint_only (Fig. 15a) | task_space (Fig. 15b)
+        "outer": {
+            "type": "I",  # I (eq. 22) | PI (section 4)
+            # K * K_I per axis (roll, pitch, heave), 1/s; section 5.2.3 uses 3
+            "gains": [3.0, 3.0, 3.0],
+            # c of the PI law T (z + c)/(z - 1), section 4; used with type PI only
+            "pi_zero": 0.2,
+            # outer sampling period T, an integer multiple of the 1 ms physics step
+            "period_ms": 60,
+            # inner loop as a delay in the analysis: 1 sample (60 ms, eq. 21) or 2
+            "delay_samples": 1,
+        },
+        "inner": {
+            # joint controllers: eqs. (36)-(37) printed | corrected | redesigned
+            "variant": "corrected",
+            "discretisation": "tustin",  # tustin | zoh
+        },
+        # unreachable set-points: reject at load time (false) or clamp (true)
+        "clamp_setpoints": False,
+    },
+    "actuator": {
+        "model": "nonlinear",  # nonlinear (Richer & Hurmuzlu) | linear (eq. 19)
+        # overrides of simpro_mj.pneumatics.DEFAULT_PNEUMATIC_PARAMS (values
+        # are validated by the plant, keys here)
+        "pneumatics": {},
+    },
+    # The as-built plant: simpro_mj.model.DEFAULT_MODEL_PARAMS with as-built
+    # errors. The errors are assumptions chosen so that joint-only control
+    # shows a Fig. 15a-like steady-state error; the controller keeps the
+    # nominal geometry.
+    "plant": _merge(
+        DEFAULT_MODEL_PARAMS,
+        {
+            "payload": {"com_mm": [60.0, 0.0, 400.0]},
+            "anchor_offsets_mm": {
+                "A1": [0.0, 0.0, 0.0],
+                "A2": [3.0, 0.0, -2.0],
+                "A3": [-2.0, 0.0, 2.5],
+                "C1": [2.0, 0.0, 3.0],
+                "B2": [-2.5, 0.0, 3.0],
+                "B3": [2.0, 0.0, -1.5],
+            },
+            "guide": {"radius_offset_mm": 4.0, "centre_offset_mm": [3.0, -2.0]},
+        },
+    ),
+    "sensors": {
+        # leg potentiometers -> q (joint loops)
+        "potentiometer": {
+            "bits": 14,
+            "range_v": 10.0,
+            "volts_per_mm": 0.02,
+            "noise_lsb": 0.5,
+            # as-built calibration errors per leg (assumption, see plant above)
+            "offset_mm": [1.5, -1.0, 2.0],
+            "gain_error_pct": [0.8, -0.6, 0.5],
+            "rate_ms": 1,
+        },
+        # heave encoder -> h (task loop)
+        "height_encoder": {"resolution_mm": 0.01, "noise_mm": 0.0, "rate_ms": 1},
+        # IMU -> roll, pitch (task loop)
+        "imu": {"noise_deg": 0.005, "bias_deg": [0.0, 0.0], "bandwidth_hz": 20.0, "rate_ms": 5},
+    },
+    # per axis, a list of components summed on top of the home pose
+    "setpoint": {"roll_deg": [], "pitch_deg": [], "heave_mm": []},
+    "logging": {"decimation": 1},
+}
+
+_NAME_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
+# YAML 1.1 reads 5e-3 (no dot) as a string; accept it in numeric fields
+_EXP_RE = re.compile(r"^[-+]?(\d+\.?\d*|\.\d+)[eE][-+]?\d+$")
+_FREE_FORM = ("actuator.pneumatics",)
+
+
+class SetpointError(UserInputError, WorkspaceError):
+    """A set-point outside the reachable workspace.
+
+    Both a :class:`~simpro_mj.errors.UserInputError` (the user's scenario is
+    wrong) and a :class:`~controllers.errors.WorkspaceError` (the message of
+    :func:`controllers.kinematics.check_reachable` names the limit).
+    """
+
+
+# ------------------------------------------------------------------ finding files
+
+
+def scenarios_dir() -> Path:
+    """The folder of shipped scenarios (``$SIMPRO_SCENARIOS`` or ``<repo>/scenarios``)."""
+    env = os.environ.get("SIMPRO_SCENARIOS")
+    if env:
+        return Path(env).expanduser()
+    import simpro_mj
+
+    return Path(simpro_mj.__file__).resolve().parent.parent / "scenarios"
+
+
+def shipped_scenarios() -> list[str]:
+    """Names (file stems) of the shipped scenarios, sorted."""
+    folder = scenarios_dir()
+    if not folder.is_dir():
+        return []
+    return sorted(p.stem for p in folder.iterdir() if p.suffix in (".yaml", ".yml"))
+
+
+def _find(name_or_path: str) -> Path:
+    path = Path(name_or_path).expanduser()
+    if path.is_file():
+        return path
+    text = str(name_or_path)
+    stem = re.sub(r"\.ya?ml$", "", text)
+    if "/" not in text and os.sep not in text:
+        for ext in (".yaml", ".yml"):
+            candidate = scenarios_dir() / f"{stem}{ext}"
+            if candidate.is_file():
+                return candidate
+    shipped = shipped_scenarios()
+    raise UserInputError(
+        f"unknown scenario at '{text}': allowed: a path to a YAML file or a shipped "
+        f"scenario {shipped} (in {scenarios_dir()}){closest(Path(stem).name, shipped)}"
+    )
+
+
+class _UniqueKeyLoader(yaml.SafeLoader):
+    """``yaml.SafeLoader`` that refuses duplicate mapping keys (no other change)."""
+
+
+def _construct_unique_mapping(loader, node, deep=False):
+    seen = set()
+    for key_node, _ in node.value:
+        key = loader.construct_object(key_node, deep=True)
+        if isinstance(key, (str, int, float, bool)) or key is None:
+            if key in seen:
+                raise yaml.constructor.ConstructorError(
+                    None, None, f"duplicate key {key!r}", key_node.start_mark
+                )
+            seen.add(key)
+    return loader.construct_mapping(node, deep=deep)
+
+
+_UniqueKeyLoader.add_constructor(
+    yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _construct_unique_mapping
+)
+
+
+def _read_yaml(path: Path) -> Any:
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise UserInputError(
+            f"unreadable scenario at {path}: {exc.__class__.__name__}: {exc}; "
+            "allowed: a UTF-8 YAML file"
+        ) from exc
+    try:
+        return yaml.load(text, Loader=_UniqueKeyLoader)  # noqa: S506 - a SafeLoader subclass
+    except yaml.MarkedYAMLError as exc:
+        mark = exc.problem_mark or exc.context_mark
+        where = f"{path} line {mark.line + 1}, column {mark.column + 1}" if mark else str(path)
+        problem = " ".join(str(exc.problem or exc).split())
+        allowed = "each key once" if "duplicate key" in problem else "a YAML mapping of keys"
+        raise UserInputError(f"invalid YAML at {where}: {problem}; allowed: {allowed}") from exc
+    except yaml.YAMLError as exc:
+        raise UserInputError(
+            f"invalid YAML at {path}: {exc}; allowed: a YAML mapping of keys"
+        ) from exc
+
+
+# ------------------------------------------------------------------ public entry points
+
+
+def load_scenario(name_or_path: str, sets: Iterable[str] = ()) -> dict:
+    """Load, merge, override and validate a scenario.
+
+    Parameters
+    ----------
+    name_or_path : str
+        A path to a YAML file, or the name of a shipped scenario
+        (``"step_pitch"`` or ``"step_pitch.yaml"``, see :func:`shipped_scenarios`).
+    sets : iterable of str
+        ``KEY=VALUE`` overrides (dotted KEY, YAML VALUE), applied after the
+        file and before validation.
+
+    Returns
+    -------
+    dict
+        The resolved scenario (see the module docstring).
+
+    Raises
+    ------
+    UserInputError
+        Unknown scenario (the message lists the shipped ones), invalid YAML
+        (line and column), unknown keys, wrong types or values (dotted path and
+        what is allowed). :class:`SetpointError` (also a ``UserInputError``)
+        for a set-point outside the workspace.
+    """
+    path = _find(str(name_or_path))
+    doc = _read_yaml(path)
+    if doc is None:
+        doc = {}
+    if not isinstance(doc, Mapping):
+        raise UserInputError(
+            f"wrong type at {path.name} (top level): got {type(doc).__name__}; "
+            "allowed: a mapping of scenario keys"
+        )
+    return resolve_scenario(doc, sets, default_name=path.stem)
+
+
+def resolve_scenario(
+    doc: Mapping, sets: Iterable[str] = (), default_name: str = "scenario"
+) -> dict:
+    """Resolve a scenario document given as a dict (same rules as :func:`load_scenario`)."""
+    tree = _merge(DEFAULT_SCENARIO, doc)
+    for expr in sets or ():
+        key, value = parse_set(expr)
+        _set(tree, key, value)
+    tree = _merge(DEFAULT_SCENARIO, tree)  # a replaced mapping keeps its other defaults
+    if not tree.get("name"):
+        tree["name"] = default_name
+    resolved = validate_scenario(tree)
+    if not resolved["controller"]["clamp_setpoints"]:
+        check_setpoints(resolved)
+    return resolved
+
+
+def _set(tree: dict, key: str, value: Any) -> None:
+    """Apply one override: create missing keys (validation reports them), merge mappings."""
+    parts = key.split(".")
+    node: Any = tree
+    for depth, part in enumerate(parts[:-1]):
+        if not isinstance(node, dict):
+            here = ".".join(parts[:depth])
+            raise UserInputError(f"unknown key at {key}: '{here}' has no sub-keys")
+        node = node.setdefault(part, {})
+    if not isinstance(node, dict):
+        here = ".".join(parts[:-1])
+        raise UserInputError(f"unknown key at {key}: '{here}' has no sub-keys")
+    last = parts[-1]
+    if isinstance(value, Mapping) and isinstance(node.get(last), Mapping):
+        node[last] = _merge(node[last], value)
+    else:
+        node[last] = value
+
+
+def scenario_hash(resolved: Mapping) -> str:
+    """SHA-256 (hex) of the canonical JSON of a resolved scenario (sorted keys)."""
+    text = json.dumps(resolved, sort_keys=True, separators=(",", ":"), allow_nan=False)
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()
+
+
+# ------------------------------------------------------------------ validation
+
+
+def _type_name(value: Any) -> str:
+    return "null" if value is None else type(value).__name__
+
+
+def _wrong_type(path: str, value: Any, allowed: str) -> UserInputError:
+    return UserInputError(
+        f"wrong type at {path}: got {_type_name(value)} {value!r}; allowed: {allowed}"
+    )
+
+
+def _invalid(path: str, value: Any, allowed: str) -> UserInputError:
+    return UserInputError(f"invalid value at {path}: {value!r}; allowed: {allowed}")
+
+
+def _number(value: Any, path: str) -> float:
+    if isinstance(value, str) and _EXP_RE.match(value.strip()):
+        value = float(value)
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise _wrong_type(path, value, "a number")
+    x = float(value)
+    if not math.isfinite(x):
+        raise _invalid(path, value, "a finite number")
+    return x
+
+
+def _integer(value: Any, path: str) -> int:
+    x = _number(value, path)
+    if x != int(x):
+        raise _invalid(path, value, "an integer")
+    return int(x)
+
+
+def _check_tree(value: Any, default: Any, path: str) -> Any:
+    """Check ``value`` against the default's structure and type; return it normalised."""
+    if isinstance(default, dict):
+        if not isinstance(value, Mapping):
+            raise _wrong_type(path or "top level", value, "a mapping")
+        if path in _FREE_FORM:
+            return _check_pneumatics(value, path)
+        out = {}
+        for key, sub in value.items():
+            here = f"{path}.{key}" if path else str(key)
+            if key not in default:
+                raise UserInputError(
+                    f"unknown key at {here}: allowed keys are {sorted(default)}"
+                    f"{closest(str(key), default)}"
+                )
+            if path == "setpoint":
+                out[key] = _check_components(sub, here)
+            else:
+                out[key] = _check_tree(sub, default[key], here)
+        return out
+    if isinstance(default, list):
+        n = len(default)
+        if not isinstance(value, (list, tuple)) or len(value) != n:
+            raise _wrong_type(path, value, f"a list of {n} numbers like {default}")
+        return [_number(v, f"{path}[{i}]") for i, v in enumerate(value)]
+    if isinstance(default, bool):
+        if not isinstance(value, bool):
+            raise _wrong_type(path, value, "true or false")
+        return value
+    if isinstance(default, int):
+        return _integer(value, path)
+    if isinstance(default, float):
+        return _number(value, path)
+    if isinstance(default, str):
+        if not isinstance(value, str):
+            raise _wrong_type(path, value, "a string")
+        return value
+    if default is None:  # free value (none in the schema today)
+        return value
+    raise TypeError(f"unsupported default at {path}: {default!r}")  # pragma: no cover
+
+
+def _check_pneumatics(value: Mapping, path: str) -> dict:
+    """Keys of ``actuator.pneumatics`` against the actuator tree (values: the plant's job)."""
+    try:
+        from .pneumatics import DEFAULT_PNEUMATIC_PARAMS as ref
+    except ImportError:  # the actuator module is optional at this level
+        return copy.deepcopy(dict(value))
+
+    def walk(node: Mapping, ref_node: Mapping, where: str) -> None:
+        for key, sub in node.items():
+            here = f"{where}.{key}"
+            if key not in ref_node:
+                raise UserInputError(
+                    f"unknown key at {here}: allowed keys are {sorted(ref_node)}"
+                    f"{closest(str(key), ref_node)}"
+                )
+            if isinstance(ref_node[key], Mapping):
+                if not isinstance(sub, Mapping):
+                    raise _wrong_type(here, sub, "a mapping")
+                walk(sub, ref_node[key], here)
+
+    walk(value, ref, path)
+    return copy.deepcopy(dict(value))
+
+
+def _check_components(value: Any, path: str) -> list[dict]:
+    """Validate and normalise one axis' list of set-point components."""
+    if value is None:
+        return []
+    example = "[{type: step, time_s: 1.0, value: 3.0}]"
+    if not isinstance(value, (list, tuple)):
+        raise _wrong_type(path, value, f"a list of components like {example}")
+    out = []
+    types = list(COMPONENT_TYPES)
+    for i, comp in enumerate(value):
+        here = f"{path}[{i}]"
+        if not isinstance(comp, Mapping):
+            raise _wrong_type(here, comp, f"a component mapping like {example[1:-1]}")
+        kind = comp.get("type")
+        if kind not in COMPONENT_TYPES:
+            if "type" not in comp:
+                raise UserInputError(f"missing key at {here}.type: allowed: one of {types}")
+            raise _invalid(f"{here}.type", kind, f"one of {types}{closest(str(kind), types)}")
+        required, optional = COMPONENT_TYPES[kind]
+        allowed = ["type", *required, *optional]
+        for key in comp:
+            if key not in allowed:
+                raise UserInputError(
+                    f"unknown key at {here}.{key}: allowed keys of a {kind} are {allowed}"
+                    f"{closest(str(key), allowed)}"
+                )
+        for key in required:
+            if key not in comp:
+                raise UserInputError(
+                    f"missing key at {here}.{key}: a {kind} needs {list(required)}"
+                )
+        c: dict[str, Any] = {"type": kind}
+        for key in (*required, *optional):
+            raw = comp.get(key, optional.get(key))
+            if kind == "table":
+                if not isinstance(raw, (list, tuple)) or not raw:
+                    raise _wrong_type(f"{here}.{key}", raw, "a non-empty list of numbers")
+                c[key] = [_number(v, f"{here}.{key}[{j}]") for j, v in enumerate(raw)]
+            elif raw is None and key == "end_s":
+                c[key] = None
+            else:
+                c[key] = _number(raw, f"{here}.{key}")
+        _check_component_values(c, here)
+        out.append(c)
+    return out
+
+
+def _check_component_values(c: dict, path: str) -> None:
+    kind = c["type"]
+    if kind == "step" and c["time_s"] < 0:
+        raise _invalid(f"{path}.time_s", c["time_s"], ">= 0 s")
+    if kind == "ramp":
+        if c["start_s"] < 0:
+            raise _invalid(f"{path}.start_s", c["start_s"], ">= 0 s")
+        if c["end_s"] <= c["start_s"]:
+            raise _invalid(f"{path}.end_s", c["end_s"], f"> start_s = {c['start_s']} s")
+    if kind == "sine":
+        if c["period_s"] <= 0:
+            raise _invalid(f"{path}.period_s", c["period_s"], "> 0 s")
+        if c["start_s"] < 0:
+            raise _invalid(f"{path}.start_s", c["start_s"], ">= 0 s")
+        if c["end_s"] is not None and c["end_s"] <= c["start_s"]:
+            raise _invalid(f"{path}.end_s", c["end_s"], f"null or > start_s = {c['start_s']} s")
+    if kind == "table":
+        times, values = c["times_s"], c["values"]
+        if len(values) != len(times):
+            raise _invalid(f"{path}.values", values, f"as many values as times_s ({len(times)})")
+        for j in range(1, len(times)):
+            if times[j] <= times[j - 1]:
+                raise _invalid(
+                    f"{path}.times_s",
+                    times,
+                    f"strictly increasing times (times_s[{j}] = {times[j]} <= "
+                    f"times_s[{j - 1}] = {times[j - 1]})",
+                )
+
+
+def _require(tree: Mapping, path: str, ok, allowed: str) -> None:
+    node: Any = tree
+    for part in path.split("."):
+        node = node[part]
+    values = node if isinstance(node, list) else [node]
+    if not all(ok(v) for v in values):
+        raise _invalid(path, node, allowed)
+
+
+def _enum(tree: Mapping, path: str, choices: tuple) -> None:
+    node: Any = tree
+    for part in path.split("."):
+        node = node[part]
+    if node not in choices:
+        raise _invalid(path, node, f"one of {list(choices)}{closest(str(node), map(str, choices))}")
+
+
+def _multiple_of_step(tree: Mapping, path: str) -> None:
+    node: Any = tree
+    for part in path.split("."):
+        node = node[part]
+    ratio = float(node) / _PHYSICS_DT_MS
+    if not (ratio >= 1 and abs(ratio - round(ratio)) < 1e-9):
+        raise _invalid(
+            path, node, f"a positive integer multiple of the {_PHYSICS_DT_MS} ms physics step"
+        )
+
+
+def validate_scenario(tree: Mapping) -> dict:
+    """Validate a merged scenario tree and return it normalised.
+
+    Parameters
+    ----------
+    tree : mapping
+        A scenario with every key present (defaults merged).
+
+    Returns
+    -------
+    dict
+        The normalised scenario (numbers as the defaults' types, components
+        spelled out). Does not check reachability (:func:`check_setpoints`).
+
+    Raises
+    ------
+    UserInputError
+        Naming the dotted path of the first offending field and what is allowed.
+    """
+    # periods are integers in ms but "2.5" must say "multiple of 1 ms", not "integer"
+    for path in (
+        "controller.outer.period_ms",
+        "sensors.potentiometer.rate_ms",
+        "sensors.height_encoder.rate_ms",
+        "sensors.imu.rate_ms",
+    ):
+        node: Any = tree
+        for part in path.split("."):
+            node = node.get(part) if isinstance(node, Mapping) else None
+        if isinstance(node, (int, float)) and not isinstance(node, bool):
+            _multiple_of_step(tree, path)
+
+    s = _check_tree(tree, DEFAULT_SCENARIO, "")
+    if not _NAME_RE.match(s["name"]):
+        raise _invalid("name", s["name"], "letters, digits, '_', '-', '.' (a file-name-safe word)")
+    _require(s, "duration_s", lambda v: v > 0, "> 0 s")
+    _require(s, "seed", lambda v: 0 <= v < 2**63, "an integer >= 0")
+    c = "controller"
+    _enum(s, f"{c}.mode", MODES)
+    _enum(s, f"{c}.outer.type", OUTER_TYPES)
+    _require(s, f"{c}.outer.gains", lambda v: v >= 0, "3 numbers >= 0 (K K_I, 1/s)")
+    _require(s, f"{c}.outer.pi_zero", lambda v: -1 < v < 1, "-1 < c < 1")
+    _multiple_of_step(s, f"{c}.outer.period_ms")
+    _enum(s, f"{c}.outer.delay_samples", DELAY_SAMPLES)
+    _enum(s, f"{c}.inner.variant", INNER_VARIANTS)
+    _enum(s, f"{c}.inner.discretisation", DISCRETISATIONS)
+    _enum(s, "actuator.model", ACTUATOR_MODELS)
+
+    p = "plant"
+    _require(s, f"{p}.payload.mass_kg", lambda v: v >= 0, ">= 0 kg")
+    _require(s, f"{p}.platform_mass_kg", lambda v: v > 0, "> 0 kg")
+    _require(s, f"{p}.loop_timeconst_s", lambda v: v > 0, "> 0 s")
+    _require(s, f"{p}.guide.radius_offset_mm", lambda v: v > -1000, "> -1000 mm")
+
+    pot = "sensors.potentiometer"
+    _require(s, f"{pot}.bits", lambda v: 4 <= v <= 24, "an integer 4..24")
+    _require(s, f"{pot}.range_v", lambda v: v > 0, "> 0 V")
+    _require(s, f"{pot}.volts_per_mm", lambda v: v > 0, "> 0 V/mm")
+    _require(s, f"{pot}.noise_lsb", lambda v: v >= 0, ">= 0 LSB")
+    _require(s, f"{pot}.gain_error_pct", lambda v: v > -100, "3 numbers > -100 %")
+    enc = "sensors.height_encoder"
+    _require(s, f"{enc}.resolution_mm", lambda v: v >= 0, ">= 0 mm (0: no quantisation)")
+    _require(s, f"{enc}.noise_mm", lambda v: v >= 0, ">= 0 mm")
+    imu = "sensors.imu"
+    _require(s, f"{imu}.noise_deg", lambda v: v >= 0, ">= 0 deg")
+    _require(s, f"{imu}.bandwidth_hz", lambda v: v > 0, "> 0 Hz")
+    for sensor in (pot, enc, imu):
+        _multiple_of_step(s, f"{sensor}.rate_ms")
+    _require(s, "logging.decimation", lambda v: v >= 1, "an integer >= 1")
+    return s
+
+
+# ------------------------------------------------------------------ set-points
+
+
+def _component(c: Mapping, t: np.ndarray) -> np.ndarray:
+    kind = c["type"]
+    if kind == "step":
+        return np.where(t >= c["time_s"], c["value"], 0.0)
+    if kind == "ramp":
+        frac = np.clip((t - c["start_s"]) / (c["end_s"] - c["start_s"]), 0.0, 1.0)
+        return c["value"] * frac
+    if kind == "sine":
+        start = c.get("start_s", 0.0)
+        end = math.inf if c.get("end_s") is None else c["end_s"]
+        phase = math.radians(c.get("phase_deg", 0.0))
+        wave = c["amplitude"] * np.sin(2.0 * np.pi * (t - start) / c["period_s"] + phase)
+        return np.where((t >= start) & (t < end), wave, 0.0)
+    if kind == "table":
+        return np.interp(t, np.asarray(c["times_s"], float), np.asarray(c["values"], float))
+    raise UserInputError(f"invalid value at setpoint: component type {kind!r}")  # pragma: no cover
+
+
+def _clamp(pose: np.ndarray, geometry, iterations: int = 40) -> np.ndarray:
+    """Pull unreachable poses back along the segment from home (bisection, vectorised)."""
+    ok = reachable(pose, geometry)
+    if ok.all():
+        return pose
+    home = np.asarray(geometry.home, dtype=float)
+    bad = pose[~ok]
+    d = bad - home
+    lo = np.zeros(len(bad))
+    hi = np.ones(len(bad))
+    for _ in range(iterations):
+        mid = 0.5 * (lo + hi)
+        inside = reachable(home + mid[:, None] * d, geometry)
+        lo = np.where(inside, mid, lo)
+        hi = np.where(inside, hi, mid)
+    out = pose.copy()
+    out[~ok] = home + lo[:, None] * d
+    return out
+
+
+def reference(scenario: Mapping, t, *, clamp: bool | None = None) -> np.ndarray:
+    """The set-point pose at times ``t``, SI, vectorised.
+
+    Parameters
+    ----------
+    scenario : mapping
+        A resolved scenario (:func:`load_scenario`).
+    t : array_like, (n,)
+        Times (s).
+    clamp : bool, optional
+        Pull unreachable poses back to the workspace boundary along the segment
+        from the home pose (40 bisection steps on the nominal geometry).
+        Default: ``scenario["controller"]["clamp_setpoints"]``.
+
+    Returns
+    -------
+    ndarray, (n, 3)
+        (roll rad, pitch rad, heave m); heave absolute, home height + ``heave_mm``.
+    """
+    t = np.atleast_1d(np.asarray(t, dtype=float))
+    geometry = nominal_geometry()
+    sp = scenario["setpoint"]
+    out = np.empty((t.size, 3))
+    for j, (axis, scale) in enumerate(
+        zip(SETPOINT_AXES, (math.pi / 180.0, math.pi / 180.0, 1e-3), strict=True)
+    ):
+        total = np.zeros(t.size)
+        for c in sp.get(axis) or ():
+            total += _component(c, t)
+        out[:, j] = geometry.home[j] + scale * total
+    if clamp is None:
+        clamp = bool(scenario["controller"]["clamp_setpoints"])
+    if clamp:
+        out = _clamp(out, geometry)
+    return out
+
+
+def check_setpoints(scenario: Mapping, t=None) -> None:
+    """Raise :class:`SetpointError` if the set-point leaves the reachable workspace.
+
+    Parameters
+    ----------
+    scenario : mapping
+        A resolved scenario.
+    t : array_like, optional
+        Times to check; default the 1 ms physics grid over ``[0, duration_s]``
+        (every sample the controllers can see).
+    """
+    if t is None:
+        n = int(round(scenario["duration_s"] / PHYSICS_DT_S))
+        t = np.arange(n + 1) * PHYSICS_DT_S
+    t = np.atleast_1d(np.asarray(t, dtype=float))
+    geometry = nominal_geometry()
+    pose = reference(scenario, t, clamp=False)
+    ok = reachable(pose, geometry)
+    if ok.all():
+        return
+    k = int(np.argmin(ok))
+    try:
+        check_reachable(pose[k], geometry)
+        why = "outside the guide arc or stroke limits"
+    except WorkspaceError as exc:
+        why = str(exc)
+    roll, pitch, heave = pose[k]
+    raise SetpointError(
+        f"unreachable set-point at setpoint (t = {t[k]:.3f} s: roll {math.degrees(roll):.2f} deg, "
+        f"pitch {math.degrees(pitch):.2f} deg, heave {(heave - geometry.home[2]) * 1e3:+.1f} mm "
+        f"from home): {why} (see simpro-sim workspace); or set "
+        "controller.clamp_setpoints=true to clamp"
+    )

@@ -1,0 +1,203 @@
+"""Simulated sensors of the SIMPRO rig (paper section 5).
+
+The rig reads, through a Humusoft MF624 board (14-bit, ±10 V ADC):
+
+* joint potentiometers on q_i,
+* an encoder for the height h,
+* an IMU for roll and pitch.
+
+Each sensor here turns MuJoCo's exact state into what such a sensor would
+report: as-built errors (potentiometer offset and gain), noise, quantisation,
+bandwidth (IMU), and a sampling rate with zero-order hold. Every noise source
+draws from one :class:`numpy.random.Generator` seeded by the scenario, in a
+fixed order, so the same scenario and seed give identical readings.
+
+Noise is pre-drawn in blocks (no per-step generator calls in the 1 ms loop).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import UserInputError
+
+__all__ = ["DEFAULT_SENSORS", "SensorConfig", "Sensors"]
+
+#: Edge-unit defaults; a scenario's ``sensors`` block overrides them.
+DEFAULT_SENSORS: dict = {
+    "potentiometer": {
+        # MF624: 14-bit over ±10 V -> 1.22 mV per LSB
+        "bits": 14,
+        "range_v": 10.0,
+        # 0-10 V over the 500 mm stroke (assumption: a linear potentiometer fed at 10 V)
+        "volts_per_mm": 0.02,
+        "noise_lsb": 0.5,  # RMS electrical noise, in LSB (assumption)
+        "offset_mm": [0.0, 0.0, 0.0],  # as-built zero error of each potentiometer
+        "gain_error_pct": [0.0, 0.0, 0.0],  # as-built scale error
+        "rate_ms": 1,
+    },
+    "height_encoder": {
+        "resolution_mm": 0.01,  # linear encoder, 10 um (assumption)
+        "noise_mm": 0.0,
+        "rate_ms": 1,
+    },
+    "imu": {
+        "noise_deg": 0.005,  # RMS per sample (assumption: MEMS AHRS class)
+        "bias_deg": [0.0, 0.0],  # roll, pitch
+        "bandwidth_hz": 20.0,  # first-order output filter
+        "rate_ms": 5,  # 200 Hz output
+    },
+}
+
+
+@dataclass(frozen=True)
+class SensorConfig:
+    """Sensor parameters in SI, built from the edge-unit tree."""
+
+    pot_lsb_m: float  # one ADC count expressed as slide travel, m
+    pot_noise_m: float
+    pot_range_m: tuple  # measurable (min, max) slide reading, m
+    pot_offset_m: np.ndarray
+    pot_gain: np.ndarray  # 1 + gain error
+    pot_every: int
+    enc_res_m: float
+    enc_noise_m: float
+    enc_every: int
+    imu_noise_rad: float
+    imu_bias_rad: np.ndarray
+    imu_alpha: float  # first-order filter coefficient per physics step
+    imu_every: int
+    dt: float
+
+    @classmethod
+    def from_tree(cls, tree: dict, dt: float, path: str = "sensors") -> SensorConfig:
+        pot, enc, imu = tree["potentiometer"], tree["height_encoder"], tree["imu"]
+
+        def every(ms, where):
+            n = ms * 1e-3 / dt
+            k = int(round(n))
+            if k < 1 or abs(n - k) > 1e-9:
+                raise UserInputError(
+                    f"invalid value at {path}.{where}.rate_ms: {ms}; allowed: a positive "
+                    f"integer multiple of the {dt * 1e3:g} ms timestep"
+                )
+            return k
+
+        def positive(v, where, zero_ok=False):
+            if not (math.isfinite(v) and (v >= 0 if zero_ok else v > 0)):
+                allowed = ">= 0" if zero_ok else "> 0"
+                raise UserInputError(f"invalid value at {path}.{where}: {v}; allowed: {allowed}")
+            return float(v)
+
+        bits = int(pot["bits"])
+        if not 4 <= bits <= 24:
+            raise UserInputError(
+                f"invalid value at {path}.potentiometer.bits: {bits}; allowed 4..24"
+            )
+        rng_v = positive(pot["range_v"], "potentiometer.range_v")
+        vpm = positive(pot["volts_per_mm"], "potentiometer.volts_per_mm") * 1e3  # V/m
+        lsb_v = 2.0 * rng_v / 2**bits
+        bw = positive(imu["bandwidth_hz"], "imu.bandwidth_hz")
+        return cls(
+            pot_lsb_m=lsb_v / vpm,
+            pot_noise_m=positive(pot["noise_lsb"], "potentiometer.noise_lsb", True) * lsb_v / vpm,
+            pot_range_m=(-rng_v / vpm, (rng_v - lsb_v) / vpm),
+            pot_offset_m=np.asarray(pot["offset_mm"], dtype=float) * 1e-3,
+            pot_gain=1.0 + np.asarray(pot["gain_error_pct"], dtype=float) * 1e-2,
+            pot_every=every(pot["rate_ms"], "potentiometer"),
+            enc_res_m=positive(enc["resolution_mm"], "height_encoder.resolution_mm") * 1e-3,
+            enc_noise_m=positive(enc["noise_mm"], "height_encoder.noise_mm", True) * 1e-3,
+            enc_every=every(enc["rate_ms"], "height_encoder"),
+            imu_noise_rad=math.radians(positive(imu["noise_deg"], "imu.noise_deg", True)),
+            imu_bias_rad=np.radians(np.asarray(imu["bias_deg"], dtype=float)),
+            imu_alpha=1.0 - math.exp(-2.0 * math.pi * bw * dt),
+            imu_every=every(imu["rate_ms"], "imu"),
+            dt=float(dt),
+        )
+
+
+class Sensors:
+    """The rig's sensors, sampled every physics step (zero-order hold between samples).
+
+    Parameters
+    ----------
+    config : SensorConfig
+    rng : numpy.random.Generator
+        Seeded by the scenario; the only source of randomness.
+    block : int
+        Steps of noise drawn at a time.
+
+    Notes
+    -----
+    Potentiometer i reports ``q_i^m = Q((g_i q_i + o_i) + n) `` with Q the ADC
+    quantiser (one LSB = ``2 range / 2^bits`` volts) and saturation at the
+    ADC's range; the controller converts with the nominal scale, so offset
+    ``o_i`` and gain ``g_i`` appear as joint-space errors. The encoder reports
+    ``round(h / res) res``. The IMU low-pass filters roll and pitch at its
+    bandwidth, adds bias and white noise, and updates every ``rate_ms``.
+    """
+
+    def __init__(self, config: SensorConfig, rng: np.random.Generator, block: int = 4096):
+        self.cfg = config
+        self.rng = rng
+        self.block = int(block)
+        self.q = np.zeros(3)
+        self.pose = np.zeros(3)  # roll, pitch, h as measured
+        self._imu_state = np.zeros(2)
+        self._noise = np.zeros((0, 6))
+        self._k0 = 0
+
+    def _draw(self, k: int) -> np.ndarray:
+        """Noise row for step k: 3 pots, encoder, 2 IMU axes (standard normal)."""
+        i = k - self._k0
+        if i >= len(self._noise) or i < 0:
+            self._noise = self.rng.standard_normal((self.block, 6))
+            self._k0 = k
+            i = 0
+        return self._noise[i]
+
+    def reset(self, q_true, pose_true) -> None:
+        """Initialise the filters at the true state and take a first reading."""
+        self._imu_state[:] = pose_true[:2]
+        self._noise = np.zeros((0, 6))
+        self._k0 = 0
+        self.sample(0, q_true, pose_true, force=True)
+
+    def sample(self, k: int, q_true, pose_true, force: bool = False):
+        """Update the readings at physics step k; returns (q_meas, pose_meas) views.
+
+        The returned arrays are the sensor's own buffers (copy them to log).
+        """
+        c = self.cfg
+        n = self._draw(k)
+        # IMU's output filter runs at the physics rate
+        self._imu_state += c.imu_alpha * (pose_true[:2] - self._imu_state)
+        if force or k % c.pot_every == 0:
+            v = c.pot_gain * q_true + c.pot_offset_m + c.pot_noise_m * n[:3]
+            v = np.round(v / c.pot_lsb_m) * c.pot_lsb_m
+            np.clip(v, c.pot_range_m[0], c.pot_range_m[1], out=self.q)
+        if force or k % c.enc_every == 0:
+            h = pose_true[2] + c.enc_noise_m * n[3]
+            self.pose[2] = round(h / c.enc_res_m) * c.enc_res_m
+        if force or k % c.imu_every == 0:
+            self.pose[:2] = self._imu_state + c.imu_bias_rad + c.imu_noise_rad * n[4:6]
+        return self.q, self.pose
+
+    def resolution_floor(self) -> dict:
+        """Smallest steady-state error the task loop can be asked to remove, SI.
+
+        The loop integrates the *measured* error, so the true pose settles
+        within about one quantisation step plus the noise averaged over the
+        metric window; we state the floor as the quantisation step plus three
+        standard deviations of the sample noise averaged over 1 s of samples.
+        """
+        c = self.cfg
+        n_imu = max(1, int(1.0 / (c.imu_every * c.dt)))
+        return {
+            "roll": c.imu_noise_rad * 3 / math.sqrt(n_imu) + float(np.abs(c.imu_bias_rad[0])),
+            "pitch": c.imu_noise_rad * 3 / math.sqrt(n_imu) + float(np.abs(c.imu_bias_rad[1])),
+            "heave": c.enc_res_m + 3 * c.enc_noise_m,
+        }

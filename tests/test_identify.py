@@ -1,0 +1,131 @@
+"""Tests of simpro_mj.identify: the Fig. 12 identification in simulation."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import mujoco
+import numpy as np
+import pytest
+
+from simpro_mj import cli
+from simpro_mj.identify import PAPER, default_tree, fit_eq19, identify
+from simpro_mj.model import assemble, load_model
+from simpro_mj.params import apply_overrides
+from simpro_mj.pneumatics import NonlinearActuators, holding_forces, slide_mass_matrix
+
+
+def _tree(*sets):
+    return apply_overrides(default_tree(), ["identify.duration_s=6"] + list(sets))
+
+
+def _physics_prediction(tree):
+    """ω_n = sqrt(K/m) and the valve's velocity gain from the equilibrium state.
+
+    K = n (p1 A1^2/V1 + p2 A2^2/V2) at mid-stroke; m = diagonal of MuJoCo's
+    slide mass matrix; velocity gain = sum_i A_i (n R T/V_i) dṁ_i/du / K with
+    dṁ/du the secant over the PRBS amplitude.
+    """
+    m = load_model(tree["model"])
+    d = mujoco.MjData(m)
+    q0 = np.full(3, 0.25)
+    assemble(m, d, q0)
+    mass = np.diag(slide_mass_matrix(m, d))
+    act = NonlinearActuators(tree["pneumatics"])
+    act.reset(q0, np.zeros(3), force=holding_forces(m, d))
+    P = act.params
+    v1, v2 = P.dead_cap + P.area_cap * 0.25, P.dead_rod + P.area_rod_side * 0.25
+    k = P.n_poly * (act.p1 * P.area_cap**2 / v1 + act.p2 * P.area_rod_side**2 / v2)
+    rt = P.gas_constant * P.temperature
+    ds = np.asarray(tree["identify"]["prbs_amplitude_v"]) / 5.0
+    g = np.zeros(3)
+    for ch, a, v, p, sgn in ((1, P.area_cap, v1, act.p1, 1), (2, P.area_rod_side, v2, act.p2, -1)):
+        dm = act.chamber_net_flow(p, act.spool + ds, ch) - act.chamber_net_flow(
+            p, act.spool - ds, ch
+        )
+        g += sgn * a * P.n_poly * rt / v * dm / (2 * ds * 5.0)
+    return np.sqrt(k / mass), g / k
+
+
+def test_fit_recovers_a_known_model():
+    from simpro_mj.identify import _prbs, _simulate_velocity
+
+    dt = 1e-3
+    rng = np.random.default_rng(0)
+    u = 5.0 + 0.2 * _prbs(8000, 20, 10, 3)
+    v = _simulate_velocity((120.0, 9.0, 300.0, 0.03), u - 5.0, dt)
+    v += 1e-4 * rng.standard_normal(v.size)
+    r = fit_eq19(u, v, dt)
+    assert r["b"] == pytest.approx(120.0, rel=0.02)
+    assert r["a1"] == pytest.approx(9.0, rel=0.02)
+    assert r["a0"] == pytest.approx(300.0, rel=0.02)
+    assert r["offset_v"] == pytest.approx(0.03, abs=2e-3)
+
+
+def test_identification_of_the_linear_option_returns_the_paper_models():
+    tree = _tree("identify.actuator_kind=linear", "identify.prbs_amplitude_v=[0.05,0.02,0.02]")
+    res = identify(tree, legs=(1, 2))
+    for name in ("actuator1", "actuator2"):
+        p, r = PAPER[name], res[name]
+        assert r["wn_rad_s"] == pytest.approx(math.sqrt(p["a0"]), rel=0.05)
+        assert r["zeta"] == pytest.approx(p["a1"] / (2 * math.sqrt(p["a0"])), abs=0.06)
+        assert r["velocity_gain_m_s_per_v"] == pytest.approx(p["b"] / p["a0"], rel=0.05)
+
+
+def test_identification_of_the_nonlinear_model_meets_calibration_and_physics():
+    """Actuator 1's damping ratio is calibrated to the paper (±0.1); ω_n and the
+    velocity gain follow the physics of the chamber stiffness and valve flow
+    (the paper's values are out of reach, docs/notes-issue3.md)."""
+    tree = _tree()
+    res = identify(tree, legs=(1, 2))
+    wn_pred, vg_pred = _physics_prediction(tree)
+    a1, a2 = res["actuator1"], res["actuator2"]
+    assert a1["zeta"] == pytest.approx(0.871, abs=0.1)
+    assert a1["wn_rad_s"] == pytest.approx(wn_pred[0], rel=0.15)
+    assert a1["velocity_gain_m_s_per_v"] == pytest.approx(vg_pred[0], rel=0.25)
+    assert a1["fit_percent"] > 80
+    # legs 2-3: ω_n between the held-leg and coupled-mode predictions
+    assert a2["wn_rad_s"] == pytest.approx(wn_pred[1], rel=0.15)
+    assert a2["velocity_gain_m_s_per_v"] == pytest.approx(vg_pred[1], rel=0.3)
+    # the paper's ω_n ratio between the actuators comes from the mass ratio
+    ratio = a2["wn_rad_s"] / a1["wn_rad_s"]
+    assert ratio == pytest.approx(36.7 / 15.9, rel=0.15)
+
+
+def test_set_on_supply_pressure_and_payload_changes_the_result():
+    base = identify(_tree("identify.duration_s=4"), legs=(1,))["actuator1"]
+    low_p = identify(
+        _tree("identify.duration_s=4", "pneumatics.supply_pressure_bar_gauge=4.0"), legs=(1,)
+    )["actuator1"]
+    light = identify(_tree("identify.duration_s=4", "model.payload.mass_kg=100.0"), legs=(1,))[
+        "actuator1"
+    ]
+    # stiffness ~ pressure: lower supply -> lower ω_n; lighter payload -> higher ω_n
+    assert low_p["wn_rad_s"] < 0.95 * base["wn_rad_s"]
+    assert light["wn_rad_s"] > 1.05 * base["wn_rad_s"]
+
+
+def test_cli_json_has_the_three_actuators(tmp_path, capsys):
+    rc = cli.main(
+        ["identify", "--json", "--duration", "2", "--no-plot", "--out", str(tmp_path / "id")]
+    )
+    assert rc == 0
+    out = json.loads(capsys.readouterr().out)
+    assert list(out) == ["actuator1", "actuator2", "actuator3"]
+    for r in out.values():
+        assert {"b", "a1", "a0"} <= set(r) and all(np.isfinite([r["b"], r["a1"], r["a0"]]))
+    assert (tmp_path / "id" / "identify.json").exists()
+
+
+def test_cli_rejects_a_bad_key(capsys):
+    rc = cli.main(["identify", "--set", "pneumatics.valve.bogus=1", "--no-plot"])
+    assert rc == 2
+    assert "pneumatics.valve.bogus" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_full_identification_writes_the_plot(tmp_path):
+    rc = cli.main(["identify", "--out", str(tmp_path)])
+    assert rc == 0
+    assert (tmp_path / "identify.png").stat().st_size > 10_000
