@@ -92,6 +92,7 @@ MODES = ("joint_only", "task_space")
 OUTER_TYPES = ("I", "PI")
 INNER_VARIANTS = ("printed", "corrected", "redesigned")
 DISCRETISATIONS = ("tustin", "zoh")
+DESIGN_PLANTS = ("paper", "identified")
 ACTUATOR_MODELS = ("nonlinear", "linear")
 DELAY_SAMPLES = (1, 2)
 SETPOINT_AXES = ("roll_deg", "pitch_deg", "heave_mm")
@@ -128,8 +129,10 @@ DEFAULT_SCENARIO: dict = {
         "mode": "task_space",  # joint_only (Fig. 15a) | task_space (Fig. 15b)
         "outer": {
             "type": "I",  # I (eq. 22) | PI (section 4)
-            # K * K_I per axis (roll, pitch, heave), 1/s; section 5.2.3 uses 3
-            "gains": [3.0, 3.0, 3.0],
+            # K * K_I per axis (roll, pitch, heave), 1/s. Section 5.2.3 uses 3, which
+            # is unstable on our non-linear pneumatics (stable at 1, unstable at 2;
+            # docs/paper-notes.md); 3 works with actuator.model = linear.
+            "gains": [1.0, 1.0, 1.0],
             # c of the PI law T (z + c)/(z - 1), section 4; used with type PI only
             "pi_zero": 0.2,
             # outer sampling period T, an integer multiple of the 1 ms physics step
@@ -141,6 +144,20 @@ DEFAULT_SCENARIO: dict = {
             # joint controllers: eqs. (36)-(37) printed | corrected | redesigned
             "variant": "corrected",
             "discretisation": "tustin",  # tustin | zoh
+            # plant the joint controllers are designed on: "paper" (eqs. 34-35) or
+            # "identified" (the model this simulation identifies, `simpro-sim identify`,
+            # which is what the paper's procedure - identify, then place poles - gives)
+            "design_plant": "paper",
+            # b / (s (s^2 + a1 s + a0)) per actuator, m/V; from `simpro-sim identify`
+            # on the default plant (nonlinear pneumatics, 250 kg payload)
+            "identified": {
+                "actuator1": {"b": 12.51, "a1": 15.78, "a0": 78.92},
+                "actuator2": {"b": 95.66, "a1": 17.37, "a0": 467.7},
+                "actuator3": {"b": 95.66, "a1": 17.37, "a0": 467.7},
+            },
+            # dominant pair of the "redesigned" pole placement (section 5.2.2)
+            "zeta": 0.7,
+            "wn_rad_s": 10.0,
         },
         # unreachable set-points: reject at load time (false) or clamp (true)
         "clamp_setpoints": False,
@@ -624,6 +641,13 @@ def validate_scenario(tree: Mapping) -> dict:
     _enum(s, f"{c}.outer.delay_samples", DELAY_SAMPLES)
     _enum(s, f"{c}.inner.variant", INNER_VARIANTS)
     _enum(s, f"{c}.inner.discretisation", DISCRETISATIONS)
+    _enum(s, f"{c}.inner.design_plant", DESIGN_PLANTS)
+    for act in ("actuator1", "actuator2", "actuator3"):
+        _require(s, f"{c}.inner.identified.{act}.b", lambda v: v > 0, "> 0 m/V")
+        _require(s, f"{c}.inner.identified.{act}.a1", lambda v: v >= 0, ">= 0 1/s")
+        _require(s, f"{c}.inner.identified.{act}.a0", lambda v: v > 0, "> 0 1/s^2")
+    _require(s, f"{c}.inner.zeta", lambda v: 0 < v < 2, "0 < zeta < 2")
+    _require(s, f"{c}.inner.wn_rad_s", lambda v: v > 0, "> 0 rad/s")
     _enum(s, "actuator.model", ACTUATOR_MODELS)
 
     p = "plant"

@@ -108,7 +108,7 @@ class SensorConfig:
             pot_offset_m=np.asarray(pot["offset_mm"], dtype=float) * 1e-3,
             pot_gain=1.0 + np.asarray(pot["gain_error_pct"], dtype=float) * 1e-2,
             pot_every=every(pot["rate_ms"], "potentiometer"),
-            enc_res_m=positive(enc["resolution_mm"], "height_encoder.resolution_mm") * 1e-3,
+            enc_res_m=positive(enc["resolution_mm"], "height_encoder.resolution_mm", True) * 1e-3,
             enc_noise_m=positive(enc["noise_mm"], "height_encoder.noise_mm", True) * 1e-3,
             enc_every=every(enc["rate_ms"], "height_encoder"),
             imu_noise_rad=math.radians(positive(imu["noise_deg"], "imu.noise_deg", True)),
@@ -181,7 +181,7 @@ class Sensors:
             np.clip(v, c.pot_range_m[0], c.pot_range_m[1], out=self.q)
         if force or k % c.enc_every == 0:
             h = pose_true[2] + c.enc_noise_m * n[3]
-            self.pose[2] = round(h / c.enc_res_m) * c.enc_res_m
+            self.pose[2] = round(h / c.enc_res_m) * c.enc_res_m if c.enc_res_m > 0 else h
         if force or k % c.imu_every == 0:
             self.pose[:2] = self._imu_state + c.imu_bias_rad + c.imu_noise_rad * n[4:6]
         return self.q, self.pose

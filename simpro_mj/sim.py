@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 import mujoco
 import numpy as np
 
+from controllers.design import Plant
 from controllers.geometry import nominal_geometry
 from controllers.joint import JointControllers
 from controllers.kinematics import inverse_kinematics
@@ -124,8 +125,20 @@ class CoSimulation:
             pi_zero=float(outer.get("pi_zero", 0.2)),
         )
         inner = ctl["inner"]
+        if inner["design_plant"] == "identified":
+            acts = ("actuator1", "actuator2", "actuator3")
+            plants = [Plant(**inner["identified"][a]) for a in acts]
+        else:
+            plants = None  # eqs. (34)-(35)
+        spec = None
+        if inner["variant"] == "redesigned":
+            spec = {"zeta": inner["zeta"], "wn": inner["wn_rad_s"]}
         self.joint = JointControllers(
-            variant=inner["variant"], dt=dt, method=inner["discretisation"]
+            variant=inner["variant"],
+            dt=dt,
+            method=inner["discretisation"],
+            plants=plants,
+            spec=spec,
         )
         act = scenario["actuator"]
         self.actuators = make_actuators(act["model"], act.get("pneumatics") or {}, model=m)

@@ -88,7 +88,7 @@ def test_sets_apply_after_file_and_before_validation():
 
 def test_hash_is_canonical():
     a = load_scenario("step_pitch")
-    b = load_scenario("step_pitch", ["duration_s=15", "controller.outer.period_ms=60.0"])
+    b = load_scenario("step_pitch", ["duration_s=20", "controller.outer.period_ms=60.0"])
     assert scenario_hash(a) == scenario_hash(b)
     c = load_scenario("step_pitch", ["seed=2"])
     assert scenario_hash(a) != scenario_hash(c)

@@ -1,0 +1,127 @@
+"""The co-simulation on the shipped scenarios: joint-only vs task-space (Figs. 15-16).
+
+Floors and tolerances used here:
+
+* sensor-resolution floor: :meth:`simpro_mj.sensors.Sensors.resolution_floor`
+  (IMU: 3 sigma of the 0.005 deg noise averaged over 1 s of 200 Hz samples =
+  0.0011 deg; height encoder: one 0.01 mm step). The task loop integrates the
+  *measured* error, so it cannot remove error below what the sensors resolve.
+* analysis agreement: with the linear actuator (eq. 19 with the paper's plants)
+  the simulated pitch step is compared with the real-inner-loop prediction of
+  :func:`controllers.analysis.real_inner_step`; tolerance 3 % RMS of the step.
+"""
+
+import numpy as np
+import pytest
+
+from controllers.analysis import outer_step, real_inner_step, step_metrics
+from controllers.geometry import nominal_geometry
+from controllers.kinematics import jacobian
+from simpro_mj.cmd_compare import compare
+from simpro_mj.scenario import load_scenario
+from simpro_mj.sim import simulate
+
+AXES = ("roll", "pitch", "heave")
+
+
+@pytest.fixture(scope="module", params=["step_pitch", "step_all"])
+def both(request, tmp_path_factory):
+    scenario = load_scenario(request.param)
+    out = tmp_path_factory.mktemp(request.param)
+    res = compare(scenario, out, plots=False)
+    return request.param, res["metrics"], res["results"]
+
+
+def test_both_runs_stable_and_loops_closed(both):
+    _, metrics, results = both
+    for mode in ("joint_only", "task_space"):
+        assert metrics[mode]["status"] == "ok", metrics[mode]["reason"]
+        sim = results[mode].sim
+        assert sim["steps"] == round(results[mode].scenario["duration_s"] / 1e-3)
+        assert sim["max_loop_closure_error_m"] < 5e-4  # 0.5 mm during motion
+        cols = results[mode].columns
+        assert np.all(np.isfinite(cols["heave_m"]))
+        # pressures stay physical
+        for i in (1, 2, 3):
+            for c in ("a", "b"):
+                p = cols[f"p{i}{c}_pa"]
+                assert p.min() >= 1.01e5 - 1 and p.max() <= 7.02e5
+
+
+def test_joint_only_leaves_fig15a_error(both):
+    _, metrics, _ = both
+    ax = metrics["joint_only"]["axes"]
+    assert abs(ax["pitch"]["steady_state_error"]) >= np.radians(0.2)
+    assert abs(ax["heave"]["steady_state_error"]) >= 1e-3
+
+
+def test_task_space_removes_steady_state_error(both):
+    _, metrics, results = both
+    floor = results["task_space"].sensor_floor
+    for axis in AXES:
+        jo = abs(metrics["joint_only"]["axes"][axis]["steady_state_error"])
+        ts = abs(metrics["task_space"]["axes"][axis]["steady_state_error"])
+        bound = max(0.1 * jo, floor[axis])
+        assert ts < bound, f"{axis}: task-space {ts:.3e} vs bound {bound:.3e} (joint-only {jo:.3e})"
+
+
+STEP_RAD = np.radians(3.0)  # step_pitch.yaml
+
+
+def _pitch_step_response(columns, t_step=1.0, size=STEP_RAD):
+    t, y = columns["time_s"], columns["pitch_rad"]
+    i0 = int(np.searchsorted(t, t_step))
+    return t[i0:] - t[i0], y[i0:] / size  # the pitch set-point is 0 before the step
+
+
+def test_transient_agrees_with_real_inner_loop_analysis():
+    """Linear actuator, K K_I = 3 (the paper's setting): the multibody pitch step
+    follows the analysis with the real inner loops within 3 % RMS; the
+    one-sample-delay model (eq. 21) misses by more (measured 4.9 % RMS)."""
+    sc = load_scenario(
+        "step_pitch",
+        ["actuator.model=linear", "controller.outer.gains=[3, 3, 3]", "duration_s=6"],
+    )
+    res = simulate(sc)
+    assert res.status == "ok"
+    t, y = _pitch_step_response(res.columns)
+    jac = jacobian(nominal_geometry().home)
+    tp, yp = real_inner_step("I", 3.0, 0.06, 4.9, variant="corrected", jac=jac, axis=1)
+    n = min(len(y), len(tp))
+    rms_real = np.sqrt(np.mean((y[:n] - yp[:n, 1]) ** 2))
+    delay = np.interp(tp[:n], np.arange(100) * 0.06, outer_step("I", 3.0, 0.06, 100))
+    rms_delay = np.sqrt(np.mean((y[:n] - delay) ** 2))
+    assert rms_real < 0.03
+    assert rms_real < rms_delay
+
+
+def test_nonlinear_transient_vs_delay_model():
+    """Non-linear pneumatics, K K_I = 1 (shipped): how far the eq. (21) model misses.
+
+    The delay model predicts a first-order-like rise of 1.98 s and no overshoot.
+    The leg-1 inner loop (828 kg reflected mass, flow-limited valve) lags the
+    outer command by about 0.5 s, which makes the real response underdamped:
+    faster rise (0.83 s), overshoot 7.5 %, and a slow hunting of about 5 % of
+    the step (Coulomb friction against two integrators) that takes 10 s to stay
+    in the 2 % band (prediction: 3.7 s). The test bounds the miss: rise time
+    between 0.25 and 0.75 of the prediction, overshoot 2..20 %, within 3 % of
+    the step from 11 s after it.
+    """
+    sc = load_scenario("step_pitch", ["duration_s=16"])
+    res = simulate(sc)
+    t, y = _pitch_step_response(res.columns)
+    pred = step_metrics(np.arange(300) * 0.06, outer_step("I", 1.0, 0.06, 300), 1.0)
+    sim = step_metrics(t, y, 1.0)
+    ratio = sim["rise_time_s"] / pred["rise_time_s"]
+    assert 0.25 < ratio < 0.75, (sim, pred)
+    assert 2.0 < sim["overshoot_pct"] < 20.0
+    assert np.all(np.abs(y[t > 11.0] - 1.0) < 0.03)
+
+
+def test_same_seed_same_time_series_different_seed_differs():
+    sc = load_scenario("step_pitch", ["duration_s=1.5"])
+    a, b = simulate(sc), simulate(sc)
+    for k in a.columns:
+        assert np.array_equal(a.columns[k], b.columns[k], equal_nan=True), k
+    c = simulate(load_scenario("step_pitch", ["duration_s=1.5", "seed=2"]))
+    assert not np.array_equal(a.columns["pitch_meas_rad"], c.columns["pitch_meas_rad"])
