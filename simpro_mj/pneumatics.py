@@ -125,7 +125,7 @@ DEFAULT_PNEUMATIC_PARAMS: dict = {
     # Polytropic index of the chamber gas. 1.4 (adiabatic): the small-signal
     # oscillation (1-6 Hz) is much faster than the wall heat exchange of a
     # 125 mm chamber (seconds), Richer & Hurmuzlu 2000 sec. 2.2. Calibrated
-    # (the stiffest physical choice, see docs/notes-issue3.md).
+    # (the stiffest physical choice, see docs/paper-notes.md (pneumatics)).
     "polytropic_index": 1.4,
     "cylinder": {
         # DNC-125-500 (ISO 15552): bore 125 mm, stroke 500 mm (type code)
@@ -134,15 +134,15 @@ DEFAULT_PNEUMATIC_PARAMS: dict = {
         "rod_mm": 32.0,
         "stroke_mm": 500.0,
         # Dead volume per chamber: end-cap cushioning + port + valve-to-cylinder
-        # hose (3/8" hose, ID ~ 10 mm). Calibrated, see docs/notes-issue3.md.
+        # hose (3/8" hose, ID ~ 10 mm). Calibrated, see docs/paper-notes.md (pneumatics).
         "dead_volume_cap_l": [0.10, 0.10, 0.10],
         "dead_volume_rod_l": [0.10, 0.10, 0.10],
         # Viscous friction coefficient, N s/m. Calibrated per leg (damping
-        # ratio of eqs. 34/35), see docs/notes-issue3.md.
+        # ratio of eqs. 34/35), see docs/paper-notes.md (pneumatics).
         "viscous_friction_n_s_per_m": [11000.0, 600.0, 600.0],
         # Coulomb (seal) friction, N: low-friction seals (assumption, kept low:
         # its describing-function damping at PRBS speeds would dominate the
-        # paper's small damping of legs 2-3, see docs/notes-issue3.md)
+        # paper's small damping of legs 2-3, see docs/paper-notes.md (pneumatics))
         "coulomb_friction_n": [20.0, 20.0, 20.0],
         # tanh smoothing velocity of the Coulomb law, mm/s (assumption)
         "coulomb_smoothing_mm_per_s": 5.0,

@@ -76,7 +76,7 @@ def test_identification_of_the_linear_option_returns_the_paper_models():
 def test_identification_of_the_nonlinear_model_meets_calibration_and_physics():
     """Actuator 1's damping ratio is calibrated to the paper (±0.1); ω_n and the
     velocity gain follow the physics of the chamber stiffness and valve flow
-    (the paper's values are out of reach, docs/notes-issue3.md)."""
+    (the paper's values are out of reach, docs/paper-notes.md (pneumatics))."""
     tree = _tree()
     res = identify(tree, legs=(1, 2))
     wn_pred, vg_pred = _physics_prediction(tree)
