@@ -16,7 +16,7 @@ import yaml
 
 from .errors import UserInputError
 
-__all__ = ["parse_set", "apply_overrides", "set_path", "get_path", "closest"]
+__all__ = ["parse_set", "apply_overrides", "set_path", "get_path", "closest", "check_keys"]
 
 
 def closest(name: str, choices: Iterable[str]) -> str:
@@ -118,3 +118,29 @@ def apply_overrides(tree: Mapping, sets: Iterable[str], strict: bool = True) -> 
         key, value = parse_set(expr)
         set_path(out, key, value, strict=strict)
     return out
+
+
+def check_keys(tree: Mapping, ref: Mapping, path: str) -> None:
+    """Refuse keys of ``tree`` that ``ref`` does not have, recursively.
+
+    Only key names and the mapping/leaf shape are checked (values are the
+    owner's job). ``path`` is the dotted prefix used in the messages.
+
+    Raises
+    ------
+    UserInputError
+        ``unknown key at <path>: allowed keys are [...] (did you mean ...?)`` or
+        ``wrong type at <path>: expected a mapping``.
+    """
+    for key, sub in tree.items():
+        here = f"{path}.{key}" if path else str(key)
+        if key not in ref:
+            raise UserInputError(
+                f"unknown key at {here}: allowed keys are {sorted(ref)}{closest(str(key), ref)}"
+            )
+        if isinstance(ref[key], Mapping):
+            if not isinstance(sub, Mapping):
+                raise UserInputError(
+                    f"wrong type at {here}: got {type(sub).__name__} {sub!r}; allowed: a mapping"
+                )
+            check_keys(sub, ref[key], here)

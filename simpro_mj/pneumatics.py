@@ -89,7 +89,7 @@ import numpy as np
 from scipy.optimize import brentq
 
 from .errors import UserInputError
-from .params import apply_overrides, closest
+from .params import apply_overrides, check_keys, closest
 
 __all__ = [
     "DEFAULT_PNEUMATIC_PARAMS",
@@ -192,20 +192,6 @@ def pneumatic_params(overrides=None, base: dict | None = None) -> dict:
     return apply_overrides(DEFAULT_PNEUMATIC_PARAMS if base is None else base, overrides or [])
 
 
-def _check_keys(tree: Mapping, ref: Mapping, path: str) -> None:
-    for k, v in tree.items():
-        where = f"{path}.{k}" if path else k
-        if k not in ref:
-            raise UserInputError(
-                f"unknown key at pneumatics.{where}: allowed keys are {sorted(ref)}"
-                f"{closest(k, ref)}"
-            )
-        if isinstance(ref[k], dict):
-            if not isinstance(v, Mapping):
-                raise UserInputError(f"wrong type at pneumatics.{where}: expected a mapping")
-            _check_keys(v, ref[k], where)
-
-
 def _per_leg(tree: Mapping, path: str, lo: float = 0.0, hi: float = math.inf, open_lo=False):
     node = tree
     for part in path.split("."):
@@ -286,7 +272,7 @@ class PneumaticParams:
         """
         t = copy.deepcopy(DEFAULT_PNEUMATIC_PARAMS)
         if tree is not None:
-            _check_keys(tree, DEFAULT_PNEUMATIC_PARAMS, "")
+            check_keys(tree, DEFAULT_PNEUMATIC_PARAMS, "pneumatics")
             for k, v in tree.items():
                 if isinstance(v, Mapping):
                     t[k].update(copy.deepcopy(dict(v)))

@@ -62,7 +62,7 @@ from controllers.kinematics import check_reachable, reachable
 
 from .errors import UserInputError
 from .model import DEFAULT_MODEL_PARAMS
-from .params import closest, parse_set
+from .params import check_keys, closest, parse_set
 
 __all__ = [
     "DEFAULT_SCENARIO",
@@ -473,20 +473,7 @@ def _check_pneumatics(value: Mapping, path: str) -> dict:
     except ImportError:  # the actuator module is optional at this level
         return copy.deepcopy(dict(value))
 
-    def walk(node: Mapping, ref_node: Mapping, where: str) -> None:
-        for key, sub in node.items():
-            here = f"{where}.{key}"
-            if key not in ref_node:
-                raise UserInputError(
-                    f"unknown key at {here}: allowed keys are {sorted(ref_node)}"
-                    f"{closest(str(key), ref_node)}"
-                )
-            if isinstance(ref_node[key], Mapping):
-                if not isinstance(sub, Mapping):
-                    raise _wrong_type(here, sub, "a mapping")
-                walk(sub, ref_node[key], here)
-
-    walk(value, ref, path)
+    check_keys(value, ref, path)
     return copy.deepcopy(dict(value))
 
 
