@@ -125,3 +125,25 @@ def test_same_seed_same_time_series_different_seed_differs():
         assert np.array_equal(a.columns[k], b.columns[k], equal_nan=True), k
     c = simulate(load_scenario("step_pitch", ["duration_s=1.5", "seed=2"]))
     assert not np.array_equal(a.columns["pitch_meas_rad"], c.columns["pitch_meas_rad"])
+
+
+def test_divergence_stops_and_keeps_what_was_computed(monkeypatch, tmp_path, capsys):
+    """A loop opening past the bound stops the run; the rows up to it are written."""
+    import json
+
+    import simpro_mj.sim as sim_mod
+    from simpro_mj.cli import main
+
+    # a bound below the 1e-7 m resting closure error: trips at the first sample
+    monkeypatch.setattr(sim_mod, "LOOP_OPEN_BOUND", 1e-8)
+    rc = main(
+        ["run", "step_pitch", "--out", str(tmp_path / "r"), "--no-plots", "--set", "duration_s=4"]
+    )
+    assert rc == 1
+    met = json.loads((tmp_path / "r" / "metrics.json").read_text())
+    assert met["status"] == "diverged"
+    assert "loop" in met["reason"] and "opened" in met["reason"]
+    rows = (tmp_path / "r" / "timeseries.csv").read_text().count("\n") - 1
+    assert 0 < rows < 4001
+    assert met["sim"]["steps"] < 4000
+    assert "DIVERGED" in capsys.readouterr().out
