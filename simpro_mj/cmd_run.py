@@ -14,7 +14,13 @@ def add_arguments(parser) -> None:
 
 
 def execute(scenario: dict, out: Path, plots: bool = True):
-    """Run a resolved scenario and write its result folder; returns (result, metrics)."""
+    """Run a resolved scenario and write its result folder.
+
+    Returns ``(result, document)`` where ``document`` is what ``metrics.json``
+    holds, so ``--json`` prints exactly the file's content.
+    """
+    import json
+
     from .metrics import compute_metrics
     from .results import write_results
     from .sim import simulate
@@ -25,7 +31,7 @@ def execute(scenario: dict, out: Path, plots: bool = True):
     metrics["reason"] = res.reason
     metrics["sensor_floor"] = res.sensor_floor
     write_results(out, res.columns, metrics, scenario, {"sim": res.sim, "plots": plots})
-    return res, metrics
+    return res, json.loads((out / "metrics.json").read_text(encoding="utf-8"))
 
 
 def run(args) -> int:
@@ -38,15 +44,9 @@ def run(args) -> int:
     if args.json:
         from .cli import emit_json
 
-        emit_json(_public(metrics, res))
+        emit_json(metrics)
     else:
         print_summary(metrics, out)
         if res.status != "ok":
             print(f"DIVERGED: {res.reason}")
     return 0 if res.status == "ok" else 1
-
-
-def _public(metrics: dict, res) -> dict:
-    out = dict(metrics)
-    out.setdefault("sim", res.sim)
-    return out

@@ -63,6 +63,7 @@ from controllers.kinematics import check_reachable, reachable
 from .errors import UserInputError
 from .model import DEFAULT_MODEL_PARAMS
 from .params import check_keys, closest, parse_set
+from .sensors import DEFAULT_SENSORS
 
 __all__ = [
     "DEFAULT_SCENARIO",
@@ -187,23 +188,13 @@ DEFAULT_SCENARIO: dict = {
             "guide": {"radius_offset_mm": 4.0, "centre_offset_mm": [3.0, -2.0]},
         },
     ),
-    "sensors": {
-        # leg potentiometers -> q (joint loops)
-        "potentiometer": {
-            "bits": 14,
-            "range_v": 10.0,
-            "volts_per_mm": 0.02,
-            "noise_lsb": 0.5,
-            # as-built calibration errors per leg (assumption, see plant above)
-            "offset_mm": [1.5, -1.0, 2.0],
-            "gain_error_pct": [0.8, -0.6, 0.5],
-            "rate_ms": 1,
-        },
-        # heave encoder -> h (task loop)
-        "height_encoder": {"resolution_mm": 0.01, "noise_mm": 0.0, "rate_ms": 1},
-        # IMU -> roll, pitch (task loop)
-        "imu": {"noise_deg": 0.005, "bias_deg": [0.0, 0.0], "bandwidth_hz": 20.0, "rate_ms": 5},
-    },
+    # simpro_mj.sensors.DEFAULT_SENSORS (MF624 14-bit potentiometers, 10 um height
+    # encoder, 200 Hz IMU) with as-built potentiometer calibration errors per leg
+    # (assumption, like the plant's errors above)
+    "sensors": _merge(
+        DEFAULT_SENSORS,
+        {"potentiometer": {"offset_mm": [1.5, -1.0, 2.0], "gain_error_pct": [0.8, -0.6, 0.5]}},
+    ),
     # per axis, a list of components summed on top of the home pose
     "setpoint": {"roll_deg": [], "pitch_deg": [], "heave_mm": []},
     "logging": {"decimation": 1},

@@ -33,7 +33,14 @@ from controllers.kinematics import inverse_kinematics
 from controllers.task_space import TaskSpaceController
 
 from .errors import PhysicsError, UserInputError
-from .model import WARNING_NAMES, PlantIndex, assemble, load_model
+from .model import (
+    PlantIndex,
+    assemble,
+    check_physics,
+    load_model,
+    loop_closure_error,
+    measured_pose,
+)
 from .pneumatics import holding_forces, make_actuators
 from .sensors import SensorConfig, Sensors
 
@@ -172,18 +179,7 @@ class CoSimulation:
         self.joint.reset()
         self.task.reset(self.ref[0])
         mujoco.mj_forward(m, d)
-        self.sensors.reset(d.qpos[idx.slide_qpos], self._pose())
-
-    def _pose(self) -> np.ndarray:
-        """True (roll, pitch, h) of P from MuJoCo (eq. 8 inverted)."""
-        r = self.data.site_xmat[self.idx.site_p]
-        return np.array(
-            [
-                math.atan2(r[7], r[8]),
-                math.atan2(-r[6], r[0]),
-                self.data.site_xpos[self.idx.site_p, 2],
-            ]
-        )
+        self.sensors.reset(d.qpos[idx.slide_qpos], measured_pose(d, idx.site_p))
 
     # ------------------------------------------------------------------ run
     def run(self, progress=None) -> SimResult:
@@ -200,7 +196,8 @@ class CoSimulation:
         n_log = n // dec + 1
         log = np.full((n_log, len(COLUMNS)), np.nan)
         s_qpos, s_dof, act_ids = idx.slide_qpos, idx.slide_dof, idx.actuators
-        pairs = idx.connect_sites
+        site_p = idx.site_p
+        no_warnings = np.zeros_like(d.warning.number)
         task_mode = self.mode == "task_space"
         outer_every = self.outer_every
         ref, t_grid = self.ref, self.t
@@ -217,7 +214,7 @@ class CoSimulation:
                 mujoco.mj_step1(m, d)
                 q_true = d.qpos[s_qpos]
                 qdot = d.qvel[s_dof]
-                pose = self._pose()
+                pose = measured_pose(d, site_p)
                 q_meas, pose_meas = sensors.sample(k, q_true, pose)
                 if task_mode:
                     if k % outer_every == 0:
@@ -229,8 +226,7 @@ class CoSimulation:
                 u = joint.update(q_d, q_meas)
                 f = act.step(u, q_true, qdot, dt)
                 if k % dec == 0:
-                    xp = d.site_xpos
-                    loop = float(np.max(np.linalg.norm(xp[pairs[:, 0]] - xp[pairs[:, 1]], axis=1)))
+                    loop = float(loop_closure_error(m, d, idx).max())
                     worst_loop = max(worst_loop, loop)
                     r = log[row]
                     r[0] = t_grid[k]
@@ -248,14 +244,7 @@ class CoSimulation:
                     r[34] = loop
                     row += 1
                     if loop > LOOP_OPEN_BOUND:
-                        j = int(
-                            np.argmax(np.linalg.norm(xp[pairs[:, 0]] - xp[pairs[:, 1]], axis=1))
-                        )
-                        raise PhysicsError(
-                            f"kinematic loop '{idx.loop_names[j]}' opened: closure error "
-                            f"{loop * 1e3:.2f} mm > {LOOP_OPEN_BOUND * 1e3:.1f} mm "
-                            f"at t = {t_grid[k]:.3f} s"
-                        )
+                        check_physics(m, d, loop_bound=LOOP_OPEN_BOUND, index=idx)  # raises
                 if k == n:
                     break
                 if not math.isfinite(f[0] + f[1] + f[2]):
@@ -266,10 +255,7 @@ class CoSimulation:
                 d.ctrl[act_ids] = f
                 mujoco.mj_step2(m, d)
                 if d.warning.number.any():
-                    w = int(np.flatnonzero(d.warning.number)[0])
-                    raise PhysicsError(
-                        f"MuJoCo warning {WARNING_NAMES.get(w, w)} at t = {d.time:.3f} s"
-                    )
+                    check_physics(m, d, no_warnings, index=idx)  # raises, naming the warning
                 if progress is not None and k % 1000 == 0:
                     progress(k)
         except PhysicsError as exc:
