@@ -28,7 +28,7 @@ from controllers.geometry import nominal_geometry
 from controllers.kinematics import jacobian
 
 from .errors import UserInputError
-from .params import apply_overrides
+from .params import apply_overrides, check_number
 
 HELP = "stability analysis of the joint and task-space loops (root loci, Jury limits)"
 
@@ -90,6 +90,32 @@ def _pairs(z) -> list:
 
 def _check(p: dict) -> None:
     o, i = p["outer"], p["inner"]
+    check_number(p, "inner.dt_s", 0.0, 1.0, lo_open=True, unit=" s")
+    for key in ("period_s", "alt_period_s"):
+        check_number(p, f"outer.{key}", 0.0, 10.0, lo_open=True, unit=" s")
+    for key in ("gain", "pi_gain"):
+        check_number(p, f"outer.{key}", 0.0, 1e4)
+    check_number(p, "outer.pi_zero", -1.0, 1.0, lo_open=True, hi_open=True)
+    check_number(p, "outer.locus_gain_max", 0.0, 1e4, lo_open=True)
+    for key in ("outer.step_duration_s", "inner.step_duration_s"):
+        check_number(p, key, 0.0, 600.0, lo_open=True, unit=" s")
+    check_number(p, "inner.zeta", 0.0, 2.0, lo_open=True, hi_open=True)
+    check_number(p, "inner.wn_rad_s", 0.0, 1e4, lo_open=True, unit=" rad/s")
+    for key in ("p1_rad_s", "p2_rad_s"):
+        if i[key] is not None:
+            check_number(p, f"inner.{key}", 0.0, 1e5, lo_open=True, unit=" rad/s")
+    wn = p["sweep"]["wn_rad_s"]
+    if not isinstance(wn, list) or not wn:
+        raise UserInputError(
+            f"wrong type at sweep.wn_rad_s: {wn!r}; allowed: a non-empty list of numbers"
+        )
+    for k in range(len(wn)):
+        if isinstance(wn[k], bool) or not isinstance(wn[k], (int, float)):
+            raise UserInputError(f"wrong type at sweep.wn_rad_s[{k}]: {wn[k]!r}; allowed: a number")
+        if not (np.isfinite(wn[k]) and 0 < wn[k] <= 1e4):
+            raise UserInputError(
+                f"invalid value at sweep.wn_rad_s[{k}]: {wn[k]!r}; allowed: 0 < wn <= 1e4 rad/s"
+            )
     if i["variant"] not in VARIANTS:
         raise UserInputError(f"bad value at inner.variant: {i['variant']!r}; allowed {VARIANTS}")
     if i["method"] not in ("tustin", "zoh"):
@@ -177,6 +203,17 @@ def compute(p: dict) -> dict:
         spec["p1"] = i["p1_rad_s"]
     if i["p2_rad_s"] is not None:
         spec["p2"] = i["p2_rad_s"]
+    from controllers.design import redesigned_design
+    from controllers.errors import DesignError
+
+    for act in ACTUATORS:  # the redesign must be feasible before anything is computed
+        try:
+            redesigned_design(act, **spec)
+        except DesignError as exc:
+            raise UserInputError(
+                f"infeasible joint design at inner.wn_rad_s: {exc}; allowed: a zeta, wn_rad_s "
+                "(and p1_rad_s, p2_rad_s) the pole placement can meet, e.g. 0.7, 10"
+            ) from exc
     res: dict = {"paper": PAPER, "inner": {}, "outer": {}}
     for act in ACTUATORS:
         res["inner"][act] = {}

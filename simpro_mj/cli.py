@@ -10,6 +10,12 @@ Conventions shared by all subcommands (added here): ``--set KEY=VALUE``
 (dotted path, repeatable) overrides any parameter, ``--json`` prints exactly
 one JSON object on stdout and nothing else there, ``--out DIR`` chooses where
 files go. A user's mistake exits 2 with one line ``error: ...`` on stderr.
+
+Exit codes: 0 done, 1 the simulation diverged, 2 a user's mistake (bad
+scenario, ``--set``, arguments, a file that cannot be read or written),
+3 an internal error (a bug: one line on stderr; ``SIMPRO_DEBUG=1`` shows the
+traceback), 130 interrupted (Ctrl-C, SIGTERM), 141 stdout closed.
+docs/robustness.md lists the messages.
 """
 
 from __future__ import annotations
@@ -20,7 +26,7 @@ import json
 import os
 import sys
 
-from controllers.errors import KinematicsError
+from controllers.errors import DesignError, KinematicsError
 
 from .errors import PhysicsError, UserInputError
 
@@ -96,15 +102,23 @@ def _json_default(o):
     raise TypeError(f"not JSON serialisable: {type(o).__name__}")
 
 
+def _one_line(exc: BaseException) -> str:
+    return " ".join(str(exc).split())
+
+
 def main(argv=None) -> int:
     os.environ.setdefault("MPLBACKEND", "Agg")
     parser, _ = build_parser()
-    args = parser.parse_args(argv)
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:  # argparse: --help (0) or a misuse (2, one line already)
+        return exc.code if isinstance(exc.code, int) else 2
     try:
         return int(args._run(args) or 0)
-    except (UserInputError, KinematicsError) as exc:
-        msg = " ".join(str(exc).split())
-        sys.stderr.write(f"error: {msg}\n")
+    except (UserInputError, KinematicsError, DesignError) as exc:
+        # KinematicsError/DesignError reach here only from a check that did not
+        # wrap them with a field path; their messages still name the limit
+        sys.stderr.write(f"error: {_one_line(exc)}\n")
         return 2
     except PhysicsError as exc:
         sys.stderr.write(f"error: simulation diverged: {exc}\n")
@@ -116,6 +130,23 @@ def main(argv=None) -> int:
         # stdout closed by a reader such as `| head`: results are already on disk
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 141
+    except OSError as exc:
+        # a folder or file the user named that cannot be written or read
+        where = exc.filename if exc.filename is not None else "--out"
+        sys.stderr.write(
+            f"error: cannot access at {where}: {exc.strerror or _one_line(exc)}; "
+            "allowed: a readable input and a writable output folder\n"
+        )
+        return 2
+    except Exception as exc:
+        if os.environ.get("SIMPRO_DEBUG"):
+            raise
+        sys.stderr.write(
+            f"error: internal error in simpro-sim {args.command}: "
+            f"{type(exc).__name__}: {_one_line(exc)} (a bug, please report it with the "
+            "command line; SIMPRO_DEBUG=1 shows the traceback)\n"
+        )
+        return 3
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import copy
+import sys
 from pathlib import Path
 
 HELP = "run a scenario with joint-only and with task-space control on the same plant and seed"
@@ -16,16 +17,30 @@ def add_arguments(parser) -> None:
     parser.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
 
 
-def compare(scenario: dict, out: Path, plots: bool = True) -> dict:
-    """Run both modes into ``out/joint_only`` and ``out/task_space``; returns both metrics."""
-    from .cmd_run import execute
+def compare(scenario: dict, out: Path, plots: bool = True, *, quiet: bool = False) -> dict:
+    """Run both modes into ``out/joint_only`` and ``out/task_space``; returns both metrics.
 
+    The preflight checks (:mod:`simpro_mj.preflight`) run once, before either
+    run, on the task-space variant (the one with an outer loop); their
+    warnings are printed once unless ``quiet`` and recorded in both folders.
+    An interrupted run stops the comparison (``results`` then holds fewer
+    than two modes).
+    """
+    from .cmd_run import _warn, execute
+    from .preflight import preflight
+
+    task = copy.deepcopy(scenario)
+    task["controller"]["mode"] = "task_space"
+    warnings, _ = preflight(task)  # raises for a payload the cylinders cannot hold
+    _warn(warnings, quiet)
     results, metrics = {}, {}
     for mode in ("joint_only", "task_space"):
         sc = copy.deepcopy(scenario)
         sc["controller"]["mode"] = mode
-        res, met = execute(sc, out / mode, plots=plots)
+        res, met = execute(sc, out / mode, plots=plots, quiet=True)
         results[mode], metrics[mode] = res, met
+        if res.status == "interrupted":
+            return {"metrics": metrics, "results": results}
     if plots:
         from .plots import plot_compare
 
@@ -58,12 +73,19 @@ def _table(metrics: dict) -> str:
 def run(args) -> int:
     import json
 
+    from .cmd_run import EXIT_INTERRUPTED, interrupted_message, sigterm_as_interrupt
     from .scenario import load_scenario
 
     scenario = load_scenario(args.scenario, args.sets)
     out = Path(args.out) if args.out else Path("results") / f"{scenario['name']}-compare"
-    both = compare(scenario, out, plots=not args.no_plots)
+    with sigterm_as_interrupt():
+        both = compare(scenario, out, plots=not args.no_plots)
     metrics = both["metrics"]
+    for mode, res in both["results"].items():
+        if res.status == "interrupted":
+            msg = interrupted_message(res, out / mode)
+            sys.stderr.write(f"error: {mode}: {msg}; no comparison written\n")
+            return EXIT_INTERRUPTED
     table = _table(metrics)
     out.mkdir(parents=True, exist_ok=True)
     (out / "comparison.txt").write_text(table + "\n")

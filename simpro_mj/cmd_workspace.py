@@ -7,8 +7,7 @@ import numpy as np
 from controllers.geometry import nominal_geometry
 from controllers.workspace import combined_ranges, workspace_ranges
 
-from .errors import UserInputError
-from .params import apply_overrides
+from .params import apply_overrides, check_number
 
 HELP = "print the reachable workspace (single-axis ranges and their combinations)"
 
@@ -21,10 +20,9 @@ def add_arguments(parser) -> None:
 
 def run(args) -> int:
     p = apply_overrides(DEFAULTS, args.sets)
-    if p["margin_mm"] < 0 or p["margin_mm"] >= 250:
-        raise UserInputError("invalid value at margin_mm: allowed 0 <= margin_mm < 250")
-    if int(p["heights"]) < 1:
-        raise UserInputError("invalid value at heights: allowed integer >= 1")
+    # stroke margin below half the 500 mm stroke; heights bounded to keep it quick
+    check_number(p, "margin_mm", 0.0, 250.0, hi_open=True, unit=" mm")
+    check_number(p, "heights", 1, 1000, integer=True)
     margin = p["margin_mm"] * 1e-3
     g = nominal_geometry()
     single = workspace_ranges(g, margin)

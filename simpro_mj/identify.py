@@ -37,7 +37,7 @@ import numpy as np
 
 from .errors import PhysicsError, UserInputError
 from .model import DEFAULT_MODEL_PARAMS, PlantIndex, assemble, check_physics, load_model
-from .params import apply_overrides
+from .params import apply_overrides, check_number
 from .pneumatics import (
     ACTUATOR_KINDS,
     DEFAULT_PNEUMATIC_PARAMS,
@@ -110,6 +110,43 @@ def _leg_values(x, name: str) -> np.ndarray:
     return arr
 
 
+def check_tree(tree: dict) -> dict:
+    """Validate the ``identify`` settings and the pneumatics tree (the model's
+    values are checked by :func:`simpro_mj.model.load_model`); returns ``tree``
+    with the pneumatics normalised.
+
+    Raises
+    ------
+    UserInputError
+        Naming the dotted path and what is allowed.
+    """
+    from .scenario import _check_pneumatics
+
+    tree["pneumatics"] = _check_pneumatics(tree["pneumatics"], "pneumatics")
+    i = "identify"
+    check_number(tree, f"{i}.duration_s", 0.5, 3600.0, unit=" s")
+    check_number(tree, f"{i}.settle_s", 0.0, 3600.0, unit=" s")
+    check_number(tree, f"{i}.position_mm", 50.0, 450.0, unit=" mm")
+    ms = check_number(tree, f"{i}.prbs_clock_ms", 1.0, 10**6, unit=" ms")
+    if ms != round(ms):
+        raise UserInputError(
+            f"invalid value at {i}.prbs_clock_ms: {ms:g}; allowed: a positive integer "
+            "multiple of the 1 ms physics step"
+        )
+    check_number(tree, f"{i}.prbs_bits", 2, 24, integer=True)
+    check_number(tree, f"{i}.seed", 0, 2**31, integer=True)
+    check_number(tree, f"{i}.fit_skip_s", 0.0, tree[i]["duration_s"], hi_open=True, unit=" s")
+    check_number(tree, f"{i}.loop_bound_mm", 0.0, lo_open=True, unit=" mm")
+    amp = _leg_values(tree[i]["prbs_amplitude_v"], "prbs_amplitude_v")
+    if np.any(amp > 5.0):
+        raise UserInputError(
+            f"invalid value at {i}.prbs_amplitude_v: {tree[i]['prbs_amplitude_v']!r}; "
+            "allowed: <= 5 V (the valve's half range)"
+        )
+    _leg_values(tree[i]["kp_v_per_m"], "kp_v_per_m")
+    return tree
+
+
 def _prbs(n_steps: int, clock: int, bits: int, seed: int) -> np.ndarray:
     """±1 maximum-length sequence, each bit held ``clock`` steps."""
     from scipy.signal import max_len_seq
@@ -138,6 +175,7 @@ def run_experiment(tree: dict, leg: int, model=None) -> dict:
     """
     import mujoco
 
+    check_tree(tree)
     ip = tree["identify"]
     kind = ip["actuator_kind"]
     if kind not in ACTUATOR_KINDS:
@@ -157,6 +195,21 @@ def run_experiment(tree: dict, leg: int, model=None) -> dict:
     assemble(m, d, q0, index=idx)
     f_hold = holding_forces(m, d, idx)
     act = make_actuators(kind, tree["pneumatics"], model=m)
+    force_range = act.params.force_range
+    if np.any(f_hold > force_range[1]) or np.any(f_hold < force_range[0]):
+        from .preflight import holding_force_model, max_payload
+
+        f0, slope = holding_force_model(m, d, idx, 100.0)  # affine in the mass: any probe
+        cap = np.where(f_hold >= 0, force_range[1], force_range[0])
+        worst = int(np.argmax(f_hold / cap))
+        raise UserInputError(
+            f"payload too heavy at model.payload.mass_kg: {tree['model']['payload']['mass_kg']:g} "
+            f"kg needs {abs(f_hold[worst]) / 1e3:.2f} kN on cylinder {worst + 1} at q = "
+            f"{ip['position_mm']:g} mm, which makes at most "
+            f"{abs(force_range[1] if f_hold[worst] >= 0 else force_range[0]) / 1e3:.2f} kN; "
+            f"allowed: <= {max(0.0, max_payload(f0, slope, force_range)):.0f} kg at this supply "
+            "pressure (pneumatics.supply_pressure_bar_gauge)"
+        )
     act.reset(q0, np.zeros(3), force=f_hold)
     u_hold = act.u_hold.copy()
     kp = _leg_values(ip["kp_v_per_m"], "kp_v_per_m")
@@ -310,7 +363,7 @@ def identify(tree: dict | None = None, legs=(1, 2, 3), records: dict | None = No
 
     ``records``, when given, receives each leg's experiment record and fit.
     """
-    tree = default_tree() if tree is None else tree
+    tree = check_tree(default_tree() if tree is None else tree)
     ip = tree["identify"]
     model = load_model(tree["model"])
     out = {}

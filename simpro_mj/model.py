@@ -11,6 +11,7 @@ perturbed model do not close at ``qpos0``).
 from __future__ import annotations
 
 import copy
+import math
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -34,6 +35,7 @@ __all__ = [
     "mobility",
     "assemble",
     "measured_pose",
+    "StateReader",
     "check_physics",
     "WARNING_NAMES",
 ]
@@ -104,13 +106,30 @@ def _check_params(params: dict) -> None:
                 f"unknown key at model.anchor_offsets_mm.{k}: allowed keys are "
                 f"{list(DEFAULT_MODEL_PARAMS['anchor_offsets_mm'])}"
             )
-    mass = params["payload"]["mass_kg"]
-    if not np.isfinite(mass) or mass < 0:
-        raise UserInputError(f"invalid value at model.payload.mass_kg: {mass}; allowed: >= 0 kg")
-    if params["platform_mass_kg"] <= 0:
-        raise UserInputError("invalid value at model.platform_mass_kg: allowed: > 0 kg")
-    if params["loop_timeconst_s"] <= 0:
-        raise UserInputError("invalid value at model.loop_timeconst_s: allowed: > 0 s")
+    for path, lo, unit in (
+        ("payload.mass_kg", 0.0, " kg"),
+        ("platform_mass_kg", 0.0, " kg"),
+        ("loop_timeconst_s", 0.0, " s"),
+        ("guide.radius_offset_mm", -1000.0, " mm"),
+    ):
+        node = params
+        for part in path.split("."):
+            node = node[part]
+        ok = isinstance(node, (int, float)) and not isinstance(node, bool)
+        if (
+            not ok
+            or not np.isfinite(node)
+            or node < lo
+            or (node == lo and path != "payload.mass_kg")
+        ):
+            allowed = f"{'>=' if path == 'payload.mass_kg' else '>'} {lo:g}{unit}, finite"
+            raise UserInputError(f"invalid value at model.{path}: {node!r}; allowed: {allowed}")
+    # a heavy payload is refused with its limit by simpro_mj.preflight before a run
+    if params["payload"]["mass_kg"] > 1e5:
+        raise UserInputError(
+            f"invalid value at model.payload.mass_kg: {params['payload']['mass_kg']!r}; "
+            "allowed: <= 1e5 kg"
+        )
 
 
 def load_spec(params: dict | None = None, path: Path | str | None = None) -> mujoco.MjSpec:
@@ -330,11 +349,74 @@ def measured_pose(data, site_p: int) -> np.ndarray:
     """(roll, pitch, h) of the platform frame from MuJoCo, eq. (8) inverted.
 
     ``R = Ry(pitch) Rx(roll)``: pitch = atan2(-R20, R00), roll = atan2(R21, R22).
+    (:meth:`StateReader.pose` is the same computation on pre-bound views.)
     """
-    r = data.site_xmat[site_p].reshape(3, 3)
-    return np.array(
-        [np.arctan2(r[2, 1], r[2, 2]), np.arctan2(-r[2, 0], r[0, 0]), data.site_xpos[site_p, 2]]
-    )
+    r = data.site_xmat[site_p].tolist()
+    # one arctan2 call for both angles: numpy's kernel gives the same bits for
+    # a 2-vector as for two scalars (it is not libm's atan2, so no math.atan2)
+    roll, pitch = np.arctan2((r[7], -r[6]), (r[8], r[0])).tolist()
+    return np.array([roll, pitch, data.site_xpos[site_p, 2]])
+
+
+class StateReader:
+    """What the 1 ms loop reads from MuJoCo, as Python floats, on pre-bound views.
+
+    ``MjData`` arrays never move, so the views into ``qpos``, ``qvel``,
+    ``site_xpos`` and ``site_xmat`` are taken once. Three slides, one pose and
+    four loops are too few for numpy's per-call cost (about 0.5 us); reading a
+    whole small array with ``tolist()`` and indexing Python lists is cheaper.
+    The results equal, bit for bit, ``data.qpos[index.slide_qpos]``,
+    :func:`measured_pose` and ``loop_closure_error(...).max()``.
+
+    Parameters
+    ----------
+    model, data : mujoco.MjModel, mujoco.MjData
+    index : PlantIndex, optional
+    """
+
+    def __init__(self, model: mujoco.MjModel, data: mujoco.MjData, index=None):
+        idx = index or PlantIndex.of(model)
+        self._qpos, self._qvel = data.qpos, data.qvel
+        self._slide_qpos = idx.slide_qpos.tolist()
+        self._slide_dof = idx.slide_dof.tolist()
+        self._xmat = data.site_xmat[idx.site_p]  # (9,) view, row-major R
+        self._xpos_flat = data.site_xpos.reshape(-1)  # view
+        self._h_at = 3 * int(idx.site_p) + 2
+        self._pairs = [(3 * int(a), 3 * int(b)) for a, b in idx.connect_sites]
+        self._num, self._den, self._ang = np.empty(2), np.empty(2), np.empty(2)
+
+    def slides(self) -> tuple[list, list]:
+        """Slide positions q (m) and velocities q_dot (m/s), three each."""
+        qp, qv = self._qpos.tolist(), self._qvel.tolist()
+        a, b, c = self._slide_qpos
+        i, j, k = self._slide_dof
+        return [qp[a], qp[b], qp[c]], [qv[i], qv[j], qv[k]]
+
+    def pose(self) -> list:
+        """[roll, pitch, h] of the platform frame: :func:`measured_pose` as floats."""
+        r = self._xmat.tolist()
+        num, den = self._num, self._den
+        num[0], num[1], den[0], den[1] = r[7], -r[6], r[8], r[0]
+        np.arctan2(num, den, out=self._ang)
+        roll, pitch = self._ang.tolist()
+        return [roll, pitch, float(self._xpos_flat[self._h_at])]
+
+    def loop_closure_max(self) -> float:
+        """Worst loop-closure distance (m): ``loop_closure_error(...).max()``.
+
+        Same arithmetic as ``np.linalg.norm(axis=1)`` on three components:
+        ``sqrt((dx^2 + dy^2) + dz^2)``.
+        """
+        x = self._xpos_flat.tolist()
+        worst = 0.0
+        for a, b in self._pairs:
+            dx, dy, dz = x[a] - x[b], x[a + 1] - x[b + 1], x[a + 2] - x[b + 2]
+            e = math.sqrt(dx * dx + dy * dy + dz * dz)
+            if e > worst:
+                worst = e
+            elif e != e:
+                return e  # NaN, as ndarray.max
+        return worst
 
 
 def check_physics(model, data, warnings_before=None, loop_bound: float | None = None, index=None):

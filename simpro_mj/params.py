@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import copy
 import difflib
+import math
+import re
 from collections.abc import Iterable, Mapping
 from typing import Any
 
@@ -16,7 +18,25 @@ import yaml
 
 from .errors import UserInputError
 
-__all__ = ["parse_set", "apply_overrides", "set_path", "get_path", "closest", "check_keys"]
+__all__ = [
+    "parse_set",
+    "apply_overrides",
+    "set_path",
+    "get_path",
+    "closest",
+    "check_keys",
+    "check_number",
+    "key_text",
+]
+
+
+_PLAIN_KEY = re.compile(r"^[A-Za-z0-9_.\-]+$")
+
+
+def key_text(key: Any) -> str:
+    """A key as it appears in a dotted path: plain names as they are, anything
+    else (spaces, newlines, non-strings) quoted, so a message stays one line."""
+    return key if isinstance(key, str) and _PLAIN_KEY.match(key) else repr(key)
 
 
 def closest(name: str, choices: Iterable[str]) -> str:
@@ -35,14 +55,14 @@ def parse_set(expr: str) -> tuple[str, Any]:
     """
     if "=" not in expr:
         raise UserInputError(
-            f"malformed --set at '{expr}': expected KEY=VALUE with a dotted KEY, e.g. "
+            f"malformed --set at {expr!r}: expected KEY=VALUE with a dotted KEY, e.g. "
             "controller.mode=task_space"
         )
     key, _, raw = expr.partition("=")
     key = key.strip()
     if not key or any(not part for part in key.split(".")):
         raise UserInputError(
-            f"malformed --set at '{expr}': expected KEY=VALUE with KEY a dotted path like a.b.c"
+            f"malformed --set at {expr!r}: expected KEY=VALUE with KEY a dotted path like a.b.c"
         )
     try:
         value = yaml.safe_load(raw) if raw.strip() else ""
@@ -133,7 +153,7 @@ def check_keys(tree: Mapping, ref: Mapping, path: str) -> None:
         ``wrong type at <path>: expected a mapping``.
     """
     for key, sub in tree.items():
-        here = f"{path}.{key}" if path else str(key)
+        here = f"{path}.{key_text(key)}" if path else key_text(key)
         if key not in ref:
             raise UserInputError(
                 f"unknown key at {here}: allowed keys are {sorted(ref)}{closest(str(key), ref)}"
@@ -144,3 +164,42 @@ def check_keys(tree: Mapping, ref: Mapping, path: str) -> None:
                     f"wrong type at {here}: got {type(sub).__name__} {sub!r}; allowed: a mapping"
                 )
             check_keys(sub, ref[key], here)
+
+
+def check_number(
+    tree: Mapping,
+    path: str,
+    lo: float = -math.inf,
+    hi: float = math.inf,
+    *,
+    lo_open: bool = False,
+    hi_open: bool = False,
+    integer: bool = False,
+    unit: str = "",
+) -> float:
+    """The number at dotted ``path`` of ``tree``, checked to be finite and in range.
+
+    Raises
+    ------
+    UserInputError
+        ``wrong type at <path>: ...`` for a non-number (booleans included) or
+        ``invalid value at <path>: <value>; allowed: <range>`` for NaN, inf,
+        a value out of range or (``integer``) a fractional one.
+    """
+    value = get_path(tree, path)
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise UserInputError(
+            f"wrong type at {path}: got {type(value).__name__} {value!r}; allowed: a number"
+        )
+    x = float(value)
+    lo_ok = x > lo if lo_open else x >= lo
+    hi_ok = x < hi if hi_open else x <= hi
+    if not (math.isfinite(x) and lo_ok and hi_ok and (not integer or x == int(x))):
+        parts = []
+        if lo > -math.inf:
+            parts.append(f"{'>' if lo_open else '>='} {lo:g}{unit}")
+        if hi < math.inf:
+            parts.append(f"{'<' if hi_open else '<='} {hi:g}{unit}")
+        allowed = ("an integer " if integer else "a finite number ") + " and ".join(parts)
+        raise UserInputError(f"invalid value at {path}: {value!r}; allowed: {allowed.strip()}")
+    return int(x) if integer else x

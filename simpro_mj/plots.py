@@ -53,6 +53,36 @@ def _save(fig: Figure, path: Path) -> Path:
     return path
 
 
+#: Colours of the fault intervals shaded on every time plot of a run.
+_FAULT_COLOURS = {
+    "supply_drop": "tab:red",
+    "valve_stuck": "tab:orange",
+    "sensor_frozen": "tab:purple",
+    "sensor_dropout": "tab:pink",
+    "sensor_bias": "tab:brown",
+    "potentiometer_failure": "tab:olive",
+}
+
+
+def _shade_faults(fig: Figure, scenario: Mapping) -> None:
+    """Shade each scheduled fault's interval on every axis of ``fig`` (one legend entry)."""
+    from .faults import fault_intervals
+
+    spans = fault_intervals(scenario) if scenario.get("faults") else []
+    if not spans:
+        return
+    axes = [ax for ax in fig.axes if ax.get_visible()]
+    for n, ax in enumerate(axes):
+        seen = set()
+        for kind, start, end in spans:
+            label = f"fault: {kind}" if n == 0 and kind not in seen else None
+            seen.add(kind)
+            ax.axvspan(start, end, color=_FAULT_COLOURS.get(kind, "0.5"), alpha=0.12, lw=0,
+                       label=label)  # fmt: skip
+    if axes:
+        axes[0].legend(loc="best", fontsize=8)
+
+
 def _task_axes(fig: Figure, columns: Mapping, ncols: int = 1, col: int = 0, axes=None):
     """Draw the three task-space panels into column ``col`` of a 3 x ncols grid."""
     t = _col(columns, "time_s")
@@ -96,8 +126,9 @@ def plot_run(columns: Mapping[str, np.ndarray], scenario: Mapping, out_dir) -> l
         ``task_space.png`` (desired blue vs output green, roll/pitch in deg,
         height in mm; Figs. 14/16), ``joints.png`` (slide set-points vs
         positions, mm), ``valves.png`` (valve voltages, V) and
-        ``pressures.png`` (chamber pressures, bar absolute), each only if its
-        columns are present.
+        ``pressures.png`` (chamber pressures, bar absolute, with the supply
+        pressure when logged), each only if its columns are present. Scheduled
+        faults (``scenario["faults"]``) are shaded on every figure.
     """
     out_dir = Path(out_dir)
     t = _col(columns, "time_s")
@@ -108,6 +139,7 @@ def plot_run(columns: Mapping[str, np.ndarray], scenario: Mapping, out_dir) -> l
     if drawn:
         drawn[0].legend(loc="best", fontsize=8)
         fig.suptitle(_title(scenario, "task space, desired (blue) vs output (green)"))
+        _shade_faults(fig, scenario)
         paths.append(_save(fig, out_dir / "task_space.png"))
 
     legs = [i for i in (1, 2, 3) if _has(columns, f"q{i}_ref_m", f"q{i}_m")]
@@ -122,6 +154,7 @@ def plot_run(columns: Mapping[str, np.ndarray], scenario: Mapping, out_dir) -> l
         axes[0].legend(loc="best", fontsize=8)
         axes[-1].set_xlabel("time [s]")
         fig.suptitle(_title(scenario, "joint space, slide set-points vs positions"))
+        _shade_faults(fig, scenario)
         paths.append(_save(fig, out_dir / "joints.png"))
 
     valves = [i for i in (1, 2, 3) if f"u{i}_v" in columns]
@@ -137,6 +170,7 @@ def plot_run(columns: Mapping[str, np.ndarray], scenario: Mapping, out_dir) -> l
         ax.grid(True, alpha=0.3)
         ax.legend(loc="best", fontsize=8)
         fig.suptitle(_title(scenario, "valve commands"))
+        _shade_faults(fig, scenario)
         paths.append(_save(fig, out_dir / "valves.png"))
 
     chambers = [i for i in (1, 2, 3) if _has(columns, f"p{i}a_pa", f"p{i}b_pa")]
@@ -146,11 +180,15 @@ def plot_run(columns: Mapping[str, np.ndarray], scenario: Mapping, out_dir) -> l
         for ax, i in zip(axes, chambers, strict=True):
             ax.plot(t, _col(columns, f"p{i}a_pa") * 1e-5, lw=1.0, label="cap side (a)")
             ax.plot(t, _col(columns, f"p{i}b_pa") * 1e-5, lw=1.0, label="rod side (b)")
+            if "supply_pa" in columns:
+                ax.plot(t, _col(columns, "supply_pa") * 1e-5, color="k", lw=0.8, ls="--",
+                        label="supply")  # fmt: skip
             ax.set_ylabel(f"leg {i} [bar abs]")
             ax.grid(True, alpha=0.3)
         axes[0].legend(loc="best", fontsize=8)
         axes[-1].set_xlabel("time [s]")
         fig.suptitle(_title(scenario, "chamber pressures"))
+        _shade_faults(fig, scenario)
         paths.append(_save(fig, out_dir / "pressures.png"))
     return paths
 

@@ -82,6 +82,7 @@ from __future__ import annotations
 
 import copy
 import math
+from bisect import bisect_right
 from collections.abc import Mapping
 from dataclasses import dataclass
 
@@ -480,7 +481,8 @@ class NonlinearActuators:
         self._mvd = mvd
         # overtravel past the soft end stops must not empty a chamber
         self._vmin = 0.5 * np.concatenate([P.dead_cap, P.dead_rod])
-        self._pbound = np.concatenate([np.full(6, ps), np.full(6, pa)])  # G -> G p
+        # upstream pressure of each edge (G -> G p; step() itself reads self._ps, self._pa)
+        self._pbound = np.concatenate([np.full(6, ps), np.full(6, pa)])
         # state and buffers (no allocation in step but the returned force)
         self.spool = np.zeros(3)
         self.spool_rate = np.zeros(3)
@@ -501,6 +503,19 @@ class NonlinearActuators:
         self._den = np.empty(6)
         self._cmd = np.empty(3)
         self._w3 = np.empty(3)
+        # Scalar copies for the per-chamber arithmetic of step() (Python floats)
+        self._order1 = P.spool_order == 1
+        self._delta_l = P.underlap.tolist()
+        self._xp_l, self._fp_l = self._xp.tolist(), self._fp.tolist()
+        xl, fl = self._xp_l, self._fp_l  # np.interp's slope of each grid cell
+        self._slope_l = [(fl[j + 1] - fl[j]) / (xl[j + 1] - xl[j]) for j in range(len(xl) - 1)]
+        self._guess = [0] * 12  # last grid cell of each edge's ratio (np.interp's guess)
+        # per chamber (cap sides, then rod sides): index, leg, V0, dV/dq, V_min
+        self._chambers = tuple(
+            (c, c % 3, float(mv[c, 0]), float(mv[c, 1 + c % 3]), float(self._vmin[c]))
+            for c in range(6)
+        )
+        self._substeps = range(P.substeps)
         self._dt = None
         self.reset(np.full(3, 0.5 * self._L), np.zeros(3))
 
@@ -613,69 +628,168 @@ class NonlinearActuators:
         """Advance valves and chambers by ``dt`` (s); return the slide forces (N).
 
         Inputs are held over the step (zero-order hold, as the rig's 1 ms DAC).
-        Returns a new (3,) array: the force to apply during the next physics step.
+        ``u_volts``, ``q``, ``qdot`` are (3,) arrays or sequences of 3 floats (a
+        scalar applies to all legs). Returns a new (3,) array: the force to
+        apply during the next physics step.
+
+        Notes
+        -----
+        The hot path of the co-simulation (issue 7). Three legs of two
+        chambers are too few for numpy: a ufunc on a 3-vector costs about as
+        much as 20 float operations in the interpreter. The per-chamber
+        arithmetic therefore runs on Python floats, operation for operation
+        the same IEEE expressions as the stacked-array version it replaced
+        (same grouping, so bit-identical results; ``tests/test_reference_metrics.py``).
+        Two steps stay in numpy because a scalar rewrite would round
+        differently: ``tanh`` (numpy's SIMD kernel is not libm's) and the
+        force product ``Mf @ z`` (BLAS accumulates with FMA).
         """
         if dt != self._dt:
             if not dt > 0:
                 raise ValueError(f"dt must be > 0, got {dt}")
             self._set_dt(dt)
-        # valve command: saturate 0..10 V, normalise around the 5 V centre
-        cmd, sp = self._cmd, self.spool
-        np.multiply(u_volts, 0.2, out=cmd)
-        cmd -= 1.0
-        np.maximum(cmd, -1.0, out=cmd)
-        np.minimum(cmd, 1.0, out=cmd)
-        if self.params.spool_order == 1:  # exact first-order lag
-            cmd -= sp
-            cmd *= self._alpha
-            sp += cmd
+        u, q, qd = _as3(u_volts), _as3(q), _as3(qdot)
+        # valve command: saturate 0..10 V, normalise around the 5 V centre;
+        # then the spool lag (exact for the held command)
+        if self._order1:
+            sp = self.spool.tolist()
+            alpha = self._alpha
+            for i in range(3):
+                c = u[i] * 0.2 - 1.0
+                if c < -1.0:  # comparisons, not min/max: NaN propagates as in np.maximum
+                    c = -1.0
+                if c > 1.0:
+                    c = 1.0
+                sp[i] = sp[i] + (c - sp[i]) * alpha
         else:
-            ad, bd, sr, w3 = self._spool_ad, self._spool_bd, self.spool_rate, self._w3
-            w3[:] = ad[1, 0] * sp + ad[1, 1] * sr + bd[1] * cmd
-            sp *= ad[0, 0]
-            sp += ad[0, 1] * sr + bd[0] * cmd
-            sr[:] = w3
-        # metering-edge openings with underlap and clearance leakage (Rubio 2009)
-        a = self._a
-        np.multiply(self._sg, sp, out=a)
-        a += self._delta
-        np.maximum(a, self._eps, out=a)
-        np.minimum(a, 1.0, out=a)
-        # chamber volumes, h n / V, and the volume-rate term 1 + h n Vdot / V
-        V, hnV, hc, den0 = self._V, self._hnV, self._hc, self._den0
-        self._zq[:] = q
-        self._zqd[:] = qdot
-        np.dot(self._mv, self._z1q, out=V)
-        np.maximum(V, self._vmin, out=V)
-        np.divide(self._hn, V, out=hnV)
-        np.dot(self._mvd, self._zqd, out=den0)
-        den0 *= hnV
-        den0 += 1.0
-        np.multiply(hnV, self._RTk, out=hc)  # h n R T k / V
-        p, r, G, w = self._p, self._r, self._G, self._w
-        num, den = self._num, self._den
-        for _ in range(self.params.substeps):
-            # pressure ratios of the edges: supply p/ps, exhaust pa/p
-            np.multiply(p, 1.0 / self._ps, out=self._rs)
-            np.divide(self._pa, p, out=self._re)
-            # conductances G = a ψ(r) (times k, folded into hc)
-            np.multiply(self._a12, np.interp(r, self._xp, self._fp), out=G)
-            # implicit Euler with frozen conductances (see class notes)
-            np.multiply(G, self._pbound, out=w)
-            np.add(self._ws, self._we, out=num)
-            num *= hc
-            num += p
-            np.add(self._Gs, self._Ge, out=den)
-            den *= hc
-            den += den0
-            np.maximum(den, 0.5, out=den)
-            np.divide(num, den, out=p)
-            np.maximum(p, self._pa, out=p)
-            np.minimum(p, self._ps, out=p)
-        # force on the slide with friction (viscous + tanh Coulomb)
-        np.multiply(self._zqd, self._inv_vs, out=self._zth)
+            sp = self._spool2(u)
+        spool = self.spool  # item stores: cheaper than a slice assignment for 3 values
+        spool[0], spool[1], spool[2] = sp
+        # metering-edge openings with underlap and clearance leakage (Rubio 2009):
+        # a_P1 = a_2R = clip(δ + s), a_1R = a_P2 = clip(δ - s), both in [ε, 1]
+        eps = self._eps
+        a_plus, a_minus = [], []
+        for s_i, d_i in zip(sp, self._delta_l, strict=True):
+            ap, am = s_i + d_i, d_i - s_i
+            if ap < eps:
+                ap = eps
+            if ap > 1.0:
+                ap = 1.0
+            if am < eps:
+                am = eps
+            if am > 1.0:
+                am = 1.0
+            a_plus.append(ap)
+            a_minus.append(am)
+        # the six chambers, cap sides of legs 1-3 then rod sides (the order of
+        # p1, p2): supply edges P->1, P->2 and exhaust edges 1->R, 2->R
+        a_supply, a_exhaust = a_plus + a_minus, a_minus + a_plus
+        z = self._z  # [p1 (3), p2 (3), qdot (3), tanh(qdot/vs) (3), 1, q (3)]
+        p = z.tolist()
+        ps, pa, hn, rtk = self._ps, self._pa, self._hn, self._RTk
+        ips = 1.0 / ps  # read each step: the supply may change at run time (faults)
+        xp, fp, sl, guess = self._xp_l, self._fp_l, self._slope_l, self._guess
+        substeps = self._substeps
+        for c, i, v0, dv, vmin in self._chambers:
+            # volume V = V0 + dV q, h n / V, and the volume-rate term 1 + h n Vdot / V
+            V = v0 + dv * q[i]
+            if V < vmin:  # overtravel past the soft end stops must not empty a chamber
+                V = vmin
+            hnV = hn / V
+            den0 = (dv * qd[i]) * hnV + 1.0
+            hc = hnV * rtk  # h n R T k / V
+            a_s, a_e, pc = a_supply[c], a_exhaust[c], p[c]
+            for _ in substeps:
+                # ψ of the supply edge (ratio p/p_s) and of the exhaust edge
+                # (p_a/p): np.interp's arithmetic, starting from the last grid cell
+                r = pc * ips
+                j = guess[c]
+                if xp[j] <= r < xp[j + 1]:
+                    psi_s = sl[j] * (r - xp[j]) + fp[j]
+                else:
+                    psi_s = self._psi_slow(r, c)
+                r = pa / pc
+                j = guess[c + 6]
+                if xp[j] <= r < xp[j + 1]:
+                    psi_e = sl[j] * (r - xp[j]) + fp[j]
+                else:
+                    psi_e = self._psi_slow(r, c + 6)
+                # conductances G = a ψ(r) (times k, folded into hc), then the
+                # linearly implicit Euler step with frozen conductances (class notes)
+                g_s, g_e = a_s * psi_s, a_e * psi_e
+                den = (g_s + g_e) * hc + den0
+                if den < 0.5:
+                    den = 0.5
+                pc = ((g_s * ps + g_e * pa) * hc + pc) / den
+                if pc < pa:
+                    pc = pa
+                if pc > ps:
+                    pc = ps
+            z[c] = pc
+        # force on the slide with friction (viscous + tanh Coulomb): Mf @ z
+        ivs = self._inv_vs
+        z[6], z[7], z[8] = qd
+        z[9], z[10], z[11] = qd[0] * ivs, qd[1] * ivs, qd[2] * ivs
         np.tanh(self._zth, out=self._zth)
         return np.dot(self._mf, self._z13)
+
+    def _spool2(self, cmd_volts) -> list:
+        """Second-order spool (exact ZOH), the ``spool_order = 2`` path of :meth:`step`."""
+        ad, bd = self._spool_ad.tolist(), self._spool_bd.tolist()
+        sp, sr = self.spool.tolist(), self.spool_rate.tolist()
+        out = [0.0] * 3
+        for i in range(3):
+            c = cmd_volts[i] * 0.2 - 1.0
+            if c < -1.0:
+                c = -1.0
+            if c > 1.0:
+                c = 1.0
+            rate = ad[1][0] * sp[i] + ad[1][1] * sr[i] + bd[1] * c
+            out[i] = sp[i] * ad[0][0] + (ad[0][1] * sr[i] + bd[0] * c)
+            sr[i] = rate
+        self.spool_rate[:] = sr
+        return out
+
+    def _psi_slow(self, r: float, edge: int) -> float:
+        """ψ(r) off the guessed grid cell of ``edge``: np.interp's rules, then a new guess."""
+        xp, fp = self._xp_l, self._fp_l
+        if r != r:
+            return r  # NaN propagates
+        if r < xp[0]:
+            return fp[0]
+        if r >= xp[-1]:
+            return fp[-1]
+        j = bisect_right(xp, r) - 1
+        self._guess[edge] = j
+        return self._slope_l[j] * (r - xp[j]) + fp[j]
+
+    def set_supply_pressure(self, p_pa: float) -> None:
+        """Change the supply pressure p_s (Pa absolute) at run time (supply-drop fault).
+
+        :meth:`step` reads ``self._ps`` every step; chambers above the new
+        p_s are bounded to it on the next step (the valve lets the excess
+        flow back to the supply line).
+        """
+        p = float(p_pa)
+        if not p > self._pa:
+            raise ValueError(f"supply pressure must exceed atmospheric {self._pa} Pa, got {p}")
+        self._ps = p
+        self._pbound[:6] = p
+
+
+_F64 = np.dtype(np.float64)
+
+
+def _as3(x) -> list:
+    """Three numbers from a (3,) float array, a list of 3 or anything broadcastable.
+
+    A list of 3 is used as it is (its items must be real numbers).
+    """
+    if type(x) is np.ndarray and x.shape == (3,) and x.dtype is _F64:
+        return x.tolist()
+    if type(x) is list and len(x) == 3:
+        return x
+    return np.broadcast_to(np.asarray(x, dtype=float), (3,)).tolist()
 
 
 # -------------------------------------------------------------------- linear model
@@ -776,6 +890,20 @@ class LinearActuators:
         A1, A2 = self.params.area_cap, self.params.area_rod_side
         self.p1[:] = self._p10 + 0.5 * df / A1
         self.p2[:] = self._p20 - 0.5 * df / A2
+
+    def set_supply_pressure(self, p_pa: float) -> None:
+        """Change the supply pressure (Pa absolute) at run time (supply-drop fault).
+
+        Eq. (19) has no supply term; what follows p_s is the force bound
+        (``p_s A_cap - p_a A_rod_side - p_a A_rod`` and its mirror) and the
+        display pressures' nonlinear model.
+        """
+        P = self.params
+        A1, A2, Ar, pa = P.area_cap, P.area_rod_side, P.area_rod, P.p_atm
+        p = float(p_pa)
+        self._nl.set_supply_pressure(p)
+        self._fmin = pa * A1 - p * A2 - pa * Ar
+        self._fmax = p * A1 - pa * A2 - pa * Ar
 
     def step(self, u_volts, q, qdot, dt: float) -> np.ndarray:
         """Advance the states by ``dt`` and return the slide forces (N)."""

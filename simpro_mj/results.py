@@ -5,19 +5,29 @@ A results folder holds:
 * ``timeseries.csv``: one row per logged sample, a header of column names
   with their units (``time_s``, ``roll_rad``, ``p1a_pa``, ...), SI values with
   12 significant digits;
-* ``metrics.json``: ``status`` (ok | diverged), ``reason``, the scenario's
+* ``metrics.json``: ``status`` (ok | diverged | interrupted), ``reason``, the scenario's
   name and hash, ``axes`` and ``joints`` (:func:`simpro_mj.metrics.compute_metrics`),
   the metric ``definitions``, a ``sim`` block (deterministic figures, with the
   wall-clock ones such as ``realtime_factor`` apart under ``sim.wall_clock``)
   and ``versions``;
 * ``scenario.yaml``: the resolved scenario (loads back to the same hash);
-* the PNG figures of :func:`simpro_mj.plots.plot_run`.
+* the PNG figures of :func:`simpro_mj.plots.plot_run`;
+* ``PARTIAL`` (only for status ``interrupted``): one line saying the run was
+  stopped before its end and how far it got.
 
-The folder is written under a temporary name next to ``out_dir`` and renamed
-into place when complete. An existing ``out_dir`` is first renamed aside and
-deleted only after the new folder is in place, so a reader never sees a
-partial folder (on POSIX, ``out_dir`` is briefly absent between the two
-renames: directories cannot be swapped atomically there).
+The folder is written under a temporary name (``.<name>.tmp-*``) next to
+``out_dir`` and renamed into place when complete. An existing ``out_dir`` is
+first renamed aside (``.<name>.old-*``) and deleted only after the new folder
+is in place; if anything (an exception, Ctrl-C) stops the write before that,
+the temporary folder is removed and the previous folder put back. So a reader
+never sees a truncated file under ``out_dir`` (on POSIX, ``out_dir`` is
+briefly absent between the two renames: directories cannot be swapped
+atomically there). A process killed outright (SIGKILL, power loss) can leave
+a hidden ``.tmp-`` folder, never a half-written ``out_dir``.
+
+A folder is *complete* (:func:`is_complete`, what ``batch --resume`` may
+trust) when its ``metrics.json`` reads and has status ``ok`` or ``diverged``
+and there is no ``PARTIAL`` file.
 """
 
 from __future__ import annotations
@@ -47,9 +57,16 @@ __all__ = [
     "print_summary",
     "STATUSES",
     "WALL_CLOCK_KEYS",
+    "PARTIAL_MARKER",
+    "is_complete",
 ]
 
-STATUSES = ("ok", "diverged")
+#: ``ok``: ran to the end; ``diverged``: stopped by the divergence checks (the
+#: folder holds everything up to that point); ``interrupted``: stopped by the
+#: user (Ctrl-C, SIGTERM), marked with a ``PARTIAL`` file.
+STATUSES = ("ok", "diverged", "interrupted")
+#: File name of the marker of an interrupted run's folder.
+PARTIAL_MARKER = "PARTIAL"
 #: ``extra["sim"]`` keys that depend on the machine, not on the scenario.
 WALL_CLOCK_KEYS = ("realtime_factor", "wall_time_s", "wall_s", "elapsed_s", "steps_per_s", "host")
 _RESERVED = {"status", "reason", "scenario", "axes", "joints", "metrics", "sim", "versions"}
@@ -169,8 +186,8 @@ def write_results(
     scenario : mapping
         The resolved scenario.
     extra : mapping, optional
-        ``status`` ("ok" or "diverged"; default ``metrics["status"]``, else
-        "ok"), ``reason`` (why it diverged; default ``metrics["reason"]``),
+        ``status`` (one of :data:`STATUSES`; default ``metrics["status"]``, else
+        "ok"), ``reason`` (why it diverged or stopped; default ``metrics["reason"]``),
         ``sim`` (figures of the simulation: steps, physics step, ...; wall-clock
         keys go to ``sim.wall_clock``), ``plots`` (False: no PNGs). Any other
         key is copied into ``metrics.json`` as is.
@@ -210,9 +227,15 @@ def write_results(
         doc[key if key not in _RESERVED else f"extra_{key}"] = value
 
     out_dir.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.tmp-", dir=out_dir.parent))
+    tmp: Path | None = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.tmp-", dir=out_dir.parent))
     old = None
     try:
+        if status == "interrupted":
+            (tmp / PARTIAL_MARKER).write_text(
+                f"partial results: the run was interrupted ({reason}); "
+                "see metrics.json (status interrupted)\n",
+                encoding="utf-8",
+            )
         write_timeseries(tmp / "timeseries.csv", columns)
         text = json.dumps(_jsonable(doc), indent=2, allow_nan=False)
         (tmp / "metrics.json").write_text(text + "\n", encoding="utf-8")
@@ -227,19 +250,37 @@ def write_results(
             old = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.old-", dir=out_dir.parent))
             old.rmdir()
             out_dir.rename(old)
-        try:
-            tmp.rename(out_dir)
-        except OSError:
-            if old is not None:
-                old.rename(out_dir)  # put the previous results back
-                old = None
-            raise
+        tmp.rename(out_dir)
+        tmp = None
     except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
+        # anything, Ctrl-C included: the previous results back under their name,
+        # no temporary folder left behind
+        if old is not None and not out_dir.exists():
+            old.rename(out_dir)
+            old = None
+        if tmp is not None:
+            shutil.rmtree(tmp, ignore_errors=True)
         raise
     if old is not None:
         shutil.rmtree(old, ignore_errors=True)
     return out_dir
+
+
+def is_complete(folder) -> bool:
+    """Whether ``folder`` holds a complete result (status ok or diverged, no marker).
+
+    A folder written by :func:`write_results` is complete unless its run was
+    interrupted; anything else (no or unreadable ``metrics.json``, a
+    ``PARTIAL`` file, another status) is not.
+    """
+    folder = Path(folder)
+    if (folder / PARTIAL_MARKER).exists() or not (folder / "timeseries.csv").is_file():
+        return False
+    try:
+        doc = json.loads((folder / "metrics.json").read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return False
+    return isinstance(doc, dict) and doc.get("status") in ("ok", "diverged")
 
 
 def _fmt(value, scale: float = 1.0, digits: int = 3) -> str:

@@ -37,6 +37,37 @@ components summed on top of the home pose (heave relative to the home height
 * ``{type: table, times_s: [...], values: [...]}``: piecewise linear through
   the points, times strictly increasing, the first/last value held outside.
 
+Faults
+------
+``faults`` is a list of events, each a mapping with a ``type`` and the time
+``time_s`` (>= 0, < ``duration_s``) from which it acts; ``end_s`` (where
+allowed; ``null``: to the end of the run) ends it. Every optional key is
+spelled out in the resolved scenario (:data:`FAULT_TYPES`):
+
+* ``{type: supply_drop, time_s, pressure_bar_gauge, ramp_s: 0}``: the supply
+  pressure falls from ``actuator.pneumatics.supply_pressure_bar_gauge`` to
+  ``pressure_bar_gauge`` (0 <= p < supply), linearly over ``ramp_s``;
+* ``{type: valve_stuck, time_s, leg, voltage_v, end_s: null}``: valve ``leg``
+  (1..3) stays at ``voltage_v`` (0..10 V) whatever the controller commands;
+* ``{type: sensor_frozen | sensor_dropout | sensor_bias, time_s, sensor, ...}``
+  with ``sensor`` one of ``potentiometer`` (``leg`` 1..3, null: all three),
+  ``height_encoder`` or ``imu`` (``axis`` roll | pitch, null: both);
+  ``sensor_dropout`` takes ``probability`` (0 < p <= 1) that a sample is lost,
+  ``sensor_bias`` takes ``bias_mm`` (potentiometer, height encoder) or
+  ``bias_deg`` (imu);
+* ``{type: potentiometer_failure, time_s, leg, mode: open, end_s: null}``:
+  the potentiometer of ``leg`` reads a rail, ``open`` 0 V (0 mm), ``short``
+  the 10 V feed (500 mm, clipped to the ADC range).
+
+What each fault does to the loop is defined in :mod:`simpro_mj.faults`.
+
+Sweeps
+------
+A file may also carry a ``sweep:`` block (grid and/or Monte Carlo variants,
+:mod:`simpro_mj.sweep`), which ``simpro-sim batch`` expands.
+:func:`load_scenario` validates the block, drops it, says so in one line on
+stderr and returns the base scenario (its hash is that of the base only).
+
 Every error is a :class:`~simpro_mj.errors.UserInputError` whose one-line
 message reads ``<what> at <dotted.path>: <what is allowed>``.
 """
@@ -62,7 +93,7 @@ from controllers.kinematics import check_reachable, reachable
 
 from .errors import UserInputError
 from .model import DEFAULT_MODEL_PARAMS
-from .params import check_keys, closest, parse_set
+from .params import check_keys, closest, key_text, parse_set
 from .sensors import DEFAULT_SENSORS
 
 __all__ = [
@@ -74,6 +105,9 @@ __all__ = [
     "DISCRETISATIONS",
     "ACTUATOR_MODELS",
     "COMPONENT_TYPES",
+    "FAULT_TYPES",
+    "FAULT_SENSORS",
+    "MAX_DURATION_S",
     "SetpointError",
     "scenarios_dir",
     "shipped_scenarios",
@@ -105,6 +139,30 @@ COMPONENT_TYPES: dict[str, tuple[tuple[str, ...], dict[str, Any]]] = {
     "sine": (("amplitude", "period_s"), {"phase_deg": 0.0, "start_s": 0.0, "end_s": None}),
     "table": (("times_s", "values"), {}),
 }
+
+
+#: Fault types: required keys, optional keys with their defaults (module docstring).
+FAULT_TYPES: dict[str, tuple[tuple[str, ...], dict[str, Any]]] = {
+    "supply_drop": (("time_s", "pressure_bar_gauge"), {"ramp_s": 0.0}),
+    "valve_stuck": (("time_s", "leg", "voltage_v"), {"end_s": None}),
+    "sensor_frozen": (("time_s", "sensor"), {"leg": None, "axis": None, "end_s": None}),
+    "sensor_dropout": (
+        ("time_s", "sensor"),
+        {"leg": None, "axis": None, "end_s": None, "probability": 1.0},
+    ),
+    "sensor_bias": (
+        ("time_s", "sensor"),
+        {"leg": None, "axis": None, "end_s": None, "bias_mm": None, "bias_deg": None},
+    ),
+    "potentiometer_failure": (("time_s", "leg"), {"mode": "open", "end_s": None}),
+}
+FAULT_SENSORS = ("potentiometer", "height_encoder", "imu")
+_FAULT_AXES = ("roll", "pitch")
+_POT_MODES = ("open", "short")
+_FAULT_STRINGS = {"sensor": FAULT_SENSORS, "axis": _FAULT_AXES, "mode": _POT_MODES}
+
+#: Longest run accepted (s): the 1 ms log of one hour is about 1 GB of memory.
+MAX_DURATION_S = 3600.0
 
 
 def _merge(base: Mapping, over: Mapping) -> dict:
@@ -197,6 +255,8 @@ DEFAULT_SCENARIO: dict = {
     ),
     # per axis, a list of components summed on top of the home pose
     "setpoint": {"roll_deg": [], "pitch_deg": [], "heave_mm": []},
+    # scheduled faults (see "Faults" in the module docstring and simpro_mj.faults)
+    "faults": [],
     "logging": {"decimation": 1},
 }
 
@@ -335,6 +395,18 @@ def load_scenario(name_or_path: str, sets: Iterable[str] = ()) -> dict:
             f"wrong type at {path.name} (top level): got {type(doc).__name__}; "
             "allowed: a mapping of scenario keys"
         )
+    if "sweep" in doc:
+        # the variants are batch's job (simpro_mj.sweep); a run is of the base scenario
+        import sys
+
+        from .sweep import count_variants
+
+        doc = dict(doc)
+        n = count_variants(doc.pop("sweep"))
+        sys.stderr.write(
+            f"note: {path.name} declares {n} variants in its sweep: block; running the base "
+            f"scenario (simpro-sim batch {path} runs them)\n"
+        )
     return resolve_scenario(doc, sets, default_name=path.stem)
 
 
@@ -424,7 +496,7 @@ def _check_tree(value: Any, default: Any, path: str) -> Any:
             return _check_pneumatics(value, path)
         out = {}
         for key, sub in value.items():
-            here = f"{path}.{key}" if path else str(key)
+            here = f"{path}.{key_text(key)}" if path else key_text(key)
             if key not in default:
                 raise UserInputError(
                     f"unknown key at {here}: allowed keys are {sorted(default)}"
@@ -432,6 +504,8 @@ def _check_tree(value: Any, default: Any, path: str) -> Any:
                 )
             if path == "setpoint":
                 out[key] = _check_components(sub, here)
+            elif here == "faults":
+                out[key] = _check_faults(sub, here)
             else:
                 out[key] = _check_tree(sub, default[key], here)
         return out
@@ -458,14 +532,53 @@ def _check_tree(value: Any, default: Any, path: str) -> Any:
 
 
 def _check_pneumatics(value: Mapping, path: str) -> dict:
-    """Keys of ``actuator.pneumatics`` against the actuator tree (values: the plant's job)."""
+    """``actuator.pneumatics``: keys against the actuator tree, leaf types, then the
+    plant's own range checks (run here so that a bad value is a load-time error)."""
     try:
         from .pneumatics import DEFAULT_PNEUMATIC_PARAMS as ref
+        from .pneumatics import PneumaticParams
     except ImportError:  # the actuator module is optional at this level
         return copy.deepcopy(dict(value))
 
     check_keys(value, ref, path)
-    return copy.deepcopy(dict(value))
+    out = _check_pneumatic_leaves(value, ref, path)
+    try:
+        PneumaticParams.from_tree(out)
+    except UserInputError as exc:
+        # the plant names its own tree "pneumatics"; here it hangs under "actuator"
+        msg = str(exc).replace(" at pneumatics.", f" at {path}.")
+        raise UserInputError(msg) from exc
+    except (ValueError, TypeError, ArithmeticError) as exc:
+        raise UserInputError(
+            f"invalid value at {path}: {exc}; allowed: see simpro_mj.pneumatics"
+        ) from exc
+    return out
+
+
+def _check_pneumatic_leaves(value: Mapping, ref: Mapping, path: str) -> dict:
+    """Leaf types of a pneumatics subtree; per-leg keys take a number or 3 numbers."""
+    out: dict = {}
+    for key, sub in value.items():
+        here = f"{path}.{key}"
+        default = ref[key]
+        if isinstance(default, Mapping):
+            out[key] = _check_pneumatic_leaves(sub, default, here)
+        elif isinstance(default, bool):
+            if not isinstance(sub, bool):
+                raise _wrong_type(here, sub, "true or false")
+            out[key] = sub
+        elif isinstance(default, list) or default is None:
+            if default is None and sub is None:
+                out[key] = None
+            elif isinstance(sub, (list, tuple)):
+                if len(sub) != 3:
+                    raise _wrong_type(here, sub, "a number or a list of 3 numbers (one per leg)")
+                out[key] = [_number(v, f"{here}[{i}]") for i, v in enumerate(sub)]
+            else:
+                out[key] = _number(sub, here)
+        else:
+            out[key] = _number(sub, here)
+    return out
 
 
 def _check_components(value: Any, path: str) -> list[dict]:
@@ -482,7 +595,7 @@ def _check_components(value: Any, path: str) -> list[dict]:
         if not isinstance(comp, Mapping):
             raise _wrong_type(here, comp, f"a component mapping like {example[1:-1]}")
         kind = comp.get("type")
-        if kind not in COMPONENT_TYPES:
+        if not isinstance(kind, str) or kind not in COMPONENT_TYPES:
             if "type" not in comp:
                 raise UserInputError(f"missing key at {here}.type: allowed: one of {types}")
             raise _invalid(f"{here}.type", kind, f"one of {types}{closest(str(kind), types)}")
@@ -491,7 +604,7 @@ def _check_components(value: Any, path: str) -> list[dict]:
         for key in comp:
             if key not in allowed:
                 raise UserInputError(
-                    f"unknown key at {here}.{key}: allowed keys of a {kind} are {allowed}"
+                    f"unknown key at {here}.{key_text(key)}: allowed keys of a {kind} are {allowed}"
                     f"{closest(str(key), allowed)}"
                 )
         for key in required:
@@ -543,6 +656,157 @@ def _check_component_values(c: dict, path: str) -> None:
                     f"strictly increasing times (times_s[{j}] = {times[j]} <= "
                     f"times_s[{j - 1}] = {times[j - 1]})",
                 )
+
+
+def _check_faults(value: Any, path: str) -> list[dict]:
+    """Validate the structure and types of the ``faults`` list (module docstring).
+
+    Cross-field ranges (times within the run, pressure below the supply) are
+    checked by :func:`_check_fault_values` once the whole scenario is known.
+    """
+    if value is None:
+        return []
+    example = "[{type: supply_drop, time_s: 5.0, pressure_bar_gauge: 2.0}]"
+    if not isinstance(value, (list, tuple)):
+        raise _wrong_type(path, value, f"a list of faults like {example}")
+    types = list(FAULT_TYPES)
+    out = []
+    for i, entry in enumerate(value):
+        here = f"{path}[{i}]"
+        if not isinstance(entry, Mapping):
+            raise _wrong_type(here, entry, f"a fault mapping like {example[1:-1]}")
+        kind = entry.get("type")
+        if not isinstance(kind, str) or kind not in FAULT_TYPES:
+            if "type" not in entry:
+                raise UserInputError(f"missing key at {here}.type: allowed: one of {types}")
+            raise _invalid(f"{here}.type", kind, f"one of {types}{closest(str(kind), types)}")
+        required, optional = FAULT_TYPES[kind]
+        allowed = ["type", *required, *optional]
+        for key in entry:
+            if key not in allowed:
+                raise UserInputError(
+                    f"unknown key at {here}.{key_text(key)}: allowed keys of a {kind} are {allowed}"
+                    f"{closest(str(key), allowed)}"
+                )
+        for key in required:
+            if key not in entry:
+                raise UserInputError(
+                    f"missing key at {here}.{key}: a {kind} needs {list(required)}"
+                )
+        f: dict[str, Any] = {"type": kind}
+        for key in (*required, *optional):
+            raw = entry.get(key, optional.get(key))
+            where = f"{here}.{key}"
+            if key in _FAULT_STRINGS:
+                choices = list(_FAULT_STRINGS[key])
+                if raw is None and key != "sensor" and optional.get(key, "") is None:
+                    f[key] = None
+                elif raw not in choices:
+                    raise _invalid(where, raw, f"one of {choices}{closest(str(raw), choices)}")
+                else:
+                    f[key] = raw
+            elif key == "leg":
+                if raw is None and key in optional:
+                    f[key] = None
+                else:
+                    leg = _integer(raw, where)
+                    if not 1 <= leg <= 3:
+                        raise _invalid(where, raw, "a leg number 1, 2 or 3")
+                    f[key] = leg
+            elif raw is None and optional.get(key, 0.0) is None:
+                f[key] = None
+            else:
+                f[key] = _number(raw, where)
+        _check_fault_entry(f, here)
+        out.append(f)
+    return out
+
+
+def _check_fault_entry(f: dict, path: str) -> None:
+    """Ranges of one fault that do not depend on the rest of the scenario."""
+    kind = f["type"]
+    if f["time_s"] < 0:
+        raise _invalid(f"{path}.time_s", f["time_s"], ">= 0 s")
+    if f.get("end_s") is not None and f["end_s"] <= f["time_s"]:
+        raise _invalid(f"{path}.end_s", f["end_s"], f"null or > time_s = {f['time_s']} s")
+    if kind == "supply_drop":
+        if f["ramp_s"] < 0:
+            raise _invalid(f"{path}.ramp_s", f["ramp_s"], ">= 0 s")
+    elif kind == "valve_stuck":
+        if not 0.0 <= f["voltage_v"] <= 10.0:
+            raise _invalid(f"{path}.voltage_v", f["voltage_v"], "0..10 V (the MPYE's input range)")
+    elif kind.startswith("sensor_"):
+        sensor = f["sensor"]
+        if f["leg"] is not None and sensor != "potentiometer":
+            raise _invalid(
+                f"{path}.leg", f["leg"], f"null for sensor {sensor} (potentiometers only)"
+            )
+        if f["axis"] is not None and sensor != "imu":
+            raise _invalid(f"{path}.axis", f["axis"], f"null for sensor {sensor} (imu only)")
+        if kind == "sensor_dropout" and not 0.0 < f["probability"] <= 1.0:
+            raise _invalid(f"{path}.probability", f["probability"], "0 < probability <= 1")
+        if kind == "sensor_bias":
+            unit, other = ("bias_deg", "bias_mm") if sensor == "imu" else ("bias_mm", "bias_deg")
+            if f[other] is not None:
+                raise _invalid(f"{path}.{other}", f[other], f"null for sensor {sensor}; use {unit}")
+            if f[unit] is None:
+                raise UserInputError(f"missing key at {path}.{unit}: a {sensor} bias needs {unit}")
+            bound = 90.0 if unit == "bias_deg" else 500.0
+            if abs(f[unit]) > bound:
+                raise _invalid(f"{path}.{unit}", f[unit], f"|{unit}| <= {bound:g}")
+
+
+def _check_fault_values(s: Mapping) -> None:
+    """Fault times within the run and a supply drop below the supply pressure."""
+    duration = s["duration_s"]
+    supply = _supply_bar_gauge(s)
+    for i, f in enumerate(s["faults"]):
+        here = f"faults[{i}]"
+        if f["time_s"] >= duration:
+            raise _invalid(f"{here}.time_s", f["time_s"], f"< duration_s = {duration} s")
+        if f.get("end_s") is not None and f["end_s"] > duration:
+            raise _invalid(f"{here}.end_s", f["end_s"], f"null or <= duration_s = {duration} s")
+        if f["type"] == "supply_drop" and not 0.0 <= f["pressure_bar_gauge"] < supply:
+            raise _invalid(
+                f"{here}.pressure_bar_gauge",
+                f["pressure_bar_gauge"],
+                f"0 (atmospheric) <= p < the supply {supply:g} bar gauge "
+                "(actuator.pneumatics.supply_pressure_bar_gauge)",
+            )
+
+
+def _supply_bar_gauge(s: Mapping) -> float:
+    value = (s["actuator"].get("pneumatics") or {}).get("supply_pressure_bar_gauge")
+    if value is None:
+        try:
+            from .pneumatics import DEFAULT_PNEUMATIC_PARAMS
+        except ImportError:  # pragma: no cover
+            return 6.0
+        value = DEFAULT_PNEUMATIC_PARAMS["supply_pressure_bar_gauge"]
+    return float(value)
+
+
+def _check_redesign(s: Mapping) -> None:
+    """The pole placement of ``variant: redesigned`` must be feasible for every leg."""
+    inner = s["controller"]["inner"]
+    if inner["variant"] != "redesigned":
+        return
+    from controllers.design import ACTUATORS, PLANTS, Plant, redesigned_design
+    from controllers.errors import DesignError
+
+    for act in ACTUATORS:
+        if inner["design_plant"] == "identified":
+            plant = Plant(**inner["identified"][act])
+        else:
+            plant = PLANTS[act]
+        try:
+            redesigned_design(act, zeta=inner["zeta"], wn=inner["wn_rad_s"], plant=plant)
+        except DesignError as exc:
+            raise UserInputError(
+                f"infeasible joint design at controller.inner.wn_rad_s: zeta = {inner['zeta']}, "
+                f"wn = {inner['wn_rad_s']} rad/s for {act}: {exc}; allowed: a zeta, wn_rad_s "
+                "pair the pole placement can meet (e.g. the paper's 0.7, 10)"
+            ) from exc
 
 
 def _require(tree: Mapping, path: str, ok, allowed: str) -> None:
@@ -609,6 +873,7 @@ def validate_scenario(tree: Mapping) -> dict:
     if not _NAME_RE.match(s["name"]):
         raise _invalid("name", s["name"], "letters, digits, '_', '-', '.' (a file-name-safe word)")
     _require(s, "duration_s", lambda v: v > 0, "> 0 s")
+    _require(s, "duration_s", lambda v: v <= MAX_DURATION_S, f"<= {MAX_DURATION_S:g} s (one hour)")
     _require(s, "seed", lambda v: 0 <= v < 2**63, "an integer >= 0")
     c = "controller"
     _enum(s, f"{c}.mode", MODES)
@@ -649,6 +914,8 @@ def validate_scenario(tree: Mapping) -> dict:
     for sensor in (pot, enc, imu):
         _multiple_of_step(s, f"{sensor}.rate_ms")
     _require(s, "logging.decimation", lambda v: v >= 1, "an integer >= 1")
+    _check_redesign(s)
+    _check_fault_values(s)
     return s
 
 

@@ -146,23 +146,38 @@ class Sensors:
         self.block = int(block)
         self.q = np.zeros(3)
         self.pose = np.zeros(3)  # roll, pitch, h as measured
-        self._imu_state = np.zeros(2)
+        # The state lives in Python floats (three legs are too few for numpy's
+        # per-call cost); sample() mirrors it into the arrays above.
+        self._q = [0.0] * 3
+        self._pose = [0.0] * 3
+        self._imu_state = [0.0] * 2
         self._noise = np.zeros((0, 6))
+        self._noise_rows: list = []
         self._k0 = 0
+        self._pot = (
+            config.pot_gain.tolist(),
+            config.pot_offset_m.tolist(),
+            config.pot_noise_m,
+            config.pot_lsb_m,
+            *config.pot_range_m,
+        )
+        self._imu_bias = config.imu_bias_rad.tolist()
 
-    def _draw(self, k: int) -> np.ndarray:
-        """Noise row for step k: 3 pots, encoder, 2 IMU axes (standard normal)."""
+    def _draw(self, k: int) -> list:
+        """Noise row for step k: 3 pots, encoder, 2 IMU axes (standard normal floats)."""
         i = k - self._k0
-        if i >= len(self._noise) or i < 0:
+        if i >= len(self._noise_rows) or i < 0:
             self._noise = self.rng.standard_normal((self.block, 6))
+            self._noise_rows = self._noise.tolist()
             self._k0 = k
             i = 0
-        return self._noise[i]
+        return self._noise_rows[i]
 
     def reset(self, q_true, pose_true) -> None:
         """Initialise the filters at the true state and take a first reading."""
-        self._imu_state[:] = pose_true[:2]
+        self._imu_state[:] = [float(pose_true[0]), float(pose_true[1])]
         self._noise = np.zeros((0, 6))
+        self._noise_rows = []
         self._k0 = 0
         self.sample(0, q_true, pose_true, force=True)
 
@@ -171,20 +186,52 @@ class Sensors:
 
         The returned arrays are the sensor's own buffers (copy them to log).
         """
+        q, pose = self.sample_floats(k, _floats(q_true), _floats(pose_true), force)
+        self.q[:] = q
+        self.pose[:] = pose
+        return self.q, self.pose
+
+    def sample_floats(self, k: int, q_true, pose_true, force: bool = False):
+        """:meth:`sample` on sequences of 3 floats; returns (q_meas, pose_meas) lists.
+
+        The co-simulation's hot path. The lists are the sensor's own state
+        (copy them to keep them). The arithmetic is the array version's,
+        operation for operation (``round`` is numpy's round-half-even).
+        """
         c = self.cfg
         n = self._draw(k)
         # IMU's output filter runs at the physics rate
-        self._imu_state += c.imu_alpha * (pose_true[:2] - self._imu_state)
+        imu, alpha = self._imu_state, c.imu_alpha
+        imu[0] = imu[0] + alpha * (pose_true[0] - imu[0])
+        imu[1] = imu[1] + alpha * (pose_true[1] - imu[1])
         if force or k % c.pot_every == 0:
-            v = c.pot_gain * q_true + c.pot_offset_m + c.pot_noise_m * n[:3]
-            v = np.round(v / c.pot_lsb_m) * c.pot_lsb_m
-            np.clip(v, c.pot_range_m[0], c.pot_range_m[1], out=self.q)
+            gain, off, sigma, lsb, lo, hi = self._pot
+            q = self._q
+            for i in range(3):
+                v = gain[i] * q_true[i] + off[i] + sigma * n[i]
+                try:
+                    v = round(v / lsb) * lsb
+                except (ValueError, OverflowError):  # NaN or inf: numpy's rint keeps it
+                    v = float(np.round(v / lsb) * lsb)
+                if v < lo:
+                    v = lo
+                if v > hi:
+                    v = hi
+                q[i] = v
+        pose = self._pose
         if force or k % c.enc_every == 0:
             h = pose_true[2] + c.enc_noise_m * n[3]
-            self.pose[2] = round(h / c.enc_res_m) * c.enc_res_m if c.enc_res_m > 0 else h
+            if c.enc_res_m > 0:
+                try:
+                    h = round(h / c.enc_res_m) * c.enc_res_m
+                except (ValueError, OverflowError):
+                    h = float(np.round(h / c.enc_res_m) * c.enc_res_m)
+            pose[2] = h
         if force or k % c.imu_every == 0:
-            self.pose[:2] = self._imu_state + c.imu_bias_rad + c.imu_noise_rad * n[4:6]
-        return self.q, self.pose
+            bias, sigma = self._imu_bias, c.imu_noise_rad
+            pose[0] = imu[0] + bias[0] + sigma * n[4]
+            pose[1] = imu[1] + bias[1] + sigma * n[5]
+        return self._q, pose
 
     def resolution_floor(self) -> dict:
         """Smallest steady-state error the task loop can be asked to remove, SI.
@@ -201,3 +248,10 @@ class Sensors:
             "pitch": c.imu_noise_rad * 3 / math.sqrt(n_imu) + float(np.abs(c.imu_bias_rad[1])),
             "heave": c.enc_res_m + 3 * c.enc_noise_m,
         }
+
+
+def _floats(x) -> list:
+    """A (3,) array or sequence as a list of 3 numbers."""
+    if type(x) is np.ndarray:
+        return x.tolist()
+    return list(x)

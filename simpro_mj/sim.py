@@ -20,6 +20,7 @@ computed for the whole run at once.
 from __future__ import annotations
 
 import math
+import struct
 import time
 from dataclasses import dataclass, field
 
@@ -33,12 +34,13 @@ from controllers.kinematics import inverse_kinematics
 from controllers.task_space import TaskSpaceController
 
 from .errors import PhysicsError, UserInputError
+from .faults import FAULT_COLUMNS, NEVER, FaultSchedule
 from .model import (
     PlantIndex,
+    StateReader,
     assemble,
     check_physics,
     load_model,
-    loop_closure_error,
     measured_pose,
 )
 from .pneumatics import holding_forces, make_actuators
@@ -60,7 +62,11 @@ COLUMNS = (
     + [f"f{i}_n" for i in (1, 2, 3)]
     + [f"p{i}{c}_pa" for i in (1, 2, 3) for c in ("a", "b")]
     + ["loop_closure_m"]
+    + list(FAULT_COLUMNS)  # fault_flags (bit mask, faults.FLAG_BITS), supply_pa
 )
+
+#: The loop applies a scenario's ``faults`` (issue 8, :mod:`simpro_mj.faults`).
+SUPPORTS_FAULTS = True
 _C = {name: k for k, name in enumerate(COLUMNS)}
 
 #: Divergence bound on the loop-closure error (m): far above the 0.5 mm of
@@ -73,7 +79,7 @@ class SimResult:
     """What one run produced. ``columns`` holds copies, never MuJoCo views."""
 
     columns: dict
-    status: str  # "ok" | "diverged"
+    status: str  # "ok" | "diverged" | "interrupted"
     reason: str | None
     sim: dict
     scenario: dict
@@ -182,28 +188,66 @@ class CoSimulation:
         self.sensors.reset(d.qpos[idx.slide_qpos], measured_pose(d, idx.site_p))
 
     # ------------------------------------------------------------------ run
-    def run(self, progress=None) -> SimResult:
-        """Run the scenario; on divergence stop and return what was computed.
+    def run(self, progress=None, *, profile: dict | None = None) -> SimResult:
+        """Run the scenario; on divergence or interruption stop and return what was computed.
 
         Parameters
         ----------
         progress : callable(int), optional
             Called with the number of steps done, every 1000 steps.
+        profile : dict, optional
+            If given, the loop is instrumented (``time.perf_counter_ns`` around
+            each stage, which slows it down) and the wall time per stage is
+            written into it, ns summed over the run: ``physics`` (``mj_step1``,
+            ``mj_step2``, the warning check), ``sensors`` (reading the MuJoCo
+            state and the sensor models), ``controllers`` (task and joint
+            loops), ``pneumatics``, ``logging`` (loop-closure error and the log
+            row); plus ``steps``. ``simpro-sim bench`` reports it.
+
+        Notes
+        -----
+        The loop is the hot path of every run (issue 7, ``docs/performance.md``).
+        What it moves between the stages are short lists of Python floats:
+        for three legs numpy's per-call overhead (0.2-0.7 us) exceeds the
+        arithmetic, so the components expose float fast paths
+        (``Sensors.sample_floats``, ``JointControllers.update_floats``,
+        :class:`~simpro_mj.model.StateReader`) that do the same IEEE operations
+        as their array versions. The MuJoCo views are bound once; the log is
+        preallocated and each row is packed straight into its buffer.
         """
         self._initial_state()
         m, d, idx = self.model, self.data, self.idx
         dt, n, dec = self.dt, self.n_steps, self.decimation
         n_log = n // dec + 1
-        log = np.full((n_log, len(COLUMNS)), np.nan)
-        s_qpos, s_dof, act_ids = idx.slide_qpos, idx.slide_dof, idx.actuators
-        site_p = idx.site_p
-        no_warnings = np.zeros_like(d.warning.number)
+        n_col = len(COLUMNS)
+        log = np.full((n_log, n_col), np.nan)
+        # one row = n_col native doubles packed into the (C-contiguous) log buffer
+        put_row, row_bytes = struct.Struct(f"{n_col}d").pack_into, 8 * n_col
+        reader = StateReader(m, d, idx)
+        ctrl = d.ctrl
+        c0, c1, c2 = idx.actuators.tolist()
+        warnings = d.warning.number  # live view of the warning counters
+        no_warnings = np.zeros_like(warnings)
+        step1, step2 = mujoco.mj_step1, mujoco.mj_step2
         task_mode = self.mode == "task_space"
         outer_every = self.outer_every
-        ref, t_grid = self.ref, self.t
-        q_d = self.task.q_desired if task_mode else self.q_joint_only[0]
-        pose_cmd = ref[0]
-        act, joint, task, sensors = self.actuators, self.joint, self.task, self.sensors
+        ref = self.ref
+        q_joint = None if task_mode else self.q_joint_only
+        q_d = (self.task.q_desired if task_mode else q_joint[0]).tolist()
+        pose_cmd = ref[0].tolist()
+        act, task = self.actuators, self.task
+        sample, control, act_step = self.sensors.sample_floats, self.joint.update_floats, act.step
+        # faults (issue 8): event driven, so a run without faults pays one int compare
+        sched = (
+            FaultSchedule.from_scenario(self.scenario, dt) if self.scenario.get("faults") else None
+        )
+        next_ev = sched.next_event if sched is not None else NEVER
+        valve_on = sensor_on = False
+        flags, supply_pa = 0, float(act.params.p_supply)
+        timed = profile is not None
+        clock = time.perf_counter_ns
+        t_phys = t_sens = t_ctl = t_pn = t_log = 0
+        ta = tb = 0
         status, reason = "ok", None
         worst_loop = 0.0
         row = 0
@@ -211,56 +255,89 @@ class CoSimulation:
         k = 0
         try:
             for k in range(n + 1):
-                mujoco.mj_step1(m, d)
-                q_true = d.qpos[s_qpos]
-                qdot = d.qvel[s_dof]
-                pose = measured_pose(d, site_p)
-                q_meas, pose_meas = sensors.sample(k, q_true, pose)
+                if timed:
+                    ta = clock()
+                step1(m, d)
+                if timed:
+                    tb = clock()
+                    t_phys += tb - ta
+                q_true, qdot = reader.slides()
+                pose = reader.pose()
+                q_meas, pose_meas = sample(k, q_true, pose)
+                if k == next_ev:  # a fault starts or ends at this step
+                    ch = sched.at_event(k)
+                    if ch.supply_pa is not None:
+                        act.set_supply_pressure(ch.supply_pa)
+                        supply_pa = ch.supply_pa
+                    valve_on, sensor_on = sched.valve_active, sched.sensor_active
+                    flags, next_ev = sched.flags, sched.next_event
+                if sensor_on:  # what the controllers see; the sensors' state is untouched
+                    q_meas, pose_meas = sched.apply_sensors(k, q_meas, pose_meas)
+                if timed:
+                    ta = clock()
+                    t_sens += ta - tb
                 if task_mode:
                     if k % outer_every == 0:
-                        q_d = task.update(ref[k], pose_meas)
-                        pose_cmd = task.pose_command
+                        q_d = task.update(ref[k], pose_meas).tolist()
+                        pose_cmd = task.pose_command.tolist()
                 else:
-                    q_d = self.q_joint_only[k]
-                    pose_cmd = ref[k]
-                u = joint.update(q_d, q_meas)
-                f = act.step(u, q_true, qdot, dt)
+                    q_d = q_joint[k].tolist()
+                    pose_cmd = ref[k].tolist()
+                u = control(q_d, q_meas)
+                if valve_on:  # the controller keeps its own command in its state
+                    u = sched.apply_valves(u)
+                if timed:
+                    tb = clock()
+                    t_ctl += tb - ta
+                f = act_step(u, q_true, qdot, dt)
+                f0, f1, f2 = f.tolist()
+                if timed:
+                    ta = clock()
+                    t_pn += ta - tb
                 if k % dec == 0:
-                    loop = float(loop_closure_error(m, d, idx).max())
+                    loop = reader.loop_closure_max()
                     worst_loop = max(worst_loop, loop)
-                    r = log[row]
-                    r[0] = t_grid[k]
-                    r[1:4] = ref[k]
-                    r[4:7] = pose
-                    r[7:10] = pose_meas
-                    r[10:13] = pose_cmd
-                    r[13:16] = q_d
-                    r[16:19] = q_true
-                    r[19:22] = q_meas
-                    r[22:25] = u
-                    r[25:28] = f
-                    r[28:34:2] = act.p1
-                    r[29:34:2] = act.p2
-                    r[34] = loop
+                    p1, p2 = act.p1.tolist(), act.p2.tolist()
+                    put_row(
+                        log, row * row_bytes,
+                        k * dt, *ref[k].tolist(), *pose, *pose_meas, *pose_cmd, *q_d,
+                        *q_true, *q_meas, *u, f0, f1, f2,
+                        p1[0], p2[0], p1[1], p2[1], p1[2], p2[2], loop, flags, supply_pa,
+                    )  # fmt: skip
                     row += 1
                     if loop > LOOP_OPEN_BOUND:
                         check_physics(m, d, loop_bound=LOOP_OPEN_BOUND, index=idx)  # raises
+                if timed:
+                    tb = clock()
+                    t_log += tb - ta
                 if k == n:
                     break
-                if not math.isfinite(f[0] + f[1] + f[2]):
+                if not math.isfinite(f0 + f1 + f2):
                     raise PhysicsError(
-                        f"non-finite actuator force {f} at t = {t_grid[k]:.3f} s "
+                        f"non-finite actuator force {f} at t = {k * dt:.3f} s "
                         f"(pressures {act.p1}, {act.p2})"
                     )
-                d.ctrl[act_ids] = f
-                mujoco.mj_step2(m, d)
-                if d.warning.number.any():
+                ctrl[c0], ctrl[c1], ctrl[c2] = f0, f1, f2
+                step2(m, d)
+                if any(warnings.tolist()):
                     check_physics(m, d, no_warnings, index=idx)  # raises, naming the warning
+                if timed:
+                    t_phys += clock() - tb
                 if progress is not None and k % 1000 == 0:
                     progress(k)
         except PhysicsError as exc:
             status, reason = "diverged", str(exc)
+        except KeyboardInterrupt:
+            # SIGINT, or SIGTERM turned into KeyboardInterrupt by the CLI: keep
+            # what was computed so the caller can still write it
+            status = "interrupted"
+            reason = f"interrupted by signal (SIGINT/SIGTERM) at t = {k * dt:.3f} s"
         wall = time.perf_counter() - wall0
+        if timed:
+            profile.update(
+                physics=t_phys, sensors=t_sens, controllers=t_ctl, pneumatics=t_pn,
+                logging=t_log, steps=k + 1,
+            )  # fmt: skip
         log = log[:row]
         columns = {name: log[:, j].copy() for j, name in enumerate(COLUMNS)}
         steps = k

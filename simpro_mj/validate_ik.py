@@ -27,6 +27,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+from controllers.errors import WorkspaceError
 from controllers.kinematics import check_reachable, inverse_kinematics, paper_inverse_kinematics
 
 from .errors import UserInputError
@@ -40,7 +41,7 @@ from .model import (
     loop_closure_error,
     measured_pose,
 )
-from .params import apply_overrides
+from .params import apply_overrides, check_number
 
 HELP = "validate the vector-loop IK against the MuJoCo closed chain (paper Fig. 11)"
 
@@ -90,14 +91,13 @@ def _validate(params: dict) -> None:
             f"invalid value at paper_ik_reading: {params['paper_ik_reading']!r}; "
             f"allowed: {READINGS}"
         )
-    tr = params["trajectory"]
-    if tr["duration_s"] <= 0:
-        raise UserInputError("invalid value at trajectory.duration_s: allowed: > 0 s")
+    check_number(params, "trajectory.duration_s", 0.0, 3600.0, lo_open=True, unit=" s")
     for k in ("roll_period_s", "pitch_period_s", "heave_period_s"):
-        if tr[k] <= 0:
-            raise UserInputError(f"invalid value at trajectory.{k}: allowed: > 0 s")
-    if int(tr["log_every_ms"]) < 1:
-        raise UserInputError("invalid value at trajectory.log_every_ms: allowed: integer >= 1")
+        check_number(params, f"trajectory.{k}", 0.0, lo_open=True, unit=" s")
+    for k in ("roll_deg", "pitch_deg", "heave_mm"):
+        check_number(params, f"trajectory.{k}")
+    check_number(params, "trajectory.log_every_ms", 1, 10**6, integer=True, unit=" ms")
+    check_number(params, "drive_lead_s", 0.0, 1.0, unit=" s")
 
 
 def validate(params: dict | None = None) -> dict:
@@ -120,7 +120,13 @@ def validate(params: dict | None = None) -> dict:
     every = int(p["trajectory"]["log_every_ms"] * 1e-3 / dt + 0.5) or 1
     t = np.arange(n + 1) * dt
     x_des = trajectory(t, p, home)
-    check_reachable(x_des)  # names the violated stroke limit
+    try:
+        check_reachable(x_des)  # names the violated stroke limit
+    except WorkspaceError as exc:
+        raise UserInputError(
+            f"unreachable trajectory at trajectory: {' '.join(str(exc).split())}; allowed: "
+            "amplitudes inside the workspace (see simpro-sim workspace)"
+        ) from exc
     q_des = inverse_kinematics(x_des)
     lead = p["drive_lead_s"] if p["drive"] == "dynamic" else 0.0
     q_cmd = inverse_kinematics(trajectory(t + lead, p, home), check=False)

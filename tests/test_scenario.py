@@ -20,7 +20,16 @@ from simpro_mj.scenario import (
     shipped_scenarios,
 )
 
-SHIPPED = ["step_all", "step_heave", "step_pitch", "step_roll", "track_sines"]
+SHIPPED = [
+    "fault_supply_drop",
+    "step_all",
+    "step_heave",
+    "step_pitch",
+    "step_roll",
+    "sweep_monte_carlo",
+    "sweep_outer_gain",
+    "track_sines",
+]
 
 
 def test_shipped_scenarios_load_and_validate():

@@ -1,0 +1,313 @@
+"""Checks run before a co-simulation steps: can the cylinders lift the payload,
+are the outer gains inside the analysed stability limit.
+
+* :func:`check_payload` is an error (:class:`~simpro_mj.errors.UserInputError`,
+  exit 2): the static holding force of the loaded, as-built plant at the
+  start pose and along the set-point profile must be within what each
+  cylinder can make at the supply pressure (``force_range`` of
+  :class:`simpro_mj.pneumatics.PneumaticParams`: ``(p_s - p_a) A_cap`` pushing,
+  ``(p_s - p_a) A_annulus`` pulling). Holding forces are affine in the
+  payload mass at a fixed pose (gravity is linear in the masses, the
+  constraint geometry does not depend on them), so two static solves per pose
+  also give the largest payload the cylinders can hold there.
+* :func:`gain_warnings` is a warning (users study instability): a task-space
+  outer gain above the limit of :func:`controllers.analysis.real_inner_limit`,
+  the outer loop around the discretised joint loops, lifted to the outer
+  period, with the IK Jacobian at home, where the joint loops are the
+  scenario's controllers (variant, discretisation, design plant) on the plant
+  the actuator model stands for: ``linear`` is eq. (19) with the
+  ``actuator.pneumatics.linear`` coefficients (eqs. 34-35 by default, and the
+  analysis is then exact up to saturation), ``nonlinear`` is linearised by
+  ``controller.inner.identified`` (what ``simpro-sim identify`` measures on the
+  default plant). For the shipped I loop at T = 60 ms that is 9.46 (linear)
+  and 1.07 (nonlinear; the co-simulation is stable at 1.2 and unstable at 1.5,
+  docs/robustness.md).
+
+:func:`preflight` runs both and returns the warnings and the figures that
+``metrics.json`` records under ``preflight``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+
+import numpy as np
+
+from .errors import PhysicsError, UserInputError
+
+__all__ = ["check_payload", "gain_warnings", "stability_limit", "preflight", "UTILISATION_WARN"]
+
+#: Warn above this fraction of a cylinder's force spent on holding the payload.
+UTILISATION_WARN = 0.9
+_MAX_POSES = 60  # static solves per check (0.5 ms each)
+
+
+def _poses(scenario: Mapping) -> tuple[np.ndarray, np.ndarray]:
+    """Set-point poses to check: the start, each axis' extremes, and a spread."""
+    from .scenario import reference
+
+    duration = float(scenario["duration_s"])
+    t = np.linspace(0.0, duration, int(min(2001, duration / 0.05 + 1)))
+    pose = reference(scenario, t)
+    _, first = np.unique(np.round(pose, 7), axis=0, return_index=True)
+    first = np.sort(first)
+    if first.size > _MAX_POSES:
+        extremes = np.concatenate([np.argmin(pose, axis=0), np.argmax(pose, axis=0)])
+        spread = first[np.linspace(0, first.size - 1, _MAX_POSES - 7).astype(int)]
+        first = np.unique(np.concatenate([[0], extremes, spread]))
+    return t[first], pose[first]
+
+
+def holding_force_model(model, data, index, probe_kg: float = 1.0):
+    """Static slide forces at the present (assembled) pose as ``f_empty + slope m``.
+
+    Returns ``(f_empty, slope)`` (N and N/kg, (3,)) for a payload of mass m:
+    holding forces are affine in the payload mass at a fixed pose. The
+    model's payload mass is changed for the two static solves and restored.
+    """
+    from .pneumatics import holding_forces
+
+    body = model.body("payload").id
+    saved = float(model.body_mass[body])
+    try:
+        model.body_mass[body] = probe_kg
+        f_probe = holding_forces(model, data, index)
+        model.body_mass[body] = 1e-6  # MuJoCo needs a mass; load_model uses the same
+        f_empty = holding_forces(model, data, index)
+    finally:
+        model.body_mass[body] = saved
+    return f_empty, (f_probe - f_empty) / probe_kg
+
+
+def max_payload(f_empty, slope, force_range) -> float:
+    """Largest payload (kg) whose holding forces stay within ``force_range`` (N)."""
+    f_min, f_max = force_range
+    m_max = math.inf
+    for f0, k in zip(np.ravel(f_empty), np.ravel(slope), strict=True):
+        if k > 0:
+            m_max = min(m_max, (f_max - f0) / k)
+        elif k < 0:
+            m_max = min(m_max, (f_min - f0) / k)
+    return m_max
+
+
+def check_payload(scenario: Mapping, model=None) -> dict:
+    """Refuse a payload the cylinders cannot hold at the supply pressure.
+
+    Parameters
+    ----------
+    scenario : mapping
+        A resolved scenario.
+    model : mujoco.MjModel, optional
+        The compiled plant (built from ``scenario["plant"]`` when omitted; its
+        payload mass is changed and restored).
+
+    Returns
+    -------
+    dict
+        ``max_payload_kg`` (largest payload the cylinders hold at every checked
+        pose), ``holding_force_n`` (worst per leg), ``force_range_n``,
+        ``utilisation`` (worst holding force / available force, per leg),
+        ``poses_checked``, ``supply_bar_gauge``.
+
+    Raises
+    ------
+    UserInputError
+        ``payload too heavy at plant.payload.mass_kg: ...`` or, when the empty
+        platform already needs more, ``supply too low at
+        actuator.pneumatics.supply_pressure_bar_gauge: ...``.
+    """
+    import mujoco
+
+    from controllers.geometry import nominal_geometry
+    from controllers.kinematics import inverse_kinematics
+
+    from .model import PlantIndex, assemble, load_model
+    from .pneumatics import PneumaticParams
+
+    params = PneumaticParams.from_tree(scenario["actuator"].get("pneumatics") or {})
+    f_min, f_max = params.force_range
+    supply_bar = (params.p_supply - params.p_atm) * 1e-5
+    info: dict = {
+        "supply_bar_gauge": supply_bar,
+        "force_range_n": [f_min, f_max],
+    }
+    if scenario["actuator"]["model"] == "linear" and not params.lin_saturate:
+        info["skipped"] = "linear actuator without force saturation"
+        return info
+
+    m = load_model(scenario["plant"]) if model is None else model
+    d = mujoco.MjData(m)
+    idx = PlantIndex.of(m)
+    mass = float(scenario["plant"]["payload"]["mass_kg"])
+    probe = mass if mass > 0 else 1.0
+    times, poses = _poses(scenario)
+    q_all = inverse_kinematics(poses, nominal_geometry(), check=False)
+
+    worst = None  # (utilisation, leg, t, force)
+    hold_max = np.zeros(3)
+    util = np.zeros(3)
+    m_max = math.inf
+    empty_short = None  # (deficit, leg, t, force at no payload)
+    checked = 0
+    for t, q in zip(times, q_all, strict=True):
+        d.qpos[:] = m.qpos0
+        try:
+            assemble(m, d, q, index=idx)
+        except PhysicsError:
+            continue  # not assemblable on the as-built plant: the run reports it
+        f_empty, slope = holding_force_model(m, d, idx, probe)
+        f = f_empty + slope * mass
+        checked += 1
+        m_max = min(m_max, max_payload(f_empty, slope, (f_min, f_max)))
+        for i in range(3):
+            u = f[i] / (f_max if f[i] >= 0 else f_min)
+            util[i] = max(util[i], u)
+            if abs(f[i]) > abs(hold_max[i]):
+                hold_max[i] = f[i]
+            if worst is None or u > worst[0]:
+                worst = (u, i, float(t), float(f[i]))
+            ratio = f_empty[i] / (f_max if f_empty[i] >= 0 else f_min)
+            if ratio > 1 and (empty_short is None or ratio > empty_short[0]):
+                empty_short = (ratio, i, float(t), float(f_empty[i]))
+    info.update(
+        max_payload_kg=max(m_max, 0.0) if math.isfinite(m_max) else None,
+        holding_force_n=hold_max.tolist(),
+        utilisation=util.tolist(),
+        poses_checked=checked,
+    )
+    if worst is None or worst[0] <= 1.0:
+        return info
+    where = "at the start pose" if worst[2] == 0.0 else f"at the set-point of t = {worst[2]:.2f} s"
+    if empty_short is not None:
+        _, i, t, f = empty_short
+        area = params.area_cap if f >= 0 else params.area_rod_side
+        need_bar = abs(f) / area * 1e-5
+        raise UserInputError(
+            f"supply too low at actuator.pneumatics.supply_pressure_bar_gauge: {supply_bar:g} bar; "
+            f"the platform without payload needs {abs(f) / 1e3:.2f} kN on cylinder {i + 1} "
+            f"{where}, which makes at most {abs(f_max if f >= 0 else f_min) / 1e3:.2f} kN; "
+            f"allowed: > {need_bar:.2f} bar gauge"
+        )
+    _, i, t, f = worst
+    cap = f_max if f >= 0 else f_min
+    raise UserInputError(
+        f"payload too heavy at plant.payload.mass_kg: {mass:g} kg needs {abs(f) / 1e3:.2f} kN "
+        f"on cylinder {i + 1} {where}, which makes at most {abs(cap) / 1e3:.2f} kN at "
+        f"{supply_bar:g} bar gauge supply; allowed: <= {max(m_max, 0.0):.0f} kg at this supply "
+        "pressure (actuator.pneumatics.supply_pressure_bar_gauge)"
+    )
+
+
+def _inner_legs(scenario: Mapping, dt: float):
+    """The joint loops as the analysis sees them: the scenario's controllers on the
+    plant its actuator model stands for. Returns (legs, plant description)."""
+    from controllers.analysis import inner_discrete_loop
+    from controllers.design import (
+        ACTUATORS,
+        PLANTS,
+        Plant,
+        corrected_design,
+        printed_design,
+        redesigned_design,
+    )
+
+    inner = scenario["controller"]["inner"]
+    identified = {a: Plant(**inner["identified"][a]) for a in ACTUATORS}
+    design_plants = identified if inner["design_plant"] == "identified" else PLANTS
+    if scenario["actuator"]["model"] == "linear":
+        from .pneumatics import PneumaticParams
+
+        p = PneumaticParams.from_tree(scenario["actuator"].get("pneumatics") or {})
+        plants = {
+            a: Plant(b=float(p.lin_b[i]), a1=float(p.lin_a1[i]), a0=float(p.lin_a0[i]))
+            for i, a in enumerate(ACTUATORS)
+        }
+        what = "the linear actuators' eq. (19) plants"
+    else:
+        plants = identified
+        what = "the identified plant controller.inner.identified"
+    legs = []
+    for a in ACTUATORS:
+        if inner["variant"] == "printed":
+            design = printed_design(a)
+        elif inner["variant"] == "corrected":
+            design = corrected_design(a, design_plants[a])
+        else:
+            design = redesigned_design(
+                a, zeta=inner["zeta"], wn=inner["wn_rad_s"], plant=design_plants[a]
+            )
+        legs.append(inner_discrete_loop(design, plants[a], dt, inner["discretisation"]))
+    return legs, f"real inner loops: {inner['variant']} joint controllers on {what}"
+
+
+def stability_limit(scenario: Mapping, dt: float = 1e-3) -> dict:
+    """The analysed limit of the scenario's outer loop (see the module docstring).
+
+    Returns
+    -------
+    dict
+        ``limit`` (largest common K K_I, 1/s), ``basis`` (what was analysed),
+        ``spectral_radius`` at the scenario's gains, ``delay_model_limit``
+        (eq. 21's one-sample delay, for comparison).
+    """
+    from controllers import analysis as an
+    from controllers.geometry import nominal_geometry
+    from controllers.kinematics import jacobian
+
+    outer = scenario["controller"]["outer"]
+    mode, period, c = outer["type"], outer["period_ms"] * 1e-3, float(outer["pi_zero"])
+    legs, basis = _inner_legs(scenario, dt)
+    jac = jacobian(nominal_geometry().home)
+    limit = an.real_inner_limit(mode, period, dt=dt, jac=jac, pi_zero=c, legs=legs)
+    lifted = an.lifted_inner(period, dt=dt, legs=legs)
+    f = an.outer_closed_loop(mode, np.asarray(outer["gains"], float), period, lifted, jac, c)[0]
+    a, b = an.outer_polynomials(mode, period, int(outer["delay_samples"]), c)
+    return {
+        "limit": float(limit),
+        "basis": basis,
+        "spectral_radius": an.spectral_radius(f),
+        "delay_model_limit": float(an.stability_limit(a, b)),
+    }
+
+
+def gain_warnings(scenario: Mapping) -> tuple[list[str], dict]:
+    """Warnings for outer gains above the analysed limit, and the analysis figures.
+
+    Returns ``([], {})`` in joint-only mode (no outer loop).
+    """
+    if scenario["controller"]["mode"] != "task_space":
+        return [], {}
+    outer = scenario["controller"]["outer"]
+    info = stability_limit(scenario)
+    lim = info["limit"]
+    label = f"{outer['type']}, T = {outer['period_ms']:g} ms, {info['basis']}"
+    out = []
+    for i, g in enumerate(outer["gains"]):
+        if g > lim:
+            out.append(
+                f"controller.outer.gains[{i}] = {g:g} exceeds the analysed stability limit "
+                f"{lim:.3g} ({label}); the run may diverge"
+            )
+    if not out and info["spectral_radius"] >= 1.0:
+        out.append(
+            f"controller.outer.gains = {outer['gains']} together are unstable in the analysis "
+            f"(spectral radius {info['spectral_radius']:.3f} >= 1; {label}); the run may diverge"
+        )
+    return out, info
+
+
+def preflight(scenario: Mapping, model=None) -> tuple[list[str], dict]:
+    """Payload check (raises) and gain warnings; returns ``(warnings, figures)``."""
+    payload = check_payload(scenario, model)
+    warnings, stability = gain_warnings(scenario)
+    for i, u in enumerate(payload.get("utilisation", [])):
+        if u > UTILISATION_WARN:
+            warnings.append(
+                f"plant.payload.mass_kg = {scenario['plant']['payload']['mass_kg']:g} kg takes "
+                f"{u * 100:.0f} % of cylinder {i + 1}'s force at "
+                f"{payload['supply_bar_gauge']:g} bar gauge just to hold it; little is left "
+                "to accelerate"
+            )
+    return warnings, {"payload": payload, "stability": stability}

@@ -1,0 +1,400 @@
+"""``simpro-sim batch`` and sweeps (issue 6).
+
+* expansion: grid and Monte Carlo counts, names, uniqueness, reproducible
+  draws and seeds; malformed sweep blocks give one-line errors naming the path;
+* ``simpro-sim run`` on a sweep file runs the base scenario and says so;
+* a failing variant and an invalid file are reported, the others complete,
+  exit code 1; ``--strict`` refuses the batch up front (exit 2);
+* ``--resume`` does not recompute complete variants and recomputes an
+  incomplete one;
+* the process pool and a Dask LocalCluster (2 workers) give the same summary;
+* summary plots are written; the stability criterion on synthetic signals;
+* the shipped example sweeps expand and validate.
+
+Runs are 1 s long with per-variant plots off, so the file takes seconds.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from simpro_mj.batch import stability_of
+from simpro_mj.cli import main
+from simpro_mj.errors import UserInputError
+from simpro_mj.scenario import load_scenario, scenario_hash, scenarios_dir
+from simpro_mj.sweep import load_sweep, parse_sweep
+
+BASE = {
+    "duration_s": 1.0,
+    "actuator": {"model": "linear"},
+    "setpoint": {"pitch_deg": [{"type": "step", "time_s": 0.2, "value": 1.0}]},
+}
+
+
+def _write(path: Path, doc: dict) -> Path:
+    path.write_text(yaml.safe_dump(doc, sort_keys=False), encoding="utf-8")
+    return path
+
+
+def _grid_file(tmp_path: Path, name: str = "g", **grid) -> Path:
+    grid = grid or {"controller.outer.type": ["I", "PI"], "controller.outer.gains": [2, 4]}
+    return _write(tmp_path / f"{name}.yaml", dict(BASE, name=name, sweep={"grid": grid}))
+
+
+def _read_csv(path: Path) -> list[dict]:
+    with path.open(encoding="utf-8") as fh:
+        return list(csv.DictReader(fh))
+
+
+MC = {
+    "samples": 5,
+    "seed": 7,
+    "parameters": {
+        "plant.payload.mass_kg": {"distribution": "uniform", "low": 200, "high": 300},
+        "sensors.potentiometer.offset_mm": {"distribution": "normal", "mean": 0, "std": 1.5},
+        "actuator.pneumatics.supply_pressure_bar_gauge": {
+            "distribution": "normal", "mean": 6, "std": 0.2, "low": 5.9, "high": 6.1,
+        },
+        "controller.inner.discretisation": {"distribution": "choice", "values": ["tustin", "zoh"]},
+    },
+}  # fmt: skip
+
+
+# ------------------------------------------------------------------ expansion
+
+
+def test_grid_expansion_counts_names_values(tmp_path):
+    sf = load_sweep(_grid_file(tmp_path))
+    names = [v.name for v in sf.variants]
+    assert names == ["type=I_gains=2", "type=I_gains=4", "type=PI_gains=2", "type=PI_gains=4"]
+    assert all(v.error is None for v in sf.variants)
+    v = sf.variants[3]
+    assert v.scenario["controller"]["outer"]["type"] == "PI"
+    assert v.scenario["controller"]["outer"]["gains"] == [4.0, 4.0, 4.0]  # one number: all axes
+    assert "sweep" not in v.scenario
+    assert {x.seed for x in sf.variants} == {1}  # grid points share the noise
+    assert len({scenario_hash(x.scenario) for x in sf.variants}) == 4
+    # --set applies to every variant's base; the swept value wins on its own path
+    sf2 = load_sweep(_grid_file(tmp_path), ["duration_s=0.5", "controller.outer.type=PI"])
+    assert all(x.scenario["duration_s"] == 0.5 for x in sf2.variants)
+    assert sf2.variants[0].scenario["controller"]["outer"]["type"] == "I"
+
+
+def test_grid_names_unique_and_safe(tmp_path):
+    path = _grid_file(
+        tmp_path,
+        **{
+            "controller.outer.gains": [[1, 2, 3], [1, 2, 3], 2],
+            "sensors.imu.rate_ms": [5],
+            "sensors.potentiometer.rate_ms": [1],
+        },
+    )
+    names = [v.name for v in load_sweep(path).variants]
+    assert len(set(names)) == 3
+    assert names[0] == "gains=1,2,3_imu.rate_ms=5_potentiometer.rate_ms=1"
+    assert names[1].endswith("_2")
+    assert all("/" not in n and " " not in n for n in names)
+
+
+def test_monte_carlo_expansion_reproducible(tmp_path):
+    doc = dict(BASE, name="mc", sweep={"grid": {"controller.mode": ["joint_only", "task_space"]},
+                                       "monte_carlo": MC})  # fmt: skip
+    path = _write(tmp_path / "mc.yaml", doc)
+    a, b = load_sweep(path), load_sweep(path)
+    assert len(a.variants) == 10
+    assert a.variants[0].name == "mc000_mode=joint_only"
+    assert a.variants[9].name == "mc004_mode=task_space"
+    assert len({v.name for v in a.variants}) == 10
+    assert [v.values for v in a.variants] == [v.values for v in b.variants]
+    # paired: both modes see the same plants and the same noise seeds
+    for i in range(5):
+        jo, ts = a.variants[i], a.variants[5 + i]
+        assert {k: v for k, v in jo.values.items() if k != "controller.mode"} == {
+            k: v for k, v in ts.values.items() if k != "controller.mode"
+        }
+        assert jo.seed == ts.seed == 1 + i
+        assert jo.scenario["seed"] == 1 + i
+    for v in a.variants:
+        assert 200 <= v.values["plant.payload.mass_kg"] <= 300
+        assert len(v.values["sensors.potentiometer.offset_mm"]) == 3
+        assert 5.9 <= v.values["actuator.pneumatics.supply_pressure_bar_gauge"] <= 6.1
+        assert v.scenario["plant"]["payload"]["mass_kg"] == v.values["plant.payload.mass_kg"]
+    assert len({v.values["plant.payload.mass_kg"] for v in a.variants[:5]}) == 5
+    # a draw does not depend on the number of samples nor on the other parameters
+    fewer = dict(MC, samples=3, parameters=dict(list(MC["parameters"].items())[:1]))
+    c = load_sweep(_write(tmp_path / "mc3.yaml", dict(BASE, sweep={"monte_carlo": fewer})))
+    assert [v.name for v in c.variants] == ["mc000", "mc001", "mc002"]
+    for i in range(3):
+        key = "plant.payload.mass_kg"
+        assert c.variants[i].values[key] == a.variants[i].values[key]
+    other = load_sweep(
+        _write(tmp_path / "s8.yaml", dict(BASE, sweep={"monte_carlo": dict(MC, seed=8)}))
+    )
+    assert other.variants[0].values != a.variants[0].values
+
+
+def _mc(path: str, **dist) -> dict:
+    return {"monte_carlo": {"samples": 2, "parameters": {path: dist}}}
+
+
+MASS = "plant.payload.mass_kg"
+SG = "sweep.grid"
+SMC = "sweep.monte_carlo"
+
+
+@pytest.mark.parametrize(
+    ("block", "expected"),
+    [
+        ({"grid": {"controller.outer.gian": [1]}}, f"unknown key at {SG}.controller.outer.gian"),
+        ({"grid": {"controller.outer.gian": [1]}}, "(did you mean 'gains'?)"),
+        ({"grid": {"controller.outer.gains": 3}}, f"wrong type at {SG}.controller.outer.gains"),
+        ({"grid": {"name": ["a"]}}, f"invalid key at {SG}.name"),
+        ({"gird": {}}, "unknown key at sweep.gird: allowed keys are ['grid', 'monte_carlo']"),
+        ({"monte_carlo": {"seed": 1, "parameters": {}}}, f"missing key at {SMC}.samples"),
+        (
+            _mc(MASS, distribution="gauss", mean=1, std=1),
+            f"invalid value at {SMC}.parameters.{MASS}.distribution: 'gauss'; allowed: one of "
+            "['uniform', 'normal', 'choice']",
+        ),
+        (
+            _mc(MASS, distribution="uniform", low=3),
+            f"missing key at {SMC}.parameters.{MASS}.high",
+        ),
+        (
+            _mc(MASS, distribution="normal", mean=3, std=-1),
+            f"invalid value at {SMC}.parameters.{MASS}.std: -1; allowed: >= 0",
+        ),
+        (
+            _mc("actuator.pneumatics.supply_pressure_bar", distribution="uniform", low=5, high=6),
+            "(did you mean 'supply_pressure_bar_gauge'?)",
+        ),
+        (
+            {"monte_carlo": {"samples": 0, "parameters": {"seed": {"distribution": "choice"}}}},
+            f"invalid value at {SMC}.samples: 0",
+        ),
+    ],
+)
+def test_invalid_sweep_blocks_one_line(block, expected):
+    with pytest.raises(UserInputError) as err:
+        parse_sweep(block)
+    msg = str(err.value)
+    assert expected in msg
+    assert "\n" not in msg
+
+
+def test_run_on_a_sweep_file_runs_the_base_and_says_so(tmp_path, capsys):
+    path = _grid_file(tmp_path)
+    sc = load_scenario(str(path))
+    assert "sweep" not in sc
+    assert sc["controller"]["outer"]["type"] == "I"
+    assert sc == load_scenario(str(_write(tmp_path / "plain.yaml", dict(BASE, name="g"))))
+    err = capsys.readouterr().err
+    assert "declares 4 variants" in err and "simpro-sim batch" in err
+    bad = _write(tmp_path / "bad.yaml", dict(BASE, sweep={"grid": {"controller.nope": [1]}}))
+    with pytest.raises(UserInputError, match="unknown key at sweep.grid.controller.nope"):
+        load_scenario(str(bad))
+
+
+def test_shipped_sweeps_expand_and_validate(capsys):
+    gain = load_sweep(scenarios_dir() / "sweep_outer_gain.yaml")
+    mc = load_sweep(scenarios_dir() / "sweep_monte_carlo.yaml")
+    assert len(gain.variants) == 64 and len(mc.variants) == 40
+    for sf in (gain, mc):
+        assert [v.error for v in sf.variants if v.error] == []
+        load_scenario(sf.path)  # the base scenario runs with `simpro-sim run`
+    assert gain.variants[0].scenario["actuator"]["model"] == "linear"
+
+
+# ------------------------------------------------------------------ running
+
+
+def test_failing_variant_and_invalid_file_reported_others_complete(tmp_path, monkeypatch, capsys):
+    import simpro_mj.sim as sim_mod
+
+    real = sim_mod.simulate
+
+    def flaky(scenario, progress=None):
+        if scenario["controller"]["outer"]["gains"][0] == 4.0:
+            raise RuntimeError("injected\nfailure")
+        return real(scenario, progress)
+
+    monkeypatch.setattr(sim_mod, "simulate", flaky)
+    good = _grid_file(tmp_path, **{"controller.outer.gains": [2, 4]})
+    bad = _write(tmp_path / "bad.yaml", dict(BASE, controller={"mode": "task-space"}))
+    out = tmp_path / "out"
+    argv = ["batch", str(good), str(bad), "--out", str(out), "--jobs", "1", "--no-plots"]
+    rc = main([*argv, "--json"])
+    assert rc == 1
+    doc = json.loads(capsys.readouterr().out)
+    rows = _read_csv(out / "summary.csv")
+    assert [r["status"] for r in rows] == ["ok", "failed", "invalid"]
+    assert rows[1]["reason"] == "RuntimeError: injected failure"
+    assert rows[2]["reason"].startswith("invalid value at controller.mode: 'task-space'")
+    assert "(did you mean 'task_space'?)" in rows[2]["reason"]
+    assert rows[0]["controller.outer.gains"] == "2" and rows[0]["stable"] == "true"
+    assert float(rows[0]["pitch_rms_err_deg"]) > 0
+    assert (out / "g" / "gains=2" / "metrics.json").is_file()
+    assert not (out / "g" / "gains=4").exists()
+    assert doc["counts"]["ok"] == 1 and doc["counts"]["failed"] == 1
+    assert doc["counts"]["invalid"] == 1
+    # --strict refuses the whole batch before anything runs, one line naming the file
+    out2 = tmp_path / "strict"
+    rc = main(["batch", str(good), str(bad), "--out", str(out2), "--jobs", "1", "--strict"])
+    err = capsys.readouterr().err
+    assert rc == 2
+    assert err.count("\n") == 1 and str(bad) in err and "controller.mode" in err
+    assert not out2.exists()
+
+
+def test_resume_skips_complete_and_recomputes_incomplete(tmp_path, monkeypatch):
+    import simpro_mj.sim as sim_mod
+
+    real, calls = sim_mod.simulate, []
+
+    def counting(scenario, progress=None):
+        calls.append(scenario["controller"]["outer"]["gains"][0])
+        return real(scenario, progress)
+
+    monkeypatch.setattr(sim_mod, "simulate", counting)
+    path = _grid_file(tmp_path, **{"controller.outer.gains": [1, 2, 3]})
+    out = tmp_path / "out"
+    argv = ["batch", str(path), "--out", str(out), "--jobs", "1", "--no-plots"]
+    assert main(argv) == 0
+    assert calls == [1.0, 2.0, 3.0]
+    first = (out / "summary.csv").read_text()
+    folders = [out / "g" / f"gains={g}" for g in (1, 2, 3)]
+    mtime = (folders[0] / "metrics.json").stat().st_mtime_ns
+    # an interrupted run and a missing file are incomplete
+    met = json.loads((folders[1] / "metrics.json").read_text())
+    met["status"] = "interrupted"
+    (folders[1] / "metrics.json").write_text(json.dumps(met))
+    (folders[2] / "timeseries.csv").unlink()
+    calls.clear()
+    assert main([*argv, "--resume"]) == 0
+    assert calls == [2.0, 3.0]
+    assert (folders[0] / "metrics.json").stat().st_mtime_ns == mtime
+    assert _drop_wall_clock(first) == _drop_wall_clock((out / "summary.csv").read_text())
+    # a changed scenario (hash) is recomputed too
+    calls.clear()
+    assert main([*argv, "--resume", "--set", "seed=5"]) == 0
+    assert calls == [1.0, 2.0, 3.0]
+
+
+def _drop_wall_clock(text: str) -> list[dict]:
+    rows = list(csv.DictReader(text.splitlines()))
+    for r in rows:
+        r.pop("realtime_factor")
+    return rows
+
+
+def test_process_pool_and_dask_agree_and_plots_written(tmp_path):
+    pytest.importorskip("distributed")
+    grid = {"controller.outer.type": ["I", "PI"], "controller.outer.gains": [2, 30]}
+    path = _grid_file(tmp_path, **grid)
+    mc = _write(tmp_path / "mc.yaml", dict(BASE, name="mc", sweep={
+        "grid": {"controller.mode": ["joint_only", "task_space"]},
+        "monte_carlo": dict(MC, samples=2)}))  # fmt: skip
+    pool, dask = tmp_path / "pool", tmp_path / "dask"
+    common = [str(path), str(mc), "--jobs", "2", "--set", "duration_s=1.5"]
+    # gain 30 is unstable but the runs complete: status ok, exit 0, stable false
+    assert main(["batch", *common, "--out", str(pool)]) == 0
+    assert main(["batch", *common, "--out", str(dask), "--scheduler", "local", "--no-plots"]) == 0
+    a = _drop_wall_clock((pool / "summary.csv").read_text())
+    b = _drop_wall_clock((dask / "summary.csv").read_text())
+    assert len(a) == 8 and a == b
+    for folder in ("g/type=PI_gains=30", "mc/mc001_mode=task_space"):
+        ts_a = (pool / folder / "timeseries.csv").read_text()
+        assert ts_a == (dask / folder / "timeseries.csv").read_text()
+        assert json.loads((dask / folder / "metrics.json").read_text())["status"] in (
+            "ok",
+            "diverged",
+        )
+    assert (pool / "g" / "type=I_gains=2" / "task_space.png").is_file()
+    assert not (dask / "g" / "type=I_gains=2" / "task_space.png").exists()
+    plots = sorted(p.name for p in (pool / "plots").iterdir())
+    assert plots == ["g_responses.png", "g_vs_gains.png", "mc_mc_ss_error.png", "mc_responses.png"]
+    assert all((pool / "plots" / p).stat().st_size > 10_000 for p in plots)
+    summary = json.loads((pool / "summary.json").read_text())
+    lim = {s["outer_type"]: s for s in summary["stability"]}
+    assert set(lim) == {"I", "PI"}
+    assert math.isclose(lim["I"]["analytic_limit"], 9.4586, rel_tol=1e-3)
+    assert math.isclose(lim["PI"]["analytic_limit"], 18.627, rel_tol=1e-3)
+    assert lim["I"]["largest_stable"] == 2.0 and lim["I"]["smallest_unstable"] == 30.0
+    groups = {g["group"]: g for g in summary["monte_carlo"][0]["groups"]}
+    assert set(groups) == {"mode=joint_only", "mode=task_space"}
+
+
+def test_missing_dask_is_one_line_exit_2(tmp_path, monkeypatch, capsys):
+    import sys
+
+    monkeypatch.setitem(sys.modules, "distributed", None)
+    path = _grid_file(tmp_path)
+    rc = main(["batch", str(path), "--out", str(tmp_path / "o"), "--scheduler", "local"])
+    err = capsys.readouterr().err
+    assert rc == 2 and err.count("\n") == 1
+    assert "pip install 'simpro-sim[cluster]'" in err
+    assert not (tmp_path / "o" / "g").exists()
+
+
+# ------------------------------------------------------------------ stability criterion
+
+
+def _columns(t, err_pitch, ref_pitch=None):
+    ref = np.radians(2.0) * (t >= 0.5) if ref_pitch is None else ref_pitch
+    zero = np.zeros_like(t)
+    home = 1.265
+    return {
+        "time_s": t,
+        "roll_ref_rad": zero, "roll_rad": zero,
+        "pitch_ref_rad": ref, "pitch_rad": ref - err_pitch,
+        "heave_ref_m": zero + home, "heave_m": zero + home,
+    }  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    ("sigma", "stable"), [(-0.5, True), (-0.05, True), (0.3, False), (1.0, False)]
+)
+def test_stability_criterion_on_envelopes(sigma, stable):
+    t = np.arange(0.0, 12.0, 0.001)
+    err = np.radians(0.5) * np.exp(sigma * (t - 1.5)) * np.sin(2 * np.pi * 1.3 * t) * (t >= 0.5)
+    s = stability_of(_columns(t, err))
+    assert s["stable"] is stable, s
+    assert s["growth_rate_1_s"] == pytest.approx(sigma, abs=0.08)
+
+
+def test_stability_criterion_offset_and_held_oscillation():
+    t = np.arange(0.0, 12.0, 0.001)
+    # joint-only-like: a constant offset of 0.4 deg is not an instability
+    offset = np.radians(0.4) * (t >= 1.0)
+    assert stability_of(_columns(t, offset))["stable"] is True
+    # an oscillation held at 3 deg by saturation (reference 2 deg) is one
+    held = np.radians(3.0) * np.sin(2 * np.pi * 1.1 * t) * (t >= 1.0)
+    s = stability_of(_columns(t, held))
+    assert s["stable"] is False and "held" in s["why"]
+    # noise at the sensor floor, no set-point: stable, no growth rate
+    rng = np.random.default_rng(0)
+    noise = np.radians(0.005) * rng.standard_normal(t.size)
+    s = stability_of(_columns(t, noise, ref_pitch=np.zeros_like(t)))
+    assert s["stable"] is True and s["growth_rate_1_s"] is None
+    assert stability_of(_columns(t, offset), status="diverged")["stable"] is False
+
+
+def test_jobs_and_paths_errors(tmp_path, capsys):
+    path = _grid_file(tmp_path)
+    assert main(["batch", str(path), "--jobs", "0", "--out", str(tmp_path / "o")]) == 2
+    assert "--jobs" in capsys.readouterr().err
+    # a folder expands to its YAML files; an empty one is an invalid row
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    rc = main(["batch", str(empty), "--out", str(tmp_path / "o2"), "--jobs", "1", "--json"])
+    doc = json.loads(capsys.readouterr().out)
+    assert rc == 1 and doc["counts"]["invalid"] == 1
+    assert os.path.exists(tmp_path / "o2" / "summary.csv")

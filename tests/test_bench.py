@@ -1,0 +1,84 @@
+"""``simpro-sim bench``: structure and internal consistency (issue 7).
+
+No speed thresholds here: speed is what the command measures, on the machine
+it runs on (docs/performance.md). These tests use short runs.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+
+import pytest
+
+from simpro_mj.bench import STAGES, measure
+from simpro_mj.cli import main
+from simpro_mj.scenario import load_scenario
+
+
+@pytest.fixture(scope="module")
+def short():
+    scenario = load_scenario("step_pitch", ["duration_s=0.5"])
+    return measure(scenario, repeats=2, batch=False)
+
+
+def test_keys_and_consistency(short):
+    r = short
+    for key in ("bare_step_us", "full_step_us", "ratio", "realtime_factor", "stages_us",
+                "throughput", "repeats", "machine"):  # fmt: skip
+        assert key in r
+    assert set(r["stages_us"]) == set(STAGES)
+    assert set(r["machine"]) >= {"cpu", "cores", "python", "mujoco", "numpy"}
+    assert r["repeats"] == 2 and r["steps"] == 500
+    assert r["throughput"] is None  # batch=False
+    assert r["full_step_us"] > 0 and r["bare_step_us"] > 0
+    assert math.isclose(r["ratio"], r["full_step_us"] / r["bare_step_us"], rel_tol=1e-12)
+    assert math.isclose(r["realtime_factor"], 1e3 / r["full_step_us"], rel_tol=1e-12)
+    # medians of the per-repeat samples
+    assert r["full_step_us"] == pytest.approx(sum(r["samples"]["full_step_us"]) / 2)
+
+
+def test_bare_replays_the_same_trajectory(short):
+    """mj_step from the run's initial state with its recorded forces ends where the run did."""
+    assert short["bare_same_trajectory"] is True
+
+
+def test_stages_sum_within_the_instrumented_step(short):
+    """The stages are timed inside one run: their sum cannot exceed that run's time per
+    step (the remainder is the loop's own bookkeeping), and they cover most of it."""
+    total = sum(short["stages_us"].values())
+    instrumented = short["instrumented_step_us"]
+    assert all(v > 0 for v in short["stages_us"].values())
+    assert total <= instrumented * 1.0001
+    assert total >= 0.5 * instrumented
+
+
+def test_cli_json_and_throughput(capsys):
+    code = main(["bench", "--json", "--duration", "0.2", "--repeats", "1", "--batch-runs", "2"])
+    assert code == 0
+    r = json.loads(capsys.readouterr().out)
+    tp = r["throughput"]
+    assert set(tp) >= {"workers_1", "workers_2", "speedup"}
+    assert tp["workers_1"] > 0 and tp["workers_2"] > 0
+    assert math.isclose(tp["speedup"], tp["workers_2"] / tp["workers_1"], rel_tol=1e-12)
+
+
+def test_human_table(capsys):
+    assert main(["bench", "--duration", "0.1", "--repeats", "1", "--no-batch"]) == 0
+    out = capsys.readouterr().out
+    assert "bare mj_step" in out and "ratio full/bare" in out and "pneumatics" in out
+
+
+@pytest.mark.parametrize(
+    ("argv", "field"),
+    [
+        (["--repeats", "0"], "--repeats"),
+        (["--repeats", "many"], "--repeats"),
+        (["--duration", "-1"], "--duration"),
+        (["--batch-runs", "0"], "--batch-runs"),
+    ],
+)
+def test_user_errors_are_one_line(argv, field, capsys):
+    assert main(["bench", "--no-batch", *argv]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("error: ") and "\n" not in err and field in err

@@ -1,0 +1,119 @@
+"""The float fast paths of the 1 ms loop equal their array APIs bit for bit (issue 7).
+
+``tests/test_reference_metrics.py`` checks whole runs; these check each
+component on its own, including the paths the shipped scenarios do not take.
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+import pytest
+
+from controllers.joint import ANTI_WINDUP, JointControllers
+from simpro_mj.model import StateReader, loop_closure_error, measured_pose
+from simpro_mj.pneumatics import NonlinearActuators
+from simpro_mj.scenario import load_scenario
+from simpro_mj.sensors import SensorConfig, Sensors
+from simpro_mj.sim import CoSimulation
+
+
+@pytest.fixture(scope="module")
+def moving():
+    """A co-simulation stopped mid-motion (pitch step under way)."""
+    cs = CoSimulation(load_scenario("step_pitch", ["duration_s=1.3"]))
+    cs.run()
+    return cs
+
+
+def test_state_reader_equals_the_array_helpers(moving):
+    m, d, idx = moving.model, moving.data, moving.idx
+    r = StateReader(m, d, idx)
+    q, qd = r.slides()
+    assert q == d.qpos[idx.slide_qpos].tolist() and qd == d.qvel[idx.slide_dof].tolist()
+    assert r.pose() == measured_pose(d, idx.site_p).tolist()
+    assert r.loop_closure_max() == float(loop_closure_error(m, d, idx).max())
+    d2 = mujoco.MjData(m)  # a NaN propagates as in ndarray.max
+    d2.site_xpos[idx.connect_sites[1, 0], 0] = np.nan
+    assert np.isnan(StateReader(m, d2, idx).loop_closure_max())
+
+
+def test_sensors_floats_equal_arrays():
+    tree = load_scenario("step_pitch")["sensors"]
+    cfg = SensorConfig.from_tree(tree, 1e-3)
+    a, b = Sensors(cfg, np.random.default_rng(3)), Sensors(cfg, np.random.default_rng(3))
+    rng = np.random.default_rng(0)
+    q0, p0 = np.array([0.25, 0.24, 0.26]), np.array([0.01, -0.02, 0.95])
+    a.reset(q0, p0)
+    b.reset(q0, p0)
+    for k in range(1, 9000):  # crosses a noise block
+        q = q0 + rng.normal(0, 1e-3, 3)
+        p = p0 + rng.normal(0, 1e-3, 3)
+        qa, pa = a.sample(k, q, p)
+        qb, pb = b.sample_floats(k, q.tolist(), p.tolist())
+        assert qa.tolist() == qb and pa.tolist() == pb
+    qn, _ = a.sample(9000, np.array([np.nan, np.inf, 0.2]), p0)
+    assert np.isnan(qn[0]) and qn[1] == cfg.pot_range_m[1]  # as np.round + np.clip
+
+
+@pytest.mark.parametrize("anti_windup", ANTI_WINDUP)
+def test_joint_floats_equal_arrays(anti_windup):
+    a = JointControllers(anti_windup=anti_windup)
+    b = JointControllers(anti_windup=anti_windup)
+    rng = np.random.default_rng(1)
+    for _ in range(3000):
+        qr = rng.uniform(0.2, 0.3, 3)
+        qm = qr + rng.normal(0, 0.02, 3)  # large errors: the valves saturate
+        va = a.update(qr, qm)
+        vb = b.update_floats(qr.tolist(), qm.tolist())
+        assert va.tolist() == vb
+        assert np.array_equal(a.state, b.state)
+    assert np.array_equal(a.last_unsaturated, b.last_unsaturated)
+
+
+@pytest.mark.parametrize(
+    "overrides", [{}, {"valve": {"spool_order": 2}, "integration": {"substeps": 3}}]
+)
+def test_pneumatics_array_and_list_inputs_agree(overrides):
+    a, b = NonlinearActuators(overrides), NonlinearActuators(overrides)
+    rng = np.random.default_rng(2)
+    for _ in range(2000):
+        u = rng.uniform(-1, 11, 3)  # beyond the 0-10 V range too
+        q = rng.uniform(-0.01, 0.51, 3)
+        qd = rng.normal(0, 0.3, 3)
+        fa = a.step(u, q, qd, 1e-3)
+        fb = b.step(u.tolist(), q.tolist(), qd.tolist(), 1e-3)
+        assert np.array_equal(fa, fb)
+    assert np.array_equal(a._p, b._p) and np.array_equal(a.spool, b.spool)
+    assert np.all(a._p >= a.params.p_atm) and np.all(a._p <= a.params.p_supply)
+
+
+def test_pneumatics_scalar_broadcast():
+    a, b = NonlinearActuators(), NonlinearActuators()
+    assert np.array_equal(
+        a.step(6.0, 0.25, 0.0, 1e-3), b.step([6.0] * 3, [0.25] * 3, [0.0] * 3, 1e-3)
+    )
+
+
+def test_interrupt_returns_the_partial_result():
+    cs = CoSimulation(load_scenario("step_pitch", ["duration_s=3"]))
+
+    def stop(k):
+        if k == 1000:
+            raise KeyboardInterrupt
+
+    res = cs.run(progress=stop)
+    assert res.status == "interrupted"
+    assert res.reason == "interrupted by signal (SIGINT/SIGTERM) at t = 1.000 s"
+    assert res.sim["steps"] == 1000 and len(res.columns["time_s"]) == 1001
+
+
+def test_profile_fills_the_stages():
+    cs = CoSimulation(load_scenario("step_pitch", ["duration_s=0.2"]))
+    prof: dict = {}
+    res = cs.run(profile=prof)
+    assert set(prof) == {"physics", "sensors", "controllers", "pneumatics", "logging", "steps"}
+    assert prof["steps"] == 201 and all(prof[s] > 0 for s in prof)
+    plain = CoSimulation(load_scenario("step_pitch", ["duration_s=0.2"])).run()
+    for name, col in res.columns.items():  # instrumenting does not change the run
+        assert np.array_equal(col, plain.columns[name], equal_nan=True)
