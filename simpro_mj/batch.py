@@ -29,7 +29,9 @@ Statuses
 ``interrupted`` (Ctrl-C during the run, partial results kept);
 ``failed`` (an exception in the worker: its one-line reason); ``invalid``
 (the file, its sweep block or this variant failed validation); ``cancelled``
-(not run: interrupted). One bad variant or file never stops the others;
+(not run: interrupted). A PATH that names nothing (no file, folder or shipped
+scenario) is the command line's mistake: exit 2 before anything runs. One bad
+variant or file never stops the others;
 ``--strict`` instead refuses the whole batch (exit 2, one line naming the
 file) before anything runs if any file or variant is invalid. Exit code: 0
 when every variant is ``ok``, 1 otherwise.
@@ -251,7 +253,13 @@ class Plan:
 
 
 def _scenario_files(paths: Iterable[str]) -> list[tuple[str, str | None]]:
-    """(path or name, error) per input; folders expand to their YAML files."""
+    """(path or name, error) per input; folders expand to their YAML files.
+
+    Raises
+    ------
+    UserInputError
+        A path that is neither a file, a folder nor a shipped scenario name.
+    """
     out: list[tuple[str, str | None]] = []
     seen = set()
     for p in paths:
@@ -266,6 +274,12 @@ def _scenario_files(paths: Iterable[str]) -> list[tuple[str, str | None]]:
                     seen.add(key)
                     out.append((str(f), None))
         else:
+            if not path.is_file():
+                # a path that names nothing is the command line's mistake (exit 2),
+                # not a scenario file's: refuse before anything runs
+                from .scenario import _find
+
+                _find(str(p))  # raises UserInputError listing the shipped names
             key = str(path.resolve()) if path.is_file() else str(p)
             if key not in seen:
                 seen.add(key)

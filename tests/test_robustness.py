@@ -210,6 +210,8 @@ BAD_INPUTS = [
 if importlib.util.find_spec("simpro_mj.batch") is not None:
     BAD_INPUTS += [
         (["batch", "{tmp}/no_such_file.yaml", "--strict"], "no_such_file.yaml", []),
+        # a path naming nothing is refused before anything runs, --strict or not
+        (["batch", "step_roll", "{tmp}/no_such_file.yaml"], "no_such_file.yaml", []),
         (["batch", "step_pitch", "--set", "duration_s=0", "--strict"], "duration_s", []),
         (["batch", "step_pitch", "--set", "nonsense", "--strict"], "'nonsense'", []),
         (["batch", "step_pitch", "--jobs", "x"], "--jobs", []),
