@@ -93,7 +93,7 @@ from controllers.kinematics import check_reachable, reachable
 
 from .errors import UserInputError
 from .model import DEFAULT_MODEL_PARAMS
-from .params import check_keys, closest, key_text, parse_set
+from .params import check_keys, check_tagged, closest, key_text, parse_set
 from .sensors import DEFAULT_SENSORS
 
 __all__ = [
@@ -589,29 +589,11 @@ def _check_components(value: Any, path: str) -> list[dict]:
     if not isinstance(value, (list, tuple)):
         raise _wrong_type(path, value, f"a list of components like {example}")
     out = []
-    types = list(COMPONENT_TYPES)
     for i, comp in enumerate(value):
         here = f"{path}[{i}]"
         if not isinstance(comp, Mapping):
             raise _wrong_type(here, comp, f"a component mapping like {example[1:-1]}")
-        kind = comp.get("type")
-        if not isinstance(kind, str) or kind not in COMPONENT_TYPES:
-            if "type" not in comp:
-                raise UserInputError(f"missing key at {here}.type: allowed: one of {types}")
-            raise _invalid(f"{here}.type", kind, f"one of {types}{closest(str(kind), types)}")
-        required, optional = COMPONENT_TYPES[kind]
-        allowed = ["type", *required, *optional]
-        for key in comp:
-            if key not in allowed:
-                raise UserInputError(
-                    f"unknown key at {here}.{key_text(key)}: allowed keys of a {kind} are {allowed}"
-                    f"{closest(str(key), allowed)}"
-                )
-        for key in required:
-            if key not in comp:
-                raise UserInputError(
-                    f"missing key at {here}.{key}: a {kind} needs {list(required)}"
-                )
+        kind, required, optional = check_tagged(comp, here, "type", COMPONENT_TYPES)
         c: dict[str, Any] = {"type": kind}
         for key in (*required, *optional):
             raw = comp.get(key, optional.get(key))
@@ -669,30 +651,12 @@ def _check_faults(value: Any, path: str) -> list[dict]:
     example = "[{type: supply_drop, time_s: 5.0, pressure_bar_gauge: 2.0}]"
     if not isinstance(value, (list, tuple)):
         raise _wrong_type(path, value, f"a list of faults like {example}")
-    types = list(FAULT_TYPES)
     out = []
     for i, entry in enumerate(value):
         here = f"{path}[{i}]"
         if not isinstance(entry, Mapping):
             raise _wrong_type(here, entry, f"a fault mapping like {example[1:-1]}")
-        kind = entry.get("type")
-        if not isinstance(kind, str) or kind not in FAULT_TYPES:
-            if "type" not in entry:
-                raise UserInputError(f"missing key at {here}.type: allowed: one of {types}")
-            raise _invalid(f"{here}.type", kind, f"one of {types}{closest(str(kind), types)}")
-        required, optional = FAULT_TYPES[kind]
-        allowed = ["type", *required, *optional]
-        for key in entry:
-            if key not in allowed:
-                raise UserInputError(
-                    f"unknown key at {here}.{key_text(key)}: allowed keys of a {kind} are {allowed}"
-                    f"{closest(str(key), allowed)}"
-                )
-        for key in required:
-            if key not in entry:
-                raise UserInputError(
-                    f"missing key at {here}.{key}: a {kind} needs {list(required)}"
-                )
+        kind, required, optional = check_tagged(entry, here, "type", FAULT_TYPES)
         f: dict[str, Any] = {"type": kind}
         for key in (*required, *optional):
             raw = entry.get(key, optional.get(key))

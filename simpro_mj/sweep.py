@@ -77,7 +77,7 @@ from typing import Any
 import numpy as np
 
 from .errors import UserInputError
-from .params import closest, parse_set
+from .params import check_tagged, closest, parse_set
 
 __all__ = [
     "DISTRIBUTIONS",
@@ -235,34 +235,15 @@ def _dist_number(value: Any, size: int | None, where: str) -> float | list[float
 
 
 def _parse_distribution(path: str, spec: Any, where: str) -> Distribution:
-    kinds = list(DISTRIBUTIONS)
     example = "{distribution: uniform, low: 200, high: 300}"
     if not isinstance(spec, Mapping):
         raise UserInputError(
             f"wrong type at {where}: got {type(spec).__name__} {spec!r}; allowed: a mapping "
             f"like {example}"
         )
-    kind = spec.get("distribution")
-    if kind not in DISTRIBUTIONS:
-        if "distribution" not in spec:
-            raise UserInputError(f"missing key at {where}.distribution: allowed: one of {kinds}")
-        raise UserInputError(
-            f"invalid value at {where}.distribution: {kind!r}; allowed: one of {kinds}"
-            f"{closest(str(kind), kinds)}"
-        )
-    required, optional = DISTRIBUTIONS[kind]
-    allowed = ["distribution", *required, *optional]
-    for key in spec:
-        if key not in allowed:
-            raise UserInputError(
-                f"unknown key at {where}.{key}: allowed keys of a {kind} distribution are "
-                f"{allowed}{closest(str(key), allowed)}"
-            )
-    for key in required:
-        if key not in spec:
-            raise UserInputError(
-                f"missing key at {where}.{key}: a {kind} distribution needs {list(required)}"
-            )
+    kind, required, optional = check_tagged(
+        spec, where, "distribution", DISTRIBUTIONS, "distribution"
+    )
     size = _numeric_list_len(_defaults_at(path, where))
     args: dict = {}
     if kind == "choice":
