@@ -284,11 +284,18 @@ def gain_warnings(scenario: Mapping) -> tuple[list[str], dict]:
     lim = info["limit"]
     label = f"{outer['type']}, T = {outer['period_ms']:g} ms, {info['basis']}"
     out = []
-    for i, g in enumerate(outer["gains"]):
-        if g > lim:
+    over = [i for i, g in enumerate(outer["gains"]) if g > lim]
+    if len(over) == len(outer["gains"]) and len(set(outer["gains"])) == 1:
+        # the usual case (one gain on every axis): one line, not three
+        out.append(
+            f"controller.outer.gains = {outer['gains'][0]:g} on every axis exceeds the analysed "
+            f"stability limit {lim:.3g} ({label}); the run may diverge"
+        )
+    else:
+        for i in over:
             out.append(
-                f"controller.outer.gains[{i}] = {g:g} exceeds the analysed stability limit "
-                f"{lim:.3g} ({label}); the run may diverge"
+                f"controller.outer.gains[{i}] = {outer['gains'][i]:g} exceeds the analysed "
+                f"stability limit {lim:.3g} ({label}); the run may diverge"
             )
     if not out and info["spectral_radius"] >= 1.0:
         out.append(

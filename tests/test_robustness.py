@@ -458,6 +458,9 @@ def test_gain_above_the_analysed_limit_is_warned_and_recorded(tmp_path, capsys):
     assert gain_warnings(load_scenario("step_pitch"))[0] == []
     w, info = gain_warnings(load_scenario("step_pitch", ["actuator.model=linear"]))
     assert w == [] and info["limit"] == pytest.approx(9.4586, abs=1e-3)
+    # one gain on every axis above the limit: one line naming the value
+    w, _ = gain_warnings(load_scenario("step_pitch", ["controller.outer.gains=[3, 3, 3]"]))
+    assert len(w) == 1 and "gains = 3 on every axis exceeds" in w[0] and "1.07" in w[0]
 
 
 # ------------------------------------------------------------------ divergence
