@@ -244,6 +244,7 @@ class JointControllers:
         self._int_gain_list = self._int_gain.tolist()
         self._z = np.zeros(n + 3)  # [x; e]
         self._w = np.zeros(n + 3)  # [x_next; u]
+        self._zx, self._wx = self._z[:n], self._w[:n]  # views: the states
         self._v = np.zeros(3)
         self._corr = np.zeros(3)
 
@@ -299,7 +300,9 @@ class JointControllers:
         """
         z, n = self._z, self._n
         z[n], z[n + 1], z[n + 2] = q_ref[0] - q_meas[0], q_ref[1] - q_meas[1], q_ref[2] - q_meas[2]
-        w = np.dot(self._m, z, out=self._w).tolist()  # [x_next; u]
+        np.dot(self._m, z, out=self._w)  # [x_next; u]
+        self._zx[...] = self._wx  # x <- x_next (an array copy; anti-windup corrects below)
+        w = self._w.tolist()
         off, lo, hi = self.u_offset, self.u_min, self.u_max
         v = [w[n] + off, w[n + 1] + off, w[n + 2] + off]
         vs = v.copy()
@@ -311,13 +314,12 @@ class JointControllers:
         if self.anti_windup == "back_calculation":
             aw = self._aw
             for i, k in enumerate(self._int_list):
-                w[k] = w[k] + (vs[i] - v[i]) * aw
+                z[k] = w[k] + (vs[i] - v[i]) * aw
         elif self.anti_windup == "conditional":
             for i, k in enumerate(self._int_list):
                 push = self._int_gain_list[i] * z[n + i]
                 if (v[i] > hi and push > 0) or (v[i] < lo and push < 0):
-                    w[k] = w[k] - push
-        z[:n] = w[:n]
+                    z[k] = w[k] - push
         return vs
 
 

@@ -30,11 +30,13 @@ on it (conditional integration, the outer loop's anti-windup).
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from .errors import WorkspaceError
 from .geometry import PlatformGeometry, nominal_geometry
-from .kinematics import check_reachable, inverse_kinematics, reachable
+from .kinematics import PoseKinematics, check_reachable, reachable
 
 __all__ = ["TaskSpaceController", "SamplingError", "MODES"]
 
@@ -131,22 +133,27 @@ class TaskSpaceController:
         self.clamp = bool(clamp)
         self.pi_zero = float(pi_zero)
         self.margin = float(margin)
-        self._tg = self.period * self.gains  # T K K_I per axis
-        self._xc = np.array(self.geometry.home, dtype=float)
-        self._e_prev = np.zeros(3)
+        # The state is kept in Python floats: one pose per update is too small
+        # for numpy (see update_floats); every operation below is the same
+        # IEEE operation, element by element, as the array expressions it mirrors.
+        self._kin = PoseKinematics(self.geometry)  # single-pose IK, bit-identical
+        self._tg = (self.period * self.gains).tolist()  # T K K_I per axis
+        self._xc = self.geometry.home.tolist()
+        self._e_prev = [0.0, 0.0, 0.0]
         self._last_ref = None
-        self._qd = inverse_kinematics(self._xc, self.geometry)
+        self._qd = check_reachable(self._xc, self.geometry).tolist()  # raises if home is not
+        self._q_xc = None  # IK(x_c) when already known (computed by _integrate), else None
 
     # ------------------------------------------------------------------
     @property
     def pose_command(self) -> np.ndarray:
         """The integrated pose ``x_c`` (roll rad, pitch rad, h m) whose IK is ``q_d`` (copy)."""
-        return self._xc.copy()
+        return np.array(self._xc)
 
     @property
     def q_desired(self) -> np.ndarray:
         """The last joint reference (m, copy)."""
-        return self._qd.copy()
+        return np.array(self._qd)
 
     def is_due(self, inner_step: int) -> bool:
         """True on the inner steps at which the outer loop runs (every ``ratio`` steps)."""
@@ -159,24 +166,28 @@ class TaskSpaceController:
         """
         pose0 = self.geometry.home if pose0 is None else pose0
         pose0 = np.asarray(pose0, dtype=float).reshape(3)
-        self._qd = check_reachable(pose0, self.geometry, self.margin)
-        self._xc = pose0.copy()
-        self._e_prev[:] = 0.0
-        return self._qd.copy()
+        q = check_reachable(pose0, self.geometry, self.margin)
+        self._qd = q.tolist()
+        self._xc = pose0.tolist()
+        self._q_xc = None
+        self._e_prev = [0.0, 0.0, 0.0]
+        return q
 
-    def _setpoint(self, pose_ref) -> np.ndarray:
-        ref = np.asarray(pose_ref, dtype=float).reshape(3)
-        if self._last_ref is not None and np.array_equal(ref, self._last_ref[0]):
-            return self._last_ref[1]  # same set-point as last time: already checked
+    def _setpoint(self, ref: list) -> list:
+        last = self._last_ref
+        if last is not None and ref == last[0]:  # == per item: NaN never equal, -0.0 == 0.0
+            return last[1]  # same set-point as last time: already checked
+        ref = list(ref)  # a copy: the cache must not see the caller's later changes
         out = self._check_setpoint(ref)
-        self._last_ref = (ref.copy(), out)
+        self._last_ref = (ref, out)
         return out
 
-    def _check_setpoint(self, ref) -> np.ndarray:
-        if not np.all(np.isfinite(ref)):
-            raise WorkspaceError(f"set-point not finite: {ref}")
-        if reachable(ref, self.geometry, self.margin):
+    def _check_setpoint(self, ref: list) -> list:
+        if not all(map(math.isfinite, ref)):
+            raise WorkspaceError(f"set-point not finite: {np.array(ref)}")
+        if self._kin.solve(ref, self.margin)[1]:  # reachable(ref, geometry, margin)
             return ref
+        ref = np.array(ref)
         if not self.clamp:
             check_reachable(ref, self.geometry, self.margin)  # raises, naming the limit
             raise WorkspaceError(  # the guide arc (check_reachable covers strokes)
@@ -184,7 +195,7 @@ class TaskSpaceController:
             )
         home = np.asarray(self.geometry.home, dtype=float)
         s = _segment_limit(home, ref, self.geometry, self.margin)
-        return home + s * (ref - home)
+        return (home + s * (ref - home)).tolist()
 
     def update(self, pose_ref, pose_meas) -> np.ndarray:
         """One outer step: set-point and measured pose -> joint reference ``q_d`` (3,), m.
@@ -194,30 +205,61 @@ class TaskSpaceController:
         pose_ref, pose_meas : array_like, (3,)
             (roll rad, pitch rad, heave m).
         """
+        return np.array(self.update_floats(_floats3(pose_ref), _floats3(pose_meas)))
+
+    def update_floats(self, pose_ref: list, pose_meas: list) -> list:
+        """:meth:`update` on lists of 3 floats; returns ``q_d`` as a new list.
+
+        The co-simulation's path (issue 7). Bit-identical to the array
+        formulation ``e = y_d - y``, ``x_c + T K_I e``, ``IK(x_c)`` because each
+        of those is one IEEE operation per axis, and the IK is
+        :class:`~controllers.kinematics.PoseKinematics`. The IK of the new
+        ``x_c`` is a by-product of its reachability test in :meth:`_integrate`
+        and is kept for the next update (mode ``"I"`` outputs ``IK(x_c[k])``
+        before integrating; mode ``"PI"`` right after), so an update costs
+        one IK instead of three.
+        """
         ref = self._setpoint(pose_ref)
         if self.mode == "joint_only":
-            self._xc = ref.copy()
-            self._qd = inverse_kinematics(ref, self.geometry, check=False)
-            return self._qd.copy()
-        meas = np.asarray(pose_meas, dtype=float).reshape(3)
-        if not np.all(np.isfinite(meas)):
-            raise ValueError(f"measured pose not finite: {meas}")
-        e = ref - meas
+            self._xc = list(ref)
+            self._q_xc = None
+            self._qd = self._kin.solve(ref, arc_check=False)[0]  # IK(check=False)
+            return list(self._qd)
+        if not all(map(math.isfinite, pose_meas)):
+            raise ValueError(f"measured pose not finite: {np.array(pose_meas)}")
+        e = [ref[0] - pose_meas[0], ref[1] - pose_meas[1], ref[2] - pose_meas[2]]
+        tg = self._tg
         if self.mode == "I":
             # eq. (22) / Fig. 7: output x_c[k], then integrate e[k]
-            self._qd = inverse_kinematics(self._xc, self.geometry, check=False)
-            self._integrate(self._tg * e)
+            self._qd = self._ik_xc()
+            self._integrate([tg[0] * e[0], tg[1] * e[1], tg[2] * e[2]])
         else:
             # section 4 PI: x_c[k] = x_c[k-1] + T K_I (e[k] + c e[k-1])
-            self._integrate(self._tg * (e + self.pi_zero * self._e_prev))
+            c, ep = self.pi_zero, self._e_prev
+            self._integrate([tg[i] * (e[i] + c * ep[i]) for i in range(3)])
             self._e_prev = e
-            self._qd = inverse_kinematics(self._xc, self.geometry, check=False)
-        return self._qd.copy()
+            self._qd = self._ik_xc()
+        return list(self._qd)
 
-    def _integrate(self, step) -> None:
-        new = self._xc + step
-        if reachable(new, self.geometry, self.margin):
-            self._xc = new
+    def _ik_xc(self) -> list:
+        """``inverse_kinematics(x_c, check=False)``, reusing the one :meth:`_integrate` found."""
+        q = self._q_xc
+        if q is None:
+            q = self._kin.solve(self._xc, arc_check=False)[0]
+        return q
+
+    def _integrate(self, step: list) -> None:
+        xc = self._xc
+        new = [xc[0] + step[0], xc[1] + step[1], xc[2] + step[2]]
+        q, ok = self._kin.solve(new, self.margin)  # reachable(new) and IK(new)
+        if ok:
+            self._xc, self._q_xc = new, q
             return
-        s = _segment_limit(self._xc, new, self.geometry, self.margin)
-        self._xc = self._xc + s * step
+        s = float(_segment_limit(np.array(xc), np.array(new), self.geometry, self.margin))
+        self._xc = [xc[0] + s * step[0], xc[1] + s * step[1], xc[2] + s * step[2]]
+        self._q_xc = None
+
+
+def _floats3(x) -> list:
+    """A (3,) pose as a list of 3 Python floats."""
+    return np.asarray(x, dtype=float).reshape(3).tolist()

@@ -376,14 +376,23 @@ class StateReader:
 
     def __init__(self, model: mujoco.MjModel, data: mujoco.MjData, index=None):
         idx = index or PlantIndex.of(model)
-        self._qpos, self._qvel = data.qpos, data.qvel
-        self._slide_qpos = idx.slide_qpos.tolist()
-        self._slide_dof = idx.slide_dof.tolist()
+        # Each read converts only the span of entries it needs: every element
+        # of a tolist() is a new Python float (~15 ns each), and the model has
+        # more joints and sites than the loop looks at.
+        qa, dof = idx.slide_qpos.tolist(), idx.slide_dof.tolist()
+        self._qpos = data.qpos[min(qa) : max(qa) + 1]  # views
+        self._qvel = data.qvel[min(dof) : max(dof) + 1]
+        self._slide_qpos = [a - min(qa) for a in qa]
+        self._slide_dof = [a - min(dof) for a in dof]
         self._xmat = data.site_xmat[idx.site_p]  # (9,) view, row-major R
-        self._xpos_flat = data.site_xpos.reshape(-1)  # view
-        self._h_at = 3 * int(idx.site_p) + 2
-        self._pairs = [(3 * int(a), 3 * int(b)) for a, b in idx.connect_sites]
-        self._num, self._den, self._ang = np.empty(2), np.empty(2), np.empty(2)
+        sites = [int(idx.site_p)] + idx.connect_sites.ravel().tolist()
+        lo, hi = min(sites), max(sites)
+        self._xpos_flat = data.site_xpos[lo : hi + 1].reshape(-1)  # view, sites lo..hi
+        self._h_at = 3 * (int(idx.site_p) - lo) + 2
+        self._pairs = [(3 * (int(a) - lo), 3 * (int(b) - lo)) for a, b in idx.connect_sites]
+        # arctan2((R21, -R20), (R22, R00)) in one call on pre-allocated buffers
+        self._nd = np.empty(4)
+        self._num, self._den, self._ang = self._nd[:2], self._nd[2:], np.empty(2)
 
     def slides(self) -> tuple[list, list]:
         """Slide positions q (m) and velocities q_dot (m/s), three each."""
@@ -394,29 +403,51 @@ class StateReader:
 
     def pose(self) -> list:
         """[roll, pitch, h] of the platform frame: :func:`measured_pose` as floats."""
-        r = self._xmat.tolist()
-        num, den = self._num, self._den
-        num[0], num[1], den[0], den[1] = r[7], -r[6], r[8], r[0]
-        np.arctan2(num, den, out=self._ang)
-        roll, pitch = self._ang.tolist()
-        return [roll, pitch, float(self._xpos_flat[self._h_at])]
+        return self._pose(self._xpos_flat.tolist())
 
-    def loop_closure_max(self) -> float:
+    def _pose(self, x: list) -> list:
+        """:meth:`pose` with ``site_xpos`` already read (flat list ``x``)."""
+        r = self._xmat.tolist()
+        nd = self._nd
+        nd[0], nd[1], nd[2], nd[3] = r[7], -r[6], r[8], r[0]
+        roll, pitch = np.arctan2(self._num, self._den, out=self._ang).tolist()
+        return [roll, pitch, x[self._h_at]]
+
+    def read(self) -> tuple[list, list, list, list]:
+        """Everything the loop reads after ``mj_step1``, in one call.
+
+        Returns ``(q, q_dot, pose, xpos)``: :meth:`slides`, :meth:`pose` and
+        the flat ``site_xpos`` list they were read from, which
+        :meth:`loop_closure_max` takes to avoid reading it again (the state
+        does not change until ``mj_step2``).
+        """
+        qp, qv, x = self._qpos.tolist(), self._qvel.tolist(), self._xpos_flat.tolist()
+        a, b, c = self._slide_qpos
+        i, j, k = self._slide_dof
+        return [qp[a], qp[b], qp[c]], [qv[i], qv[j], qv[k]], self._pose(x), x
+
+    def loop_closure_max(self, xpos: list | None = None) -> float:
         """Worst loop-closure distance (m): ``loop_closure_error(...).max()``.
 
-        Same arithmetic as ``np.linalg.norm(axis=1)`` on three components:
-        ``sqrt((dx^2 + dy^2) + dz^2)``.
+        Same arithmetic as ``np.linalg.norm(axis=1)`` on three components,
+        ``sqrt((dx^2 + dy^2) + dz^2)``, except that the square root is taken
+        once, of the largest sum: IEEE ``sqrt`` is correctly rounded, hence
+        monotone, so ``sqrt(max s_i) == max sqrt(s_i)`` bit for bit. A NaN
+        is returned as NaN, as by ``ndarray.max``.
+
+        ``xpos``: ``site_xpos`` as a flat list read at the current state
+        (from :meth:`read`); read now when omitted.
         """
-        x = self._xpos_flat.tolist()
+        x = self._xpos_flat.tolist() if xpos is None else xpos
         worst = 0.0
         for a, b in self._pairs:
             dx, dy, dz = x[a] - x[b], x[a + 1] - x[b + 1], x[a + 2] - x[b + 2]
-            e = math.sqrt(dx * dx + dy * dy + dz * dz)
+            e = dx * dx + dy * dy + dz * dz
             if e > worst:
                 worst = e
             elif e != e:
                 return e  # NaN, as ndarray.max
-        return worst
+        return math.sqrt(worst)
 
 
 def check_physics(model, data, warnings_before=None, loop_bound: float | None = None, index=None):

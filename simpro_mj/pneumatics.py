@@ -509,13 +509,16 @@ class NonlinearActuators:
         self._xp_l, self._fp_l = self._xp.tolist(), self._fp.tolist()
         xl, fl = self._xp_l, self._fp_l  # np.interp's slope of each grid cell
         self._slope_l = [(fl[j + 1] - fl[j]) / (xl[j + 1] - xl[j]) for j in range(len(xl) - 1)]
-        self._guess = [0] * 12  # last grid cell of each edge's ratio (np.interp's guess)
+        # the grid cells (x_j, x_j+1, slope_j, ψ_j); each edge keeps its last
+        # cell (np.interp's guess) in _cell
+        self._cells = [(xl[j], xl[j + 1], self._slope_l[j], fl[j]) for j in range(len(xl) - 1)]
+        self._cell = [self._cells[0]] * 12
         # per chamber (cap sides, then rod sides): index, leg, V0, dV/dq, V_min
         self._chambers = tuple(
             (c, c % 3, float(mv[c, 0]), float(mv[c, 1 + c % 3]), float(self._vmin[c]))
             for c in range(6)
         )
-        self._substeps = range(P.substeps)
+        self._n_sub = int(P.substeps)  # pressure sub-steps per step (usually 1)
         self._dt = None
         self.reset(np.full(3, 0.5 * self._L), np.zeros(3))
 
@@ -648,7 +651,10 @@ class NonlinearActuators:
             if not dt > 0:
                 raise ValueError(f"dt must be > 0, got {dt}")
             self._set_dt(dt)
-        u, q, qd = _as3(u_volts), _as3(q), _as3(qdot)
+        # lists of 3 (the co-simulation's case) are used as they are
+        u = u_volts if type(u_volts) is list and len(u_volts) == 3 else _as3(u_volts)
+        q = q if type(q) is list and len(q) == 3 else _as3(q)
+        qd = qdot if type(qdot) is list and len(qdot) == 3 else _as3(qdot)
         # valve command: saturate 0..10 V, normalise around the 5 V centre;
         # then the spool lag (exact for the held command)
         if self._order1:
@@ -667,10 +673,10 @@ class NonlinearActuators:
         spool[0], spool[1], spool[2] = sp
         # metering-edge openings with underlap and clearance leakage (Rubio 2009):
         # a_P1 = a_2R = clip(δ + s), a_1R = a_P2 = clip(δ - s), both in [ε, 1]
-        eps = self._eps
-        a_plus, a_minus = [], []
-        for s_i, d_i in zip(sp, self._delta_l, strict=True):
-            ap, am = s_i + d_i, d_i - s_i
+        eps, delta = self._eps, self._delta_l
+        a_plus, a_minus = [0.0] * 3, [0.0] * 3
+        for i in range(3):
+            ap, am = sp[i] + delta[i], delta[i] - sp[i]
             if ap < eps:
                 ap = eps
             if ap > 1.0:
@@ -679,8 +685,7 @@ class NonlinearActuators:
                 am = eps
             if am > 1.0:
                 am = 1.0
-            a_plus.append(ap)
-            a_minus.append(am)
+            a_plus[i], a_minus[i] = ap, am
         # the six chambers, cap sides of legs 1-3 then rod sides (the order of
         # p1, p2): supply edges P->1, P->2 and exhaust edges 1->R, 2->R
         a_supply, a_exhaust = a_plus + a_minus, a_minus + a_plus
@@ -688,8 +693,11 @@ class NonlinearActuators:
         p = z.tolist()
         ps, pa, hn, rtk = self._ps, self._pa, self._hn, self._RTk
         ips = 1.0 / ps  # read each step: the supply may change at run time (faults)
-        xp, fp, sl, guess = self._xp_l, self._fp_l, self._slope_l, self._guess
-        substeps = self._substeps
+        # each edge's current grid cell of the ψ table, (x_j, x_j+1, slope_j, ψ_j):
+        # np.interp's arithmetic ψ = slope_j (r - x_j) + ψ_j, starting from the
+        # last step's cell (np.interp's guess); _psi_slow finds a new one
+        cell = self._cell
+        substeps = self._n_sub
         for c, i, v0, dv, vmin in self._chambers:
             # volume V = V0 + dV q, h n / V, and the volume-rate term 1 + h n Vdot / V
             V = v0 + dv * q[i]
@@ -699,19 +707,20 @@ class NonlinearActuators:
             den0 = (dv * qd[i]) * hnV + 1.0
             hc = hnV * rtk  # h n R T k / V
             a_s, a_e, pc = a_supply[c], a_exhaust[c], p[c]
-            for _ in substeps:
-                # ψ of the supply edge (ratio p/p_s) and of the exhaust edge
-                # (p_a/p): np.interp's arithmetic, starting from the last grid cell
+            n = substeps
+            while n:  # cheaper than a for loop over a range for the usual single substep
+                n -= 1
+                # ψ of the supply edge (ratio p/p_s) and of the exhaust edge (p_a/p)
                 r = pc * ips
-                j = guess[c]
-                if xp[j] <= r < xp[j + 1]:
-                    psi_s = sl[j] * (r - xp[j]) + fp[j]
+                x0, x1, sl, f0 = cell[c]
+                if x0 <= r < x1:
+                    psi_s = sl * (r - x0) + f0
                 else:
                     psi_s = self._psi_slow(r, c)
                 r = pa / pc
-                j = guess[c + 6]
-                if xp[j] <= r < xp[j + 1]:
-                    psi_e = sl[j] * (r - xp[j]) + fp[j]
+                x0, x1, sl, f0 = cell[c + 6]
+                if x0 <= r < x1:
+                    psi_e = sl * (r - x0) + f0
                 else:
                     psi_e = self._psi_slow(r, c + 6)
                 # conductances G = a ψ(r) (times k, folded into hc), then the
@@ -760,7 +769,7 @@ class NonlinearActuators:
         if r >= xp[-1]:
             return fp[-1]
         j = bisect_right(xp, r) - 1
-        self._guess[edge] = j
+        self._cell[edge] = self._cells[j]
         return self._slope_l[j] * (r - xp[j]) + fp[j]
 
     def set_supply_pressure(self, p_pa: float) -> None:

@@ -162,6 +162,10 @@ class Sensors:
             *config.pot_range_m,
         )
         self._imu_bias = config.imu_bias_rad.tolist()
+        # the config's scalars as plain attributes (read every step)
+        self._every = (config.pot_every, config.enc_every, config.imu_every)
+        self._enc = (config.enc_noise_m, config.enc_res_m)
+        self._imu = (config.imu_alpha, config.imu_noise_rad)
 
     def _draw(self, k: int) -> list:
         """Noise row for step k: 3 pots, encoder, 2 IMU axes (standard normal floats)."""
@@ -198,13 +202,16 @@ class Sensors:
         (copy them to keep them). The arithmetic is the array version's,
         operation for operation (``round`` is numpy's round-half-even).
         """
-        c = self.cfg
-        n = self._draw(k)
+        i = k - self._k0
+        rows = self._noise_rows
+        n = rows[i] if 0 <= i < len(rows) else self._draw(k)  # _draw(k), inline when in the block
+        pot_every, enc_every, imu_every = self._every
         # IMU's output filter runs at the physics rate
-        imu, alpha = self._imu_state, c.imu_alpha
+        imu = self._imu_state
+        alpha, sigma_imu = self._imu
         imu[0] = imu[0] + alpha * (pose_true[0] - imu[0])
         imu[1] = imu[1] + alpha * (pose_true[1] - imu[1])
-        if force or k % c.pot_every == 0:
+        if force or k % pot_every == 0:
             gain, off, sigma, lsb, lo, hi = self._pot
             q = self._q
             for i in range(3):
@@ -219,18 +226,19 @@ class Sensors:
                     v = hi
                 q[i] = v
         pose = self._pose
-        if force or k % c.enc_every == 0:
-            h = pose_true[2] + c.enc_noise_m * n[3]
-            if c.enc_res_m > 0:
+        if force or k % enc_every == 0:
+            noise, res = self._enc
+            h = pose_true[2] + noise * n[3]
+            if res > 0:
                 try:
-                    h = round(h / c.enc_res_m) * c.enc_res_m
+                    h = round(h / res) * res
                 except (ValueError, OverflowError):
-                    h = float(np.round(h / c.enc_res_m) * c.enc_res_m)
+                    h = float(np.round(h / res) * res)
             pose[2] = h
-        if force or k % c.imu_every == 0:
-            bias, sigma = self._imu_bias, c.imu_noise_rad
-            pose[0] = imu[0] + bias[0] + sigma * n[4]
-            pose[1] = imu[1] + bias[1] + sigma * n[5]
+        if force or k % imu_every == 0:
+            bias = self._imu_bias
+            pose[0] = imu[0] + bias[0] + sigma_imu * n[4]
+            pose[1] = imu[1] + bias[1] + sigma_imu * n[5]
         return self._q, pose
 
     def resolution_floor(self) -> dict:

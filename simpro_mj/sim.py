@@ -211,9 +211,13 @@ class CoSimulation:
         for three legs numpy's per-call overhead (0.2-0.7 us) exceeds the
         arithmetic, so the components expose float fast paths
         (``Sensors.sample_floats``, ``JointControllers.update_floats``,
+        ``TaskSpaceController.update_floats`` with its single-pose IK
+        :class:`~controllers.kinematics.PoseKinematics`,
         :class:`~simpro_mj.model.StateReader`) that do the same IEEE operations
-        as their array versions. The MuJoCo views are bound once; the log is
-        preallocated and each row is packed straight into its buffer.
+        as their array versions. The MuJoCo views are bound once and read once
+        per step (``StateReader.read``; the loop-closure check reuses that
+        ``site_xpos`` read); the log is preallocated and each row is packed
+        straight into its buffer.
         """
         self._initial_state()
         m, d, idx = self.model, self.data, self.idx
@@ -224,6 +228,7 @@ class CoSimulation:
         # one row = n_col native doubles packed into the (C-contiguous) log buffer
         put_row, row_bytes = struct.Struct(f"{n_col}d").pack_into, 8 * n_col
         reader = StateReader(m, d, idx)
+        read, loop_closure = reader.read, reader.loop_closure_max
         ctrl = d.ctrl
         c0, c1, c2 = idx.actuators.tolist()
         warnings = d.warning.number  # live view of the warning counters
@@ -236,6 +241,7 @@ class CoSimulation:
         q_d = (self.task.q_desired if task_mode else q_joint[0]).tolist()
         pose_cmd = ref[0].tolist()
         act, task = self.actuators, self.task
+        act_p1, act_p2 = act.p1, act.p2  # views of the chamber pressures, updated in place
         sample, control, act_step = self.sensors.sample_floats, self.joint.update_floats, act.step
         # faults (issue 8): event driven, so a run without faults pays one int compare
         sched = (
@@ -261,8 +267,7 @@ class CoSimulation:
                 if timed:
                     tb = clock()
                     t_phys += tb - ta
-                q_true, qdot = reader.slides()
-                pose = reader.pose()
+                q_true, qdot, pose, xpos = read()
                 q_meas, pose_meas = sample(k, q_true, pose)
                 if k == next_ev:  # a fault starts or ends at this step
                     ch = sched.at_event(k)
@@ -278,7 +283,7 @@ class CoSimulation:
                     t_sens += ta - tb
                 if task_mode:
                     if k % outer_every == 0:
-                        q_d = task.update(ref[k], pose_meas).tolist()
+                        q_d = task.update_floats(ref[k].tolist(), pose_meas)
                         pose_cmd = task.pose_command.tolist()
                 else:
                     q_d = q_joint[k].tolist()
@@ -295,9 +300,10 @@ class CoSimulation:
                     ta = clock()
                     t_pn += ta - tb
                 if k % dec == 0:
-                    loop = reader.loop_closure_max()
-                    worst_loop = max(worst_loop, loop)
-                    p1, p2 = act.p1.tolist(), act.p2.tolist()
+                    loop = loop_closure(xpos)
+                    if loop > worst_loop:  # max(worst_loop, loop) without the call
+                        worst_loop = loop
+                    p1, p2 = act_p1.tolist(), act_p2.tolist()
                     put_row(
                         log, row * row_bytes,
                         k * dt, *ref[k].tolist(), *pose, *pose_meas, *pose_cmd, *q_d,

@@ -10,7 +10,11 @@ import mujoco
 import numpy as np
 import pytest
 
+from controllers.errors import WorkspaceError
+from controllers.geometry import nominal_geometry
 from controllers.joint import ANTI_WINDUP, JointControllers
+from controllers.kinematics import PoseKinematics, inverse_kinematics, reachable
+from controllers.task_space import TaskSpaceController, _segment_limit
 from simpro_mj.model import StateReader, loop_closure_error, measured_pose
 from simpro_mj.pneumatics import NonlinearActuators
 from simpro_mj.scenario import load_scenario
@@ -36,6 +40,129 @@ def test_state_reader_equals_the_array_helpers(moving):
     d2 = mujoco.MjData(m)  # a NaN propagates as in ndarray.max
     d2.site_xpos[idx.connect_sites[1, 0], 0] = np.nan
     assert np.isnan(StateReader(m, d2, idx).loop_closure_max())
+
+
+def test_state_reader_read_is_live_and_equal(moving):
+    """read() and loop_closure_max(xpos) equal the array helpers, step after step."""
+    m, d, idx = moving.model, moving.data, moving.idx
+    r = StateReader(m, d, idx)
+    d.ctrl[:] = 0.0
+    for _ in range(20):  # the views follow the state (no stale copies)
+        mujoco.mj_step(m, d)
+        mujoco.mj_step1(m, d)
+        q, qd, pose, xpos = r.read()
+        assert q == d.qpos[idx.slide_qpos].tolist() and qd == d.qvel[idx.slide_dof].tolist()
+        assert pose == measured_pose(d, idx.site_p).tolist()
+        worst = float(loop_closure_error(m, d, idx).max())
+        assert r.loop_closure_max(xpos) == worst == r.loop_closure_max()
+
+
+def _poses(rng, n, home):
+    """Poses around home: most reachable, some outside the strokes or the guide arc."""
+    x = home + rng.normal(0, 1, (n, 3)) * [0.15, 0.15, 0.1]
+    x[::50] = home + rng.normal(0, 1, (len(x[::50]), 3)) * [0.6, 0.6, 1.5]
+    return x
+
+
+@pytest.mark.parametrize("perturb", [False, True])
+def test_pose_kinematics_equals_batched(perturb):
+    """PoseKinematics.solve == (inverse_kinematics(check=False), reachable) bit for bit.
+
+    The perturbed geometry has no zero coordinates, so R PB_k is a full
+    3x3 product (where BLAS/einsum rounding with FMA shows).
+    """
+    g = nominal_geometry()
+    rng = np.random.default_rng(7)
+    if perturb:
+        g = g.replace(
+            platform_points=g.platform_points + rng.normal(0, 0.03, (3, 3)),
+            base_points=g.base_points + rng.normal(0, 0.03, (3, 3)),
+            bracket_c1=g.bracket_c1 + rng.normal(0, 0.01, 3),
+        )
+    kin = PoseKinematics(g)
+    n_ok = 0
+    for margin in (0.0, 0.02):
+        for x in _poses(rng, 1500, g.home):
+            ok = bool(reachable(x, g, margin))
+            q, ok_fast = kin.solve(x.tolist(), margin)
+            assert ok_fast == ok
+            n_ok += ok
+            if q is not None:
+                assert q == inverse_kinematics(x, g, check=False).tolist()
+            try:
+                want = inverse_kinematics(x, g, check=False).tolist()
+            except WorkspaceError:
+                with pytest.raises(WorkspaceError):
+                    kin.solve(x.tolist(), margin, arc_check=False)
+            else:
+                assert kin.solve(x, margin, arc_check=False)[0] == want  # array input too
+    assert 1000 < n_ok < 6000  # both outcomes exercised
+    assert kin.solve([np.nan, 0.0, 1.2]) == (None, False)
+
+
+class _ArrayTaskLoop:
+    """The outer loop as it was written on arrays (before the float path), for comparison."""
+
+    def __init__(self, mode, gains, clamp, margin=0.0):
+        self.g, self.mode, self.clamp, self.margin = nominal_geometry(), mode, clamp, margin
+        self.tg = 0.06 * np.asarray(gains, dtype=float)
+        self.xc = self.g.home.copy()
+        self.e_prev = np.zeros(3)
+
+    def setpoint(self, ref):
+        if reachable(ref, self.g, self.margin):
+            return ref
+        assert self.clamp
+        home = self.g.home
+        return home + _segment_limit(home, ref, self.g, self.margin) * (ref - home)
+
+    def integrate(self, step):
+        new = self.xc + step
+        if reachable(new, self.g, self.margin):
+            self.xc = new
+        else:
+            self.xc = self.xc + _segment_limit(self.xc, new, self.g, self.margin) * step
+
+    def update(self, ref, meas):
+        ref = self.setpoint(np.asarray(ref, dtype=float))
+        if self.mode == "joint_only":
+            self.xc = ref.copy()
+            return inverse_kinematics(ref, self.g, check=False)
+        e = ref - meas
+        if self.mode == "I":
+            q = inverse_kinematics(self.xc, self.g, check=False)
+            self.integrate(self.tg * e)
+        else:
+            self.integrate(self.tg * (e + 0.2 * self.e_prev))
+            self.e_prev = e
+            q = inverse_kinematics(self.xc, self.g, check=False)
+        return q
+
+
+@pytest.mark.parametrize("mode", ["I", "PI", "joint_only"])
+def test_task_loop_floats_equal_arrays(mode):
+    """update_floats (single-pose IK, IK of x_c reused) == the array formulation.
+
+    Large gains and set-points beyond the workspace make the integrator run
+    into the boundary, so the shortened steps (_segment_limit) are taken too.
+    """
+    rng = np.random.default_rng(11)
+    gains = [9.0, 7.0, 12.0]
+    fast = TaskSpaceController(mode, gains=gains, clamp=True)
+    ref_loop = _ArrayTaskLoop(mode, gains, clamp=True)
+    home = fast.geometry.home
+    shortened = 0
+    for k in range(400):
+        if k % 40 == 0:  # a new set-point, sometimes unreachable (clamped)
+            ref = home + rng.normal(0, 1, 3) * [0.25, 0.25, 0.2]
+        meas = home + rng.normal(0, 0.01, 3)
+        want = ref_loop.update(ref, meas)
+        got = fast.update_floats(ref.tolist(), meas.tolist())
+        assert got == want.tolist()
+        assert fast.pose_command.tolist() == ref_loop.xc.tolist()
+        shortened += fast._q_xc is None
+    if mode != "joint_only":
+        assert shortened > 5  # the boundary was hit
 
 
 def test_sensors_floats_equal_arrays():
