@@ -961,6 +961,10 @@ def reference(scenario: Mapping, t, *, clamp: bool | None = None) -> np.ndarray:
     return out
 
 
+#: Poses per block of :func:`check_setpoints` (memory bound, not a result).
+_CHECK_BLOCK = 20_000
+
+
 def check_setpoints(scenario: Mapping, t=None) -> None:
     """Raise :class:`SetpointError` if the set-point leaves the reachable workspace.
 
@@ -977,11 +981,17 @@ def check_setpoints(scenario: Mapping, t=None) -> None:
         t = np.arange(n + 1) * PHYSICS_DT_S
     t = np.atleast_1d(np.asarray(t, dtype=float))
     geometry = nominal_geometry()
-    pose = reference(scenario, t, clamp=False)
-    ok = reachable(pose, geometry)
-    if ok.all():
+    # in blocks: the vectorised IK holds ~350 B of temporaries per pose, which
+    # over a whole 600 s grid would be 200 MB for a check that keeps nothing
+    for k0 in range(0, t.size, _CHECK_BLOCK):
+        pose = reference(scenario, t[k0 : k0 + _CHECK_BLOCK], clamp=False)
+        ok = reachable(pose, geometry)
+        if not ok.all():
+            break
+    else:
         return
     k = int(np.argmin(ok))
+    t = t[k0:]
     try:
         check_reachable(pose[k], geometry)
         why = "outside the guide arc or stroke limits"
