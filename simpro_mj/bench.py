@@ -100,6 +100,8 @@ def machine() -> dict:
     import mujoco
     import numpy as np
 
+    from .pneumatics_kernel import kernel_label
+
     cpu = platform.processor() or platform.machine()
     try:
         with open("/proc/cpuinfo", encoding="utf-8") as fh:
@@ -115,6 +117,7 @@ def machine() -> dict:
         "python": platform.python_version(),
         "mujoco": mujoco.__version__,
         "numpy": np.__version__,
+        "pneumatics_kernel": kernel_label(),
     }
 
 
@@ -305,7 +308,7 @@ def _table(r: dict) -> str:
         f"({r['steps']} steps, logging every {r['logging_decimation']}), "
         f"median of {r['repeats']}",
         f"machine: {m['cpu']}, {m['cores']} cores; Python {m['python']}, "
-        f"MuJoCo {m['mujoco']}, numpy {m['numpy']}",
+        f"MuJoCo {m['mujoco']}, numpy {m['numpy']}; pneumatics kernel {m['pneumatics_kernel']}",
         "",
         f"  full step            {r['full_step_us']:8.2f} us",
         f"  bare mj_step (C)     {r['bare_step_us']:8.2f} us"

@@ -89,6 +89,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import brentq
 
+from . import pneumatics_kernel as _pk
 from .errors import UserInputError
 from .params import apply_overrides, check_keys, closest
 
@@ -451,8 +452,11 @@ class NonlinearActuators:
         self._sg = np.array([[1.0], [-1.0], [-1.0], [1.0]]) * np.ones((1, 3))
         self._delta = np.broadcast_to(P.underlap, (4, 3)).copy()
         self._eps = P.leakage
-        # One work vector z: [p1 (3), p2 (3), qdot (3), tanh(qdot/vs) (3), 1, q (3)]
-        z = np.zeros(16)
+        # One work vector z: [p1 (3), p2 (3), qdot (3), tanh(qdot/vs) (3), 1, q (3)],
+        # followed by the spool positions and rates: the head of the compiled
+        # kernel's buffer (pneumatics_kernel.py), whose views they are
+        self._kb = np.zeros(_pk.buffer_len(len(self._xp)))
+        z = self._kb[:16]
         z[12] = 1.0
         self._z = z
         self._p = z[:6]
@@ -484,8 +488,8 @@ class NonlinearActuators:
         # upstream pressure of each edge (G -> G p; step() itself reads self._ps, self._pa)
         self._pbound = np.concatenate([np.full(6, ps), np.full(6, pa)])
         # state and buffers (no allocation in step but the returned force)
-        self.spool = np.zeros(3)
-        self.spool_rate = np.zeros(3)
+        self.spool = self._kb[_pk.ST_SPOOL : _pk.ST_SPOOL + 3]
+        self.spool_rate = self._kb[_pk.ST_RATE : _pk.ST_RATE + 3]
         self.u_hold = np.full(3, U_CENTRE)
         self._a = np.empty((4, 3))
         self._a12 = self._a.reshape(12)
@@ -519,6 +523,9 @@ class NonlinearActuators:
             for c in range(6)
         )
         self._n_sub = int(P.substeps)  # pressure sub-steps per step (usually 1)
+        self._kernel = None
+        if _pk.kernel_choice() == "numba":  # SIMPRO_KERNEL (pneumatics_kernel.py)
+            self._init_kernel()
         self._dt = None
         self.reset(np.full(3, 0.5 * self._L), np.zeros(3))
 
@@ -538,6 +545,34 @@ class NonlinearActuators:
             e = expm(a * dt)
             self._spool_ad = e[:2, :2].copy()
             self._spool_bd = e[:2, 2].copy()
+        if self._kernel is not None:
+            self._fill_kernel_dt()
+
+    def _init_kernel(self) -> None:
+        """Constants of the compiled kernel in its buffer (``pneumatics_kernel``)."""
+        pk, kb = _pk, self._kb
+        kb[pk.KP_PS], kb[pk.KP_PA], kb[pk.KP_RTK] = self._ps, self._pa, self._RTk
+        kb[pk.KP_EPS], kb[pk.KP_IVS] = self._eps, self._inv_vs
+        kb[pk.KP_DELTA : pk.KP_DELTA + 3] = self._delta_l
+        kb[pk.KP_ORDER], kb[pk.KP_NSUB] = self.params.spool_order, self._n_sub
+        for c, _, v0, dv, vmin in self._chambers:
+            kb[pk.KP_CH + 3 * c : pk.KP_CH + 3 * c + 3] = (v0, dv, vmin)
+        n = len(self._xp_l)
+        kb[pk.KP_NTAB] = n
+        kb[pk.KP_CELL : pk.KP_CELL + 12] = 0.0
+        kb[pk.KP_TAB : pk.KP_TAB + n] = self._xp
+        kb[pk.KP_TAB + n : pk.KP_TAB + 2 * n] = self._fp
+        kb[pk.KP_TAB + 2 * n : pk.KP_TAB + 3 * n - 1] = self._slope_l
+        self._kernel = pk.step_kernel()
+
+    def _fill_kernel_dt(self) -> None:
+        pk, kb = _pk, self._kb
+        kb[pk.KP_HN] = self._hn
+        if self.params.spool_order == 1:
+            kb[pk.KP_ALPHA] = self._alpha
+        else:
+            kb[pk.KP_AD : pk.KP_AD + 4] = self._spool_ad.reshape(4)
+            kb[pk.KP_AD + 4 : pk.KP_AD + 6] = self._spool_bd
 
     def openings(self, spool) -> np.ndarray:
         """Edge openings (4, 3) for spool positions: rows P->1, P->2, 1->R, 2->R."""
@@ -655,6 +690,13 @@ class NonlinearActuators:
         u = u_volts if type(u_volts) is list and len(u_volts) == 3 else _as3(u_volts)
         q = q if type(q) is list and len(q) == 3 else _as3(q)
         qd = qdot if type(qdot) is list and len(qdot) == 3 else _as3(qdot)
+        if self._kernel is not None:  # compiled kernel: the same arithmetic, then as below
+            u0, u1, u2 = u
+            q0, q1, q2 = q
+            v0, v1, v2 = qd
+            self._kernel(u0, u1, u2, q0, q1, q2, v0, v1, v2, self._kb)
+            np.tanh(self._zth, out=self._zth)
+            return np.dot(self._mf, self._z13)
         # valve command: saturate 0..10 V, normalise around the 5 V centre;
         # then the spool lag (exact for the held command)
         if self._order1:
@@ -784,6 +826,8 @@ class NonlinearActuators:
             raise ValueError(f"supply pressure must exceed atmospheric {self._pa} Pa, got {p}")
         self._ps = p
         self._pbound[:6] = p
+        if self._kernel is not None:
+            self._kb[_pk.KP_PS] = p
 
 
 _F64 = np.dtype(np.float64)

@@ -81,7 +81,7 @@ def versions(resolved: Mapping | None = None) -> dict:
         except metadata.PackageNotFoundError:
             return None
 
-    from . import __version__
+    from . import __version__, pneumatics_kernel
 
     out = {
         "simpro-sim": __version__,
@@ -89,6 +89,7 @@ def versions(resolved: Mapping | None = None) -> dict:
         "numpy": np.__version__,
         "python-control": dist("control"),
         "python": platform.python_version(),
+        "pneumatics_kernel": pneumatics_kernel.kernel_label(),  # SIMPRO_KERNEL
     }
     if resolved is not None:
         out["scenario_hash"] = scenario_hash(resolved)
