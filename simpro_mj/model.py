@@ -11,6 +11,7 @@ perturbed model do not close at ``qpos0``).
 from __future__ import annotations
 
 import copy
+import ctypes
 import math
 import os
 from dataclasses import dataclass
@@ -376,6 +377,7 @@ class StateReader:
 
     def __init__(self, model: mujoco.MjModel, data: mujoco.MjData, index=None):
         idx = index or PlantIndex.of(model)
+        self._data = data  # keeps the buffer of buffer_view() alive
         # Each read converts only the span of entries it needs: every element
         # of a tolist() is a new Python float (~15 ns each), and the model has
         # more joints and sites than the loop looks at.
@@ -393,6 +395,39 @@ class StateReader:
         # arctan2((R21, -R20), (R22, R00)) in one call on pre-allocated buffers
         self._nd = np.empty(4)
         self._num, self._den, self._ang = self._nd[:2], self._nd[2:], np.empty(2)
+
+    def buffer_view(self):
+        """The state's offsets in one flat view of MuJoCo's data buffer, or None.
+
+        MuJoCo allocates ``qpos``, ``qvel``, ``site_xpos`` and ``site_xmat``
+        in one block (``mjData.buffer``), so a single float64 view covering
+        them lets a compiled kernel read the whole state through one array
+        argument (:func:`simpro_mj.sensors_kernel._gather`). Returns ``(view,
+        qpos (3), qvel (3), xmat, h, pairs)`` as element offsets into the
+        read-only ``view``, or None when the four arrays do not lie within
+        one span of ``data.nbuffer`` bytes (then the caller reads as
+        :meth:`read` does).
+        """
+        arrays = (self._qpos, self._qvel, self._xpos_flat, self._xmat)
+        starts = [a.__array_interface__["data"][0] for a in arrays]
+        lo = min(starts)
+        hi = max(s + a.nbytes for s, a in zip(starts, arrays, strict=True))
+        if hi - lo > self._data.nbuffer or any((s - lo) % 8 for s in starts):
+            return None
+        if not all(a.dtype == np.float64 and a.strides == (8,) for a in arrays):
+            return None
+        raw = (ctypes.c_double * ((hi - lo) // 8)).from_address(lo)
+        view = np.frombuffer(raw, dtype=np.float64)
+        view.flags.writeable = False
+        qp, qv, xp, xm = ((s - lo) // 8 for s in starts)
+        return (
+            view,
+            [qp + a for a in self._slide_qpos],
+            [qv + a for a in self._slide_dof],
+            xm,
+            xp + self._h_at,
+            [(xp + a, xp + b) for a, b in self._pairs],
+        )
 
     def slides(self) -> tuple[list, list]:
         """Slide positions q (m) and velocities q_dot (m/s), three each."""

@@ -22,6 +22,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import pneumatics_kernel as _pk
+from . import sensors_kernel as _sk
 from .errors import UserInputError
 
 __all__ = ["DEFAULT_SENSORS", "SensorConfig", "Sensors"]
@@ -166,6 +168,76 @@ class Sensors:
         self._every = (config.pot_every, config.enc_every, config.imu_every)
         self._enc = (config.enc_noise_m, config.enc_res_m)
         self._imu = (config.imu_alpha, config.imu_noise_rad)
+        self._kb = None
+        if _pk.kernel_choice() == "numba":  # SIMPRO_KERNEL (pneumatics_kernel.py)
+            self._init_kernel()
+
+    # -- compiled kernel (sensors_kernel.py) ---------------------------------
+    def _init_kernel(self) -> None:
+        """The kernel's buffer: configuration, state and the noise block."""
+        sk = _sk
+        kb = np.zeros(sk.buffer_len(self.block))
+        kb[sk.C_GAIN : sk.C_GAIN + 3] = self._pot[0]
+        kb[sk.C_OFF : sk.C_OFF + 3] = self._pot[1]
+        kb[sk.C_SIGMA], kb[sk.C_LSB], kb[sk.C_LO], kb[sk.C_HI] = self._pot[2:]
+        kb[sk.C_POT_EVERY], kb[sk.C_ENC_EVERY], kb[sk.C_IMU_EVERY] = self._every
+        kb[sk.C_ENC_NOISE], kb[sk.C_RES] = self._enc
+        kb[sk.C_ALPHA], kb[sk.C_SIGMA_IMU] = self._imu
+        kb[sk.C_BIAS : sk.C_BIAS + 2] = self._imu_bias
+        self._kb = kb
+        self._k_noise = kb[sk.NOISE :].reshape(self.block, 6)  # view
+        self._k_imu = kb[sk.S_IMU : sk.S_IMU + 2]
+        self._k_meas = kb[sk.O_QM : sk.O_PM + 3]  # q_meas, pose_meas
+        self._k_rows = 0  # rows of the noise block drawn since the last reset
+        self._k_gather, self._k_sample, self._k_sample_in = sk.kernels()
+
+    def _draw_kernel(self, k: int) -> int:
+        """:meth:`_draw` into the kernel's buffer; returns the row of step k."""
+        self._k_noise[...] = self.rng.standard_normal((self.block, 6))
+        self._k_rows = self.block
+        self._k0 = k
+        return 0
+
+    def front(self, reader):
+        """The loop's state read and sensor step in one call, or None.
+
+        ``reader`` is the run's :class:`~simpro_mj.model.StateReader`. With
+        the compiled kernel (``SIMPRO_KERNEL``) returns ``front(k) -> (q,
+        q_dot, pose, q_meas, pose_meas, loop_max)``: ``reader.read()``,
+        :meth:`sample_floats` and ``reader.loop_closure_max()`` of the same
+        state, bit for bit, as fresh lists and a float. None on the Python
+        path, or if MuJoCo's state cannot be viewed as one buffer.
+        """
+        if self._kb is None:
+            return None
+        bound = reader.buffer_view()
+        if bound is None:
+            return None
+        sk, kb = _sk, self._kb
+        view, qpos, qvel, xmat, h, pairs = bound
+        if len(pairs) > sk.MAX_PAIRS:
+            return None
+        kb[sk.R_QPOS : sk.R_QPOS + 3] = qpos
+        kb[sk.R_QVEL : sk.R_QVEL + 3] = qvel
+        kb[sk.R_XMAT], kb[sk.R_H], kb[sk.R_NPAIR] = xmat, h, len(pairs)
+        kb[sk.R_PAIRS : sk.R_PAIRS + 2 * len(pairs)] = [i for p in pairs for i in p]
+        gather, sample, atan2 = self._k_gather, self._k_sample, np.arctan2
+        num, den = kb[sk.S_ND : sk.S_ND + 2], kb[sk.S_ND + 2 : sk.S_ND + 4]
+        ang = kb[sk.O_POSE : sk.O_POSE + 2]  # roll, pitch: numpy's arctan2 (as the reader)
+        out = kb[: sk.OUT_LEN]
+
+        def front(k: int):
+            i = k - self._k0
+            if not 0 <= i < self._k_rows:
+                i = self._draw_kernel(k)
+            gather(view, kb)
+            atan2(num, den, out=ang)
+            sample(k, i, False, kb)
+            v = out.tolist()
+            return v[0:3], v[3:6], v[6:9], v[9:12], v[12:15], v[15]
+
+        front.reader = reader  # keeps MuJoCo's data (the view's memory) alive
+        return front
 
     def _draw(self, k: int) -> list:
         """Noise row for step k: 3 pots, encoder, 2 IMU axes (standard normal floats)."""
@@ -183,6 +255,9 @@ class Sensors:
         self._noise = np.zeros((0, 6))
         self._noise_rows = []
         self._k0 = 0
+        if self._kb is not None:
+            self._k_imu[:] = self._imu_state
+            self._k_rows = 0
         self.sample(0, q_true, pose_true, force=True)
 
     def sample(self, k: int, q_true, pose_true, force: bool = False):
@@ -201,7 +276,19 @@ class Sensors:
         The co-simulation's hot path. The lists are the sensor's own state
         (copy them to keep them). The arithmetic is the array version's,
         operation for operation (``round`` is numpy's round-half-even).
+        With the compiled kernel (``SIMPRO_KERNEL``, :mod:`simpro_mj.sensors_kernel`)
+        the same arithmetic runs there and the lists are fresh copies.
         """
+        if self._kb is not None:
+            i = k - self._k0
+            if not 0 <= i < self._k_rows:
+                i = self._draw_kernel(k)
+            self._k_sample_in(
+                k, i, bool(force), q_true[0], q_true[1], q_true[2],
+                pose_true[0], pose_true[1], pose_true[2], self._kb,
+            )  # fmt: skip
+            v = self._k_meas.tolist()
+            return v[:3], v[3:]
         i = k - self._k0
         rows = self._noise_rows
         n = rows[i] if 0 <= i < len(rows) else self._draw(k)  # _draw(k), inline when in the block

@@ -217,7 +217,11 @@ class CoSimulation:
         as their array versions. The MuJoCo views are bound once and read once
         per step (``StateReader.read``; the loop-closure check reuses that
         ``site_xpos`` read); the log is preallocated and each row is packed
-        straight into its buffer.
+        straight into its buffer. With the compiled kernels
+        (``SIMPRO_KERNEL``, :mod:`simpro_mj.sensors_kernel`) the read, the
+        sensors and the loop-closure maximum are one call,
+        :meth:`Sensors.front <simpro_mj.sensors.Sensors.front>`, with the
+        same bits.
         """
         self._initial_state()
         m, d, idx = self.model, self.data, self.idx
@@ -229,6 +233,10 @@ class CoSimulation:
         put_row, row_bytes = struct.Struct(f"{n_col}d").pack_into, 8 * n_col
         reader = StateReader(m, d, idx)
         read, loop_closure = reader.read, reader.loop_closure_max
+        # compiled kernel (SIMPRO_KERNEL): read, sensors and loop closure in one call
+        front = self.sensors.front(reader)
+        fused = front is not None
+        xpos, loop = None, 0.0
         ctrl = d.ctrl
         c0, c1, c2 = idx.actuators.tolist()
         warnings = d.warning.number  # live view of the warning counters
@@ -267,8 +275,11 @@ class CoSimulation:
                 if timed:
                     tb = clock()
                     t_phys += tb - ta
-                q_true, qdot, pose, xpos = read()
-                q_meas, pose_meas = sample(k, q_true, pose)
+                if fused:
+                    q_true, qdot, pose, q_meas, pose_meas, loop = front(k)
+                else:
+                    q_true, qdot, pose, xpos = read()
+                    q_meas, pose_meas = sample(k, q_true, pose)
                 if k == next_ev:  # a fault starts or ends at this step
                     ch = sched.at_event(k)
                     if ch.supply_pa is not None:
@@ -300,7 +311,8 @@ class CoSimulation:
                     ta = clock()
                     t_pn += ta - tb
                 if k % dec == 0:
-                    loop = loop_closure(xpos)
+                    if not fused:
+                        loop = loop_closure(xpos)
                     if loop > worst_loop:  # max(worst_loop, loop) without the call
                         worst_loop = loop
                     p1, p2 = act_p1.tolist(), act_p2.tolist()
