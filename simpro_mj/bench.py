@@ -117,7 +117,7 @@ def machine() -> dict:
         "python": platform.python_version(),
         "mujoco": mujoco.__version__,
         "numpy": np.__version__,
-        "pneumatics_kernel": kernel_label(),
+        "kernels": kernel_label(),
     }
 
 
@@ -308,7 +308,7 @@ def _table(r: dict) -> str:
         f"({r['steps']} steps, logging every {r['logging_decimation']}), "
         f"median of {r['repeats']}",
         f"machine: {m['cpu']}, {m['cores']} cores; Python {m['python']}, "
-        f"MuJoCo {m['mujoco']}, numpy {m['numpy']}; pneumatics kernel {m['pneumatics_kernel']}",
+        f"MuJoCo {m['mujoco']}, numpy {m['numpy']}; kernels {m['kernels']}",
         "",
         f"  full step            {r['full_step_us']:8.2f} us",
         f"  bare mj_step (C)     {r['bare_step_us']:8.2f} us"

@@ -89,7 +89,7 @@ def versions(resolved: Mapping | None = None) -> dict:
         "numpy": np.__version__,
         "python-control": dist("control"),
         "python": platform.python_version(),
-        "pneumatics_kernel": pneumatics_kernel.kernel_label(),  # SIMPRO_KERNEL
+        "kernels": pneumatics_kernel.kernel_label(),  # SIMPRO_KERNEL: pneumatics + sensors
     }
     if resolved is not None:
         out["scenario_hash"] = scenario_hash(resolved)

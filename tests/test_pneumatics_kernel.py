@@ -33,7 +33,7 @@ def _pair(monkeypatch, overrides=None):
 
 def test_kernel_choice(monkeypatch):
     monkeypatch.setenv("SIMPRO_KERNEL", "python")
-    assert pk.kernel_choice() == "python" and versions()["pneumatics_kernel"] == "python"
+    assert pk.kernel_choice() == "python" and versions()["kernels"] == "python"
     assert NonlinearActuators()._kernel is None
     monkeypatch.delenv("SIMPRO_KERNEL")
     assert pk.kernel_choice() == ("numba" if pk._HAVE_NUMBA else "python")
@@ -48,7 +48,7 @@ def test_kernel_choice(monkeypatch):
 @needs_numba
 def test_versions_name_the_kernel(monkeypatch):
     monkeypatch.setenv("SIMPRO_KERNEL", "numba")
-    assert versions()["pneumatics_kernel"] == f"numba {pk.numba_version()}"
+    assert versions()["kernels"] == f"numba {pk.numba_version()}"
 
 
 @needs_numba
