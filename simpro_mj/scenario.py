@@ -361,6 +361,30 @@ def _read_yaml(path: Path) -> Any:
 # ------------------------------------------------------------------ public entry points
 
 
+def read_document(name_or_path: str) -> tuple[Path, Mapping]:
+    """Find a scenario file (path or shipped name) and read it as a mapping.
+
+    Returns ``(path, document)``; an empty file is an empty mapping. Shared by
+    :func:`load_scenario` and :func:`simpro_mj.sweep.load_sweep`.
+
+    Raises
+    ------
+    UserInputError
+        Unknown scenario (listing the shipped ones), invalid YAML (line and
+        column), or a top level that is not a mapping.
+    """
+    path = _find(str(name_or_path))
+    doc = _read_yaml(path)
+    if doc is None:
+        doc = {}
+    if not isinstance(doc, Mapping):
+        raise UserInputError(
+            f"wrong type at {path.name} (top level): got {type(doc).__name__}; "
+            "allowed: a mapping of scenario keys"
+        )
+    return path, doc
+
+
 def load_scenario(name_or_path: str, sets: Iterable[str] = ()) -> dict:
     """Load, merge, override and validate a scenario.
 
@@ -386,15 +410,7 @@ def load_scenario(name_or_path: str, sets: Iterable[str] = ()) -> dict:
         what is allowed). :class:`SetpointError` (also a ``UserInputError``)
         for a set-point outside the workspace.
     """
-    path = _find(str(name_or_path))
-    doc = _read_yaml(path)
-    if doc is None:
-        doc = {}
-    if not isinstance(doc, Mapping):
-        raise UserInputError(
-            f"wrong type at {path.name} (top level): got {type(doc).__name__}; "
-            "allowed: a mapping of scenario keys"
-        )
+    path, doc = read_document(name_or_path)
     if "sweep" in doc:
         # the variants are batch's job (simpro_mj.sweep); a run is of the base scenario
         import sys

@@ -535,17 +535,9 @@ def load_sweep(name_or_path: str | Path, sets: Iterable[str] = ()) -> SweepFile:
         The file cannot be found or read, is not a mapping, its ``sweep:``
         block is malformed, or a ``--set`` is malformed.
     """
-    from .scenario import DEFAULT_SCENARIO, _find, _merge, _read_yaml, _set, resolve_scenario
+    from .scenario import DEFAULT_SCENARIO, _merge, _set, read_document, resolve_scenario
 
-    path = _find(str(name_or_path))
-    doc = _read_yaml(path)
-    if doc is None:
-        doc = {}
-    if not isinstance(doc, Mapping):
-        raise UserInputError(
-            f"wrong type at {path.name} (top level): got {type(doc).__name__}; "
-            "allowed: a mapping of scenario keys"
-        )
+    path, doc = read_document(name_or_path)
     doc = dict(doc)
     block = doc.pop("sweep", None)
     spec = parse_sweep(block) if block is not None else None
