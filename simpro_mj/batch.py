@@ -100,7 +100,6 @@ linear``; the table notes when the plant is the nonlinear one.
 from __future__ import annotations
 
 import csv
-import inspect
 import io
 import json
 import math
@@ -398,8 +397,7 @@ def run_variant(task: Mapping) -> dict:
 
         folder = tmp / "variant" if ship else Path(task["out"])
         # warnings go to metrics.json only: many workers on one stderr would be noise
-        quiet = {"quiet": True} if "quiet" in inspect.signature(execute).parameters else {}
-        _, doc = execute(task["scenario"], folder, plots=bool(task.get("plots", True)), **quiet)
+        _, doc = execute(task["scenario"], folder, plots=bool(task.get("plots", True)), quiet=True)
         out = {
             "status": doc.get("status", "ok"),
             "reason": doc.get("reason"),
@@ -420,22 +418,13 @@ def run_variant(task: Mapping) -> dict:
 
 def _install(files: Mapping[str, bytes], out: Path) -> None:
     """Write shipped files as a result folder, atomically (as results.write_results)."""
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.tmp-", dir=out.parent))
-    try:
+    from .results import install_folder
+
+    def fill(tmp: Path) -> None:
         for name, data in files.items():
             (tmp / Path(name).name).write_bytes(data)
-        if out.exists():
-            old = Path(tempfile.mkdtemp(prefix=f".{out.name}.old-", dir=out.parent))
-            old.rmdir()
-            out.rename(old)
-            tmp.rename(out)
-            shutil.rmtree(old, ignore_errors=True)
-        else:
-            tmp.rename(out)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
+
+    install_folder(out, fill)
 
 
 # ------------------------------------------------------------------ stability

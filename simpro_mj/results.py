@@ -227,10 +227,7 @@ def write_results(
     for key, value in extra.items():
         doc[key if key not in _RESERVED else f"extra_{key}"] = value
 
-    out_dir.parent.mkdir(parents=True, exist_ok=True)
-    tmp: Path | None = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.tmp-", dir=out_dir.parent))
-    old = None
-    try:
+    def fill(tmp: Path) -> None:
         if status == "interrupted":
             (tmp / PARTIAL_MARKER).write_text(
                 f"partial results: the run was interrupted ({reason}); "
@@ -247,6 +244,31 @@ def write_results(
             from .plots import plot_run
 
             plot_run(columns, scenario, tmp)
+
+    return install_folder(out_dir, fill)
+
+
+def install_folder(out_dir, fill) -> Path:
+    """Create ``out_dir`` atomically: ``fill(tmp)`` writes a temporary sibling,
+    which is then renamed into place (replacing a previous ``out_dir``).
+
+    On any exception, Ctrl-C included, the previous folder is back under its
+    name and no temporary folder is left behind: a reader sees the old
+    complete folder or the new complete one, never a half-written one.
+    Shared by :func:`write_results` and ``simpro-sim batch`` (result folders
+    shipped back from Dask workers).
+
+    Returns
+    -------
+    Path
+        ``out_dir``.
+    """
+    out_dir = Path(out_dir)
+    out_dir.parent.mkdir(parents=True, exist_ok=True)
+    tmp: Path | None = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.tmp-", dir=out_dir.parent))
+    old = None
+    try:
+        fill(tmp)
         if out_dir.exists():
             old = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.old-", dir=out_dir.parent))
             old.rmdir()
@@ -254,8 +276,6 @@ def write_results(
         tmp.rename(out_dir)
         tmp = None
     except BaseException:
-        # anything, Ctrl-C included: the previous results back under their name,
-        # no temporary folder left behind
         if old is not None and not out_dir.exists():
             old.rename(out_dir)
             old = None
