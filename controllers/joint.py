@@ -238,15 +238,12 @@ class JointControllers:
         self._n = n
         self._int_idx = np.arange(_NX - 1, n, _NX)  # integrator states
         self._int_gain = r0 * self.dt  # increment of x_I per unit error
-        self._r0 = r0
         self._aw = self.dt / self.tracking_time
         self._int_list = self._int_idx.tolist()
         self._int_gain_list = self._int_gain.tolist()
         self._z = np.zeros(n + 3)  # [x; e]
         self._w = np.zeros(n + 3)  # [x_next; u]
         self._zx, self._wx = self._z[:n], self._w[:n]  # views: the states
-        self._v = np.zeros(3)
-        self._corr = np.zeros(3)
 
     # ------------------------------------------------------------------
     @property

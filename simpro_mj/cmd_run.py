@@ -106,11 +106,6 @@ def execute(scenario: dict, out: Path, plots: bool = True, *, quiet: bool = Fals
 
     out = Path(out)
     warnings, figures = preflight(scenario)
-    if scenario.get("faults") and not getattr(sim_module, "SUPPORTS_FAULTS", False):
-        warnings.append(
-            "faults: this build's simulation loop does not apply scheduled faults yet; "
-            "the run ignores them"
-        )
     _warn(warnings, quiet)
 
     res = sim_module.simulate(scenario)

@@ -43,65 +43,38 @@ What each fault does
 On one channel the faults act in this order: potentiometer failure (the
 electrical reading), frozen, dropout, bias.
 
-Wiring into the co-simulation loop (``simpro_mj.sim``)
+How the co-simulation loop uses it (``simpro_mj.sim``)
 ------------------------------------------------------
-Zero cost without faults: build the schedule only if ``scenario["faults"]``
-is not empty; otherwise keep ``next_ev = NEVER`` and both flags ``False``::
+:meth:`CoSimulation.run <simpro_mj.sim.CoSimulation.run>` builds the schedule
+(:meth:`FaultSchedule.from_scenario`) only if ``scenario["faults"]`` is not
+empty; otherwise ``next_ev`` stays :data:`NEVER` and the loop pays one int
+compare per step. In each step, after the sensors have sampled the state of
+step k and before the controllers read the measurements:
 
-    from .faults import NEVER, FaultSchedule
+* ``k == next_ev``: :meth:`FaultSchedule.at_event` brings the state to step
+  k; a changed ``supply_pa`` goes to ``set_supply_pressure`` of the actuators;
+  the loop takes ``valve_active``, ``sensor_active``, ``flags`` and
+  ``next_event`` from the schedule;
+* while ``sensor_active``: :meth:`FaultSchedule.apply_sensors` gives the
+  readings the controllers see (new lists; the sensors' own state is
+  untouched);
+* while ``valve_active``: :meth:`FaultSchedule.apply_valves` replaces the
+  stuck legs' voltages in the joint loops' command before the pneumatics step
+  (the controllers' own state keeps their own command).
 
-    sched = FaultSchedule.from_scenario(scenario, dt) if scenario["faults"] else None
-    next_ev = sched.next_event if sched else NEVER
-    valve_on = sensor_on = False
-    flags, supply_pa = 0, <the actuators' nominal p_s, Pa absolute>
-    for k in range(n + 1):
-        mujoco.mj_step1(m, d)
-        ...
-        q_meas, pose_meas = sensors.sample(k, q_true, pose)
-        if k == next_ev:                               # one int compare per step
-            ch = sched.at_event(k)
-            if ch.supply_pa is not None:
-                act.set_supply_pressure(ch.supply_pa)  # see below
-                supply_pa = ch.supply_pa
-            valve_on, sensor_on, flags = sched.valve_active, sched.sensor_active, sched.flags
-            next_ev = sched.next_event
-        if sensor_on:                                  # new arrays; sensors' buffers untouched
-            q_meas, pose_meas = sched.apply_sensors(k, q_meas, pose_meas)
-        ... outer loop on pose_meas, joint loops on q_meas ...
-        u = joint.update(q_d, q_meas)
-        if valve_on:
-            u = sched.apply_valves(u)                  # a copy with the stuck legs replaced
-        f = act.step(u, q_true, qdot, dt)
-        ... log u (the applied voltages), q_meas/pose_meas (what the controller saw),
-            and the two columns of FAULT_COLUMNS: fault_flags = flags, supply_pa = supply_pa
+A fault at ``time_s`` thus acts from the step ``round(time_s / dt)`` on
+(t >= time_s). The log holds the applied voltages (``u*_v``), what the
+controllers saw (``q*_meas_m``, ``*_meas_*``) and the two columns of
+:data:`FAULT_COLUMNS`: ``fault_flags`` and ``supply_pa``.
 
-``at_event`` must run after ``sensors.sample`` and before the controllers read
-the measurements of step k, so a fault at ``time_s`` acts from the step
-``round(time_s / dt)`` on (t >= time_s).
-
-*Supply pressure at run time.* ``NonlinearActuators`` caches p_s at
-construction and ``step`` reads only the caches: ``self._ps`` (supply term of
-the implicit pressure update and the upper pressure bound), ``self._ips``
-(1/p_s, the supply edge's pressure ratio) and ``self._pbound[:6]`` (older
-layout of the supply term; keep it in step if it is still there);
-``params.p_supply`` (a frozen dataclass) is not read after construction.
-Updating the caches at run time is enough (checked with a wired copy of the
-loop: ``tests/test_faults_sim.py`` passes)::
-
-    def set_supply_pressure(self, p_pa: float) -> None:   # NonlinearActuators
-        self._ps = float(p_pa)
-        self._ips = 1.0 / self._ps
-        self._pbound[:6] = p_pa
-
-``LinearActuators`` has no supply in its law; its force bound follows p_s::
-
-    def set_supply_pressure(self, p_pa: float) -> None:   # LinearActuators
-        A1, A2, Ar, pa = P.area_cap, P.area_rod_side, P.area_rod, P.p_atm
-        self._fmin = pa * A1 - p_pa * A2 - pa * Ar
-        self._fmax = p_pa * A1 - pa * A2 - pa * Ar
-        self._nl.set_supply_pressure(p_pa)
-
-(The MJCF motors' ``ctrlrange`` is the 6 bar force range; a drop stays inside it.)
+*Supply pressure at run time.* ``NonlinearActuators.set_supply_pressure``
+sets ``self._ps`` (and the compiled kernel's copy), which ``step`` reads every
+step (supply term of the implicit pressure update, 1/p_s of the supply edge's
+pressure ratio, the upper pressure bound); ``params.p_supply`` (a frozen
+dataclass) is not read after construction. ``LinearActuators`` has no supply
+in its law; its ``set_supply_pressure`` moves its force bound and passes p_s
+on to the nonlinear model behind its display pressures. (The MJCF motors'
+``ctrlrange`` is the 6 bar force range; a drop stays inside it.)
 
 Flags
 -----

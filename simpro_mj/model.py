@@ -107,23 +107,18 @@ def _check_params(params: dict) -> None:
                 f"unknown key at model.anchor_offsets_mm.{k}: allowed keys are "
                 f"{list(DEFAULT_MODEL_PARAMS['anchor_offsets_mm'])}"
             )
-    for path, lo, unit in (
-        ("payload.mass_kg", 0.0, " kg"),
-        ("platform_mass_kg", 0.0, " kg"),
-        ("loop_timeconst_s", 0.0, " s"),
-        ("guide.radius_offset_mm", -1000.0, " mm"),
+    for path, lo, lo_open, unit in (
+        ("payload.mass_kg", 0.0, False, " kg"),
+        ("platform_mass_kg", 0.0, True, " kg"),
+        ("loop_timeconst_s", 0.0, True, " s"),
+        ("guide.radius_offset_mm", -1000.0, True, " mm"),
     ):
         node = params
         for part in path.split("."):
             node = node[part]
         ok = isinstance(node, (int, float)) and not isinstance(node, bool)
-        if (
-            not ok
-            or not np.isfinite(node)
-            or node < lo
-            or (node == lo and path != "payload.mass_kg")
-        ):
-            allowed = f"{'>=' if path == 'payload.mass_kg' else '>'} {lo:g}{unit}, finite"
+        if not ok or not np.isfinite(node) or node < lo or (lo_open and node == lo):
+            allowed = f"{'>' if lo_open else '>='} {lo:g}{unit}, finite"
             raise UserInputError(f"invalid value at model.{path}: {node!r}; allowed: {allowed}")
     # a heavy payload is refused with its limit by simpro_mj.preflight before a run
     if params["payload"]["mass_kg"] > 1e5:

@@ -336,7 +336,11 @@ class PneumaticParams:
     @property
     def force_range(self) -> tuple[float, float]:
         """(min, max) pneumatic force with the chambers at the pressure bounds (N)."""
-        ps, pa = self.p_supply, self.p_atm
+        return self.force_range_at(self.p_supply)
+
+    def force_range_at(self, ps: float) -> tuple[float, float]:
+        """:attr:`force_range` for a supply pressure ``ps`` (Pa absolute)."""
+        pa = self.p_atm
         return (
             pa * self.area_cap - ps * self.area_rod_side - pa * self.area_rod,
             ps * self.area_cap - pa * self.area_rod_side - pa * self.area_rod,
@@ -452,7 +456,7 @@ class NonlinearActuators:
         self._sg = np.array([[1.0], [-1.0], [-1.0], [1.0]]) * np.ones((1, 3))
         self._delta = np.broadcast_to(P.underlap, (4, 3)).copy()
         self._eps = P.leakage
-        # One work vector z: [p1 (3), p2 (3), qdot (3), tanh(qdot/vs) (3), 1, q (3)],
+        # One work vector z: [p1 (3), p2 (3), qdot (3), tanh(qdot/vs) (3), 1, 3 spare],
         # followed by the spool positions and rates: the head of the compiled
         # kernel's buffer (pneumatics_kernel.py), whose views they are
         self._kb = np.zeros(_pk.buffer_len(len(self._xp)))
@@ -461,8 +465,7 @@ class NonlinearActuators:
         self._z = z
         self._p = z[:6]
         self.p1, self.p2 = z[:3], z[3:6]
-        self._zqd, self._zth, self._zq = z[6:9], z[9:12], z[13:16]
-        self._z13, self._z1q = z[:13], z[12:16]
+        self._zqd, self._zth, self._z13 = z[6:9], z[9:12], z[:13]
         # force F = A1 p1 - A2 p2 - pa Ar - beta qdot - Fc tanh(qdot/vs) = Mf @ z[:13]
         mf = np.zeros((3, 13))
         i3 = np.arange(3)
@@ -473,40 +476,17 @@ class NonlinearActuators:
         mf[:, 12] = -pa * self._Ar
         self._mf = mf
         self._inv_vs = 1.0 / P.v_smooth if P.v_smooth > 0 else 1e12
-        # volumes V = Mv @ [1, q]: V1 = V01 + A1 q, V2 = V02 + A2 (L - q)
+        # volumes V = Mv @ [1, q]: V1 = V01 + A1 q, V2 = V02 + A2 (L - q) (_chambers below)
         mv = np.zeros((6, 4))
         mv[:3, 0], mv[3:, 0] = P.dead_cap, P.dead_rod + self._A2 * self._L
         mv[i3, 1 + i3] = self._A1
         mv[3 + i3, 1 + i3] = -self._A2
-        self._mv = mv
-        mvd = np.zeros((6, 3))
-        mvd[i3, i3] = self._A1
-        mvd[3 + i3, i3] = -self._A2
-        self._mvd = mvd
         # overtravel past the soft end stops must not empty a chamber
         self._vmin = 0.5 * np.concatenate([P.dead_cap, P.dead_rod])
-        # upstream pressure of each edge (G -> G p; step() itself reads self._ps, self._pa)
-        self._pbound = np.concatenate([np.full(6, ps), np.full(6, pa)])
-        # state and buffers (no allocation in step but the returned force)
+        # state (no allocation in step but the returned force)
         self.spool = self._kb[_pk.ST_SPOOL : _pk.ST_SPOOL + 3]
         self.spool_rate = self._kb[_pk.ST_RATE : _pk.ST_RATE + 3]
         self.u_hold = np.full(3, U_CENTRE)
-        self._a = np.empty((4, 3))
-        self._a12 = self._a.reshape(12)
-        self._r = np.empty(12)
-        self._rs, self._re = self._r[:6], self._r[6:]
-        self._G = np.empty(12)
-        self._Gs, self._Ge = self._G[:6], self._G[6:]
-        self._w = np.empty(12)
-        self._ws, self._we = self._w[:6], self._w[6:]
-        self._V = np.empty(6)
-        self._hnV = np.empty(6)
-        self._hc = np.empty(6)
-        self._den0 = np.empty(6)
-        self._num = np.empty(6)
-        self._den = np.empty(6)
-        self._cmd = np.empty(3)
-        self._w3 = np.empty(3)
         # Scalar copies for the per-chamber arithmetic of step() (Python floats)
         self._order1 = P.spool_order == 1
         self._delta_l = P.underlap.tolist()
@@ -731,7 +711,7 @@ class NonlinearActuators:
         # the six chambers, cap sides of legs 1-3 then rod sides (the order of
         # p1, p2): supply edges P->1, P->2 and exhaust edges 1->R, 2->R
         a_supply, a_exhaust = a_plus + a_minus, a_minus + a_plus
-        z = self._z  # [p1 (3), p2 (3), qdot (3), tanh(qdot/vs) (3), 1, q (3)]
+        z = self._z  # [p1 (3), p2 (3), qdot (3), tanh(qdot/vs) (3), 1, spare (3)]
         p = z.tolist()
         ps, pa, hn, rtk = self._ps, self._pa, self._hn, self._RTk
         ips = 1.0 / ps  # read each step: the supply may change at run time (faults)
@@ -825,7 +805,6 @@ class NonlinearActuators:
         if not p > self._pa:
             raise ValueError(f"supply pressure must exceed atmospheric {self._pa} Pa, got {p}")
         self._ps = p
-        self._pbound[:6] = p
         if self._kernel is not None:
             self._kb[_pk.KP_PS] = p
 
@@ -951,12 +930,9 @@ class LinearActuators:
         (``p_s A_cap - p_a A_rod_side - p_a A_rod`` and its mirror) and the
         display pressures' nonlinear model.
         """
-        P = self.params
-        A1, A2, Ar, pa = P.area_cap, P.area_rod_side, P.area_rod, P.p_atm
         p = float(p_pa)
         self._nl.set_supply_pressure(p)
-        self._fmin = pa * A1 - p * A2 - pa * Ar
-        self._fmax = p * A1 - pa * A2 - pa * Ar
+        self._fmin, self._fmax = self.params.force_range_at(p)
 
     def step(self, u_volts, q, qdot, dt: float) -> np.ndarray:
         """Advance the states by ``dt`` and return the slide forces (N)."""

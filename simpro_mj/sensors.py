@@ -153,8 +153,7 @@ class Sensors:
         self._q = [0.0] * 3
         self._pose = [0.0] * 3
         self._imu_state = [0.0] * 2
-        self._noise = np.zeros((0, 6))
-        self._noise_rows: list = []
+        self._noise_rows: list = []  # the pre-drawn noise block, as lists of 6 floats
         self._k0 = 0
         self._pot = (
             config.pot_gain.tolist(),
@@ -243,8 +242,7 @@ class Sensors:
         """Noise row for step k: 3 pots, encoder, 2 IMU axes (standard normal floats)."""
         i = k - self._k0
         if i >= len(self._noise_rows) or i < 0:
-            self._noise = self.rng.standard_normal((self.block, 6))
-            self._noise_rows = self._noise.tolist()
+            self._noise_rows = self.rng.standard_normal((self.block, 6)).tolist()
             self._k0 = k
             i = 0
         return self._noise_rows[i]
@@ -252,7 +250,6 @@ class Sensors:
     def reset(self, q_true, pose_true) -> None:
         """Initialise the filters at the true state and take a first reading."""
         self._imu_state[:] = [float(pose_true[0]), float(pose_true[1])]
-        self._noise = np.zeros((0, 6))
         self._noise_rows = []
         self._k0 = 0
         if self._kb is not None:

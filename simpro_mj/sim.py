@@ -67,7 +67,6 @@ COLUMNS = (
 
 #: The loop applies a scenario's ``faults`` (issue 8, :mod:`simpro_mj.faults`).
 SUPPORTS_FAULTS = True
-_C = {name: k for k, name in enumerate(COLUMNS)}
 
 #: Divergence bound on the loop-closure error (m): far above the 0.5 mm of
 #: normal motion, well below anything physical.

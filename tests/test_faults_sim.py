@@ -1,10 +1,8 @@
 """Faults acting in the co-simulation, end to end (issue 8).
 
-PENDING THE WIRING: these tests pass once ``simpro_mj.sim`` calls the hooks
-of :class:`simpro_mj.faults.FaultSchedule` as the module docstring of
-``simpro_mj/faults.py`` describes, sets ``SUPPORTS_FAULTS = True`` and logs
-the columns ``fault_flags`` and ``supply_pa`` (and the actuators get
-``set_supply_pressure``). Until then they fail on purpose, not skipped.
+``simpro_mj.sim`` calls the hooks of :class:`simpro_mj.faults.FaultSchedule`
+as the module docstring of ``simpro_mj/faults.py`` describes and logs the
+columns ``fault_flags`` and ``supply_pa``.
 
 Each fault runs a few seconds of a shipped scenario and checks a physical
 outcome, not just that something changed.
