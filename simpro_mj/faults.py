@@ -73,8 +73,8 @@ step (supply term of the implicit pressure update, 1/p_s of the supply edge's
 pressure ratio, the upper pressure bound); ``params.p_supply`` (a frozen
 dataclass) is not read after construction. ``LinearActuators`` has no supply
 in its law; its ``set_supply_pressure`` moves its force bound and passes p_s
-on to the nonlinear model behind its display pressures. (The MJCF motors'
-``ctrlrange`` is the 6 bar force range; a drop stays inside it.)
+on to the nonlinear model behind its display pressures. (The MJCF motors
+are not ``ctrllimited``: the pneumatic model alone bounds the forces.)
 
 Flags
 -----
