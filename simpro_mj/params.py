@@ -129,7 +129,9 @@ def parse_set(expr: str) -> tuple[str, Any]:
     try:
         value = yaml.safe_load(raw) if raw.strip() else ""
     except yaml.YAMLError as exc:
-        raise UserInputError(f"malformed --set at {key}: value {raw!r} is not valid YAML") from exc
+        raise UserInputError(
+            f"malformed --set at {key_text(key)}: value {raw!r} is not valid YAML"
+        ) from exc
     return key, value
 
 

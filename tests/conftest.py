@@ -1,3 +1,15 @@
 import os
 
 os.environ.setdefault("MPLBACKEND", "Agg")
+
+try:
+    from hypothesis import settings
+except ImportError:  # pragma: no cover - hypothesis is in the [test] extra
+    pass
+else:
+    # CI and plain `pytest` draw the same examples every run (a failure found
+    # once is found again, and CI is not flaky); HYPOTHESIS_PROFILE=explore
+    # draws new ones each run to look for more.
+    settings.register_profile("ci", derandomize=True)
+    settings.register_profile("explore", derandomize=False)
+    settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))

@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from simpro_mj import results
@@ -403,6 +403,7 @@ _SET_KEYS = ["duration_s", "seed", "controller.outer.gains", "controller.mode", 
 
 
 @settings(max_examples=100, deadline=None)
+@example("0\n0=\x1b")  # found by exploring: a key with a newline in a YAML error message
 @given(
     st.one_of(
         st.text(max_size=40),
