@@ -368,6 +368,7 @@ def _fault_docs():
     deadline=None,
     suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
 )
+@example({"controller": {"outer": {"period_ms": float("inf")}}})  # round(inf) raised
 @given(st.one_of(mutated_docs(), _fault_docs(), _garbage))
 def test_loader_accepts_or_raises_user_input_error(doc):
     try:
