@@ -77,7 +77,7 @@ from typing import Any
 import numpy as np
 
 from .errors import UserInputError
-from .params import check_tagged, closest, parse_set
+from .params import check_tagged, closest, key_text, parse_set
 
 __all__ = [
     "DISTRIBUTIONS",
@@ -302,7 +302,7 @@ def parse_sweep(block: Any, where: str = "sweep") -> SweepSpec:
     for key in block:
         if key not in _SWEEP_KEYS:
             raise UserInputError(
-                f"unknown key at {where}.{key}: allowed keys are {list(_SWEEP_KEYS)}"
+                f"unknown key at {where}.{key_text(key)}: allowed keys are {list(_SWEEP_KEYS)}"
                 f"{closest(str(key), _SWEEP_KEYS)}"
             )
     if not any(block.get(k) for k in _SWEEP_KEYS):
@@ -317,7 +317,7 @@ def parse_sweep(block: Any, where: str = "sweep") -> SweepSpec:
             "of dotted paths to lists of values"
         )
     for path, values in raw_grid.items():
-        here = f"{where}.grid.{path}"
+        here = f"{where}.grid.{key_text(path)}"
         _defaults_at(_check_path(path, here), here)
         if not isinstance(values, list) or not values:
             raise UserInputError(
@@ -337,7 +337,7 @@ def parse_sweep(block: Any, where: str = "sweep") -> SweepSpec:
         for key in mc:
             if key not in _MC_KEYS:
                 raise UserInputError(
-                    f"unknown key at {w}.{key}: allowed keys are {list(_MC_KEYS)}"
+                    f"unknown key at {w}.{key_text(key)}: allowed keys are {list(_MC_KEYS)}"
                     f"{closest(str(key), _MC_KEYS)}"
                 )
         for key in ("samples", "parameters"):
@@ -352,7 +352,7 @@ def parse_sweep(block: Any, where: str = "sweep") -> SweepSpec:
                 "dotted paths to distributions"
             )
         for path, spec in raw.items():
-            here = f"{w}.parameters.{path}"
+            here = f"{w}.parameters.{key_text(path)}"
             _check_path(path, here)
             if path in grid:
                 raise UserInputError(

@@ -25,12 +25,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+from hypothesis import HealthCheck, example, given, settings
+from hypothesis import strategies as st
 
 from simpro_mj.batch import stability_of
 from simpro_mj.cli import main
 from simpro_mj.errors import UserInputError
 from simpro_mj.scenario import load_scenario, scenario_hash, scenarios_dir
-from simpro_mj.sweep import load_sweep, parse_sweep
+from simpro_mj.sweep import expand, load_sweep, parse_sweep
 
 BASE = {
     "duration_s": 1.0,
@@ -398,3 +400,65 @@ def test_jobs_and_paths_errors(tmp_path, capsys):
     doc = json.loads(capsys.readouterr().out)
     assert rc == 1 and doc["counts"]["invalid"] == 1
     assert os.path.exists(tmp_path / "o2" / "summary.csv")
+
+
+# ------------------------------------------------------------------ sweep fuzz
+
+_leaf = st.one_of(
+    st.none(),
+    st.booleans(),
+    st.integers(-(10**6), 10**6),
+    st.floats(allow_nan=True, allow_infinity=True),
+    st.text(max_size=8),
+)
+_vals = st.recursive(
+    _leaf,
+    lambda ch: st.one_of(
+        st.lists(ch, max_size=4), st.dictionaries(st.text(max_size=8), ch, max_size=4)
+    ),
+    max_leaves=12,
+)
+_paths = st.sampled_from(
+    ["controller.outer.gains", "controller.outer.type", "plant.payload.mass_kg",
+     "sensors.imu.bias_deg", "duration_s", "nope.x", "seed", ""]
+)  # fmt: skip
+_dist = st.fixed_dictionaries(
+    {"distribution": st.sampled_from(["uniform", "normal", "choice", "beta"])},
+    optional={k: _vals for k in ("low", "high", "mean", "std", "values", "x")},
+)
+_blocks = st.one_of(
+    _vals,
+    st.fixed_dictionaries(
+        {},
+        optional={
+            "grid": st.one_of(_vals, st.dictionaries(_paths, _vals, max_size=3)),
+            "monte_carlo": st.one_of(
+                _vals,
+                st.fixed_dictionaries(
+                    {},
+                    optional={
+                        "samples": _vals,
+                        "seed": _vals,
+                        "parameters": st.one_of(
+                            _vals, st.dictionaries(_paths, st.one_of(_dist, _vals), max_size=3)
+                        ),
+                    },
+                ),
+            ),
+            "bogus": _vals,
+        },
+    ),
+)
+
+
+@settings(max_examples=300, deadline=None, suppress_health_check=list(HealthCheck))
+@example({"grid": {"\n": None}})  # a key with a newline once broke the one-line message
+@given(_blocks)
+def test_sweep_blocks_expand_or_raise_one_line_user_input_error(block):
+    """Random sweep blocks: a valid one expands, anything else is one UserInputError line."""
+    try:
+        spec = parse_sweep(block)
+        if spec is not None and spec.count <= 200:
+            assert len(expand(spec)) == spec.count
+    except UserInputError as exc:
+        assert "\n" not in str(exc) and " at sweep" in str(exc)
