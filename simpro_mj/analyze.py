@@ -117,24 +117,22 @@ def _check(p: dict) -> None:
                 f"invalid value at sweep.wn_rad_s[{k}]: {wn[k]!r}; allowed: 0 < wn <= 1e4 rad/s"
             )
     if i["variant"] not in VARIANTS:
-        raise UserInputError(f"bad value at inner.variant: {i['variant']!r}; allowed {VARIANTS}")
+        raise UserInputError(
+            f"invalid value at inner.variant: {i['variant']!r}; allowed: one of {list(VARIANTS)}"
+        )
     if i["method"] not in ("tustin", "zoh"):
-        raise UserInputError(f"bad value at inner.method: {i['method']!r}; allowed tustin, zoh")
+        raise UserInputError(
+            f"invalid value at inner.method: {i['method']!r}; allowed: one of ['tustin', 'zoh']"
+        )
     for key in ("period_s", "alt_period_s"):
         ratio = o[key] / i["dt_s"]
-        if o[key] <= 0 or abs(ratio - round(ratio)) > 1e-9 * max(1.0, ratio):
+        if abs(ratio - round(ratio)) > 1e-9 * max(1.0, ratio):
             raise UserInputError(
-                f"bad value at outer.{key}: {o[key]} s is not a positive multiple of "
-                f"inner.dt_s = {i['dt_s']} s"
+                f"invalid value at outer.{key}: {o[key]} s; allowed: a positive integer multiple "
+                f"of inner.dt_s = {i['dt_s']} s"
             )
     for key in ("delay_samples", "alt_delay_samples"):
-        if int(o[key]) != o[key] or o[key] < 1:
-            raise UserInputError(f"bad value at outer.{key}: {o[key]}; need an integer >= 1")
-    if i["dt_s"] <= 0:
-        raise UserInputError(f"bad value at inner.dt_s: {i['dt_s']}; need > 0")
-    for key in ("gain", "pi_gain"):
-        if o[key] < 0:
-            raise UserInputError(f"bad value at outer.{key}: {o[key]}; need >= 0")
+        check_number(p, f"outer.{key}", 1, 100, integer=True, unit=" samples")
 
 
 def _outer_delay(mode, gain, period, delay, pi_zero, duration) -> dict:

@@ -198,6 +198,9 @@ BAD_INPUTS = [
     (["analyze", "--set", "inner.zeta=-1", "--no-plots"], "inner.zeta", ["> 0"]),
     (["analyze", "--set", "sweep.wn_rad_s=[0]", "--no-plots"], "sweep.wn_rad_s[0]", []),
     (["analyze", "--set", "outer.step_duration_s=-1", "--no-plots"], "step_duration_s", ["> 0"]),
+    (["analyze", "--set", "outer.delay_samples=null", "--no-plots"], "outer.delay_samples", []),
+    (["analyze", "--set", "outer.delay_samples=1.5", "--no-plots"], "outer.delay_samples", []),
+    (["analyze", "--set", "inner.variant=best", "--no-plots"], "inner.variant", ["corrected"]),
     # argparse misuse: one line, exit 2
     (["run"], "scenario", ["required"]),
     (["run", "step_pitch", "--bogus"], "--bogus", ["unrecognized"]),
