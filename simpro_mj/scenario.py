@@ -597,19 +597,30 @@ def _check_pneumatic_leaves(value: Mapping, ref: Mapping, path: str) -> dict:
     return out
 
 
+def _tagged_list(value: Any, path: str, kinds: Mapping, noun: str, example: str):
+    """Yield ``(path[i], entry, (kind, required, optional))`` for a list of tagged
+    mappings (set-point components, faults); ``None`` is an empty list.
+
+    Each entry is checked by :func:`~simpro_mj.params.check_tagged`.
+    """
+    if value is None:
+        return
+    if not isinstance(value, (list, tuple)):
+        raise _wrong_type(path, value, f"a list of {noun}s like {example}")
+    for i, entry in enumerate(value):
+        here = f"{path}[{i}]"
+        if not isinstance(entry, Mapping):
+            raise _wrong_type(here, entry, f"a {noun} mapping like {example[1:-1]}")
+        yield here, entry, check_tagged(entry, here, "type", kinds)
+
+
 def _check_components(value: Any, path: str) -> list[dict]:
     """Validate and normalise one axis' list of set-point components."""
-    if value is None:
-        return []
     example = "[{type: step, time_s: 1.0, value: 3.0}]"
-    if not isinstance(value, (list, tuple)):
-        raise _wrong_type(path, value, f"a list of components like {example}")
     out = []
-    for i, comp in enumerate(value):
-        here = f"{path}[{i}]"
-        if not isinstance(comp, Mapping):
-            raise _wrong_type(here, comp, f"a component mapping like {example[1:-1]}")
-        kind, required, optional = check_tagged(comp, here, "type", COMPONENT_TYPES)
+    for here, comp, (kind, required, optional) in _tagged_list(
+        value, path, COMPONENT_TYPES, "component", example
+    ):
         c: dict[str, Any] = {"type": kind}
         for key in (*required, *optional):
             raw = comp.get(key, optional.get(key))
@@ -662,17 +673,11 @@ def _check_faults(value: Any, path: str) -> list[dict]:
     Cross-field ranges (times within the run, pressure below the supply) are
     checked by :func:`_check_fault_values` once the whole scenario is known.
     """
-    if value is None:
-        return []
     example = "[{type: supply_drop, time_s: 5.0, pressure_bar_gauge: 2.0}]"
-    if not isinstance(value, (list, tuple)):
-        raise _wrong_type(path, value, f"a list of faults like {example}")
     out = []
-    for i, entry in enumerate(value):
-        here = f"{path}[{i}]"
-        if not isinstance(entry, Mapping):
-            raise _wrong_type(here, entry, f"a fault mapping like {example[1:-1]}")
-        kind, required, optional = check_tagged(entry, here, "type", FAULT_TYPES)
+    for here, entry, (kind, required, optional) in _tagged_list(
+        value, path, FAULT_TYPES, "fault", example
+    ):
         f: dict[str, Any] = {"type": kind}
         for key in (*required, *optional):
             raw = entry.get(key, optional.get(key))
