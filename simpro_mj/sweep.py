@@ -77,7 +77,7 @@ from typing import Any
 import numpy as np
 
 from .errors import UserInputError
-from .params import check_tagged, closest, key_text, parse_set
+from .params import check_keys, check_tagged, closest, key_text, parse_set
 
 __all__ = [
     "DISTRIBUTIONS",
@@ -299,12 +299,7 @@ def parse_sweep(block: Any, where: str = "sweep") -> SweepSpec:
             f"wrong type at {where}: got {type(block).__name__} {block!r}; allowed: a mapping "
             f"with {list(_SWEEP_KEYS)}"
         )
-    for key in block:
-        if key not in _SWEEP_KEYS:
-            raise UserInputError(
-                f"unknown key at {where}.{key_text(key)}: allowed keys are {list(_SWEEP_KEYS)}"
-                f"{closest(str(key), _SWEEP_KEYS)}"
-            )
+    check_keys(block, dict.fromkeys(_SWEEP_KEYS), where)
     if not any(block.get(k) for k in _SWEEP_KEYS):
         raise UserInputError(
             f"missing key at {where}: allowed: a non-empty 'grid' and/or 'monte_carlo'"
@@ -334,12 +329,7 @@ def parse_sweep(block: Any, where: str = "sweep") -> SweepSpec:
                 f"wrong type at {w}: got {type(mc).__name__}; allowed: a mapping with "
                 f"{list(_MC_KEYS)}"
             )
-        for key in mc:
-            if key not in _MC_KEYS:
-                raise UserInputError(
-                    f"unknown key at {w}.{key_text(key)}: allowed keys are {list(_MC_KEYS)}"
-                    f"{closest(str(key), _MC_KEYS)}"
-                )
+        check_keys(mc, dict.fromkeys(_MC_KEYS), w)
         for key in ("samples", "parameters"):
             if key not in mc:
                 raise UserInputError(f"missing key at {w}.{key}: allowed: {list(_MC_KEYS)}")
