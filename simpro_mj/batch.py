@@ -36,10 +36,16 @@ variant or file never stops the others;
 file) before anything runs if any file or variant is invalid. Exit code: 0
 when every variant is ``ok``, 1 otherwise.
 
-``--resume`` skips a variant whose folder is complete: ``metrics.json`` with
-status ``ok`` or ``diverged`` and ``scenario.hash`` equal to the variant's
-:func:`~simpro_mj.scenario.scenario_hash`, and ``timeseries.csv`` present.
-Anything else is recomputed. The row of a skipped variant is rebuilt from
+``--resume`` skips a variant whose folder is complete
+(:func:`simpro_mj.results.is_complete`: the result marker, ``metrics.json``
+with status ``ok`` or ``diverged``, a non-empty ``timeseries.csv``, no
+``PARTIAL``) and whose ``scenario.hash`` equals the variant's
+:func:`~simpro_mj.scenario.scenario_hash`. Anything else is recomputed.
+
+``--out`` must be new, empty or an earlier batch's folder (its
+``.simpro-result`` marker of kind ``batch``); anything else is refused (exit
+2) before anything runs, and a second batch writing the same ``--out`` at the
+same time is refused (:func:`simpro_mj.results.claim`). The row of a skipped variant is rebuilt from
 its files, so the summary is complete and the same as a fresh run's.
 
 Layout
@@ -397,7 +403,10 @@ def run_variant(task: Mapping) -> dict:
 
         folder = tmp / "variant" if ship else Path(task["out"])
         # warnings go to metrics.json only: many workers on one stderr would be noise
-        _, doc = execute(task["scenario"], folder, plots=bool(task.get("plots", True)), quiet=True)
+        res, doc = execute(
+            task["scenario"], folder, plots=bool(task.get("plots", True)), quiet=True
+        )
+        folder = res.folder
         out = {
             "status": doc.get("status", "ok"),
             "reason": doc.get("reason"),
@@ -673,17 +682,19 @@ def _row(job: Job, result: Mapping | None, skipped: bool = False) -> dict:
 
 
 def _complete(folder: Path, scenario: Mapping) -> dict | None:
-    """The metrics.json document of a complete result folder for ``scenario``, else None."""
+    """The metrics.json document of a complete result folder for ``scenario``, else None.
+
+    Complete is :func:`simpro_mj.results.is_complete` (the one documented
+    check), and the folder's scenario hash must be the variant's.
+    """
+    from .results import is_complete
     from .scenario import scenario_hash
 
-    mfile, ts = folder / "metrics.json", folder / "timeseries.csv"
-    if not (mfile.is_file() and ts.is_file()):
+    if not is_complete(folder):
         return None
     try:
-        doc = json.loads(mfile.read_text(encoding="utf-8"))
+        doc = json.loads((folder / "metrics.json").read_text(encoding="utf-8"))
     except (OSError, ValueError):
-        return None
-    if not isinstance(doc, dict) or doc.get("status") not in RUN_STATUSES:
         return None
     if (doc.get("scenario") or {}).get("hash") != scenario_hash(scenario):
         return None
@@ -877,12 +888,26 @@ def run_batch(
     ------
     UserInputError
         ``--strict`` with an invalid file or variant, a malformed ``--set``,
-        or ``--scheduler`` without dask or without a reachable scheduler.
+        or ``--scheduler`` without dask or without a reachable scheduler; an
+        ``out`` that is not a batch folder or is being written by another batch.
     """
-    from .errors import UserInputError
+    from .results import claim
 
     wall0 = time.perf_counter()
     out = Path(out)
+    inputs = [f for f, _ in _scenario_files(paths)]
+    with claim(out, "batch", inputs=inputs):
+        return _run_batch(
+            paths, out, sets, jobs, resume, strict, scheduler, plots, progress, summary_plots, wall0
+        )
+
+
+def _run_batch(
+    paths, out, sets, jobs, resume, strict, scheduler, plots, progress, summary_plots, wall0
+) -> Report:
+    from .errors import UserInputError
+    from .results import write_marker
+
     p = plan(paths, sets)
     if strict:
         for job in p.jobs:
@@ -923,6 +948,7 @@ def run_batch(
         bar.update(rows[key]["status"])
 
     out.mkdir(parents=True, exist_ok=True)
+    write_marker(out, "batch")
     try:
         if not tasks:
             pass

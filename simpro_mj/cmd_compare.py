@@ -74,11 +74,14 @@ def run(args) -> int:
     import json
 
     from .cmd_run import EXIT_INTERRUPTED, interrupted_message, sigterm_as_interrupt
+    from .results import claim, write_marker
     from .scenario import load_scenario
 
     scenario = load_scenario(args.scenario, args.sets)
     out = Path(args.out) if args.out else Path("results") / f"{scenario['name']}-compare"
-    with sigterm_as_interrupt():
+    with claim(out, "compare", inputs=[args.scenario]), sigterm_as_interrupt():
+        out.mkdir(parents=True, exist_ok=True)
+        write_marker(out, "compare")
         both = compare(scenario, out, plots=not args.no_plots)
     metrics = both["metrics"]
     for mode, res in both["results"].items():
@@ -87,7 +90,6 @@ def run(args) -> int:
             sys.stderr.write(f"error: {mode}: {msg}; no comparison written\n")
             return EXIT_INTERRUPTED
     table = _table(metrics)
-    out.mkdir(parents=True, exist_ok=True)
     (out / "comparison.txt").write_text(table + "\n")
     (out / "comparison.json").write_text(json.dumps(metrics, indent=2, default=float))
     if args.json:

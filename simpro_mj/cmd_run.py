@@ -87,8 +87,10 @@ def execute(scenario: dict, out: Path, plots: bool = True, *, quiet: bool = Fals
     Returns
     -------
     (SimResult, dict)
-        The result and what ``metrics.json`` holds, so ``--json`` prints
-        exactly the file's content.
+        The result (``folder``: where it was written, ``out`` or, for an
+        interrupted run that would have replaced a complete result,
+        ``<out>.partial``) and what ``metrics.json`` holds, so ``--json``
+        prints exactly the file's content.
 
     Raises
     ------
@@ -122,8 +124,8 @@ def execute(scenario: dict, out: Path, plots: bool = True, *, quiet: bool = Fals
         "preflight": figures,
     }
     with _deferred_signals():
-        write_results(out, res.columns, metrics, scenario, extra)
-    return res, json.loads((out / "metrics.json").read_text(encoding="utf-8"))
+        res.folder = write_results(out, res.columns, metrics, scenario, extra)
+    return res, json.loads((res.folder / "metrics.json").read_text(encoding="utf-8"))
 
 
 def _raise_interrupt(signum, frame):  # noqa: ARG001 - signal handler signature
@@ -174,27 +176,32 @@ def _deferred_signals():
 
 
 def interrupted_message(res, out) -> str:
+    written = Path(res.folder) if res.folder is not None else Path(out)
+    kept = ""
+    if written.absolute() != Path(out).expanduser().absolute():
+        kept = f"; the complete result in {out} is kept"
     return (
         f"interrupted at t = {res.sim.get('simulated_s', 0.0):.3f} s of "
-        f"{res.scenario['duration_s']:g} s: partial results in {out} "
-        "(status interrupted, PARTIAL)"
+        f"{res.scenario['duration_s']:g} s: partial results in {written} "
+        f"(status interrupted, PARTIAL){kept}"
     )
 
 
 def run(args) -> int:
-    from .results import print_summary
+    from .results import claim, print_summary
     from .scenario import load_scenario
 
     scenario = load_scenario(args.scenario, args.sets)
     out = Path(args.out) if args.out else Path("results") / scenario["name"]
-    with sigterm_as_interrupt():
+    # refused (exit 2) before anything runs: not ours to replace, or busy
+    with claim(out, "run", inputs=[args.scenario]), sigterm_as_interrupt():
         res, metrics = execute(scenario, out, plots=not args.no_plots)
     if args.json:
         from .cli import emit_json
 
         emit_json(metrics)
     else:
-        print_summary(metrics, out)
+        print_summary(metrics, res.folder)
         if res.status == "diverged":
             print(f"DIVERGED: {res.reason}")
     if res.status == "interrupted":

@@ -23,6 +23,7 @@ import math
 import struct
 import time
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import mujoco
 import numpy as np
@@ -83,6 +84,8 @@ class SimResult:
     sim: dict
     scenario: dict
     sensor_floor: dict = field(default_factory=dict)
+    #: where :func:`simpro_mj.cmd_run.execute` wrote the result folder (None: not written)
+    folder: Path | None = None
 
 
 def _ms_to_steps(ms: float, dt: float, path: str) -> int:

@@ -1,0 +1,216 @@
+"""Issue 13, nothing lost: ``--out`` never deletes a user's files.
+
+* a folder is replaced only if it carries simpro-sim's result marker of the
+  same kind; any other non-empty folder, the working folder (or one above
+  it) and a folder holding the scenario are refused with exit 2, one line,
+  and every file in them left byte-identical (run, compare, batch);
+* two writers of one folder: the second is refused (a lock held by another
+  process, which signals readiness through a file);
+* an interrupted re-run keeps the previous complete result and writes the
+  partial one beside it;
+* a failing write names the user's folder, never the hidden temporary one;
+* ``--resume`` uses :func:`simpro_mj.results.is_complete` only.
+"""
+
+from __future__ import annotations
+
+import errno
+import json
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from simpro_mj import results
+from simpro_mj.cli import main
+from simpro_mj.scenario import load_scenario, scenarios_dir
+
+ROOT = Path(__file__).resolve().parents[1]
+SHORT = ["--set", "duration_s=0.2", "--no-plots"]
+
+
+def _snapshot(folder: Path) -> dict:
+    """Every file under ``folder`` (relative path -> bytes)."""
+    return {str(p.relative_to(folder)): p.read_bytes() for p in folder.rglob("*") if p.is_file()}
+
+
+def _one_error_line(err: str) -> str:
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: "), err
+    assert "Traceback" not in err
+    return lines[0]
+
+
+def _user_folder(tmp_path: Path) -> Path:
+    user = tmp_path / "thesis"
+    (user / "figures").mkdir(parents=True)
+    (user / "chapter1.tex").write_text("\\chapter{Results}\n")
+    (user / "figures" / "fig1.png").write_bytes(b"\x89PNG not really")
+    return user
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["run", "step_pitch", *SHORT],
+        ["compare", "step_pitch", *SHORT],
+        ["batch", "step_pitch", "--jobs", "1", *SHORT],
+    ],
+    ids=["run", "compare", "batch"],
+)
+def test_a_users_folder_is_refused_and_untouched(tmp_path, capsys, argv):
+    user = _user_folder(tmp_path)
+    before = _snapshot(user)
+    rc = main([*argv, "--out", str(user)])
+    line = _one_error_line(capsys.readouterr().err)
+    assert rc == 2
+    assert str(user) in line and "not a simpro-sim result" in line and "nothing was touched" in line
+    assert _snapshot(user) == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["thesis"]  # no lock, no temp left
+
+
+def test_the_scenario_s_own_folder_and_the_working_folder_are_refused(
+    tmp_path, capsys, monkeypatch
+):
+    proj = tmp_path / "proj"
+    proj.mkdir()
+    mine = proj / "mine.yaml"
+    mine.write_text((scenarios_dir() / "step_pitch.yaml").read_text())
+    before = _snapshot(tmp_path)
+    assert main(["run", str(mine), "--out", str(proj), *SHORT]) == 2
+    line = _one_error_line(capsys.readouterr().err)
+    assert "holds the input" in line and str(mine) in line
+    monkeypatch.chdir(proj)
+    for out in (".", "..", str(tmp_path)):
+        assert main(["run", "step_pitch", "--out", out, *SHORT]) == 2
+        assert "working folder" in _one_error_line(capsys.readouterr().err)
+    assert _snapshot(tmp_path) == before
+
+
+def test_a_result_folder_is_replaced_and_an_empty_one_used(tmp_path, capsys):
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    assert main(["run", "step_pitch", "--out", str(empty), *SHORT]) == 0
+    assert results.result_kind(empty) == "run" and results.is_complete(empty)
+    first = (empty / "timeseries.csv").read_bytes()
+    assert main(["run", "step_pitch", "--out", str(empty), "--set", "duration_s=0.3",
+                 "--no-plots"]) == 0  # fmt: skip
+    assert len((empty / "timeseries.csv").read_bytes()) > len(first)  # replaced: 300 rows
+    # a batch folder is not a run's to replace, nor a run folder a batch's
+    batch = tmp_path / "b"
+    assert main(["batch", "step_pitch", "--jobs", "1", "--out", str(batch), *SHORT]) == 0
+    capsys.readouterr()
+    assert results.result_kind(batch) == "batch"
+    assert main(["run", "step_pitch", "--out", str(batch), *SHORT]) == 2
+    assert "simpro-sim batch result" in _one_error_line(capsys.readouterr().err)
+    assert main(["batch", "step_pitch", "--jobs", "1", "--out", str(empty), *SHORT]) == 2
+    _one_error_line(capsys.readouterr().err)
+
+
+def test_a_second_writer_is_refused_while_the_first_holds_the_folder(tmp_path, capsys):
+    """Another process holds the folder's lock (as a running ``run`` does from its
+    first check to its last write); it says so by creating a readiness file."""
+    out, ready = tmp_path / "r", tmp_path / "ready"
+    code = (
+        "import sys; from pathlib import Path; from simpro_mj import results\n"
+        f"with results.locked({str(out)!r}):\n"
+        f"    Path({str(ready)!r}).touch()\n"
+        "    sys.stdin.readline()\n"
+    )
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    holder = subprocess.Popen([sys.executable, "-c", code], stdin=subprocess.PIPE, env=env)
+    try:
+        while not ready.exists():  # readiness signal, no fixed sleep
+            assert holder.poll() is None, "lock holder died"
+            time.sleep(0.01)  # poll interval only: the wait ends on the signal
+        assert main(["run", "step_pitch", "--out", str(out), *SHORT]) == 2
+        line = _one_error_line(capsys.readouterr().err)
+        assert f"busy at {out}" in line and f"pid {holder.pid}" in line
+        assert not out.exists()
+    finally:
+        holder.communicate(b"\n", timeout=30)
+    assert holder.returncode == 0
+    assert main(["run", "step_pitch", "--out", str(out), *SHORT]) == 0  # released
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["r", "ready"]  # lock file removed
+
+
+def test_an_interrupted_rerun_keeps_the_complete_result(tmp_path):
+    sc = load_scenario("step_pitch", ["duration_s=0.2"])
+    cols = {"time_s": np.arange(5) * 1e-3, "heave_m": np.zeros(5)}
+    out = tmp_path / "r"
+    assert results.write_results(out, cols, {}, sc, {"plots": False}) == out
+    before = _snapshot(out)
+    short = {k: v[:2] for k, v in cols.items()}
+    extra = {"status": "interrupted", "reason": "SIGINT", "plots": False}
+    where = results.write_results(out, short, {}, sc, dict(extra))
+    assert where == tmp_path / "r.partial"
+    assert _snapshot(out) == before and results.is_complete(out)
+    assert (where / results.PARTIAL_MARKER).is_file() and not results.is_complete(where)
+    # a second interrupted run replaces the partial one, not the complete one
+    assert results.write_results(out, short, {}, sc, dict(extra)) == where
+    # a partial result is replaced in place by the next one (nothing complete lost)
+    assert results.write_results(where, short, {}, sc, dict(extra)) == where
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["r", "r.partial"]
+
+
+def test_the_interrupted_message_names_both_folders(tmp_path):
+    from simpro_mj.cmd_run import interrupted_message
+    from simpro_mj.sim import SimResult
+
+    res = SimResult({}, "interrupted", "SIGINT", {"simulated_s": 1.5}, {"duration_s": 10.0})
+    res.folder = tmp_path / "r.partial"
+    msg = interrupted_message(res, tmp_path / "r")
+    assert f"partial results in {tmp_path / 'r.partial'}" in msg
+    assert f"the complete result in {tmp_path / 'r'} is kept" in msg
+
+
+@pytest.mark.parametrize("code", [errno.ENOSPC, errno.EROFS], ids=["full", "read-only"])
+def test_a_failing_write_names_the_users_folder(tmp_path, capsys, monkeypatch, code):
+    def failing(path, columns):
+        raise OSError(code, os.strerror(code), str(path))
+
+    monkeypatch.setattr(results, "write_timeseries", failing)
+    out = tmp_path / "r"
+    assert main(["run", "step_pitch", "--out", str(out), *SHORT]) == 2
+    line = _one_error_line(capsys.readouterr().err)
+    assert f"cannot access at {out}: {os.strerror(code)}" in line
+    assert ".tmp-" not in line
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_is_complete_is_the_one_check_and_resume_uses_it(tmp_path):
+    from simpro_mj.batch import run_batch
+
+    out = tmp_path / "b"
+    argv = dict(sets=["duration_s=0.2"], jobs=1, plots=False, summary_plots=False)
+    first = run_batch(["step_pitch"], out, **argv)
+    folder = out / first.rows[0]["folder"]
+    assert results.is_complete(folder)
+    # the case of the issue: a PARTIAL marker and a 0-byte time series
+    (folder / results.PARTIAL_MARKER).write_text("partial\n")
+    (folder / "timeseries.csv").write_bytes(b"")
+    assert not results.is_complete(folder)
+    again = run_batch(["step_pitch"], out, resume=True, **argv)
+    assert again.skipped == 0 and again.rows[0]["status"] == "ok"
+    assert results.is_complete(folder)
+    assert run_batch(["step_pitch"], out, resume=True, **argv).skipped == 1  # intact: skipped
+    # each condition alone makes a folder incomplete
+    for breaking in ("empty", "status", "marker"):
+        run_batch(["step_pitch"], out, **argv)
+        if breaking == "marker":
+            (folder / results.RESULT_MARKER).unlink()
+        elif breaking == "empty":
+            (folder / "timeseries.csv").write_bytes(b"")
+        else:
+            doc = json.loads((folder / "metrics.json").read_text())
+            (folder / "metrics.json").write_text(json.dumps(dict(doc, status="interrupted")))
+        assert not results.is_complete(folder), breaking
+    # a variant folder without the marker is not simpro-sim's: reported, not replaced
+    before = _snapshot(folder)
+    row = run_batch(["step_pitch"], out, resume=True, **argv).rows[0]
+    assert row["status"] == "invalid" and "not a simpro-sim result" in row["reason"]
+    assert _snapshot(folder) == before
