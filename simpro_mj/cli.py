@@ -40,6 +40,7 @@ COMMANDS = {
     "analyze": "simpro_mj.analyze",
     "batch": "simpro_mj.batch",
     "bench": "simpro_mj.bench",
+    "render": "simpro_mj.cmd_render",
 }
 
 

@@ -124,8 +124,25 @@ def execute(scenario: dict, out: Path, plots: bool = True, *, quiet: bool = Fals
         "preflight": figures,
     }
     with _deferred_signals():
-        res.folder = write_results(out, res.columns, metrics, scenario, extra)
+        res.folder = write_results(
+            out, res.columns, metrics, scenario, extra, arrays=recording(res)
+        )
     return res, json.loads((res.folder / "metrics.json").read_text(encoding="utf-8"))
+
+
+def recording(res) -> dict:
+    """``qpos.npz`` of a result folder: what ``simpro-sim render`` replays."""
+    import numpy as np
+
+    if res.qpos is None:
+        return {}
+    return {
+        "qpos.npz": {
+            "time_s": res.columns["time_s"],
+            "qpos": res.qpos,
+            "qpos_names": np.array(res.qpos_names, dtype=str),
+        }
+    }
 
 
 def _raise_interrupt(signum, frame):  # noqa: ARG001 - signal handler signature

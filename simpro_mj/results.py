@@ -201,6 +201,7 @@ def write_results(
     metrics: Mapping,
     scenario: Mapping,
     extra: Mapping | None = None,
+    arrays: Mapping[str, Mapping[str, np.ndarray]] | None = None,
 ) -> Path:
     """Write a complete results folder atomically and return its path.
 
@@ -220,6 +221,9 @@ def write_results(
         ``sim`` (figures of the simulation: steps, physics step, ...; wall-clock
         keys go to ``sim.wall_clock``), ``plots`` (False: no PNGs). Any other
         key is copied into ``metrics.json`` as is.
+    arrays : mapping, optional
+        File name -> named arrays, each written with ``numpy.savez_compressed``
+        (``qpos.npz``: the recorded joint positions that ``simpro-sim render`` replays).
 
     Returns
     -------
@@ -264,6 +268,8 @@ def write_results(
                 encoding="utf-8",
             )
         write_timeseries(tmp / "timeseries.csv", columns)
+        for name, named in (arrays or {}).items():
+            np.savez_compressed(tmp / name, **named)
         text = json.dumps(_jsonable(doc), indent=2, allow_nan=False)
         (tmp / "metrics.json").write_text(text + "\n", encoding="utf-8")
         with (tmp / "scenario.yaml").open("w", encoding="utf-8") as fh:

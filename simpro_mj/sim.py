@@ -86,6 +86,11 @@ class SimResult:
     sensor_floor: dict = field(default_factory=dict)
     #: where :func:`simpro_mj.cmd_run.execute` wrote the result folder (None: not written)
     folder: Path | None = None
+    #: ``qpos`` at every logged row, (rows, nq), a copy: the whole closed chain, so
+    #: ``simpro-sim render`` replays the run exactly without re-simulating it.
+    qpos: np.ndarray | None = None
+    #: the joint owning each ``qpos`` entry (all hinges and slides: one entry each)
+    qpos_names: tuple = ()
 
 
 def _ms_to_steps(ms: float, dt: float, path: str) -> int:
@@ -231,6 +236,8 @@ class CoSimulation:
         n_log = n // dec + 1
         n_col = len(COLUMNS)
         log = np.full((n_log, n_col), np.nan)
+        qlog = np.empty((n_log, m.nq))  # copies of qpos at the logged rows
+        qpos = d.qpos
         # one row = n_col native doubles packed into the (C-contiguous) log buffer
         put_row, row_bytes = struct.Struct(f"{n_col}d").pack_into, 8 * n_col
         reader = StateReader(m, d, idx)
@@ -324,6 +331,7 @@ class CoSimulation:
                         *q_true, *q_meas, *u, f0, f1, f2,
                         p1[0], p2[0], p1[1], p2[1], p1[2], p2[2], loop, flags, supply_pa,
                     )  # fmt: skip
+                    qlog[row] = qpos
                     row += 1
                     if loop > LOOP_OPEN_BOUND:
                         check_physics(m, d, loop_bound=LOOP_OPEN_BOUND, index=idx)  # raises
@@ -375,7 +383,19 @@ class CoSimulation:
             },
             scenario=self.scenario,
             sensor_floor=self.sensors.resolution_floor(),
+            qpos=qlog[:row].copy(),
+            qpos_names=qpos_names(m),
         )
+
+
+def qpos_names(model: mujoco.MjModel) -> tuple:
+    """Name of the joint of each ``qpos`` entry (the model has only 1-DOF joints)."""
+    names = []
+    for j in range(model.njnt):
+        width = {0: 7, 1: 4}.get(int(model.jnt_type[j]), 1)  # free, ball, slide/hinge
+        name = model.joint(j).name
+        names += [name] if width == 1 else [f"{name}[{i}]" for i in range(width)]
+    return tuple(names)
 
 
 def simulate(scenario: dict, progress=None) -> SimResult:

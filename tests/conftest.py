@@ -1,6 +1,8 @@
 import os
 
 os.environ.setdefault("MPLBACKEND", "Agg")
+# headless MuJoCo rendering (tests/test_render.py): MuJoCo reads this when first imported
+os.environ.setdefault("MUJOCO_GL", "egl")
 
 try:
     from hypothesis import settings

@@ -1,0 +1,238 @@
+"""Replay videos (issue 17): recorded motion, the ghost, the MP4, bad input.
+
+Rendering runs headless through ``MUJOCO_GL=egl`` (set in conftest.py); the
+tests that draw skip only when no OpenGL backend works on the machine.
+Frames are tiny (160x120, 320x240) and few.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import pytest
+
+from simpro_mj.cli import main
+from simpro_mj.cmd_run import execute
+from simpro_mj.model import load_spec
+from simpro_mj.scenario import load_scenario
+from simpro_mj.sim import CoSimulation
+
+PITCH_STEP_S = 1.0  # step_pitch.yaml: 3 deg at t = 1 s
+
+
+@pytest.fixture(scope="module")
+def pitch_run(tmp_path_factory) -> Path:
+    """A 3 s pitch step (the 3 deg set-point is reached after about 1.5 s)."""
+    out = tmp_path_factory.mktemp("render") / "step_pitch"
+    scenario = load_scenario("step_pitch.yaml", ["duration_s=3"])
+    execute(scenario, out, plots=False, quiet=True)
+    return out
+
+
+def _scene(pitch_run, width=320, height=240, camera="side"):
+    from simpro_mj.render import ReplayScene, load_recording
+
+    rec = load_recording(pitch_run)
+    try:
+        scene = ReplayScene(rec.scenario, width, height, camera)
+    except Exception as exc:  # noqa: BLE001 - no OpenGL backend on this machine
+        pytest.skip(f"no offscreen OpenGL: {exc}")
+    return rec, scene
+
+
+# ---------------------------------------------------------------- recording
+
+
+def test_qpos_recorded_is_the_simulated_state(pitch_run):
+    """qpos.npz holds the full qpos at every logged row; its slides are q_i."""
+    from simpro_mj.render import load_recording
+
+    rec = load_recording(pitch_run)
+    m = mujoco.MjModel.from_xml_path(str(Path(__file__).parents[1] / "models/simpro_platform.xml"))
+    assert rec.qpos.shape == (len(rec.columns["time_s"]), m.nq) == (3001, 13)
+    # timeseries.csv holds 12 significant digits, qpos.npz the float64 bits
+    np.testing.assert_allclose(rec.time_s, rec.columns["time_s"], rtol=1e-11, atol=1e-15)
+    for i in (1, 2, 3):
+        col = rec.qpos_names.index(f"leg{i}")
+        np.testing.assert_allclose(rec.qpos[:, col], rec.columns[f"q{i}_m"], rtol=1e-11)
+    # the pitch hinge moves by the step (3 deg) within a few tenths of a degree
+    pitch = rec.qpos[:, rec.qpos_names.index("pitch")]
+    assert math.degrees(pitch[-1] - pitch[0]) == pytest.approx(3.0, abs=0.3)
+
+
+def test_ghost_changes_nothing_in_the_dynamics():
+    """The mocap ghost is visual only: every logged column and qpos bit-identical without it."""
+    scenario = load_scenario("step_pitch.yaml", ["duration_s=3"])
+    spec = load_spec(scenario["plant"])
+    with_ghost = spec.compile()
+    ghost = with_ghost.body("ghost")
+    assert with_ghost.body_mocapid[ghost.id] == 0 and with_ghost.body_jntnum[ghost.id] == 0
+    geoms = np.flatnonzero(with_ghost.geom_bodyid == ghost.id)
+    assert len(geoms) == 2
+    assert not with_ghost.geom_contype[geoms].any() and not with_ghost.geom_conaffinity[geoms].any()
+    assert with_ghost.body_mass[ghost.id] == 0.0
+
+    spec.delete(spec.body("ghost"))
+    without = spec.compile()
+    assert without.nbody == with_ghost.nbody - 1 and without.nq == with_ghost.nq
+
+    a = CoSimulation(scenario, model=with_ghost).run()
+    b = CoSimulation(scenario, model=without).run()
+    assert a.status == b.status == "ok"
+    assert a.columns.keys() == b.columns.keys()
+    for name in a.columns:
+        assert a.columns[name].tobytes() == b.columns[name].tobytes(), name
+    assert a.qpos.tobytes() == b.qpos.tobytes()
+    # the run really moved (a test of two frozen runs would prove nothing)
+    assert math.degrees(a.columns["pitch_rad"][-1] - a.columns["pitch_rad"][0]) > 2.0
+
+
+# ---------------------------------------------------------------- what is drawn
+
+
+def _tilt_deg(ids: np.ndarray, geom_id: int) -> float:
+    """Tilt of a geom's silhouette in the side view: the slope of its mean row per column.
+
+    The side camera looks along +y with +x to the right: a positive pitch
+    (R = Ry(pitch), eq. 8) lowers the +x end, i.e. the rows grow to the right.
+    """
+    rows, cols = np.nonzero(ids == geom_id)
+    assert len(cols) > 200, "geom not in view"
+    uc = np.unique(cols)
+    mean_row = np.array([rows[cols == c].mean() for c in uc])
+    slope = np.polyfit(uc, mean_row, 1)[0]
+    return math.degrees(math.atan(slope))
+
+
+def test_pitch_step_tilts_the_rendered_platform_and_ghost(pitch_run):
+    """Segmentation of the side view: the platform tilts by the logged pitch, the right way."""
+    from simpro_mj.render import _nearest, ghost_poses
+
+    rec, scene = _scene(pitch_run)
+    m = scene.model
+    frame, ghost = m.geom("platform_frame").id, m.geom("ghost_frame").id
+    tilt, ghost_tilt, pitch, ref = [], [], [], []
+    for t in (0.9, 2.9):  # before the step, after it has settled
+        row = int(_nearest(rec.time_s, np.array([t]))[0])
+        gp, gq = ghost_poses(rec.columns, np.array([row]))
+        scene.pose(rec.qpos[row], gp[0], gq[0])
+        tilt.append(_tilt_deg(scene.segmentation(), frame))
+        scene.option.geomgroup[2] = 0  # the ghost alone (the platform hides it where they meet)
+        ghost_tilt.append(_tilt_deg(scene.segmentation(), ghost))
+        scene.option.geomgroup[2] = 1
+        pitch.append(math.degrees(rec.columns["pitch_rad"][row]))
+        ref.append(math.degrees(rec.columns["pitch_ref_rad"][row]))
+    scene.close()
+    # the side view is parallel to the pitch plane, so the image keeps angles;
+    # 0.4 deg covers the pixel quantisation of a ~130 px wide silhouette
+    assert tilt[1] - tilt[0] == pytest.approx(pitch[1] - pitch[0], abs=0.4)
+    assert tilt[1] - tilt[0] > 2.0  # the right way: +x end down
+    assert ghost_tilt[1] - ghost_tilt[0] == pytest.approx(ref[1] - ref[0], abs=0.4)
+
+
+def test_render_a_one_second_clip(pitch_run, tmp_path):
+    """1 s at 25 fps, 160x120: the MP4 decodes to 25 frames that change while it moves."""
+    iio = pytest.importorskip("imageio.v3")
+    _scene(pitch_run, 16, 16)[1].close()  # skip cleanly without OpenGL
+    out = tmp_path / "clip.mp4"
+    code = main(
+        [
+            "render", str(pitch_run), "--size", "160x120", "--no-strip", "--camera", "side",
+            "--start", str(PITCH_STEP_S), "--end", str(PITCH_STEP_S + 1.0), "--out", str(out),
+            "--jobs", "2",
+        ]
+    )  # fmt: skip
+    assert code == 0
+    frames = iio.imread(out)
+    assert frames.shape == (25, 120, 160, 3)
+    diffs = [np.abs(frames[i + 1].astype(int) - frames[i]).mean() for i in range(24)]
+    # the platform tilts by 3 deg during this second: the picture changes between frames
+    # far above the codec's noise, and by much more from the first to the last frame
+    assert np.median(diffs) > 0.05
+    assert np.abs(frames[-1].astype(int) - frames[0]).mean() > 10 * np.median(diffs)
+
+
+def test_plot_strip_cursor_moves(pitch_run, tmp_path):
+    """With the strip: frames are taller by half a view and the red cursor moves right."""
+    iio = pytest.importorskip("imageio.v3")
+    _scene(pitch_run, 16, 16)[1].close()
+    out = tmp_path / "strip.mp4"
+    code = main(
+        ["render", str(pitch_run), "--size", "160x120", "--fps", "2", "--out", str(out),
+         "--jobs", "1"]
+    )  # fmt: skip
+    assert code == 0
+    frames = iio.imread(out)
+    assert frames.shape == (6, 180, 160, 3)  # 3 s at 2 fps; 120 + 60 rows of plots
+    strip = frames[:, 120:].astype(int)
+    red = (strip[..., 0] > 150) & (strip[..., 1] < 90) & (strip[..., 2] < 90)
+    cursor_x = [np.median(np.nonzero(r.any(axis=0))[0][:4]) for r in red]  # first panel
+    assert all(b > a for a, b in zip(cursor_x, cursor_x[1:], strict=False))
+
+
+def test_compare_folder_side_by_side(tmp_path):
+    """A folder of runs is drawn side by side: twice as wide."""
+    iio = pytest.importorskip("imageio.v3")
+    for mode in ("joint_only", "task_space"):
+        sc = load_scenario("step_pitch.yaml", ["duration_s=0.2", f"controller.mode={mode}"])
+        execute(sc, tmp_path / "cmp" / mode, plots=False, quiet=True)
+    code = main(
+        ["render", str(tmp_path / "cmp"), "--size", "64x48", "--fps", "10", "--jobs", "1",
+         "--no-strip"]
+    )  # fmt: skip
+    if code != 0:
+        pytest.skip("no offscreen OpenGL")
+    assert iio.imread(tmp_path / "cmp" / "replay.mp4").shape == (2, 48, 128, 3)
+
+
+# ---------------------------------------------------------------- bad input
+
+
+@pytest.mark.parametrize(
+    "extra, needle",
+    [
+        (["--camera", "top"], "--camera"),
+        (["--fps", "0"], "--fps"),
+        (["--fps", "nan"], "--fps"),
+        (["--size", "161x120"], "--size"),
+        (["--speed", "-1"], "--speed"),
+        (["--start", "5"], "--start"),
+        (["--out", "clip.gif"], "--out"),
+    ],
+)
+def test_bad_options_one_line_exit_2(pitch_run, extra, needle, capsys):
+    assert main(["render", str(pitch_run), *extra]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("error: ") and needle in err
+    assert not (pitch_run / "replay.mp4").exists()
+
+
+def test_bad_folders_one_line_exit_2(tmp_path, capsys):
+    assert main(["render", str(tmp_path / "missing")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "no such folder" in err
+    (tmp_path / "empty").mkdir()
+    (tmp_path / "empty" / "timeseries.csv").write_text("time_s\n0\n")
+    assert main(["render", str(tmp_path / "empty")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "no recorded motion" in err
+
+
+def test_unwritable_out_one_line_exit_2(pitch_run, tmp_path, capsys):
+    blocker = tmp_path / "a_file"
+    blocker.write_text("mine\n")
+    assert main(["render", str(pitch_run), "--out", str(blocker / "clip.mp4")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--out" in err
+    assert blocker.read_text() == "mine\n"  # the user's file untouched
+
+
+def test_missing_video_extra_says_how_to_install(pitch_run, monkeypatch, capsys):
+    monkeypatch.setitem(sys.modules, "imageio_ffmpeg", None)  # import fails
+    assert main(["render", str(pitch_run)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "simpro-sim[video]" in err
