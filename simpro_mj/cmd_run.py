@@ -8,6 +8,8 @@ stability limit. Warnings go to stderr as ``warning: ...`` lines and into
 Exit codes: 0 ok, 1 diverged, 2 a user's mistake, 130 interrupted (Ctrl-C or
 SIGTERM: the partial result is written with status ``interrupted`` and a
 ``PARTIAL`` file when the simulation hands it back, see docs/robustness.md).
+With ``SIMPRO_READY_FILE`` set, the file is written once the simulation has
+taken its first step under the signal handlers (:mod:`simpro_mj.readiness`).
 """
 
 from __future__ import annotations
@@ -17,6 +19,8 @@ import signal
 import sys
 import threading
 from pathlib import Path
+
+from .readiness import signal_ready
 
 HELP = "run a scenario (shipped name or YAML path) and write time series, metrics and plots"
 
@@ -51,7 +55,7 @@ def _end_stop_warnings(columns, scenario) -> tuple[list[str], list[dict]]:
     if t is None or not len(t):
         return [], []
     quiet = flag_series(scenario, t) == 0
-    stroke = 0.5  # slide range of models/simpro_platform.xml (DNC-125-500)
+    stroke = 0.5  # slide range of simpro_mj/models/simpro_platform.xml (DNC-125-500)
     hits = []
     for i in (1, 2, 3):
         q = columns.get(f"q{i}_m")
@@ -110,7 +114,7 @@ def execute(scenario: dict, out: Path, plots: bool = True, *, quiet: bool = Fals
     warnings, figures = preflight(scenario)
     _warn(warnings, quiet)
 
-    res = sim_module.simulate(scenario)
+    res = sim_module.simulate(scenario, progress=_stepping)
     metrics = compute_metrics(res.columns, scenario)
     metrics["status"] = res.status
     metrics["reason"] = res.reason
@@ -143,6 +147,12 @@ def recording(res) -> dict:
             "qpos_names": np.array(res.qpos_names, dtype=str),
         }
     }
+
+
+def _stepping(k: int) -> None:
+    """Progress callback: the first call (after the first step) signals readiness."""
+    if k == 0:
+        signal_ready("stepping")
 
 
 def _raise_interrupt(signum, frame):  # noqa: ARG001 - signal handler signature

@@ -1,7 +1,7 @@
 """Loading, perturbing and inspecting the MuJoCo model of the platform.
 
-One entry point, :func:`load_model`, reads ``models/simpro_platform.xml`` and
-applies parameter overrides with :class:`mujoco.MjSpec` (payload, as-built
+One entry point, :func:`load_model`, reads ``simpro_mj/models/simpro_platform.xml``
+(package data) and applies parameter overrides with :class:`mujoco.MjSpec` (payload, as-built
 attachment-point errors, guide dimensions), so that a scenario's plant can
 differ from the controller's nominal model. :func:`assemble` then finds the
 closed-loop configuration for given slide positions (the loops of a
@@ -44,7 +44,7 @@ __all__ = [
 #: The shipped model; ``SIMPRO_MODEL`` in the environment points elsewhere.
 MODEL_PATH = Path(
     os.environ.get(
-        "SIMPRO_MODEL", Path(__file__).resolve().parent.parent / "models" / "simpro_platform.xml"
+        "SIMPRO_MODEL", Path(__file__).resolve().parent / "models" / "simpro_platform.xml"
     )
 )
 

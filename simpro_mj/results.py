@@ -110,6 +110,7 @@ def versions(resolved: Mapping | None = None) -> dict:
             return None
 
     from . import __version__, pneumatics_kernel
+    from .machine import fingerprint_id
 
     out = {
         "simpro-sim": __version__,
@@ -118,6 +119,8 @@ def versions(resolved: Mapping | None = None) -> dict:
         "python-control": dist("control"),
         "python": platform.python_version(),
         "kernels": pneumatics_kernel.kernel_label(),  # SIMPRO_KERNEL: pneumatics + sensors
+        # results are bit-identical only under one fingerprint (simpro_mj.machine)
+        "machine": fingerprint_id(),
     }
     if resolved is not None:
         out["scenario_hash"] = scenario_hash(resolved)

@@ -119,7 +119,7 @@ __all__ = [
     "scenario_hash",
 ]
 
-#: Physics step of ``models/simpro_platform.xml`` (s); periods are multiples of it.
+#: Physics step of ``simpro_mj/models/simpro_platform.xml`` (s); periods are multiples of it.
 PHYSICS_DT_S = 0.001
 _PHYSICS_DT_MS = 1
 
@@ -279,13 +279,15 @@ class SetpointError(UserInputError, WorkspaceError):
 
 
 def scenarios_dir() -> Path:
-    """The folder of shipped scenarios (``$SIMPRO_SCENARIOS`` or ``<repo>/scenarios``)."""
+    """The folder of shipped scenarios (``$SIMPRO_SCENARIOS`` or the package's ``scenarios/``).
+
+    The scenarios are package data, so a plain (non-editable) ``pip install``
+    finds them as an editable one does.
+    """
     env = os.environ.get("SIMPRO_SCENARIOS")
     if env:
         return Path(env).expanduser()
-    import simpro_mj
-
-    return Path(simpro_mj.__file__).resolve().parent.parent / "scenarios"
+    return Path(__file__).resolve().parent / "scenarios"
 
 
 def shipped_scenarios() -> list[str]:

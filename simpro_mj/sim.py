@@ -66,9 +66,6 @@ COLUMNS = (
     + list(FAULT_COLUMNS)  # fault_flags (bit mask, faults.FLAG_BITS), supply_pa
 )
 
-#: The loop applies a scenario's ``faults`` (issue 8, :mod:`simpro_mj.faults`).
-SUPPORTS_FAULTS = True
-
 #: Divergence bound on the loop-closure error (m): far above the 0.5 mm of
 #: normal motion, well below anything physical.
 LOOP_OPEN_BOUND = 5e-3

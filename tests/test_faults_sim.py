@@ -13,7 +13,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-import simpro_mj.sim as sim_module
 from simpro_mj.faults import FLAG_BITS, flag_series
 from simpro_mj.scenario import load_scenario
 from simpro_mj.sim import simulate
@@ -29,10 +28,6 @@ def _run(name, faults, duration, *extra):
     for key, col in c.items():
         assert np.all(np.isfinite(col)), key
     return sc, c
-
-
-def test_the_simulation_declares_fault_support():
-    assert getattr(sim_module, "SUPPORTS_FAULTS", False)
 
 
 def test_supply_drop_settles_on_the_lower_end_stops():

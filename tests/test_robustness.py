@@ -555,26 +555,35 @@ def test_partial_marker_and_is_complete(tmp_path):
     assert not results.is_complete(tmp_path / "missing")
 
 
-def _wait_stepping(proc, seconds):
-    deadline = time.time() + seconds
-    while time.time() < deadline:
+def _wait_ready(proc, ready: Path) -> bool:
+    """Wait for the run's readiness file (SIMPRO_READY_FILE), not for a guessed delay.
+
+    The bound only keeps a broken run from hanging the suite; it is not a timing
+    assumption (the file appears after the first step, well before it).
+    """
+    deadline = time.monotonic() + 300
+    while time.monotonic() < deadline:
+        if ready.is_file():
+            return True
         if proc.poll() is not None:
             return False
-        time.sleep(0.1)
-    return True
+        time.sleep(0.02)
+    return False
 
 
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
 def test_interrupted_run_leaves_a_marked_partial_folder(tmp_path, sig):
     out = tmp_path / "long"
-    env = dict(os.environ, MPLBACKEND="Agg", PYTHONPATH=str(ROOT))
+    ready = tmp_path / "ready"
+    env = dict(os.environ, MPLBACKEND="Agg", PYTHONPATH=str(ROOT), SIMPRO_READY_FILE=str(ready))
     cmd = [sys.executable, "-m", "simpro_mj.cli", "run", "step_pitch", "--out", str(out),
            "--no-plots", "--set", "duration_s=600"]  # fmt: skip
     proc = subprocess.Popen(
         cmd, cwd=tmp_path, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
     )
     try:
-        assert _wait_stepping(proc, 3.0), proc.communicate()
+        assert _wait_ready(proc, ready), proc.communicate()
+        assert ready.read_text().split()[0] == "stepping"
         proc.send_signal(sig)
         stdout, stderr = proc.communicate(timeout=60)
     finally:
@@ -584,8 +593,7 @@ def test_interrupted_run_leaves_a_marked_partial_folder(tmp_path, sig):
     assert "Traceback" not in stderr
     assert stderr.strip().splitlines()[-1].startswith("error: ")
     assert not [p.name for p in tmp_path.iterdir() if ".tmp-" in p.name or ".old-" in p.name]
-    if not out.exists():  # interrupted before the simulation could hand anything back
-        return
+    assert not [p.name for p in tmp_path.iterdir() if p.name.startswith("ready.")]
     doc = json.loads((out / "metrics.json").read_text())
     assert doc["status"] == "interrupted" and doc["reason"]
     assert (out / results.PARTIAL_MARKER).is_file() and not results.is_complete(out)

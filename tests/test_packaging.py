@@ -1,0 +1,86 @@
+"""A plain (non-editable) install is a working tool.
+
+The wheel is built from the tracked files (a copy, so the checkout is not
+touched), must contain the MJCF and every shipped scenario, and, installed
+into an empty folder on its own, runs the main job from another empty folder.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+import zipfile
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _tracked_files() -> list[str]:
+    try:
+        out = subprocess.run(
+            ["git", "ls-files"], cwd=ROOT, capture_output=True, text=True, check=True
+        ).stdout
+    except (OSError, subprocess.CalledProcessError):
+        pytest.skip("not a git checkout: the wheel is built from the tracked files")
+    return [line for line in out.splitlines() if (ROOT / line).is_file()]
+
+
+@pytest.fixture(scope="module")
+def wheel(tmp_path_factory) -> Path:
+    src = tmp_path_factory.mktemp("src")
+    for name in _tracked_files():
+        (src / name).parent.mkdir(parents=True, exist_ok=True)
+        shutil.copy2(ROOT / name, src / name)
+    dist = tmp_path_factory.mktemp("dist")
+    proc = subprocess.run(
+        [sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation",
+         "--no-index", "-q", "-w", str(dist), str(src)],
+        capture_output=True, text=True,
+    )  # fmt: skip
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    (whl,) = dist.glob("simpro_sim-*.whl")
+    return whl
+
+
+def test_the_wheel_holds_the_model_and_every_shipped_scenario(wheel):
+    names = set(zipfile.ZipFile(wheel).namelist())
+    assert "simpro_mj/models/simpro_platform.xml" in names
+    shipped = sorted(p.name for p in (ROOT / "simpro_mj" / "scenarios").glob("*.yaml"))
+    assert "step_pitch.yaml" in shipped
+    missing = [s for s in shipped if f"simpro_mj/scenarios/{s}" not in names]
+    assert not missing, missing
+    assert not [n for n in names if n.startswith("tests/")]
+
+
+def test_the_installed_wheel_runs_the_main_job_from_an_empty_folder(wheel, tmp_path):
+    site = tmp_path / "site"
+    proc = subprocess.run(
+        [sys.executable, "-m", "pip", "install", "--no-deps", "--no-index", "-q",
+         "--target", str(site), str(wheel)],
+        capture_output=True, text=True,
+    )  # fmt: skip
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    work = tmp_path / "empty"
+    work.mkdir()
+    # the installed copy, not the checkout: PYTHONPATH comes before the editable finder
+    env = dict(os.environ, PYTHONPATH=str(site), MPLBACKEND="Agg")
+    env.pop("SIMPRO_MODEL", None)
+    env.pop("SIMPRO_SCENARIOS", None)
+    code = (
+        "import sys, simpro_mj, controllers; "
+        "print(simpro_mj.__file__); print(controllers.__file__); "
+        "from simpro_mj.cli import main; sys.exit(main())"
+    )
+    proc = subprocess.run(
+        [sys.executable, "-c", code, "run", "step_pitch.yaml", "--no-plots",
+         "--set", "duration_s=0.3"],
+        cwd=work, env=env, capture_output=True, text=True,
+    )  # fmt: skip
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    first, second = proc.stdout.splitlines()[:2]
+    assert first.startswith(str(site)) and second.startswith(str(site)), proc.stdout
+    assert (work / "results" / "step_pitch" / "metrics.json").is_file()
