@@ -5,7 +5,7 @@ A result folder written by ``simpro-sim run`` holds ``qpos.npz``: the full
 :attr:`simpro_mj.sim.SimResult.qpos`). A replay sets those positions and
 calls ``mj_kinematics``; nothing is simulated again, so what is drawn is
 exactly what was computed. The set-point ghost (the ``ghost`` mocap body of
-``models/simpro_platform.xml``) is posed from the recorded set-point columns
+``simpro_mj/models/simpro_platform.xml``) is posed from the recorded set-point columns
 (``roll_ref_rad``, ``pitch_ref_rad``, ``heave_ref_m``) through the
 controller's nominal kinematics (:func:`controllers.kinematics.platform_position`).
 

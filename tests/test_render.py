@@ -17,7 +17,7 @@ import pytest
 
 from simpro_mj.cli import main
 from simpro_mj.cmd_run import execute
-from simpro_mj.model import load_spec
+from simpro_mj.model import MODEL_PATH, load_spec
 from simpro_mj.scenario import load_scenario
 from simpro_mj.sim import CoSimulation
 
@@ -52,7 +52,7 @@ def test_qpos_recorded_is_the_simulated_state(pitch_run):
     from simpro_mj.render import load_recording
 
     rec = load_recording(pitch_run)
-    m = mujoco.MjModel.from_xml_path(str(Path(__file__).parents[1] / "models/simpro_platform.xml"))
+    m = mujoco.MjModel.from_xml_path(str(MODEL_PATH))
     assert rec.qpos.shape == (len(rec.columns["time_s"]), m.nq) == (3001, 13)
     # timeseries.csv holds 12 significant digits, qpos.npz the float64 bits
     np.testing.assert_allclose(rec.time_s, rec.columns["time_s"], rtol=1e-11, atol=1e-15)
