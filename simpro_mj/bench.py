@@ -65,6 +65,12 @@ def add_arguments(parser) -> None:
     parser.add_argument(
         "--no-batch", action="store_true", help="skip the 1- and 2-worker throughput part"
     )
+    parser.add_argument(
+        "--video",
+        action="store_true",
+        help="instead: time simpro-sim render on a 20 s run at 25 fps, 640x480 with the plot "
+        "strip (--duration changes the run's length; needs simpro-sim[video])",
+    )
 
 
 def _positive_int(value, field: str) -> int:
@@ -344,6 +350,19 @@ def run(args) -> int:
     if args.duration is not None:
         sets.append(f"duration_s={_duration(args.duration)!r}")
     scenario = load_scenario(args.scenario, sets)
+    if args.video:
+        from .render import benchmark, benchmark_table
+
+        if args.duration is None:
+            scenario["duration_s"] = 20.0
+        result = benchmark(scenario, progress=not args.json)
+        if args.json:
+            from .cli import emit_json
+
+            emit_json(result)
+        else:
+            print(benchmark_table(result))
+        return 0
     progress = None if args.json else (lambda msg: print(f"  {msg}", file=sys.stderr))
     result = measure(scenario, repeats, batch=not args.no_batch, batch_runs=runs, log=progress)
     if args.json:

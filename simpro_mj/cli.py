@@ -41,6 +41,7 @@ COMMANDS = {
     "batch": "simpro_mj.batch",
     "bench": "simpro_mj.bench",
     "render": "simpro_mj.cmd_render",
+    "view": "simpro_mj.cmd_view",
 }
 
 

@@ -15,6 +15,9 @@ def add_arguments(parser) -> None:
         "--out", default=None, help="result folder (default results/<name>-compare)"
     )
     parser.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
+    from .cmd_render import add_video_flag
+
+    add_video_flag(parser)
 
 
 def compare(scenario: dict, out: Path, plots: bool = True, *, quiet: bool = False) -> dict:
@@ -78,6 +81,10 @@ def run(args) -> int:
     from .scenario import load_scenario
 
     scenario = load_scenario(args.scenario, args.sets)
+    if args.video:
+        from .render import require_video
+
+        require_video()  # the install hint before the run, not after it
     out = Path(args.out) if args.out else Path("results") / f"{scenario['name']}-compare"
     with claim(out, "compare", inputs=[args.scenario]), sigterm_as_interrupt():
         out.mkdir(parents=True, exist_ok=True)
@@ -102,4 +109,8 @@ def run(args) -> int:
             if met["status"] != "ok":
                 print(f"{mode} DIVERGED: {met['reason']}")
         print(f"results: {out}")
+    if args.video:  # both runs side by side
+        from .cmd_render import video_after_run
+
+        video_after_run(out, quiet=args.json)
     return 0 if all(m["status"] == "ok" for m in metrics.values()) else 1

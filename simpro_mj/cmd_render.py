@@ -149,6 +149,39 @@ def video_options(args, default_out: Path) -> dict:
     }
 
 
+def add_video_flag(parser) -> None:
+    """``run/compare --video``: render the result at the end, with render's defaults."""
+    parser.add_argument(
+        "--video",
+        action="store_true",
+        help="also render the result to OUT/replay.mp4 (simpro-sim render's defaults; "
+        "needs simpro-sim[video]; simpro-sim render OUT for other options)",
+    )
+
+
+def video_after_run(folder, quiet: bool) -> dict:
+    """Render a finished run or compare folder to ``folder/replay.mp4``."""
+    import sys
+
+    from .render import find_runs, render_video
+
+    folder = Path(folder)
+    info = render_video(
+        find_runs(folder), folder / "replay.mp4", progress=not quiet and sys.stderr.isatty()
+    )
+    if not quiet:
+        print(_said(info))
+    return info
+
+
+def _said(info: dict) -> str:
+    return (
+        f"video: {info['out']} ({info['frames']} frames, {info['width']}x{info['height']}, "
+        f"{info['fps']:g} fps, camera {info['camera']}; {info['wall_s']:.1f} s with "
+        f"{info['workers']} workers, MUJOCO_GL={info['gl']})"
+    )
+
+
 def run(args) -> int:
     import sys
 
@@ -164,9 +197,5 @@ def run(args) -> int:
 
         emit_json(info)
     else:
-        print(
-            f"video: {info['out']} ({info['frames']} frames, {info['width']}x{info['height']}, "
-            f"{info['fps']:g} fps, camera {info['camera']}; {info['wall_s']:.1f} s with "
-            f"{info['workers']} workers, MUJOCO_GL={info['gl']})"
-        )
+        print(_said(info))
     return 0

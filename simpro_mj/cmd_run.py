@@ -32,6 +32,9 @@ def add_arguments(parser) -> None:
     parser.add_argument("scenario", help="shipped scenario name (e.g. step_pitch.yaml) or a path")
     parser.add_argument("--out", default=None, help="result folder (default results/<name>)")
     parser.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
+    from .cmd_render import add_video_flag
+
+    add_video_flag(parser)
 
 
 def _warn(lines, quiet: bool) -> None:
@@ -219,6 +222,10 @@ def run(args) -> int:
     from .scenario import load_scenario
 
     scenario = load_scenario(args.scenario, args.sets)
+    if args.video:
+        from .render import require_video
+
+        require_video()  # the install hint before the run, not after it
     out = Path(args.out) if args.out else Path("results") / scenario["name"]
     # refused (exit 2) before anything runs: not ours to replace, or busy
     with claim(out, "run", inputs=[args.scenario]), sigterm_as_interrupt():
@@ -234,4 +241,8 @@ def run(args) -> int:
     if res.status == "interrupted":
         sys.stderr.write(f"error: {interrupted_message(res, out)}\n")
         return EXIT_INTERRUPTED
+    if args.video:  # a diverged run too: its motion up to the divergence
+        from .cmd_render import video_after_run
+
+        video_after_run(res.folder, quiet=args.json)
     return 0 if res.status == "ok" else 1

@@ -41,10 +41,15 @@ __all__ = [
     "load_recording",
     "frame_times",
     "ReplayScene",
+    "replay_model",
+    "pose_data",
+    "recording_of",
     "plot_strip",
     "render_video",
     "require_video",
     "VIDEO_HINT",
+    "benchmark",
+    "benchmark_table",
 ]
 
 #: Named cameras of the MJCF, the first the default.
@@ -146,6 +151,16 @@ def load_recording(folder) -> Recording:
     return Recording(folder.name, folder, t, q, names, columns, scenario)
 
 
+def recording_of(result) -> Recording:
+    """A :class:`Recording` of a run still in memory (:class:`simpro_mj.sim.SimResult`)."""
+    if result.qpos is None:
+        raise UserInputError("no recorded motion in this run: allowed: a run of this version")
+    name = str(result.scenario.get("name", "run"))
+    t = result.columns["time_s"]
+    return Recording(name, Path(name), t, result.qpos, result.qpos_names, result.columns,
+                     result.scenario)  # fmt: skip
+
+
 def frame_times(start: float, end: float, fps: float, speed: float) -> np.ndarray:
     """Simulated time of each frame: ``start + i * speed / fps`` while < ``end``.
 
@@ -186,6 +201,32 @@ def ghost_poses(columns: dict, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray
 # ---------------------------------------------------------------- the 3D view
 
 
+def replay_model(scenario: dict):
+    """The run's plant (its ``plant`` parameters) as ``(MjModel, MjData)``."""
+    import mujoco
+
+    from .model import load_model
+
+    model = load_model(scenario.get("plant"))
+    return model, mujoco.MjData(model)
+
+
+def pose_data(model, data, qpos, ghost_pos=None, ghost_quat=None) -> None:
+    """Put a recorded ``qpos`` (and the ghost's pose) into ``data``; no physics.
+
+    ``mj_kinematics`` places the bodies, ``mj_camlight`` the cameras and
+    lights that follow them; nothing else is computed, nothing integrated.
+    """
+    import mujoco
+
+    data.qpos[:] = qpos
+    if ghost_pos is not None:
+        data.mocap_pos[0] = ghost_pos
+        data.mocap_quat[0] = ghost_quat
+    mujoco.mj_kinematics(model, data)
+    mujoco.mj_camlight(model, data)
+
+
 class ReplayScene:
     """A recorded run posed at given rows and drawn by :class:`mujoco.Renderer`.
 
@@ -215,28 +256,18 @@ class ReplayScene:
     ):
         import mujoco
 
-        from .model import load_model
-
-        self.model = m = load_model(scenario.get("plant"))
+        self.model, self.data = m, _ = replay_model(scenario)
         m.vis.global_.offwidth = max(int(m.vis.global_.offwidth), width)
         m.vis.global_.offheight = max(int(m.vis.global_.offheight), height)
-        self.data = mujoco.MjData(m)
         self.camera = camera
         self.renderer = mujoco.Renderer(m, height, width)
         self.option = mujoco.MjvOption()
         self.option.geomgroup[1] = 1 if ghost else 0
         self.renderer.scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = bool(shadows)
-        self._kin, self._camlight = mujoco.mj_kinematics, mujoco.mj_camlight
 
     def pose(self, qpos, ghost_pos=None, ghost_quat=None) -> None:
-        """Set the recorded ``qpos`` (and the ghost's pose) and update the kinematics."""
-        d = self.data
-        d.qpos[:] = qpos
-        if ghost_pos is not None:
-            d.mocap_pos[0] = ghost_pos
-            d.mocap_quat[0] = ghost_quat
-        self._kin(self.model, d)  # body poses from qpos ...
-        self._camlight(self.model, d)  # ... and the cameras and lights that follow them
+        """Set the recorded ``qpos`` (and the ghost's pose): :func:`pose_data`."""
+        pose_data(self.model, self.data, qpos, ghost_pos, ghost_quat)
 
     def render(self) -> np.ndarray:
         """RGB image (height, width, 3) uint8 of the current pose."""
@@ -555,3 +586,68 @@ class _ffmpeg_writer:  # noqa: N801 - a small closable writer
 
     def close(self) -> None:
         self._gen.close()
+
+
+# ---------------------------------------------------------------- benchmark
+
+#: The issue's target for the benchmark below (s, on a 2-core machine).
+BENCH_TARGET_S = 90.0
+
+
+def benchmark(scenario: dict, *, fps=25.0, size=(640, 480), jobs=None, progress=True) -> dict:
+    """Time a replay video of a run (``simpro-sim bench --video``).
+
+    The scenario is run first (not timed) into a temporary folder, then
+    rendered with the plot strip and the ghost; ``render_s`` is the wall time
+    of :func:`render_video` from the start of the worker processes to the
+    closed MP4 (strip drawing, encoding and worker start-up included).
+    """
+    import shutil
+
+    from .bench import machine
+    from .cmd_run import execute
+
+    require_video()
+    tmp = Path(tempfile.mkdtemp(prefix="simpro-video-bench-"))
+    try:
+        execute(scenario, tmp / "run", plots=False, quiet=True)
+        info = render_video([tmp / "run"], tmp / "run" / "replay.mp4", fps=fps, size=size,
+                            jobs=jobs, progress=progress)  # fmt: skip
+        mb = (tmp / "run" / "replay.mp4").stat().st_size / 1e6
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    return {
+        "scenario": scenario.get("name"),
+        "duration_s": scenario["duration_s"],
+        "fps": fps,
+        "size": f"{size[0]}x{size[1]}",
+        "video_size": f"{info['width']}x{info['height']}",
+        "frames": info["frames"],
+        "workers": info["workers"],
+        "gl": info["gl"],
+        "render_s": info["wall_s"],
+        "s_per_frame": info["s_per_frame"],
+        "worker_s_per_frame": info["s_per_frame"] * info["workers"],
+        "mp4_mb": mb,
+        "target_s": BENCH_TARGET_S,
+        "within_target": info["wall_s"] <= BENCH_TARGET_S,
+        "machine": machine(),
+    }
+
+
+def benchmark_table(r: dict) -> str:
+    m = r["machine"]
+    return "\n".join(
+        [
+            f"video benchmark: {r['scenario']}, {r['duration_s']:g} s at {r['fps']:g} fps, "
+            f"{r['size']} view + plot strip ({r['video_size']}), ghost on",
+            f"  frames            {r['frames']}",
+            f"  workers           {r['workers']} (MUJOCO_GL={r['gl']})",
+            f"  render wall time  {r['render_s']:.1f} s (target <= {r['target_s']:g} s: "
+            f"{'met' if r['within_target'] else 'NOT met'})",
+            f"  per frame         {r['s_per_frame']:.3f} s wall, "
+            f"{r['worker_s_per_frame']:.3f} s per worker",
+            f"  MP4               {r['mp4_mb']:.1f} MB",
+            f"  machine           {m['cpu']}, {m['cores']} cores, MuJoCo {m['mujoco']}",
+        ]
+    )

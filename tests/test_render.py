@@ -236,3 +236,74 @@ def test_missing_video_extra_says_how_to_install(pitch_run, monkeypatch, capsys)
     assert main(["render", str(pitch_run)]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "simpro-sim[video]" in err
+
+
+# ---------------------------------------------------------------- run --video, view
+
+
+def test_run_with_video_renders_at_the_end(tmp_path, capsys):
+    iio = pytest.importorskip("imageio.v3")
+    out = tmp_path / "run"
+    code = main(["run", "step_pitch.yaml", "--set", "duration_s=0.2", "--no-plots", "--out",
+                 str(out), "--video"])  # fmt: skip
+    if code == 2 and "cannot render" in capsys.readouterr().err:
+        pytest.skip("no offscreen OpenGL")
+    assert code == 0
+    assert (out / "metrics.json").is_file()
+    assert iio.imread(out / "replay.mp4").shape == (5, 720, 640, 3)  # 0.2 s at 25 fps
+
+
+def test_view_without_display_suggests_render(monkeypatch, capsys):
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    monkeypatch.setattr(sys, "platform", "linux")
+    assert main(["view", "step_pitch.yaml"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "no display" in err and "simpro-sim render" in err
+
+
+class _FakeViewer:
+    """What play() uses of a launch_passive handle, recording what it was shown."""
+
+    def __init__(self, frames_open: int):
+        import contextlib
+
+        self.left, self.texts, self.qpos, self.mocap = frames_open, [], [], []
+        self.opt = mujoco.MjvOption()
+        self.lock = contextlib.nullcontext
+        self.data = None
+
+    def is_running(self):
+        self.left -= 1
+        return self.left >= 0
+
+    def set_texts(self, texts):
+        self.texts.append(texts[2])
+
+    def sync(self):
+        self.qpos.append(self.data.qpos.copy())
+        self.mocap.append(self.data.mocap_quat[0].copy())
+
+
+def test_view_plays_the_recording_paced_by_the_clock(pitch_run):
+    """play(): row nearest to start + speed * elapsed, ghost posed, overlay with the pose."""
+    from simpro_mj.cmd_view import play
+    from simpro_mj.render import load_recording, replay_model
+
+    rec = load_recording(pitch_run)
+    model, data = replay_model(rec.scenario)
+    viewer = _FakeViewer(frames_open=40)
+    viewer.data = data
+    ticks = iter(np.arange(0.0, 10.0, 0.1))  # a clock advancing 0.1 s per call
+    shown = play(viewer, model, data, rec, speed=0.5, start=0.5, clock=lambda: next(ticks),
+                 sleep=lambda s: None)  # fmt: skip
+    # 0.05 s of simulated time per clock tick: 0.55, 0.60, ... 2.50 s, one new row each
+    assert shown == 40
+    assert viewer.texts[0].startswith("t   0.550 s")
+    assert viewer.texts[-1].startswith("t   2.500 s")
+    assert viewer.qpos[0] == pytest.approx(rec.qpos[550], abs=0)
+    assert viewer.qpos[-1] == pytest.approx(rec.qpos[2500], abs=0)
+    assert "pitch" in viewer.texts[-1] and "(set +3.000)" in viewer.texts[-1]
+    # the ghost follows the set-point: identity before the step, pitched 3 deg after it
+    assert viewer.mocap[0] == pytest.approx([1, 0, 0, 0])
+    assert 2 * math.degrees(math.asin(viewer.mocap[-1][2])) == pytest.approx(3.0, abs=1e-9)
