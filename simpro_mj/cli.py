@@ -108,8 +108,30 @@ def _one_line(exc: BaseException) -> str:
     return " ".join(str(exc).split())
 
 
+def _check_gl_backend() -> str | None:
+    """MuJoCo loads the OpenGL backend named by ``MUJOCO_GL`` when first imported:
+    a backend whose library is missing makes that import fail (one line, not a
+    traceback). Returns the message, or None."""
+    try:
+        import mujoco  # noqa: F401
+    except Exception as exc:  # noqa: BLE001 - only MUJOCO_GL can break this import
+        from .render import GL_LIBRARIES
+
+        gl = os.environ.get("MUJOCO_GL", "")
+        lib = GL_LIBRARIES.get(gl.strip().lower(), "its OpenGL library")
+        return (
+            f"cannot load MuJoCo with MUJOCO_GL={gl!r} (needs {lib}): {type(exc).__name__}: "
+            f"{_one_line(exc)}; allowed: MUJOCO_GL unset, or a backend whose library is installed"
+        )
+    return None
+
+
 def main(argv=None) -> int:
     os.environ.setdefault("MPLBACKEND", "Agg")
+    problem = _check_gl_backend()
+    if problem:
+        sys.stderr.write(f"error: {problem}\n")
+        return 2
     parser, _ = build_parser()
     try:
         args = parser.parse_args(argv)

@@ -96,6 +96,11 @@ def _out_path(value, default: Path) -> Path:
         raise UserInputError(
             f"invalid value at --out: {out} is a folder; allowed: an .mp4 file path"
         )
+    if any(p.exists() and not p.is_dir() for p in out.parents):
+        raise UserInputError(
+            f"cannot write at --out: {out}: a parent is a file, not a folder; "
+            "allowed: a writable .mp4 path"
+        )
     try:
         out.parent.mkdir(parents=True, exist_ok=True)
     except OSError as exc:

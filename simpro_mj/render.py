@@ -59,7 +59,7 @@ VIDEO_HINT = "pip install 'simpro-sim[video]' (imageio and imageio-ffmpeg)"
 RECORDING_FILE = "qpos.npz"
 #: Backends tried in order when ``MUJOCO_GL`` is not set.
 GL_BACKENDS = ("egl", "osmesa")
-_GL_LIBRARIES = {"egl": "libEGL (Debian: libegl1)", "osmesa": "libOSMesa (Debian: libosmesa6)"}
+GL_LIBRARIES = {"egl": "libEGL (Debian: libegl1)", "osmesa": "libOSMesa (Debian: libosmesa6)"}
 #: Height of the plot strip as a fraction of the 3D view's height.
 STRIP_FRACTION = 0.5
 GHOST_BODY = "ghost"
@@ -364,7 +364,10 @@ _WORKER: dict = {}
 
 
 def _worker_init(jobs: list, width: int, height: int, camera: str, ghost, shadows, gl: str):
+    import warnings
+
     os.environ["MUJOCO_GL"] = gl  # before MuJoCo is imported in this (spawned) process
+    warnings.simplefilter("ignore")  # GLFW/OpenGL warnings: a failure is reported in one line
     _WORKER["error"] = None
     try:
         _WORKER["scenes"] = [
@@ -425,7 +428,7 @@ def _start_pool(jobs: list, width, height, camera, ghost, shadows, workers: int)
         if err is None:
             return pool, gl
         pool.shutdown(cancel_futures=True)
-        lib = _GL_LIBRARIES.get(gl, "its OpenGL library")
+        lib = GL_LIBRARIES.get(gl, "its OpenGL library")
         why.append(f"MUJOCO_GL={gl} needs {lib}: {err}")
     raise UserInputError(
         "cannot render offscreen: " + "; ".join(why) + "; allowed: a machine with Mesa's EGL "

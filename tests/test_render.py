@@ -307,3 +307,22 @@ def test_view_plays_the_recording_paced_by_the_clock(pitch_run):
     # the ghost follows the set-point: identity before the step, pitched 3 deg after it
     assert viewer.mocap[0] == pytest.approx([1, 0, 0, 0])
     assert 2 * math.degrees(math.asin(viewer.mocap[-1][2])) == pytest.approx(3.0, abs=1e-9)
+
+
+def test_gl_backend_falls_back_and_names_what_is_missing(pitch_run, tmp_path, monkeypatch, capsys):
+    """A backend that cannot start is skipped for the next; none working: one line, exit 2."""
+    from simpro_mj import render
+
+    _scene(pitch_run, 16, 16)[1].close()
+    monkeypatch.delenv("MUJOCO_GL", raising=False)
+    monkeypatch.delenv("DISPLAY", raising=False)  # so glx cannot start, on any machine
+    monkeypatch.setattr(render, "GL_BACKENDS", ("glx", "egl"))  # no X display here: glx fails
+    info = render.render_video([pitch_run], tmp_path / "a.mp4", size=(32, 32), end=0.08,
+                               plots=False, jobs=1, progress=False)  # fmt: skip
+    assert info["gl"] == "egl" and info["frames"] == 2
+    monkeypatch.setattr(render, "GL_BACKENDS", ("glx",))
+    code = main(["render", str(pitch_run), "--size", "32x32", "--end", "0.08", "--jobs", "1",
+                 "--out", str(tmp_path / "b.mp4")])  # fmt: skip
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1 and "MUJOCO_GL=glx" in err
+    assert not (tmp_path / "b.mp4").exists()
