@@ -1,0 +1,102 @@
+"""The Python API (``import simpro_mj as s; s.run(...)``)."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import simpro_mj as s
+from simpro_mj.scenario import load_scenario
+from simpro_mj.sim import simulate
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _python(code: str, cwd: Path) -> subprocess.CompletedProcess:
+    env = dict(os.environ, PYTHONPATH=str(ROOT), MPLBACKEND="Agg")
+    return subprocess.run(
+        [sys.executable, "-c", code], cwd=cwd, env=env, capture_output=True, text=True
+    )
+
+
+def test_importing_the_package_or_the_controllers_does_not_import_mujoco(tmp_path):
+    proc = _python(
+        "import sys, simpro_mj, controllers, controllers.kinematics, controllers.analysis; "
+        "print('mujoco' in sys.modules)",
+        tmp_path,
+    )
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.strip() == "False"
+
+
+def test_the_issue_example_runs_from_any_folder(tmp_path):
+    proc = _python(
+        "import simpro_mj as s; print(s.run('step_pitch', {'duration_s': 2}).metrics)",
+        tmp_path,
+    )
+    assert proc.returncode == 0, proc.stderr
+    assert "'status': 'ok'" in proc.stdout
+    assert list(tmp_path.iterdir()) == []  # nothing written without out=
+
+
+def test_run_is_the_simulation_of_the_resolved_scenario():
+    r = s.run("step_pitch", {"duration_s": 0.5, "controller.outer.type": "PI"})
+    assert r.scenario["controller"]["outer"]["type"] == "PI"
+    assert r.status == "ok" and r.reason is None
+    direct = simulate(load_scenario("step_pitch", ["duration_s=0.5", "controller.outer.type=PI"]))
+    assert r.columns.keys() == direct.columns.keys()
+    for k, v in direct.columns.items():
+        assert np.array_equal(r.columns[k], v), k
+    assert r.columns["time_s"][-1] == pytest.approx(0.5)
+    json.dumps(r.metrics)  # plain JSON types, as metrics.json
+
+
+def test_a_mapping_scenario_and_compare():
+    doc = {"duration_s": 0.4, "setpoint": {"pitch_deg": [{"type": "step", "time_s": 0.1,
+                                                          "value": 1.0}]}}  # fmt: skip
+    both = s.compare(doc)
+    assert set(both) == {"joint_only", "task_space"}
+    assert both["joint_only"].scenario["controller"]["mode"] == "joint_only"
+    assert both["task_space"].scenario["controller"]["mode"] == "task_space"
+    # the same plant and seed: the two runs differ only by the controller
+    a, b = both["joint_only"].columns, both["task_space"].columns
+    assert np.array_equal(a["pitch_ref_rad"], b["pitch_ref_rad"])
+    assert not np.array_equal(a["q1_ref_m"], b["q1_ref_m"])
+
+
+def test_out_writes_the_result_folder(tmp_path):
+    r = s.run("step_pitch", {"duration_s": 0.3}, out=tmp_path / "r")
+    assert r.out == tmp_path / "r"
+    doc = json.loads((tmp_path / "r" / "metrics.json").read_text())
+    assert doc["status"] == r.status == "ok"
+
+
+@pytest.mark.parametrize(
+    "overrides, words",
+    [
+        ({"duration_s": "long"}, ["duration_s", "allowed"]),
+        ({"no_such.key": 1}, ["unknown key", "allowed keys"]),
+        ({"duration_s": float("nan")}, ["duration_s", "allowed"]),
+        ([("duration_s", 1)], ["overrides", "mapping"]),
+    ],
+)
+def test_mistakes_raise_one_line_user_input_errors(overrides, words):
+    with pytest.raises(s.UserInputError) as info:
+        s.run("step_pitch", overrides)
+    msg = str(info.value)
+    assert "\n" not in msg and all(w in msg for w in words), msg
+    assert isinstance(info.value, ValueError)
+
+
+def test_result_to_frame():
+    pd = pytest.importorskip("pandas")
+    r = s.run("step_pitch", {"duration_s": 0.05})
+    df = r.to_frame()
+    assert isinstance(df, pd.DataFrame) and df.index.name == "time_s"
+    assert len(df) == len(r.columns["time_s"])
