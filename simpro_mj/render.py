@@ -363,13 +363,20 @@ def draw_cursor(strip: np.ndarray, boxes, frac: float) -> np.ndarray:
 _WORKER: dict = {}
 
 
-def _worker_init(jobs: list, width: int, height: int, camera: str, ghost, shadows, gl: str):
+def _worker_init(jobs_file: str, width: int, height: int, camera: str, ghost, shadows, gl: str):
+    import pickle
+    import signal
     import warnings
 
+    # Ctrl-C reaches the whole process group: the parent stops the pool and removes
+    # the partial video; a worker must not die with a traceback of its own
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     os.environ["MUJOCO_GL"] = gl  # before MuJoCo is imported in this (spawned) process
     warnings.simplefilter("ignore")  # GLFW/OpenGL warnings: a failure is reported in one line
     _WORKER["error"] = None
     try:
+        with open(jobs_file, "rb") as fh:
+            jobs = pickle.load(fh)
         _WORKER["scenes"] = [
             ReplayScene(job["scenario"], width, height, camera, ghost, shadows) for job in jobs
         ]
@@ -405,7 +412,7 @@ def _gl_candidates() -> tuple[str, ...]:
     return (user,) if user else GL_BACKENDS
 
 
-def _start_pool(jobs: list, width, height, camera, ghost, shadows, workers: int):
+def _start_pool(jobs_file: str, width, height, camera, ghost, shadows, workers: int):
     """A spawned pool whose workers can all render; tries the GL backends in order."""
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor
@@ -418,7 +425,7 @@ def _start_pool(jobs: list, width, height, camera, ghost, shadows, workers: int)
             max_workers=workers,
             mp_context=ctx,
             initializer=_worker_init,
-            initargs=(jobs, width, height, camera, ghost, shadows, gl),
+            initargs=(jobs_file, width, height, camera, ghost, shadows, gl),
         )
         try:
             errors = list(pool.map(_probe, range(workers)))
@@ -516,7 +523,18 @@ def render_video(
     workers = max(1, min(jobs or os.cpu_count() or 1, n))
     chunk = max(1, min(8, n // (4 * workers) or 1))
     wall0 = time.perf_counter()
-    pool, gl = _start_pool(wjobs, width, height, camera, ghost, shadows, workers)
+    # the workers read their jobs (poses, strips) from a file: what goes down the spawn
+    # pipe stays a few hundred bytes, so a Ctrl-C during start-up cannot truncate it
+    import pickle
+
+    fd, jobs_file = tempfile.mkstemp(prefix="simpro-render-", suffix=".pkl")
+    with os.fdopen(fd, "wb") as fh:
+        pickle.dump(wjobs, fh, protocol=pickle.HIGHEST_PROTOCOL)
+    try:
+        pool, gl = _start_pool(jobs_file, width, height, camera, ghost, shadows, workers)
+    except BaseException:
+        os.unlink(jobs_file)
+        raise
     tmp = None
     try:
         fd, name = tempfile.mkstemp(prefix=f".{out.stem}.tmp-", suffix=".mp4", dir=out.parent)
@@ -536,10 +554,14 @@ def render_video(
         finally:
             writer.close()
             bar.close()
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)  # mkstemp's 0600 -> what a plain open would give
         os.replace(tmp, out)
         tmp = None
     finally:
         pool.shutdown(cancel_futures=True)
+        os.unlink(jobs_file)
         if tmp is not None:
             tmp.unlink(missing_ok=True)
     wall = time.perf_counter() - wall0
@@ -583,12 +605,23 @@ class _ffmpeg_writer:  # noqa: N801 - a small closable writer
             ffmpeg_log_level="error",
         )
         self._gen.send(None)
+        self.frames = 0
 
     def send(self, frame: np.ndarray) -> None:
         self._gen.send(frame)
+        self.frames += 1
 
     def close(self) -> None:
-        self._gen.close()
+        import logging
+
+        log = logging.getLogger("imageio_ffmpeg")
+        level = log.level
+        if not self.frames:  # stopped before the first frame: the file is removed anyway
+            log.setLevel(logging.ERROR)
+        try:
+            self._gen.close()
+        finally:
+            log.setLevel(level)
 
 
 # ---------------------------------------------------------------- benchmark

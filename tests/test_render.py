@@ -326,3 +326,31 @@ def test_gl_backend_falls_back_and_names_what_is_missing(pitch_run, tmp_path, mo
     err = capsys.readouterr().err
     assert code == 2 and err.count("\n") == 1 and "MUJOCO_GL=glx" in err
     assert not (tmp_path / "b.mp4").exists()
+
+
+def test_interrupted_render_leaves_no_file(pitch_run, tmp_path, monkeypatch):
+    """Ctrl-C while frames arrive: KeyboardInterrupt, no video, no temporary file left."""
+    import tempfile
+
+    from simpro_mj import render
+
+    _scene(pitch_run, 16, 16)[1].close()
+    calls = []
+
+    def drain_then_stop(future, writer, bar):
+        calls.append(1)
+        if len(calls) == 2:
+            raise KeyboardInterrupt
+        for frame in future.result():
+            writer.send(frame)
+
+    monkeypatch.setattr(render, "_drain", drain_then_stop)
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))  # where the jobs file goes
+    out = tmp_path / "v" / "clip.mp4"
+    out.parent.mkdir()
+    with pytest.raises(KeyboardInterrupt):
+        render.render_video([pitch_run], out, size=(32, 32), fps=25, end=1.0, plots=False,
+                            jobs=1, progress=False)  # fmt: skip
+    assert calls == [1, 1]
+    assert list(out.parent.iterdir()) == []  # neither clip.mp4 nor .clip.tmp-*.mp4
+    assert not list(tmp_path.glob("simpro-render-*.pkl"))
