@@ -34,13 +34,14 @@ import numpy as np
 
 from .design import (
     ACTUATORS,
-    PLANTS,
+    DEFAULT_READING,
     JointDesign,
     Plant,
     closed_loop_poles,
     closed_loop_tf,
     damping,
     design_for,
+    paper_plant,
 )
 from .joint import discretise, leg_state_space
 
@@ -261,11 +262,22 @@ def step_metrics(t, y, final: float | None = None, settle: float = 0.02) -> dict
 
 
 def inner_summary(
-    actuator: str, variant: str, t_end: float = 3.0, dt: float = 1e-3, spec=None
+    actuator: str,
+    variant: str,
+    t_end: float = 3.0,
+    dt: float = 1e-3,
+    spec=None,
+    reading: str = DEFAULT_READING,
 ) -> dict:
-    """Closed-loop poles, damping and step metrics of one continuous joint loop."""
-    plant = PLANTS[actuator]
-    des = design_for(actuator, variant, **(dict(spec or {}) if variant == "redesigned" else {}))
+    """Closed-loop poles, damping and step metrics of one continuous joint loop.
+
+    The plant is eq. (34)/(35) and the controller eq. (36)/(37) in SI under
+    ``reading`` (:data:`controllers.design.READINGS`); the closed loop does
+    not depend on the reading (``k_p b`` does not), the printed ``k_p`` does.
+    """
+    plant = paper_plant(actuator, reading)
+    spec = dict(spec or {}) if variant == "redesigned" else {}
+    des = design_for(actuator, variant, plant=plant, reading=reading, **spec)
     poles = closed_loop_poles(des, plant)
     wn, zeta = damping(poles)
     num, den = closed_loop_tf(des, plant)
@@ -326,14 +338,17 @@ def _blockdiag(mats):
     return out
 
 
-def _legs(variant, dt, method, actuators, legs=None, spec=None):
+def _legs(variant, dt, method, actuators, legs=None, spec=None, reading=DEFAULT_READING):
+    """The joint loops on eqs. (34)-(35) in SI under ``reading`` (or ``legs`` as given)."""
     if legs is not None:
         return [tuple(np.atleast_2d(np.asarray(m, float)) for m in leg) for leg in legs]
     spec = dict(spec or {}) if variant == "redesigned" else {}
-    return [
-        inner_discrete_loop(design_for(act, variant, **spec), PLANTS[act], dt, method)
-        for act in actuators
-    ]
+    out = []
+    for act in actuators:
+        plant = paper_plant(act, reading)
+        des = design_for(act, variant, plant=plant, reading=reading, **spec)
+        out.append(inner_discrete_loop(des, plant, dt, method))
+    return out
 
 
 def lifted_inner(

@@ -33,6 +33,23 @@ The plant's quadratic stays a closed-loop mode (cancelled, so it is not seen
 from the reference but it is excited by load disturbances): for actuators 2-3
 it is ``zeta = 0.099, wn = 36.7 rad/s``.
 
+Units of eqs. (34)-(37): the paper's reading
+--------------------------------------------
+The paper prints its plants and controllers without units. Two readings
+(:data:`READINGS`, one parameter everywhere eqs. 34-37 are used):
+
+* ``"volts"`` (default): Y is the joint potentiometer's signal in volts, as
+  the rig reads it through the MF624 (section 5): 10 V over the 500 mm
+  stroke, :data:`POTENTIOMETER_V_PER_M` = 20 V/m. In SI the plant gain is
+  ``b / 20`` (m s^-3 V^-1) and the controller gain ``20 k_p`` (V/m).
+* ``"metres"``: Y in metres, the numbers used as printed.
+
+``k_p b`` (the reduced loop of eq. 29) is the same under both readings; the
+reading matters wherever a paper number meets the SI plant of this
+simulation. :data:`PLANTS` and :data:`PRINTED` are the paper's numbers as
+printed; :func:`paper_plant` and the ``reading`` argument of the design
+functions give them in SI.
+
 Only numpy is imported here.
 """
 
@@ -49,6 +66,13 @@ __all__ = [
     "JointDesign",
     "PLANTS",
     "PRINTED",
+    "READINGS",
+    "DEFAULT_READING",
+    "POTENTIOMETER_V_PER_M",
+    "paper_scale",
+    "paper_units_info",
+    "paper_coefficients",
+    "paper_plant",
     "PAPER_SPEC",
     "printed_design",
     "corrected_design",
@@ -65,6 +89,12 @@ __all__ = [
 
 ACTUATORS = ("actuator1", "actuator2", "actuator3")
 VARIANTS = ("printed", "corrected", "redesigned")
+
+#: Readings of the unit of Y in eqs. (34)-(37) (module docstring).
+READINGS = ("volts", "metres")
+DEFAULT_READING = "volts"
+#: Joint potentiometer: 10 V over the 500 mm stroke of the DNC-125-500 (section 5).
+POTENTIOMETER_V_PER_M = 10.0 / 0.5
 
 
 @dataclass(frozen=True)
@@ -130,17 +160,64 @@ def _check_actuator(actuator: str) -> None:
         raise DesignError(f"unknown actuator {actuator!r}; allowed: {list(ACTUATORS)}")
 
 
-def printed_design(actuator: str) -> JointDesign:
-    """Eq. (36) (actuator1) or eq. (37) (actuator2, actuator3) exactly as printed."""
+def paper_scale(reading: str = DEFAULT_READING) -> float:
+    """Volts of eqs. (34)-(37)'s Y per metre of slide: 20 (``"volts"``) or 1 (``"metres"``)."""
+    if reading == "volts":
+        return POTENTIOMETER_V_PER_M
+    if reading == "metres":
+        return 1.0
+    raise DesignError(f"unknown units reading {reading!r}; allowed: {list(READINGS)}")
+
+
+def paper_units_info(reading: str = DEFAULT_READING) -> dict:
+    """What ``reading`` means, for reports: ``{reading, y_per_metre, y_unit}``."""
+    scale = paper_scale(reading)
+    unit = "V (joint potentiometer, 10 V / 500 mm)" if reading == "volts" else "m"
+    return {"reading": reading, "y_per_metre": scale, "y_unit": unit}
+
+
+def paper_coefficients(reading: str = DEFAULT_READING) -> tuple[list, list, list]:
+    """``(b, a1, a0)`` per actuator (lists of 3) of eqs. (34)-(35) in SI under ``reading``."""
+    plants = [paper_plant(a, reading) for a in ACTUATORS]
+    return [p.b for p in plants], [p.a1 for p in plants], [p.a0 for p in plants]
+
+
+def paper_plant(actuator: str, reading: str = DEFAULT_READING) -> Plant:
+    """Eq. (34) or (35) in SI (m per V) under ``reading``: ``b / paper_scale(reading)``."""
     _check_actuator(actuator)
-    return PRINTED[actuator]
+    p = PLANTS[actuator]
+    return replace(p, b=p.b / paper_scale(reading))
+
+
+def printed_design(actuator: str, reading: str | None = None) -> JointDesign:
+    """Eq. (36) (actuator1) or eq. (37) (actuator2, actuator3) exactly as printed.
+
+    ``reading=None`` returns the printed numbers (paired with :data:`PLANTS`);
+    a reading returns the controller in SI (V per m): ``k_p paper_scale(reading)``.
+    """
+    _check_actuator(actuator)
+    d = PRINTED[actuator]
+    return d if reading is None else replace(d, kp=d.kp * paper_scale(reading))
 
 
 def corrected_design(actuator: str, plant: Plant | None = None) -> JointDesign:
-    """Eqs. (36)-(37) with the numerator quadratic set to the plant's (7.726 -> a1)."""
+    """Eqs. (36)-(37) with the numerator quadratic set to ``plant``'s (7.726 -> a1).
+
+    The paper's design is a pole placement on the cancelled loop, which
+    depends on ``k_p b`` only (eq. 29). On a plant other than the printed one
+    the gain is rescaled to keep the printed product: ``k_p = 265 x 245.94 / b``
+    (actuator 1), ``32 x 2008.3 / b`` (2-3). On :func:`paper_plant` under a
+    reading this is the printed ``k_p`` in that reading's units (``20 k_p``
+    V/m for ``"volts"``); on an identified plant it keeps the printed design's
+    closed-loop poles.
+    """
     _check_actuator(actuator)
     p = PLANTS[actuator] if plant is None else plant
-    return replace(PRINTED[actuator], n1=p.a1, n0=p.a0)
+    if not (np.isfinite(p.b) and p.b > 0):
+        raise DesignError(f"corrected design: plant gain b = {p.b} must be a positive number")
+    pr = PRINTED[actuator]
+    kp = pr.kp * PLANTS[actuator].b / p.b
+    return replace(pr, kp=float(kp), n1=p.a1, n0=p.a0)
 
 
 def nondominant_poles_from_denominator(
@@ -261,14 +338,23 @@ def redesigned_design(
     return place_poles(p, zeta, wn, p1, p2)
 
 
-def design_for(actuator: str, variant: str, **spec) -> JointDesign:
-    """The controller of ``variant`` in {'printed', 'corrected', 'redesigned'}."""
+def design_for(
+    actuator: str, variant: str, plant: Plant | None = None, reading: str | None = None, **spec
+) -> JointDesign:
+    """The controller of ``variant`` in {'printed', 'corrected', 'redesigned'}.
+
+    ``plant`` is the design plant (default: eq. 34/35 as printed, or in SI
+    under ``reading``); ``reading`` also sets the units of the printed
+    controller (``None``: as printed, paired with :data:`PLANTS`).
+    """
+    if plant is None and reading is not None:
+        plant = paper_plant(actuator, reading)
     if variant == "printed":
-        return printed_design(actuator)
+        return printed_design(actuator, reading)
     if variant == "corrected":
-        return corrected_design(actuator)
+        return corrected_design(actuator, plant)
     if variant == "redesigned":
-        return redesigned_design(actuator, **spec)
+        return redesigned_design(actuator, plant=plant, **spec)
     raise DesignError(f"unknown controller variant {variant!r}; allowed: {list(VARIANTS)}")
 
 

@@ -40,11 +40,13 @@ import numpy as np
 
 from .design import (
     ACTUATORS,
-    PLANTS,
+    DEFAULT_READING,
     VARIANTS,
     JointDesign,
     Plant,
     corrected_design,
+    paper_plant,
+    paper_scale,
     printed_design,
     redesigned_design,
 )
@@ -151,7 +153,12 @@ class JointControllers:
     designs : sequence of 3 JointDesign, optional
         Explicit controllers per leg (overrides ``variant``).
     plants : sequence of 3 Plant, optional
-        Plants used by the ``corrected``/``redesigned`` designs (default eqs. 34-35).
+        Plants (SI, m per V) used by the ``corrected``/``redesigned`` designs
+        (default eqs. 34-35 in SI under ``reading``).
+    reading : {"volts", "metres"}
+        Units of eqs. (34)-(37) (:data:`controllers.design.READINGS`): Y in
+        potentiometer volts (20 V/m, default) or in metres. Sets the SI gain of
+        the ``printed`` controllers and the default design plants.
 
     Notes
     -----
@@ -178,7 +185,9 @@ class JointControllers:
         spec: Mapping | None = None,
         designs=None,
         plants=None,
+        reading: str = DEFAULT_READING,
     ):
+        paper_scale(reading)  # raises DesignError (a ValueError) naming the readings
         if variant not in VARIANTS:
             raise ValueError(f"unknown variant {variant!r}; allowed: {list(VARIANTS)}")
         if method not in METHODS:
@@ -203,8 +212,9 @@ class JointControllers:
         self.u_offset, self.u_min, self.u_max = float(u_offset), float(u_min), float(u_max)
         self.anti_windup = anti_windup
         self.tracking_time = float(tracking_time)
+        self.reading = reading
         if plants is None:
-            plants = [PLANTS[a] for a in ACTUATORS]
+            plants = [paper_plant(a, reading) for a in ACTUATORS]
         plants = list(plants)
         if len(plants) != 3 or not all(isinstance(p, Plant) for p in plants):
             raise ValueError("plants must be a sequence of 3 Plant")
@@ -212,7 +222,7 @@ class JointControllers:
             designs = []
             for act, plant in zip(ACTUATORS, plants, strict=True):
                 if variant == "printed":
-                    designs.append(printed_design(act))
+                    designs.append(printed_design(act, reading))
                 elif variant == "corrected":
                     designs.append(corrected_design(act, plant))
                 else:

@@ -43,6 +43,9 @@ PAPER = {
 }
 
 DEFAULTS: dict = {
+    # unit of Y in eqs. (34)-(37) (controllers.design.READINGS): "volts" (the joint
+    # potentiometer, 20 V/m) or "metres"; sets the SI gains of the printed controllers
+    "paper_units": "volts",
     "outer": {
         "gain": 3.0,  # K K_I of the I law (section 5.2.3)
         "pi_gain": 20.0,  # K K_I at which Fig. 9 marks the PI poles
@@ -116,6 +119,12 @@ def _check(p: dict) -> None:
             raise UserInputError(
                 f"invalid value at sweep.wn_rad_s[{k}]: {wn[k]!r}; allowed: 0 < wn <= 1e4 rad/s"
             )
+    from controllers.design import READINGS
+
+    if p["paper_units"] not in READINGS:
+        raise UserInputError(
+            f"invalid value at paper_units: {p['paper_units']!r}; allowed: {list(READINGS)}"
+        )
     if i["variant"] not in VARIANTS:
         raise UserInputError(
             f"invalid value at inner.variant: {i['variant']!r}; allowed: one of {list(VARIANTS)}"
@@ -212,11 +221,16 @@ def compute(p: dict) -> dict:
                 f"infeasible joint design at inner.wn_rad_s: {exc}; allowed: a zeta, wn_rad_s "
                 "(and p1_rad_s, p2_rad_s) the pole placement can meet, e.g. 0.7, 10"
             ) from exc
-    res: dict = {"paper": PAPER, "inner": {}, "outer": {}}
+    from controllers.design import paper_units_info
+
+    units = paper_units_info(p["paper_units"])
+    res: dict = {"paper": PAPER, "paper_units": units, "inner": {}, "outer": {}}
     for act in ACTUATORS:
         res["inner"][act] = {}
         for var in VARIANTS:
-            s = an.inner_summary(act, var, t_end=i["step_duration_s"], spec=spec)
+            s = an.inner_summary(
+                act, var, t_end=i["step_duration_s"], spec=spec, reading=p["paper_units"]
+            )
             wn, zeta = s["wn_rad_s"], s["zeta"]
             dom = int(np.argmin(np.where(np.abs(s["closed_loop_poles"].imag) > 0, wn, np.inf)))
             res["inner"][act][var] = {
@@ -418,14 +432,19 @@ def plot(res: dict, p: dict, out: Path) -> list[str]:
 
 
 def _summary(res: dict, files: list[str]) -> str:
-    lines = ["Inner (joint) loops, continuous, plants eqs. (34)-(35):"]
+    u = res["paper_units"]
+    lines = [
+        f"Inner (joint) loops, continuous, plants eqs. (34)-(35); paper_units = {u['reading']} "
+        f"(Y in {u['y_unit']}, {u['y_per_metre']:g} per m): k_p in V/m"
+    ]
     for act in ACTUATORS:
         for var in VARIANTS:
             r = res["inner"][act][var]
             d = r["slowest_complex_pair"]
             st = r["step"]
             lines.append(
-                f"  {act:9s} {var:10s} slowest pair zeta={d['zeta']:.3f} wn={d['wn_rad_s']:.2f} "
+                f"  {act:9s} {var:10s} k_p={r['controller']['kp']:7.1f} slowest pair "
+                f"zeta={d['zeta']:.3f} wn={d['wn_rad_s']:.2f} "
                 f"rad/s | rise {st['rise_time_s']:.3f} s, settle {st['settling_time_s']:.3f} s, "
                 f"OS {st['overshoot_pct']:.1f} %, q(T)/q_d={r['fraction_at_outer_period']:.2f}"
             )

@@ -37,6 +37,7 @@ COMMANDS = {
     "validate-ik": "simpro_mj.validate_ik",
     "workspace": "simpro_mj.cmd_workspace",
     "identify": "simpro_mj.identify",
+    "calibrate": "simpro_mj.calibrate",
     "analyze": "simpro_mj.analyze",
     "batch": "simpro_mj.batch",
     "bench": "simpro_mj.bench",

@@ -24,7 +24,10 @@ Per actuator i, around mid-stroke under the nominal payload:
 
 Reported per actuator: b, a1, a0, :math:`ω_n = \\sqrt{a_0}`,
 :math:`ζ = a_1 / (2 ω_n)`, velocity gain b/a0 (m/s/V), next to the paper's
-eqs. (34) and (35).
+eqs. (34) and (35) in SI under the ``paper_units`` reading of the tree
+(``"volts"``: Y is the potentiometer signal, b / 20; ``"metres"``: as printed,
+:mod:`controllers.design`). The plant is the ``preset`` of the tree
+(:mod:`simpro_mj.presets`, default ``paper``) with ``--set`` overrides.
 """
 
 from __future__ import annotations
@@ -50,6 +53,8 @@ __all__ = [
     "PAPER",
     "DEFAULT_IDENTIFY_PARAMS",
     "default_tree",
+    "paper_models",
+    "document",
     "run_experiment",
     "fit_eq19",
     "identify",
@@ -90,13 +95,34 @@ DEFAULT_IDENTIFY_PARAMS: dict = {
 }
 
 
-def default_tree() -> dict:
-    """The full parameter tree of ``identify``: model, pneumatics, identify."""
+def default_tree(preset: str | None = None) -> dict:
+    """The full parameter tree of ``identify``: paper_units, preset, model, pneumatics,
+    identify; the model and pneumatics are the defaults with ``preset``'s values
+    (default :data:`simpro_mj.presets.DEFAULT_PRESET`) over them."""
+    from .presets import DEFAULT_PRESET, identify_overlay
+    from .scenario import _merge
+
+    preset = DEFAULT_PRESET if preset is None else preset
+    over = identify_overlay(preset)
     return {
-        "model": copy.deepcopy(DEFAULT_MODEL_PARAMS),
-        "pneumatics": copy.deepcopy(DEFAULT_PNEUMATIC_PARAMS),
+        # unit of Y in eqs. (34)-(35) for the comparison (controllers.design.READINGS)
+        "paper_units": "volts",
+        "preset": preset,
+        "model": _merge(DEFAULT_MODEL_PARAMS, over["model"]),
+        "pneumatics": _merge(DEFAULT_PNEUMATIC_PARAMS, over["pneumatics"]),
         "identify": copy.deepcopy(DEFAULT_IDENTIFY_PARAMS),
     }
+
+
+def paper_models(reading: str = "volts") -> dict:
+    """Eqs. (34)-(35) in SI under ``reading``: ``{actuator: {b, a1, a0, wn_rad_s, ...}}``."""
+    from controllers.design import ACTUATORS, paper_plant
+
+    out = {}
+    for a in ACTUATORS:
+        p = paper_plant(a, reading)
+        out[a] = _coefficients(p.b, p.a1, p.a0)
+    return out
 
 
 def _leg_values(x, name: str) -> np.ndarray:
@@ -120,8 +146,15 @@ def check_tree(tree: dict) -> dict:
     UserInputError
         Naming the dotted path and what is allowed.
     """
+    from controllers.design import READINGS
+
     from .scenario import _check_pneumatics
 
+    if tree.get("paper_units") not in READINGS:
+        raise UserInputError(
+            f"invalid value at paper_units: {tree.get('paper_units')!r}; allowed: {list(READINGS)}"
+        )
+    tree["model"].pop("preset", None)
     tree["pneumatics"] = _check_pneumatics(tree["pneumatics"], "pneumatics")
     i = "identify"
     check_number(tree, f"{i}.duration_s", 0.5, 3600.0, unit=" s")
@@ -194,7 +227,11 @@ def run_experiment(tree: dict, leg: int, model=None) -> dict:
     q0 = np.full(3, q_ref)
     assemble(m, d, q0, index=idx)
     f_hold = holding_forces(m, d, idx)
-    act = make_actuators(kind, tree["pneumatics"], model=m)
+    from controllers.design import paper_coefficients
+
+    act = make_actuators(
+        kind, tree["pneumatics"], model=m, linear_plants=paper_coefficients(tree["paper_units"])
+    )
     force_range = act.params.force_range
     if np.any(f_hold > force_range[1]) or np.any(f_hold < force_range[0]):
         from .preflight import holding_force_model, max_payload
@@ -379,14 +416,21 @@ def identify(tree: dict | None = None, legs=(1, 2, 3), records: dict | None = No
     return out
 
 
-def summary(results: dict) -> str:
-    """Table of fitted vs paper coefficients (ω_n, ζ, b/a0)."""
+def summary(results: dict, reading: str = "volts", preset: str = "") -> str:
+    """Table of fitted vs paper coefficients (ω_n, ζ, b/a0), the paper's in SI
+    under ``reading``."""
+    from controllers.design import paper_units_info
+
+    info = paper_units_info(reading)
+    paper = paper_models(reading)
     lines = [
+        f"plant preset {preset or '-'}; paper eqs. (34)-(35) in SI under paper_units = "
+        f"{reading} (Y in {info['y_unit']}: b / {info['y_per_metre']:g})",
         f"{'':10s} {'b':>9s} {'a1':>8s} {'a0':>8s} {'wn rad/s':>9s} {'zeta':>7s} "
-        f"{'b/a0 m/s/V':>11s} {'fit %':>6s}"
+        f"{'b/a0 m/s/V':>11s} {'fit %':>6s}",
     ]
     for name, r in results.items():
-        p = _coefficients(**PAPER[name])
+        p = paper[name]
         lines.append(
             f"{name:10s} {r['b']:9.2f} {r['a1']:8.3f} {r['a0']:8.1f} {r['wn_rad_s']:9.2f} "
             f"{r['zeta']:7.3f} {r['velocity_gain_m_s_per_v']:11.4f} {r.get('fit_percent', 0):6.1f}"
@@ -403,7 +447,7 @@ def summary(results: dict) -> str:
     return "\n".join(lines)
 
 
-def plot(results: dict, records: dict, path: Path) -> None:
+def plot(results: dict, records: dict, path: Path, reading: str = "volts") -> None:
     """Step responses (fitted vs paper) and a window of measured vs fitted velocity."""
     import matplotlib
 
@@ -414,7 +458,7 @@ def plot(results: dict, records: dict, path: Path) -> None:
     names = list(results)
     fig, axes = plt.subplots(2, len(names), figsize=(4.6 * len(names), 7), squeeze=False)
     for c, name in enumerate(names):
-        r, p = results[name], PAPER[name]
+        r, p = results[name], paper_models(reading)[name]
         t = np.linspace(0, 1.0, 1000)
         ax = axes[0, c]
         for coef, lab, sty in ((r, "simulation fit", "-"), (p, "paper eq. (34)/(35)", "--")):
@@ -464,6 +508,35 @@ def add_arguments(parser) -> None:
         help="which actuators (default 1 2 3)",
     )
     parser.add_argument("--no-plot", action="store_true", help="do not write the figure")
+    parser.add_argument(
+        "--preset",
+        default=None,
+        help="plant preset: a shipped name (paper, heavy_cabin) or a preset YAML path",
+    )
+
+
+def document(results: dict, tree: dict) -> dict:
+    """What ``identify.json`` and ``--json`` hold: the reading, the preset, per actuator
+    the identified model (SI) with the paper's in SI and the ratios."""
+    from controllers.design import paper_units_info
+
+    reading = tree["paper_units"]
+    paper = paper_models(reading)
+    acts = {}
+    for name, r in results.items():
+        p = paper[name]
+        acts[name] = dict(r) | {
+            "paper": p,
+            "wn_ratio": r["wn_rad_s"] / p["wn_rad_s"],
+            "zeta_difference": r["zeta"] - p["zeta"],
+            "velocity_gain_ratio": r["velocity_gain_m_s_per_v"] / p["velocity_gain_m_s_per_v"],
+        }
+    return {
+        "paper_units": paper_units_info(reading),
+        "units": {"b": "m/s^3/V", "a1": "1/s", "a0": "1/s^2", "velocity_gain": "m/s/V"},
+        "preset": tree["preset"],
+        "actuators": acts,
+    }
 
 
 def run(args) -> int:
@@ -471,7 +544,7 @@ def run(args) -> int:
 
     from .cli import emit_json
 
-    tree = apply_overrides(default_tree(), args.sets)
+    tree = apply_overrides(default_tree(args.preset), args.sets)
     if args.duration is not None:
         tree["identify"]["duration_s"] = float(args.duration)
     records: dict = {}
@@ -479,13 +552,14 @@ def run(args) -> int:
     results = identify(tree, legs=legs, records=records)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    (out / "identify.json").write_text(json.dumps(results, indent=2))
+    doc = document(results, tree)
+    (out / "identify.json").write_text(json.dumps(doc, indent=2))
     if not args.no_plot:
-        plot(results, records, out / "identify.png")
+        plot(results, records, out / "identify.png", tree["paper_units"])
     if args.json:
-        emit_json(results)
+        emit_json(doc)
     else:
-        print(summary(results))
+        print(summary(results, tree["paper_units"], str(tree["preset"])))
         print(
             f"wrote {out / 'identify.json'}" + ("" if args.no_plot else f", {out / 'identify.png'}")
         )

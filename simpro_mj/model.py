@@ -92,8 +92,13 @@ def _vec(params: dict, path: str, n: int) -> np.ndarray:
     return arr
 
 
+#: A scenario's ``plant`` may name the preset its values came from
+#: (:mod:`simpro_mj.presets`); the model itself ignores the name.
+PRESET_KEY = "preset"
+
+
 def _check_params(params: dict) -> None:
-    unknown = set(params) - set(DEFAULT_MODEL_PARAMS)
+    unknown = set(params) - set(DEFAULT_MODEL_PARAMS) - {PRESET_KEY}
     if unknown:
         k = sorted(unknown)[0]
         raise UserInputError(

@@ -100,6 +100,7 @@ __all__ = [
     "NonlinearActuators",
     "LinearActuators",
     "make_actuators",
+    "fill_linear",
     "pneumatic_params",
     "iso6358_phi",
     "iso6358_mass_flow",
@@ -176,10 +177,13 @@ DEFAULT_PNEUMATIC_PARAMS: dict = {
         "substeps": 1,
     },
     "linear": {
-        # eq. (19) coefficients per leg: eq. (34) actuator 1, eq. (35) actuators 2, 3
-        "b_m_per_s3_v": [245.94, 2008.3, 2008.3],
-        "a1_per_s": [27.72, 7.276, 7.276],
-        "a0_per_s2": [253.0, 1349.0, 1349.0],
+        # eq. (19) coefficients per leg in SI (slide metres per valve volt). null:
+        # eq. (34) actuator 1, eq. (35) actuators 2, 3 in SI under the scenario's
+        # paper_units reading (b / 20 for "volts"), filled in by the caller
+        # (make_actuators(..., linear_plants=...)); the plant knows no paper reading
+        "b_m_per_s3_v": None,
+        "a1_per_s": None,
+        "a0_per_s2": None,
         # effective mass at each slide, kg (diagonal); null: MuJoCo's full mass
         # matrix reduced to the slides at home (computed by make_actuators)
         "effective_mass_kg": None,
@@ -210,6 +214,13 @@ def _per_leg(tree: Mapping, path: str, lo: float = 0.0, hi: float = math.inf, op
             f"numbers {rng}"
         )
     return arr
+
+
+def _per_leg_or_none(tree: Mapping, path: str, lo: float = 0.0, open_lo=False):
+    node = tree
+    for part in path.split("."):
+        node = node[part]
+    return None if node is None else _per_leg(tree, path, lo, open_lo=open_lo)
 
 
 def _scalar(tree: Mapping, path: str, lo: float, hi: float = math.inf, open_lo=True) -> float:
@@ -257,9 +268,9 @@ class PneumaticParams:
     spool_omega: float  # rad/s
     spool_zeta: float
     substeps: int
-    lin_b: np.ndarray
-    lin_a1: np.ndarray
-    lin_a0: np.ndarray
+    lin_b: np.ndarray | None  # None: to be filled by make_actuators(linear_plants=)
+    lin_a1: np.ndarray | None
+    lin_a0: np.ndarray | None
     lin_mass: np.ndarray | None
     lin_saturate: bool
 
@@ -321,9 +332,9 @@ class PneumaticParams:
             spool_omega=2 * math.pi * _scalar(t, "valve.spool_bandwidth_hz", 0.0),
             spool_zeta=_scalar(t, "valve.spool_damping_ratio", 0.0),
             substeps=int(sub),
-            lin_b=_per_leg(t, "linear.b_m_per_s3_v"),
-            lin_a1=_per_leg(t, "linear.a1_per_s"),
-            lin_a0=_per_leg(t, "linear.a0_per_s2", 0.0, open_lo=True),
+            lin_b=_per_leg_or_none(t, "linear.b_m_per_s3_v"),
+            lin_a1=_per_leg_or_none(t, "linear.a1_per_s"),
+            lin_a0=_per_leg_or_none(t, "linear.a0_per_s2", 0.0, open_lo=True),
             lin_mass=None if lin_m is None else _per_leg(t, "linear.effective_mass_kg", 0.0, True),
             lin_saturate=sat,
         )
@@ -874,6 +885,7 @@ class LinearActuators:
 
     def __init__(self, params=None, mass_matrix=None, damping_matrix=None, stiffness_matrix=None):
         P = params if isinstance(params, PneumaticParams) else PneumaticParams.from_tree(params)
+        P = fill_linear(P)  # raises if eq. (19)'s coefficients are left null
         self.params = P
         m = mass_matrix if mass_matrix is not None else P.lin_mass
         if m is None:
@@ -1038,7 +1050,29 @@ def _pneu_tree(params_tree):
     return params_tree
 
 
-def make_actuators(kind: str, params_tree=None, *, model=None):
+def fill_linear(P: PneumaticParams, linear_plants=None) -> PneumaticParams:
+    """``P`` with its null ``linear`` coefficients taken from ``linear_plants``.
+
+    ``linear_plants`` is ``(b, a1, a0)``, three per-leg sequences in SI (the
+    caller's eqs. 34-35 under its units reading). Raises
+    :class:`UserInputError` if a coefficient stays undefined.
+    """
+    from dataclasses import replace
+
+    have = {"lin_b": P.lin_b, "lin_a1": P.lin_a1, "lin_a0": P.lin_a0}
+    keys = {"lin_b": "b_m_per_s3_v", "lin_a1": "a1_per_s", "lin_a0": "a0_per_s2"}
+    for i, name in enumerate(have):
+        if have[name] is None:
+            if linear_plants is None:
+                raise UserInputError(
+                    f"missing value at pneumatics.linear.{keys[name]}: null; allowed: a number "
+                    "or 3 numbers (eq. 19 in SI), or a caller that supplies eqs. 34-35"
+                )
+            have[name] = np.broadcast_to(np.asarray(linear_plants[i], float), (3,)).copy()
+    return replace(P, **have)
+
+
+def make_actuators(kind: str, params_tree=None, *, model=None, linear_plants=None):
     """Build the actuators of one kind.
 
     Parameters
@@ -1049,6 +1083,9 @@ def make_actuators(kind: str, params_tree=None, *, model=None):
     model : mujoco.MjModel, optional
         For ``"linear"`` without ``linear.effective_mass_kg``: the effective
         slide masses are taken from this model at the home pose (mid-stroke).
+    linear_plants : (b, a1, a0), optional
+        For ``"linear"``: per-leg eq. (19) coefficients in SI for the
+        ``linear`` keys left null (:func:`fill_linear`).
 
     Raises
     ------
@@ -1064,6 +1101,7 @@ def make_actuators(kind: str, params_tree=None, *, model=None):
     if kind == "nonlinear":
         return NonlinearActuators(tree)
     P = tree if isinstance(tree, PneumaticParams) else PneumaticParams.from_tree(tree)
+    P = fill_linear(P, linear_plants)
     if P.lin_mass is not None:
         return LinearActuators(P, mass_matrix=P.lin_mass)
     import mujoco

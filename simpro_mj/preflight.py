@@ -206,20 +206,26 @@ def _inner_legs(scenario: Mapping, dt: float):
     from controllers.analysis import inner_discrete_loop
     from controllers.design import (
         ACTUATORS,
-        PLANTS,
         Plant,
         corrected_design,
+        paper_coefficients,
+        paper_plant,
         printed_design,
         redesigned_design,
     )
 
     inner = scenario["controller"]["inner"]
+    reading = scenario["paper_units"]
     identified = {a: Plant(**inner["identified"][a]) for a in ACTUATORS}
-    design_plants = identified if inner["design_plant"] == "identified" else PLANTS
+    if inner["design_plant"] == "identified":
+        design_plants = identified
+    else:
+        design_plants = {a: paper_plant(a, reading) for a in ACTUATORS}
     if scenario["actuator"]["model"] == "linear":
-        from .pneumatics import PneumaticParams
+        from .pneumatics import PneumaticParams, fill_linear
 
         p = PneumaticParams.from_tree(scenario["actuator"].get("pneumatics") or {})
+        p = fill_linear(p, paper_coefficients(reading))
         plants = {
             a: Plant(b=float(p.lin_b[i]), a1=float(p.lin_a1[i]), a0=float(p.lin_a0[i]))
             for i, a in enumerate(ACTUATORS)
@@ -231,7 +237,7 @@ def _inner_legs(scenario: Mapping, dt: float):
     legs = []
     for a in ACTUATORS:
         if inner["variant"] == "printed":
-            design = printed_design(a)
+            design = printed_design(a, reading)
         elif inner["variant"] == "corrected":
             design = corrected_design(a, design_plants[a])
         else:

@@ -94,6 +94,7 @@ from controllers.kinematics import check_reachable, reachable
 from .errors import UserInputError
 from .model import DEFAULT_MODEL_PARAMS
 from .params import check_keys, check_tagged, closest, key_text, parse_set
+from .presets import DEFAULT_PRESET, scenario_overlay
 from .sensors import DEFAULT_SENSORS
 
 __all__ = [
@@ -129,6 +130,7 @@ INNER_VARIANTS = ("printed", "corrected", "redesigned")
 DISCRETISATIONS = ("tustin", "zoh")
 DESIGN_PLANTS = ("paper", "identified")
 ACTUATOR_MODELS = ("nonlinear", "linear")
+PAPER_UNITS = ("volts", "metres")  # controllers.design.READINGS
 DELAY_SAMPLES = (1, 2)
 SETPOINT_AXES = ("roll_deg", "pitch_deg", "heave_mm")
 
@@ -180,6 +182,13 @@ def _merge(base: Mapping, over: Mapping) -> dict:
 DEFAULT_SCENARIO: dict = {
     # a name for the run (file stem if empty); letters, digits, '_', '-', '.'
     "name": "",
+    # Unit of Y in the paper's eqs. (34)-(37) (controllers.design.READINGS):
+    # "volts" (default: the joint potentiometer's signal, 10 V over the 500 mm
+    # stroke = 20 V/m, as the rig reads it through the MF624, section 5) or
+    # "metres". Sets the SI gains of the printed joint controllers, the paper's
+    # design plants and the linear actuators' default coefficients
+    # (docs/paper-notes.md, section 3).
+    "paper_units": "volts",
     "description": "",
     "duration_s": 15.0,
     # seed of every random draw of the run (sensor noise)
@@ -207,8 +216,9 @@ DEFAULT_SCENARIO: dict = {
             # "identified" (the model this simulation identifies, `simpro-sim identify`,
             # which is what the paper's procedure - identify, then place poles - gives)
             "design_plant": "paper",
-            # b / (s (s^2 + a1 s + a0)) per actuator, m/V; from `simpro-sim identify`
-            # on the default plant (nonlinear pneumatics, 250 kg payload)
+            # b / (s (s^2 + a1 s + a0)) per actuator, SI (m/V); set by the plant
+            # preset (plant.preset: what `simpro-sim identify` measures on it);
+            # the numbers here are the schema's only
             "identified": {
                 "actuator1": {"b": 12.51, "a1": 15.78, "a0": 78.92},
                 "actuator2": {"b": 95.66, "a1": 17.37, "a0": 467.7},
@@ -234,6 +244,11 @@ DEFAULT_SCENARIO: dict = {
     "plant": _merge(
         DEFAULT_MODEL_PARAMS,
         {
+            # a shipped preset (simpro_mj/presets: "paper", calibrated to eqs. 34-35;
+            # "heavy_cabin", 250 kg) or a preset YAML path (`simpro-sim calibrate`);
+            # its plant, actuator.pneumatics and controller.inner.identified values
+            # lie under the scenario's own (simpro_mj.presets)
+            "preset": DEFAULT_PRESET,
             "payload": {"com_mm": [60.0, 0.0, 400.0]},
             "anchor_offsets_mm": {
                 "A1": [0.0, 0.0, 0.0],
@@ -432,17 +447,27 @@ def resolve_scenario(
     doc: Mapping, sets: Iterable[str] = (), default_name: str = "scenario"
 ) -> dict:
     """Resolve a scenario document given as a dict (same rules as :func:`load_scenario`)."""
-    tree = _merge(DEFAULT_SCENARIO, doc)
-    for expr in sets or ():
-        key, value = parse_set(expr)
-        _set(tree, key, value)
-    tree = _merge(DEFAULT_SCENARIO, tree)  # a replaced mapping keeps its other defaults
+    sets = list(sets or ())
+    tree = _overlay(DEFAULT_SCENARIO, doc, sets)
+    preset = (tree.get("plant") or {}).get("preset") if isinstance(tree, Mapping) else None
+    if isinstance(preset, str):  # another type is reported by the validation
+        # the preset lies between the defaults and the file (simpro_mj.presets)
+        tree = _overlay(_merge(DEFAULT_SCENARIO, scenario_overlay(preset)), doc, sets)
     if not tree.get("name"):
         tree["name"] = default_name
     resolved = validate_scenario(tree)
     if not resolved["controller"]["clamp_setpoints"]:
         check_setpoints(resolved)
     return resolved
+
+
+def _overlay(base: Mapping, doc: Mapping, sets: list) -> dict:
+    """``base``, the document merged over it, the ``--set`` overrides applied."""
+    tree = _merge(base, doc)
+    for expr in sets:
+        key, value = parse_set(expr)
+        _set(tree, key, value)
+    return _merge(base, tree)  # a replaced mapping keeps its other defaults
 
 
 def _set(tree: dict, key: str, value: Any) -> None:
@@ -778,14 +803,14 @@ def _check_redesign(s: Mapping) -> None:
     inner = s["controller"]["inner"]
     if inner["variant"] != "redesigned":
         return
-    from controllers.design import ACTUATORS, PLANTS, Plant, redesigned_design
+    from controllers.design import ACTUATORS, Plant, paper_plant, redesigned_design
     from controllers.errors import DesignError
 
     for act in ACTUATORS:
         if inner["design_plant"] == "identified":
             plant = Plant(**inner["identified"][act])
         else:
-            plant = PLANTS[act]
+            plant = paper_plant(act, s["paper_units"])
         try:
             redesigned_design(act, zeta=inner["zeta"], wn=inner["wn_rad_s"], plant=plant)
         except DesignError as exc:
@@ -864,6 +889,7 @@ def validate_scenario(tree: Mapping) -> dict:
     _require(s, "duration_s", lambda v: v <= MAX_DURATION_S, f"<= {MAX_DURATION_S:g} s (one hour)")
     _require(s, "seed", lambda v: 0 <= v < 2**63, "an integer >= 0")
     c = "controller"
+    _enum(s, "paper_units", PAPER_UNITS)
     _enum(s, f"{c}.mode", MODES)
     _enum(s, f"{c}.outer.type", OUTER_TYPES)
     _require(s, f"{c}.outer.gains", lambda v: v >= 0, "3 numbers >= 0 (K K_I, 1/s)")

@@ -28,7 +28,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from controllers.design import Plant
+from controllers.design import Plant, paper_coefficients
 from controllers.geometry import nominal_geometry
 from controllers.joint import JointControllers
 from controllers.kinematics import inverse_kinematics
@@ -146,7 +146,7 @@ class CoSimulation:
             acts = ("actuator1", "actuator2", "actuator3")
             plants = [Plant(**inner["identified"][a]) for a in acts]
         else:
-            plants = None  # eqs. (34)-(35)
+            plants = None  # eqs. (34)-(35) in SI under the paper_units reading
         spec = None
         if inner["variant"] == "redesigned":
             spec = {"zeta": inner["zeta"], "wn": inner["wn_rad_s"]}
@@ -156,9 +156,15 @@ class CoSimulation:
             method=inner["discretisation"],
             plants=plants,
             spec=spec,
+            reading=scenario["paper_units"],
         )
         act = scenario["actuator"]
-        self.actuators = make_actuators(act["model"], act.get("pneumatics") or {}, model=m)
+        self.actuators = make_actuators(
+            act["model"],
+            act.get("pneumatics") or {},
+            model=m,
+            linear_plants=paper_coefficients(scenario["paper_units"]),
+        )
         self.rng = np.random.default_rng(int(scenario["seed"]))
         self.sensor_cfg = SensorConfig.from_tree(scenario["sensors"], dt)
         self.sensors = Sensors(self.sensor_cfg, self.rng)

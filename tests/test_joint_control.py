@@ -16,10 +16,14 @@ from controllers.design import (
     closed_loop_tf,
     corrected_design,
     damping,
+    design_for,
     nondominant_poles_from_denominator,
+    paper_plant,
+    paper_scale,
     place_poles,
     printed_design,
     redesigned_design,
+    reduced_polynomial,
 )
 from controllers.errors import DesignError
 from controllers.joint import JointControllers, discretise, split_integrator
@@ -134,12 +138,11 @@ def test_printed_denominator_implies_p1_p2_and_redesign_meets_spec():
 # discrete implementation
 # --------------------------------------------------------------------------
 def _simulate(jc, step, t_end=3.0, q0=0.25):
-    """Legs = plants eqs. (34)-(35) discretised by ZOH (exact for the held volts)."""
+    """Legs = plants eqs. (34)-(35) in SI under the controllers' units reading,
+    discretised by ZOH (exact for the held volts)."""
     dt = jc.dt
-    mats = [
-        discretise(*_companion(PLANTS[a].num, PLANTS[a].den), dt, "zoh")
-        for a in ("actuator1", "actuator2", "actuator3")
-    ]
+    plants = [paper_plant(a, jc.reading) for a in ("actuator1", "actuator2", "actuator3")]
+    mats = [discretise(*_companion(p.num, p.den), dt, "zoh") for p in plants]
     xs = [np.zeros(3) for _ in range(3)]
     ref = q0 + np.asarray(step, float)
     n = int(round(t_end / dt))
@@ -154,20 +157,18 @@ def _simulate(jc, step, t_end=3.0, q0=0.25):
     return np.arange(n) * dt, q_log, v_log, i_log
 
 
+@pytest.mark.parametrize("reading", ["volts", "metres"])
 @pytest.mark.parametrize("variant", ["printed", "corrected", "redesigned"])
-def test_tustin_preserves_continuous_step_response(variant):
-    """Tustin at 1 ms: the sampled loop follows the continuous one within 1 % of the step."""
-    step = 1e-3  # small: no saturation
-    jc = JointControllers(variant, dt=1e-3, method="tustin")
+def test_tustin_preserves_continuous_step_response(variant, reading):
+    """Tustin at 1 ms: the sampled loop follows the continuous one within 1 % of the step;
+    under either units reading of eqs. (34)-(37) (k_p b, hence the loop, is the same)."""
+    step = 0.5e-3  # small: no saturation (k_p = 5.3 kV/m for actuator 1, volts reading)
+    jc = JointControllers(variant, dt=1e-3, method="tustin", reading=reading)
     t, q, v, _ = _simulate(jc, [step] * 3)
     assert np.all((v > 0) & (v < 10))
     for leg, act in enumerate(("actuator1", "actuator2", "actuator3")):
-        des = {
-            "printed": printed_design,
-            "corrected": corrected_design,
-            "redesigned": redesigned_design,
-        }[variant](act)
-        yc = tf_step(*closed_loop_tf(des, PLANTS[act]), t)
+        des = design_for(act, variant, reading=reading)
+        yc = tf_step(*closed_loop_tf(des, paper_plant(act, reading)), t)
         err = np.max(np.abs(q[:, leg] / step - yc))
         assert err < 0.01, (act, err)
 
@@ -176,6 +177,36 @@ def test_zoh_variant_is_stable_and_tracks():
     jc = JointControllers("corrected", method="zoh")
     _, q, _, _ = _simulate(jc, [1e-3] * 3, t_end=4.0)
     np.testing.assert_allclose(q[-1], 1e-3, rtol=5e-3)
+
+
+def test_units_reading_scales_the_printed_gains():
+    """Y in potentiometer volts (20 V/m): eq. (34)'s b = 245.94 V/s^3/V is 12.30 m/s^3/V
+    and eq. (36)'s k_p = 265 V/V is 5300 V/m; the product k_p b stays 65 174."""
+    assert paper_scale("volts") == 20.0 and paper_scale("metres") == 1.0
+    p = paper_plant("actuator1", "volts")
+    assert p.b == pytest.approx(12.297, abs=1e-3)
+    assert paper_plant("actuator2", "volts").b == pytest.approx(100.415, abs=1e-3)
+    d = printed_design("actuator1", "volts")
+    assert d.kp == pytest.approx(5300.0)
+    assert d.kp * p.b == pytest.approx(265.0 * 245.94)
+    jc = JointControllers("printed", reading="volts")
+    assert jc.designs[1].kp == pytest.approx(640.0)
+    assert JointControllers("printed", reading="metres").designs[1].kp == pytest.approx(32.0)
+    with pytest.raises(ValueError, match="volts"):
+        JointControllers(reading="inches")
+
+
+def test_corrected_design_on_another_plant_keeps_the_printed_loop():
+    """On an identified plant the corrected controller rescales k_p so that k_p b, and so
+    the reduced loop of eq. (29), stays the printed one: same closed-loop poles."""
+    ident = Plant(b=34.4, a1=25.2, a0=211.0)
+    d = corrected_design("actuator1", ident)
+    assert d.kp * ident.b == pytest.approx(265.0 * 245.94)
+    want = np.sort_complex(
+        np.roots(reduced_polynomial(printed_design("actuator1"), PLANTS["actuator1"]))
+    )
+    got = np.sort_complex(np.roots(reduced_polynomial(d, ident)))
+    np.testing.assert_allclose(got, want, rtol=1e-9)
 
 
 def test_split_integrator_is_exact_partial_fraction():

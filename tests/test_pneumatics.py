@@ -201,7 +201,12 @@ def test_full_scale_steps_into_both_end_stops_keep_pressures_physical(plant):
 
 def test_linear_option_reproduces_eq19_step_response(plant):
     m, d, idx, fh = _fresh(plant)
-    act = make_actuators("linear", None, model=m)
+    from controllers.design import paper_coefficients
+
+    with pytest.raises(UserInputError, match="pneumatics.linear.b_m_per_s3_v"):
+        make_actuators("linear", None, model=m)  # the plant knows no paper reading
+    # eqs. (34)-(35) under the metres reading: the slide motion of the original test
+    act = make_actuators("linear", None, model=m, linear_plants=paper_coefficients("metres"))
     assert isinstance(act, LinearActuators)
     np.testing.assert_allclose(act.mass_matrix, slide_mass_matrix(m, d, idx), rtol=1e-6)
     act.reset(HOME, np.zeros(3), force=fh)

@@ -101,7 +101,15 @@ BAD_INPUTS = [
         ["allowed: <= 1209 kg"],
     ),
     (
-        ["run", "step_pitch", "--set", "actuator.pneumatics.supply_pressure_bar_gauge=1", *SHORT],
+        [
+            "run",
+            "step_pitch",
+            "--set",
+            "actuator.pneumatics.supply_pressure_bar_gauge=1",
+            "--set",
+            "plant.preset=heavy_cabin",
+            *SHORT,
+        ],
         "plant.payload.mass_kg",
         ["1 bar", "allowed: <= 22 kg"],
     ),
@@ -452,11 +460,11 @@ def test_gain_above_the_analysed_limit_is_warned_and_recorded(tmp_path, capsys):
     assert rc == 0
     lines = [line for line in err.splitlines() if line.startswith("warning: ")]
     assert len(lines) == 1, err
-    assert "controller.outer.gains[1] = 12 exceeds the analysed stability limit 1.07" in lines[0]
+    assert "controller.outer.gains[1] = 12 exceeds the analysed stability limit 8.53" in lines[0]
     assert "(I, T = 60 ms, real inner loops" in lines[0]
     doc = json.loads((out / "metrics.json").read_text())
     assert doc["warnings"] == [lines[0].removeprefix("warning: ")]
-    assert doc["preflight"]["stability"]["limit"] == pytest.approx(1.0712, abs=1e-3)
+    assert doc["preflight"]["stability"]["limit"] == pytest.approx(8.5259, abs=1e-3)
     # the shipped gains are inside the limit, on the linear plant too (limit 9.46)
     from simpro_mj.preflight import gain_warnings
 
@@ -464,21 +472,23 @@ def test_gain_above_the_analysed_limit_is_warned_and_recorded(tmp_path, capsys):
     w, info = gain_warnings(load_scenario("step_pitch", ["actuator.model=linear"]))
     assert w == [] and info["limit"] == pytest.approx(9.4586, abs=1e-3)
     # one gain on every axis above the limit: one line naming the value
-    w, _ = gain_warnings(load_scenario("step_pitch", ["controller.outer.gains=[3, 3, 3]"]))
-    assert len(w) == 1 and "gains = 3 on every axis exceeds" in w[0] and "1.07" in w[0]
+    w, _ = gain_warnings(load_scenario("step_pitch", ["controller.outer.gains=[9, 9, 9]"]))
+    assert len(w) == 1 and "gains = 9 on every axis exceeds" in w[0] and "8.53" in w[0]
 
 
 # ------------------------------------------------------------------ divergence
 
 
 def test_divergence_through_the_cli_exits_1_and_stops_early(tmp_path, capsys):
-    """Loop-closure constraints 250x softer than shipped: leg 1's loop opens past
+    """Loop-closure constraints 250x softer than shipped on the heavy cabin (with the
+    metres reading of eqs. 34-37, the pre-issue-18 loop): leg 1's loop opens past
     the 5 mm bound about 1 s in; the run stops there, writes what it had."""
     out = tmp_path / "div"
     t0 = time.perf_counter()
     rc = main(
         ["run", "step_pitch", "--out", str(out), "--no-plots", "--set", "duration_s=30",
-         "--set", "plant.loop_timeconst_s=0.5"]
+         "--set", "plant.loop_timeconst_s=0.5", "--set", "plant.preset=heavy_cabin",
+         "--set", "paper_units=metres"]
     )  # fmt: skip
     wall = time.perf_counter() - t0
     captured = capsys.readouterr()

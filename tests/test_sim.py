@@ -77,10 +77,18 @@ def _pitch_step_response(columns, t_step=1.0, size=STEP_RAD):
 def test_transient_agrees_with_real_inner_loop_analysis():
     """Linear actuator, K K_I = 3 (the paper's setting): the multibody pitch step
     follows the analysis with the real inner loops within 3 % RMS; the
-    one-sample-delay model (eq. 21) misses by more (measured 4.9 % RMS)."""
+    one-sample-delay model (eq. 21) misses by more (measured 4.9 % RMS).
+    Metres reading: the linear plant's b as printed keeps the valves far from
+    their rails (under the volts reading the outer loop's unfiltered 60 ms
+    steps of q_d saturate them, which the analysis does not model)."""
     sc = load_scenario(
         "step_pitch",
-        ["actuator.model=linear", "controller.outer.gains=[3, 3, 3]", "duration_s=6"],
+        [
+            "actuator.model=linear",
+            "controller.outer.gains=[3, 3, 3]",
+            "duration_s=6",
+            "paper_units=metres",
+        ],
     )
     res = simulate(sc)
     assert res.status == "ok"
@@ -96,26 +104,21 @@ def test_transient_agrees_with_real_inner_loop_analysis():
 
 
 def test_nonlinear_transient_vs_delay_model():
-    """Non-linear pneumatics, K K_I = 1 (shipped): how far the eq. (21) model misses.
-
-    The delay model predicts a first-order-like rise of 1.98 s and no overshoot.
-    The leg-1 inner loop (828 kg reflected mass, flow-limited valve) lags the
-    outer command by about 0.5 s, which makes the real response underdamped:
-    faster rise (0.83 s), overshoot 7.5 %, and a slow hunting of about 5 % of
-    the step (Coulomb friction against two integrators) that takes 10 s to stay
-    in the 2 % band (prediction: 3.7 s). The test bounds the miss: rise time
-    between 0.25 and 0.75 of the prediction, overshoot 2..20 %, within 3 % of
-    the step from 11 s after it.
-    """
-    sc = load_scenario("step_pitch", ["duration_s=16"])
+    """Non-linear pneumatics, default (calibrated) plant, K K_I = 1: the joint loops
+    are fast against the 60 ms outer period (eqs. 34-37 under the volts reading), so
+    eq. (21)'s one-sample-delay model holds: it predicts a first-order-like rise of
+    1.98 s, no overshoot and 3.66 s to the 2 % band; measured 1.85 s, 0.1 %, 3.75 s.
+    The test bounds the agreement: rise time and settling within 15 % of the
+    prediction, overshoot below 2 %, within 2 % of the step from 5 s on."""
+    sc = load_scenario("step_pitch", ["duration_s=10", "controller.outer.gains=[1, 1, 1]"])
     res = simulate(sc)
     t, y = _pitch_step_response(res.columns)
     pred = step_metrics(np.arange(300) * 0.06, outer_step("I", 1.0, 0.06, 300), 1.0)
     sim = step_metrics(t, y, 1.0)
-    ratio = sim["rise_time_s"] / pred["rise_time_s"]
-    assert 0.25 < ratio < 0.75, (sim, pred)
-    assert 2.0 < sim["overshoot_pct"] < 20.0
-    assert np.all(np.abs(y[t > 11.0] - 1.0) < 0.03)
+    assert sim["rise_time_s"] == pytest.approx(pred["rise_time_s"], rel=0.15), (sim, pred)
+    assert sim["settling_time_s"] == pytest.approx(pred["settling_time_s"], rel=0.15)
+    assert sim["overshoot_pct"] < 2.0
+    assert np.all(np.abs(y[t > 5.0] - 1.0) < 0.02)
 
 
 def test_same_seed_same_time_series_different_seed_differs():
