@@ -90,18 +90,10 @@ def load_targets(path: str | Path) -> dict:
     ``{wn_rad_s, zeta, velocity_gain_m_s_per_v}``. Raises
     :class:`UserInputError` (one line, the field and what is allowed).
     """
-    import yaml
+    from .params import read_yaml
 
     p = Path(path)
-    try:
-        doc = yaml.safe_load(p.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError) as exc:
-        raise UserInputError(
-            f"unreadable targets at {p}: {exc.__class__.__name__}; allowed: a UTF-8 YAML file"
-        ) from exc
-    except yaml.YAMLError as exc:
-        msg = " ".join(str(exc).split())
-        raise UserInputError(f"invalid YAML at {p}: {msg}; allowed: a YAML mapping") from exc
+    doc = read_yaml(p, "targets")
     acts = ("actuator1", "actuator2", "actuator3")
     if not isinstance(doc, dict):
         raise UserInputError(

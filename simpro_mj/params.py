@@ -12,6 +12,7 @@ import difflib
 import math
 import re
 from collections.abc import Iterable, Mapping
+from pathlib import Path
 from typing import Any
 
 import yaml
@@ -267,3 +268,52 @@ def check_number(
         allowed = ("an integer " if integer else "a finite number ") + " and ".join(parts)
         raise UserInputError(f"invalid value at {path}: {value!r}; allowed: {allowed.strip()}")
     return int(x) if integer else x
+
+
+# ------------------------------------------------------------------ YAML files
+
+
+class _UniqueKeyLoader(yaml.SafeLoader):
+    """``yaml.SafeLoader`` that refuses duplicate mapping keys (no other change)."""
+
+
+def _construct_unique_mapping(loader, node, deep=False):
+    seen = set()
+    for key_node, _ in node.value:
+        key = loader.construct_object(key_node, deep=True)
+        if isinstance(key, (str, int, float, bool)) or key is None:
+            if key in seen:
+                raise yaml.constructor.ConstructorError(
+                    None, None, f"duplicate key {key!r}", key_node.start_mark
+                )
+            seen.add(key)
+    return loader.construct_mapping(node, deep=deep)
+
+
+_UniqueKeyLoader.add_constructor(
+    yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _construct_unique_mapping
+)
+
+
+def read_yaml(path: Path, what: str = "file") -> Any:
+    """Read a YAML file (duplicate keys refused); one-line :class:`UserInputError`
+    naming ``what`` and the file (line and column for a syntax error)."""
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise UserInputError(
+            f"unreadable {what} at {path}: {exc.__class__.__name__}: {exc}; "
+            "allowed: a UTF-8 YAML file"
+        ) from exc
+    try:
+        return yaml.load(text, Loader=_UniqueKeyLoader)  # noqa: S506 - a SafeLoader subclass
+    except yaml.MarkedYAMLError as exc:
+        mark = exc.problem_mark or exc.context_mark
+        where = f"{path} line {mark.line + 1}, column {mark.column + 1}" if mark else str(path)
+        problem = " ".join(str(exc.problem or exc).split())
+        allowed = "each key once" if "duplicate key" in problem else "a YAML mapping of keys"
+        raise UserInputError(f"invalid YAML at {where}: {problem}; allowed: {allowed}") from exc
+    except yaml.YAMLError as exc:
+        raise UserInputError(
+            f"invalid YAML at {path}: {exc}; allowed: a YAML mapping of keys"
+        ) from exc

@@ -30,10 +30,8 @@ import copy
 from collections.abc import Mapping
 from pathlib import Path
 
-import yaml
-
 from .errors import UserInputError
-from .params import closest
+from .params import closest, read_yaml
 
 __all__ = [
     "DEFAULT_PRESET",
@@ -84,15 +82,7 @@ def load_preset(name_or_path: str) -> dict:
         values are checked where they are used (the scenario, the model).
     """
     path = _path(name_or_path)
-    try:
-        doc = yaml.safe_load(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError) as exc:
-        raise UserInputError(
-            f"unreadable preset at {path}: {exc.__class__.__name__}; allowed: a UTF-8 YAML file"
-        ) from exc
-    except yaml.YAMLError as exc:
-        msg = " ".join(str(exc).split())
-        raise UserInputError(f"invalid YAML at {path}: {msg}; allowed: a YAML mapping") from exc
+    doc = read_yaml(path, "preset")
     if not isinstance(doc, Mapping):
         raise UserInputError(
             f"wrong type at {path.name} (top level): {type(doc).__name__}; allowed: a mapping "

@@ -85,7 +85,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 
 from controllers.errors import WorkspaceError
 from controllers.geometry import nominal_geometry
@@ -93,7 +92,7 @@ from controllers.kinematics import check_reachable, reachable
 
 from .errors import UserInputError
 from .model import DEFAULT_MODEL_PARAMS
-from .params import check_keys, check_tagged, closest, key_text, parse_set
+from .params import check_keys, check_tagged, closest, key_text, parse_set, read_yaml
 from .presets import DEFAULT_PRESET, scenario_overlay
 from .sensors import DEFAULT_SENSORS
 
@@ -331,50 +330,6 @@ def _find(name_or_path: str) -> Path:
     )
 
 
-class _UniqueKeyLoader(yaml.SafeLoader):
-    """``yaml.SafeLoader`` that refuses duplicate mapping keys (no other change)."""
-
-
-def _construct_unique_mapping(loader, node, deep=False):
-    seen = set()
-    for key_node, _ in node.value:
-        key = loader.construct_object(key_node, deep=True)
-        if isinstance(key, (str, int, float, bool)) or key is None:
-            if key in seen:
-                raise yaml.constructor.ConstructorError(
-                    None, None, f"duplicate key {key!r}", key_node.start_mark
-                )
-            seen.add(key)
-    return loader.construct_mapping(node, deep=deep)
-
-
-_UniqueKeyLoader.add_constructor(
-    yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _construct_unique_mapping
-)
-
-
-def _read_yaml(path: Path) -> Any:
-    try:
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise UserInputError(
-            f"unreadable scenario at {path}: {exc.__class__.__name__}: {exc}; "
-            "allowed: a UTF-8 YAML file"
-        ) from exc
-    try:
-        return yaml.load(text, Loader=_UniqueKeyLoader)  # noqa: S506 - a SafeLoader subclass
-    except yaml.MarkedYAMLError as exc:
-        mark = exc.problem_mark or exc.context_mark
-        where = f"{path} line {mark.line + 1}, column {mark.column + 1}" if mark else str(path)
-        problem = " ".join(str(exc.problem or exc).split())
-        allowed = "each key once" if "duplicate key" in problem else "a YAML mapping of keys"
-        raise UserInputError(f"invalid YAML at {where}: {problem}; allowed: {allowed}") from exc
-    except yaml.YAMLError as exc:
-        raise UserInputError(
-            f"invalid YAML at {path}: {exc}; allowed: a YAML mapping of keys"
-        ) from exc
-
-
 # ------------------------------------------------------------------ public entry points
 
 
@@ -391,7 +346,7 @@ def read_document(name_or_path: str) -> tuple[Path, Mapping]:
         column), or a top level that is not a mapping.
     """
     path = _find(str(name_or_path))
-    doc = _read_yaml(path)
+    doc = read_yaml(path, "scenario")
     if doc is None:
         doc = {}
     if not isinstance(doc, Mapping):
