@@ -170,7 +170,8 @@ def test_plot_strip_cursor_moves(pitch_run, tmp_path):
     assert frames.shape == (6, 180, 160, 3)  # 3 s at 2 fps; 120 + 60 rows of plots
     strip = frames[:, 120:].astype(int)
     red = (strip[..., 0] > 150) & (strip[..., 1] < 90) & (strip[..., 2] < 90)
-    cursor_x = [np.median(np.nonzero(r.any(axis=0))[0][:4]) for r in red]  # first panel
+    # left edge of the first panel's cursor (its anti-aliased width varies, 2-3 px)
+    cursor_x = [np.nonzero(r.any(axis=0))[0][0] for r in red]
     assert all(b > a for a, b in zip(cursor_x, cursor_x[1:], strict=False))
 
 
