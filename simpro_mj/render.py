@@ -391,7 +391,9 @@ def _probe(_=None):
     return _WORKER.get("error", "worker not initialised")
 
 
-def _render_frames(indices) -> list[np.ndarray]:
+def _render_frames(indices) -> tuple[list[np.ndarray], float]:
+    """The frames at ``indices`` and the CPU seconds this worker spent on them."""
+    cpu0 = time.process_time()
     frames = []
     for i in indices:
         panels = []
@@ -404,7 +406,7 @@ def _render_frames(indices) -> list[np.ndarray]:
                 view = np.concatenate([view, strip], axis=0)
             panels.append(view)
         frames.append(np.concatenate(panels, axis=1) if len(panels) > 1 else panels[0])
-    return frames
+    return frames, time.process_time() - cpu0
 
 
 def _gl_candidates() -> tuple[str, ...]:
@@ -542,15 +544,16 @@ def render_video(
         tmp = Path(name)
         bar = tqdm(total=n, unit="frame", desc="render", disable=not progress, leave=False)
         pending: deque = deque()
+        cpu: list[float] = []  # worker CPU seconds per chunk (independent of other load)
         starts = iter(range(0, n, chunk))
         writer = _ffmpeg_writer(tmp, fps, len(recs) * width, height + strip_h)
         try:
             for s in starts:
                 pending.append(pool.submit(_render_frames, range(s, min(s + chunk, n))))
                 if len(pending) >= 2 * workers:
-                    _drain(pending.popleft(), writer, bar)
+                    _drain(pending.popleft(), writer, bar, cpu)
             while pending:
-                _drain(pending.popleft(), writer, bar)
+                _drain(pending.popleft(), writer, bar, cpu)
         finally:
             writer.close()
             bar.close()
@@ -577,12 +580,15 @@ def render_video(
         "workers": workers,
         "wall_s": wall,
         "s_per_frame": wall / n,
+        "worker_cpu_s_per_frame": sum(cpu) / n,
         "runs": [r.name for r in recs],
     }
 
 
-def _drain(future, writer, bar) -> None:
-    for frame in future.result():
+def _drain(future, writer, bar, cpu: list) -> None:
+    frames, cpu_s = future.result()
+    cpu.append(cpu_s)
+    for frame in frames:
         writer.send(np.ascontiguousarray(frame))
         bar.update(1)
 
@@ -664,6 +670,9 @@ def benchmark(scenario: dict, *, fps=25.0, size=(640, 480), jobs=None, progress=
         "render_s": info["wall_s"],
         "s_per_frame": info["s_per_frame"],
         "worker_s_per_frame": info["s_per_frame"] * info["workers"],
+        # CPU time the workers spent per frame: what the frames cost on an idle machine
+        "worker_cpu_s_per_frame": info["worker_cpu_s_per_frame"],
+        "load_average": os.getloadavg()[0] if hasattr(os, "getloadavg") else None,
         "mp4_mb": mb,
         "target_s": BENCH_TARGET_S,
         "within_target": info["wall_s"] <= BENCH_TARGET_S,
@@ -682,7 +691,9 @@ def benchmark_table(r: dict) -> str:
             f"  render wall time  {r['render_s']:.1f} s (target <= {r['target_s']:g} s: "
             f"{'met' if r['within_target'] else 'NOT met'})",
             f"  per frame         {r['s_per_frame']:.3f} s wall, "
-            f"{r['worker_s_per_frame']:.3f} s per worker",
+            f"{r['worker_s_per_frame']:.3f} s per worker, "
+            f"{r['worker_cpu_s_per_frame']:.3f} s of worker CPU",
+            f"  load average      {r['load_average']} (other jobs slow the wall time)",
             f"  MP4               {r['mp4_mb']:.1f} MB",
             f"  machine           {m['cpu']}, {m['cores']} cores, MuJoCo {m['mujoco']}",
         ]

@@ -8,6 +8,7 @@ Frames are tiny (160x120, 320x240) and few.
 from __future__ import annotations
 
 import math
+import os
 import sys
 from pathlib import Path
 
@@ -338,11 +339,11 @@ def test_interrupted_render_leaves_no_file(pitch_run, tmp_path, monkeypatch):
     _scene(pitch_run, 16, 16)[1].close()
     calls = []
 
-    def drain_then_stop(future, writer, bar):
+    def drain_then_stop(future, writer, bar, cpu):
         calls.append(1)
         if len(calls) == 2:
             raise KeyboardInterrupt
-        for frame in future.result():
+        for frame in future.result()[0]:
             writer.send(frame)
 
     monkeypatch.setattr(render, "_drain", drain_then_stop)
@@ -355,3 +356,15 @@ def test_interrupted_render_leaves_no_file(pitch_run, tmp_path, monkeypatch):
     assert calls == [1, 1]
     assert list(out.parent.iterdir()) == []  # neither clip.mp4 nor .clip.tmp-*.mp4
     assert not list(tmp_path.glob("simpro-render-*.pkl"))
+
+
+def test_bench_video_reports_the_render(pitch_run, capsys):
+    """`bench --video` (short run): frames, sizes and per-frame figures in its JSON."""
+    import json
+
+    _scene(pitch_run, 16, 16)[1].close()
+    assert main(["bench", "--video", "--duration", "0.2", "--json"]) == 0
+    r = json.loads(capsys.readouterr().out)
+    assert (r["frames"], r["video_size"]) == (5, "640x720")
+    assert r["workers"] == min(os.cpu_count() or 1, 5)
+    assert r["worker_cpu_s_per_frame"] > 0 and r["render_s"] > 0
