@@ -333,6 +333,7 @@ def plot_strip(rec: Recording, width: int, height: int, t0: float, t1: float):
     axes[0].legend(fontsize=small * 0.8, loc="best", frameon=False)
     for ax in axes:
         ax.set_xlim(t0, t1)
+        ax.ticklabel_format(axis="y", useOffset=False)  # 1265.0 mm, not +1.265e3
         ax.tick_params(labelsize=small * 0.85, length=2, pad=1)
         ax.set_xlabel("t [s]", fontsize=small * 0.85, labelpad=1)
     fig.subplots_adjust(left=0.05, right=0.99, bottom=0.22, top=0.86, wspace=0.35)
@@ -346,6 +347,20 @@ def plot_strip(rec: Recording, width: int, height: int, t0: float, t1: float):
             (int(round(x0)), int(round(x1)), int(round(height - y1)), int(round(height - y0)))
         )
     return img, boxes
+
+
+def label_image(text: str, height: int) -> np.ndarray:
+    """A small white-on-dark RGB label (drawn once with matplotlib, pasted per frame)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    h = max(10, int(height * 0.06)) // 2 * 2
+    w = max(2 * h, int(0.62 * h * (len(text) + 1))) // 2 * 2
+    fig = Figure(figsize=(w / 100.0, h / 100.0), dpi=100.0, facecolor=(0.1, 0.1, 0.12))
+    FigureCanvasAgg(fig)
+    fig.text(0.5, 0.5, text, color="white", ha="center", va="center", fontsize=h * 0.5)
+    fig.canvas.draw()
+    return np.asarray(fig.canvas.buffer_rgba())[..., :3].copy()
 
 
 def draw_cursor(strip: np.ndarray, boxes, frac: float) -> np.ndarray:
@@ -401,6 +416,10 @@ def _render_frames(indices) -> tuple[list[np.ndarray], float]:
             gp, gq = (job["ghost_pos"][i], job["ghost_quat"][i]) if job["ghost"] else (None, None)
             scene.pose(job["qpos"][i], gp, gq)
             view = scene.render()
+            label = job.get("label")
+            if label is not None:  # runs side by side: which is which
+                lh, lw = min(label.shape[0], view.shape[0]), min(label.shape[1], view.shape[1])
+                view[:lh, :lw] = label[:lh, :lw]
             if job["strip"] is not None:
                 strip = draw_cursor(job["strip"], job["boxes"], job["frac"][i])
                 view = np.concatenate([view, strip], axis=0)
@@ -513,6 +532,7 @@ def render_video(
             "strip": None,
             "boxes": None,
             "frac": (times - start) / (end - start),
+            "label": label_image(rec.name, height) if len(recs) > 1 else None,
         }
         if ghost:
             job["ghost_pos"], job["ghost_quat"] = ghost_poses(rec.columns, _nearest(

@@ -188,7 +188,10 @@ def test_compare_folder_side_by_side(tmp_path):
     )  # fmt: skip
     if code != 0:
         pytest.skip("no offscreen OpenGL")
-    assert iio.imread(tmp_path / "cmp" / "replay.mp4").shape == (2, 48, 128, 3)
+    frames = iio.imread(tmp_path / "cmp" / "replay.mp4")
+    assert frames.shape == (2, 48, 128, 3)
+    # each view carries its run's name on a dark label in its top-left corner
+    assert frames[0, :4, :8].mean() < 60 and frames[0, :4, 64:72].mean() < 60
 
 
 # ---------------------------------------------------------------- bad input
