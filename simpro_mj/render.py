@@ -62,7 +62,8 @@ GL_BACKENDS = ("egl", "osmesa")
 GL_LIBRARIES = {"egl": "libEGL (Debian: libegl1)", "osmesa": "libOSMesa (Debian: libosmesa6)"}
 #: Height of the plot strip as a fraction of the 3D view's height.
 STRIP_FRACTION = 0.5
-GHOST_BODY = "ghost"
+#: Most runs drawn side by side (a batch folder holds many: render one of them).
+MAX_RUNS = 4
 
 
 def require_video():
@@ -117,6 +118,12 @@ def find_runs(folder) -> list[Path]:
     if (folder / RECORDING_FILE).is_file():
         return [folder]
     subs = sorted(p for p in folder.iterdir() if (p / RECORDING_FILE).is_file())
+    if len(subs) > MAX_RUNS:
+        names = ", ".join(p.name for p in subs[:6]) + (", ..." if len(subs) > 6 else "")
+        raise UserInputError(
+            f"too many runs at RESULT_DIR: {folder} holds {len(subs)} ({names}); allowed: at "
+            f"most {MAX_RUNS} side by side (a compare folder), or one run folder"
+        )
     if not subs:
         raise UserInputError(
             f"no recorded motion at RESULT_DIR: {folder} has no {RECORDING_FILE} (nor its "

@@ -227,6 +227,16 @@ def test_bad_folders_one_line_exit_2(tmp_path, capsys):
     assert err.count("\n") == 1 and "no recorded motion" in err
 
 
+def test_batch_folder_of_many_runs_one_line_exit_2(pitch_run, tmp_path, capsys):
+    import shutil
+
+    for i in range(5):
+        shutil.copytree(pitch_run, tmp_path / "batch" / f"v{i}")
+    assert main(["render", str(tmp_path / "batch")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "too many runs" in err and "at most 4" in err
+
+
 def test_unwritable_out_one_line_exit_2(pitch_run, tmp_path, capsys):
     blocker = tmp_path / "a_file"
     blocker.write_text("mine\n")
