@@ -499,7 +499,7 @@ def _summary(res: dict, files: list[str]) -> str:
 
 
 def run(args) -> int:
-    from .cli import emit_json
+    from .jsonout import emit_json
 
     p = apply_overrides(DEFAULTS, args.sets)
     res = compute(p)

@@ -218,7 +218,7 @@ def run(args) -> int:
         progress=not args.quiet and not args.json,
     )
     if args.json:
-        from .cli import emit_json
+        from .jsonout import emit_json
 
         emit_json(report.document())
     else:

@@ -357,7 +357,7 @@ def run(args) -> int:
             scenario["duration_s"] = 20.0
         result = benchmark(scenario, progress=not args.json)
         if args.json:
-            from .cli import emit_json
+            from .jsonout import emit_json
 
             emit_json(result)
         else:
@@ -366,7 +366,7 @@ def run(args) -> int:
     progress = None if args.json else (lambda msg: print(f"  {msg}", file=sys.stderr))
     result = measure(scenario, repeats, batch=not args.no_batch, batch_runs=runs, log=progress)
     if args.json:
-        from .cli import emit_json
+        from .jsonout import emit_json
 
         emit_json(result)
     else:

@@ -409,7 +409,7 @@ def run(args) -> int:
     out.write_text(yaml.safe_dump(doc, sort_keys=False), encoding="utf-8")
     worst = max(abs(v) for r in result["residuals"].values() for v in r.values())
     if args.json:
-        from .cli import emit_json
+        from .jsonout import emit_json
 
         emit_json(doc)
     else:

@@ -22,13 +22,13 @@ from __future__ import annotations
 
 import argparse
 import importlib
-import json
 import os
 import sys
 
 from controllers.errors import DesignError, KinematicsError
 
 from .errors import PhysicsError, UserInputError
+from .jsonout import emit_json  # noqa: F401 - the commands' --json, re-exported
 
 #: subcommand -> module; a module that does not exist yet is simply not offered.
 COMMANDS = {
@@ -87,22 +87,6 @@ def build_parser() -> tuple[argparse.ArgumentParser, dict]:
         mod.add_arguments(p)
         p.set_defaults(_run=mod.run)
     return parser, mods
-
-
-def emit_json(obj) -> None:
-    """Print one JSON object on stdout (the ``--json`` contract)."""
-    json.dump(obj, sys.stdout, indent=2, sort_keys=False, default=_json_default)
-    sys.stdout.write("\n")
-
-
-def _json_default(o):
-    import numpy as np
-
-    if isinstance(o, np.generic):
-        return o.item()
-    if isinstance(o, np.ndarray):
-        return o.tolist()
-    raise TypeError(f"not JSON serialisable: {type(o).__name__}")
 
 
 def _one_line(exc: BaseException) -> str:

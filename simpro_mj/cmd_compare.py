@@ -100,7 +100,7 @@ def run(args) -> int:
     (out / "comparison.txt").write_text(table + "\n")
     (out / "comparison.json").write_text(json.dumps(metrics, indent=2, default=float))
     if args.json:
-        from .cli import emit_json
+        from .jsonout import emit_json
 
         emit_json(metrics)
     else:

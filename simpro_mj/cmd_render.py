@@ -201,7 +201,7 @@ def run(args) -> int:
     with sigterm_as_interrupt():  # SIGTERM as Ctrl-C: exit 130, no partial video left
         info = render_video(runs, out, progress=not args.json and sys.stderr.isatty(), **opts)
     if args.json:
-        from .cli import emit_json
+        from .jsonout import emit_json
 
         emit_json(info)
     else:

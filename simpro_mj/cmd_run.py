@@ -231,7 +231,7 @@ def run(args) -> int:
     with claim(out, "run", inputs=[args.scenario]), sigterm_as_interrupt():
         res, metrics = execute(scenario, out, plots=not args.no_plots)
     if args.json:
-        from .cli import emit_json
+        from .jsonout import emit_json
 
         emit_json(metrics)
     else:

@@ -42,7 +42,7 @@ def run(args) -> int:
         ],
     }
     if args.json:
-        from .cli import emit_json
+        from .jsonout import emit_json
 
         emit_json(out)
         return 0

@@ -542,7 +542,7 @@ def document(results: dict, tree: dict) -> dict:
 def run(args) -> int:
     import json
 
-    from .cli import emit_json
+    from .jsonout import emit_json
 
     tree = apply_overrides(default_tree(args.preset), args.sets)
     if args.duration is not None:

@@ -240,7 +240,7 @@ def run(args) -> int:
     summary = {k: res[k] for k in keys}
     summary["plot"] = str(plot_path) if plot_path else None
     if args.json:
-        from .cli import emit_json
+        from .jsonout import emit_json
 
         emit_json(summary)
     else:
