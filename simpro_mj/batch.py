@@ -12,13 +12,15 @@ resolved scenario (plain JSON data) and its folder, builds its own MuJoCo
 model, runs, writes a normal result folder (:func:`simpro_mj.cmd_run.execute`,
 atomic) and returns a small dict. No model is ever pickled.
 
-* ``--jobs N`` (default ``os.cpu_count()``): a ``ProcessPoolExecutor`` with
-  ``spawn`` workers; ``--jobs 1`` runs in this process, one after another.
+* ``--jobs N`` (default ``os.cpu_count()``, at most :data:`MAX_JOBS`): a
+  ``ProcessPoolExecutor`` with ``spawn`` workers, never more than the
+  variants to run; ``--jobs 1`` runs in this process, one after another.
 * ``--scheduler ADDRESS``: the same tasks on a running Dask distributed
   scheduler; ``--scheduler local`` starts a ``LocalCluster`` of ``--jobs``
-  single-threaded worker processes. The worker writes into a temporary folder
-  and sends the files back, so the results land in the same layout here
-  whether or not the workers share this file system
+  single-threaded worker processes (no more than the variants to run). The
+  worker writes into a temporary folder and sends the files back, so the
+  results land in the same layout here whether or not the workers share this
+  file system
   (``pip install 'simpro-sim[cluster]'``).
 * A progress bar (tqdm, stderr; off with ``--quiet`` or when stderr is not a
   terminal) shows done/failed/left and the time left.
@@ -127,6 +129,8 @@ HELP = "run scenario files, sweeps and Monte Carlo variants in parallel; write s
 STATUSES = ("ok", "diverged", "interrupted", "failed", "invalid", "cancelled")
 RUN_STATUSES = ("ok", "diverged")
 GAIN_PATH = "controller.outer.gains"
+#: Most worker processes (``--jobs``); a batch never starts more than it has variants.
+MAX_JOBS = 256
 
 #: Stability criterion (module docstring).
 BLOCK_S = 0.5
@@ -201,10 +205,13 @@ def add_arguments(parser) -> None:
 
 def run(args) -> int:
     from .errors import UserInputError
+    from .params import short_text
 
     jobs = args.jobs if args.jobs is not None else (os.cpu_count() or 1)
-    if jobs < 1:
-        raise UserInputError(f"invalid value at --jobs: {jobs}; allowed: an integer >= 1")
+    if not 1 <= jobs <= MAX_JOBS:
+        raise UserInputError(
+            f"invalid value at --jobs: {short_text(str(jobs))}; allowed: an integer 1..{MAX_JOBS}"
+        )
     out = Path(args.out)
     report = run_batch(
         args.paths,
@@ -304,7 +311,7 @@ def plan(paths: Iterable[str], sets: Iterable[str] = ()) -> Plan:
     """
     from .errors import UserInputError
     from .params import parse_set
-    from .sweep import load_sweep
+    from .sweep import MAX_VARIANTS, load_sweep
 
     sets = list(sets or ())
     for expr in sets:
@@ -365,6 +372,11 @@ def plan(paths: Iterable[str], sets: Iterable[str] = ()) -> Plan:
                     grid_paths=grid,
                     mc=mc,
                 )
+            )
+        if len(jobs) > MAX_VARIANTS:
+            raise UserInputError(
+                f"too many variants at {entry}: {len(jobs):,} so far in this batch; allowed: at "
+                f"most {MAX_VARIANTS:,} variants per batch"
             )
     return Plan(jobs=jobs, paths=all_paths, files=files)
 
@@ -787,7 +799,7 @@ def _run_dask(tasks: list[tuple[int, dict]], scheduler: str, jobs: int, done: Ca
     try:
         if scheduler == "local":
             cluster = distributed.LocalCluster(
-                n_workers=jobs,
+                n_workers=min(jobs, len(tasks)),  # never more workers than tasks
                 threads_per_worker=1,
                 processes=True,
                 dashboard_address=None,

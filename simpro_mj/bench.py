@@ -73,15 +73,21 @@ def add_arguments(parser) -> None:
     )
 
 
-def _positive_int(value, field: str) -> int:
-    from .errors import UserInputError
+#: Upper bounds of the counts (a benchmark of the median of 100 is already minutes).
+MAX_REPEATS = 100
+MAX_BATCH_RUNS = 64
 
-    try:
-        n = int(str(value))
-    except ValueError:
-        n = 0
-    if n < 1:
-        raise UserInputError(f"invalid value at {field}: {value!r}; allowed: an integer >= 1")
+
+def _positive_int(value, field: str, hi: int) -> int:
+    from .errors import UserInputError
+    from .params import value_text
+
+    text = str(value).strip()
+    n = int(text) if text.isdigit() and len(text) <= 9 else 0
+    if not 1 <= n <= hi:
+        raise UserInputError(
+            f"invalid value at {field}: {value_text(value)}; allowed: an integer 1..{hi}"
+        )
     return n
 
 
@@ -95,8 +101,11 @@ def _duration(value) -> float:
     except (TypeError, ValueError):
         s = math.nan
     if not (math.isfinite(s) and s >= 0.01):
+        from .params import value_text
+
         raise UserInputError(
-            f"invalid value at --duration: {value!r}; allowed: a number of seconds >= 0.01"
+            f"invalid value at --duration: {value_text(value)}; allowed: a number of seconds "
+            ">= 0.01"
         )
     return s
 
@@ -344,8 +353,8 @@ def run(args) -> int:
 
     from .scenario import load_scenario
 
-    repeats = _positive_int(args.repeats, "--repeats")
-    runs = _positive_int(args.batch_runs, "--batch-runs")
+    repeats = _positive_int(args.repeats, "--repeats", MAX_REPEATS)
+    runs = _positive_int(args.batch_runs, "--batch-runs", MAX_BATCH_RUNS)
     sets = list(args.sets)
     if args.duration is not None:
         sets.append(f"duration_s={_duration(args.duration)!r}")

@@ -89,8 +89,17 @@ def build_parser() -> tuple[argparse.ArgumentParser, dict]:
     return parser, mods
 
 
+#: Longest error line printed (characters); a longer one keeps its start and its
+#: end (where "allowed: ..." is) around "...". Fields echo cut values already.
+MAX_MESSAGE_CHARS = 1000
+
+
 def _one_line(exc: BaseException) -> str:
-    return " ".join(str(exc).split())
+    text = " ".join(str(exc).split())
+    if len(text) > MAX_MESSAGE_CHARS:
+        half = MAX_MESSAGE_CHARS // 2 - 3
+        text = f"{text[:half]} ... {text[-half:]}"
+    return text
 
 
 def _check_gl_backend() -> str | None:

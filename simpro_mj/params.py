@@ -29,21 +29,41 @@ __all__ = [
     "check_number",
     "key_text",
     "check_tagged",
+    "short_text",
+    "value_text",
 ]
 
 
 _PLAIN_KEY = re.compile(r"^[A-Za-z0-9_.\-]+$")
+#: Longest key or value echoed whole in a message (characters); longer ones are cut.
+ECHO_CHARS = 60
+
+
+def short_text(text: str, limit: int = ECHO_CHARS) -> str:
+    """``text``, or its start and end around ``...`` with its length when longer
+    than ``limit``: a 100,000-character key or a 300-digit number stays readable."""
+    if len(text) <= limit:
+        return text
+    keep = max(limit - 24, 8)
+    return f"{text[: keep - keep // 3]}...{text[-(keep // 3) :]} ({len(text):,} chars)"
+
+
+def value_text(value: Any) -> str:
+    """``repr(value)`` cut by :func:`short_text` (for ``got ...`` in messages)."""
+    return short_text(repr(value))
 
 
 def key_text(key: Any) -> str:
     """A key as it appears in a dotted path: plain names as they are, anything
-    else (spaces, newlines, non-strings) quoted, so a message stays one line."""
-    return key if isinstance(key, str) and _PLAIN_KEY.match(key) else repr(key)
+    else (spaces, newlines, non-strings) quoted, so a message stays one line;
+    a long one cut (:func:`short_text`)."""
+    text = key if isinstance(key, str) and _PLAIN_KEY.match(key) else repr(key)
+    return short_text(text, 2 * ECHO_CHARS)
 
 
 def closest(name: str, choices: Iterable[str]) -> str:
     """A ' (did you mean X?)' hint, or '' when nothing is close."""
-    match = difflib.get_close_matches(name, list(choices), n=1, cutoff=0.5)
+    match = difflib.get_close_matches(name[:200], list(choices), n=1, cutoff=0.5)
     return f" (did you mean '{match[0]}'?)" if match else ""
 
 
@@ -90,7 +110,7 @@ def check_tagged(
         if tag not in entry:
             raise UserInputError(f"missing key at {path}.{tag}: allowed: one of {names}")
         raise UserInputError(
-            f"invalid value at {path}.{tag}: {kind!r}; allowed: one of {names}"
+            f"invalid value at {path}.{tag}: {value_text(kind)}; allowed: one of {names}"
             f"{closest(str(kind), names)}"
         )
     required, optional = kinds[kind]
@@ -116,22 +136,29 @@ def parse_set(expr: str) -> tuple[str, Any]:
     UserInputError
         If the expression has no ``=`` or an empty key, or VALUE is not YAML.
     """
+    from .safe_yaml import YAMLLimitError, load
+
     if "=" not in expr:
         raise UserInputError(
-            f"malformed --set at {expr!r}: expected KEY=VALUE with a dotted KEY, e.g. "
+            f"malformed --set at {value_text(expr)}: expected KEY=VALUE with a dotted KEY, e.g. "
             "controller.mode=task_space"
         )
     key, _, raw = expr.partition("=")
     key = key.strip()
     if not key or any(not part for part in key.split(".")):
         raise UserInputError(
-            f"malformed --set at {expr!r}: expected KEY=VALUE with KEY a dotted path like a.b.c"
+            f"malformed --set at {value_text(expr)}: expected KEY=VALUE with KEY a dotted path "
+            "like a.b.c"
         )
     try:
-        value = yaml.safe_load(raw) if raw.strip() else ""
+        value = load(raw) if raw.strip() else ""
+    except YAMLLimitError as exc:
+        raise UserInputError(
+            f"invalid value at {key_text(key)}: {exc.problem}; allowed: {exc.allowed}"
+        ) from exc
     except yaml.YAMLError as exc:
         raise UserInputError(
-            f"malformed --set at {key_text(key)}: value {raw!r} is not valid YAML"
+            f"malformed --set at {key_text(key)}: value {value_text(raw)} is not valid YAML"
         ) from exc
     return key, value
 
@@ -157,11 +184,14 @@ def set_path(tree: dict, path: str, value: Any, strict: bool = True) -> None:
         here = ".".join(parts[: depth + 1])
         last = depth == len(parts) - 1
         if not isinstance(node, dict):
-            raise UserInputError(f"unknown key at {here}: '{parts[depth - 1]}' has no sub-keys")
+            raise UserInputError(
+                f"unknown key at {key_text(here)}: '{key_text(parts[depth - 1])}' has no sub-keys"
+            )
         if part not in node:
             if strict:
                 raise UserInputError(
-                    f"unknown key at {here}: allowed keys are {sorted(node)}{closest(part, node)}"
+                    f"unknown key at {key_text(here)}: allowed keys are {sorted(node)}"
+                    f"{closest(part, node)}"
                 )
             if last:
                 node[part] = value
@@ -180,19 +210,19 @@ def _check_type(path: str, old: Any, new: Any) -> None:
         return
     num = (int, float)
     if isinstance(old, bool) or isinstance(new, bool):
-        ok = isinstance(old, bool) == isinstance(new, bool)
+        ok, kind = isinstance(old, bool) == isinstance(new, bool), "true or false"
     elif isinstance(old, num):
-        ok = isinstance(new, num)
+        ok, kind = isinstance(new, num), "a number"
     elif isinstance(old, dict):
-        ok = isinstance(new, dict)
+        ok, kind = isinstance(new, dict), "a mapping"
     elif isinstance(old, list):
-        ok = isinstance(new, list)
+        ok, kind = isinstance(new, list), "a list"
     else:
-        ok = isinstance(new, type(old))
+        ok, kind = isinstance(new, type(old)), f"a {type(old).__name__}"
     if not ok:
         raise UserInputError(
-            f"wrong type at {path}: got {type(new).__name__} {new!r}, "
-            f"expected {type(old).__name__} like {old!r}"
+            f"wrong type at {key_text(path)}: got {type(new).__name__} {value_text(new)}; "
+            f"allowed: {kind} like {value_text(old)}"
         )
 
 
@@ -226,7 +256,8 @@ def check_keys(tree: Mapping, ref: Mapping, path: str) -> None:
         if isinstance(ref[key], Mapping):
             if not isinstance(sub, Mapping):
                 raise UserInputError(
-                    f"wrong type at {here}: got {type(sub).__name__} {sub!r}; allowed: a mapping"
+                    f"wrong type at {here}: got {type(sub).__name__} {value_text(sub)}; "
+                    "allowed: a mapping"
                 )
             check_keys(sub, ref[key], here)
 
@@ -254,7 +285,8 @@ def check_number(
     value = get_path(tree, path)
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise UserInputError(
-            f"wrong type at {path}: got {type(value).__name__} {value!r}; allowed: a number"
+            f"wrong type at {path}: got {type(value).__name__} {value_text(value)}; "
+            "allowed: a number"
         )
     x = float(value)
     lo_ok = x > lo if lo_open else x >= lo
@@ -266,54 +298,39 @@ def check_number(
         if hi < math.inf:
             parts.append(f"{'<' if hi_open else '<='} {hi:g}{unit}")
         allowed = ("an integer " if integer else "a finite number ") + " and ".join(parts)
-        raise UserInputError(f"invalid value at {path}: {value!r}; allowed: {allowed.strip()}")
+        raise UserInputError(
+            f"invalid value at {path}: {value_text(value)}; allowed: {allowed.strip()}"
+        )
     return int(x) if integer else x
 
 
 # ------------------------------------------------------------------ YAML files
 
 
-class _UniqueKeyLoader(yaml.SafeLoader):
-    """``yaml.SafeLoader`` that refuses duplicate mapping keys (no other change)."""
-
-
-def _construct_unique_mapping(loader, node, deep=False):
-    seen = set()
-    for key_node, _ in node.value:
-        key = loader.construct_object(key_node, deep=True)
-        if isinstance(key, (str, int, float, bool)) or key is None:
-            if key in seen:
-                raise yaml.constructor.ConstructorError(
-                    None, None, f"duplicate key {key!r}", key_node.start_mark
-                )
-            seen.add(key)
-    return loader.construct_mapping(node, deep=deep)
-
-
-_UniqueKeyLoader.add_constructor(
-    yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _construct_unique_mapping
-)
-
-
 def read_yaml(path: Path, what: str = "file") -> Any:
-    """Read a YAML file (duplicate keys refused); one-line :class:`UserInputError`
-    naming ``what`` and the file (line and column for a syntax error)."""
+    """Read a YAML file within the bounds of :mod:`simpro_mj.safe_yaml` (size,
+    depth, alias expansion, number length; duplicate keys and empty files
+    refused); one-line :class:`UserInputError` naming ``what`` and the file
+    (line and column for a syntax error)."""
+    from .safe_yaml import YAMLLimitError, read_file
+
     try:
-        text = path.read_text(encoding="utf-8")
+        return read_file(path, what)
     except (OSError, UnicodeDecodeError) as exc:
         raise UserInputError(
-            f"unreadable {what} at {path}: {exc.__class__.__name__}: {exc}; "
+            f"unreadable {what} at {path}: {exc.__class__.__name__}: {short_text(str(exc))}; "
             "allowed: a UTF-8 YAML file"
         ) from exc
-    try:
-        return yaml.load(text, Loader=_UniqueKeyLoader)  # noqa: S506 - a SafeLoader subclass
     except yaml.MarkedYAMLError as exc:
         mark = exc.problem_mark or exc.context_mark
         where = f"{path} line {mark.line + 1}, column {mark.column + 1}" if mark else str(path)
-        problem = " ".join(str(exc.problem or exc).split())
-        allowed = "each key once" if "duplicate key" in problem else "a YAML mapping of keys"
+        problem = short_text(" ".join(str(exc.problem or exc).split()), 200)
+        if isinstance(exc, YAMLLimitError):
+            allowed = exc.allowed
+        else:
+            allowed = "each key once" if "duplicate key" in problem else "a YAML mapping of keys"
         raise UserInputError(f"invalid YAML at {where}: {problem}; allowed: {allowed}") from exc
     except yaml.YAMLError as exc:
         raise UserInputError(
-            f"invalid YAML at {path}: {exc}; allowed: a YAML mapping of keys"
+            f"invalid YAML at {path}: {short_text(str(exc), 200)}; allowed: a YAML mapping of keys"
         ) from exc

@@ -92,7 +92,15 @@ from controllers.kinematics import check_reachable, reachable
 
 from .errors import UserInputError
 from .model import DEFAULT_MODEL_PARAMS
-from .params import check_keys, check_tagged, closest, key_text, parse_set, read_yaml
+from .params import (
+    check_keys,
+    check_tagged,
+    closest,
+    key_text,
+    parse_set,
+    read_yaml,
+    value_text,
+)
 from .presets import DEFAULT_PRESET, scenario_overlay
 from .sensors import DEFAULT_SENSORS
 
@@ -108,6 +116,8 @@ __all__ = [
     "FAULT_TYPES",
     "FAULT_SENSORS",
     "MAX_DURATION_S",
+    "MIN_DURATION_S",
+    "MAX_PERIOD_MS",
     "SetpointError",
     "scenarios_dir",
     "shipped_scenarios",
@@ -164,6 +174,14 @@ _FAULT_STRINGS = {"sensor": FAULT_SENSORS, "axis": _FAULT_AXES, "mode": _POT_MOD
 
 #: Longest run accepted (s): the 1 ms log of one hour is about 1 GB of memory.
 MAX_DURATION_S = 3600.0
+#: Shortest run accepted (s): ten physics steps.
+MIN_DURATION_S = 0.01
+#: Longest controller period or sensor sampling period (ms): 10 s, as ``analyze``.
+MAX_PERIOD_MS = 10_000
+#: Largest logging decimation (a sample every 10 s of a 1 ms run).
+MAX_DECIMATION = 10_000
+#: Sine periods (s): two physics steps (the Nyquist limit of the 1 ms grid) .. 1e6 s.
+SINE_PERIOD_RANGE_S = (0.002, 1e6)
 
 
 def _merge(base: Mapping, over: Mapping) -> dict:
@@ -336,7 +354,7 @@ def _find(name_or_path: str) -> Path:
 def read_document(name_or_path: str) -> tuple[Path, Mapping]:
     """Find a scenario file (path or shipped name) and read it as a mapping.
 
-    Returns ``(path, document)``; an empty file is an empty mapping. Shared by
+    Returns ``(path, document)``; an empty file is refused. Shared by
     :func:`load_scenario` and :func:`simpro_mj.sweep.load_sweep`.
 
     Raises
@@ -347,8 +365,6 @@ def read_document(name_or_path: str) -> tuple[Path, Mapping]:
     """
     path = _find(str(name_or_path))
     doc = read_yaml(path, "scenario")
-    if doc is None:
-        doc = {}
     if not isinstance(doc, Mapping):
         raise UserInputError(
             f"wrong type at {path.name} (top level): got {type(doc).__name__}; "
@@ -432,11 +448,13 @@ def _set(tree: dict, key: str, value: Any) -> None:
     for depth, part in enumerate(parts[:-1]):
         if not isinstance(node, dict):
             here = ".".join(parts[:depth])
-            raise UserInputError(f"unknown key at {key}: '{here}' has no sub-keys")
+            raise UserInputError(
+                f"unknown key at {key_text(key)}: '{key_text(here)}' has no sub-keys"
+            )
         node = node.setdefault(part, {})
     if not isinstance(node, dict):
         here = ".".join(parts[:-1])
-        raise UserInputError(f"unknown key at {key}: '{here}' has no sub-keys")
+        raise UserInputError(f"unknown key at {key_text(key)}: '{key_text(here)}' has no sub-keys")
     last = parts[-1]
     if isinstance(value, Mapping) and isinstance(node.get(last), Mapping):
         node[last] = _merge(node[last], value)
@@ -459,12 +477,12 @@ def _type_name(value: Any) -> str:
 
 def _wrong_type(path: str, value: Any, allowed: str) -> UserInputError:
     return UserInputError(
-        f"wrong type at {path}: got {_type_name(value)} {value!r}; allowed: {allowed}"
+        f"wrong type at {path}: got {_type_name(value)} {value_text(value)}; allowed: {allowed}"
     )
 
 
 def _invalid(path: str, value: Any, allowed: str) -> UserInputError:
-    return UserInputError(f"invalid value at {path}: {value!r}; allowed: {allowed}")
+    return UserInputError(f"invalid value at {path}: {value_text(value)}; allowed: {allowed}")
 
 
 def _number(value: Any, path: str) -> float:
@@ -629,8 +647,10 @@ def _check_component_values(c: dict, path: str) -> None:
         if c["end_s"] <= c["start_s"]:
             raise _invalid(f"{path}.end_s", c["end_s"], f"> start_s = {c['start_s']} s")
     if kind == "sine":
-        if c["period_s"] <= 0:
-            raise _invalid(f"{path}.period_s", c["period_s"], "> 0 s")
+        lo, hi = SINE_PERIOD_RANGE_S
+        if not lo <= c["period_s"] <= hi:
+            allowed = f"> 0 s: {lo:g} s (two physics steps) .. {hi:g} s"
+            raise _invalid(f"{path}.period_s", c["period_s"], allowed)
         if c["start_s"] < 0:
             raise _invalid(f"{path}.start_s", c["start_s"], ">= 0 s")
         if c["end_s"] is not None and c["end_s"] <= c["start_s"]:
@@ -742,6 +762,20 @@ def _check_fault_values(s: Mapping) -> None:
             )
 
 
+def _check_component_times(s: Mapping) -> None:
+    """A set-point component that starts after the run ends never acts: a mistake."""
+    duration = s["duration_s"]
+    for axis, comps in s["setpoint"].items():
+        for i, c in enumerate(comps):
+            key = {"step": "time_s", "ramp": "start_s", "sine": "start_s"}.get(c["type"])
+            if key is not None and c[key] > duration:
+                raise _invalid(
+                    f"setpoint.{axis}[{i}].{key}",
+                    c[key],
+                    f"<= duration_s = {duration:g} s (it would start after the run ends)",
+                )
+
+
 def _supply_bar_gauge(s: Mapping) -> float:
     value = (s["actuator"].get("pneumatics") or {}).get("supply_pressure_bar_gauge")
     if value is None:
@@ -799,9 +833,14 @@ def _multiple_of_step(tree: Mapping, path: str) -> None:
         node = node[part]
     ratio = float(node) / _PHYSICS_DT_MS
     # isfinite first: round(inf) raises (found by the hypothesis loader test)
-    if not (math.isfinite(ratio) and ratio >= 1 and abs(ratio - round(ratio)) < 1e-9):
+    if not (math.isfinite(ratio) and ratio >= 1 and abs(ratio - round(ratio)) < 1e-9) or (
+        float(node) > MAX_PERIOD_MS
+    ):
         raise _invalid(
-            path, node, f"a positive integer multiple of the {_PHYSICS_DT_MS} ms physics step"
+            path,
+            node,
+            f"a positive integer multiple of the {_PHYSICS_DT_MS} ms physics step, "
+            f"<= {MAX_PERIOD_MS} ms",
         )
 
 
@@ -841,6 +880,7 @@ def validate_scenario(tree: Mapping) -> dict:
     if not _NAME_RE.match(s["name"]):
         raise _invalid("name", s["name"], "letters, digits, '_', '-', '.' (a file-name-safe word)")
     _require(s, "duration_s", lambda v: v > 0, "> 0 s")
+    _require(s, "duration_s", lambda v: v >= MIN_DURATION_S, f">= {MIN_DURATION_S:g} s")
     _require(s, "duration_s", lambda v: v <= MAX_DURATION_S, f"<= {MAX_DURATION_S:g} s (one hour)")
     _require(s, "seed", lambda v: 0 <= v < 2**63, "an integer >= 0")
     c = "controller"
@@ -882,9 +922,15 @@ def validate_scenario(tree: Mapping) -> dict:
     _require(s, f"{imu}.bandwidth_hz", lambda v: v > 0, "> 0 Hz")
     for sensor in (pot, enc, imu):
         _multiple_of_step(s, f"{sensor}.rate_ms")
-    _require(s, "logging.decimation", lambda v: v >= 1, "an integer >= 1")
+    _require(
+        s,
+        "logging.decimation",
+        lambda v: 1 <= v <= MAX_DECIMATION,
+        f"an integer 1..{MAX_DECIMATION}",
+    )
     _check_redesign(s)
     _check_fault_values(s)
+    _check_component_times(s)
     return s
 
 

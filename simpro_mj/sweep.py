@@ -87,6 +87,7 @@ __all__ = [
     "SweepFile",
     "parse_sweep",
     "count_variants",
+    "MAX_VARIANTS",
     "expand",
     "draw",
     "load_sweep",
@@ -102,7 +103,9 @@ DISTRIBUTIONS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
 _SWEEP_KEYS = ("grid", "monte_carlo")
 _MC_KEYS = ("samples", "seed", "parameters")
 _NOT_SWEPT = ("name", "sweep")
-_MAX_SAMPLES = 100_000
+#: Most variants of one file (grid product times samples) and of one batch.
+MAX_VARIANTS = 10_000
+_MAX_SAMPLES = MAX_VARIANTS
 _MAX_NAME = 80
 _UNSAFE = re.compile(r"[^A-Za-z0-9.,+=_-]")
 
@@ -350,7 +353,14 @@ def parse_sweep(block: Any, where: str = "sweep") -> SweepSpec:
                     "in one of grid or monte_carlo"
                 )
             params.append(_parse_distribution(path, spec, here))
-    return SweepSpec(grid=grid, samples=samples, seed=seed, parameters=tuple(params))
+    spec = SweepSpec(grid=grid, samples=samples, seed=seed, parameters=tuple(params))
+    if spec.count > MAX_VARIANTS:  # counted, not expanded
+        factors = [str(len(v)) for v in grid.values()] + ([str(samples)] if samples else [])
+        raise UserInputError(
+            f"too many variants at {where}: {' x '.join(factors)} = {spec.count:,}; allowed: "
+            f"at most {MAX_VARIANTS:,} variants per file"
+        )
+    return spec
 
 
 def count_variants(block: Any) -> int:

@@ -30,7 +30,7 @@ from simpro_mj.cli import main
 from simpro_mj.scenario import load_scenario, scenarios_dir
 
 ROOT = Path(__file__).resolve().parents[1]
-SHORT = ["--set", "duration_s=0.2", "--no-plots"]
+SHORT = ["--set", "duration_s=1.1", "--no-plots"]
 
 
 def _snapshot(folder: Path) -> dict:
@@ -97,7 +97,7 @@ def test_a_result_folder_is_replaced_and_an_empty_one_used(tmp_path, capsys):
     assert main(["run", "step_pitch", "--out", str(empty), *SHORT]) == 0
     assert results.result_kind(empty) == "run" and results.is_complete(empty)
     first = (empty / "timeseries.csv").read_bytes()
-    assert main(["run", "step_pitch", "--out", str(empty), "--set", "duration_s=0.3",
+    assert main(["run", "step_pitch", "--out", str(empty), "--set", "duration_s=1.2",
                  "--no-plots"]) == 0  # fmt: skip
     assert len((empty / "timeseries.csv").read_bytes()) > len(first)  # replaced: 300 rows
     # a batch folder is not a run's to replace, nor a run folder a batch's
@@ -139,7 +139,7 @@ def test_a_second_writer_is_refused_while_the_first_holds_the_folder(tmp_path, c
 
 
 def test_an_interrupted_rerun_keeps_the_complete_result(tmp_path):
-    sc = load_scenario("step_pitch", ["duration_s=0.2"])
+    sc = load_scenario("step_pitch", ["duration_s=1.1"])
     cols = {"time_s": np.arange(5) * 1e-3, "heave_m": np.zeros(5)}
     out = tmp_path / "r"
     assert results.write_results(out, cols, {}, sc, {"plots": False}) == out
@@ -186,7 +186,7 @@ def test_is_complete_is_the_one_check_and_resume_uses_it(tmp_path):
     from simpro_mj.batch import run_batch
 
     out = tmp_path / "b"
-    argv = dict(sets=["duration_s=0.2"], jobs=1, plots=False, summary_plots=False)
+    argv = dict(sets=["duration_s=1.1"], jobs=1, plots=False, summary_plots=False)
     first = run_batch(["step_pitch"], out, **argv)
     folder = out / first.rows[0]["folder"]
     assert results.is_complete(folder)
