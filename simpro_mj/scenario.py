@@ -877,8 +877,12 @@ def validate_scenario(tree: Mapping) -> dict:
             _multiple_of_step(tree, path)
 
     s = _check_tree(tree, DEFAULT_SCENARIO, "")
-    if not _NAME_RE.match(s["name"]):
-        raise _invalid("name", s["name"], "letters, digits, '_', '-', '.' (a file-name-safe word)")
+    if not _NAME_RE.match(s["name"]) or len(s["name"]) > 100:
+        raise _invalid(
+            "name",
+            s["name"],
+            "letters, digits, '_', '-', '.' (a file-name-safe word of at most 100 characters)",
+        )
     _require(s, "duration_s", lambda v: v > 0, "> 0 s")
     _require(s, "duration_s", lambda v: v >= MIN_DURATION_S, f">= {MIN_DURATION_S:g} s")
     _require(s, "duration_s", lambda v: v <= MAX_DURATION_S, f"<= {MAX_DURATION_S:g} s (one hour)")
