@@ -318,9 +318,13 @@ def gain_warnings(scenario: Mapping) -> tuple[list[str], dict]:
 
 
 def preflight(scenario: Mapping, model=None) -> tuple[list[str], dict]:
-    """Payload check (raises) and gain warnings; returns ``(warnings, figures)``."""
+    """Payload check (raises), gain warnings and set-point components that start
+    after the run ends (warned: they never act); returns ``(warnings, figures)``."""
+    from .scenario import late_setpoints
+
     payload = check_payload(scenario, model)
     warnings, stability = gain_warnings(scenario)
+    warnings += late_setpoints(scenario)
     for i, u in enumerate(payload.get("utilisation", [])):
         if u > UTILISATION_WARN:
             warnings.append(

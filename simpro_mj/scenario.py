@@ -105,6 +105,7 @@ from .presets import DEFAULT_PRESET, scenario_overlay
 from .sensors import DEFAULT_SENSORS
 
 __all__ = [
+    "late_setpoints",
     "DEFAULT_SCENARIO",
     "PHYSICS_DT_S",
     "MODES",
@@ -762,18 +763,24 @@ def _check_fault_values(s: Mapping) -> None:
             )
 
 
-def _check_component_times(s: Mapping) -> None:
-    """A set-point component that starts after the run ends never acts: a mistake."""
+def late_setpoints(s: Mapping) -> list[str]:
+    """Set-point components that start after the run ends: they never act.
+
+    Not an error (a short run of a shipped scenario cuts its steps off on
+    purpose), but never silent: :func:`simpro_mj.preflight.preflight` turns
+    each into a warning line, recorded in ``metrics.json``.
+    """
     duration = s["duration_s"]
+    out = []
     for axis, comps in s["setpoint"].items():
         for i, c in enumerate(comps):
             key = {"step": "time_s", "ramp": "start_s", "sine": "start_s"}.get(c["type"])
             if key is not None and c[key] > duration:
-                raise _invalid(
-                    f"setpoint.{axis}[{i}].{key}",
-                    c[key],
-                    f"<= duration_s = {duration:g} s (it would start after the run ends)",
+                out.append(
+                    f"setpoint.{axis}[{i}].{key} = {c[key]:g} s is after the end of the run "
+                    f"(duration_s = {duration:g} s): this {c['type']} never acts"
                 )
+    return out
 
 
 def _supply_bar_gauge(s: Mapping) -> float:
@@ -934,7 +941,6 @@ def validate_scenario(tree: Mapping) -> dict:
     )
     _check_redesign(s)
     _check_fault_values(s)
-    _check_component_times(s)
     return s
 
 

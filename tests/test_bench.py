@@ -18,7 +18,7 @@ from simpro_mj.scenario import load_scenario
 
 @pytest.fixture(scope="module")
 def short():
-    scenario = load_scenario("step_pitch", ["duration_s=1.2"])
+    scenario = load_scenario("step_pitch", ["duration_s=0.5"])
     return measure(scenario, repeats=2, batch=False)
 
 
@@ -29,7 +29,7 @@ def test_keys_and_consistency(short):
         assert key in r
     assert set(r["stages_us"]) == set(STAGES)
     assert set(r["machine"]) >= {"cpu", "cores", "python", "mujoco", "numpy"}
-    assert r["repeats"] == 2 and r["steps"] == 1200
+    assert r["repeats"] == 2 and r["steps"] == 500
     assert r["throughput"] is None  # batch=False
     assert r["full_step_us"] > 0 and r["bare_step_us"] > 0
     assert math.isclose(r["ratio"], r["full_step_us"] / r["bare_step_us"], rel_tol=1e-12)
@@ -54,7 +54,7 @@ def test_stages_sum_within_the_instrumented_step(short):
 
 
 def test_cli_json_and_throughput(capsys):
-    code = main(["bench", "--json", "--duration", "1.1", "--repeats", "1", "--batch-runs", "2"])
+    code = main(["bench", "--json", "--duration", "0.2", "--repeats", "1", "--batch-runs", "2"])
     assert code == 0
     r = json.loads(capsys.readouterr().out)
     tp = r["throughput"]
@@ -64,7 +64,7 @@ def test_cli_json_and_throughput(capsys):
 
 
 def test_human_table(capsys):
-    assert main(["bench", "--duration", "1.1", "--repeats", "1", "--no-batch"]) == 0
+    assert main(["bench", "--duration", "0.1", "--repeats", "1", "--no-batch"]) == 0
     out = capsys.readouterr().out
     assert "bare mj_step" in out and "ratio full/bare" in out and "pneumatics" in out
 

@@ -236,11 +236,11 @@ def test_interrupt_returns_the_partial_result():
 
 
 def test_profile_fills_the_stages():
-    cs = CoSimulation(load_scenario("step_pitch", ["duration_s=1.1"]))
+    cs = CoSimulation(load_scenario("step_pitch", ["duration_s=0.2"]))
     prof: dict = {}
     res = cs.run(profile=prof)
     assert set(prof) == {"physics", "sensors", "controllers", "pneumatics", "logging", "steps"}
-    assert prof["steps"] == 1101 and all(prof[s] > 0 for s in prof)
-    plain = CoSimulation(load_scenario("step_pitch", ["duration_s=1.1"])).run()
+    assert prof["steps"] == 201 and all(prof[s] > 0 for s in prof)
+    plain = CoSimulation(load_scenario("step_pitch", ["duration_s=0.2"])).run()
     for name, col in res.columns.items():  # instrumenting does not change the run
         assert np.array_equal(col, plain.columns[name], equal_nan=True)

@@ -45,7 +45,7 @@ from simpro_mj.scenario import (
 )
 
 ROOT = Path(__file__).resolve().parents[1]
-SHORT = ["--set", "duration_s=1.1", "--no-plots"]
+SHORT = ["--set", "duration_s=0.2", "--no-plots"]
 
 
 def _cli(capsys, argv):
@@ -444,7 +444,7 @@ def test_max_liftable_payload_is_stated_and_just_below_passes(tmp_path, capsys):
 
     info = check_payload(load_scenario("step_pitch"))
     assert 1150 < info["max_payload_kg"] < 1250  # 1209 kg (leg 1, as-built CoM 60 mm off)
-    ok = load_scenario("step_pitch", ["plant.payload.mass_kg=1180", "duration_s=1.1"])
+    ok = load_scenario("step_pitch", ["plant.payload.mass_kg=1180", "duration_s=0.1"])
     assert check_payload(ok)["utilisation"][0] > 0.9  # warned, not refused
     with pytest.raises(UserInputError, match="allowed: <= 1209 kg"):
         check_payload(load_scenario("step_pitch", ["plant.payload.mass_kg=1220"]))
@@ -453,7 +453,7 @@ def test_max_liftable_payload_is_stated_and_just_below_passes(tmp_path, capsys):
 def test_gain_above_the_analysed_limit_is_warned_and_recorded(tmp_path, capsys):
     out = tmp_path / "r"
     rc = main(
-        ["run", "step_pitch", "--out", str(out), "--no-plots", "--set", "duration_s=1.2",
+        ["run", "step_pitch", "--out", str(out), "--no-plots", "--set", "duration_s=1.1",
          "--set", "controller.outer.gains=[1, 12, 1]"]
     )  # fmt: skip
     err = capsys.readouterr().err
@@ -531,7 +531,7 @@ def test_non_finite_force_names_the_state(tmp_path, monkeypatch):
 def test_an_interrupt_while_writing_keeps_the_previous_folder(tmp_path, monkeypatch):
     from simpro_mj.cmd_run import execute
 
-    sc = load_scenario("step_pitch", ["duration_s=1.1"])
+    sc = load_scenario("step_pitch", ["duration_s=0.2"])
     out = tmp_path / "run"
     execute(sc, out, plots=False, quiet=True)
     before = (out / "timeseries.csv").read_bytes()
@@ -543,7 +543,7 @@ def test_an_interrupt_while_writing_keeps_the_previous_folder(tmp_path, monkeypa
         return real_rename(self, target)
 
     monkeypatch.setattr(Path, "rename", interrupted_rename)
-    sc2 = load_scenario("step_pitch", ["duration_s=1.2"])
+    sc2 = load_scenario("step_pitch", ["duration_s=0.3"])
     with pytest.raises(KeyboardInterrupt):
         results.write_results(out, {"time_s": np.zeros(3)}, {}, sc2, {"plots": False})
     monkeypatch.undo()
@@ -553,7 +553,7 @@ def test_an_interrupt_while_writing_keeps_the_previous_folder(tmp_path, monkeypa
 
 
 def test_partial_marker_and_is_complete(tmp_path):
-    sc = load_scenario("step_pitch", ["duration_s=1.1"])
+    sc = load_scenario("step_pitch", ["duration_s=0.2"])
     cols = {"time_s": np.arange(3) * 1e-3, "heave_m": np.zeros(3)}
     results.write_results(
         tmp_path / "p", cols, {}, sc, {"status": "interrupted", "reason": "SIGINT", "plots": False}

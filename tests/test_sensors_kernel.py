@@ -166,7 +166,7 @@ def test_cosimulation_without_the_fused_read(monkeypatch):
 def test_front_equals_read_sample_and_loop_closure(monkeypatch):
     """The fused call against StateReader.read + sample_floats + loop_closure_max."""
     monkeypatch.setenv("SIMPRO_KERNEL", "numba")
-    cs = CoSimulation(load_scenario("step_heave", ["duration_s=1.2"]))
+    cs = CoSimulation(load_scenario("step_heave", ["duration_s=0.3"]))
     cs.run()
     m, d = cs.model, cs.data
     reader = StateReader(m, d, cs.idx)
