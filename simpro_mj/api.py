@@ -145,7 +145,7 @@ def run(
     """
     resolved = load(scenario, overrides)
     if out is not None:
-        from .cmd_run import execute
+        from .runner import execute
 
         res, metrics = execute(resolved, Path(out), plots=plots, quiet=True)
         return Result(resolved, res.columns, metrics, Path(out), res.sim)

@@ -9,7 +9,7 @@ Execution
 ---------
 Every variant runs headless in a worker: :func:`run_variant` gets the
 resolved scenario (plain JSON data) and its folder, builds its own MuJoCo
-model, runs, writes a normal result folder (:func:`simpro_mj.cmd_run.execute`,
+model, runs, writes a normal result folder (:func:`simpro_mj.runner.execute`,
 atomic) and returns a small dict. No model is ever pickled.
 
 * ``--jobs N`` (default ``os.cpu_count()``, at most :data:`MAX_JOBS`): a
@@ -411,7 +411,7 @@ def run_variant(task: Mapping) -> dict:
     ship = bool(task.get("ship"))
     tmp = Path(tempfile.mkdtemp(prefix="simpro-batch-")) if ship else None
     try:
-        from .cmd_run import execute
+        from .runner import execute
 
         folder = tmp / "variant" if ship else Path(task["out"])
         # warnings go to metrics.json only: many workers on one stderr would be noise

@@ -34,10 +34,10 @@ the median over the repeats:
 from __future__ import annotations
 
 import copy
-import os
-import platform
 import statistics
 import time
+
+from .machine import describe_machine
 
 HELP = "time the co-simulation step against bare mj_step, per stage, and batch throughput"
 
@@ -108,32 +108,6 @@ def _duration(value) -> float:
             ">= 0.01"
         )
     return s
-
-
-def machine() -> dict:
-    """CPU model, logical cores and the versions that set the figures."""
-    import mujoco
-    import numpy as np
-
-    from .pneumatics_kernel import kernel_label
-
-    cpu = platform.processor() or platform.machine()
-    try:
-        with open("/proc/cpuinfo", encoding="utf-8") as fh:
-            for line in fh:
-                if line.startswith("model name"):
-                    cpu = line.split(":", 1)[1].strip()
-                    break
-    except OSError:
-        pass
-    return {
-        "cpu": cpu,
-        "cores": os.cpu_count(),
-        "python": platform.python_version(),
-        "mujoco": mujoco.__version__,
-        "numpy": np.__version__,
-        "kernels": kernel_label(),
-    }
 
 
 # ------------------------------------------------------------------ measurements
@@ -291,7 +265,7 @@ def measure(
         "throughput": None,
         "repeats": repeats,
         "samples": {"full_step_us": full, "bare_step_us": bare, "bare_python_loop_us": bare_py},
-        "machine": machine(),
+        "machine": describe_machine(),
     }
     if batch:
         tput = {1: [], 2: []}

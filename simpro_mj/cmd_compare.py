@@ -29,13 +29,13 @@ def compare(scenario: dict, out: Path, plots: bool = True, *, quiet: bool = Fals
     An interrupted run stops the comparison (``results`` then holds fewer
     than two modes).
     """
-    from .cmd_run import _warn, execute
     from .preflight import preflight
+    from .runner import execute, warn
 
     task = copy.deepcopy(scenario)
     task["controller"]["mode"] = "task_space"
     warnings, _ = preflight(task)  # raises for a payload the cylinders cannot hold
-    _warn(warnings, quiet)
+    warn(warnings, quiet)
     results, metrics = {}, {}
     for mode in ("joint_only", "task_space"):
         sc = copy.deepcopy(scenario)
@@ -76,8 +76,8 @@ def _table(metrics: dict) -> str:
 def run(args) -> int:
     import json
 
-    from .cmd_run import EXIT_INTERRUPTED, interrupted_message, sigterm_as_interrupt
     from .results import claim, write_marker
+    from .runner import EXIT_INTERRUPTED, interrupted_message, sigterm_as_interrupt
     from .scenario import load_scenario
 
     scenario = load_scenario(args.scenario, args.sets)

@@ -196,7 +196,7 @@ def run(args) -> int:
     runs = find_runs(folder)
     opts = video_options(args, folder / "replay.mp4")
     out = opts.pop("out")
-    from .cmd_run import sigterm_as_interrupt
+    from .runner import sigterm_as_interrupt
 
     with sigterm_as_interrupt():  # SIGTERM as Ctrl-C: exit 130, no partial video left
         info = render_video(runs, out, progress=not args.json and sys.stderr.isatty(), **opts)

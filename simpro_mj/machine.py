@@ -17,10 +17,11 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
 import platform
 from importlib import metadata
 
-__all__ = ["machine_fingerprint", "fingerprint_id"]
+__all__ = ["machine_fingerprint", "fingerprint_id", "describe_machine"]
 
 #: CPU flags (``/proc/cpuinfo``) that select floating-point code paths: vector
 #: widths and fused multiply-add. Other flags (virtualisation, power) do not
@@ -111,3 +112,29 @@ def fingerprint_id(fingerprint: dict | None = None) -> str:
     fp = machine_fingerprint() if fingerprint is None else fingerprint
     text = json.dumps(fp, sort_keys=True, separators=(",", ":"))
     return hashlib.sha256(text.encode("utf-8")).hexdigest()[:12]
+
+
+def describe_machine() -> dict:
+    """CPU model, logical cores and the versions that set a benchmark's figures."""
+    import mujoco
+    import numpy as np
+
+    from .pneumatics_kernel import kernel_label
+
+    cpu = platform.processor() or platform.machine()
+    try:
+        with open("/proc/cpuinfo", encoding="utf-8") as fh:
+            for line in fh:
+                if line.startswith("model name"):
+                    cpu = line.split(":", 1)[1].strip()
+                    break
+    except OSError:
+        pass
+    return {
+        "cpu": cpu,
+        "cores": os.cpu_count(),
+        "python": platform.python_version(),
+        "mujoco": mujoco.__version__,
+        "numpy": np.__version__,
+        "kernels": kernel_label(),
+    }

@@ -673,8 +673,8 @@ def benchmark(scenario: dict, *, fps=25.0, size=(640, 480), jobs=None, progress=
     """
     import shutil
 
-    from .bench import machine
-    from .cmd_run import execute
+    from .machine import describe_machine
+    from .runner import execute
 
     require_video()
     tmp = Path(tempfile.mkdtemp(prefix="simpro-video-bench-"))
@@ -703,7 +703,7 @@ def benchmark(scenario: dict, *, fps=25.0, size=(640, 480), jobs=None, progress=
         "mp4_mb": mb,
         "target_s": BENCH_TARGET_S,
         "within_target": info["wall_s"] <= BENCH_TARGET_S,
-        "machine": machine(),
+        "machine": describe_machine(),
     }
 
 

@@ -81,7 +81,7 @@ class SimResult:
     sim: dict
     scenario: dict
     sensor_floor: dict = field(default_factory=dict)
-    #: where :func:`simpro_mj.cmd_run.execute` wrote the result folder (None: not written)
+    #: where :func:`simpro_mj.runner.execute` wrote the result folder (None: not written)
     folder: Path | None = None
     #: ``qpos`` at every logged row, (rows, nq), a copy: the whole closed chain, so
     #: ``simpro-sim render`` replays the run exactly without re-simulating it.

@@ -158,7 +158,7 @@ def test_an_interrupted_rerun_keeps_the_complete_result(tmp_path):
 
 
 def test_the_interrupted_message_names_both_folders(tmp_path):
-    from simpro_mj.cmd_run import interrupted_message
+    from simpro_mj.runner import interrupted_message
     from simpro_mj.sim import SimResult
 
     res = SimResult({}, "interrupted", "SIGINT", {"simulated_s": 1.5}, {"duration_s": 10.0})

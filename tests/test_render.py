@@ -17,8 +17,8 @@ import numpy as np
 import pytest
 
 from simpro_mj.cli import main
-from simpro_mj.cmd_run import execute
 from simpro_mj.model import MODEL_PATH, load_spec
+from simpro_mj.runner import execute
 from simpro_mj.scenario import load_scenario
 from simpro_mj.sim import CoSimulation
 

@@ -517,7 +517,7 @@ def test_non_finite_force_names_the_state(tmp_path, monkeypatch):
         return f * np.nan if calls["n"] > 200 else f
 
     monkeypatch.setattr(pn.NonlinearActuators, "step", poisoned)
-    from simpro_mj.cmd_run import execute
+    from simpro_mj.runner import execute
 
     res, doc = execute(load_scenario("step_pitch", ["duration_s=2"]), tmp_path / "nan", False)
     assert doc["status"] == "diverged"
@@ -529,7 +529,7 @@ def test_non_finite_force_names_the_state(tmp_path, monkeypatch):
 
 
 def test_an_interrupt_while_writing_keeps_the_previous_folder(tmp_path, monkeypatch):
-    from simpro_mj.cmd_run import execute
+    from simpro_mj.runner import execute
 
     sc = load_scenario("step_pitch", ["duration_s=0.2"])
     out = tmp_path / "run"
@@ -621,7 +621,7 @@ def test_interrupted_run_leaves_a_marked_partial_folder(tmp_path, sig):
 
 
 def test_same_scenario_twice_gives_identical_files(tmp_path):
-    from simpro_mj.cmd_run import execute
+    from simpro_mj.runner import execute
 
     sc = load_scenario("step_all", ["duration_s=1.0"])
     _, a = execute(sc, tmp_path / "a", plots=False, quiet=True)
