@@ -45,3 +45,9 @@ __all__ += [
     "SamplingError",
     "TaskSpaceController",
 ]
+
+# Motion cueing and perception (issue 16); numpy/scipy only.
+from .vestibular import CanalModel, OtolithModel, VestibularModel  # noqa: E402
+from .washout import ClassicalWashout, WashoutParams  # noqa: E402
+
+__all__ += ["CanalModel", "OtolithModel", "VestibularModel", "ClassicalWashout", "WashoutParams"]

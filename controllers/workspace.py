@@ -8,6 +8,8 @@ the others fixed.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from .geometry import PlatformGeometry, nominal_geometry
@@ -84,3 +86,111 @@ def combined_ranges(
             }
         )
     return rows
+
+
+# ---------------------------------------------------------------- motion cueing (issue 16)
+
+
+def inscribed_box(
+    geometry: PlatformGeometry | None = None,
+    heave_fraction: float = 0.5,
+    margin: float = 0.01,
+    n: int = 5,
+) -> dict:
+    """A box about home, in (roll, pitch, heave), whose every point is reachable.
+
+    The single-axis ranges overstate what can be combined: at the ends of the
+    heave range the angular ranges shrink to half (:func:`combined_ranges`).
+    The heave half-ranges are ``heave_fraction`` of the single-axis ones; the
+    roll and pitch half-ranges are the single-axis ones scaled by the largest
+    ``s`` (bisection, 30 steps) for which an ``n x n x n`` grid over the box
+    is reachable with the stroke ``margin`` (m). The reachable set is not
+    convex in general, so the grid is the test; :func:`soft_limit` keeps
+    cueing set-points inside the box.
+
+    Returns
+    -------
+    dict
+        ``{"roll": (lo, hi), "pitch": (lo, hi), "heave": (lo, hi), "scale": s}``
+        (rad, rad, m absolute heights).
+    """
+    g = nominal_geometry() if geometry is None else geometry
+    if not (0.0 < heave_fraction <= 1.0):
+        raise ValueError(f"heave_fraction must be in (0, 1], got {heave_fraction!r}")
+    home = np.asarray(g.home, dtype=float)
+    single = [axis_range(k, g, margin=margin) for k in range(3)]
+    hlo = home[2] + heave_fraction * (single[2][0] - home[2])
+    hhi = home[2] + heave_fraction * (single[2][1] - home[2])
+    u = np.linspace(0.0, 1.0, n)
+
+    def grid(s: float) -> np.ndarray:
+        axes = [
+            home[k] + s * (single[k][0] - home[k]) + u * s * (single[k][1] - single[k][0])
+            for k in range(2)
+        ]
+        axes.append(hlo + u * (hhi - hlo))
+        mesh = np.meshgrid(*axes, indexing="ij")
+        return np.stack([m.ravel() for m in mesh], axis=-1)
+
+    lo, hi = 0.0, 1.0
+    if not reachable(grid(lo), g, margin).all():
+        raise ValueError("inscribed_box: the heave range alone is not reachable; lower it")
+    if reachable(grid(hi), g, margin).all():
+        lo = hi
+    for _ in range(30):
+        if hi - lo < 1e-6:
+            break
+        mid = 0.5 * (lo + hi)
+        if reachable(grid(mid), g, margin).all():
+            lo = mid
+        else:
+            hi = mid
+    s = lo
+    out = {
+        name: (home[k] + s * (single[k][0] - home[k]), home[k] + s * (single[k][1] - home[k]))
+        for k, name in enumerate(AXIS_NAMES[:2])
+    }
+    out["heave"] = (float(hlo), float(hhi))
+    out["scale"] = float(s)
+    return out
+
+
+def soft_limit(x, centre, lo, hi, knee: float = 0.8) -> np.ndarray:
+    """Smooth saturation of ``x`` into the open interval (lo, hi) about ``centre``.
+
+    With ``d = x - centre`` and ``L`` the distance from the centre to the limit
+    on d's side: ``d`` unchanged for ``|d| <= knee L``; beyond,
+    ``knee L + (1 - knee) L tanh((|d| - knee L) / ((1 - knee) L))``. Value and
+    slope are continuous at the knee (tanh'(0) = 1), the output is monotonic
+    and approaches the limit asymptotically (reaching it only where tanh rounds
+    to 1, far past it), so a set-point near the workspace
+    boundary slows down instead of hitting it (a clip would step the rate).
+    ``knee = 1`` is a hard clip. Vectorised; ``lo < centre < hi`` is required.
+    """
+    if not (0.0 <= knee <= 1.0):
+        raise ValueError(f"knee must be in [0, 1], got {knee!r}")
+    if isinstance(x, float):  # the per-sample path of the cueing loop: same maths, floats
+        d = x - centre
+        span = hi - centre if d >= 0.0 else centre - lo
+        if span <= 0:
+            raise ValueError(f"soft_limit needs lo < centre < hi, got {lo!r}, {centre!r}, {hi!r}")
+        a, k = abs(d), knee * span
+        if knee >= 1.0:
+            mag = min(a, span)
+        else:
+            rest = (1.0 - knee) * span
+            mag = a if a <= k else k + rest * math.tanh((a - k) / rest)
+        return centre + math.copysign(mag, d)
+    x = np.asarray(x, dtype=float)
+    d = x - centre
+    span = np.where(d >= 0.0, hi - centre, centre - lo)
+    if np.any(span <= 0):
+        raise ValueError(f"soft_limit needs lo < centre < hi, got {lo!r}, {centre!r}, {hi!r}")
+    a = np.abs(d)
+    k = knee * span
+    if knee >= 1.0:
+        mag = np.minimum(a, span)
+    else:
+        rest = (1.0 - knee) * span
+        mag = np.where(a <= k, a, k + rest * np.tanh((a - k) / rest))
+    return centre + np.sign(d) * mag
