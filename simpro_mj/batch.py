@@ -31,12 +31,31 @@ Statuses
 ``interrupted`` (Ctrl-C during the run, partial results kept);
 ``failed`` (an exception in the worker: its one-line reason); ``invalid``
 (the file, its sweep block or this variant failed validation); ``cancelled``
-(not run: interrupted). A PATH that names nothing (no file, folder or shipped
-scenario) is the command line's mistake: exit 2 before anything runs. One bad
-variant or file never stops the others;
+(not finished: the batch was stopped before it ended; a variant stopped while
+running leaves its partial folder, marked ``PARTIAL``).
+
+A PATH that names nothing (no file, folder or shipped scenario) is the
+command line's mistake: exit 2 before anything runs. One bad variant or file
+never stops the others;
 ``--strict`` instead refuses the whole batch (exit 2, one line naming the
 file) before anything runs if any file or variant is invalid. Exit code: 0
 when every variant is ``ok``, 1 otherwise.
+
+Stopping
+--------
+SIGINT (Ctrl-C) and SIGTERM stop the batch the same way: variants not started
+are cancelled, running ones get SIGTERM in their worker (the simulation hands
+back what it computed and the folder is written marked ``PARTIAL``; Dask
+tasks are cancelled), the workers are waited for (SIGKILL after
+:data:`simpro_mj.workers.GRACE_S`), ``summary.csv``/``summary.json`` are
+written for what finished with the rest ``cancelled`` (``stopped`` says why),
+one line ``error: batch stopped: ...`` and exit 130. Workers never outlive
+the batch: each polls its parent (:mod:`simpro_mj.workers`) and ends itself
+when the batch is gone, even after a ``kill -9``. A Dask cluster with no live
+worker for :data:`NO_WORKERS_S` seconds ends the batch the same way with
+``error: batch stopped: no live Dask worker ...`` and exit 1.
+``SIMPRO_READY_FILE`` (:mod:`simpro_mj.readiness`) is written once the
+handlers are installed and the variants submitted.
 
 ``--resume`` skips a variant whose folder is complete
 (:func:`simpro_mj.results.is_complete`: the result marker, ``metrics.json``
@@ -123,12 +142,19 @@ from functools import lru_cache
 from pathlib import Path
 from typing import Any
 
+from .readiness import signal_ready
+
 HELP = "run scenario files, sweeps and Monte Carlo variants in parallel; write summary.csv"
+
+#: Exit status of a batch stopped by SIGINT or SIGTERM (128 + SIGINT).
+EXIT_INTERRUPTED = 130
 
 #: Variant statuses, and those a finished run can have.
 STATUSES = ("ok", "diverged", "interrupted", "failed", "invalid", "cancelled")
 RUN_STATUSES = ("ok", "diverged")
 GAIN_PATH = "controller.outer.gains"
+#: A Dask batch whose cluster has had no live worker this long (s) ends with an error.
+NO_WORKERS_S = 60.0
 #: Most worker processes (``--jobs``); a batch never starts more than it has variants.
 MAX_JOBS = 256
 
@@ -230,6 +256,14 @@ def run(args) -> int:
         emit_json(report.document())
     else:
         print_report(report)
+    if report.stopped is not None:
+        c = report.counts
+        finished = len(report.rows) - c["cancelled"] - c["invalid"]
+        sys.stderr.write(
+            f"error: batch stopped: {report.stopped}; {finished} variant(s) finished, "
+            f"{c['cancelled']} cancelled; summary in {report.out / 'summary.csv'}\n"
+        )
+        return EXIT_INTERRUPTED if report.stopped.startswith("interrupted") else 1
     return 0 if report.all_ok else 1
 
 
@@ -754,18 +788,30 @@ Callback = Callable[[int, dict], None]
 
 
 def _run_here(tasks: list[tuple[int, dict]], done: Callback) -> None:
+    signal_ready("batch")
     for key, task in tasks:
-        done(key, run_variant(task))
+        result = run_variant(task)
+        done(key, result)
+        if result.get("status") == "interrupted":  # Ctrl-C/SIGTERM stopped this variant
+            raise KeyboardInterrupt(result.get("reason") or "interrupted")
 
 
 def _run_pool(tasks: list[tuple[int, dict]], jobs: int, done: Callback) -> None:
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor, as_completed
 
+    from .workers import init_worker, run_task, stop_pool
+
     ctx = multiprocessing.get_context("spawn")  # no inherited MuJoCo/threads state
-    pool = ProcessPoolExecutor(max_workers=min(jobs, len(tasks)), mp_context=ctx)
+    pool = ProcessPoolExecutor(
+        max_workers=min(jobs, len(tasks)),
+        mp_context=ctx,
+        initializer=init_worker,  # SIGTERM stops a variant; no worker outlives the batch
+        initargs=(os.getpid(),),
+    )
     try:
-        futures = {pool.submit(run_variant, task): key for key, task in tasks}
+        futures = {pool.submit(run_task, run_variant, task): key for key, task in tasks}
+        signal_ready("batch")
         for fut in as_completed(futures):
             try:
                 result = fut.result()
@@ -773,7 +819,7 @@ def _run_pool(tasks: list[tuple[int, dict]], jobs: int, done: Callback) -> None:
                 result = {"status": "failed", "reason": _one_line(exc), "metrics": None}
             done(futures[fut], result)
     except BaseException:
-        pool.shutdown(wait=False, cancel_futures=True)
+        stop_pool(pool)  # the workers are gone when this returns
         raise
     pool.shutdown(wait=True)
 
@@ -791,7 +837,17 @@ def _dask():
     return distributed
 
 
-def _run_dask(tasks: list[tuple[int, dict]], scheduler: str, jobs: int, done: Callback) -> None:
+class NoWorkers(RuntimeError):
+    """The Dask cluster had no live worker for :data:`NO_WORKERS_S` seconds."""
+
+
+def _run_dask(
+    tasks: list[tuple[int, dict]],
+    scheduler: str,
+    jobs: int,
+    done: Callback,
+    no_workers_s: float | None = None,
+) -> None:
     import logging
 
     distributed = _dask()
@@ -817,17 +873,40 @@ def _run_dask(tasks: list[tuple[int, dict]], scheduler: str, jobs: int, done: Ca
             f"no scheduler at --scheduler {scheduler}: {_one_line(exc)}; allowed: a running "
             "Dask scheduler address (tcp://host:8786) or 'local'"
         ) from exc
+    limit = NO_WORKERS_S if no_workers_s is None else no_workers_s
+    futures: dict = {}
     try:
-        futures = {}
         for key, task in tasks:
             fut = client.submit(run_variant, dict(task, ship=True), pure=False)
             futures[fut] = key
-        for fut in distributed.as_completed(list(futures)):
+        signal_ready("batch")
+        pending = set(futures)
+        seen_worker = time.monotonic()
+        while pending:
             try:
-                result = fut.result()
-            except Exception as exc:  # noqa: BLE001 - a lost worker fails its variant only
-                result = {"status": "failed", "reason": _one_line(exc), "metrics": None}
-            done(futures[fut], result)
+                finished = distributed.wait(
+                    list(pending), timeout=min(1.0, limit), return_when="FIRST_COMPLETED"
+                ).done
+            except (TimeoutError, distributed.TimeoutError):
+                finished = set()
+            for fut in finished:
+                pending.discard(fut)
+                try:
+                    result = fut.result()
+                except Exception as exc:  # noqa: BLE001 - a lost worker fails its variant only
+                    result = {"status": "failed", "reason": _one_line(exc), "metrics": None}
+                done(futures[fut], result)
+            if finished or client.scheduler_info().get("workers"):
+                seen_worker = time.monotonic()
+            elif time.monotonic() - seen_worker > limit:
+                raise NoWorkers(
+                    f"no live Dask worker for {limit:g} s at --scheduler {scheduler}: "
+                    f"{len(pending)} variant(s) not run (cancelled); allowed: a scheduler "
+                    "with workers (dask worker ADDRESS), or --scheduler local"
+                )
+    except BaseException:
+        client.cancel(list(futures), force=True)
+        raise
     finally:
         client.close()
         if cluster is not None:
@@ -850,6 +929,8 @@ class Report:
     plots: list[str] = field(default_factory=list)
     skipped: int = 0
     wall_s: float = 0.0
+    #: why the batch stopped before its end (a signal, no Dask workers), else None
+    stopped: str | None = None
 
     @property
     def counts(self) -> dict:
@@ -872,6 +953,7 @@ class Report:
                 "counts": self.counts,
                 "skipped": self.skipped,
                 "wall_s": self.wall_s,
+                "stopped": self.stopped,
                 "swept_paths": self.paths,
                 "files": self.files,
                 "stability": self.stability,
@@ -908,7 +990,9 @@ def run_batch(
     wall0 = time.perf_counter()
     out = Path(out)
     inputs = [f for f, _ in _scenario_files(paths)]
-    with claim(out, "batch", inputs=inputs):
+    from .cmd_run import sigterm_as_interrupt
+
+    with claim(out, "batch", inputs=inputs), sigterm_as_interrupt():
         return _run_batch(
             paths, out, sets, jobs, resume, strict, scheduler, plots, progress, summary_plots, wall0
         )
@@ -961,6 +1045,7 @@ def _run_batch(
 
     out.mkdir(parents=True, exist_ok=True)
     write_marker(out, "batch")
+    stopped = None
     try:
         if not tasks:
             pass
@@ -970,13 +1055,25 @@ def _run_batch(
             _run_here(tasks, done)
         else:
             _run_pool(tasks, jobs, done)
+    except KeyboardInterrupt as exc:  # SIGINT, or SIGTERM (sigterm_as_interrupt)
+        stopped = f"interrupted ({exc})" if str(exc) else "interrupted"
+    except NoWorkers as exc:
+        stopped = str(exc)
     finally:
         bar.close()
+        # what finished is recorded, the rest is 'cancelled'; also on an error
         final = [r if r is not None else _row(p.jobs[i], None) for i, r in enumerate(rows)]
         report = Report(out=out, rows=final, paths=p.paths, files=p.files, skipped=skipped)
         report.stability = stability_table(report.rows, p.jobs)
         report.monte_carlo = monte_carlo_table(report.rows, p.jobs)
-        write_summary(report)  # also when interrupted: what finished is recorded
+        report.stopped = stopped
+        for row in report.rows:
+            if stopped and row["status"] == "cancelled" and not row["reason"]:
+                row["reason"] = f"not finished: batch stopped: {stopped}"
+        report.wall_s = time.perf_counter() - wall0
+        write_summary(report)
+    if stopped is not None:
+        return report  # no summary plots: the user asked to stop, or the cluster is gone
     if summary_plots:
         from .batch_plots import plot_summary
 

@@ -221,7 +221,9 @@ def measure(
     from multiprocessing import get_context
 
     from .model import load_model
+    from .readiness import signal_ready
     from .sim import CoSimulation
+    from .workers import init_worker, stop_pool
 
     def say(msg):
         if log is not None:
@@ -271,11 +273,23 @@ def measure(
         tput = {1: [], 2: []}
         ctx = get_context("spawn")
         for workers in (1, 2):
-            with ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:
+            # workers stop with the benchmark and never outlive it (simpro_mj.workers)
+            pool = ProcessPoolExecutor(
+                max_workers=workers,
+                mp_context=ctx,
+                initializer=init_worker,
+                initargs=(os.getpid(),),
+            )
+            try:
                 list(pool.map(_warm_up, range(workers)))
+                signal_ready("throughput")
                 for r in range(repeats):
                     say(f"throughput, {workers} worker(s), {r + 1}/{repeats}")
                     tput[workers].append(_throughput(pool, workers, scenario, batch_runs))
+            except BaseException:
+                stop_pool(pool)
+                raise
+            pool.shutdown(wait=True)
         w1, w2 = statistics.median(tput[1]), statistics.median(tput[2])
         out["throughput"] = {
             "workers_1": w1,
@@ -346,8 +360,11 @@ def run(args) -> int:
         else:
             print(benchmark_table(result))
         return 0
+    from .cmd_run import sigterm_as_interrupt
+
     progress = None if args.json else (lambda msg: print(f"  {msg}", file=sys.stderr))
-    result = measure(scenario, repeats, batch=not args.no_batch, batch_runs=runs, log=progress)
+    with sigterm_as_interrupt():  # SIGTERM: exit 130 like Ctrl-C, workers stopped
+        result = measure(scenario, repeats, batch=not args.no_batch, batch_runs=runs, log=progress)
     if args.json:
         from .jsonout import emit_json
 

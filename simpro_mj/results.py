@@ -383,6 +383,12 @@ def check_out(out, kind: str = "run", inputs: Iterable = ()) -> Path:
 _HELD: dict[str, list] = {}
 
 
+def _umask() -> int:
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
 @contextlib.contextmanager
 def locked(out) -> Iterator[Path]:
     """Hold the exclusive write lock of folder ``out`` (reentrant in this process).
@@ -492,6 +498,7 @@ def install_folder(out_dir, fill, kind: str = "run") -> Path:
         old = None
         try:
             tmp = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.tmp-", dir=out_dir.parent))
+            tmp.chmod(0o777 & ~_umask())  # mkdtemp's 0700 is for the temporary name only
             fill(tmp)
             write_marker(tmp, kind)
             if out_dir.exists():

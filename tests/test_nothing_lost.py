@@ -96,6 +96,9 @@ def test_a_result_folder_is_replaced_and_an_empty_one_used(tmp_path, capsys):
     empty.mkdir()
     assert main(["run", "step_pitch", "--out", str(empty), *SHORT]) == 0
     assert results.result_kind(empty) == "run" and results.is_complete(empty)
+    mask = os.umask(0o022)
+    os.umask(mask)
+    assert (empty.stat().st_mode & 0o777) == 0o777 & ~mask  # not mkdtemp's 0700
     first = (empty / "timeseries.csv").read_bytes()
     assert main(["run", "step_pitch", "--out", str(empty), "--set", "duration_s=1.2",
                  "--no-plots"]) == 0  # fmt: skip

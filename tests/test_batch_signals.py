@@ -1,0 +1,202 @@
+"""Issue 13, batches end cleanly: signals, a killed parent, a cluster without workers.
+
+Every test that signals a subprocess waits for its readiness file
+(``SIMPRO_READY_FILE``, :mod:`simpro_mj.readiness`): the batch writes it once
+its handlers are installed and the variants submitted, and each pool worker
+writes ``<file>.worker-<pid>`` once its variant steps. The waits are bounded
+only so that a broken build fails instead of hanging; nothing depends on how
+long anything takes.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+import yaml
+
+from simpro_mj import results
+
+ROOT = Path(__file__).resolve().parents[1]
+LONG = 600.0  # s simulated: the variants are still running when the signal comes
+
+
+def _sweep(tmp_path: Path, n: int = 3) -> Path:
+    doc = {
+        "name": "long",
+        "duration_s": LONG,
+        "sweep": {"grid": {"seed": list(range(1, n + 1))}},
+    }
+    path = tmp_path / "long.yaml"
+    path.write_text(yaml.safe_dump(doc))
+    return path
+
+
+def _start(tmp_path: Path, argv: list[str]) -> tuple[subprocess.Popen, Path]:
+    ready = tmp_path / "ready"
+    env = dict(os.environ, MPLBACKEND="Agg", PYTHONPATH=str(ROOT), SIMPRO_READY_FILE=str(ready))
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "simpro_mj.cli", *argv],
+        cwd=tmp_path,
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    return proc, ready
+
+
+def _wait_for(condition, proc=None, bound_s: float = 300.0) -> None:
+    """Wait until ``condition()`` holds (the bound only keeps a broken build from
+    hanging the suite; it is not a timing assumption)."""
+    deadline = time.monotonic() + bound_s
+    while not condition():
+        if proc is not None and proc.poll() is not None:
+            raise AssertionError(f"exited early ({proc.returncode}): {proc.communicate()}")
+        if time.monotonic() > deadline:
+            raise AssertionError("no readiness signal")
+        time.sleep(0.05)
+
+
+def _alive(pid: int) -> bool:
+    """A process that exists and is not a zombie."""
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:
+        return False
+    return stat.rsplit(")", 1)[1].split()[0] != "Z"
+
+
+def _worker_pids(ready: Path) -> list[int]:
+    return [int(p.name.rsplit("-", 1)[1]) for p in ready.parent.glob(f"{ready.name}.worker-*")]
+
+
+def _no_temp_folders(folder: Path) -> bool:
+    return not [p for p in folder.rglob("*") if ".tmp-" in p.name or ".old-" in p.name]
+
+
+linux = pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs /proc")
+
+
+@linux
+def test_a_signal_stops_the_pool_writes_the_summary_and_exits_130(tmp_path):
+    """SIGTERM (Ctrl-C takes the same path: both raise KeyboardInterrupt in the batch)."""
+    sig = signal.SIGTERM
+    out = tmp_path / "out"
+    argv = ["batch", str(_sweep(tmp_path)), "--jobs", "2", "--out", str(out), "--no-plots"]
+    proc, ready = _start(tmp_path, argv)
+    try:
+        _wait_for(ready.is_file, proc)
+        assert ready.read_text().split()[0] == "batch"
+        _wait_for(lambda: len(_worker_pids(ready)) == 2, proc)  # both variants stepping
+        workers = _worker_pids(ready)
+        proc.send_signal(sig)
+        _, stderr = proc.communicate(timeout=300)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 130, stderr
+    last = stderr.strip().splitlines()[-1]
+    assert last.startswith("error: batch stopped: interrupted"), stderr
+    assert "0 variant(s) finished, 3 cancelled" in last and "summary.csv" in last
+    assert "Traceback" not in stderr
+    assert not [pid for pid in workers if _alive(pid)]  # gone when the batch exits
+    doc = json.loads((out / "summary.json").read_text())
+    assert doc["stopped"].startswith("interrupted")
+    assert [v["status"] for v in doc["variants"]] == ["cancelled"] * 3
+    assert all(v["reason"].startswith("not finished: batch stopped") for v in doc["variants"])
+    assert (out / "summary.csv").read_text().count("cancelled") == 3
+    # the two running variants wrote what they had, marked partial; the third never started
+    partial = [out / v["folder"] for v in doc["variants"] if (out / v["folder"]).exists()]
+    assert len(partial) == 2
+    for folder in partial:
+        assert (folder / results.PARTIAL_MARKER).is_file() and not results.is_complete(folder)
+    assert _no_temp_folders(tmp_path)
+
+
+@linux
+def test_a_signal_stops_a_batch_in_this_process(tmp_path):
+    out = tmp_path / "out"
+    argv = ["batch", str(_sweep(tmp_path, 2)), "--jobs", "1", "--out", str(out), "--no-plots"]
+    proc, ready = _start(tmp_path, argv)
+    try:
+        _wait_for(ready.is_file, proc)
+        proc.send_signal(signal.SIGINT)
+        _, stderr = proc.communicate(timeout=300)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 130, stderr
+    assert stderr.strip().splitlines()[-1].startswith("error: batch stopped: interrupted")
+    doc = json.loads((out / "summary.json").read_text())
+    assert {v["status"] for v in doc["variants"]} <= {"cancelled", "interrupted"}
+    assert doc["variants"][1]["status"] == "cancelled"
+    assert _no_temp_folders(tmp_path)
+
+
+@linux
+@pytest.mark.parametrize("command", ["batch", "bench"])
+def test_workers_end_themselves_when_the_parent_is_killed(tmp_path, command):
+    """``kill -9`` of the parent: no handler runs there; each worker sees that its
+    parent is gone (it was re-parented) and ends itself."""
+    if command == "batch":
+        argv = ["batch", str(_sweep(tmp_path, 2)), "--jobs", "2", "--out", "out", "--no-plots"]
+    else:  # the throughput part: a 1-worker pool running 64 copies of a 30 s run
+        argv = ["bench", "--duration", "30", "--repeats", "1", "--batch-runs", "64"]
+    proc, ready = _start(tmp_path, argv)
+    workers: list[int] = []
+    try:
+        _wait_for(ready.is_file, proc)
+        if command == "batch":
+            _wait_for(lambda: len(_worker_pids(ready)) == 2, proc)
+            workers = _worker_pids(ready)
+        else:
+            assert ready.read_text().split()[0] == "throughput"
+            workers = _children_running_spawn(proc.pid)
+        assert workers
+        proc.kill()
+        proc.communicate(timeout=60)
+        _wait_for(lambda: not [pid for pid in workers if _alive(pid)])
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+        for pid in workers:
+            if _alive(pid):
+                os.kill(pid, signal.SIGKILL)
+
+
+def _children_running_spawn(pid: int) -> list[int]:
+    """Pool workers of ``pid`` (spawned: ``spawn_main`` on the command line)."""
+    kids = []
+    for task in Path(f"/proc/{pid}/task").iterdir():
+        text = (task / "children").read_text().split()
+        kids += [int(k) for k in text]
+    return [k for k in kids if b"spawn_main" in Path(f"/proc/{k}/cmdline").read_bytes()]
+
+
+def test_a_dask_cluster_without_workers_ends_the_batch(tmp_path, capsys, monkeypatch):
+    distributed = pytest.importorskip("distributed")
+    import simpro_mj.batch as batch
+    from simpro_mj.cli import main
+
+    monkeypatch.setattr(batch, "NO_WORKERS_S", 1.0)  # the stated time, shortened
+    with distributed.LocalCluster(
+        n_workers=0, processes=False, dashboard_address=None
+    ) as cluster:  # a scheduler that has no worker
+        out = tmp_path / "out"
+        argv = ["batch", "step_pitch", "--scheduler", cluster.scheduler_address, "--out",
+                str(out), "--no-plots", "--set", "duration_s=1.1"]  # fmt: skip
+        rc = main(argv)
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 1
+    assert err[-1].startswith("error: batch stopped: no live Dask worker for 1 s at --scheduler")
+    assert "1 variant(s) not run" in err[-1] and "summary.csv" in err[-1]
+    doc = json.loads((out / "summary.json").read_text())
+    assert doc["stopped"].startswith("no live Dask worker")
+    assert [v["status"] for v in doc["variants"]] == ["cancelled"]
