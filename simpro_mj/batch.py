@@ -146,9 +146,6 @@ from .readiness import signal_ready
 
 HELP = "run scenario files, sweeps and Monte Carlo variants in parallel; write summary.csv"
 
-#: Exit status of a batch stopped by SIGINT or SIGTERM (128 + SIGINT).
-EXIT_INTERRUPTED = 130
-
 #: Variant statuses, and those a finished run can have.
 STATUSES = ("ok", "diverged", "interrupted", "failed", "invalid", "cancelled")
 RUN_STATUSES = ("ok", "diverged")
@@ -257,6 +254,8 @@ def run(args) -> int:
     else:
         print_report(report)
     if report.stopped is not None:
+        from .runner import EXIT_INTERRUPTED
+
         c = report.counts
         finished = len(report.rows) - c["cancelled"] - c["invalid"]
         sys.stderr.write(
@@ -990,7 +989,7 @@ def run_batch(
     wall0 = time.perf_counter()
     out = Path(out)
     inputs = [f for f, _ in _scenario_files(paths)]
-    from .cmd_run import sigterm_as_interrupt
+    from .runner import sigterm_as_interrupt
 
     with claim(out, "batch", inputs=inputs), sigterm_as_interrupt():
         return _run_batch(

@@ -34,6 +34,7 @@ the median over the repeats:
 from __future__ import annotations
 
 import copy
+import os
 import statistics
 import time
 
@@ -360,7 +361,7 @@ def run(args) -> int:
         else:
             print(benchmark_table(result))
         return 0
-    from .cmd_run import sigterm_as_interrupt
+    from .runner import sigterm_as_interrupt
 
     progress = None if args.json else (lambda msg: print(f"  {msg}", file=sys.stderr))
     with sigterm_as_interrupt():  # SIGTERM: exit 130 like Ctrl-C, workers stopped
