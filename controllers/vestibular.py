@@ -170,8 +170,9 @@ class VestibularModel:
         """Sensations of a motion sampled at ``dt``: ``f``, ``w`` (n, 3) in V.
 
         The observer starts adapted to the first sample (each filter at its
-        steady state for it), so a run that starts at rest starts with no
-        sensation; a canal (zero DC gain) starts at rest.
+        steady state for it): a run that starts at rest, or turning at a
+        constant rate, starts with no rotation sensation and the otoliths'
+        adapted 0.4 of the first specific force.
         """
         f = np.asarray(f, dtype=float)
         w = np.asarray(w, dtype=float)
@@ -189,7 +190,10 @@ class VestibularModel:
             if fz.shape[0]:
                 oto.reset(fz[0, k])
             f_hat[:, k] = oto.run(fz[:, k])
-            w_hat[:, k] = DiscreteFilter(cnum, cden, dt).run(w[:, k])
+            scc = DiscreteFilter(cnum, cden, dt)
+            if w.shape[0]:
+                scc.reset(w[0, k])  # adapted: a constant rate is not felt (DC gain 0)
+            w_hat[:, k] = scc.run(w[:, k])
         return Perception(
             f=f_hat,
             w=w_hat,

@@ -718,6 +718,11 @@ def _row(job: Job, result: Mapping | None, skipped: bool = False) -> dict:
                     None if v is None else float(v) * (scale if scaled else 1.0)
                 )
         row["realtime_factor"] = _sim_rt(doc)
+        cue = doc.get("cueing") or (doc.get("metrics") or {}).get("cueing")
+        if cue:  # issue 16
+            from .cueing import summary_columns
+
+            row.update(summary_columns(cue))
     stab = result.get("stability")
     if stab:
         row["stable"] = stab["stable"]
@@ -1222,6 +1227,10 @@ def csv_columns(report: Report) -> list[str]:
     cols += ["seed", "status", "reason", *metric_columns(), "stable", "growth_rate_1_s"]
     if any("analytic_limit" in r for r in report.rows):
         cols += ["analytic_limit", "analytic_limit_delay_model", "analytic_growth_rate_1_s"]
+    if any("cue_long_corr" in r for r in report.rows):  # cueing runs (issue 16)
+        from .cueing import SUMMARY_COLUMNS
+
+        cols += list(SUMMARY_COLUMNS)
     cols.append("realtime_factor")
     return cols
 

@@ -276,7 +276,31 @@ def plot_summary(report, jobs) -> list[Path]:
             plot_metric_vs_param([r for r in rows if r["status"] != "invalid"], info, stab, out),
             plot_responses(rows, info, Path(report.out), out),
             plot_mc(rows, info, out),
+            plot_cue_tradeoff(rows, info, out),
         ):
             if p is not None:
                 paths.append(p)
     return paths
+
+
+def plot_cue_tradeoff(rows: list[dict], info: Mapping, out: Path):
+    """Cueing sweeps (issue 16): perceived longitudinal correlation against the
+    pitch workspace used, one point per variant labelled with its values;
+    marker size: valve saturation. None when the rows have no cueing columns."""
+    pts = [r for r in rows if r.get("cue_long_corr") is not None and r["status"] == "ok"]
+    if not pts:
+        return None
+    fig = Figure(figsize=(7.5, 5), layout="constrained")
+    ax = fig.add_subplot()
+    for r in pts:
+        x = float(r["cue_pitch_box_frac"])
+        y = float(r["cue_long_corr"])
+        size = 30 + 3000 * float(r.get("cue_valve_sat_frac") or 0.0)
+        ax.scatter([x], [y], s=size, color="tab:red", alpha=0.7)
+        label = ", ".join(f"{k.split('.')[-1]}={v:g}" for k, v in r["values"].items())
+        ax.annotate(label, (x, y), fontsize=6, xytext=(4, 3), textcoords="offset points")
+    ax.set_xlabel("pitch workspace used (fraction of the cueing box)")
+    ax.set_ylabel("perceived longitudinal correlation")
+    ax.grid(True, alpha=0.3)
+    fig.suptitle(f"{info['scenario']}: cue correlation vs workspace (marker: valve saturation)")
+    return _save(fig, out / f"{info['scenario']}_cue_tradeoff.png")

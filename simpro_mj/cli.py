@@ -43,6 +43,7 @@ COMMANDS = {
     "bench": "simpro_mj.bench",
     "render": "simpro_mj.cmd_render",
     "view": "simpro_mj.cmd_view",
+    "manoeuvre": "simpro_mj.cmd_manoeuvre",
 }
 
 

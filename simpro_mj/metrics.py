@@ -288,6 +288,10 @@ def compute_metrics(columns: Mapping[str, np.ndarray], scenario: Mapping) -> dic
             for key in ("rise_time_s", "settling_time_s", "overshoot_pct", "note"):
                 m[key] = info[key]
         result["axes"][axis] = m
+    if scenario.get("setpoint", {}).get("cueing") and "head_fx_mps2" in columns:
+        from .cueing import cue_metrics  # issue 16: vehicle vs simulator, perceived
+
+        result["cueing"] = cue_metrics(columns, scenario)
     for i in (1, 2, 3):
         qr, qm = f"q{i}_ref_m", f"q{i}_m"
         if qr in columns and qm in columns:

@@ -190,6 +190,10 @@ def plot_run(columns: Mapping[str, np.ndarray], scenario: Mapping, out_dir) -> l
         fig.suptitle(_title(scenario, "chamber pressures"))
         _shade_faults(fig, scenario)
         paths.append(_save(fig, out_dir / "pressures.png"))
+    if _has(columns, "head_fx_mps2", "veh_fx_mps2"):  # a cueing run (issue 16)
+        from .cue_plots import plot_cueing
+
+        paths += plot_cueing(columns, scenario, out_dir, DPI)
     return paths
 
 

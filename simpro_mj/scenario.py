@@ -412,13 +412,20 @@ def load_scenario(name_or_path: str, sets: Iterable[str] = ()) -> dict:
             f"note: {path.name} declares {n} variants in its sweep: block; running the base "
             f"scenario (simpro-sim batch {path} runs them)\n"
         )
-    return resolve_scenario(doc, sets, default_name=path.stem)
+    return resolve_scenario(doc, sets, default_name=path.stem, base=path.parent)
 
 
 def resolve_scenario(
-    doc: Mapping, sets: Iterable[str] = (), default_name: str = "scenario"
+    doc: Mapping,
+    sets: Iterable[str] = (),
+    default_name: str = "scenario",
+    base: Path | None = None,
 ) -> dict:
-    """Resolve a scenario document given as a dict (same rules as :func:`load_scenario`)."""
+    """Resolve a scenario document given as a dict (same rules as :func:`load_scenario`).
+
+    ``base``: the scenario file's folder, where a relative
+    ``setpoint.cueing.telemetry`` is looked for first (issue 16).
+    """
     sets = list(sets or ())
     tree = _overlay(DEFAULT_SCENARIO, doc, sets)
     preset = (tree.get("plant") or {}).get("preset") if isinstance(tree, Mapping) else None
@@ -428,6 +435,10 @@ def resolve_scenario(
     if not tree.get("name"):
         tree["name"] = default_name
     resolved = validate_scenario(tree)
+    if resolved["setpoint"].get("cueing"):
+        from .cueing import resolve_paths
+
+        resolve_paths(resolved, base)
     if not resolved["controller"]["clamp_setpoints"]:
         check_setpoints(resolved)
     return resolved
@@ -514,6 +525,9 @@ def _check_tree(value: Any, default: Any, path: str) -> Any:
         out = {}
         for key, sub in value.items():
             here = f"{path}.{key_text(key)}" if path else key_text(key)
+            if path == "setpoint" and key == "cueing":  # issue 16: simpro_mj.cueing
+                out[key] = _check_cueing(sub, here)
+                continue
             if key not in default:
                 raise UserInputError(
                     f"unknown key at {here}: allowed keys are {sorted(default)}"
@@ -546,6 +560,19 @@ def _check_tree(value: Any, default: Any, path: str) -> Any:
     if default is None:  # free value (none in the schema today)
         return value
     raise TypeError(f"unsupported default at {path}: {default!r}")  # pragma: no cover
+
+
+def _check_cueing(value: Any, path: str) -> dict | None:
+    """``setpoint.cueing`` (issue 16): checked by :func:`simpro_mj.cueing.check_cueing`.
+
+    ``null`` is no cueing. Only present in the resolved scenario when given, so
+    the scenarios without it keep their hash.
+    """
+    if value is None:
+        return None
+    from .cueing import check_cueing
+
+    return check_cueing(value, path)
 
 
 def _check_pneumatics(value: Mapping, path: str) -> dict:
@@ -772,8 +799,8 @@ def late_setpoints(s: Mapping) -> list[str]:
     """
     duration = s["duration_s"]
     out = []
-    for axis, comps in s["setpoint"].items():
-        for i, c in enumerate(comps):
+    for axis in SETPOINT_AXES:  # not setpoint.cueing (issue 16), which has no components
+        for i, c in enumerate(s["setpoint"].get(axis) or ()):
             key = {"step": "time_s", "ramp": "start_s", "sine": "start_s"}.get(c["type"])
             if key is not None and c[key] > duration:
                 out.append(
@@ -1007,6 +1034,10 @@ def reference(scenario: Mapping, t, *, clamp: bool | None = None) -> np.ndarray:
     t = np.atleast_1d(np.asarray(t, dtype=float))
     geometry = nominal_geometry()
     sp = scenario["setpoint"]
+    if sp.get("cueing"):  # issue 16: the washout's set-points, inside its workspace box
+        from .cueing import cue_poses
+
+        return cue_poses(scenario, t)
     out = np.empty((t.size, 3))
     for j, (axis, scale) in enumerate(
         zip(SETPOINT_AXES, (math.pi / 180.0, math.pi / 180.0, 1e-3), strict=True)

@@ -171,6 +171,17 @@ class CoSimulation:
 
         self.t = np.arange(self.n_steps + 1) * dt
         self.ref = np.ascontiguousarray(reference(scenario, self.t))
+        # motion cueing (issue 16): the vehicle side, and the head sensors to log
+        self.cueing = bool(scenario["setpoint"].get("cueing"))
+        if self.cueing:
+            from .cueing import vehicle_input
+
+            _, self.veh_f, self.veh_w, _, _ = vehicle_input(scenario)
+            if "head_accel" not in self.idx.sensor or "head_gyro" not in self.idx.sensor:
+                raise UserInputError(
+                    "invalid value at setpoint.cueing: the model has no head_accel/head_gyro "
+                    "sensors (simpro_mj/models/simpro_platform.xml)"
+                )
         if self.mode == "joint_only":
             # the baseline: q_d = IK(y_d) of the nominal model, every 1 ms
             # (reference() has already clamped the set-points if the scenario asks)
@@ -240,6 +251,14 @@ class CoSimulation:
         n_col = len(COLUMNS)
         log = np.full((n_log, n_col), np.nan)
         qlog = np.empty((n_log, m.nq))  # copies of qpos at the logged rows
+        # cueing runs (issue 16): head specific force and angular velocity (ISO axes).
+        # The accelerometer's value after mj_step1 is the one mj_step2 computed for
+        # the previous step (1 ms old); the gyro's is current.
+        head_on = self.cueing
+        if head_on:
+            hlog = np.full((n_log, 6), np.nan)
+            sd = d.sensordata
+            ha, hg = self.idx.sensor["head_accel"], self.idx.sensor["head_gyro"]
         qpos = d.qpos
         # one row = n_col native doubles packed into the (C-contiguous) log buffer
         put_row, row_bytes = struct.Struct(f"{n_col}d").pack_into, 8 * n_col
@@ -335,6 +354,9 @@ class CoSimulation:
                         p1[0], p2[0], p1[1], p2[1], p1[2], p2[2], loop, flags, supply_pa,
                     )  # fmt: skip
                     qlog[row] = qpos
+                    if head_on:
+                        hlog[row, :3] = sd[ha]
+                        hlog[row, 3:] = sd[hg]
                     row += 1
                     if loop > LOOP_OPEN_BOUND:
                         check_physics(m, d, loop_bound=LOOP_OPEN_BOUND, index=idx)  # raises
@@ -371,6 +393,15 @@ class CoSimulation:
             )  # fmt: skip
         log = log[:row]
         columns = {name: log[:, j].copy() for j, name in enumerate(COLUMNS)}
+        if self.cueing:
+            from .cueing import CUE_COLUMNS
+
+            rows = np.arange(row) * dec
+            if row > 1:  # at t = 0 the accelerometer holds mj_forward's value with no
+                hlog[0] = hlog[1]  # pneumatic force yet: the first row repeats the second
+            veh = np.hstack([self.veh_f[rows], self.veh_w[rows], hlog[:row]])
+            for j, name in enumerate(CUE_COLUMNS):
+                columns[name] = veh[:, j].copy()
         steps = k
         return SimResult(
             columns=columns,

@@ -178,6 +178,10 @@ def _defaults_at(path: str, where: str) -> Any:
             from .pneumatics import DEFAULT_PNEUMATIC_PARAMS
 
             node = DEFAULT_PNEUMATIC_PARAMS
+        if done == ["setpoint"] and part == "cueing":  # issue 16: the washout parameters
+            from .cueing import sweep_defaults
+
+            node = {"cueing": sweep_defaults()}
         if not isinstance(node, Mapping):
             raise UserInputError(
                 f"unknown key at {where}: '{'.'.join(done)}' has no sub-keys; allowed: a dotted "
@@ -541,7 +545,18 @@ def load_sweep(name_or_path: str | Path, sets: Iterable[str] = ()) -> SweepFile:
     doc = dict(doc)
     block = doc.pop("sweep", None)
     spec = parse_sweep(block) if block is not None else None
-    base = _merge(DEFAULT_SCENARIO, doc)
+    defaults = DEFAULT_SCENARIO
+    preset = (_merge(DEFAULT_SCENARIO, doc).get("plant") or {}).get("preset")
+    if isinstance(preset, str):
+        # the preset lies between the defaults and the file, as in resolve_scenario;
+        # merging the bare defaults first would pin the preset's keys to them
+        from .presets import scenario_overlay
+
+        try:
+            defaults = _merge(DEFAULT_SCENARIO, scenario_overlay(preset))
+        except UserInputError:
+            pass  # an unknown preset: resolve_scenario reports it for each variant
+    base = _merge(defaults, doc)
     for expr in sets or ():
         key, value = parse_set(expr)
         _set(base, key, value)
@@ -556,7 +571,7 @@ def load_sweep(name_or_path: str | Path, sets: Iterable[str] = ()) -> SweepFile:
             tree["seed"] = int(tree["seed"]) + point.sample
         seed = tree.get("seed") if _is_number(tree.get("seed")) else base_seed
         try:
-            resolved = resolve_scenario(tree, (), default_name=path.stem)
+            resolved = resolve_scenario(tree, (), default_name=path.stem, base=path.parent)
             error = None
         except UserInputError as exc:
             resolved, error = None, _one_line(exc)

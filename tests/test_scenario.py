@@ -21,11 +21,14 @@ from simpro_mj.scenario import (
 )
 
 SHIPPED = [
+    "cue_braking",
+    "cue_lane_change",
     "fault_supply_drop",
     "step_all",
     "step_heave",
     "step_pitch",
     "step_roll",
+    "sweep_cueing",
     "sweep_monte_carlo",
     "sweep_outer_gain",
     "track_sines",
