@@ -141,11 +141,16 @@ def test_a_signal_stops_a_batch_in_this_process(tmp_path):
 
 
 @linux
-@pytest.mark.parametrize("command", ["batch", "bench"])
+@pytest.mark.parametrize("command", ["batch", "bench", "dask"])
 def test_workers_end_themselves_when_the_parent_is_killed(tmp_path, command):
     """``kill -9`` of the parent: no handler runs there; each worker sees that its
-    parent is gone (it was re-parented) and ends itself."""
-    if command == "batch":
+    parent is gone (it was re-parented) and ends itself (Dask's local workers
+    watch their parent's pipe)."""
+    if command == "dask":
+        pytest.importorskip("distributed")
+        argv = ["batch", str(_sweep(tmp_path, 2)), "--jobs", "2", "--out", "out", "--no-plots",
+                "--scheduler", "local"]  # fmt: skip
+    elif command == "batch":
         argv = ["batch", str(_sweep(tmp_path, 2)), "--jobs", "2", "--out", "out", "--no-plots"]
     else:  # the throughput part: a 1-worker pool running 64 copies of a 30 s run
         argv = ["bench", "--duration", "30", "--repeats", "1", "--batch-runs", "64"]
@@ -156,6 +161,8 @@ def test_workers_end_themselves_when_the_parent_is_killed(tmp_path, command):
         if command == "batch":
             _wait_for(lambda: len(_worker_pids(ready)) == 2, proc)
             workers = _worker_pids(ready)
+        elif command == "dask":
+            workers = _children_running_spawn(proc.pid)
         else:
             assert ready.read_text().split()[0] == "throughput"
             workers = _children_running_spawn(proc.pid)
@@ -178,6 +185,28 @@ def _children_running_spawn(pid: int) -> list[int]:
         text = (task / "children").read_text().split()
         kids += [int(k) for k in text]
     return [k for k in kids if b"spawn_main" in Path(f"/proc/{k}/cmdline").read_bytes()]
+
+
+@linux
+def test_a_signal_stops_a_local_dask_batch(tmp_path):
+    pytest.importorskip("distributed")
+    out = tmp_path / "out"
+    argv = ["batch", str(_sweep(tmp_path, 2)), "--jobs", "2", "--out", str(out), "--no-plots",
+            "--scheduler", "local"]  # fmt: skip
+    proc, ready = _start(tmp_path, argv)
+    try:
+        _wait_for(ready.is_file, proc)  # the cluster is up and the variants submitted
+        workers = _children_running_spawn(proc.pid)
+        proc.send_signal(signal.SIGTERM)
+        _, stderr = proc.communicate(timeout=300)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 130, stderr
+    assert stderr.strip().splitlines()[-1].startswith("error: batch stopped: interrupted")
+    assert workers and not [pid for pid in workers if _alive(pid)]
+    doc = json.loads((out / "summary.json").read_text())
+    assert [v["status"] for v in doc["variants"]] == ["cancelled"] * 2
 
 
 def test_a_dask_cluster_without_workers_ends_the_batch(tmp_path, capsys, monkeypatch):

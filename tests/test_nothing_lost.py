@@ -217,3 +217,36 @@ def test_is_complete_is_the_one_check_and_resume_uses_it(tmp_path):
     row = run_batch(["step_pitch"], out, resume=True, **argv).rows[0]
     assert row["status"] == "invalid" and "not a simpro-sim result" in row["reason"]
     assert _snapshot(folder) == before
+
+
+def test_ctrl_c_during_a_rerun_keeps_the_complete_result(tmp_path):
+    """End to end: a complete result, then a long re-run into the same --out
+    interrupted once it steps (its readiness file): the complete result stays,
+    the partial one is beside it and the message says where both are."""
+    import signal
+
+    out = tmp_path / "r"
+    assert main(["run", "step_pitch", "--out", str(out), *SHORT]) == 0
+    before = _snapshot(out)
+    ready = tmp_path / "ready"
+    env = dict(os.environ, MPLBACKEND="Agg", PYTHONPATH=str(ROOT), SIMPRO_READY_FILE=str(ready))
+    cmd = [sys.executable, "-m", "simpro_mj.cli", "run", "step_pitch", "--out", str(out),
+           "--no-plots", "--set", "duration_s=600"]  # fmt: skip
+    proc = subprocess.Popen(cmd, cwd=tmp_path, env=env, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 300  # a guard against a broken build, not a timing
+        while not ready.is_file():
+            assert proc.poll() is None and time.monotonic() < deadline, proc.communicate()
+            time.sleep(0.02)
+        proc.send_signal(signal.SIGINT)
+        _, stderr = proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 130, stderr
+    partial = tmp_path / "r.partial"
+    last = stderr.strip().splitlines()[-1]
+    assert f"partial results in {partial}" in last
+    assert f"the complete result in {out} is kept" in last
+    assert _snapshot(out) == before and results.is_complete(out)
+    assert (partial / results.PARTIAL_MARKER).is_file() and not results.is_complete(partial)
