@@ -52,6 +52,30 @@ def _start(tmp_path: Path, argv: list[str]) -> tuple[subprocess.Popen, Path]:
     return proc, ready
 
 
+def _signal_when_ready(tmp_path: Path, argv: list[str], sig, workers_of=None):
+    """Start ``simpro-sim argv``, wait for its readiness file (and for
+    ``workers_of(proc, ready)`` to name its workers), send ``sig``, wait for the
+    end. Returns ``(returncode, stderr, worker pids, ready path)``."""
+    proc, ready = _start(tmp_path, argv)
+    workers: list[int] = []
+    try:
+        _wait_for(ready.is_file, proc)
+        if workers_of is not None:
+            workers = workers_of(proc, ready)
+        proc.send_signal(sig)
+        _, stderr = proc.communicate(timeout=300)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    return proc.returncode, stderr, workers, ready
+
+
+def _stepping_workers(proc, ready: Path) -> list[int]:
+    assert ready.read_text().split()[0] == "batch"
+    _wait_for(lambda: len(_worker_pids(ready)) == 2, proc)  # both variants stepping
+    return _worker_pids(ready)
+
+
 def _wait_for(condition, proc=None, bound_s: float = 300.0) -> None:
     """Wait until ``condition()`` holds (the bound only keeps a broken build from
     hanging the suite; it is not a timing assumption)."""
@@ -87,21 +111,10 @@ linux = pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs /
 @linux
 def test_a_signal_stops_the_pool_writes_the_summary_and_exits_130(tmp_path):
     """SIGTERM (Ctrl-C takes the same path: both raise KeyboardInterrupt in the batch)."""
-    sig = signal.SIGTERM
     out = tmp_path / "out"
     argv = ["batch", str(_sweep(tmp_path)), "--jobs", "2", "--out", str(out), "--no-plots"]
-    proc, ready = _start(tmp_path, argv)
-    try:
-        _wait_for(ready.is_file, proc)
-        assert ready.read_text().split()[0] == "batch"
-        _wait_for(lambda: len(_worker_pids(ready)) == 2, proc)  # both variants stepping
-        workers = _worker_pids(ready)
-        proc.send_signal(sig)
-        _, stderr = proc.communicate(timeout=300)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-    assert proc.returncode == 130, stderr
+    rc, stderr, workers, _ = _signal_when_ready(tmp_path, argv, signal.SIGTERM, _stepping_workers)
+    assert rc == 130, stderr
     last = stderr.strip().splitlines()[-1]
     assert last.startswith("error: batch stopped: interrupted"), stderr
     assert "0 variant(s) finished, 3 cancelled" in last and "summary.csv" in last
@@ -124,15 +137,8 @@ def test_a_signal_stops_the_pool_writes_the_summary_and_exits_130(tmp_path):
 def test_a_signal_stops_a_batch_in_this_process(tmp_path):
     out = tmp_path / "out"
     argv = ["batch", str(_sweep(tmp_path, 2)), "--jobs", "1", "--out", str(out), "--no-plots"]
-    proc, ready = _start(tmp_path, argv)
-    try:
-        _wait_for(ready.is_file, proc)
-        proc.send_signal(signal.SIGINT)
-        _, stderr = proc.communicate(timeout=300)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-    assert proc.returncode == 130, stderr
+    rc, stderr, _, _ = _signal_when_ready(tmp_path, argv, signal.SIGINT)
+    assert rc == 130, stderr
     assert stderr.strip().splitlines()[-1].startswith("error: batch stopped: interrupted")
     doc = json.loads((out / "summary.json").read_text())
     assert {v["status"] for v in doc["variants"]} <= {"cancelled", "interrupted"}
@@ -193,16 +199,10 @@ def test_a_signal_stops_a_local_dask_batch(tmp_path):
     out = tmp_path / "out"
     argv = ["batch", str(_sweep(tmp_path, 2)), "--jobs", "2", "--out", str(out), "--no-plots",
             "--scheduler", "local"]  # fmt: skip
-    proc, ready = _start(tmp_path, argv)
-    try:
-        _wait_for(ready.is_file, proc)  # the cluster is up and the variants submitted
-        workers = _children_running_spawn(proc.pid)
-        proc.send_signal(signal.SIGTERM)
-        _, stderr = proc.communicate(timeout=300)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-    assert proc.returncode == 130, stderr
+    # ready: the cluster is up and the variants submitted
+    workers_of = lambda proc, ready: _children_running_spawn(proc.pid)  # noqa: E731
+    rc, stderr, workers, _ = _signal_when_ready(tmp_path, argv, signal.SIGTERM, workers_of)
+    assert rc == 130, stderr
     assert stderr.strip().splitlines()[-1].startswith("error: batch stopped: interrupted")
     assert workers and not [pid for pid in workers if _alive(pid)]
     doc = json.loads((out / "summary.json").read_text())
