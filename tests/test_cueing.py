@@ -151,7 +151,7 @@ def test_cueing_block_is_spelled_out_and_checked(tmp_path):
 
 
 def test_shipped_cue_scenarios_load():
-    for name in ("cue_braking.yaml", "cue_lane_change.yaml"):
+    for name in ("cue_braking.yaml", "cue_lane_change.yaml", "cue_slalom.yaml", "cue_bump.yaml"):
         sc = load_scenario(name)
         t, f, w, pose, info = vehicle_input(sc)
         assert t[-1] == pytest.approx(sc["duration_s"]) and f.shape == (t.size, 3)

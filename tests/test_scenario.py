@@ -22,7 +22,9 @@ from simpro_mj.scenario import (
 
 SHIPPED = [
     "cue_braking",
+    "cue_bump",
     "cue_lane_change",
+    "cue_slalom",
     "fault_supply_drop",
     "step_all",
     "step_heave",
