@@ -1,53 +1,55 @@
-"""Controller side of simpro-sim: kinematics, joint loops, task-space loop.
+"""Controller side of simpro-sim: kinematics, joint loops, task-space loop, cueing.
 
 Imports only numpy, scipy and python-control, never MuJoCo, so that the
 same code can run on the rig's control computer.
+
+The names below are exported lazily (PEP 562): ``import controllers.errors``
+(what the command line needs to start) costs nothing, and a submodule is
+imported when one of its names is first used (``scipy.signal``, which the
+cueing filters need, alone takes seconds to import on a loaded machine).
 """
 
-from .errors import ConvergenceError, DesignError, KinematicsError, WorkspaceError
-from .geometry import H0, PAPER_POINTS_MM, PlatformGeometry, nominal_geometry
-from .kinematics import (
-    forward_kinematics,
-    inverse_kinematics,
-    jacobian,
-    leg_lengths,
-    paper_inverse_kinematics,
-    reachable,
-)
+import importlib
 
-__all__ = [
-    "ConvergenceError",
-    "DesignError",
-    "KinematicsError",
-    "WorkspaceError",
-    "H0",
-    "PAPER_POINTS_MM",
-    "PlatformGeometry",
-    "nominal_geometry",
-    "forward_kinematics",
-    "inverse_kinematics",
-    "jacobian",
-    "leg_lengths",
-    "paper_inverse_kinematics",
-    "reachable",
-]
+#: exported name -> submodule
+_EXPORTS = {
+    "ConvergenceError": "errors",
+    "DesignError": "errors",
+    "KinematicsError": "errors",
+    "WorkspaceError": "errors",
+    "H0": "geometry",
+    "PAPER_POINTS_MM": "geometry",
+    "PlatformGeometry": "geometry",
+    "nominal_geometry": "geometry",
+    "forward_kinematics": "kinematics",
+    "inverse_kinematics": "kinematics",
+    "jacobian": "kinematics",
+    "leg_lengths": "kinematics",
+    "paper_inverse_kinematics": "kinematics",
+    "reachable": "kinematics",
+    # joint and task-space loops (issue 4)
+    "JointDesign": "design",
+    "Plant": "design",
+    "place_poles": "design",
+    "JointControllers": "joint",
+    "SamplingError": "task_space",
+    "TaskSpaceController": "task_space",
+    # motion cueing and perception (issue 16)
+    "CanalModel": "vestibular",
+    "OtolithModel": "vestibular",
+    "VestibularModel": "vestibular",
+    "ClassicalWashout": "washout",
+    "WashoutParams": "washout",
+}
 
-# Joint and task-space loops (issue 4); appended, numpy/scipy only.
-from .design import JointDesign, Plant, place_poles  # noqa: E402
-from .joint import JointControllers  # noqa: E402
-from .task_space import SamplingError, TaskSpaceController  # noqa: E402
+__all__ = list(_EXPORTS)
 
-__all__ += [
-    "JointDesign",
-    "Plant",
-    "place_poles",
-    "JointControllers",
-    "SamplingError",
-    "TaskSpaceController",
-]
 
-# Motion cueing and perception (issue 16); numpy/scipy only.
-from .vestibular import CanalModel, OtolithModel, VestibularModel  # noqa: E402
-from .washout import ClassicalWashout, WashoutParams  # noqa: E402
+def __getattr__(name: str):
+    if name in _EXPORTS:
+        return getattr(importlib.import_module(f".{_EXPORTS[name]}", __name__), name)
+    raise AttributeError(f"module 'controllers' has no attribute {name!r}")
 
-__all__ += ["CanalModel", "OtolithModel", "VestibularModel", "ClassicalWashout", "WashoutParams"]
+
+def __dir__():
+    return sorted(__all__)

@@ -55,9 +55,13 @@ class _Parser(argparse.ArgumentParser):
         raise SystemExit(2)
 
 
-def _available() -> dict:
+def _available(only: str | None = None) -> dict:
+    """The command modules, or only the one named (so that a command starts, or
+    refuses a mistake, without importing every other command's dependencies)."""
     mods = {}
     for name, path in COMMANDS.items():
+        if only is not None and name != only:
+            continue
         try:
             mods[name] = importlib.import_module(path)
         except ModuleNotFoundError as exc:
@@ -66,8 +70,9 @@ def _available() -> dict:
     return mods
 
 
-def build_parser() -> tuple[argparse.ArgumentParser, dict]:
-    mods = _available()
+def build_parser(only: str | None = None) -> tuple[argparse.ArgumentParser, dict]:
+    """The parser of every command, or of the one named by ``only`` (a COMMANDS key)."""
+    mods = _available(only)
     parser = _Parser(
         prog="simpro-sim",
         description="Co-simulation of the SIMPRO 3-DOF pneumatic motion platform (MuJoCo).",
@@ -106,7 +111,11 @@ def _one_line(exc: BaseException) -> str:
 def _check_gl_backend() -> str | None:
     """MuJoCo loads the OpenGL backend named by ``MUJOCO_GL`` when first imported:
     a backend whose library is missing makes that import fail (one line, not a
-    traceback). Returns the message, or None."""
+    traceback). Returns the message, or None. With ``MUJOCO_GL`` unset the
+    import loads no GL library and cannot fail this way: nothing is imported,
+    so a mistake in the arguments is refused without paying for MuJoCo."""
+    if not os.environ.get("MUJOCO_GL"):
+        return None
     try:
         import mujoco  # noqa: F401
     except Exception as exc:  # noqa: BLE001 - only MUJOCO_GL can break this import
@@ -127,9 +136,13 @@ def main(argv=None) -> int:
     if problem:
         sys.stderr.write(f"error: {problem}\n")
         return 2
-    parser, _ = build_parser()
+    words = sys.argv[1:] if argv is None else list(argv)
+    # the command's own module only (the first word, when it names one); --help
+    # and mistakes in the command name see them all
+    only = words[0] if words and words[0] in COMMANDS else None
+    parser, _ = build_parser(only)
     try:
-        args = parser.parse_args(argv)
+        args = parser.parse_args(words)
     except SystemExit as exc:  # argparse: --help (0) or a misuse (2, one line already)
         return exc.code if isinstance(exc.code, int) else 2
     try:

@@ -87,7 +87,6 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import brentq
 
 from . import pneumatics_kernel as _pk
 from .errors import UserInputError
@@ -610,6 +609,8 @@ class NonlinearActuators:
             elif hi <= 0:
                 s = 1.0
             else:
+                from scipy.optimize import brentq  # on use: loading a scenario stays light
+
                 s = brentq(f_of, -1.0, 1.0, xtol=1e-12)
             s_out[i] = s
             p1_out[i] = self._static_pressure(i, s, 1)
@@ -623,6 +624,8 @@ class NonlinearActuators:
 
         def g(p):
             return self.chamber_net_flow(np.full(3, p), sv, chamber)[leg]
+
+        from scipy.optimize import brentq
 
         return brentq(g, self._pa, self._ps, xtol=1e-7, rtol=1e-14)
 

@@ -91,7 +91,6 @@ from controllers.geometry import nominal_geometry
 from controllers.kinematics import check_reachable, reachable
 
 from .errors import UserInputError
-from .model import DEFAULT_MODEL_PARAMS
 from .params import (
     check_keys,
     check_tagged,
@@ -101,6 +100,7 @@ from .params import (
     read_yaml,
     value_text,
 )
+from .plant_params import DEFAULT_MODEL_PARAMS
 from .presets import DEFAULT_PRESET, scenario_overlay
 from .sensors import DEFAULT_SENSORS
 
