@@ -757,16 +757,14 @@ def _complete(folder: Path, scenario: Mapping) -> dict | None:
 class _Progress:
     """tqdm bar with done/failed/left, or nothing."""
 
-    def __init__(self, total: int, enabled: bool):
+    def __init__(self, total: int, enabled: bool, desc: str = "batch"):
         self.done = self.failed = 0
         self.total = total
         self.bar = None
         if enabled and total and sys.stderr.isatty():
             from tqdm import tqdm
 
-            self.bar = tqdm(
-                total=total, desc="batch", unit="run", file=sys.stderr, dynamic_ncols=True
-            )
+            self.bar = tqdm(total=total, desc=desc, unit="run", file=sys.stderr, dynamic_ncols=True)
             self._post()
 
     def _post(self, refresh: bool = True) -> None:
@@ -789,18 +787,46 @@ class _Progress:
 
 
 Callback = Callable[[int, dict], None]
+#: A worker function: a task (plain data, with ``ship`` on Dask) -> a result dict
+#: with ``status`` and ``reason`` (:func:`run_variant`; ``simpro-sim response``
+#: passes its own). Top level in its module, so that it pickles by name.
+Worker = Callable[[Mapping], dict]
 
 
-def _run_here(tasks: list[tuple[int, dict]], done: Callback) -> None:
+def run_tasks(
+    tasks: list[tuple[int, dict]],
+    done: Callback,
+    *,
+    jobs: int = 1,
+    scheduler: str | None = None,
+    fn: Worker | None = None,
+) -> None:
+    """Run ``fn(task)`` for each ``(key, task)`` with the batch executors; ``done(key,
+    result)`` in this process as each finishes (``jobs == 1`` here, a spawn pool, or
+    Dask with ``scheduler``). A worker that dies fails its task only."""
+    if not tasks:
+        return
+    if scheduler is not None:
+        _run_dask(tasks, scheduler, jobs, done, fn=fn)
+    elif jobs == 1:
+        _run_here(tasks, done, fn=fn)
+    else:
+        _run_pool(tasks, jobs, done, fn=fn)
+
+
+def _run_here(tasks: list[tuple[int, dict]], done: Callback, fn: Worker | None = None) -> None:
+    fn = run_variant if fn is None else fn
     signal_ready("batch")
     for key, task in tasks:
-        result = run_variant(task)
+        result = fn(task)
         done(key, result)
         if result.get("status") == "interrupted":  # Ctrl-C/SIGTERM stopped this variant
             raise KeyboardInterrupt(result.get("reason") or "interrupted")
 
 
-def _run_pool(tasks: list[tuple[int, dict]], jobs: int, done: Callback) -> None:
+def _run_pool(
+    tasks: list[tuple[int, dict]], jobs: int, done: Callback, fn: Worker | None = None
+) -> None:
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor, as_completed
 
@@ -814,7 +840,8 @@ def _run_pool(tasks: list[tuple[int, dict]], jobs: int, done: Callback) -> None:
         initargs=(os.getpid(),),
     )
     try:
-        futures = {pool.submit(run_task, run_variant, task): key for key, task in tasks}
+        fn = run_variant if fn is None else fn
+        futures = {pool.submit(run_task, fn, task): key for key, task in tasks}
         signal_ready("batch")
         for fut in as_completed(futures):
             try:
@@ -851,9 +878,11 @@ def _run_dask(
     jobs: int,
     done: Callback,
     no_workers_s: float | None = None,
+    fn: Worker | None = None,
 ) -> None:
     import logging
 
+    fn = run_variant if fn is None else fn
     distributed = _dask()
     cluster = None
     try:
@@ -881,7 +910,7 @@ def _run_dask(
     futures: dict = {}
     try:
         for key, task in tasks:
-            fut = client.submit(run_variant, dict(task, ship=True), pure=False)
+            fut = client.submit(fn, dict(task, ship=True), pure=False)
             futures[fut] = key
         signal_ready("batch")
         pending = set(futures)

@@ -44,6 +44,7 @@ COMMANDS = {
     "render": "simpro_mj.cmd_render",
     "view": "simpro_mj.cmd_view",
     "manoeuvre": "simpro_mj.cmd_manoeuvre",
+    "response": "simpro_mj.cmd_response",
 }
 
 

@@ -1,0 +1,287 @@
+"""``simpro-sim response SCENARIO``: closed-loop frequency response per task axis (OMCT-style).
+
+Stepped sines on each axis in turn (:mod:`simpro_mj.response`), fitted by
+least squares over settled whole periods, beside the prediction of the
+linearised loop (:mod:`controllers.frequency`, python-control). Writes
+``response.csv`` (one row per input axis, output axis, signal and
+frequency), ``response.json`` (what ``--json`` prints), ``bode.png`` (each
+axis: measured true and measured pose, predicted, their difference) and
+``cross_axis.png`` into ``--out`` (default ``results/<name>-response``).
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+import os
+import sys
+from pathlib import Path
+
+#: Most worker processes (a run never starts more than it has frequencies).
+MAX_JOBS = 256
+
+HELP = "closed-loop frequency response per task axis (stepped sines, OMCT frequencies)"
+
+CSV_COLUMNS = (
+    "input_axis",
+    "output_axis",
+    "signal",
+    "frequency_hz",
+    "omega_rad_s",
+    "period_ms",
+    "amplitude",
+    "gain",
+    "gain_db",
+    "phase_deg",
+    "predicted_gain_db",
+    "predicted_phase_deg",
+    "diff_db",
+    "diff_deg",
+    "saturated_pct",
+)
+
+
+def _floats(text: str) -> list[float]:
+    import argparse
+
+    try:
+        return [float(v) for v in text.split(",") if v.strip()]
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"not a comma-separated list of numbers: {text!r}"
+        ) from None
+
+
+def add_arguments(parser) -> None:
+    parser.add_argument("scenario", help="shipped scenario name or a path")
+    parser.add_argument(
+        "--freq-hz",
+        type=_floats,
+        default=None,
+        metavar="F,F,...",
+        help="frequencies (Hz), periods on the 1 ms grid (default: the 12 OMCT frequencies "
+        "0.1-15.85 rad/s, on the grid, plus 0.5 and 1 Hz)",
+    )
+    parser.add_argument(
+        "--amplitude-deg", type=float, default=0.5, help="roll and pitch sine amplitude (deg)"
+    )
+    parser.add_argument("--amplitude-mm", type=float, default=5.0, help="heave amplitude (mm)")
+    parser.add_argument(
+        "--axes", default="roll,pitch,heave", help="axes to excite (default roll,pitch,heave)"
+    )
+    parser.add_argument(
+        "--settle-s", type=float, default=4.0, help="time before the fitted periods (s)"
+    )
+    parser.add_argument("--periods", type=int, default=2, help="whole periods fitted (default 2)")
+    parser.add_argument("--jobs", type=int, default=None, metavar="N", help="worker processes")
+    parser.add_argument(
+        "--scheduler",
+        default=None,
+        metavar="ADDRESS",
+        help="run on a Dask distributed scheduler at ADDRESS, or 'local'",
+    )
+    parser.add_argument("--out", default=None, help="folder (default results/<name>-response)")
+    parser.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
+def _cell(v) -> str:
+    if v is None:
+        return ""
+    if isinstance(v, float):
+        return "nan" if not math.isfinite(v) else f"{v:.6g}"
+    return str(v)
+
+
+def csv_text(rows: list[dict]) -> str:
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(CSV_COLUMNS)
+    for r in rows:
+        w.writerow([_cell(r[c]) for c in CSV_COLUMNS])
+    return buf.getvalue()
+
+
+def plot(doc: dict, folder: Path) -> list[str]:
+    """``bode.png`` (excited axes) and ``cross_axis.png`` into ``folder``."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    rows = doc["rows"]
+    axes_in = doc["axes_excited"]
+    files = []
+    fig, ax = plt.subplots(3, len(axes_in), figsize=(4.2 * len(axes_in), 8), squeeze=False)
+    for c, a in enumerate(axes_in):
+        for sig, style in (("true", "o"), ("measured", "x")):
+            rs = [r for r in rows if r["input_axis"] == a and r["output_axis"] == a]
+            rs = [r for r in rs if r["signal"] == sig]
+            f = [r["frequency_hz"] for r in rs]
+            ax[0, c].semilogx(f, [r["gain_db"] for r in rs], style, label=f"measured, {sig} pose")
+            ax[1, c].semilogx(f, [r["phase_deg"] for r in rs], style)
+            if rs and rs[0]["predicted_gain_db"] is not None:
+                ls = "-" if sig == "true" else ":"
+                ax[0, c].semilogx(f, [r["predicted_gain_db"] for r in rs], "k" + ls, lw=1,
+                                  label=f"predicted, {sig}")  # fmt: skip
+                ax[1, c].semilogx(f, [r["predicted_phase_deg"] for r in rs], "k" + ls, lw=1)
+                ax[2, c].semilogx(f, [r["diff_db"] for r in rs], style + "-", label=f"dB, {sig}")
+                ax[2, c].semilogx(f, [r["diff_deg"] / 10 for r in rs], style + "--",
+                                  label=f"deg/10, {sig}")  # fmt: skip
+        ax[0, c].axhline(-3, color="r", lw=0.6, ls="--")
+        ax[0, c].set_title(f"{a}: set-point -> pose", fontsize=9)
+        ax[0, c].set_ylabel("gain (dB)")
+        ax[1, c].set_ylabel("phase (deg)")
+        ax[2, c].set_ylabel("measured - predicted")
+        ax[2, c].set_xlabel("frequency (Hz)")
+        for k in range(3):
+            ax[k, c].grid(alpha=0.3, which="both")
+        ax[0, c].legend(fontsize=7)
+        ax[2, c].legend(fontsize=7)
+    fig.suptitle(f"{doc['scenario']} ({doc['mode']}): closed-loop frequency response", fontsize=10)
+    fig.tight_layout()
+    f = folder / "bode.png"
+    fig.savefig(f, dpi=110)
+    plt.close(fig)
+    files.append(f.name)
+
+    fig, ax = plt.subplots(1, len(axes_in), figsize=(4.2 * len(axes_in), 3.5), squeeze=False)
+    for c, a in enumerate(axes_in):
+        for o in ("roll", "pitch", "heave"):
+            if o == a:
+                continue
+            rs = [
+                r for r in rows
+                if r["input_axis"] == a and r["output_axis"] == o and r["signal"] == "true"
+            ]  # fmt: skip
+            f = [r["frequency_hz"] for r in rs]
+            unit = f"{'mm' if o == 'heave' else 'deg'}/{'mm' if a == 'heave' else 'deg'}"
+            ax[0, c].loglog(f, [max(r["gain"], 1e-9) for r in rs], "o-", label=f"{o} ({unit})")
+        ax[0, c].set_title(f"cross-axis: {a} command", fontsize=9)
+        ax[0, c].set_xlabel("frequency (Hz)")
+        ax[0, c].grid(alpha=0.3, which="both")
+        ax[0, c].legend(fontsize=7)
+    fig.tight_layout()
+    f = folder / "cross_axis.png"
+    fig.savefig(f, dpi=110)
+    plt.close(fig)
+    files.append(f.name)
+    return files
+
+
+def _fmt(v, d=1) -> str:
+    return "-" if v is None else f"{v:.{d}f}"
+
+
+def print_summary(doc: dict, folder, file=None) -> None:
+    file = file or sys.stdout
+    print(f"{doc['scenario']} ({doc['mode']}), set-point -> true pose:", file=file)
+    print(
+        "axis    bandwidth_3db_hz  phase@0.5Hz  phase@1Hz  delay_ms | predicted: bw  "
+        "ph@0.5  ph@1  delay",
+        file=file,
+    )
+    for a, v in doc["axes"].items():
+        p = v.get("predicted") or {}
+        bw = _fmt(v["bandwidth_3db_hz"], 2)
+        if v["bandwidth_3db_hz"] is None and v.get("bandwidth_above_hz"):
+            bw = f">{v['bandwidth_above_hz']:.2f}"
+        pbw = _fmt(p.get("bandwidth_3db_hz"), 2)
+        if p.get("bandwidth_3db_hz") is None and p.get("bandwidth_above_hz"):
+            pbw = f">{p['bandwidth_above_hz']:.2f}"
+        print(
+            f"{a:7s} {bw:>16s}  {_fmt(v['phase_deg_at_0_5_hz']):>11s}  "
+            f"{_fmt(v['phase_deg_at_1_hz']):>9s}  {_fmt(v['equivalent_delay_ms']):>8s} | "
+            f"{pbw:>12s}  {_fmt(p.get('phase_deg_at_0_5_hz')):>6s}  "
+            f"{_fmt(p.get('phase_deg_at_1_hz')):>4s}  {_fmt(p.get('equivalent_delay_ms'))}",
+            file=file,
+        )
+    for a, v in doc["agreement"].items():
+        t = v["true"]
+        print(
+            f"{a}: measured - predicted up to 1 Hz: {_fmt(t['max_abs_diff_db'], 2)} dB, "
+            f"{_fmt(t['max_abs_diff_deg'])} deg",
+            file=file,
+        )
+    for f in doc["failed"]:
+        print(f"FAILED {f['axis']} {f['period_ms']} ms: {f['status']}: {f['reason']}", file=file)
+    print(f"results: {folder}", file=file)
+
+
+def run(args) -> int:
+    from .errors import UserInputError
+    from .response import check_periods, loop_model, measure, plan_response, summary
+    from .results import claim, install_folder
+    from .scenario import load_scenario
+
+    jobs = args.jobs if args.jobs is not None else (os.cpu_count() or 1)
+    if not 1 <= jobs <= MAX_JOBS:
+        raise UserInputError(f"invalid value at --jobs: {jobs}; allowed: an integer 1..{MAX_JOBS}")
+    scenario = load_scenario(args.scenario, args.sets)
+    periods_ms = None if args.freq_hz is None else check_periods(args.freq_hz)
+    if args.freq_hz is not None and not args.freq_hz:
+        raise UserInputError("invalid value at --freq-hz: empty; allowed: one or more frequencies")
+    axes = tuple(a.strip() for a in args.axes.split(",") if a.strip())
+    plan = plan_response(
+        scenario,
+        periods_ms=periods_ms,
+        amplitudes={
+            "roll": args.amplitude_deg,
+            "pitch": args.amplitude_deg,
+            "heave": args.amplitude_mm,
+        },  # fmt: skip
+        axes=axes,
+        settle_s=args.settle_s,
+        periods=args.periods,
+    )
+    if args.scheduler is not None:
+        from .batch import _dask
+
+        _dask()  # say so before anything runs
+    out = Path(args.out) if args.out else Path("results") / f"{scenario['name']}-response"
+    with claim(out, "response", inputs=[args.scenario]):
+        model = loop_model(scenario)
+        results = measure(
+            plan,
+            jobs=min(jobs, len(plan.tasks)),
+            scheduler=args.scheduler,
+            progress=not args.quiet and not args.json,
+        )
+        doc = summary(plan, results, model)
+        doc = {
+            "scenario": scenario["name"],
+            "mode": model.mode,
+            "axes_excited": list(plan.axes),
+            "amplitude": {
+                "roll_deg": args.amplitude_deg,
+                "pitch_deg": args.amplitude_deg,
+                "heave_mm": args.amplitude_mm,
+            },  # fmt: skip
+            "settle_s": plan.settle_s,
+            "periods": plan.periods,
+            "frequencies_hz": [1000.0 / p for p in sorted(plan.periods_ms, reverse=True)],
+            **doc,
+        }
+        from .results import _jsonable
+
+        def fill(tmp: Path) -> None:
+            import json
+
+            (tmp / "response.csv").write_text(csv_text(doc["rows"]), encoding="utf-8")
+            files = ["response.csv", "response.json"]
+            if not args.no_plots:
+                files += plot(doc, tmp)
+            doc["files"] = files
+            text = json.dumps(_jsonable(doc), indent=2)
+            (tmp / "response.json").write_text(text + "\n", encoding="utf-8")
+
+        install_folder(out, fill, kind="response")
+    if args.json:
+        from .cli import emit_json
+        from .results import _jsonable
+
+        emit_json(_jsonable(doc))
+    else:
+        print_summary(doc, out)
+    return 0 if not doc["failed"] else 1
