@@ -159,7 +159,10 @@ def linear_pitch():
     sc = load_scenario(
         "step_pitch", ["actuator.model=linear", "controller.outer.gains=[3.0, 3.0, 3.0]"]
     )
-    plan = plan_response(sc, periods_ms=[1000], axes=("pitch",), settle_s=2.0, periods=1)
+    # 0.1 deg: at 1 Hz near the loop's resonance, 0.5 deg puts the valves at their rails
+    plan = plan_response(
+        sc, periods_ms=[1000], amplitudes={"pitch": 0.1}, axes=("pitch",), settle_s=2.0, periods=1
+    )
     results = measure(plan, jobs=1)
     return sc, plan, results
 
@@ -172,6 +175,7 @@ def test_linear_actuator_measured_matches_prediction(linear_pitch):
     diag = [r for r in doc["rows"] if r["output_axis"] == "pitch" and r["input_axis"] == "pitch"]
     assert {r["signal"] for r in diag} == {"true", "measured"}
     for r in diag:
+        assert r["saturated_pct"] == 0.0  # linear: no valve at a rail
         # the linear model is what the prediction describes: 0.5 dB and 3 deg
         assert abs(r["diff_db"]) < 0.5, r
         assert abs(r["diff_deg"]) < 3.0, r
