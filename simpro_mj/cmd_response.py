@@ -18,9 +18,6 @@ import os
 import sys
 from pathlib import Path
 
-#: Most worker processes (a run never starts more than it has frequencies).
-MAX_JOBS = 256
-
 HELP = "closed-loop frequency response per task axis (stepped sines, OMCT frequencies)"
 
 CSV_COLUMNS = (
@@ -210,6 +207,7 @@ def print_summary(doc: dict, folder, file=None) -> None:
 
 
 def run(args) -> int:
+    from .batch import MAX_JOBS
     from .errors import UserInputError
     from .response import check_periods, loop_model, measure, plan_response, summary
     from .results import claim, install_folder
@@ -278,7 +276,7 @@ def run(args) -> int:
 
         install_folder(out, fill, kind="response")
     if args.json:
-        from .cli import emit_json
+        from .jsonout import emit_json
         from .results import _jsonable
 
         emit_json(_jsonable(doc))
