@@ -492,10 +492,15 @@ def real_inner_step(
     axis: int = 0,
     legs=None,
     spec=None,
+    model_tau: float = 0.0,
 ):
     """Task-axis unit-step response at the fast rate with the real inner loops.
 
-    Returns ``(t, y)`` with ``y`` (len(t), m) the task deviations (linear model).
+    ``mode`` ``"I"``, ``"PI"`` or ``"feedforward"`` (the set-point through the
+    Jacobian every fast step plus the I correction of ``M r - y``, ``M`` a
+    first-order lag of ``model_tau`` s, as
+    :class:`controllers.task_space.TaskSpaceController`). Returns ``(t, y)``
+    with ``y`` (len(t), m) the task deviations (linear model).
     """
     n = int(round(period / dt))
     legs = _legs(variant, dt, method, actuators, legs, spec)
@@ -515,10 +520,19 @@ def real_inner_step(
     xc = np.zeros(m)
     e_prev = np.zeros(m)
     qd = np.zeros(m)
+    beta = -np.expm1(-dt / model_tau) if model_tau > 0 else 1.0
+    ref_model = np.zeros(m)  # M r, at rest before the step
+    corr = np.zeros(m)
     for k in range(steps):
         yk = jinv @ (cq @ xi)
         y[k] = yk
-        if k % n == 0:
+        if mode == "feedforward":
+            if k % n == 0:
+                applied = corr.copy()  # c[k], then integrate e[k] for the next period
+                corr = corr + g * ((ref_model if model_tau > 0 else r) - yk)
+            qd = jac @ (r + applied)
+            ref_model = ref_model + beta * (r - ref_model)
+        elif k % n == 0:
             e = r - yk
             if mode == "I":
                 qd = jac @ xc

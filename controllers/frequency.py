@@ -28,11 +28,12 @@ gives (fundamental component, exact for the linear model)::
 
     joint_only   y = F R
     I, PI        y = F H_n (I + C P_T)^-1 C R
-    feedforward  y = F (R + H_n c),   c = (I + C P_T)^-1 C (I - F_fb) R
+    feedforward  y = F (R + H_n c),   c = (I + C P_T)^-1 C (M - F_fb) R
 
 where ``H_n(w) = (1/n) sum_{i<n} e^{-j w i dt}`` is the fundamental of the
 outer loop's staircase (zero-order hold of ``n`` fast samples) and
-``F_fb`` the fast chain to the measured pose that the outer loop samples.
+``F_fb`` the fast chain to the measured pose that the outer loop samples,
+``M`` the feed-forward scheme's reference model (identity without one).
 The harmonics at ``k 2 pi / T +- w`` that the staircase also carries are
 not in ``y``'s fundamental; the fit over whole periods sees them as a small
 leakage.
@@ -139,6 +140,13 @@ class LoopModel:
         IMU output period in steps (its zero-order hold).
     velocity_ff : (3,) array
         Leg velocity feed-forward gains (V per m/s), 0: none.
+    model_tau : float
+        ``mode="feedforward"``: time constant (s) of the reference model ``M``
+        the correction compares the pose with (0: none,
+        :class:`controllers.task_space.TaskSpaceController`).
+    setpoint_filter : tuple (A, B, C, D), optional
+        One leg's set-point filter at ``dt`` between ``q_d`` and the joint
+        loop (Fig. 13's "Filter"), applied to every leg in every mode.
     """
 
     plants: Sequence[Plant]
@@ -154,6 +162,8 @@ class LoopModel:
     imu_alpha: float = 0.0
     imu_every: int = 1
     velocity_ff: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    model_tau: float = 0.0
+    setpoint_filter: tuple | None = None
 
     def __post_init__(self):
         if self.mode not in RESPONSE_MODES:
@@ -175,7 +185,7 @@ class LoopModel:
 
 
 def _leg_loops(model: LoopModel):
-    """Per leg, ``control`` systems at ``dt``: the closed joint loop ``q_d -> q`` and
+    """Per leg, ``control`` systems at ``dt``: the (filtered) joint loop ``q_d -> q`` and
     the path ``u_ff -> q`` of a feed-forward voltage added to the controller's output."""
     import control as ct
 
@@ -186,6 +196,8 @@ def _leg_loops(model: LoopModel):
         p = ct.c2d(ct.ss(ct.tf(plant.num, plant.den)), model.dt, "zoh")  # held valve command
         c = ct.ss(*leg_state_space(design, model.dt, model.method), model.dt)
         loop = ct.feedback(ct.series(c, p), 1)  # u = C (q_d - q) + u_ff
+        if model.setpoint_filter is not None:  # q_d -> filter -> q_ref of the joint loop
+            loop = ct.series(ct.ss(*model.setpoint_filter, model.dt), loop)
         dist = ct.feedback(p, c)
         legs.append((ct.ss(loop), ct.ss(dist)))
     return legs
@@ -283,7 +295,12 @@ def predict(model: LoopModel, omega) -> dict:
                 c = c * (zs + model.pi_zero)
             hn = hold_factor(w, n, dt)
             if model.mode == "feedforward":
-                corr = np.linalg.solve(eye + c @ p_t, c @ (eye - sens @ direct))
+                # the error is M y_d - y_fb, M = beta / (z - (1 - beta)) at dt
+                ref_model = 1.0
+                if model.model_tau > 0:
+                    beta = -math.expm1(-dt / model.model_tau)
+                    ref_model = beta / (zf - (1.0 - beta))
+                corr = np.linalg.solve(eye + c @ p_t, c @ (ref_model * eye - sens @ direct))
                 h = direct + f_x @ (hn * corr)
             else:
                 h = f_x @ (hn * np.linalg.solve(eye + c @ p_t, c))

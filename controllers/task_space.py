@@ -20,6 +20,34 @@ so with the inner loop as one sample of delay (eq. 21) the loop is
 
 ``mode="joint_only"``: ``q_d = IK(y_d)``, no task feedback (Fig. 15a).
 
+``mode="feedforward"`` (beyond the paper: section 6's "feed-forward control"
+and "following trajectory"): the set-point goes straight through the IK to
+the joint loops every inner step, and the outer law, at its own period from
+the measured pose, integrates only a correction ``c`` of the pose::
+
+    q_d[m] = IK(y_d[m] + c[k]),   m in [k n, (k + 1) n)
+    c[k+1] = c[k] + T K_I (y_d[k] - y[k])                  (outer_law "I")
+    c[k]   = c[k-1] + T K_I (e[k] + c_PI e[k-1])           (outer_law "PI")
+
+so the steady-state task error is removed as by the paper's scheme (the
+integrator), while the set-point reaches the legs with the bandwidth of the
+joint loops instead of the outer loop's.
+
+The error the correction integrates is taken against a reference model of
+what the joint loops deliver, ``e = M y_d - y`` with ``M`` a first-order lag
+of time constant ``model_tau`` (0: ``e = y_d - y``): without it the
+integrator also integrates the joint loops' lag during every transient and
+gives it back as overshoot (``K K_I`` times the lag's area). ``M(1) = 1``, so
+the steady state is still ``y = y_d``. ``hold=True`` at an outer step (the
+co-simulation passes "a valve was at its rail during the last period") skips
+that step's integration: the correction's anti-windup against the valves'
+saturation, which the linear model does not describe. The loop seen by ``c`` is the one
+the I/PI law closes (same characteristic polynomial, same stability limits,
+:mod:`controllers.analysis`); the feed-forward path is outside it.
+Call :meth:`TaskSpaceController.update_floats` at the outer steps (it
+integrates ``c``) and :meth:`TaskSpaceController.feedforward_floats` every
+inner step. ``docs/feedforward.md`` has the block diagram.
+
 Workspace: a set-point outside the reachable workspace raises
 :class:`~controllers.errors.WorkspaceError` naming the limit, or, with
 ``clamp=True``, is pulled back along the segment from the home pose to the
@@ -40,7 +68,7 @@ from .kinematics import PoseKinematics, check_reachable, reachable
 
 __all__ = ["TaskSpaceController", "SamplingError", "MODES"]
 
-MODES = ("I", "PI", "joint_only")
+MODES = ("I", "PI", "joint_only", "feedforward")
 
 
 class SamplingError(ValueError):
@@ -72,7 +100,7 @@ class TaskSpaceController:
 
     Parameters
     ----------
-    mode : {"I", "PI", "joint_only"}
+    mode : {"I", "PI", "joint_only", "feedforward"}
     gains : float or (3,) array_like
         ``K K_I`` per axis (roll, pitch, heave), 1/s. Default 3 (section 5.2.3).
     period : float
@@ -85,6 +113,11 @@ class TaskSpaceController:
         Inner-loop step (s), default 0.001.
     pi_zero : float
         ``c`` of the PI law ``T (z + c)/(z - 1)``, default 0.2.
+    outer_law : {"I", "PI"}
+        The law of the correction in ``mode="feedforward"`` (default "I").
+    model_tau : float
+        ``mode="feedforward"``: time constant (s) of the reference model ``M``
+        (module docstring); 0: no model.
     margin : float
         Stroke margin (m) kept by the integrated pose and by clamping.
 
@@ -106,10 +139,14 @@ class TaskSpaceController:
         *,
         inner_dt: float = 0.001,
         pi_zero: float = 0.2,
+        outer_law: str = "I",
+        model_tau: float = 0.0,
         margin: float = 0.0,
     ):
         if mode not in MODES:
             raise ValueError(f"unknown mode {mode!r}; allowed: {list(MODES)}")
+        if outer_law not in ("I", "PI"):
+            raise ValueError(f"unknown outer_law {outer_law!r}; allowed: ['I', 'PI']")
         if not (np.isfinite(inner_dt) and inner_dt > 0):
             raise SamplingError(f"inner_dt must be > 0 s, got {inner_dt!r}")
         ratio = period / inner_dt
@@ -132,6 +169,12 @@ class TaskSpaceController:
         self.geometry = nominal_geometry() if geometry is None else geometry
         self.clamp = bool(clamp)
         self.pi_zero = float(pi_zero)
+        self.outer_law = outer_law
+        if not (math.isfinite(model_tau) and model_tau >= 0):
+            raise ValueError(f"model_tau must be finite and >= 0 s, got {model_tau!r}")
+        self.model_tau = float(model_tau)
+        # ZOH-exact first-order lag at the inner step: m[k+1] = m[k] + beta (y_d[k] - m[k])
+        self._beta = -math.expm1(-self.inner_dt / model_tau) if model_tau > 0 else 1.0
         self.margin = float(margin)
         # The state is kept in Python floats: one pose per update is too small
         # for numpy (see update_floats); every operation below is the same
@@ -143,12 +186,20 @@ class TaskSpaceController:
         self._last_ref = None
         self._qd = check_reachable(self._xc, self.geometry).tolist()  # raises if home is not
         self._q_xc = None  # IK(x_c) when already known (computed by _integrate), else None
+        self._corr = [0.0, 0.0, 0.0]  # feedforward: the integrated pose correction c
+        self._pending = None  # feedforward, I law: c[k+1], applied at the next outer step
+        self._model = list(self._xc)  # feedforward: the reference model's output M y_d
 
     # ------------------------------------------------------------------
     @property
     def pose_command(self) -> np.ndarray:
         """The integrated pose ``x_c`` (roll rad, pitch rad, h m) whose IK is ``q_d`` (copy)."""
         return np.array(self._xc)
+
+    @property
+    def correction(self) -> np.ndarray:
+        """The integrated pose correction ``c`` of ``mode="feedforward"`` (copy)."""
+        return np.array(self._corr)
 
     @property
     def q_desired(self) -> np.ndarray:
@@ -171,6 +222,9 @@ class TaskSpaceController:
         self._xc = pose0.tolist()
         self._q_xc = None
         self._e_prev = [0.0, 0.0, 0.0]
+        self._corr = [0.0, 0.0, 0.0]
+        self._pending = None
+        self._model = pose0.tolist()
         return q
 
     def _setpoint(self, ref: list) -> list:
@@ -207,7 +261,7 @@ class TaskSpaceController:
         """
         return np.array(self.update_floats(_floats3(pose_ref), _floats3(pose_meas)))
 
-    def update_floats(self, pose_ref: list, pose_meas: list) -> list:
+    def update_floats(self, pose_ref: list, pose_meas: list, hold: bool = False) -> list:
         """:meth:`update` on lists of 3 floats; returns ``q_d`` as a new list.
 
         The co-simulation's path (issue 7). Bit-identical to the array
@@ -229,6 +283,12 @@ class TaskSpaceController:
             raise ValueError(f"measured pose not finite: {np.array(pose_meas)}")
         e = [ref[0] - pose_meas[0], ref[1] - pose_meas[1], ref[2] - pose_meas[2]]
         tg = self._tg
+        if self.mode == "feedforward":
+            if self.model_tau > 0:
+                m = self._model
+                e = [m[0] - pose_meas[0], m[1] - pose_meas[1], m[2] - pose_meas[2]]
+            self._correct(ref, e, hold)
+            return self.feedforward_floats(ref)
         if self.mode == "I":
             # eq. (22) / Fig. 7: output x_c[k], then integrate e[k]
             self._qd = self._ik_xc()
@@ -240,6 +300,53 @@ class TaskSpaceController:
             self._e_prev = e
             self._qd = self._ik_xc()
         return list(self._qd)
+
+    def _correct(self, ref: list, e: list, hold: bool = False) -> None:
+        """One outer step of the feed-forward scheme's correction ``c`` (module docstring).
+
+        The I law applies ``c[k]`` over the coming period and integrates
+        ``e[k]`` for the next one; the PI law integrates first. An increment
+        that would take ``y_d + c`` out of the workspace is not taken
+        (conditional integration: the correction's anti-windup).
+        """
+        if self._pending is not None:  # I law: c[k] = c[k-1] + T K_I e[k-1]
+            self._corr, self._pending = self._pending, None
+        if hold:
+            return
+        tg, c = self._tg, self._corr
+        if self.outer_law == "PI":
+            ep, z = self._e_prev, self.pi_zero
+            step = [tg[i] * (e[i] + z * ep[i]) for i in range(3)]
+            self._e_prev = e
+        else:
+            step = [tg[0] * e[0], tg[1] * e[1], tg[2] * e[2]]
+        new = [c[0] + step[0], c[1] + step[1], c[2] + step[2]]
+        if self._kin.solve([ref[0] + new[0], ref[1] + new[1], ref[2] + new[2]], self.margin)[1]:
+            if self.outer_law == "PI":
+                self._corr = new
+            else:
+                self._pending = new
+
+    def feedforward_floats(self, pose_ref: list) -> list:
+        """``q_d = IK(y_d + c)`` of ``mode="feedforward"`` for this inner step (new list).
+
+        ``pose_ref`` is the set-point of this step (checked or clamped as in
+        :meth:`update_floats`). The I law's pending increment, integrated at
+        the last outer step, is applied from the next outer step on.
+        """
+        ref = self._setpoint(pose_ref)
+        c, m, b = self._corr, self._model, self._beta
+        if b < 1.0:  # the reference model sees this step's set-point
+            self._model = [m[0] + b * (ref[0] - m[0]), m[1] + b * (ref[1] - m[1]),
+                           m[2] + b * (ref[2] - m[2])]  # fmt: skip
+        pose = [ref[0] + c[0], ref[1] + c[1], ref[2] + c[2]]
+        q, ok = self._kin.solve(pose, self.margin)
+        if not ok:  # the correction pushes past the workspace: the set-point alone
+            q = self._kin.solve(ref, arc_check=False)[0]
+            pose = list(ref)
+        self._xc = pose
+        self._qd = q
+        return list(q)
 
     def _ik_xc(self) -> list:
         """``inverse_kinematics(x_c, check=False)``, reusing the one :meth:`_integrate` found."""

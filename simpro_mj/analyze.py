@@ -67,6 +67,13 @@ DEFAULTS: dict = {
         "p2_rad_s": None,  # None: from the printed denominator (56.7)
         "step_duration_s": 3.0,
     },
+    "feedforward": {
+        # controller.mode = feedforward (docs/feedforward.md): the correction's I law
+        # gain (controller.feedforward.gains) and its reference model's time constant
+        "gain": 1.0,
+        "model_tau_s": 0.2,
+        "step_duration_s": 4.0,
+    },
     "sweep": {
         # redesigned inner loops with wn scaled, p1, p2 = (7.6, 5.67) wn
         "wn_rad_s": [5.0, 10.0, 20.0, 40.0, 80.0, 160.0],
@@ -100,6 +107,9 @@ def _check(p: dict) -> None:
         check_number(p, f"outer.{key}", 0.0, 1e4)
     check_number(p, "outer.pi_zero", -1.0, 1.0, lo_open=True, hi_open=True)
     check_number(p, "outer.locus_gain_max", 0.0, 1e4, lo_open=True)
+    check_number(p, "feedforward.model_tau_s", 0.0, 10.0, unit=" s")
+    check_number(p, "feedforward.gain", 0.0, 1e4)
+    check_number(p, "feedforward.step_duration_s", 0.0, 600.0, lo_open=True, unit=" s")
     for key in ("outer.step_duration_s", "inner.step_duration_s"):
         check_number(p, key, 0.0, 600.0, lo_open=True, unit=" s")
     check_number(p, "inner.zeta", 0.0, 2.0, lo_open=True, hi_open=True)
@@ -201,6 +211,66 @@ def _real(mode, gain, period, p, spec, jac, duration) -> dict:
     }
 
 
+def _feedforward(p: dict, spec: dict, jac, real_i: dict) -> dict:
+    """The feed-forward scheme (``controller.mode = feedforward``) on the paper's plants.
+
+    Its correction closes the same loop as the I law around the real inner
+    loops (the feed-forward path is outside the loop): the characteristic
+    polynomial, hence the stability limit, is the I law's, for the
+    correction's gain ``feedforward.gain``. What changes is the response: the
+    unit step on pitch and the closed-loop frequency response per axis
+    (:func:`controllers.frequency.predict`), beside the joint-only scheme and
+    the I law at ``outer.gain``.
+    """
+    from controllers.design import design_for, paper_plant
+    from controllers.frequency import LoopModel, predict
+
+    from .response import figures
+
+    o, i, ff = p["outer"], p["inner"], p["feedforward"]
+    reading = p["paper_units"]
+    acts = ("actuator1", "actuator2", "actuator3")
+    plants = [paper_plant(a, reading) for a in acts]
+    sp = dict(spec) if i["variant"] == "redesigned" else {}
+    designs = [
+        design_for(a, i["variant"], plant=pl, reading=reading, **sp)
+        for a, pl in zip(acts, plants, strict=True)
+    ]
+    kw = dict(variant=i["variant"], dt=i["dt_s"], method=i["method"], spec=spec)
+    t, y = an.real_inner_step(
+        "feedforward", ff["gain"], o["period_s"], ff["step_duration_s"], jac=jac, axis=1,
+        model_tau=ff["model_tau_s"], **kw,
+    )  # fmt: skip
+    f_hz = np.geomspace(0.02, 5.0, 240)
+    freq = {}
+    for mode in ("joint_only", "I", "feedforward"):
+        model = LoopModel(
+            plants=plants, designs=designs, jac=jac, mode=mode,
+            gains=ff["gain"] if mode == "feedforward" else o["gain"],
+            period=o["period_s"], dt=i["dt_s"], method=i["method"], pi_zero=o["pi_zero"],
+            model_tau=ff["model_tau_s"],
+        )  # fmt: skip
+        h = predict(model, 2 * np.pi * f_hz)["true"]
+        ph = np.degrees(np.unwrap(np.angle(h), axis=0))
+        freq[mode] = {
+            ax: figures(f_hz, h[:, j, j], ph[:, j, j])
+            for j, ax in enumerate(("roll", "pitch", "heave"))
+        }
+    stable = ff["gain"] < real_i["stability_limit"]
+    return {
+        "gain": ff["gain"],
+        "model_tau_s": ff["model_tau_s"],
+        "stability_limit": real_i["stability_limit"],
+        "stability_limit_note": "the correction closes the I loop around the real inner "
+        "loops: same characteristic polynomial, same limit",
+        "stable_at_gain": stable,
+        "step_pitch": an.step_metrics(t, y[:, 1], final=1.0) if stable else None,
+        "frequency_response": freq,
+        "_t": t,
+        "_y": y,
+    }
+
+
 def compute(p: dict) -> dict:
     """All numbers of the analysis for the parameter tree ``p`` (see :data:`DEFAULTS`)."""
     _check(p)
@@ -295,6 +365,7 @@ def compute(p: dict) -> dict:
                 "PI_stability_limit": an.real_inner_limit("PI", o["period_s"], **kw),
             }
         )
+    res["outer"]["feedforward"] = _feedforward(p, spec, jac, res["outer"]["real_inner"]["I"])
     res["outer"]["delay_assumption_sweep"] = {
         "delay_model": {
             "I_stability_limit": res["outer"]["I"]["stability_limit"],
@@ -380,6 +451,9 @@ def plot(res: dict, p: dict, out: Path) -> list[str]:
             ls="--",
             label=f"{mode}, real inner loops ({rr['variant']}), heave",
         )
+    ff = res["outer"]["feedforward"]
+    label = f"feedforward, K K_I={ff['gain']:g}, model {ff['model_tau_s'] * 1e3:g} ms, pitch"
+    ax.plot(ff["_t"], ff["_y"][:, 1], color="C2", label=label)
     ax.axhline(1.0, color="k", lw=0.6)
     ax.set_ylim(-0.5, 2.0)
     ax.set_xlabel("t (s)")
@@ -486,6 +560,27 @@ def _summary(res: dict, files: list[str]) -> str:
                 + ")"
                 for m in ("I", "PI")
             )
+        )
+    ff = o["feedforward"]
+    st = ff["step_pitch"]
+    lines.append(
+        f"Feed-forward scheme (model tau {ff['model_tau_s'] * 1e3:g} ms, K K_I = {ff['gain']:g}): "
+        f"limit {ff['stability_limit']:.3f} (the I loop's); pitch step "
+        + (
+            f"rise {st['rise_time_s']:.3f} s, OS {st['overshoot_pct']:.1f} %, "
+            f"settle {st['settling_time_s']:.3f} s"
+            if st
+            else "unstable"
+        )
+    )
+    for mode, axes in ff["frequency_response"].items():
+        v = axes["pitch"]
+        bw = v["bandwidth_3db_hz"]
+        bw_text = f">{v['bandwidth_above_hz']:.2f}" if bw is None else f"{bw:.2f}"
+        lines.append(
+            f"  {mode:11s} pitch: bandwidth {bw_text} Hz, phase "
+            f"{v['phase_deg_at_0_5_hz']:.1f} deg at 0.5 Hz, {v['phase_deg_at_1_hz']:.1f} at 1 Hz, "
+            f"delay {v['equivalent_delay_ms']:.0f} ms"
         )
     lines.append("Delay assumption (redesigned inner loops, wn swept):")
     for r in o["delay_assumption_sweep"]["rows"]:

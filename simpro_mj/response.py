@@ -64,6 +64,7 @@ __all__ = [
     "measure",
     "loop_model",
     "summary",
+    "figures",
 ]
 
 AXES = ("roll", "pitch", "heave")
@@ -332,14 +333,25 @@ def loop_model(scenario: Mapping) -> LoopModel:
     else:
         ident = ctl["inner"]["identified"]
         plants = [Plant(**ident[a]) for a in ("actuator1", "actuator2", "actuator3")]
-    mode = "joint_only" if cs.mode == "joint_only" else ctl["outer"]["type"]
+    mode = {"task_space": ctl["outer"]["type"], "feedforward": "feedforward"}.get(
+        cs.mode, "joint_only"
+    )
     cfg = cs.sensor_cfg
+    filt = None
+    sf = ctl.get("setpoint_filter")
+    if sf:  # Fig. 13's filter between q_d and the joint loops (issue 18)
+        from controllers.setpoint_filter import filter_state_space
+
+        filt = filter_state_space(sf["type"], cs.dt, sf["time_ms"] * 1e-3)
     return LoopModel(
         plants=plants,
         designs=cs.joint.designs,
         jac=jacobian(cs.geometry.home),
         mode=mode,
-        gains=np.asarray(ctl["outer"]["gains"], float),
+        gains=np.asarray(
+            ctl["feedforward"]["gains"] if cs.mode == "feedforward" else ctl["outer"]["gains"],
+            float,
+        ),
         period=cs.outer_every * cs.dt,
         dt=cs.dt,
         method=ctl["inner"]["discretisation"],
@@ -347,6 +359,8 @@ def loop_model(scenario: Mapping) -> LoopModel:
         outer_law=ctl["outer"]["type"],
         imu_alpha=cfg.imu_alpha,
         imu_every=cfg.imu_every,
+        model_tau=ctl["feedforward"]["model_tau_ms"] * 1e-3,
+        setpoint_filter=filt,
     )
 
 
@@ -453,12 +467,12 @@ def summary(plan: ResponsePlan, results: list, model: LoopModel | None) -> dict:
                     rows.append(row)
         h_true = curves["true"][ok, j]
         enough = len(ok) >= 2
-        axes[axis_in] = _figures(f_ok, h_true, diag_phase["true"]) if enough else _figures()
+        axes[axis_in] = figures(f_ok, h_true, diag_phase["true"]) if enough else figures()
         axes[axis_in]["measured_pose"] = (
-            _figures(f_ok, curves["measured"][ok, j], diag_phase["measured"]) if enough else None
+            figures(f_ok, curves["measured"][ok, j], diag_phase["measured"]) if enough else None
         )
         if pred is not None:
-            axes[axis_in]["predicted"] = _figures(
+            axes[axis_in]["predicted"] = figures(
                 freq, pred["true"][:, j, j], pred_phase["true"][:, j, j]
             )
             near = [
@@ -482,7 +496,8 @@ def summary(plan: ResponsePlan, results: list, model: LoopModel | None) -> dict:
     return {"rows": rows, "axes": axes, "agreement": agreement, "failed": failed}
 
 
-def _figures(freq=(), h=(), phase_deg=()) -> dict:
+def figures(freq=(), h=(), phase_deg=()) -> dict:
+    """Bandwidth, phases at 0.5 and 1 Hz and equivalent delay of one response curve."""
     if len(freq) < 2:
         return {
             "bandwidth_3db_hz": None,

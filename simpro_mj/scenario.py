@@ -134,7 +134,7 @@ __all__ = [
 PHYSICS_DT_S = 0.001
 _PHYSICS_DT_MS = 1
 
-MODES = ("joint_only", "task_space")
+MODES = ("joint_only", "task_space", "feedforward")
 OUTER_TYPES = ("I", "PI")
 INNER_VARIANTS = ("printed", "corrected", "redesigned")
 DISCRETISATIONS = ("tustin", "zoh")
@@ -212,7 +212,9 @@ DEFAULT_SCENARIO: dict = {
     # seed of every random draw of the run (sensor noise)
     "seed": 1,
     "controller": {
-        "mode": "task_space",  # joint_only (Fig. 15a) | task_space (Fig. 15b)
+        # joint_only (Fig. 15a) | task_space (Fig. 15b) | feedforward (the set-point
+        # through the IK every 1 ms, the outer law adding a correction: docs/feedforward.md)
+        "mode": "task_space",
         "outer": {
             "type": "I",  # I (eq. 22) | PI (section 4)
             # K * K_I per axis (roll, pitch, heave), 1/s. Section 5.2.3 uses 3, which
@@ -245,6 +247,16 @@ DEFAULT_SCENARIO: dict = {
             # dominant pair of the "redesigned" pole placement (section 5.2.2)
             "zeta": 0.7,
             "wn_rad_s": 10.0,
+        },
+        # mode feedforward (docs/feedforward.md): the correction, with its own
+        # K K_I per axis (it only removes what the joint loops leave: slower than
+        # the paper's I law), integrates M y_d - y, M a first-order lag of
+        # model_tau_ms (0: y_d - y), and skips an outer step after which a valve
+        # was at its rail (hold_on_saturation)
+        "feedforward": {
+            "gains": [1.0, 1.0, 1.0],
+            "model_tau_ms": 200.0,
+            "hold_on_saturation": True,
         },
         # unreachable set-points: reject at load time (false) or clamp (true)
         "clamp_setpoints": False,
@@ -936,6 +948,8 @@ def validate_scenario(tree: Mapping) -> dict:
         _require(s, f"{c}.inner.identified.{act}.b", lambda v: v > 0, "> 0 m/V")
         _require(s, f"{c}.inner.identified.{act}.a1", lambda v: v >= 0, ">= 0 1/s")
         _require(s, f"{c}.inner.identified.{act}.a0", lambda v: v > 0, "> 0 1/s^2")
+    _require(s, f"{c}.feedforward.model_tau_ms", lambda v: 0 <= v <= 10_000, "0..10000 ms")
+    _require(s, f"{c}.feedforward.gains", lambda v: v >= 0, "3 numbers >= 0 (K K_I, 1/s)")
     _require(s, f"{c}.inner.zeta", lambda v: 0 < v < 2, "0 < zeta < 2")
     _require(s, f"{c}.inner.wn_rad_s", lambda v: v > 0, "> 0 rad/s")
     _enum(s, "actuator.model", ACTUATOR_MODELS)

@@ -5,6 +5,8 @@ One physics step of ``dt`` = 1 ms::
     mj_step1          kinematics and sensors at the state of t_k
     sensors           potentiometers, height encoder, IMU (own rates, ZOH)
     outer loop        every ``period_ms``: task error -> integrated pose -> IK -> q_d
+                      (feedforward mode: q_d = IK(y_d + c) every step, the
+                      correction c integrated every ``period_ms``)
     joint loops       q_d, q_meas -> valve voltages (1 ms)
     pneumatics        voltages, q, q_dot -> chamber pressures -> slide forces
     mj_step2          integrate to t_{k+1} with those forces held
@@ -133,14 +135,20 @@ class CoSimulation:
         outer = ctl["outer"]
         self.outer_every = _ms_to_steps(outer["period_ms"], dt, "controller.outer.period_ms")
         self.task = TaskSpaceController(
-            mode=outer["type"] if self.mode == "task_space" else "joint_only",
-            gains=outer["gains"],
+            mode={"task_space": outer["type"], "feedforward": "feedforward"}.get(
+                self.mode, "joint_only"
+            ),
+            # feedforward: the correction's own K K_I (controller.feedforward.gains)
+            gains=ctl["feedforward"]["gains"] if self.mode == "feedforward" else outer["gains"],
             period=self.outer_every * dt,
             geometry=self.geometry,
             clamp=bool(ctl.get("clamp_setpoints", False)),
             inner_dt=dt,
             pi_zero=float(outer.get("pi_zero", 0.2)),
+            outer_law=outer["type"],
+            model_tau=ctl["feedforward"]["model_tau_ms"] * 1e-3,
         )
+        self.hold_on_saturation = bool(ctl["feedforward"]["hold_on_saturation"])
         inner = ctl["inner"]
         if inner["design_plant"] == "identified":
             acts = ("actuator1", "actuator2", "actuator3")
@@ -274,10 +282,14 @@ class CoSimulation:
         no_warnings = np.zeros_like(warnings)
         step1, step2 = mujoco.mj_step1, mujoco.mj_step2
         task_mode = self.mode == "task_space"
+        ff_mode = self.mode == "feedforward"
+        # feedforward: a valve at its rail during the last outer period holds the correction
+        ff_hold, sat_seen = ff_mode and self.hold_on_saturation, False
+        u_lo, u_hi = self.joint.u_min, self.joint.u_max
         outer_every = self.outer_every
         ref = self.ref
-        q_joint = None if task_mode else self.q_joint_only
-        q_d = (self.task.q_desired if task_mode else q_joint[0]).tolist()
+        q_joint = None if task_mode or ff_mode else self.q_joint_only
+        q_d = (self.task.q_desired if q_joint is None else q_joint[0]).tolist()
         pose_cmd = ref[0].tolist()
         act, task = self.actuators, self.task
         act_p1, act_p2 = act.p1, act.p2  # views of the chamber pressures, updated in place
@@ -327,10 +339,20 @@ class CoSimulation:
                     if k % outer_every == 0:
                         q_d = task.update_floats(ref[k].tolist(), pose_meas)
                         pose_cmd = task.pose_command.tolist()
+                elif ff_mode:  # IK(y_d + c) every step, c integrated at the outer steps
+                    if k % outer_every == 0:
+                        q_d = task.update_floats(ref[k].tolist(), pose_meas, sat_seen)
+                        sat_seen = False
+                    else:
+                        q_d = task.feedforward_floats(ref[k].tolist())
+                    pose_cmd = task.pose_command.tolist()
                 else:
                     q_d = q_joint[k].tolist()
                     pose_cmd = ref[k].tolist()
                 u = control(q_d, q_meas)
+                if ff_hold and not sat_seen:
+                    u0, u1, u2 = u
+                    sat_seen = not (u_lo < u0 < u_hi and u_lo < u1 < u_hi and u_lo < u2 < u_hi)
                 if valve_on:  # the controller keeps its own command in its state
                     u = sched.apply_valves(u)
                 if timed:

@@ -99,7 +99,7 @@ def test_prediction_tracks_at_low_frequency(mode):
     assert np.allclose(r["true"][0], np.eye(3), atol=2e-3)
 
 
-def _simulate_linear_loop(mode, w, gains=3.0, period_steps=60, dt=1e-3, axis=1):
+def _simulate_linear_loop(mode, w, gains=3.0, period_steps=60, dt=1e-3, axis=1, model_tau=0.0):
     """Time-domain run of the linear multirate loop, written out independently of
     :func:`predict`: the joint loops of :func:`controllers.analysis.inner_discrete_loop`
     at 1 ms, ``q_d = J x``, the outer law every ``period_steps`` steps (output
@@ -111,7 +111,8 @@ def _simulate_linear_loop(mode, w, gains=3.0, period_steps=60, dt=1e-3, axis=1):
     jinv = np.linalg.inv(jac)
     n = int(round((8.0 + 2 * 2 * math.pi / w) / dt))
     xs = [np.zeros(a.shape[0]) for a, _, _ in legs]
-    xc, corr = np.zeros(3), np.zeros(3)
+    xc, corr, ref_model = np.zeros(3), np.zeros(3), np.zeros(3)
+    beta = 1 - math.exp(-dt / model_tau) if model_tau > 0 else 1.0
     t = np.arange(n) * dt
     r = np.zeros((n, 3))
     r[:, axis] = 0.01 * np.sin(w * t)
@@ -128,9 +129,10 @@ def _simulate_linear_loop(mode, w, gains=3.0, period_steps=60, dt=1e-3, axis=1):
                 xc = xc + g * (r[k] - y[k])
             else:  # feedforward: the correction is integrated at the outer rate
                 x_cmd_corr = corr.copy()
-                corr = corr + g * (r[k] - y[k])
+                corr = corr + g * ((ref_model if model_tau > 0 else r[k]) - y[k])
         if mode == "feedforward":
             x_cmd = r[k] + x_cmd_corr
+            ref_model = ref_model + beta * (r[k] - ref_model)
         qd = jac @ x_cmd
         xs = [
             a @ x + (b * qd[i]).ravel()
@@ -140,13 +142,16 @@ def _simulate_linear_loop(mode, w, gains=3.0, period_steps=60, dt=1e-3, axis=1):
     return fit_sine(t[k0:], y[k0:], w) / fit_sine(t[k0:], r[k0:, axis], w)
 
 
-@pytest.mark.parametrize("mode", ["joint_only", "I"])
-def test_prediction_matches_a_time_domain_run_of_the_linear_loop(mode):
-    """The sampled-data formula (lifted inner loops, staircase hold, Jacobian mixing)
-    against the loop stepped in time: 0.05 dB and 0.5 deg, cross axes included."""
+@pytest.mark.parametrize(
+    "mode, model_tau", [("joint_only", 0.0), ("I", 0.0), ("feedforward", 0.0), ("feedforward", 0.1)]
+)
+def test_prediction_matches_a_time_domain_run_of_the_linear_loop(mode, model_tau):
+    """The sampled-data formula (lifted inner loops, staircase hold, Jacobian mixing,
+    the feed-forward scheme's reference model) against the loop stepped in time:
+    0.05 dB and 0.5 deg, cross axes included."""
     w = 2 * math.pi * 0.8
-    h_sim = _simulate_linear_loop(mode, w)
-    h = predict(_paper_model(mode, gains=3.0), [w])["true"][0][:, 1]
+    h_sim = _simulate_linear_loop(mode, w, model_tau=model_tau)
+    h = predict(_paper_model(mode, gains=3.0, model_tau=model_tau), [w])["true"][0][:, 1]
     assert abs(_db(h_sim[1]) - _db(h[1])) < 0.05
     assert abs(math.degrees(np.angle(h_sim[1] / h[1]))) < 0.5
     assert np.allclose(h_sim, h, atol=2e-3 * abs(h[1]))
