@@ -33,6 +33,7 @@ SHIPPED = [
     "sweep_cueing",
     "sweep_monte_carlo",
     "sweep_outer_gain",
+    "track_cues",
     "track_sines",
 ]
 
@@ -42,7 +43,8 @@ def test_shipped_scenarios_load_and_validate():
     for name in SHIPPED:
         s = load_scenario(name)
         assert s["name"] == name
-        assert s["controller"]["mode"] == "task_space"
+        # track_cues' base is the feed-forward scheme (its sweep adds the other two)
+        assert s["controller"]["mode"] == ("feedforward" if name == "track_cues" else "task_space")
         assert s["duration_s"] > 0
         # every key of the defaults is present in the resolved scenario
         assert set(s) == set(DEFAULT_SCENARIO)
