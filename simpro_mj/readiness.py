@@ -25,7 +25,9 @@ def signal_ready(what: str = "running") -> None:
     if not path or path in _signalled:
         return
     _signalled.add(path)
-    tmp = f"{path}.{os.getpid()}.tmp"
+    # a hidden name beside it: a reader globbing for ready files never sees a half-written one
+    folder, name = os.path.split(path)
+    tmp = os.path.join(folder, f".{name}.{os.getpid()}.tmp")
     with open(tmp, "w", encoding="utf-8") as f:
         f.write(f"{what} {os.getpid()}\n")
     os.replace(tmp, path)

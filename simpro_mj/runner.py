@@ -152,8 +152,12 @@ def recording(res) -> dict:
 
 
 def _stepping(k: int) -> None:
-    """Progress callback: the first call (after the first step) signals readiness."""
-    if k == 0:
+    """Progress callback (every 1000 steps): readiness once the run has steps to keep.
+
+    Not at k = 0: a signal sent the moment the file appears must still find
+    a partial result with at least one logged second to write.
+    """
+    if k > 0:
         signal_ready("stepping")
 
 

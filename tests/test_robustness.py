@@ -603,7 +603,7 @@ def test_interrupted_run_leaves_a_marked_partial_folder(tmp_path, sig):
     assert "Traceback" not in stderr
     assert stderr.strip().splitlines()[-1].startswith("error: ")
     assert not [p.name for p in tmp_path.iterdir() if ".tmp-" in p.name or ".old-" in p.name]
-    assert not [p.name for p in tmp_path.iterdir() if p.name.startswith("ready.")]
+    assert not [p.name for p in tmp_path.iterdir() if p.name.startswith(("ready.", ".ready."))]
     doc = json.loads((out / "metrics.json").read_text())
     assert doc["status"] == "interrupted" and doc["reason"]
     assert (out / results.PARTIAL_MARKER).is_file() and not results.is_complete(out)
