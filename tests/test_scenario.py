@@ -44,7 +44,9 @@ def test_shipped_scenarios_load_and_validate():
         s = load_scenario(name)
         assert s["name"] == name
         # track_cues' base is the feed-forward scheme (its sweep adds the other two)
-        assert s["controller"]["mode"] == ("feedforward" if name == "track_cues" else "task_space")
+        # moving set-points (tracking, cueing) go through the feed-forward scheme
+        moving = name == "track_cues" or name.startswith(("cue_", "sweep_cueing"))
+        assert s["controller"]["mode"] == ("feedforward" if moving else "task_space")
         assert s["duration_s"] > 0
         # every key of the defaults is present in the resolved scenario
         assert set(s) == set(DEFAULT_SCENARIO)
