@@ -67,6 +67,14 @@ def _positive(name: str, v) -> float:
     return float(v)
 
 
+def _check_thresholds(organ: str, axes: str, values) -> None:
+    """Three positive thresholds, one per axis (the message names ``organ`` and ``axes``)."""
+    if len(values) != 3:
+        raise ValueError(f"{organ} thresholds: 3 values ({axes}), got {values!r}")
+    for v in values:
+        _positive(f"{organ} threshold", v)
+
+
 @dataclass(frozen=True)
 class OtolithModel:
     """Otolith transfer function ``K (tau_a s + 1) / ((tau_l s + 1)(tau_s s + 1))``.
@@ -84,10 +92,7 @@ class OtolithModel:
     def __post_init__(self):
         for name in ("gain", "tau_a", "tau_l", "tau_s"):
             _positive(name, getattr(self, name))
-        if len(self.thresholds) != 3:
-            raise ValueError(f"otolith thresholds: 3 values (x, y, z), got {self.thresholds!r}")
-        for v in self.thresholds:
-            _positive("otolith threshold", v)
+        _check_thresholds("otolith", "x, y, z", self.thresholds)
 
     def tf(self) -> tuple[list, list]:
         """(num, den) in descending powers of s."""
@@ -118,12 +123,7 @@ class CanalModel:
             _positive(name, getattr(self, name))
         if not (math.isfinite(self.tau_n) and self.tau_n >= 0):
             raise ValueError(f"vestibular parameter tau_n={self.tau_n!r}: allowed a number >= 0")
-        if len(self.thresholds) != 3:
-            raise ValueError(
-                f"canal thresholds: 3 values (roll, pitch, yaw), got {self.thresholds!r}"
-            )
-        for v in self.thresholds:
-            _positive("canal threshold", v)
+        _check_thresholds("canal", "roll, pitch, yaw", self.thresholds)
 
     def tf(self) -> tuple[list, list]:
         """(num, den) in descending powers of s."""
