@@ -23,7 +23,7 @@ from __future__ import annotations
 import copy
 import json
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -53,7 +53,6 @@ class Result:
     columns: dict
     metrics: dict
     out: Path | None = None
-    _sim: dict = field(default_factory=dict, repr=False)
 
     @property
     def status(self) -> str:
@@ -148,24 +147,13 @@ def run(
         from .runner import execute
 
         res, metrics = execute(resolved, Path(out), plots=plots, quiet=True)
-        return Result(resolved, res.columns, metrics, Path(out), res.sim)
-    from .metrics import compute_metrics
-    from .preflight import preflight
+        return Result(resolved, res.columns, metrics, res.folder)
     from .results import _jsonable
-    from .sim import simulate
+    from .runner import measure
 
-    warnings, figures = preflight(resolved)
-    res = simulate(resolved)
-    metrics = compute_metrics(res.columns, resolved)
-    metrics.update(
-        status=res.status,
-        reason=res.reason,
-        sensor_floor=res.sensor_floor,
-        sim=res.sim,
-        warnings=warnings,
-        preflight=figures,
-    )
-    return Result(resolved, res.columns, _jsonable(metrics), None, res.sim)
+    res, metrics, extra = measure(resolved, quiet=True)
+    metrics.update(extra)
+    return Result(resolved, res.columns, _jsonable(metrics), None)
 
 
 def compare(scenario: str | Path | Mapping, overrides: Mapping | None = None) -> dict[str, Result]:

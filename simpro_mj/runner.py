@@ -26,6 +26,7 @@ from .readiness import signal_ready
 __all__ = [
     "EXIT_INTERRUPTED",
     "execute",
+    "measure",
     "warn",
     "sigterm_as_interrupt",
     "interrupted_message",
@@ -107,15 +108,35 @@ def execute(scenario: dict, out: Path, plots: bool = True, *, quiet: bool = Fals
     """
     import json
 
-    from . import sim as sim_module
-    from .metrics import compute_metrics
-    from .preflight import preflight
     from .results import write_results
 
     out = Path(out)
+    res, metrics, extra = measure(scenario, quiet=quiet)
+    extra["plots"] = plots
+    with _deferred_signals():
+        res.folder = write_results(
+            out, res.columns, metrics, scenario, extra, arrays=recording(res)
+        )
+    return res, json.loads((res.folder / "metrics.json").read_text(encoding="utf-8"))
+
+
+def measure(scenario: dict, *, quiet: bool = False):
+    """Preflight, simulate and measure a resolved scenario, writing nothing.
+
+    Returns
+    -------
+    (SimResult, dict, dict)
+        The result, its metrics (with ``status``, ``reason``,
+        ``sensor_floor``) and the rest of ``metrics.json``: ``sim`` (with the
+        end-stop hits), ``warnings`` and ``preflight``. Warnings go to stderr
+        unless ``quiet``.
+    """
+    from . import sim as sim_module
+    from .metrics import compute_metrics
+    from .preflight import preflight
+
     warnings, figures = preflight(scenario)
     warn(warnings, quiet)
-
     res = sim_module.simulate(scenario, progress=_stepping)
     metrics = compute_metrics(res.columns, scenario)
     metrics["status"] = res.status
@@ -125,15 +146,10 @@ def execute(scenario: dict, out: Path, plots: bool = True, *, quiet: bool = Fals
     warn(stop_lines, quiet)
     extra = {
         "sim": dict(res.sim, end_stop_hits=hits),
-        "plots": plots,
         "warnings": warnings + stop_lines,
         "preflight": figures,
     }
-    with _deferred_signals():
-        res.folder = write_results(
-            out, res.columns, metrics, scenario, extra, arrays=recording(res)
-        )
-    return res, json.loads((res.folder / "metrics.json").read_text(encoding="utf-8"))
+    return res, metrics, extra
 
 
 def recording(res) -> dict:
