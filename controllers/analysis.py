@@ -493,14 +493,18 @@ def real_inner_step(
     legs=None,
     spec=None,
     model_tau: float = 0.0,
+    lag: str = "model",
 ):
     """Task-axis unit-step response at the fast rate with the real inner loops.
 
     ``mode`` ``"I"``, ``"PI"`` or ``"feedforward"`` (the set-point through the
     Jacobian every fast step plus the I correction of ``M r - y``, ``M`` a
-    first-order lag of ``model_tau`` s, as
+    first-order lag of ``model_tau`` s, or with ``lag="joints"`` of
+    ``r - y - J^-1 (q_d - q)``, as
     :class:`controllers.task_space.TaskSpaceController`). Returns ``(t, y)``
-    with ``y`` (len(t), m) the task deviations (linear model).
+    with ``y`` (len(t), m) the task deviations (linear model: no as-built
+    error, so with ``lag="joints"`` the correction stays at zero and the step is
+    the joint loops').
     """
     n = int(round(period / dt))
     legs = _legs(variant, dt, method, actuators, legs, spec)
@@ -529,7 +533,10 @@ def real_inner_step(
         if mode == "feedforward":
             if k % n == 0:
                 applied = corr.copy()  # c[k], then integrate e[k] for the next period
-                corr = corr + g * ((ref_model if model_tau > 0 else r) - yk)
+                if lag == "joints":  # y = J^-1 q in the linear model
+                    corr = corr + g * (r - yk - jinv @ (qd - jac @ yk))
+                else:
+                    corr = corr + g * ((ref_model if model_tau > 0 else r) - yk)
             qd = jac @ (r + applied)
             ref_model = ref_model + beta * (r - ref_model)
         elif k % n == 0:

@@ -29,6 +29,8 @@ gives (fundamental component, exact for the linear model)::
     joint_only   y = F R
     I, PI        y = F H_n (I + C P_T)^-1 C R
     feedforward  y = F (R + H_n c),   c = (I + C P_T)^-1 C (M - F_fb) R
+                 (lag "joints": c = (I + C (z^-1 - P_J))^-1 C (I - S) F R, with
+                 P_J the lifted chain to (I - S) y and S the IMU filter)
 
 where ``H_n(w) = (1/n) sum_{i<n} e^{-j w i dt}`` is the fundamental of the
 outer loop's staircase (zero-order hold of ``n`` fast samples) and
@@ -144,6 +146,12 @@ class LoopModel:
         ``mode="feedforward"``: time constant (s) of the reference model ``M``
         the correction compares the pose with (0: none,
         :class:`controllers.task_space.TaskSpaceController`).
+    lag : {"model", "joints"}
+        ``mode="feedforward"``: the joint loops' lag taken out of the error by the
+        reference model ``M`` or measured, ``J^-1 (q_d - q)``
+        (:class:`controllers.task_space.TaskSpaceController`).
+    average : bool
+        ``mode="feedforward"``: the correction uses the means over the outer period.
     setpoint_filter : tuple (A, B, C, D), optional
         One leg's set-point filter at ``dt`` between ``q_d`` and the joint
         loop (Fig. 13's "Filter"), applied to every leg in every mode.
@@ -164,12 +172,16 @@ class LoopModel:
     velocity_ff: np.ndarray = field(default_factory=lambda: np.zeros(3))
     model_tau: float = 0.0
     setpoint_filter: tuple | None = None
+    lag: str = "model"
+    average: bool = False
 
     def __post_init__(self):
         if self.mode not in RESPONSE_MODES:
             raise ValueError(f"unknown mode {self.mode!r}; allowed: {list(RESPONSE_MODES)}")
         if self.outer_law not in ("I", "PI"):
             raise ValueError(f"unknown outer_law {self.outer_law!r}; allowed: ['I', 'PI']")
+        if self.lag not in ("model", "joints"):
+            raise ValueError(f"unknown lag {self.lag!r}; allowed: ['model', 'joints']")
         n = self.period / self.dt
         if not (math.isfinite(n) and n >= 1 and abs(n - round(n)) < 1e-9 * max(1.0, n)):
             raise ValueError(
@@ -295,12 +307,24 @@ def predict(model: LoopModel, omega) -> dict:
                 c = c * (zs + model.pi_zero)
             hn = hold_factor(w, n, dt)
             if model.mode == "feedforward":
-                # the error is M y_d - y_fb, M = beta / (z - (1 - beta)) at dt
-                ref_model = 1.0
-                if model.model_tau > 0:
-                    beta = -math.expm1(-dt / model.model_tau)
-                    ref_model = beta / (zf - (1.0 - beta))
-                corr = np.linalg.solve(eye + c @ p_t, c @ (ref_model * eye - sens @ direct))
+                # average: the period's mean of a fast signal, sampled (its fundamental;
+                # for the lifted terms an approximation, exact for slow signals)
+                avg = hn if model.average else 1.0
+                if model.lag == "joints":
+                    # e = y_d - y_fb - J^-1 (q_d - q) = -c (last period) + (I - S) y:
+                    # the set-point cancels, the IMU filter's lag remains
+                    p_j = e_imu @ jinv @ np.diag(pg - pf) @ jac
+                    plant_c = eye / zs - avg * p_j
+                    drive = avg * (eye - sens) @ direct
+                else:
+                    # the error is M y_d - y_fb, M = beta / (z - (1 - beta)) at dt
+                    ref_model = 1.0
+                    if model.model_tau > 0:
+                        beta = -math.expm1(-dt / model.model_tau)
+                        ref_model = beta / (zf - (1.0 - beta))
+                    plant_c = avg * p_t
+                    drive = avg * (ref_model * eye - sens @ direct)
+                corr = np.linalg.solve(eye + c @ plant_c, c @ drive)
                 h = direct + f_x @ (hn * corr)
             else:
                 h = f_x @ (hn * np.linalg.solve(eye + c @ p_t, c))

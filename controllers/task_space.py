@@ -44,6 +44,19 @@ that step's integration: the correction's anti-windup against the valves'
 saturation, which the linear model does not describe. The loop seen by ``c`` is the one
 the I/PI law closes (same characteristic polynomial, same stability limits,
 :mod:`controllers.analysis`); the feed-forward path is outside it.
+
+``lag="joints"`` measures the joint loops' lag instead of modelling it::
+
+    e = y_d - y - J^-1 (q_d - q_meas)
+
+``J`` the IK Jacobian at the commanded pose: ``J^-1 (q_d - q_meas)`` is what
+the joint loops have not delivered yet, so during a transient ``e`` is only the
+as-built error left (whatever the legs, the valves' flow limit or the
+mechanism's coupling do), and at rest (``q_meas = q_d`` on average, type-2
+joint loops) ``e = y_d - y``: no steady-state error. In the linear loop
+``e = -c[k-1]``: ``z^2 - z + T K K_I``, stable for ``T K K_I < 1``.
+``average=True`` takes the means of ``y_d, y, q_d, q_meas`` over the outer
+period (the sensors' noise averaged over its samples instead of one sample).
 Call :meth:`TaskSpaceController.update_floats` at the outer steps (it
 integrates ``c``) and :meth:`TaskSpaceController.feedforward_floats` every
 inner step. ``docs/feedforward.md`` has the block diagram.
@@ -64,11 +77,14 @@ import numpy as np
 
 from .errors import WorkspaceError
 from .geometry import PlatformGeometry, nominal_geometry
-from .kinematics import PoseKinematics, check_reachable, reachable
+from .kinematics import PoseKinematics, check_reachable, jacobian, reachable
 
-__all__ = ["TaskSpaceController", "SamplingError", "MODES"]
+__all__ = ["TaskSpaceController", "SamplingError", "MODES", "LAGS"]
 
 MODES = ("I", "PI", "joint_only", "feedforward")
+
+#: How ``mode="feedforward"`` removes the joint loops' lag from the error it integrates.
+LAGS = ("model", "joints")
 
 
 class SamplingError(ValueError):
@@ -117,7 +133,15 @@ class TaskSpaceController:
         The law of the correction in ``mode="feedforward"`` (default "I").
     model_tau : float
         ``mode="feedforward"``: time constant (s) of the reference model ``M``
-        (module docstring); 0: no model.
+        (module docstring); 0: no model. Used with ``lag="model"``.
+    lag : {"model", "joints"}
+        ``mode="feedforward"``: how the joint loops' lag is taken out of the
+        error the correction integrates: the reference model ``M`` (``"model"``)
+        or the measured lag ``J^-1 (q_d - q_meas)`` (``"joints"``; module docstring).
+    average : bool
+        ``mode="feedforward"``: the correction uses the means of the signals over
+        the outer period (every inner step passes them to
+        :meth:`feedforward_floats`) instead of the samples at the outer step.
     margin : float
         Stroke margin (m) kept by the integrated pose and by clamping.
 
@@ -142,11 +166,15 @@ class TaskSpaceController:
         outer_law: str = "I",
         model_tau: float = 0.0,
         margin: float = 0.0,
+        lag: str = "model",
+        average: bool = False,
     ):
         if mode not in MODES:
             raise ValueError(f"unknown mode {mode!r}; allowed: {list(MODES)}")
         if outer_law not in ("I", "PI"):
             raise ValueError(f"unknown outer_law {outer_law!r}; allowed: ['I', 'PI']")
+        if lag not in LAGS:
+            raise ValueError(f"unknown lag {lag!r}; allowed: {list(LAGS)}")
         if not (np.isfinite(inner_dt) and inner_dt > 0):
             raise SamplingError(f"inner_dt must be > 0 s, got {inner_dt!r}")
         ratio = period / inner_dt
@@ -176,6 +204,13 @@ class TaskSpaceController:
         # ZOH-exact first-order lag at the inner step: m[k+1] = m[k] + beta (y_d[k] - m[k])
         self._beta = -math.expm1(-self.inner_dt / model_tau) if model_tau > 0 else 1.0
         self.margin = float(margin)
+        self.lag = lag
+        self.average = bool(average)
+        # feedforward: sums over the current outer period of y_d, y_meas, q_d, q_meas
+        # (12 floats) and their count, for average=True
+        self._acc = [0.0] * 12
+        self._n_acc = 0
+        self._ref_cmd = self.geometry.home.tolist()
         # The state is kept in Python floats: one pose per update is too small
         # for numpy (see update_floats); every operation below is the same
         # IEEE operation, element by element, as the array expressions it mirrors.
@@ -225,6 +260,9 @@ class TaskSpaceController:
         self._corr = [0.0, 0.0, 0.0]
         self._pending = None
         self._model = pose0.tolist()
+        self._acc = [0.0] * 12
+        self._n_acc = 0
+        self._ref_cmd = pose0.tolist()
         return q
 
     def _setpoint(self, ref: list) -> list:
@@ -261,7 +299,9 @@ class TaskSpaceController:
         """
         return np.array(self.update_floats(_floats3(pose_ref), _floats3(pose_meas)))
 
-    def update_floats(self, pose_ref: list, pose_meas: list, hold: bool = False) -> list:
+    def update_floats(
+        self, pose_ref: list, pose_meas: list, hold: bool = False, q_meas: list | None = None
+    ) -> list:
         """:meth:`update` on lists of 3 floats; returns ``q_d`` as a new list.
 
         The co-simulation's path (issue 7). Bit-identical to the array
@@ -272,6 +312,9 @@ class TaskSpaceController:
         and is kept for the next update (mode ``"I"`` outputs ``IK(x_c[k])``
         before integrating; mode ``"PI"`` right after), so an update costs
         one IK instead of three.
+
+        ``hold`` and ``q_meas`` (the measured joints, needed with ``lag="joints"``)
+        are used by ``mode="feedforward"`` only.
         """
         ref = self._setpoint(pose_ref)
         if self.mode == "joint_only":
@@ -284,11 +327,13 @@ class TaskSpaceController:
         e = [ref[0] - pose_meas[0], ref[1] - pose_meas[1], ref[2] - pose_meas[2]]
         tg = self._tg
         if self.mode == "feedforward":
-            if self.model_tau > 0:
+            if self.average or self.lag == "joints":
+                e = self._ff_error(pose_meas, q_meas)
+            elif self.model_tau > 0:
                 m = self._model
                 e = [m[0] - pose_meas[0], m[1] - pose_meas[1], m[2] - pose_meas[2]]
             self._correct(ref, e, hold)
-            return self.feedforward_floats(ref)
+            return self._ff_step(ref)
         if self.mode == "I":
             # eq. (22) / Fig. 7: output x_c[k], then integrate e[k]
             self._qd = self._ik_xc()
@@ -327,14 +372,64 @@ class TaskSpaceController:
             else:
                 self._pending = new
 
-    def feedforward_floats(self, pose_ref: list) -> list:
+    def feedforward_floats(
+        self, pose_ref: list, pose_meas: list | None = None, q_meas: list | None = None
+    ) -> list:
         """``q_d = IK(y_d + c)`` of ``mode="feedforward"`` for this inner step (new list).
 
         ``pose_ref`` is the set-point of this step (checked or clamped as in
         :meth:`update_floats`). The I law's pending increment, integrated at
-        the last outer step, is applied from the next outer step on.
+        the last outer step, is applied from the next outer step on. With
+        ``average=True`` the measured pose (and joints, ``lag="joints"``) of
+        this step are added to the outer period's means.
         """
         ref = self._setpoint(pose_ref)
+        if self.average and pose_meas is not None:
+            self._accumulate(pose_meas, q_meas)
+        return self._ff_step(ref)
+
+    def _accumulate(self, pose_meas: list, q_meas: list | None) -> None:
+        """Add this step's measurements and the last step's command to the period's sums."""
+        a, r, q = self._acc, self._ref_cmd, self._qd
+        for i in range(3):
+            a[i] += r[i]
+            a[3 + i] += pose_meas[i]
+        if q_meas is not None:
+            for i in range(3):
+                a[6 + i] += q[i]
+                a[9 + i] += q_meas[i]
+        self._n_acc += 1
+
+    def _ff_error(self, pose_meas: list, q_meas: list | None) -> list:
+        """The error the correction integrates at this outer step (module docstring).
+
+        ``r - y`` with ``r`` the reference model's output (``lag="model"``) or the
+        set-point (``lag="joints"``), minus ``J^-1 (q_d - q_meas)`` for
+        ``lag="joints"``; over the outer period's means with ``average=True``,
+        else at the last step's command and this step's measurements.
+        """
+        joints = self.lag == "joints"
+        if joints and q_meas is None:
+            raise ValueError("lag='joints' needs the measured joints q_meas")
+        if self.average:
+            self._accumulate(pose_meas, q_meas if joints else None)
+            a, k = self._acc, 1.0 / self._n_acc
+            r, y = [a[0] * k, a[1] * k, a[2] * k], [a[3] * k, a[4] * k, a[5] * k]
+            qd, qm = [a[6] * k, a[7] * k, a[8] * k], [a[9] * k, a[10] * k, a[11] * k]
+            self._acc, self._n_acc = [0.0] * 12, 0
+        else:
+            r, y, qd, qm = self._ref_cmd, pose_meas, self._qd, q_meas
+        e = [r[0] - y[0], r[1] - y[1], r[2] - y[2]]
+        if joints:  # the joint loops' lag, in task coordinates at the commanded pose
+            lag = np.linalg.solve(
+                jacobian(np.array(self._xc), self.geometry),
+                np.array([qd[0] - qm[0], qd[1] - qm[1], qd[2] - qm[2]]),
+            ).tolist()
+            e = [e[0] - lag[0], e[1] - lag[1], e[2] - lag[2]]
+        return e
+
+    def _ff_step(self, ref: list) -> list:
+        """This inner step's ``q_d = IK(ref + c)``, the reference model advanced."""
         c, m, b = self._corr, self._model, self._beta
         if b < 1.0:  # the reference model sees this step's set-point
             self._model = [m[0] + b * (ref[0] - m[0]), m[1] + b * (ref[1] - m[1]),
@@ -346,6 +441,9 @@ class TaskSpaceController:
             pose = list(ref)
         self._xc = pose
         self._qd = q
+        # the reference this step's command stands for: the set-point (lag "joints")
+        # or the reference model's output (lag "model")
+        self._ref_cmd = ref if self.lag == "joints" else list(self._model)
         return list(q)
 
     def _ik_xc(self) -> list:

@@ -72,6 +72,9 @@ DEFAULTS: dict = {
         # gain (controller.feedforward.gains) and its reference model's time constant
         "gain": 1.0,
         "model_tau_s": 0.2,
+        # the joint loops' lag taken out of the correction's error: joints (measured,
+        # controller.feedforward.lag's default) | model (the reference model above)
+        "lag": "joints",
         "step_duration_s": 4.0,
     },
     "sweep": {
@@ -109,6 +112,11 @@ def _check(p: dict) -> None:
     check_number(p, "outer.locus_gain_max", 0.0, 1e4, lo_open=True)
     check_number(p, "feedforward.model_tau_s", 0.0, 10.0, unit=" s")
     check_number(p, "feedforward.gain", 0.0, 1e4)
+    if p["feedforward"]["lag"] not in ("model", "joints"):
+        raise UserInputError(
+            f"invalid value at feedforward.lag: {p['feedforward']['lag']!r}; "
+            "allowed: ['model', 'joints']"
+        )
     check_number(p, "feedforward.step_duration_s", 0.0, 600.0, lo_open=True, unit=" s")
     for key in ("outer.step_duration_s", "inner.step_duration_s"):
         check_number(p, key, 0.0, 600.0, lo_open=True, unit=" s")
@@ -239,7 +247,7 @@ def _feedforward(p: dict, spec: dict, jac, real_i: dict) -> dict:
     kw = dict(variant=i["variant"], dt=i["dt_s"], method=i["method"], spec=spec)
     t, y = an.real_inner_step(
         "feedforward", ff["gain"], o["period_s"], ff["step_duration_s"], jac=jac, axis=1,
-        model_tau=ff["model_tau_s"], **kw,
+        model_tau=ff["model_tau_s"], lag=ff["lag"], **kw,
     )  # fmt: skip
     f_hz = np.geomspace(0.02, 5.0, 240)
     freq = {}
@@ -248,7 +256,7 @@ def _feedforward(p: dict, spec: dict, jac, real_i: dict) -> dict:
             plants=plants, designs=designs, jac=jac, mode=mode,
             gains=ff["gain"] if mode == "feedforward" else o["gain"],
             period=o["period_s"], dt=i["dt_s"], method=i["method"], pi_zero=o["pi_zero"],
-            model_tau=ff["model_tau_s"],
+            model_tau=ff["model_tau_s"], lag=ff["lag"],
         )  # fmt: skip
         h = predict(model, 2 * np.pi * f_hz)["true"]
         ph = np.degrees(np.unwrap(np.angle(h), axis=0))
@@ -256,13 +264,23 @@ def _feedforward(p: dict, spec: dict, jac, real_i: dict) -> dict:
             ax: figures(f_hz, h[:, j, j], ph[:, j, j])
             for j, ax in enumerate(("roll", "pitch", "heave"))
         }
-    stable = ff["gain"] < real_i["stability_limit"]
+    if ff["lag"] == "joints":
+        # e = y_d - y - J^-1 (q_d - q) = -c[k-1] in the linear loop: z^2 - z + T g,
+        # stable (Jury) for 0 < T g < 1
+        limit = 1.0 / o["period_s"]
+        note = ("the correction sees its own last value, z^2 - z + T K K_I: stable "
+                "below 1/T (the IMU filter's lag, not in this model, adds a little)")  # fmt: skip
+    else:
+        limit = real_i["stability_limit"]
+        note = ("the correction closes the I loop around the real inner loops: same "
+                "characteristic polynomial, same limit")  # fmt: skip
+    stable = ff["gain"] < limit
     return {
         "gain": ff["gain"],
         "model_tau_s": ff["model_tau_s"],
-        "stability_limit": real_i["stability_limit"],
-        "stability_limit_note": "the correction closes the I loop around the real inner "
-        "loops: same characteristic polynomial, same limit",
+        "lag": ff["lag"],
+        "stability_limit": limit,
+        "stability_limit_note": note,
         "stable_at_gain": stable,
         "step_pitch": an.step_metrics(t, y[:, 1], final=1.0) if stable else None,
         "frequency_response": freq,
@@ -452,7 +470,10 @@ def plot(res: dict, p: dict, out: Path) -> list[str]:
             label=f"{mode}, real inner loops ({rr['variant']}), heave",
         )
     ff = res["outer"]["feedforward"]
-    label = f"feedforward, K K_I={ff['gain']:g}, model {ff['model_tau_s'] * 1e3:g} ms, pitch"
+    lag = (
+        "lag from the joints" if ff["lag"] == "joints" else f"model {ff['model_tau_s'] * 1e3:g} ms"
+    )
+    label = f"feedforward, K K_I={ff['gain']:g}, {lag}, pitch"
     ax.plot(ff["_t"], ff["_y"][:, 1], color="C2", label=label)
     ax.axhline(1.0, color="k", lw=0.6)
     ax.set_ylim(-0.5, 2.0)
@@ -564,8 +585,11 @@ def _summary(res: dict, files: list[str]) -> str:
     ff = o["feedforward"]
     st = ff["step_pitch"]
     lines.append(
-        f"Feed-forward scheme (model tau {ff['model_tau_s'] * 1e3:g} ms, K K_I = {ff['gain']:g}): "
-        f"limit {ff['stability_limit']:.3f} (the I loop's); pitch step "
+        f"Feed-forward scheme (lag {ff['lag']}"
+        + (f", model tau {ff['model_tau_s'] * 1e3:g} ms" if ff["lag"] == "model" else "")
+        + f", K K_I = {ff['gain']:g}): limit {ff['stability_limit']:.3f}"
+        + (" (1/T)" if ff["lag"] == "joints" else " (the I loop's)")
+        + "; pitch step "
         + (
             f"rise {st['rise_time_s']:.3f} s, OS {st['overshoot_pct']:.1f} %, "
             f"settle {st['settling_time_s']:.3f} s"

@@ -361,6 +361,8 @@ def loop_model(scenario: Mapping) -> LoopModel:
         imu_every=cfg.imu_every,
         model_tau=ctl["feedforward"]["model_tau_ms"] * 1e-3,
         setpoint_filter=filt,
+        lag=ctl["feedforward"]["lag"],
+        average=bool(ctl["feedforward"]["average"]),
     )
 
 

@@ -147,6 +147,8 @@ class CoSimulation:
             pi_zero=float(outer.get("pi_zero", 0.2)),
             outer_law=outer["type"],
             model_tau=ctl["feedforward"]["model_tau_ms"] * 1e-3,
+            lag=ctl["feedforward"]["lag"],
+            average=bool(ctl["feedforward"]["average"]),
         )
         self.hold_on_saturation = bool(ctl["feedforward"]["hold_on_saturation"])
         inner = ctl["inner"]
@@ -341,10 +343,10 @@ class CoSimulation:
                         pose_cmd = task.pose_command.tolist()
                 elif ff_mode:  # IK(y_d + c) every step, c integrated at the outer steps
                     if k % outer_every == 0:
-                        q_d = task.update_floats(ref[k].tolist(), pose_meas, sat_seen)
+                        q_d = task.update_floats(ref[k].tolist(), pose_meas, sat_seen, q_meas)
                         sat_seen = False
                     else:
-                        q_d = task.feedforward_floats(ref[k].tolist())
+                        q_d = task.feedforward_floats(ref[k].tolist(), pose_meas, q_meas)
                     pose_cmd = task.pose_command.tolist()
                 else:
                     q_d = q_joint[k].tolist()
