@@ -34,6 +34,8 @@ _EXPORTS = {
     "JointControllers": "joint",
     "SamplingError": "task_space",
     "TaskSpaceController": "task_space",
+    "leg_velocity_feedforward": "velocity_feedforward",
+    "velocity_gains": "velocity_feedforward",
     # motion cueing and perception (issue 16)
     "CanalModel": "vestibular",
     "OtolithModel": "vestibular",

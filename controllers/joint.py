@@ -296,8 +296,12 @@ class JointControllers:
         """
         return np.array(self.update_floats(_floats3(q_ref), _floats3(q_meas)))
 
-    def update_floats(self, q_ref, q_meas) -> list:
+    def update_floats(self, q_ref, q_meas, u_ff=None) -> list:
         """:meth:`update` on sequences of 3 floats, returning a list of 3 floats.
+
+        ``u_ff`` (3 floats, V, optional) is added to the controllers' outputs before
+        the saturation (the leg velocity feed-forward,
+        :mod:`controllers.velocity_feedforward`); the anti-windup sees the total.
 
         The co-simulation's hot path. The stacked product ``M [x; e]`` stays
         one BLAS call (a scalar rewrite would round differently: BLAS
@@ -312,6 +316,8 @@ class JointControllers:
         w = self._w.tolist()
         off, lo, hi = self.u_offset, self.u_min, self.u_max
         v = [w[n] + off, w[n + 1] + off, w[n + 2] + off]
+        if u_ff is not None:
+            v = [v[0] + u_ff[0], v[1] + u_ff[1], v[2] + u_ff[2]]
         vs = v.copy()
         for i in range(3):  # saturation; comparisons let a NaN through, as np.clip
             if vs[i] < lo:

@@ -75,6 +75,10 @@ DEFAULTS: dict = {
         # the joint loops' lag taken out of the correction's error: joints (measured,
         # controller.feedforward.lag's default) | model (the reference model above)
         "lag": "joints",
+        # leg velocity feed-forward (a0/b) J dy_d/dt in the frequency response
+        # (controller.feedforward.leg_velocity; not in the linear step, where a
+        # step's rate is one clipped sample)
+        "leg_velocity": True,
         "step_duration_s": 4.0,
     },
     "sweep": {
@@ -112,6 +116,11 @@ def _check(p: dict) -> None:
     check_number(p, "outer.locus_gain_max", 0.0, 1e4, lo_open=True)
     check_number(p, "feedforward.model_tau_s", 0.0, 10.0, unit=" s")
     check_number(p, "feedforward.gain", 0.0, 1e4)
+    if not isinstance(p["feedforward"]["leg_velocity"], bool):
+        raise UserInputError(
+            f"wrong type at feedforward.leg_velocity: {p['feedforward']['leg_velocity']!r}; "
+            "allowed: true or false"
+        )
     if p["feedforward"]["lag"] not in ("model", "joints"):
         raise UserInputError(
             f"invalid value at feedforward.lag: {p['feedforward']['lag']!r}; "
@@ -232,6 +241,7 @@ def _feedforward(p: dict, spec: dict, jac, real_i: dict) -> dict:
     """
     from controllers.design import design_for, paper_plant
     from controllers.frequency import LoopModel, predict
+    from controllers.velocity_feedforward import velocity_gains
 
     from .response import figures
 
@@ -256,7 +266,9 @@ def _feedforward(p: dict, spec: dict, jac, real_i: dict) -> dict:
             plants=plants, designs=designs, jac=jac, mode=mode,
             gains=ff["gain"] if mode == "feedforward" else o["gain"],
             period=o["period_s"], dt=i["dt_s"], method=i["method"], pi_zero=o["pi_zero"],
-            model_tau=ff["model_tau_s"], lag=ff["lag"],
+            model_tau=ff["model_tau_s"], lag=ff["lag"], velocity_ff=(
+                velocity_gains(plants) if mode == "feedforward" and ff["leg_velocity"] else 0.0
+            ),
         )  # fmt: skip
         h = predict(model, 2 * np.pi * f_hz)["true"]
         ph = np.degrees(np.unwrap(np.angle(h), axis=0))
@@ -279,6 +291,7 @@ def _feedforward(p: dict, spec: dict, jac, real_i: dict) -> dict:
         "gain": ff["gain"],
         "model_tau_s": ff["model_tau_s"],
         "lag": ff["lag"],
+        "leg_velocity": ff["leg_velocity"],
         "stability_limit": limit,
         "stability_limit_note": note,
         "stable_at_gain": stable,

@@ -322,6 +322,7 @@ def loop_model(scenario: Mapping) -> LoopModel:
     """The scenario's linearised loop for :func:`controllers.frequency.predict`."""
     from controllers.design import Plant
     from controllers.kinematics import jacobian
+    from controllers.velocity_feedforward import velocity_gains
 
     from .sim import CoSimulation
 
@@ -362,6 +363,16 @@ def loop_model(scenario: Mapping) -> LoopModel:
         model_tau=ctl["feedforward"]["model_tau_ms"] * 1e-3,
         setpoint_filter=filt,
         lag=ctl["feedforward"]["lag"],
+        velocity_ff=(
+            velocity_gains(
+                [
+                    Plant(**ctl["inner"]["identified"][a])
+                    for a in ("actuator1", "actuator2", "actuator3")
+                ]
+            )
+            if cs.u_ff is not None
+            else np.zeros(3)
+        ),
         average=bool(ctl["feedforward"]["average"]),
     )
 

@@ -192,6 +192,16 @@ class CoSimulation:
                     "invalid value at setpoint.cueing: the model has no head_accel/head_gyro "
                     "sensors (simpro_mj/models/simpro_platform.xml)"
                 )
+        # leg velocity feed-forward (feedforward mode): (a0/b) J dy_d/dt per leg
+        self.u_ff = None
+        if self.mode == "feedforward" and ctl["feedforward"]["leg_velocity"]:
+            from controllers.velocity_feedforward import leg_velocity_feedforward
+
+            ident = ctl["inner"]["identified"]
+            legs = [Plant(**ident[a]) for a in ("actuator1", "actuator2", "actuator3")]
+            j = self.joint  # clipped to the valve's span around its centre (5 V)
+            span = min(j.u_offset - j.u_min, j.u_max - j.u_offset)
+            self.u_ff = leg_velocity_feedforward(self.ref, dt, legs, self.geometry, span)
         if self.mode == "joint_only":
             # the baseline: q_d = IK(y_d) of the nominal model, every 1 ms
             # (reference() has already clamped the set-points if the scenario asks)
@@ -285,6 +295,7 @@ class CoSimulation:
         step1, step2 = mujoco.mj_step1, mujoco.mj_step2
         task_mode = self.mode == "task_space"
         ff_mode = self.mode == "feedforward"
+        u_ff = None if self.u_ff is None else self.u_ff.tolist()
         # feedforward: a valve at its rail during the last outer period holds the correction
         ff_hold, sat_seen = ff_mode and self.hold_on_saturation, False
         u_lo, u_hi = self.joint.u_min, self.joint.u_max
@@ -351,7 +362,7 @@ class CoSimulation:
                 else:
                     q_d = q_joint[k].tolist()
                     pose_cmd = ref[k].tolist()
-                u = control(q_d, q_meas)
+                u = control(q_d, q_meas) if u_ff is None else control(q_d, q_meas, u_ff[k])
                 if ff_hold and not sat_seen:
                     u0, u1, u2 = u
                     sat_seen = not (u_lo < u0 < u_hi and u_lo < u1 < u_hi and u_lo < u2 < u_hi)
