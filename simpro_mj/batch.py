@@ -136,13 +136,15 @@ import shutil
 import sys
 import tempfile
 import time
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
 from typing import Any
 
-from .readiness import signal_ready
+from . import executors as _executors
+from .executors import MAX_JOBS, NoWorkers, Progress, dask_module, run_tasks
+from .executors import one_line as _one_line
 
 HELP = "run scenario files, sweeps and Monte Carlo variants in parallel; write summary.csv"
 
@@ -150,10 +152,9 @@ HELP = "run scenario files, sweeps and Monte Carlo variants in parallel; write s
 STATUSES = ("ok", "diverged", "interrupted", "failed", "invalid", "cancelled")
 RUN_STATUSES = ("ok", "diverged")
 GAIN_PATH = "controller.outer.gains"
-#: A Dask batch whose cluster has had no live worker this long (s) ends with an error.
-NO_WORKERS_S = 60.0
-#: Most worker processes (``--jobs``); a batch never starts more than it has variants.
-MAX_JOBS = 256
+#: A Dask batch whose cluster has had no live worker this long (s) ends with an error
+#: (read at each batch: tests shorten it).
+NO_WORKERS_S = _executors.NO_WORKERS_S
 
 #: Stability criterion (module docstring).
 BLOCK_S = 0.5
@@ -415,11 +416,6 @@ def plan(paths: Iterable[str], sets: Iterable[str] = ()) -> Plan:
 
 
 # ------------------------------------------------------------------ worker
-
-
-def _one_line(exc: BaseException) -> str:
-    text = " ".join(str(exc).split())
-    return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
 
 
 def run_variant(task: Mapping) -> dict:
@@ -754,198 +750,6 @@ def _complete(folder: Path, scenario: Mapping) -> dict | None:
 # ------------------------------------------------------------------ executors
 
 
-class _Progress:
-    """tqdm bar with done/failed/left, or nothing."""
-
-    def __init__(self, total: int, enabled: bool, desc: str = "batch"):
-        self.done = self.failed = 0
-        self.total = total
-        self.bar = None
-        if enabled and total and sys.stderr.isatty():
-            from tqdm import tqdm
-
-            self.bar = tqdm(total=total, desc=desc, unit="run", file=sys.stderr, dynamic_ncols=True)
-            self._post()
-
-    def _post(self, refresh: bool = True) -> None:
-        left = self.total - self.done - self.failed
-        text = f"done={self.done} failed={self.failed} left={left}"
-        self.bar.set_postfix_str(text, refresh=refresh)
-
-    def update(self, status: str) -> None:
-        if status == "ok":
-            self.done += 1
-        else:
-            self.failed += 1
-        if self.bar is not None:
-            self._post(refresh=False)  # shown by the update, with the new count
-            self.bar.update(1)
-
-    def close(self) -> None:
-        if self.bar is not None:
-            self.bar.close()
-
-
-Callback = Callable[[int, dict], None]
-#: A worker function: a task (plain data, with ``ship`` on Dask) -> a result dict
-#: with ``status`` and ``reason`` (:func:`run_variant`; ``simpro-sim response``
-#: passes its own). Top level in its module, so that it pickles by name.
-Worker = Callable[[Mapping], dict]
-
-
-def run_tasks(
-    tasks: list[tuple[int, dict]],
-    done: Callback,
-    *,
-    jobs: int = 1,
-    scheduler: str | None = None,
-    fn: Worker | None = None,
-) -> None:
-    """Run ``fn(task)`` for each ``(key, task)`` with the batch executors; ``done(key,
-    result)`` in this process as each finishes (``jobs == 1`` here, a spawn pool, or
-    Dask with ``scheduler``). A worker that dies fails its task only."""
-    if not tasks:
-        return
-    if scheduler is not None:
-        _run_dask(tasks, scheduler, jobs, done, fn=fn)
-    elif jobs == 1:
-        _run_here(tasks, done, fn=fn)
-    else:
-        _run_pool(tasks, jobs, done, fn=fn)
-
-
-def _run_here(tasks: list[tuple[int, dict]], done: Callback, fn: Worker | None = None) -> None:
-    fn = run_variant if fn is None else fn
-    signal_ready("batch")
-    for key, task in tasks:
-        result = fn(task)
-        done(key, result)
-        if result.get("status") == "interrupted":  # Ctrl-C/SIGTERM stopped this variant
-            raise KeyboardInterrupt(result.get("reason") or "interrupted")
-
-
-def _run_pool(
-    tasks: list[tuple[int, dict]], jobs: int, done: Callback, fn: Worker | None = None
-) -> None:
-    import multiprocessing
-    from concurrent.futures import ProcessPoolExecutor, as_completed
-
-    from .workers import init_worker, run_task, stop_pool
-
-    ctx = multiprocessing.get_context("spawn")  # no inherited MuJoCo/threads state
-    pool = ProcessPoolExecutor(
-        max_workers=min(jobs, len(tasks)),
-        mp_context=ctx,
-        initializer=init_worker,  # SIGTERM stops a variant; no worker outlives the batch
-        initargs=(os.getpid(),),
-    )
-    try:
-        fn = run_variant if fn is None else fn
-        futures = {pool.submit(run_task, fn, task): key for key, task in tasks}
-        signal_ready("batch")
-        for fut in as_completed(futures):
-            try:
-                result = fut.result()
-            except Exception as exc:  # noqa: BLE001 - a dead worker fails its variant only
-                result = {"status": "failed", "reason": _one_line(exc), "metrics": None}
-            done(futures[fut], result)
-    except BaseException:
-        stop_pool(pool)  # the workers are gone when this returns
-        raise
-    pool.shutdown(wait=True)
-
-
-def _dask():
-    from .errors import UserInputError
-
-    try:
-        import distributed
-    except ImportError as exc:
-        raise UserInputError(
-            "missing package at --scheduler: dask.distributed is not installed; allowed: "
-            "pip install 'simpro-sim[cluster]'"
-        ) from exc
-    return distributed
-
-
-class NoWorkers(RuntimeError):
-    """The Dask cluster had no live worker for :data:`NO_WORKERS_S` seconds."""
-
-
-def _run_dask(
-    tasks: list[tuple[int, dict]],
-    scheduler: str,
-    jobs: int,
-    done: Callback,
-    no_workers_s: float | None = None,
-    fn: Worker | None = None,
-) -> None:
-    import logging
-
-    fn = run_variant if fn is None else fn
-    distributed = _dask()
-    cluster = None
-    try:
-        if scheduler == "local":
-            cluster = distributed.LocalCluster(
-                n_workers=min(jobs, len(tasks)),  # never more workers than tasks
-                threads_per_worker=1,
-                processes=True,
-                dashboard_address=None,
-                silence_logs=logging.ERROR,
-            )
-            client = distributed.Client(cluster)
-        else:
-            client = distributed.Client(scheduler)
-    except (OSError, TimeoutError, ValueError) as exc:
-        from .errors import UserInputError
-
-        if cluster is not None:
-            cluster.close()
-        raise UserInputError(
-            f"no scheduler at --scheduler {scheduler}: {_one_line(exc)}; allowed: a running "
-            "Dask scheduler address (tcp://host:8786) or 'local'"
-        ) from exc
-    limit = NO_WORKERS_S if no_workers_s is None else no_workers_s
-    futures: dict = {}
-    try:
-        for key, task in tasks:
-            fut = client.submit(fn, dict(task, ship=True), pure=False)
-            futures[fut] = key
-        signal_ready("batch")
-        pending = set(futures)
-        seen_worker = time.monotonic()
-        while pending:
-            try:
-                finished = distributed.wait(
-                    list(pending), timeout=min(1.0, limit), return_when="FIRST_COMPLETED"
-                ).done
-            except (TimeoutError, distributed.TimeoutError):
-                finished = set()
-            for fut in finished:
-                pending.discard(fut)
-                try:
-                    result = fut.result()
-                except Exception as exc:  # noqa: BLE001 - a lost worker fails its variant only
-                    result = {"status": "failed", "reason": _one_line(exc), "metrics": None}
-                done(futures[fut], result)
-            if finished or client.scheduler_info().get("workers"):
-                seen_worker = time.monotonic()
-            elif time.monotonic() - seen_worker > limit:
-                raise NoWorkers(
-                    f"no live Dask worker for {limit:g} s at --scheduler {scheduler}: "
-                    f"{len(pending)} variant(s) not run (cancelled); allowed: a scheduler "
-                    "with workers (dask worker ADDRESS), or --scheduler local"
-                )
-    except BaseException:
-        client.cancel(list(futures), force=True)
-        raise
-    finally:
-        client.close()
-        if cluster is not None:
-            cluster.close()
-
-
 # ------------------------------------------------------------------ the batch
 
 
@@ -1044,7 +848,7 @@ def _run_batch(
                 which = f" (variant {job.variant})" if job.variant != "-" else ""
                 raise UserInputError(f"invalid scenario at {job.file}{which}: {job.error}")
     if scheduler is not None:
-        _dask()  # say so before anything runs
+        dask_module()  # say so before anything runs
     rows: list[dict | None] = [None] * len(p.jobs)
     tasks: list[tuple[int, dict]] = []
     skipped = 0
@@ -1067,7 +871,7 @@ def _run_batch(
         tasks.append((job.index, {"scenario": job.scenario, "out": str(folder), "plots": plots}))
     if skipped and progress:
         sys.stderr.write(f"resume: {skipped} complete variant(s) skipped\n")
-    bar = _Progress(len(tasks), progress)
+    bar = Progress(len(tasks), progress)
 
     def done(key: int, result: dict) -> None:
         files = result.pop("files", None)
@@ -1080,14 +884,9 @@ def _run_batch(
     write_marker(out, "batch")
     stopped = None
     try:
-        if not tasks:
-            pass
-        elif scheduler is not None:
-            _run_dask(tasks, scheduler, jobs, done)
-        elif jobs == 1:
-            _run_here(tasks, done)
-        else:
-            _run_pool(tasks, jobs, done)
+        run_tasks(
+            tasks, done, jobs=jobs, scheduler=scheduler, fn=run_variant, no_workers_s=NO_WORKERS_S
+        )
     except KeyboardInterrupt as exc:  # SIGINT, or SIGTERM (sigterm_as_interrupt)
         stopped = f"interrupted ({exc})" if str(exc) else "interrupted"
     except NoWorkers as exc:

@@ -207,8 +207,8 @@ def print_summary(doc: dict, folder, file=None) -> None:
 
 
 def run(args) -> int:
-    from .batch import MAX_JOBS
     from .errors import UserInputError
+    from .executors import MAX_JOBS
     from .response import check_periods, loop_model, measure, plan_response, summary
     from .results import claim, install_folder
     from .scenario import load_scenario
@@ -234,9 +234,9 @@ def run(args) -> int:
         periods=args.periods,
     )
     if args.scheduler is not None:
-        from .batch import _dask
+        from .executors import dask_module
 
-        _dask()  # say so before anything runs
+        dask_module()  # say so before anything runs
     out = Path(args.out) if args.out else Path("results") / f"{scenario['name']}-response"
     with claim(out, "response", inputs=[args.scenario]):
         model = loop_model(scenario)

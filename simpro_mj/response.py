@@ -18,7 +18,7 @@ five per decade), each moved to the nearest period on the 1 ms physics grid
 1 Hz, where the summary's phases are read. Frequencies given by the user
 must have periods on the grid (whole milliseconds): the fit is over whole
 periods of whole samples. Every run is independent: they run in parallel
-with the batch executors (:func:`simpro_mj.batch.run_tasks`).
+with the batch executors (:func:`simpro_mj.executors.run_tasks`).
 
 Prediction
 ----------
@@ -300,10 +300,10 @@ def measure_point(task: Mapping) -> dict:
 
 def measure(plan: ResponsePlan, *, jobs: int = 1, scheduler=None, progress: bool = False) -> list:
     """Run every task of ``plan``; results in task order (:func:`measure_point`)."""
-    from .batch import _Progress, run_tasks
+    from .executors import Progress, run_tasks
 
     results: list = [None] * len(plan.tasks)
-    bar = _Progress(len(plan.tasks), progress, desc="response")
+    bar = Progress(len(plan.tasks), progress, desc="response")
 
     def done(key: int, result: dict) -> None:
         results[key] = result

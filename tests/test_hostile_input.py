@@ -275,10 +275,11 @@ def test_local_dask_starts_no_more_workers_than_tasks(monkeypatch, tmp_path):
         raise Refuse
 
     monkeypatch.setattr(distributed, "LocalCluster", fake_cluster)
-    from simpro_mj import batch
+    from simpro_mj import executors
+    from simpro_mj.batch import run_variant
 
     with pytest.raises(Refuse):
-        batch._run_dask([(0, {})], "local", 12, lambda k, r: None)
+        executors.run_dask([(0, {})], "local", 12, lambda k, r: None, fn=run_variant)
     assert started["n_workers"] == 1
 
 

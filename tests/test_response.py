@@ -218,3 +218,36 @@ def test_bad_input_is_one_line_exit_2(args, field, capsys, tmp_path):
     assert err.count("\n") == 1 and err.startswith("error:")
     assert field in err
     assert not out.exists()  # refused before anything ran
+
+
+def _command_imports(module_file) -> set:
+    """Command modules (``cli.COMMANDS``) that a module of simpro_mj imports."""
+    import ast
+    from pathlib import Path
+
+    from simpro_mj.cli import COMMANDS
+
+    commands = {v.rsplit(".", 1)[-1] for v in COMMANDS.values()}
+    found = set()
+    for node in ast.walk(ast.parse(Path(module_file).read_text())):
+        if isinstance(node, ast.ImportFrom):
+            mod = node.module or ""
+            if node.level == 1 or mod.startswith("simpro_mj"):
+                tail = mod.rsplit(".", 1)[-1] if mod and mod != "simpro_mj" else None
+                found |= {tail} if tail else {a.name for a in node.names}
+        elif isinstance(node, ast.Import):
+            found |= {
+                a.name.rsplit(".", 1)[-1] for a in node.names if a.name.startswith("simpro_mj.")
+            }
+    return (found & commands) - {Path(module_file).stem}
+
+
+def test_response_imports_no_command_module():
+    """docs/architecture.md: commands only wire; the executors live in simpro_mj.executors,
+    not in the batch command."""
+    import simpro_mj.cmd_response
+    import simpro_mj.executors
+    import simpro_mj.response
+
+    for mod in (simpro_mj.cmd_response, simpro_mj.response, simpro_mj.executors):
+        assert _command_imports(mod.__file__) == set(), mod.__name__
