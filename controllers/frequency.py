@@ -65,7 +65,14 @@ __all__ = [
     "bandwidth_3db",
     "equivalent_delay",
     "phase_at",
+    "CHAIN_CHANNELS",
+    "head_response",
+    "chain_response",
 ]
+
+#: Vehicle-input and head channels of the whole cueing chain (V frame, ISO 8855): specific
+#: force x, y, z (m/s^2) and roll and pitch rates (rad/s).
+CHAIN_CHANNELS = ("fx", "fy", "fz", "wx", "wy")
 
 #: The twelve frequencies of the Objective Motion Cueing Test (ICAO 9625, 4th ed.,
 #: Attachment 2): 0.1 to 15.85 rad/s, five per decade (10^(k/5), k = -5..6).
@@ -331,6 +338,65 @@ def predict(model: LoopModel, omega) -> dict:
         out_true[k] = h
         out_meas[k] = np.diag([hold_imu[k], hold_imu[k], 1.0]) @ sens @ h
     return {"omega_rad_s": omega, "true": out_true, "measured": out_meas}
+
+
+# ------------------------------------------------ the whole cueing chain (issue 16)
+
+
+def head_response(omega, jac=None, g: float = 9.80665) -> np.ndarray:
+    """Rigid cabin: head specific force and angular velocity per cabin pose, small angles.
+
+    A cabin at ISO roll ``phi``, pitch ``theta`` and heave ``z`` (from home) whose head
+    moves by ``x_head = J (phi, theta, z)`` (ISO axes, m per rad or m; the mechanism's
+    kinematics linearised at home) feels::
+
+        f = (-g theta, g phi, 0) + J (phi, theta, z)'',  w = (phi', theta')
+
+    (gravity seen through the tilt, :func:`controllers.frames.static_specific_force`,
+    plus the head's acceleration; ``' = j w``). ``J = None``: the head at a point that
+    only heaves, ``J = diag(0, 0, 1)``.
+
+    Returns
+    -------
+    ndarray, complex, (len(omega), 5, 3)
+        :data:`CHAIN_CHANNELS` per (roll, pitch, heave).
+    """
+    omega = np.atleast_1d(np.asarray(omega, dtype=float))
+    jac = np.diag([0.0, 0.0, 1.0]) if jac is None else np.asarray(jac, float).reshape(3, 3)
+    s = 1j * omega
+    m = np.zeros((omega.size, 5, 3), complex)
+    m[:, :3, :] = (s * s)[:, None, None] * jac
+    m[:, 0, 1] += -g
+    m[:, 1, 0] += g
+    m[:, 3, 0] = s
+    m[:, 4, 1] = s
+    return m
+
+
+def chain_response(washout, omega, *, dt: float = 0.001, pose=None, head_jac=None):
+    """Vehicle input -> head, :data:`CHAIN_CHANNELS` x :data:`CHAIN_CHANNELS`, at ``omega``.
+
+    ``washout`` (:meth:`controllers.washout.ClassicalWashout.linear_response`) sampled
+    every ``period`` and held on the ``dt`` grid (:func:`hold_factor`), then the
+    platform ``pose`` (complex (len(omega), 3, 3), ISO roll, pitch, heave per set-point;
+    ``None``: the pose is the set-point) and the rigid cabin :func:`head_response`
+    with the head's kinematic Jacobian ``head_jac``. With ``pose=None`` and
+    ``head_jac=None`` this is the washout alone on an ideal platform, the reference
+    against which the platform's share is read.
+
+    Returns
+    -------
+    ndarray, complex, (len(omega), 5, 5)
+        ``[k, out, in]``: head channel ``out`` per vehicle channel ``in`` (SI per SI).
+    """
+    omega = np.atleast_1d(np.asarray(omega, dtype=float))
+    every = washout.params.period / dt
+    if abs(every - round(every)) > 1e-9 * every:
+        raise ValueError(f"washout period {washout.params.period} s is not a multiple of {dt} s")
+    w = washout.linear_response(omega) * hold_factor(omega, int(round(every)), dt)[:, None, None]
+    if pose is not None:
+        w = np.asarray(pose) @ w
+    return head_response(omega, head_jac) @ w
 
 
 # ---------------------------------------------------------------- summaries

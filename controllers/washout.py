@@ -286,6 +286,51 @@ class ClassicalWashout:
         self.last_softened = any(abs(o - r) > 1e-9 for o, r in zip(out, raw, strict=True))
         return np.array(out)
 
+    def linear_response(self, omega) -> np.ndarray:
+        """Small-signal response of the set-point to the vehicle input, per frequency.
+
+        The discrete filters as they run (Tustin at ``period``), evaluated on the unit
+        circle ``z = e^{j w period}`` (:func:`scipy.signal.freqz`), with ``asin`` and the
+        frames linearised about rest and the rate, angle and workspace limits inactive
+        (their small-signal range: check :attr:`WashoutResult.rate_limited` and
+        ``softened``)::
+
+            roll  =  k_y LP(z) f_y / g + ROT(z) w_x
+            pitch = -k_x LP(z) f_x / g + ROT(z) w_y
+            heave =  HEAVE(z) f_z
+
+        Parameters
+        ----------
+        omega : array_like, (n,)
+            Angular frequencies (rad/s), below the Nyquist frequency ``pi / period``.
+
+        Returns
+        -------
+        ndarray, complex, (n, 3, 5)
+            Output (ISO roll, ISO pitch in rad, heave from home in m) per input
+            (``f_x, f_y, f_z`` in m/s^2, ``w_x, w_y`` in rad/s), sample by sample
+            at the cueing period (no hold: see :func:`controllers.frequency.hold_factor`).
+        """
+        from scipy.signal import freqz
+
+        omega = np.atleast_1d(np.asarray(omega, dtype=float))
+        p = self.params
+        wd = omega * p.period
+        if np.any(wd >= math.pi) or np.any(omega <= 0):
+            raise ValueError(f"frequencies must be in (0, pi/period) rad/s, got {omega}")
+
+        def h(filt: DiscreteFilter) -> np.ndarray:
+            return freqz(filt.b, filt.a, worN=wd)[1]
+
+        lp, rot, heave = h(self._lp[0]), h(self._rot[0]), h(self._heave)
+        out = np.zeros((omega.size, 3, 5), complex)
+        out[:, 0, 1] = p.gain_y * lp / GRAVITY
+        out[:, 0, 3] = rot
+        out[:, 1, 0] = -p.gain_x * lp / GRAVITY
+        out[:, 1, 4] = rot
+        out[:, 2, 2] = heave
+        return out
+
     def run(self, f, w, t0: float = 0.0) -> WashoutResult:
         """Run from the current state over inputs sampled at the cueing period.
 

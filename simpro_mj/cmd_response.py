@@ -7,6 +7,18 @@ linearised loop (:mod:`controllers.frequency`, python-control). Writes
 frequency), ``response.json`` (what ``--json`` prints), ``bode.png`` (each
 axis: measured true and measured pose, predicted, their difference) and
 ``cross_axis.png`` into ``--out`` (default ``results/<name>-response``).
+
+``--chain``: the whole motion-cueing chain instead (issue 16,
+:mod:`simpro_mj.chain_response`): a sine on one vehicle channel (specific
+force ``fx, fy, fz``, roll and pitch rates ``wx, wy``; ISO 8855) through the
+scenario's washout (its ``setpoint.cueing`` parameters, or the defaults when
+it has none), the loops, the pneumatics and the multibody, to the specific
+force and angular velocity at the driver's head, at the twelve OMCT
+frequencies; beside it the washout alone and the linearised chain. Writes
+``chain.csv``, ``chain.json`` and ``chain_bode.png`` into ``--out`` (default
+``results/<name>-chain``). It is an option rather than automatic for a
+cueing scenario: the set-point -> pose response of a cueing scenario's loop
+stays one flag away from its cue response.
 """
 
 from __future__ import annotations
@@ -18,7 +30,10 @@ import os
 import sys
 from pathlib import Path
 
-HELP = "closed-loop frequency response per task axis (stepped sines, OMCT frequencies)"
+HELP = (
+    "closed-loop frequency response per task axis, or (--chain) of the whole cueing chain "
+    "vehicle -> head (stepped sines, OMCT frequencies)"
+)
 
 CSV_COLUMNS = (
     "input_axis",
@@ -61,14 +76,45 @@ def add_arguments(parser) -> None:
         "0.1-15.85 rad/s, on the grid, plus 0.5 and 1 Hz)",
     )
     parser.add_argument(
-        "--amplitude-deg", type=float, default=0.5, help="roll and pitch sine amplitude (deg)"
+        "--amplitude-deg",
+        type=float,
+        default=None,
+        help="roll and pitch sine amplitude (deg, default 0.5; pose response)",
     )
-    parser.add_argument("--amplitude-mm", type=float, default=5.0, help="heave amplitude (mm)")
+    parser.add_argument(
+        "--amplitude-mm", type=float, default=None, help="heave amplitude (mm, default 5)"
+    )
+    parser.add_argument(
+        "--chain",
+        action="store_true",
+        help="whole cueing chain: vehicle specific force / angular velocity -> driver's head "
+        "(OMCT pairs), beside the washout alone",
+    )
+    parser.add_argument(
+        "--channels",
+        default="fx,fy,fz,wx,wy",
+        help="--chain: vehicle channels to excite (default fx,fy,fz,wx,wy)",
+    )
+    parser.add_argument(
+        "--amplitude-mps2",
+        type=float,
+        default=None,
+        help="--chain: specific-force sine amplitude (m/s^2, default 0.3)",
+    )
+    parser.add_argument(
+        "--amplitude-deg-s",
+        type=float,
+        default=None,
+        help="--chain: roll/pitch-rate sine amplitude (deg/s, default 1)",
+    )
     parser.add_argument(
         "--axes", default="roll,pitch,heave", help="axes to excite (default roll,pitch,heave)"
     )
     parser.add_argument(
-        "--settle-s", type=float, default=4.0, help="time before the fitted periods (s)"
+        "--settle-s",
+        type=float,
+        default=None,
+        help="time before the fitted periods (s; default 4, with --chain 10)",
     )
     parser.add_argument("--periods", type=int, default=2, help="whole periods fitted (default 2)")
     parser.add_argument("--jobs", type=int, default=None, metavar="N", help="worker processes")
@@ -216,6 +262,20 @@ def run(args) -> int:
     jobs = args.jobs if args.jobs is not None else (os.cpu_count() or 1)
     if not 1 <= jobs <= MAX_JOBS:
         raise UserInputError(f"invalid value at --jobs: {jobs}; allowed: an integer 1..{MAX_JOBS}")
+    if args.chain:
+        return run_chain(args, jobs)
+    for opt in ("amplitude_mps2", "amplitude_deg_s"):
+        if getattr(args, opt) is not None:
+            flag = "--" + opt.replace("_", "-")
+            raise UserInputError(
+                f"invalid value at {flag}: only with --chain; allowed: --amplitude-deg, "
+                "--amplitude-mm for the pose response"
+            )
+    if args.channels != "fx,fy,fz,wx,wy":
+        raise UserInputError("invalid value at --channels: only with --chain; allowed: --axes")
+    args.amplitude_deg = 0.5 if args.amplitude_deg is None else args.amplitude_deg
+    args.amplitude_mm = 5.0 if args.amplitude_mm is None else args.amplitude_mm
+    args.settle_s = 4.0 if args.settle_s is None else args.settle_s
     scenario = load_scenario(args.scenario, args.sets)
     periods_ms = None if args.freq_hz is None else check_periods(args.freq_hz)
     if args.freq_hz is not None and not args.freq_hz:
@@ -282,4 +342,198 @@ def run(args) -> int:
         emit_json(_jsonable(doc))
     else:
         print_summary(doc, out)
+    return 0 if not doc["failed"] else 1
+
+
+# ------------------------------------------------------------ --chain (issue 16)
+
+CHAIN_CSV_COLUMNS = (
+    "test",
+    "input",
+    "output",
+    "unit",
+    "frequency_hz",
+    "omega_rad_s",
+    "period_ms",
+    "amplitude",
+    "gain",
+    "gain_db",
+    "phase_deg",
+    "washout_gain_db",
+    "washout_phase_deg",
+    "predicted_gain_db",
+    "predicted_phase_deg",
+    "platform_db",
+    "platform_deg",
+    "saturated_pct",
+    "rate_limited_pct",
+    "softened_pct",
+)
+
+
+def chain_csv_text(rows: list[dict]) -> str:
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(CHAIN_CSV_COLUMNS)
+    for r in rows:
+        w.writerow([_cell(r[c]) for c in CHAIN_CSV_COLUMNS])
+    return buf.getvalue()
+
+
+def plot_chain(doc: dict, folder: Path) -> list[str]:
+    """``chain_bode.png``: gain and phase per OMCT pair (measured, washout, predicted)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import matplotlib.ticker
+
+    from .chain_response import PAIRS
+
+    tests = [n for n in PAIRS.values() if any(r["test"] == n for r in doc["rows"])]
+    if not tests:
+        return []
+    ncol = min(len(tests), 5)
+    nrow = -(-len(tests) // ncol)
+    fig, ax = plt.subplots(2 * nrow, ncol, figsize=(3.3 * ncol, 5.0 * nrow), squeeze=False)
+    for k, name in enumerate(tests):
+        g, p = ax[2 * (k // ncol), k % ncol], ax[2 * (k // ncol) + 1, k % ncol]
+        rs = [r for r in doc["rows"] if r["test"] == name]
+        f = [r["omega_rad_s"] for r in rs]
+        g.semilogx(f, [r["gain_db"] for r in rs], "o", label="measured (co-simulation)")
+        g.semilogx(f, [r["washout_gain_db"] for r in rs], "k--", lw=1, label="washout alone")
+        p.semilogx(f, [r["phase_deg"] for r in rs], "o")
+        p.semilogx(f, [r["washout_phase_deg"] for r in rs], "k--", lw=1)
+        if rs[0]["predicted_gain_db"] is not None:
+            g.semilogx(f, [r["predicted_gain_db"] for r in rs], "k-", lw=1, label="linear chain")
+            p.semilogx(f, [r["predicted_phase_deg"] for r in rs], "k-", lw=1)
+        g.set_title(f"{name} ({rs[0]['input']} -> {rs[0]['output']})", fontsize=9)
+        g.set_ylabel(f"gain (dB, {rs[0]['unit']})", fontsize=7)
+        p.set_ylabel("phase (deg)", fontsize=7)
+        p.set_xlabel("frequency (rad/s)", fontsize=8)
+        for a in (g, p):
+            a.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
+            a.grid(alpha=0.3, which="both")
+            a.tick_params(labelsize=7)
+        if k == 0:
+            g.legend(fontsize=6)
+    for k in range(len(tests), nrow * ncol):
+        ax[2 * (k // ncol), k % ncol].axis("off")
+        ax[2 * (k // ncol) + 1, k % ncol].axis("off")
+    fig.suptitle(
+        f"{doc['scenario']} ({doc['mode']}): whole cueing chain, vehicle -> driver's head "
+        "(OMCT frequencies)",
+        fontsize=10,
+    )
+    fig.tight_layout()
+    out = folder / "chain_bode.png"
+    fig.savefig(out, dpi=110)
+    plt.close(fig)
+    return [out.name]
+
+
+def print_chain_summary(doc: dict, folder, file=None) -> None:
+    file = file or sys.stdout
+    print(
+        f"{doc['scenario']} ({doc['mode']}), vehicle -> driver's head, measured | washout alone"
+        " | linear chain (gain dB, phase deg):",
+        file=file,
+    )
+    for r in doc["rows"]:
+        pg, pp = r["predicted_gain_db"], r["predicted_phase_deg"]
+        flag = "  (limits acted)" if r["rate_limited_pct"] > 0 or r["softened_pct"] > 0 else ""
+        print(
+            f"{r['test']:15s} {r['omega_rad_s']:6.2f} rad/s  "
+            f"{r['gain_db']:7.2f} {r['phase_deg']:7.1f}"
+            f" | {r['washout_gain_db']:7.2f} {r['washout_phase_deg']:7.1f}"
+            f" | {_fmt(pg, 2):>7s} {_fmt(pp):>7s}{flag}",
+            file=file,
+        )
+    if doc.get("prediction_note"):
+        print(doc["prediction_note"], file=file)
+    for f in doc["failed"]:
+        print(f"FAILED {f['channel']} {f['period_ms']} ms: {f['status']}: {f['reason']}", file=file)
+    print(f"results: {folder}", file=file)
+
+
+def run_chain(args, jobs: int) -> int:
+    from .chain_response import DEFAULT_SETTLE_S, chain_summary, measure_chain, plan_chain
+    from .errors import UserInputError
+    from .response import check_periods
+    from .results import _jsonable, claim, install_folder
+    from .scenario import load_scenario
+
+    for opt, other in (
+        ("amplitude_deg", "--amplitude-deg-s"),
+        ("amplitude_mm", "--amplitude-mps2"),
+    ):
+        if getattr(args, opt) is not None:
+            flag = "--" + opt.replace("_", "-")
+            raise UserInputError(
+                f"invalid value at {flag}: not with --chain; allowed: {other} for the chain"
+            )
+    if args.axes != "roll,pitch,heave":
+        raise UserInputError("invalid value at --axes: not with --chain; allowed: --channels")
+    scenario = load_scenario(args.scenario, args.sets)
+    if args.freq_hz is not None and not args.freq_hz:
+        raise UserInputError("invalid value at --freq-hz: empty; allowed: one or more frequencies")
+    periods_ms = None if args.freq_hz is None else check_periods(args.freq_hz)
+    channels = tuple(c.strip() for c in args.channels.split(",") if c.strip())
+    plan = plan_chain(
+        scenario,
+        periods_ms=periods_ms,
+        amplitude_mps2=args.amplitude_mps2,
+        amplitude_deg_s=args.amplitude_deg_s,
+        channels=channels,
+        settle_s=DEFAULT_SETTLE_S if args.settle_s is None else args.settle_s,
+        periods=args.periods,
+    )
+    if args.scheduler is not None:
+        from .batch import _dask
+
+        _dask()
+    out = Path(args.out) if args.out else Path("results") / f"{scenario['name']}-chain"
+    with claim(out, "response", inputs=[args.scenario]):
+        results = measure_chain(
+            plan,
+            jobs=min(jobs, len(plan.tasks)),
+            scheduler=args.scheduler,
+            progress=not args.quiet and not args.json,
+        )
+        summ = chain_summary(plan, results)
+        cue = plan.tasks[0]["scenario"]["setpoint"]["cueing"]
+        doc = {
+            "scenario": scenario["name"],
+            "kind": "chain",
+            "mode": scenario["controller"]["mode"],
+            "channels_excited": list(plan.channels),
+            "amplitude": {
+                "f_mps2": plan.amplitudes["fx"],
+                "w_deg_s": math.degrees(plan.amplitudes["wx"]),
+            },
+            "settle_s": plan.settle_s,
+            "periods": plan.periods,
+            "frequencies_rad_s": [2000.0 * math.pi / p for p in plan.periods_ms],
+            "washout": {"algorithm": cue["algorithm"], "parameters": cue["parameters"]},
+            **summ,
+        }
+
+        def fill(tmp: Path) -> None:
+            import json
+
+            (tmp / "chain.csv").write_text(chain_csv_text(doc["rows"]), encoding="utf-8")
+            files = ["chain.csv", "chain.json"]
+            if not args.no_plots:
+                files += plot_chain(doc, tmp)
+            doc["files"] = files
+            text = json.dumps(_jsonable(doc), indent=2)
+            (tmp / "chain.json").write_text(text + "\n", encoding="utf-8")
+
+        install_folder(out, fill, kind="response")
+    if args.json:
+        from .jsonout import emit_json
+
+        emit_json(_jsonable(doc))
+    else:
+        print_chain_summary(doc, out)
     return 0 if not doc["failed"] else 1

@@ -7,8 +7,14 @@ components::
       cueing:
         telemetry: braking_100kmh.csv   # a telemetry CSV (simpro_mj/telemetry.py), or
         manoeuvre: null                 # {type: braking|lane_change|slalom|bump, speed_kmh, ...}
+        sine: null                      # or {channel: fx_mps2, amplitude: 0.3, period_s: 4.0}
         algorithm: classical_washout
         parameters: {}                  # PARAMETER_KEYS, YAML units in the names
+
+``sine`` is a synthetic vehicle input: the vehicle at rest (``f = (0, 0, g)``,
+``w = 0``) plus ``amplitude * sin(2 pi t / period_s)`` on one ``channel``
+(:data:`SINE_CHANNELS`, telemetry column names, SI); it is what
+``simpro-sim response --chain`` runs, one channel and frequency at a time.
 
 A relative ``telemetry`` path is found beside the scenario file, then among
 the shipped files (``simpro_mj/scenarios/telemetry/``). The resolved scenario
@@ -52,6 +58,15 @@ __all__ = [
 ]
 
 ALGORITHMS = ("classical_washout",)
+#: Channels a ``sine`` vehicle input may drive (telemetry column names, SI) and their
+#: largest amplitude: 1 g of specific force, 90 deg/s.
+SINE_CHANNELS = {
+    "fx_mps2": 9.80665,
+    "fy_mps2": 9.80665,
+    "fz_mps2": 9.80665,
+    "wx_rad_s": math.pi / 2,
+    "wy_rad_s": math.pi / 2,
+}
 TELEMETRY_DIR = Path(__file__).resolve().parent / "scenarios" / "telemetry"
 PHYSICS_DT_S = 0.001
 
@@ -105,14 +120,15 @@ def check_cueing(value, path: str = "setpoint.cueing") -> dict:
         raise UserInputError(
             f"invalid value at {path}: expected a mapping with telemetry or manoeuvre"
         )
-    allowed = ("telemetry", "manoeuvre", "algorithm", "parameters")
+    allowed = ("telemetry", "manoeuvre", "sine", "algorithm", "parameters")
     for key in value:
         if key not in allowed:
             raise UserInputError(f"unknown key at {path}.{key}: allowed keys are {list(allowed)}")
-    tel, man = value.get("telemetry"), value.get("manoeuvre")
-    if (tel is None) == (man is None):
+    tel, man, sine = value.get("telemetry"), value.get("manoeuvre"), value.get("sine")
+    if sum(v is not None for v in (tel, man, sine)) != 1:
         raise UserInputError(
-            f"invalid value at {path}: give exactly one of telemetry (a CSV file) or manoeuvre"
+            f"invalid value at {path}: give exactly one of telemetry (a CSV file), manoeuvre "
+            "or sine"
         )
     if tel is not None and (not isinstance(tel, str) or not tel.strip()):
         raise UserInputError(f"invalid value at {path}.telemetry: {tel!r}; allowed: a file name")
@@ -142,7 +158,56 @@ def check_cueing(value, path: str = "setpoint.cueing") -> dict:
     out = {"telemetry": tel, "manoeuvre": None, "algorithm": algo, "parameters": full}
     if man is not None:
         out["manoeuvre"] = _check_manoeuvre(man, f"{path}.manoeuvre")
+    if sine is not None:
+        out["sine"] = check_sine(sine, f"{path}.sine")
     return out
+
+
+def check_sine(sine, path: str = "setpoint.cueing.sine") -> dict:
+    """A ``sine`` vehicle input: ``channel`` (:data:`SINE_CHANNELS`), ``amplitude`` (SI,
+    > 0 up to the channel's limit) and ``period_s`` (0.02..600 s, on the 1 ms grid)."""
+    keys = ("channel", "amplitude", "period_s")
+    if not isinstance(sine, Mapping):
+        raise UserInputError(f"invalid value at {path}: expected a mapping with keys {list(keys)}")
+    for key in sine:
+        if key not in keys:
+            raise UserInputError(f"unknown key at {path}.{key}: allowed keys are {list(keys)}")
+    ch = sine.get("channel")
+    if ch not in SINE_CHANNELS:
+        raise UserInputError(
+            f"invalid value at {path}.channel: {ch!r}; allowed: {list(SINE_CHANNELS)}"
+        )
+    a, period = sine.get("amplitude"), sine.get("period_s")
+    top = SINE_CHANNELS[ch]
+    if isinstance(a, bool) or not isinstance(a, (int, float)) or not 0 < a <= top:
+        raise UserInputError(
+            f"invalid value at {path}.amplitude: {a!r}; allowed: 0 < amplitude <= {top:.4g} "
+            f"({ch.split('_', 1)[1].replace('mps2', 'm/s^2').replace('rad_s', 'rad/s')})"
+        )
+    ok = isinstance(period, (int, float)) and not isinstance(period, bool)
+    if not (ok and math.isfinite(period) and 0.02 <= period <= 600.0) or (
+        abs(period * 1e3 - round(period * 1e3)) > 1e-6
+    ):
+        raise UserInputError(
+            f"invalid value at {path}.period_s: {period!r}; allowed: 0.02..600 s on the 1 ms grid"
+        )
+    return {"channel": ch, "amplitude": float(a), "period_s": float(period)}
+
+
+def sine_input(sine: Mapping, t) -> tuple[np.ndarray, np.ndarray]:
+    """``f``, ``w`` (len(t), 3) of a ``sine`` vehicle input at times ``t`` (V frame, SI)."""
+    from controllers.frames import GRAVITY
+
+    t = np.asarray(t, dtype=float)
+    f = np.zeros((t.size, 3))
+    w = np.zeros((t.size, 3))
+    f[:, 2] = GRAVITY
+    ch = sine["channel"]
+    k = "xyz".index(ch[1])
+    (f if ch[0] == "f" else w)[:, k] += sine["amplitude"] * np.sin(
+        2.0 * math.pi * t / sine["period_s"]
+    )
+    return f, w
 
 
 def _check_manoeuvre(man, path: str) -> dict:
@@ -233,20 +298,26 @@ def _key(cue: Mapping, duration: float) -> str:
 def _chain(key: str):
     d = json.loads(key)
     cue, duration = d["cue"], d["duration"]
-    if cue.get("telemetry"):
-        tel = read_telemetry(cue["telemetry"], label=Path(cue["telemetry"]).name)
-    else:
-        from .manoeuvres import generate
-
-        tel = generate(_spec(cue["manoeuvre"]))
     n = int(round(duration / PHYSICS_DT_S))
     t = np.arange(n + 1) * PHYSICS_DT_S
-    if tel.t[-1] < t[-1] - 1e-9:
-        raise UserInputError(
-            f"invalid value at duration_s: {duration:g} s is longer than the vehicle input "
-            f"({tel.t[-1]:g} s, {tel.source}); allowed: <= {tel.t[-1]:g}"
-        )
-    f, w = resample(tel, t)
+    if cue.get("sine"):
+        f, w = sine_input(cue["sine"], t)
+        s = cue["sine"]
+        source = f"sine {s['channel']} {s['amplitude']:g} x {s['period_s']:g} s"
+    else:
+        if cue.get("telemetry"):
+            tel = read_telemetry(cue["telemetry"], label=Path(cue["telemetry"]).name)
+        else:
+            from .manoeuvres import generate
+
+            tel = generate(_spec(cue["manoeuvre"]))
+        if tel.t[-1] < t[-1] - 1e-9:
+            raise UserInputError(
+                f"invalid value at duration_s: {duration:g} s is longer than the vehicle input "
+                f"({tel.t[-1]:g} s, {tel.source}); allowed: <= {tel.t[-1]:g}"
+            )
+        f, w = resample(tel, t)
+        source = tel.source
     params = washout_params(cue)
     every = int(round(params.period / PHYSICS_DT_S))
     if abs(every * PHYSICS_DT_S - params.period) > 1e-9:
@@ -260,7 +331,10 @@ def _chain(key: str):
     for arr in (f, w, pose):
         arr.setflags(write=False)
     info = {
-        "source": tel.source,
+        "source": source,
+        "rate_limited": res.rate_limited,
+        "softened": res.softened,
+        "every": every,
         "rate_limited_fraction": float(res.rate_limited.mean()),
         "softened_fraction": float(res.softened.mean()),
         "box": {k: list(map(float, v)) if k != "scale" else v for k, v in wash.box.items()},
