@@ -321,10 +321,10 @@ def measure_chain_point(task: Mapping) -> dict:
 
 def measure_chain(plan: ChainPlan, *, jobs: int = 1, scheduler=None, progress: bool = False):
     """Run every task of ``plan``; results in task order (:func:`measure_chain_point`)."""
-    from .batch import _Progress, run_tasks
+    from .executors import Progress, run_tasks
 
     results: list = [None] * len(plan.tasks)
-    bar = _Progress(len(plan.tasks), progress, desc="chain response")
+    bar = Progress(len(plan.tasks), progress, desc="chain response")
 
     def done(key: int, result: dict) -> None:
         results[key] = result

@@ -489,9 +489,9 @@ def run_chain(args, jobs: int) -> int:
         periods=args.periods,
     )
     if args.scheduler is not None:
-        from .batch import _dask
+        from .executors import dask_module
 
-        _dask()
+        dask_module()  # say so before anything runs
     out = Path(args.out) if args.out else Path("results") / f"{scenario['name']}-chain"
     with claim(out, "response", inputs=[args.scenario]):
         results = measure_chain(

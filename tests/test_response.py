@@ -245,9 +245,11 @@ def _command_imports(module_file) -> set:
 def test_response_imports_no_command_module():
     """docs/architecture.md: commands only wire; the executors live in simpro_mj.executors,
     not in the batch command."""
+    import simpro_mj.chain_response
     import simpro_mj.cmd_response
     import simpro_mj.executors
     import simpro_mj.response
 
-    for mod in (simpro_mj.cmd_response, simpro_mj.response, simpro_mj.executors):
+    mods = (simpro_mj.cmd_response, simpro_mj.response, simpro_mj.chain_response)
+    for mod in (*mods, simpro_mj.executors):
         assert _command_imports(mod.__file__) == set(), mod.__name__
