@@ -15,6 +15,7 @@ import pytest
 from controllers.filters import DiscreteFilter, FilterError
 from controllers.frames import GRAVITY
 from controllers.vestibular import (
+    CANAL_PER_AXIS_ALTERNATIVE,
     CANAL_THRESHOLDS,
     OTOLITH_THRESHOLDS,
     CanalModel,
@@ -98,6 +99,39 @@ def test_canal_with_published_lead_and_lag_is_the_same_after_the_transient():
     assert full.w[2, 1] > 5 * w0
     late = slice(200, None)
     assert np.max(np.abs(full.w[late, 1] - bare.w[late, 1])) < 0.011 * w0
+
+
+def test_per_axis_canal_alternative():
+    """The per-axis set (tau_l roll 6.1, pitch 5.3, yaw 10.2 s; tau_s 0.1 s, tau_a 30 s,
+    no lead): each axis follows its own closed-form step response. With
+    a, b, c = 1/tau_a, 1/tau_l, 1/tau_s the step response of
+    tau_a tau_l s^2 / ((tau_a s + 1)(tau_l s + 1)(tau_s s + 1)) is
+    c (-a e^{-at} / ((b-a)(c-a)) - b e^{-bt} / ((a-b)(c-b)) - c e^{-ct} / ((a-c)(b-c)))."""
+    model = VestibularModel(canal=CanalModel(**CANAL_PER_AXIS_ALTERNATIVE))
+    n = 30_000
+    w0 = math.radians(10.0)
+    f, w = _step_motion(n, w_step=[w0, w0, w0], at=1)
+    p = model.perceive(f, w, DT)
+    t = (np.arange(n) - 1) * DT
+    a, c = 1 / 30.0, 1 / 0.1
+    for axis, tl in enumerate((6.1, 5.3, 10.2)):
+        b = 1 / tl
+        ref = c * (
+            -a * np.exp(-a * t) / ((b - a) * (c - a))
+            - b * np.exp(-b * t) / ((a - b) * (c - b))
+            - c * np.exp(-c * t) / ((a - c) * (b - c))
+        )
+        err = np.abs(p.w[2:, axis] - w0 * ref[2:])
+        # Tustin's half-sample offset on the 0.1 s rise: dt / (2 tau_s) = 0.5 % at most
+        assert err.max() < 0.006 * w0
+        assert err[t[2:] > 1.0].max() < 1e-4 * w0  # then the decay itself, exactly
+    # the yaw sensation outlasts the roll and pitch ones
+    at = int(round(8.0 / DT))
+    assert p.w[at, 2] > p.w[at, 0] > p.w[at, 1] > 0
+    with pytest.raises(ValueError, match="tau_l"):
+        CanalModel(tau_l=(6.1, 5.3))
+    with pytest.raises(ValueError, match="tau_l"):
+        CanalModel(tau_l=(6.1, -5.3, 10.2))
 
 
 def test_thresholds_detect_steps_at_and_below_them():
