@@ -11,7 +11,14 @@ import pytest
 
 from controllers.frames import GRAVITY
 from controllers.geometry import H0
-from simpro_mj.cueing import CUE_COLUMNS, check_cueing, cue_metrics, vehicle_input
+from simpro_mj.cueing import (
+    CUE_COLUMNS,
+    check_cueing,
+    cue_metrics,
+    mean_lag,
+    shift_correlations,
+    vehicle_input,
+)
 from simpro_mj.errors import UserInputError
 from simpro_mj.scenario import load_scenario, resolve_scenario
 from simpro_mj.telemetry import (
@@ -257,6 +264,7 @@ def test_cue_metrics_known_answers(braking_run):
     ch = cue_metrics(_columns(t, pulse, late), sc)["channels"]["longitudinal_f"]
     assert ch["mean_lag_s"] == pytest.approx(0.5, abs=0.011)
     assert ch["peak_lag_s"] == pytest.approx(0.5, abs=0.002)
+    assert ch["mean_lag_lower_bound"] is False
     # the wrong sign: every moment the simulator is felt is a false cue
     ch = cue_metrics(_columns(t, pulse, -pulse), sc)["channels"]["longitudinal_f"]
     assert ch["correlation"] == pytest.approx(-1.0)
@@ -284,3 +292,42 @@ def test_sweep_variants_get_the_preset_like_a_run():
     diff = {k for k in run if run[k] != v.scenario[k]}
     assert diff == {"name", "description"}
     assert len(sw.variants) == 9
+
+
+def _direct_r(a, b, k):
+    x, y = a[: a.size - k], b[k:]
+    return float(np.corrcoef(x, y)[0, 1])
+
+
+def test_shift_correlations_are_pearson_over_the_overlap():
+    """The FFT form equals Pearson's r computed shift by shift (to 1e-9)."""
+    rng = np.random.default_rng(3)
+    a = np.cumsum(rng.normal(size=3000))
+    b = np.roll(a, 400) + rng.normal(scale=5.0, size=3000) + 7.0
+    r = shift_correlations(a, b, 1500)
+    for k in (0, 1, 17, 400, 999, 1500):
+        assert r[k] == pytest.approx(_direct_r(a, b, k), abs=1e-9)
+    assert int(np.argmax(r)) == pytest.approx(400, abs=3)
+
+
+def test_mean_lag_beyond_the_first_window():
+    """The mean lag no longer saturates at its 2 s window (it returned 2.0 for any
+    longer lag): a pulse delayed by 3.5 s in a 20 s record gives 3.5 s; a lag longer
+    than half the record gives the half as a lower bound, flagged."""
+    dt = 0.001
+    t = np.arange(0.0, 20.0, dt)
+    pulse = -2.0 * np.exp(-(((t - 5.0) / 1.0) ** 2))
+    for delay in (0.5, 1.99, 3.5):
+        late = np.interp(t - delay, t, pulse)
+        lag, bound = mean_lag(pulse, late, dt)
+        assert lag == pytest.approx(delay, abs=0.011) and bound is False, delay
+    # twice widened (2 -> 4 -> 8 s): a broad cue 6 s late
+    broad = np.exp(-(((t - 5.0) / 2.5) ** 2))
+    lag, bound = mean_lag(broad, np.interp(t - 6.0, t, broad), dt)
+    assert lag == pytest.approx(6.0, abs=0.011) and bound is False
+    # 6 s record, a smooth step at 1 s delayed by 4 s: r grows up to half the record
+    t6 = np.arange(0.0, 6.0, dt)
+    s6 = np.tanh((t6 - 1.0) / 0.5)
+    lag, bound = mean_lag(s6, np.interp(t6 - 4.0, t6, s6, left=s6[0]), dt)
+    assert bound is True and lag == pytest.approx(3.0, abs=0.011)
+    assert mean_lag(pulse, np.zeros_like(pulse), dt) == (None, False)
