@@ -151,8 +151,7 @@ def plan_chain(
     periods: int = 2,
 ) -> ChainPlan:
     """Check the test's parameters and build its tasks (plain data for the workers)."""
-    from .response import MAX_PERIODS, MAX_SETTLE_S
-    from .scenario import MAX_DURATION_S
+    from .response import check_run_length, check_settle_periods
 
     af = _check_amplitude(
         DEFAULT_AMPLITUDES["f"] if amplitude_mps2 is None else amplitude_mps2, "f"
@@ -169,25 +168,9 @@ def plan_chain(
         raise UserInputError(
             "invalid value at --channels: a channel given twice; allowed: distinct"
         )
-    ok = isinstance(settle_s, (int, float)) and math.isfinite(settle_s)
-    if not (ok and 0 <= settle_s <= MAX_SETTLE_S) or (
-        abs(settle_s * 1e3 - round(settle_s * 1e3)) > 1e-6
-    ):
-        raise UserInputError(
-            f"invalid value at --settle-s: {settle_s!r}; allowed: 0..{MAX_SETTLE_S:g} s on the "
-            "1 ms grid"
-        )
-    if isinstance(periods, bool) or not isinstance(periods, int) or not 1 <= periods <= MAX_PERIODS:
-        raise UserInputError(
-            f"invalid value at --periods: {periods!r}; allowed: an integer 1..{MAX_PERIODS}"
-        )
+    check_settle_periods(settle_s, periods)
     periods_ms = omct_periods_ms() if periods_ms is None else sorted(periods_ms, reverse=True)
-    longest = settle_s + periods * max(periods_ms) / 1000.0
-    if longest > MAX_DURATION_S:
-        raise UserInputError(
-            f"invalid value at --periods: {periods} periods of {max(periods_ms)} ms after "
-            f"{settle_s:g} s is a {longest:g} s run; allowed: runs up to {MAX_DURATION_S:g} s"
-        )
+    check_run_length(settle_s, periods, periods_ms)
     amps = {c: (af if c[0] == "f" else aw * math.pi / 180.0) for c in CHANNELS}
     plan = ChainPlan(
         scenario=copy.deepcopy(dict(scenario)),
@@ -321,26 +304,16 @@ def measure_chain_point(task: Mapping) -> dict:
 
 def measure_chain(plan: ChainPlan, *, jobs: int = 1, scheduler=None, progress: bool = False):
     """Run every task of ``plan``; results in task order (:func:`measure_chain_point`)."""
-    from .executors import Progress, run_tasks
+    from .response import measure
 
-    results: list = [None] * len(plan.tasks)
-    bar = Progress(len(plan.tasks), progress, desc="chain response")
-
-    def done(key: int, result: dict) -> None:
-        results[key] = result
-        bar.update(result.get("status", "failed"))
-
-    try:
-        run_tasks(
-            list(enumerate(plan.tasks)),
-            done,
-            jobs=jobs,
-            scheduler=scheduler,
-            fn=measure_chain_point,
-        )
-    finally:
-        bar.close()
-    return [r if r is not None else {"status": "cancelled", "reason": "not run"} for r in results]
+    return measure(
+        plan,
+        jobs=jobs,
+        scheduler=scheduler,
+        progress=progress,
+        fn=measure_chain_point,
+        desc="chain response",
+    )
 
 
 def head_jacobian(scenario: Mapping, step: float = 1e-4) -> np.ndarray:
@@ -420,16 +393,9 @@ def chain_summary(plan: ChainPlan, results: list) -> dict:
     at = np.searchsorted(dense, omega)
     pred = predictions(plan, dense)
     by_key = {(r.get("channel"), r.get("period_ms")): r for r in results if r.get("status") == "ok"}
-    failed = [
-        {
-            "channel": t["channel"],
-            "period_ms": t["period_ms"],
-            "status": r["status"],
-            "reason": r["reason"],
-        }
-        for t, r in zip(plan.tasks, results, strict=True)
-        if r.get("status") != "ok"
-    ]
+    from .response import failures
+
+    failed = failures(plan.tasks, results, "channel")
     rows = []
     for (cin, cout), name in PAIRS.items():
         if cin not in plan.channels:

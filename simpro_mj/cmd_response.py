@@ -137,12 +137,12 @@ def _cell(v) -> str:
     return str(v)
 
 
-def csv_text(rows: list[dict]) -> str:
+def csv_text(rows: list[dict], columns=CSV_COLUMNS) -> str:
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
-    w.writerow(CSV_COLUMNS)
+    w.writerow(columns)
     for r in rows:
-        w.writerow([_cell(r[c]) for c in CSV_COLUMNS])
+        w.writerow([_cell(r[c]) for c in columns])
     return buf.getvalue()
 
 
@@ -256,7 +256,7 @@ def run(args) -> int:
     from .errors import UserInputError
     from .executors import MAX_JOBS
     from .response import check_periods, loop_model, measure, plan_response, summary
-    from .results import claim, install_folder
+    from .results import claim
     from .scenario import load_scenario
 
     jobs = args.jobs if args.jobs is not None else (os.cpu_count() or 1)
@@ -321,27 +321,38 @@ def run(args) -> int:
             "frequencies_hz": [1000.0 / p for p in sorted(plan.periods_ms, reverse=True)],
             **doc,
         }
-        from .results import _jsonable
+        write_result(out, doc, "response", csv_text(doc["rows"]), None if args.no_plots else plot)
+    return report(args, doc, out, print_summary)
 
-        def fill(tmp: Path) -> None:
-            import json
 
-            (tmp / "response.csv").write_text(csv_text(doc["rows"]), encoding="utf-8")
-            files = ["response.csv", "response.json"]
-            if not args.no_plots:
-                files += plot(doc, tmp)
-            doc["files"] = files
-            text = json.dumps(_jsonable(doc), indent=2)
-            (tmp / "response.json").write_text(text + "\n", encoding="utf-8")
+def write_result(out: Path, doc: dict, stem: str, csv_body: str, plotter) -> None:
+    """``<stem>.csv``, ``<stem>.json`` and the plots (``plotter(doc, folder)``, or None)
+    installed into ``out`` as a whole (:func:`simpro_mj.results.install_folder`)."""
+    from .results import _jsonable, install_folder
 
-        install_folder(out, fill, kind="response")
+    def fill(tmp: Path) -> None:
+        import json
+
+        (tmp / f"{stem}.csv").write_text(csv_body, encoding="utf-8")
+        files = [f"{stem}.csv", f"{stem}.json"]
+        if plotter is not None:
+            files += plotter(doc, tmp)
+        doc["files"] = files
+        text = json.dumps(_jsonable(doc), indent=2)
+        (tmp / f"{stem}.json").write_text(text + "\n", encoding="utf-8")
+
+    install_folder(out, fill, kind="response")
+
+
+def report(args, doc: dict, out: Path, printer) -> int:
+    """``--json`` or the printed summary; exit 1 if a frequency did not run."""
     if args.json:
         from .jsonout import emit_json
         from .results import _jsonable
 
         emit_json(_jsonable(doc))
     else:
-        print_summary(doc, out)
+        printer(doc, out)
     return 0 if not doc["failed"] else 1
 
 
@@ -369,15 +380,6 @@ CHAIN_CSV_COLUMNS = (
     "rate_limited_pct",
     "softened_pct",
 )
-
-
-def chain_csv_text(rows: list[dict]) -> str:
-    buf = io.StringIO()
-    w = csv.writer(buf, lineterminator="\n")
-    w.writerow(CHAIN_CSV_COLUMNS)
-    for r in rows:
-        w.writerow([_cell(r[c]) for c in CHAIN_CSV_COLUMNS])
-    return buf.getvalue()
 
 
 def plot_chain(doc: dict, folder: Path) -> list[str]:
@@ -460,7 +462,7 @@ def run_chain(args, jobs: int) -> int:
     from .chain_response import DEFAULT_SETTLE_S, chain_summary, measure_chain, plan_chain
     from .errors import UserInputError
     from .response import check_periods
-    from .results import _jsonable, claim, install_folder
+    from .results import claim
     from .scenario import load_scenario
 
     for opt, other in (
@@ -518,22 +520,6 @@ def run_chain(args, jobs: int) -> int:
             **summ,
         }
 
-        def fill(tmp: Path) -> None:
-            import json
-
-            (tmp / "chain.csv").write_text(chain_csv_text(doc["rows"]), encoding="utf-8")
-            files = ["chain.csv", "chain.json"]
-            if not args.no_plots:
-                files += plot_chain(doc, tmp)
-            doc["files"] = files
-            text = json.dumps(_jsonable(doc), indent=2)
-            (tmp / "chain.json").write_text(text + "\n", encoding="utf-8")
-
-        install_folder(out, fill, kind="response")
-    if args.json:
-        from .jsonout import emit_json
-
-        emit_json(_jsonable(doc))
-    else:
-        print_chain_summary(doc, out)
-    return 0 if not doc["failed"] else 1
+        plotter = None if args.no_plots else plot_chain
+        write_result(out, doc, "chain", csv_text(doc["rows"], CHAIN_CSV_COLUMNS), plotter)
+    return report(args, doc, out, print_chain_summary)

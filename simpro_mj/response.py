@@ -58,6 +58,9 @@ __all__ = [
     "default_periods_ms",
     "check_periods",
     "check_amplitudes",
+    "check_settle_periods",
+    "check_run_length",
+    "failures",
     "plan_response",
     "point_scenario",
     "measure_point",
@@ -157,6 +160,43 @@ def check_amplitudes(amplitudes: Mapping[str, float]) -> dict:
     return out
 
 
+def check_settle_periods(settle_s, periods) -> None:
+    """``--settle-s`` (0..600 s on the 1 ms grid) and ``--periods`` (1..100), one-line errors."""
+    ok = isinstance(settle_s, (int, float)) and not isinstance(settle_s, bool)
+    if not (ok and math.isfinite(settle_s) and 0 <= settle_s <= MAX_SETTLE_S) or (
+        abs(settle_s * 1e3 - round(settle_s * 1e3)) > 1e-6
+    ):
+        raise UserInputError(
+            f"invalid value at --settle-s: {settle_s!r}; allowed: 0..{MAX_SETTLE_S:g} s on the "
+            "1 ms grid"
+        )
+    if isinstance(periods, bool) or not isinstance(periods, int) or not 1 <= periods <= MAX_PERIODS:
+        raise UserInputError(
+            f"invalid value at --periods: {periods!r}; allowed: an integer 1..{MAX_PERIODS}"
+        )
+
+
+def check_run_length(settle_s: float, periods: int, periods_ms: Sequence[int]) -> None:
+    """The longest run (settle plus whole periods) within a scenario's longest duration."""
+    from .scenario import MAX_DURATION_S
+
+    longest = settle_s + periods * max(periods_ms) / 1000.0
+    if longest > MAX_DURATION_S:
+        raise UserInputError(
+            f"invalid value at --periods: {periods} periods of {max(periods_ms)} ms after "
+            f"{settle_s:g} s is a {longest:g} s run; allowed: runs up to {MAX_DURATION_S:g} s"
+        )
+
+
+def failures(tasks: Sequence[Mapping], results: Sequence[Mapping], key: str) -> list:
+    """The tasks that did not run ``ok``: ``key`` (axis or channel), period, status, reason."""
+    return [
+        {key: t[key], "period_ms": t["period_ms"], "status": r["status"], "reason": r["reason"]}
+        for t, r in zip(tasks, results, strict=True)
+        if r.get("status") != "ok"
+    ]
+
+
 @dataclass
 class ResponsePlan:
     """What :func:`measure` runs: one task per (axis, period)."""
@@ -180,32 +220,15 @@ def plan_response(
     periods: int = 2,
 ) -> ResponsePlan:
     """Check the test's parameters and build its tasks (plain data for the workers)."""
-    from .scenario import MAX_DURATION_S
-
     amps = dict(DEFAULT_AMPLITUDES)
     amps.update(amplitudes or {})
     amp_si = check_amplitudes(amps)
-    if not (isinstance(settle_s, (int, float)) and math.isfinite(settle_s)):
-        raise UserInputError(f"invalid value at --settle-s: {settle_s!r}; allowed: 0..600 s")
-    if not (0 <= settle_s <= MAX_SETTLE_S) or abs(settle_s * 1e3 - round(settle_s * 1e3)) > 1e-6:
-        raise UserInputError(
-            f"invalid value at --settle-s: {settle_s!r}; allowed: 0..{MAX_SETTLE_S:g} s on the "
-            "1 ms grid"
-        )
-    if isinstance(periods, bool) or not isinstance(periods, int) or not 1 <= periods <= MAX_PERIODS:
-        raise UserInputError(
-            f"invalid value at --periods: {periods!r}; allowed: an integer 1..{MAX_PERIODS}"
-        )
+    check_settle_periods(settle_s, periods)
     for a in axes:
         if a not in AXES:
             raise UserInputError(f"invalid value at --axes: {a!r}; allowed: {list(AXES)}")
     periods_ms = default_periods_ms() if periods_ms is None else list(periods_ms)
-    longest = settle_s + periods * max(periods_ms) / 1000.0
-    if longest > MAX_DURATION_S:
-        raise UserInputError(
-            f"invalid value at --periods: {periods} periods of {max(periods_ms)} ms after "
-            f"{settle_s:g} s is a {longest:g} s run; allowed: runs up to {MAX_DURATION_S:g} s"
-        )
+    check_run_length(settle_s, periods, periods_ms)
     plan = ResponsePlan(
         scenario=copy.deepcopy(dict(scenario)),
         axes=tuple(axes),
@@ -298,21 +321,29 @@ def measure_point(task: Mapping) -> dict:
         return {"status": "failed", "reason": f"{type(exc).__name__}: {' '.join(str(exc).split())}"}
 
 
-def measure(plan: ResponsePlan, *, jobs: int = 1, scheduler=None, progress: bool = False) -> list:
-    """Run every task of ``plan``; results in task order (:func:`measure_point`)."""
+def measure(
+    plan,
+    *,
+    jobs: int = 1,
+    scheduler=None,
+    progress: bool = False,
+    fn=None,
+    desc: str = "response",
+) -> list:
+    """Run every task of ``plan``; results in task order (``fn``, default :func:`measure_point`;
+    a top-level function, it pickles by name)."""
     from .executors import Progress, run_tasks
 
+    fn = measure_point if fn is None else fn
     results: list = [None] * len(plan.tasks)
-    bar = Progress(len(plan.tasks), progress, desc="response")
+    bar = Progress(len(plan.tasks), progress, desc=desc)
 
     def done(key: int, result: dict) -> None:
         results[key] = result
         bar.update(result.get("status", "failed"))
 
     try:
-        run_tasks(
-            list(enumerate(plan.tasks)), done, jobs=jobs, scheduler=scheduler, fn=measure_point
-        )
+        run_tasks(list(enumerate(plan.tasks)), done, jobs=jobs, scheduler=scheduler, fn=fn)
     finally:
         bar.close()
     return [r if r is not None else {"status": "cancelled", "reason": "not run"} for r in results]
@@ -412,16 +443,7 @@ def summary(plan: ResponsePlan, results: list, model: LoopModel | None) -> dict:
             for sig in ("true", "measured")
         }
     by_key = {(r.get("axis"), r.get("period_ms")): r for r in results if r.get("status") == "ok"}
-    failed = [
-        {
-            "axis": t["axis"],
-            "period_ms": t["period_ms"],
-            "status": r["status"],
-            "reason": r["reason"],
-        }
-        for t, r in zip(plan.tasks, results, strict=True)
-        if r.get("status") != "ok"
-    ]
+    failed = failures(plan.tasks, results, "axis")
     rows, axes, agreement = [], {}, {}
     for axis_in in plan.axes:
         j = AXES.index(axis_in)
