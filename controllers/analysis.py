@@ -58,6 +58,7 @@ __all__ = [
     "inner_summary",
     "inner_discrete_loop",
     "lift",
+    "with_setpoint_filter",
     "lifted_inner",
     "outer_closed_loop",
     "spectral_radius",
@@ -314,6 +315,22 @@ def inner_discrete_loop(
     b = np.vstack([bpd @ dc, bc])
     c = np.hstack([cpd, np.zeros((1, nc))])
     return a, b, c
+
+
+def with_setpoint_filter(leg, filt):
+    """A fast-rate joint loop ``(A, B, C)`` behind the set-point filter ``(Af, Bf, Cf, Df)``
+    of Fig. 13 (:func:`controllers.setpoint_filter.filter_state_space`): states
+    ``[filter; loop]``, input the outer loop's q_d, output q."""
+    a, b, c = (np.atleast_2d(np.asarray(m, float)) for m in leg)
+    af, bf, cf, df = (np.atleast_2d(np.asarray(m, float)) for m in filt)
+    nf, n = af.shape[0], a.shape[0]
+    if nf == 0:
+        return a, b * df[0, 0], c
+    a2 = np.zeros((nf + n, nf + n))
+    a2[:nf, :nf] = af
+    a2[nf:, :nf] = b @ cf
+    a2[nf:, nf:] = a
+    return a2, np.vstack([bf, b @ df]), np.hstack([np.zeros((c.shape[0], nf)), c])
 
 
 def lift(a, b, n: int):

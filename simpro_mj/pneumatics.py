@@ -58,9 +58,11 @@ small (``V_0`` only) and the laminar orifice is stiff: the explicit time
 constant falls below 0.1 ms. Each pressure is therefore advanced by a
 linearly implicit (Rosenbrock-Euler) step,
 :math:`p^+ = p + h f(p) / (1 - h \\min(∂f/∂p, 0))`, which is L-stable for the
-stiff flow terms and has the exact static equilibrium as fixed point, then
-bounded to [p_a, p_s] (the bounds play the part of the reverse flows from
-atmosphere / back to supply that a real valve allows). ``integration.substeps``
+stiff flow terms and has the exact static equilibrium as fixed point. It is
+not bounded: a chamber compressed above the supply pressure flows back to
+the supply through its supply edge (ISO 6358 with the chamber upstream, ratio
+p_s/p), one expanded below the atmosphere draws air through its exhaust
+edge (ratio p/p_a); the MPYE has no relief valve (issue 18). ``integration.substeps``
 splits the step further (default 1; tests compare with a fine reference).
 
 Linear model (paper eq. 19)
@@ -434,7 +436,8 @@ class NonlinearActuators:
     -----
     Pressure update (per chamber, conductances frozen over the step, a
     linearly implicit Euler step): with :math:`G_P = a_P k ψ(p/p_s)`,
-    :math:`G_R = a_R k ψ(p_a/p)`, :math:`c = n R T / V`,
+    :math:`G_R = a_R k ψ(p_a/p)` (ratios downstream/upstream, inverted on back
+    flow), :math:`c = n R T / V`,
 
     .. math::
         p^+ = \\frac{p + h c (G_P p_s + G_R p_a)}
@@ -444,9 +447,11 @@ class NonlinearActuators:
     pressure cannot leave [p_a, p_s] and cannot overshoot the orifice
     equilibrium however small V is (L-stable); its fixed point at rest is the
     exact static equilibrium. Compression (:math:`\\dot V < 0`) is explicit in
-    effect (the denominator is kept >= 0.5); the result is bounded to
-    [p_a, p_s] (the real valve lets the excess flow back to supply, and air
-    in from the exhaust below atmosphere).
+    effect (the denominator is kept >= 0.5) and may lift p above p_s; it stays
+    positive. No bound is applied: above p_s the supply edge carries the flow
+    back to the supply (:math:`ψ(p_s/p)`, the chamber upstream), below p_a the
+    exhaust edge draws air in (:math:`ψ(p/p_a)`), as the MPYE's spool does; it
+    has no relief valve.
     """
 
     kind = "nonlinear"
@@ -746,14 +751,17 @@ class NonlinearActuators:
             n = substeps
             while n:  # cheaper than a for loop over a range for the usual single substep
                 n -= 1
-                # ψ of the supply edge (ratio p/p_s) and of the exhaust edge (p_a/p)
-                r = pc * ips
+                # ψ of the supply edge (ratio p/p_s) and of the exhaust edge (p_a/p);
+                # above the supply the chamber is upstream of the supply edge (back
+                # flow to the supply), below the atmosphere downstream of the exhaust
+                # edge (air drawn in): ψ of the ratio downstream/upstream either way
+                r = pc * ips if pc <= ps else ps / pc
                 x0, x1, sl, f0 = cell[c]
                 if x0 <= r < x1:
                     psi_s = sl * (r - x0) + f0
                 else:
                     psi_s = self._psi_slow(r, c)
-                r = pa / pc
+                r = pa / pc if pc >= pa else pc / pa
                 x0, x1, sl, f0 = cell[c + 6]
                 if x0 <= r < x1:
                     psi_e = sl * (r - x0) + f0
@@ -765,11 +773,10 @@ class NonlinearActuators:
                 den = (g_s + g_e) * hc + den0
                 if den < 0.5:
                     den = 0.5
+                # no clipping at p_a or p_s: the step is the implicit flow balance,
+                # positive whenever den > 0 (a weighted mean of p, p_s, p_a for
+                # Vdot >= 0; compression can lift p above p_s, which then flows back)
                 pc = ((g_s * ps + g_e * pa) * hc + pc) / den
-                if pc < pa:
-                    pc = pa
-                if pc > ps:
-                    pc = ps
             z[c] = pc
         # force on the slide with friction (viscous + tanh Coulomb): Mf @ z
         ivs = self._inv_vs

@@ -193,18 +193,17 @@ def _step(u0, u1, u2, q0, q1, q2, qd0, qd1, qd2, b):
         hc = hnV * rtk
         pc = b[c]
         for _ in range(nsub):
-            psi_s = _psi(pc * ips, c, b, n)
-            psi_e = _psi(pa / pc, c + 6, b, n)
+            # pressure ratio downstream/upstream of each edge: a chamber above the
+            # supply flows back through the supply edge, one below the atmosphere
+            # draws air through the exhaust edge (no clipping, see pneumatics.py)
+            psi_s = _psi(pc * ips if pc <= ps else ps / pc, c, b, n)
+            psi_e = _psi(pa / pc if pc >= pa else pc / pa, c + 6, b, n)
             g_s = a_s * psi_s
             g_e = a_e * psi_e
             den = (g_s + g_e) * hc + den0
             if den < 0.5:
                 den = 0.5
             pc = ((g_s * ps + g_e * pa) * hc + pc) / den
-            if pc < pa:
-                pc = pa
-            if pc > ps:
-                pc = ps
         b[c] = pc
     ivs = b[KP_IVS]
     for i in range(3):

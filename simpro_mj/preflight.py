@@ -209,7 +209,7 @@ def check_payload(scenario: Mapping, model=None) -> dict:
 def _inner_legs(scenario: Mapping, dt: float):
     """The joint loops as the analysis sees them: the scenario's controllers on the
     plant its actuator model stands for. Returns (legs, plant description)."""
-    from controllers.analysis import inner_discrete_loop
+    from controllers.analysis import inner_discrete_loop, with_setpoint_filter
     from controllers.design import (
         ACTUATORS,
         Plant,
@@ -219,6 +219,7 @@ def _inner_legs(scenario: Mapping, dt: float):
         printed_design,
         redesigned_design,
     )
+    from controllers.setpoint_filter import filter_state_space
 
     inner = scenario["controller"]["inner"]
     reading = scenario["paper_units"]
@@ -251,7 +252,13 @@ def _inner_legs(scenario: Mapping, dt: float):
                 a, zeta=inner["zeta"], wn=inner["wn_rad_s"], plant=design_plants[a]
             )
         legs.append(inner_discrete_loop(design, plants[a], dt, inner["discretisation"]))
-    return legs, f"real inner loops: {inner['variant']} joint controllers on {what}"
+    sf = scenario["controller"]["setpoint_filter"]
+    filt = filter_state_space(sf["type"], dt, sf["time_ms"] * 1e-3)
+    legs = [with_setpoint_filter(leg, filt) for leg in legs]
+    return legs, (
+        f"real inner loops: {sf['type']} set-point filter, {inner['variant']} joint "
+        f"controllers on {what}"
+    )
 
 
 def stability_limit(scenario: Mapping, dt: float = 1e-3) -> dict:

@@ -142,6 +142,7 @@ DISCRETISATIONS = ("tustin", "zoh")
 DESIGN_PLANTS = ("paper", "identified")
 ACTUATOR_MODELS = ("nonlinear", "linear")
 PAPER_UNITS = ("volts", "metres")  # controllers.design.READINGS
+SETPOINT_FILTERS = ("none", "first_order", "ramp", "zero_cancel")  # controllers.setpoint_filter
 DELAY_SAMPLES = (1, 2)
 SETPOINT_AXES = ("roll_deg", "pitch_deg", "heave_mm")
 
@@ -274,6 +275,12 @@ DEFAULT_SCENARIO: dict = {
             # track_cues RMS error halved, steps unchanged
             "leg_velocity": True,
         },
+        # Fig. 13's "Filter" between the outer loop (or the joint-only IK) and the
+        # joint loops (controllers.setpoint_filter): ramp (the mean of q_d over
+        # time_ms; with time_ms = T the 60 ms steps of q_d become ramps: no valve
+        # kick) | first_order (time constant time_ms) | zero_cancel (k_i/(s + k_i),
+        # eq. 29's zero) | none. Chosen by analysis: docs/paper-notes.md
+        "setpoint_filter": {"type": "ramp", "time_ms": 60.0},
         # unreachable set-points: reject at load time (false) or clamp (true)
         "clamp_setpoints": False,
     },
@@ -960,6 +967,8 @@ def validate_scenario(tree: Mapping) -> dict:
     _enum(s, f"{c}.inner.variant", INNER_VARIANTS)
     _enum(s, f"{c}.inner.discretisation", DISCRETISATIONS)
     _enum(s, f"{c}.inner.design_plant", DESIGN_PLANTS)
+    _enum(s, f"{c}.setpoint_filter.type", SETPOINT_FILTERS)
+    _require(s, f"{c}.setpoint_filter.time_ms", lambda v: 0 < v <= 1e4, "0 < ms <= 1e4")
     for act in ("actuator1", "actuator2", "actuator3"):
         _require(s, f"{c}.inner.identified.{act}.b", lambda v: v > 0, "> 0 m/V")
         _require(s, f"{c}.inner.identified.{act}.a1", lambda v: v >= 0, ">= 0 1/s")

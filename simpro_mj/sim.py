@@ -34,6 +34,7 @@ from controllers.design import Plant, paper_coefficients
 from controllers.geometry import nominal_geometry
 from controllers.joint import JointControllers
 from controllers.kinematics import inverse_kinematics
+from controllers.setpoint_filter import SetpointFilter
 from controllers.task_space import TaskSpaceController
 
 from .errors import PhysicsError, UserInputError
@@ -168,6 +169,10 @@ class CoSimulation:
             spec=spec,
             reading=scenario["paper_units"],
         )
+        sf = ctl["setpoint_filter"]
+        # Fig. 13's "Filter": q_d (outer loop every T, or the IK every 1 ms in
+        # joint-only mode) -> joint references (controllers.setpoint_filter)
+        self.setpoint_filter = SetpointFilter(sf["type"], dt=dt, time=sf["time_ms"] * 1e-3)
         act = scenario["actuator"]
         self.actuators = make_actuators(
             act["model"],
@@ -225,6 +230,7 @@ class CoSimulation:
         self.actuators.reset(q0, np.zeros(3), force=f0)
         self.joint.reset()
         self.task.reset(self.ref[0])
+        self.setpoint_filter.reset(q_d0.tolist())
         mujoco.mj_forward(m, d)
         self.sensors.reset(d.qpos[idx.slide_qpos], measured_pose(d, idx.site_p))
 
@@ -307,6 +313,7 @@ class CoSimulation:
         act, task = self.actuators, self.task
         act_p1, act_p2 = act.p1, act.p2  # views of the chamber pressures, updated in place
         sample, control, act_step = self.sensors.sample_floats, self.joint.update_floats, act.step
+        filt = self.setpoint_filter.update
         # faults (issue 8): event driven, so a run without faults pays one int compare
         sched = (
             FaultSchedule.from_scenario(self.scenario, dt) if self.scenario.get("faults") else None
@@ -362,7 +369,8 @@ class CoSimulation:
                 else:
                     q_d = q_joint[k].tolist()
                     pose_cmd = ref[k].tolist()
-                u = control(q_d, q_meas) if u_ff is None else control(q_d, q_meas, u_ff[k])
+                q_r = filt(q_d)
+                u = control(q_r, q_meas) if u_ff is None else control(q_r, q_meas, u_ff[k])
                 if ff_hold and not sat_seen:
                     u0, u1, u2 = u
                     sat_seen = not (u_lo < u0 < u_hi and u_lo < u1 < u_hi and u_lo < u2 < u_hi)
@@ -384,7 +392,7 @@ class CoSimulation:
                     p1, p2 = act_p1.tolist(), act_p2.tolist()
                     put_row(
                         log, row * row_bytes,
-                        k * dt, *ref[k].tolist(), *pose, *pose_meas, *pose_cmd, *q_d,
+                        k * dt, *ref[k].tolist(), *pose, *pose_meas, *pose_cmd, *q_r,
                         *q_true, *q_meas, *u, f0, f1, f2,
                         p1[0], p2[0], p1[1], p2[1], p1[2], p2[2], loop, flags, supply_pa,
                     )  # fmt: skip

@@ -45,7 +45,10 @@ def test_supply_drop_settles_on_the_lower_end_stops():
     for i in (1, 2, 3):
         for side in ("a", "b"):
             p = c[f"p{i}{side}_pa"]
-            assert np.all(p[after] <= p_low + 1.0) and np.all(p >= PA - 1.0)
+            # no clipping at the supply any more (issue 18): a chamber above the
+            # fallen supply flows back through its supply edge; physical bounds:
+            # positive, never above the initial supply (the load cannot pump)
+            assert np.all(p > 0.5 * PA) and np.all(p <= 6e5 + PA + 1e3), (i, side)
         q = c[f"q{i}_m"]
         last = t > t[-1] - 1.0
         # on the lower end stop (limit at 0; the soft limit lets it in a few mm)

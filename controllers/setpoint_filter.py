@@ -1,0 +1,129 @@
+"""The set-point filter of Fig. 13, between the task-space loop and the joint loops.
+
+The outer loop (eq. 22) updates the joint set-points q_d every T = 60 ms, so
+the joint loops see a staircase. The joint controller of eqs. (36)-(37) is
+biproper: its high-frequency gain is k_p (5.3 kV/m for actuator 1 under the
+volts reading), so each 60 ms step of q_d reaches the valve at once — a 5 mm
+step of leg 1 (the first outer update of a 3 deg pitch step at K K_I = 3) asks
+for 26 V, five times the valve's half range. Fig. 13 draws a "Filter" on this
+path; the paper does not print it. Kinds (:data:`KINDS`):
+
+* ``"none"``: q_ref = q_d (the staircase);
+* ``"first_order"``: ``1 / (tau s + 1)`` (``tau`` = ``time``), discretised
+  exactly (ZOH) at the joint rate; the kick of a step falls to
+  ``k_p Delta q dt / tau``;
+* ``"ramp"`` (default, ``time`` = T): the mean of q_d over the last ``time``
+  (a moving average of ``n = time / dt`` samples). With ``time`` = T the
+  staircase becomes the linear interpolation between outer samples: no step
+  at all, linear phase, a delay of T/2 on average;
+* ``"zero_cancel"``: ``k_i / (s + k_i)`` with eq. (36)-(37)'s ``k_i = 3.03``:
+  the reading of Fig. 13's filter as the classic prefilter that cancels the
+  closed-loop zero ``(s + k_i)`` of eq. (29) (a 19 % overshoot of the joint
+  loop alone). It leaves the joint loop with its poles only (dominant pair
+  near -6.7 rad/s), which is slow for the outer loop: kept for comparison.
+
+Which one by default, and why, is in ``docs/paper-notes.md`` (set-point
+filter); :func:`filter_state_space` gives the discrete filter for the
+analysis (:mod:`controllers.analysis`).
+
+Only numpy (and scipy for the ZOH) are imported here.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+
+import numpy as np
+
+__all__ = ["KINDS", "SetpointFilter", "filter_state_space"]
+
+KINDS = ("none", "first_order", "ramp", "zero_cancel")
+#: k_i of eqs. (36)-(37) (rad/s): the zero of eq. (29) that "zero_cancel" cancels.
+PAPER_KI = 3.03
+
+
+def _first_order(tau: float, dt: float) -> tuple[float, float]:
+    """Exact ZOH of ``1 / (tau s + 1)``: ``y+ = a y + (1 - a) u``."""
+    a = math.exp(-dt / tau)
+    return a, 1.0 - a
+
+
+def filter_state_space(kind: str, dt: float, time: float):
+    """Discrete ``(A, B, C, D)`` of one leg's filter at ``dt`` (for the analysis);
+    the same arithmetic as :class:`SetpointFilter` (tested)."""
+    if kind == "none":
+        return np.zeros((0, 0)), np.zeros((0, 1)), np.zeros((1, 0)), np.ones((1, 1))
+    if kind in ("first_order", "zero_cancel"):
+        tau = time if kind == "first_order" else 1.0 / PAPER_KI
+        a, b = _first_order(tau, dt)
+        # y[k] is the output used at step k: y[k] = a y[k-1] + b u[k] -> state y[k-1]
+        return np.array([[a]]), np.array([[b]]), np.array([[a]]), np.array([[b]])
+    if kind == "ramp":
+        n = max(1, int(round(time / dt)))
+        if n == 1:
+            return filter_state_space("none", dt, time)
+        # state: the last n - 1 inputs (shift register), y = (u + sum(state)) / n
+        a = np.eye(n - 1, k=-1)
+        b = np.zeros((n - 1, 1))
+        b[0, 0] = 1.0
+        c = np.full((1, n - 1), 1.0 / n)
+        return a, b, c, np.array([[1.0 / n]])
+    raise ValueError(f"unknown set-point filter {kind!r}; allowed: {list(KINDS)}")
+
+
+class SetpointFilter:
+    """Three legs' set-point filter, one update per joint-loop step.
+
+    Parameters
+    ----------
+    kind : {"none", "first_order", "ramp", "zero_cancel"}
+    dt : float
+        Joint-loop period (s).
+    time : float
+        Length of the ``"ramp"`` average, or ``tau`` of ``"first_order"`` (s).
+    """
+
+    def __init__(self, kind: str = "ramp", *, dt: float, time: float):
+        if kind not in KINDS:
+            raise ValueError(f"unknown set-point filter {kind!r}; allowed: {list(KINDS)}")
+        for name, v in (("dt", dt), ("time", time)):
+            if not (math.isfinite(v) and v > 0):
+                raise ValueError(f"{name} must be a positive number of seconds, got {v!r}")
+        self.kind = kind
+        self.dt = float(dt)
+        self.n = max(1, int(round(time / dt)))
+        tau = time if kind == "first_order" else 1.0 / PAPER_KI
+        self._a, self._b = _first_order(tau, dt)
+        self._y: list | None = None
+        self._window: deque | None = None
+        self._sum = [0.0, 0.0, 0.0]
+
+    def reset(self, q) -> None:
+        """At rest at ``q`` (3 floats): the filter's output and memory are ``q``."""
+        q = [float(x) for x in q]
+        self._y = list(q)
+        self._window = deque([list(q) for _ in range(self.n)], maxlen=self.n)
+        self._sum = [x * self.n for x in q]
+
+    def update(self, q_d) -> list:
+        """One joint-loop step: the set-points q_d (3 floats) -> filtered q_ref."""
+        if self._y is None:
+            self.reset(q_d)
+        kind = self.kind
+        if kind == "none":
+            return list(q_d)
+        if kind == "ramp":
+            old = self._window[0]
+            s = self._sum
+            s[0] += q_d[0] - old[0]
+            s[1] += q_d[1] - old[1]
+            s[2] += q_d[2] - old[2]
+            self._window.append([q_d[0], q_d[1], q_d[2]])
+            n = self.n
+            return [s[0] / n, s[1] / n, s[2] / n]
+        a, b, y = self._a, self._b, self._y
+        y[0] = a * y[0] + b * q_d[0]
+        y[1] = a * y[1] + b * q_d[1]
+        y[2] = a * y[2] + b * q_d[2]
+        return [y[0], y[1], y[2]]
