@@ -362,16 +362,26 @@ def _blockdiag(mats):
     return out
 
 
-def _legs(variant, dt, method, actuators, legs=None, spec=None, reading=DEFAULT_READING):
-    """The joint loops on eqs. (34)-(35) in SI under ``reading`` (or ``legs`` as given)."""
+def _legs(
+    variant, dt, method, actuators, legs=None, spec=None, reading=DEFAULT_READING,
+    setpoint_filter=None,
+):  # fmt: skip
+    """The joint loops on eqs. (34)-(35) in SI under ``reading`` (or ``legs`` as given),
+    behind the set-point filter ``(kind, time_s)`` of Fig. 13 when one is given."""
     if legs is not None:
         return [tuple(np.atleast_2d(np.asarray(m, float)) for m in leg) for leg in legs]
     spec = dict(spec or {}) if variant == "redesigned" else {}
+    filt = None
+    if setpoint_filter is not None:
+        from .setpoint_filter import filter_state_space
+
+        filt = filter_state_space(setpoint_filter[0], dt, setpoint_filter[1])
     out = []
     for act in actuators:
         plant = paper_plant(act, reading)
         des = design_for(act, variant, plant=plant, reading=reading, **spec)
-        out.append(inner_discrete_loop(des, plant, dt, method))
+        leg = inner_discrete_loop(des, plant, dt, method)
+        out.append(leg if filt is None else with_setpoint_filter(leg, filt))
     return out
 
 
@@ -383,14 +393,17 @@ def lifted_inner(
     actuators=ACTUATORS,
     legs=None,
     spec=None,
+    setpoint_filter=None,
 ):
     """Inner loops lifted to the outer period: block-diagonal ``(Phi, Gamma, C_q)``.
 
     ``legs`` (list of fast-rate ``(A, B, C)``) replaces the joint loops, e.g.
     ``[(0, 1, 1)]`` is exactly the one-sample delay of eq. (21).
+    ``setpoint_filter`` ``(kind, time_s)``: Fig. 13's filter in front of each loop
+    (:mod:`controllers.setpoint_filter`).
     """
     n = int(round(period / dt))
-    fast = _legs(variant, dt, method, actuators, legs, spec)
+    fast = _legs(variant, dt, method, actuators, legs, spec, setpoint_filter=setpoint_filter)
     lifted = [lift(a, b, n) for a, b, _ in fast]
     return (
         _blockdiag([p for p, _ in lifted]),
@@ -449,9 +462,10 @@ def real_inner_closed_loop(
     pi_zero: float = 0.2,
     legs=None,
     spec=None,
+    setpoint_filter=None,
 ):
     """:func:`outer_closed_loop` around :func:`lifted_inner` (see both)."""
-    lifted = lifted_inner(period, variant, dt, method, actuators, legs, spec)
+    lifted = lifted_inner(period, variant, dt, method, actuators, legs, spec, setpoint_filter)
     return outer_closed_loop(mode, gain, period, lifted, jac, pi_zero)
 
 
@@ -471,6 +485,7 @@ def real_inner_limit(
     pi_zero: float = 0.2,
     legs=None,
     spec=None,
+    setpoint_filter=None,
 ) -> float:
     """Largest common ``K K_I`` with the real-inner-loop closed loop stable (rho(F) < 1).
 
@@ -479,7 +494,7 @@ def real_inner_limit(
     """
     from scipy.optimize import brentq
 
-    lifted = lifted_inner(period, variant, dt, method, actuators, legs, spec)
+    lifted = lifted_inner(period, variant, dt, method, actuators, legs, spec, setpoint_filter)
 
     def rho(g):
         return spectral_radius(outer_closed_loop(mode, g, period, lifted, jac, pi_zero)[0])
@@ -511,6 +526,7 @@ def real_inner_step(
     spec=None,
     model_tau: float = 0.0,
     lag: str = "model",
+    setpoint_filter=None,
 ):
     """Task-axis unit-step response at the fast rate with the real inner loops.
 
@@ -524,7 +540,7 @@ def real_inner_step(
     the joint loops').
     """
     n = int(round(period / dt))
-    legs = _legs(variant, dt, method, actuators, legs, spec)
+    legs = _legs(variant, dt, method, actuators, legs, spec, setpoint_filter=setpoint_filter)
     a = _blockdiag([x[0] for x in legs])
     b = _blockdiag([x[1] for x in legs])
     cq = _blockdiag([x[2] for x in legs])

@@ -590,11 +590,11 @@ def stability_of_folder(folder: Path, status: str | None = "ok") -> dict:
 
 
 @lru_cache(maxsize=64)
-def _lifted(period: float, variant: str, method: str, zeta: float, wn: float):
+def _lifted(period: float, variant: str, method: str, zeta: float, wn: float, filt=None):
     from controllers import analysis as an
 
     spec = {"zeta": zeta, "wn": wn} if variant == "redesigned" else None
-    return an.lifted_inner(period, variant=variant, method=method, spec=spec)
+    return an.lifted_inner(period, variant=variant, method=method, spec=spec, setpoint_filter=filt)
 
 
 @lru_cache(maxsize=64)
@@ -606,7 +606,9 @@ def _jacobian_home():
 
 
 @lru_cache(maxsize=64)
-def _limits(kind, period, variant, method, pi_zero, zeta, wn, delay) -> tuple[float, float]:
+def _limits(
+    kind, period, variant, method, pi_zero, zeta, wn, delay, filt=None
+) -> tuple[float, float]:
     from controllers import analysis as an
 
     spec = {"zeta": zeta, "wn": wn} if variant == "redesigned" else None
@@ -618,6 +620,7 @@ def _limits(kind, period, variant, method, pi_zero, zeta, wn, delay) -> tuple[fl
         jac=_jacobian_home(),
         pi_zero=pi_zero,
         spec=spec,
+        setpoint_filter=filt,
     )
     try:
         delay_lim = an.closed_form_limit(kind, period, delay, pi_zero)
@@ -649,9 +652,13 @@ def analytic(scenario: Mapping) -> dict:
 
     o, i = c["outer"], c["inner"]
     period = o["period_ms"] * 1e-3
-    key = (period, i["variant"], i["discretisation"], float(i["zeta"]), float(i["wn_rad_s"]))
+    sf = c["setpoint_filter"]
+    filt = (sf["type"], float(sf["time_ms"]) * 1e-3)  # Fig. 13's filter, in the analysis
+    key = (
+        period, i["variant"], i["discretisation"], float(i["zeta"]), float(i["wn_rad_s"]), filt
+    )  # fmt: skip
     real, delay = _limits(
-        o["type"], *key[:3], float(o["pi_zero"]), *key[3:], int(o["delay_samples"])
+        o["type"], *key[:3], float(o["pi_zero"]), *key[3:5], int(o["delay_samples"]), filt
     )
     f = an.outer_closed_loop(
         o["type"], list(o["gains"]), period, _lifted(*key), _jacobian_home(), o["pi_zero"]
