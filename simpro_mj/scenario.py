@@ -219,10 +219,9 @@ DEFAULT_SCENARIO: dict = {
         "mode": "task_space",
         "outer": {
             "type": "I",  # I (eq. 22) | PI (section 4)
-            # K * K_I per axis (roll, pitch, heave), 1/s. Section 5.2.3 uses 3, which
-            # is unstable on our non-linear pneumatics (stable at 1, unstable at 2;
-            # docs/paper-notes.md); 3 works with actuator.model = linear.
-            "gains": [1.0, 1.0, 1.0],
+            # K * K_I per axis (roll, pitch, heave), 1/s: section 5.2.3's 3 (the
+            # analysed limit on the default plant is 6.9; docs/paper-notes.md)
+            "gains": [3.0, 3.0, 3.0],
             # c of the PI law T (z + c)/(z - 1), section 4; used with type PI only
             "pi_zero": 0.2,
             # outer sampling period T, an integer multiple of the 1 ms physics step
