@@ -16,12 +16,13 @@ are the outer gains inside the analysed stability limit.
   period, with the IK Jacobian at home, where the joint loops are the
   scenario's controllers (variant, discretisation, design plant) on the plant
   the actuator model stands for: ``linear`` is eq. (19) with the
-  ``actuator.pneumatics.linear`` coefficients (eqs. 34-35 by default, and the
-  analysis is then exact up to saturation), ``nonlinear`` is linearised by
-  ``controller.inner.identified`` (what ``simpro-sim identify`` measures on the
-  default plant). For the shipped I loop at T = 60 ms that is 9.46 (linear)
-  and 1.07 (nonlinear; the co-simulation is stable at 1.2 and unstable at 1.5,
-  docs/robustness.md).
+  ``actuator.pneumatics.linear`` coefficients (eqs. 34-35 in SI under
+  ``paper_units`` by default, and the analysis is then exact up to
+  saturation), ``nonlinear`` is linearised by ``controller.inner.identified``
+  (the plant preset's identified models), each joint loop behind the
+  scenario's set-point filter (Fig. 13). For the shipped I loop at T = 60 ms
+  that is 7.47 (linear) and 6.90 (nonlinear, preset ``paper``); without the
+  filter 9.46 and 8.53.
 
 :func:`preflight` runs both and returns the warnings and the figures that
 ``metrics.json`` records under ``preflight``.
