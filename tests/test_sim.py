@@ -94,7 +94,9 @@ def test_transient_agrees_with_real_inner_loop_analysis():
     assert res.status == "ok"
     t, y = _pitch_step_response(res.columns)
     jac = jacobian(nominal_geometry().home)
-    tp, yp = real_inner_step("I", 3.0, 0.06, 4.9, variant="corrected", jac=jac, axis=1)
+    tp, yp = real_inner_step(
+        "I", 3.0, 0.06, 4.9, variant="corrected", jac=jac, axis=1, setpoint_filter=("ramp", 0.06)
+    )
     n = min(len(y), len(tp))
     rms_real = np.sqrt(np.mean((y[:n] - yp[:n, 1]) ** 2))
     delay = np.interp(tp[:n], np.arange(100) * 0.06, outer_step("I", 3.0, 0.06, 100))
