@@ -371,17 +371,20 @@ def _legs(
     if legs is not None:
         return [tuple(np.atleast_2d(np.asarray(m, float)) for m in leg) for leg in legs]
     spec = dict(spec or {}) if variant == "redesigned" else {}
-    filt = None
-    if setpoint_filter is not None:
-        from .setpoint_filter import filter_state_space
+    filt = [None] * 3
+    if setpoint_filter is not None:  # (kind, time or 3 times), one filter per leg
+        from .setpoint_filter import filter_state_space, leg_times
 
-        filt = filter_state_space(setpoint_filter[0], dt, setpoint_filter[1])
+        filt = [
+            filter_state_space(setpoint_filter[0], dt, t) for t in leg_times(setpoint_filter[1])
+        ]
     out = []
     for act in actuators:
         plant = paper_plant(act, reading)
         des = design_for(act, variant, plant=plant, reading=reading, **spec)
         leg = inner_discrete_loop(des, plant, dt, method)
-        out.append(leg if filt is None else with_setpoint_filter(leg, filt))
+        f = filt[ACTUATORS.index(act)]
+        out.append(leg if f is None else with_setpoint_filter(leg, f))
     return out
 
 

@@ -159,7 +159,7 @@ class LoopModel:
         (:class:`controllers.task_space.TaskSpaceController`).
     average : bool
         ``mode="feedforward"``: the correction uses the means over the outer period.
-    setpoint_filter : tuple (A, B, C, D), optional
+    setpoint_filter : tuple (A, B, C, D) or list of 3 such, optional
         One leg's set-point filter at ``dt`` between ``q_d`` and the joint
         loop (Fig. 13's "Filter"), applied to every leg in every mode.
     """
@@ -209,14 +209,17 @@ def _leg_loops(model: LoopModel):
     import control as ct
 
     legs = []
-    for plant, design in zip(model.plants, model.designs, strict=True):
+    filters = model.setpoint_filter
+    if filters is not None and not isinstance(filters, list):
+        filters = [filters] * len(model.plants)  # one (A, B, C, D) for every leg
+    for i, (plant, design) in enumerate(zip(model.plants, model.designs, strict=True)):
         # in state space before the ZOH: a discrete canonical form with poles near
         # z = 1 would be too ill-conditioned to lift to the outer period
         p = ct.c2d(ct.ss(ct.tf(plant.num, plant.den)), model.dt, "zoh")  # held valve command
         c = ct.ss(*leg_state_space(design, model.dt, model.method), model.dt)
         loop = ct.feedback(ct.series(c, p), 1)  # u = C (q_d - q) + u_ff
-        if model.setpoint_filter is not None:  # q_d -> filter -> q_ref of the joint loop
-            loop = ct.series(ct.ss(*model.setpoint_filter, model.dt), loop)
+        if filters is not None:  # q_d -> filter -> q_ref of the joint loop
+            loop = ct.series(ct.ss(*filters[i], model.dt), loop)
         dist = ct.feedback(p, c)
         legs.append((ct.ss(loop), ct.ss(dist)))
     return legs

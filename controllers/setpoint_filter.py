@@ -36,11 +36,25 @@ from collections import deque
 
 import numpy as np
 
-__all__ = ["KINDS", "SetpointFilter", "filter_state_space"]
+__all__ = ["KINDS", "SetpointFilter", "filter_state_space", "leg_times"]
 
 KINDS = ("none", "first_order", "ramp", "zero_cancel")
 #: k_i of eqs. (36)-(37) (rad/s): the zero of eq. (29) that "zero_cancel" cancels.
 PAPER_KI = 3.03
+
+
+def leg_times(time) -> list[float]:
+    """``time`` (s) as one value per leg: a number is every leg's, or 3 numbers.
+
+    Raises
+    ------
+    ValueError
+        Not one or three positive finite numbers.
+    """
+    times = [time] * 3 if np.ndim(time) == 0 else list(time)
+    if len(times) != 3 or not all(math.isfinite(float(t)) and float(t) > 0 for t in times):
+        raise ValueError(f"time must be 1 or 3 positive numbers of seconds, got {time!r}")
+    return [float(t) for t in times]
 
 
 def _first_order(tau: float, dt: float) -> tuple[float, float]:
@@ -80,31 +94,31 @@ class SetpointFilter:
     kind : {"none", "first_order", "ramp", "zero_cancel"}
     dt : float
         Joint-loop period (s).
-    time : float
-        Length of the ``"ramp"`` average, or ``tau`` of ``"first_order"`` (s).
+    time : float or sequence of 3 floats
+        Length of the ``"ramp"`` average, or ``tau`` of ``"first_order"`` (s);
+        one value for all legs or one per leg (:func:`leg_times`).
     """
 
-    def __init__(self, kind: str = "ramp", *, dt: float, time: float):
+    def __init__(self, kind: str = "ramp", *, dt: float, time):
         if kind not in KINDS:
             raise ValueError(f"unknown set-point filter {kind!r}; allowed: {list(KINDS)}")
-        for name, v in (("dt", dt), ("time", time)):
-            if not (math.isfinite(v) and v > 0):
-                raise ValueError(f"{name} must be a positive number of seconds, got {v!r}")
+        if not (math.isfinite(dt) and dt > 0):
+            raise ValueError(f"dt must be a positive number of seconds, got {dt!r}")
+        times = leg_times(time)
         self.kind = kind
         self.dt = float(dt)
-        self.n = max(1, int(round(time / dt)))
-        tau = time if kind == "first_order" else 1.0 / PAPER_KI
-        self._a, self._b = _first_order(tau, dt)
+        self.n = [max(1, int(round(t / dt))) for t in times]
+        self._ab = [_first_order(t if kind == "first_order" else 1.0 / PAPER_KI, dt) for t in times]
         self._y: list | None = None
-        self._window: deque | None = None
+        self._window: list | None = None
         self._sum = [0.0, 0.0, 0.0]
 
     def reset(self, q) -> None:
         """At rest at ``q`` (3 floats): the filter's output and memory are ``q``."""
         q = [float(x) for x in q]
         self._y = list(q)
-        self._window = deque([list(q) for _ in range(self.n)], maxlen=self.n)
-        self._sum = [x * self.n for x in q]
+        self._window = [deque([q[i]] * n, maxlen=n) for i, n in enumerate(self.n)]
+        self._sum = [x * n for x, n in zip(q, self.n, strict=True)]
 
     def update(self, q_d) -> list:
         """One joint-loop step: the set-points q_d (3 floats) -> filtered q_ref."""
@@ -114,16 +128,12 @@ class SetpointFilter:
         if kind == "none":
             return list(q_d)
         if kind == "ramp":
-            old = self._window[0]
-            s = self._sum
-            s[0] += q_d[0] - old[0]
-            s[1] += q_d[1] - old[1]
-            s[2] += q_d[2] - old[2]
-            self._window.append([q_d[0], q_d[1], q_d[2]])
-            n = self.n
-            return [s[0] / n, s[1] / n, s[2] / n]
-        a, b, y = self._a, self._b, self._y
-        y[0] = a * y[0] + b * q_d[0]
-        y[1] = a * y[1] + b * q_d[1]
-        y[2] = a * y[2] + b * q_d[2]
+            s, w, n = self._sum, self._window, self.n
+            for i in range(3):
+                s[i] += q_d[i] - w[i][0]
+                w[i].append(q_d[i])
+            return [s[0] / n[0], s[1] / n[1], s[2] / n[2]]
+        y = self._y
+        for i, (a, b) in enumerate(self._ab):
+            y[i] = a * y[i] + b * q_d[i]
         return [y[0], y[1], y[2]]

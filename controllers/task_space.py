@@ -12,7 +12,10 @@ K_h K_I3 = 3``).
     q_d[k] = IK(x_c[k]);   x_c[k+1] = x_c[k] + T K_I (y_d[k] - y[k])
 
 so with the inner loop as one sample of delay (eq. 21) the loop is
-``T K K_I / (z (z - 1))``, eq. (24).
+``T K K_I / (z (z - 1))``, eq. (24). The other discretisation of eq. (22)'s
+integral, backward Euler ``T K_I z / (z - 1)`` (the newest error enters the
+output at once), is the PI law below with ``c = 0``: :func:`outer_law` maps
+the scenario's ``(type, integrator)`` onto ``(mode, c)``.
 
 ``mode="PI"`` (section 4, ``C = T (z + 0.2)/(z - 1)``; the printed 0.06 is T)::
 
@@ -79,7 +82,36 @@ from .errors import WorkspaceError
 from .geometry import PlatformGeometry, nominal_geometry
 from .kinematics import PoseKinematics, check_reachable, jacobian, reachable
 
-__all__ = ["TaskSpaceController", "SamplingError", "MODES", "LAGS"]
+__all__ = ["TaskSpaceController", "SamplingError", "MODES", "LAGS", "INTEGRATORS", "outer_law"]
+
+#: Discretisations of eq. (22)'s integral for the I law (docs/paper-notes.md,
+#: closed loop): "forward" ``T/(z - 1)`` as Fig. 7 prints it, "backward" ``T z/(z - 1)``.
+INTEGRATORS = ("forward", "backward")
+
+
+def outer_law(kind: str, integrator: str = "forward", pi_zero: float = 0.2) -> tuple[str, float]:
+    """The outer law ``(mode, c)`` of a ``(type, integrator, pi_zero)`` setting.
+
+    ``"I"`` with the ``"backward"`` integrator is ``x_c[k] = x_c[k-1] + T K_I e[k]``,
+    ``q_d[k] = IK(x_c[k])``: the PI law ``T (z + c)/(z - 1)`` with ``c = 0``, so the
+    controller, its analysis and its stability limits are those of ``("PI", 0.0)``.
+    The PI law of section 4 already outputs the newest integration; ``integrator``
+    does not change it.
+
+    Raises
+    ------
+    ValueError
+        ``kind`` not in ("I", "PI") or ``integrator`` not in :data:`INTEGRATORS`,
+        naming the allowed values.
+    """
+    if kind not in ("I", "PI"):
+        raise ValueError(f"outer law {kind!r}: allowed 'I', 'PI'")
+    if integrator not in INTEGRATORS:
+        raise ValueError(f"integrator {integrator!r}: allowed {', '.join(INTEGRATORS)}")
+    if kind == "I" and integrator == "backward":
+        return "PI", 0.0
+    return kind, float(pi_zero)
+
 
 MODES = ("I", "PI", "joint_only", "feedforward")
 

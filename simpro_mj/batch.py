@@ -653,15 +653,18 @@ def analytic(scenario: Mapping) -> dict:
     o, i = c["outer"], c["inner"]
     period = o["period_ms"] * 1e-3
     sf = c["setpoint_filter"]
-    filt = (sf["type"], float(sf["time_ms"]) * 1e-3)  # Fig. 13's filter, in the analysis
+    # Fig. 13's filter, in the analysis: (kind, per-leg times) hashable for the caches
+    times = sf["time_ms"] if isinstance(sf["time_ms"], list) else [sf["time_ms"]] * 3
+    filt = (sf["type"], tuple(float(t) * 1e-3 for t in times))
     key = (
         period, i["variant"], i["discretisation"], float(i["zeta"]), float(i["wn_rad_s"]), filt
     )  # fmt: skip
-    real, delay = _limits(
-        o["type"], *key[:3], float(o["pi_zero"]), *key[3:5], int(o["delay_samples"]), filt
-    )
+    from controllers.task_space import outer_law
+
+    law, pi_zero = outer_law(o["type"], o["integrator"], o["pi_zero"])
+    real, delay = _limits(law, *key[:3], pi_zero, *key[3:5], int(o["delay_samples"]), filt)
     f = an.outer_closed_loop(
-        o["type"], list(o["gains"]), period, _lifted(*key), _jacobian_home(), o["pi_zero"]
+        law, list(o["gains"]), period, _lifted(*key), _jacobian_home(), pi_zero
     )[0]
     rho = an.spectral_radius(f)
     return {

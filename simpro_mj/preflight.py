@@ -220,7 +220,7 @@ def _inner_legs(scenario: Mapping, dt: float):
         printed_design,
         redesigned_design,
     )
-    from controllers.setpoint_filter import filter_state_space
+    from controllers.setpoint_filter import filter_state_space, leg_times
 
     inner = scenario["controller"]["inner"]
     reading = scenario["paper_units"]
@@ -254,8 +254,11 @@ def _inner_legs(scenario: Mapping, dt: float):
             )
         legs.append(inner_discrete_loop(design, plants[a], dt, inner["discretisation"]))
     sf = scenario["controller"]["setpoint_filter"]
-    filt = filter_state_space(sf["type"], dt, sf["time_ms"] * 1e-3)
-    legs = [with_setpoint_filter(leg, filt) for leg in legs]
+    times = leg_times(np.asarray(sf["time_ms"], float) * 1e-3)
+    legs = [
+        with_setpoint_filter(leg, filter_state_space(sf["type"], dt, t))
+        for leg, t in zip(legs, times, strict=True)
+    ]
     return legs, (
         f"real inner loops: {sf['type']} set-point filter, {inner['variant']} joint "
         f"controllers on {what}"
@@ -277,7 +280,10 @@ def stability_limit(scenario: Mapping, dt: float = 1e-3) -> dict:
     from controllers.kinematics import jacobian
 
     outer = scenario["controller"]["outer"]
-    mode, period, c = outer["type"], outer["period_ms"] * 1e-3, float(outer["pi_zero"])
+    from controllers.task_space import outer_law
+
+    mode, c = outer_law(outer["type"], outer["integrator"], outer["pi_zero"])
+    period = outer["period_ms"] * 1e-3
     legs, basis = _inner_legs(scenario, dt)
     jac = jacobian(nominal_geometry().home)
     limit = an.real_inner_limit(mode, period, dt=dt, jac=jac, pi_zero=c, legs=legs)

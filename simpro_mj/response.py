@@ -353,6 +353,7 @@ def loop_model(scenario: Mapping) -> LoopModel:
     """The scenario's linearised loop for :func:`controllers.frequency.predict`."""
     from controllers.design import Plant
     from controllers.kinematics import jacobian
+    from controllers.task_space import outer_law
     from controllers.velocity_feedforward import velocity_gains
 
     from .sim import CoSimulation
@@ -365,16 +366,17 @@ def loop_model(scenario: Mapping) -> LoopModel:
     else:
         ident = ctl["inner"]["identified"]
         plants = [Plant(**ident[a]) for a in ("actuator1", "actuator2", "actuator3")]
-    mode = {"task_space": ctl["outer"]["type"], "feedforward": "feedforward"}.get(
-        cs.mode, "joint_only"
-    )
+    o = ctl["outer"]
+    law, pi_zero = outer_law(o["type"], o["integrator"], o["pi_zero"])
+    mode = {"task_space": law, "feedforward": "feedforward"}.get(cs.mode, "joint_only")
     cfg = cs.sensor_cfg
     filt = None
     sf = ctl.get("setpoint_filter")
     if sf:  # Fig. 13's filter between q_d and the joint loops (issue 18)
-        from controllers.setpoint_filter import filter_state_space
+        from controllers.setpoint_filter import filter_state_space, leg_times
 
-        filt = filter_state_space(sf["type"], cs.dt, sf["time_ms"] * 1e-3)
+        times = leg_times(np.asarray(sf["time_ms"], float) * 1e-3)
+        filt = [filter_state_space(sf["type"], cs.dt, t) for t in times]
     return LoopModel(
         plants=plants,
         designs=cs.joint.designs,
@@ -387,8 +389,8 @@ def loop_model(scenario: Mapping) -> LoopModel:
         period=cs.outer_every * cs.dt,
         dt=cs.dt,
         method=ctl["inner"]["discretisation"],
-        pi_zero=float(ctl["outer"]["pi_zero"]),
-        outer_law=ctl["outer"]["type"],
+        pi_zero=pi_zero,
+        outer_law=law,
         imu_alpha=cfg.imu_alpha,
         imu_every=cfg.imu_every,
         model_tau=ctl["feedforward"]["model_tau_ms"] * 1e-3,

@@ -89,6 +89,7 @@ import numpy as np
 from controllers.errors import WorkspaceError
 from controllers.geometry import nominal_geometry
 from controllers.kinematics import check_reachable, reachable
+from controllers.task_space import INTEGRATORS
 
 from .errors import UserInputError
 from .params import (
@@ -224,6 +225,11 @@ DEFAULT_SCENARIO: dict = {
             "gains": [3.0, 3.0, 3.0],
             # c of the PI law T (z + c)/(z - 1), section 4; used with type PI only
             "pi_zero": 0.2,
+            # discretisation of eq. (22)'s integral (I law): backward T z/(z - 1), the
+            # newest error reaches q_d at once and Fig. 13's ramp filter spreads it over
+            # T | forward T/(z - 1), Fig. 7 as printed (one more period of delay:
+            # 23.8 % vs 8 % pitch overshoot at K K_I = 3; docs/paper-notes.md)
+            "integrator": "backward",
             # outer sampling period T, an integer multiple of the 1 ms physics step
             "period_ms": 60,
             # inner loop as a delay in the analysis: 1 sample (60 ms, eq. 21) or 2
@@ -279,7 +285,10 @@ DEFAULT_SCENARIO: dict = {
         # time_ms; with time_ms = T the 60 ms steps of q_d become ramps: no valve
         # kick) | first_order (time constant time_ms) | zero_cancel (k_i/(s + k_i),
         # eq. 29's zero) | none. Chosen by analysis: docs/paper-notes.md
-        "setpoint_filter": {"type": "ramp", "time_ms": 60.0},
+        # time_ms per leg: T for leg 1; T/2 for legs 2-3, whose k_p (640 V/m) is 8.3
+        # times leg 1's, so a 60 ms step of their q_d kicks their valves 8 times less
+        # while their ramp's delay halves (step_roll overshoot 11.4 % -> 7.9 %)
+        "setpoint_filter": {"type": "ramp", "time_ms": [60.0, 30.0, 30.0]},
         # unreachable set-points: reject at load time (false) or clamp (true)
         "clamp_setpoints": False,
     },
@@ -895,6 +904,22 @@ def _enum(tree: Mapping, path: str, choices: tuple) -> None:
         raise _invalid(path, node, f"one of {list(choices)}{closest(str(node), map(str, choices))}")
 
 
+def _setpoint_filter_times(tree: Mapping, path: str) -> None:
+    """One time for every leg or three (controllers.setpoint_filter.leg_times), each
+    an integer multiple of the 1 ms step (the ramp averages whole steps)."""
+    node: Any = tree
+    for part in path.split("."):
+        node = node[part]
+    values = node if isinstance(node, list) else [node]
+    ok = len(values) in (1, 3) and all(
+        abs(float(v) / _PHYSICS_DT_MS - round(float(v) / _PHYSICS_DT_MS)) < 1e-9 for v in values
+    )
+    if not ok:
+        raise _invalid(
+            path, node, f"one or 3 (per leg) multiples of the {_PHYSICS_DT_MS:g} ms physics step"
+        )
+
+
 def _multiple_of_step(tree: Mapping, path: str) -> None:
     node: Any = tree
     for part in path.split("."):
@@ -961,6 +986,7 @@ def validate_scenario(tree: Mapping) -> dict:
     _enum(s, f"{c}.outer.type", OUTER_TYPES)
     _require(s, f"{c}.outer.gains", lambda v: v >= 0, "3 numbers >= 0 (K K_I, 1/s)")
     _require(s, f"{c}.outer.pi_zero", lambda v: -1 < v < 1, "-1 < c < 1")
+    _enum(s, f"{c}.outer.integrator", INTEGRATORS)
     _multiple_of_step(s, f"{c}.outer.period_ms")
     _enum(s, f"{c}.outer.delay_samples", DELAY_SAMPLES)
     _enum(s, f"{c}.inner.variant", INNER_VARIANTS)
@@ -968,6 +994,7 @@ def validate_scenario(tree: Mapping) -> dict:
     _enum(s, f"{c}.inner.design_plant", DESIGN_PLANTS)
     _enum(s, f"{c}.setpoint_filter.type", SETPOINT_FILTERS)
     _require(s, f"{c}.setpoint_filter.time_ms", lambda v: 0 < v <= 1e4, "0 < ms <= 1e4")
+    _setpoint_filter_times(s, f"{c}.setpoint_filter.time_ms")
     for act in ("actuator1", "actuator2", "actuator3"):
         _require(s, f"{c}.inner.identified.{act}.b", lambda v: v > 0, "> 0 m/V")
         _require(s, f"{c}.inner.identified.{act}.a1", lambda v: v >= 0, ">= 0 1/s")

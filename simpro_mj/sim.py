@@ -35,7 +35,7 @@ from controllers.geometry import nominal_geometry
 from controllers.joint import JointControllers
 from controllers.kinematics import inverse_kinematics
 from controllers.setpoint_filter import SetpointFilter
-from controllers.task_space import TaskSpaceController
+from controllers.task_space import TaskSpaceController, outer_law
 
 from .errors import PhysicsError, UserInputError
 from .faults import FAULT_COLUMNS, NEVER, FaultSchedule
@@ -135,18 +135,17 @@ class CoSimulation:
         self.mode = ctl["mode"]
         outer = ctl["outer"]
         self.outer_every = _ms_to_steps(outer["period_ms"], dt, "controller.outer.period_ms")
+        law, pi_zero = outer_law(outer["type"], outer["integrator"], outer["pi_zero"])
         self.task = TaskSpaceController(
-            mode={"task_space": outer["type"], "feedforward": "feedforward"}.get(
-                self.mode, "joint_only"
-            ),
+            mode={"task_space": law, "feedforward": "feedforward"}.get(self.mode, "joint_only"),
             # feedforward: the correction's own K K_I (controller.feedforward.gains)
             gains=ctl["feedforward"]["gains"] if self.mode == "feedforward" else outer["gains"],
             period=self.outer_every * dt,
             geometry=self.geometry,
             clamp=bool(ctl.get("clamp_setpoints", False)),
             inner_dt=dt,
-            pi_zero=float(outer.get("pi_zero", 0.2)),
-            outer_law=outer["type"],
+            pi_zero=pi_zero,
+            outer_law=law,
             model_tau=ctl["feedforward"]["model_tau_ms"] * 1e-3,
             lag=ctl["feedforward"]["lag"],
             average=bool(ctl["feedforward"]["average"]),
@@ -172,7 +171,9 @@ class CoSimulation:
         sf = ctl["setpoint_filter"]
         # Fig. 13's "Filter": q_d (outer loop every T, or the IK every 1 ms in
         # joint-only mode) -> joint references (controllers.setpoint_filter)
-        self.setpoint_filter = SetpointFilter(sf["type"], dt=dt, time=sf["time_ms"] * 1e-3)
+        self.setpoint_filter = SetpointFilter(
+            sf["type"], dt=dt, time=(np.asarray(sf["time_ms"], float) * 1e-3).tolist()
+        )
         act = scenario["actuator"]
         self.actuators = make_actuators(
             act["model"],
