@@ -21,8 +21,8 @@ are the outer gains inside the analysed stability limit.
   saturation), ``nonlinear`` is linearised by ``controller.inner.identified``
   (the plant preset's identified models), each joint loop behind the
   scenario's set-point filter (Fig. 13). For the shipped I loop at T = 60 ms
-  that is 7.47 (linear) and 6.90 (nonlinear, preset ``paper``); without the
-  filter 9.46 and 8.53.
+  (backward Euler, ramps of 60 / 30 / 30 ms) that is 14.08 (linear) and 11.84
+  (nonlinear, preset ``paper``); with Fig. 7's forward integrator 7.52 (linear).
 
 :func:`preflight` runs both and returns the warnings and the figures that
 ``metrics.json`` records under ``preflight``.

@@ -221,7 +221,7 @@ DEFAULT_SCENARIO: dict = {
         "outer": {
             "type": "I",  # I (eq. 22) | PI (section 4)
             # K * K_I per axis (roll, pitch, heave), 1/s: section 5.2.3's 3 (the
-            # analysed limit on the default plant is 6.9; docs/paper-notes.md)
+            # analysed limit on the default plant is 11.8; docs/paper-notes.md)
             "gains": [3.0, 3.0, 3.0],
             # c of the PI law T (z + c)/(z - 1), section 4; used with type PI only
             "pi_zero": 0.2,
@@ -558,6 +558,10 @@ def _integer(value: Any, path: str) -> int:
     return int(x)
 
 
+#: Per-leg lists that also take one number for all legs.
+_ONE_FOR_ALL = frozenset({"controller.setpoint_filter.time_ms"})
+
+
 def _check_tree(value: Any, default: Any, path: str) -> Any:
     """Check ``value`` against the default's structure and type; return it normalised."""
     if isinstance(default, dict):
@@ -585,8 +589,11 @@ def _check_tree(value: Any, default: Any, path: str) -> Any:
         return out
     if isinstance(default, list):
         n = len(default)
+        if path in _ONE_FOR_ALL and not isinstance(value, (list, tuple, Mapping, str)):
+            value = [_number(value, path)] * n  # one number: every leg's
         if not isinstance(value, (list, tuple)) or len(value) != n:
-            raise _wrong_type(path, value, f"a list of {n} numbers like {default}")
+            one = "one number or " if path in _ONE_FOR_ALL else ""
+            raise _wrong_type(path, value, f"{one}a list of {n} numbers like {default}")
         return [_number(v, f"{path}[{i}]") for i, v in enumerate(value)]
     if isinstance(default, bool):
         if not isinstance(value, bool):

@@ -7,7 +7,14 @@ import math
 import numpy as np
 import pytest
 
-from controllers.setpoint_filter import KINDS, PAPER_KI, SetpointFilter, filter_state_space
+from controllers.setpoint_filter import (
+    KINDS,
+    PAPER_KI,
+    SetpointFilter,
+    filter_state_space,
+    leg_times,
+)
+from simpro_mj.errors import UserInputError
 from simpro_mj.scenario import load_scenario
 from simpro_mj.sim import simulate
 
@@ -48,6 +55,29 @@ def test_state_space_for_the_analysis_is_the_same_filter(kind):
         got.append((c @ s + d[:, 0] * v)[0] if a.size else d[0, 0] * v)
         s = a @ s + b[:, 0] * v
     np.testing.assert_allclose(got, want, atol=1e-12)
+
+
+def test_per_leg_times_filter_each_leg_with_its_own_ramp():
+    """time = 3 values: leg i averages over its own window; the analysis' per-leg
+    state space is the same arithmetic."""
+    f = SetpointFilter("ramp", dt=DT, time=[0.06, 0.03, 0.01])
+    f.reset([0.0, 0.0, 0.0])
+    x = np.r_[np.zeros(5), np.ones(100)]
+    y = np.array([f.update([v, v, v]) for v in x])
+    for i, n in enumerate((60, 30, 10)):
+        np.testing.assert_allclose(y[:, i], np.clip((np.arange(105) - 4) / n, 0, 1), atol=1e-12)
+    assert leg_times(0.05) == [0.05] * 3
+    with pytest.raises(ValueError, match="1 or 3"):
+        leg_times([0.06, 0.03])
+
+
+def test_scenario_takes_one_time_or_three_multiples_of_the_step():
+    one = load_scenario("step_pitch", ["controller.setpoint_filter.time_ms=40"])
+    assert one["controller"]["setpoint_filter"]["time_ms"] == [40.0, 40.0, 40.0]
+    with pytest.raises(UserInputError, match="one number or a list of 3"):
+        load_scenario("step_pitch", ["controller.setpoint_filter.time_ms=[60, 30]"])
+    with pytest.raises(UserInputError, match="multiples of the 1 ms"):
+        load_scenario("step_pitch", ["controller.setpoint_filter.time_ms=[60, 30.5, 30]"])
 
 
 def test_rejects_bad_arguments():
