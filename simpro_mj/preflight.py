@@ -334,8 +334,10 @@ def gain_warnings(scenario: Mapping) -> tuple[list[str], dict]:
 def preflight(scenario: Mapping, model=None) -> tuple[list[str], dict]:
     """Payload check (raises), gain warnings and set-point components that start
     after the run ends (warned: they never act); returns ``(warnings, figures)``."""
+    from .autoident import with_identified
     from .scenario import late_setpoints
 
+    scenario = with_identified(scenario)[0]  # design_plant identified: its own plant's
     payload = check_payload(scenario, model)
     warnings, stability = gain_warnings(scenario)
     warnings += late_setpoints(scenario)

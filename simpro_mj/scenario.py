@@ -141,6 +141,7 @@ FEEDFORWARD_LAGS = ("model", "joints")  # controllers.task_space.LAGS
 INNER_VARIANTS = ("printed", "corrected", "redesigned")
 DISCRETISATIONS = ("tustin", "zoh")
 DESIGN_PLANTS = ("paper", "identified")
+IDENTIFY_CHOICES = ("auto", "preset")  # controller.inner.identify (simpro_mj.autoident)
 ACTUATOR_MODELS = ("nonlinear", "linear")
 PAPER_UNITS = ("volts", "metres")  # controllers.design.READINGS
 SETPOINT_FILTERS = ("none", "first_order", "ramp", "zero_cancel")  # controllers.setpoint_filter
@@ -243,6 +244,10 @@ DEFAULT_SCENARIO: dict = {
             # "identified" (the model this simulation identifies, `simpro-sim identify`,
             # which is what the paper's procedure - identify, then place poles - gives)
             "design_plant": "paper",
+            # with design_plant identified: "auto" identifies the scenario's own plant
+            # when it is not its preset's (Fig. 12's experiment, cached by the plant's
+            # hash: simpro_mj.autoident) | "preset": the identified models below as given
+            "identify": "auto",
             # b / (s (s^2 + a1 s + a0)) per actuator, SI (m/V); set by the plant
             # preset (plant.preset: what `simpro-sim identify` measures on it);
             # the numbers here are the schema's only
@@ -997,6 +1002,7 @@ def validate_scenario(tree: Mapping) -> dict:
     _multiple_of_step(s, f"{c}.outer.period_ms")
     _enum(s, f"{c}.outer.delay_samples", DELAY_SAMPLES)
     _enum(s, f"{c}.inner.variant", INNER_VARIANTS)
+    _enum(s, f"{c}.inner.identify", IDENTIFY_CHOICES)
     _enum(s, f"{c}.inner.discretisation", DISCRETISATIONS)
     _enum(s, f"{c}.inner.design_plant", DESIGN_PLANTS)
     _enum(s, f"{c}.setpoint_filter.type", SETPOINT_FILTERS)

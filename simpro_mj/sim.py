@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import math
 import struct
+import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -104,6 +105,10 @@ def _ms_to_steps(ms: float, dt: float, path: str) -> int:
     return k
 
 
+def _say(message: str) -> None:
+    print(message, file=sys.stderr, flush=True)
+
+
 class CoSimulation:
     """A scenario's plant, sensors and controllers, ready to run.
 
@@ -116,8 +121,11 @@ class CoSimulation:
     """
 
     def __init__(self, scenario: dict, model: mujoco.MjModel | None = None):
+        from .autoident import with_identified
         from .scenario import reference
 
+        # design_plant identified: the scenario's own plant's models (cached)
+        scenario, self.identified_source = with_identified(scenario, _say)
         self.scenario = scenario
         self.model = load_model(scenario["plant"]) if model is None else model
         m = self.model

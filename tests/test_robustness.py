@@ -460,20 +460,20 @@ def test_gain_above_the_analysed_limit_is_warned_and_recorded(tmp_path, capsys):
     assert rc == 0
     lines = [line for line in err.splitlines() if line.startswith("warning: ")]
     assert len(lines) == 1, err
-    assert "controller.outer.gains[1] = 12 exceeds the analysed stability limit 6.9" in lines[0]
+    assert "controller.outer.gains[1] = 12 exceeds the analysed stability limit 11.8" in lines[0]
     assert "(I, T = 60 ms, real inner loops" in lines[0]
     doc = json.loads((out / "metrics.json").read_text())
     assert doc["warnings"] == [lines[0].removeprefix("warning: ")]
-    assert doc["preflight"]["stability"]["limit"] == pytest.approx(6.8975, abs=1e-3)
-    # the shipped gains are inside the limit, on the linear plant too (limit 7.47)
+    assert doc["preflight"]["stability"]["limit"] == pytest.approx(11.8447, abs=1e-3)
+    # the shipped gains are inside the limit, on the linear plant too (limit 14.08)
     from simpro_mj.preflight import gain_warnings
 
     assert gain_warnings(load_scenario("step_pitch"))[0] == []
     w, info = gain_warnings(load_scenario("step_pitch", ["actuator.model=linear"]))
-    assert w == [] and info["limit"] == pytest.approx(7.4736, abs=1e-3)
+    assert w == [] and info["limit"] == pytest.approx(14.0843, abs=1e-3)
     # one gain on every axis above the limit: one line naming the value
-    w, _ = gain_warnings(load_scenario("step_pitch", ["controller.outer.gains=[9, 9, 9]"]))
-    assert len(w) == 1 and "gains = 9 on every axis exceeds" in w[0] and "6.9" in w[0]
+    w, _ = gain_warnings(load_scenario("step_pitch", ["controller.outer.gains=[13, 13, 13]"]))
+    assert len(w) == 1 and "gains = 13 on every axis exceeds" in w[0] and "11.8" in w[0]
 
 
 # ------------------------------------------------------------------ divergence

@@ -1,0 +1,100 @@
+"""design_plant: identified on the scenario's own plant (simpro_mj.autoident, issue 18)."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+import simpro_mj.autoident as ai
+from simpro_mj.errors import UserInputError
+from simpro_mj.scenario import load_scenario
+
+IDENT = "controller.inner.design_plant=identified"
+
+
+@pytest.fixture
+def cache(tmp_path, monkeypatch):
+    monkeypatch.setenv("SIMPRO_CACHE_DIR", str(tmp_path))
+    monkeypatch.setattr(ai, "_memo", {})
+    return tmp_path / "identified"
+
+
+@pytest.fixture
+def fake_identify(monkeypatch):
+    """Counts the experiments and returns models scaled by the payload (the real
+    experiment is tested below, once)."""
+    import simpro_mj.identify as ident
+
+    calls = []
+
+    def fake(tree, legs=(1, 2, 3), records=None):
+        calls.append(tree)
+        m = tree["model"]["payload"]["mass_kg"]
+        return {f"actuator{i}": {"b": 10.0 + i, "a1": 20.0, "a0": 100.0 + m} for i in legs}
+
+    monkeypatch.setattr(ident, "identify", fake)
+    return calls
+
+
+def test_the_presets_own_plant_needs_no_experiment(cache, fake_identify):
+    sc = load_scenario("step_pitch", [IDENT])
+    models, source = ai.identified_models(sc)
+    assert source == "preset" and fake_identify == []
+    assert models == sc["controller"]["inner"]["identified"]
+
+
+def test_a_changed_plant_is_identified_once_then_read_from_the_cache(cache, fake_identify):
+    sc = load_scenario("step_pitch", [IDENT, "plant.payload.mass_kg=80"])
+    models, source = ai.identified_models(sc)
+    assert source == "identified" and len(fake_identify) == 1
+    assert fake_identify[0]["model"]["payload"]["mass_kg"] == 80.0  # the scenario's plant
+    assert models["actuator1"]["a0"] == 180.0
+    files = list(cache.glob("*.json"))
+    assert len(files) == 1 and json.loads(files[0].read_text()) == models
+    ai._memo.clear()  # a new process: the file answers
+    again, source = ai.identified_models(sc)
+    assert source == "cache" and again == models and len(fake_identify) == 1
+    other = load_scenario("step_pitch", [IDENT, "plant.payload.mass_kg=81"])
+    assert ai.identified_models(other)[1] == "identified" and len(fake_identify) == 2
+
+
+def test_damaged_cache_file_is_identified_again(cache, fake_identify):
+    sc = load_scenario("step_pitch", [IDENT, "plant.payload.mass_kg=80"])
+    ai.identified_models(sc)
+    (f,) = cache.glob("*.json")
+    f.write_text("{not json")
+    ai._memo.clear()
+    assert ai.identified_models(sc)[1] == "identified" and len(fake_identify) == 2
+
+
+def test_preset_choice_and_paper_design_run_no_experiment(cache, fake_identify):
+    sc = load_scenario(
+        "step_pitch", [IDENT, "plant.payload.mass_kg=80", "controller.inner.identify=preset"]
+    )
+    assert ai.identified_models(sc)[1] == "preset"
+    paper = load_scenario("step_pitch", ["plant.payload.mass_kg=80"])
+    assert ai.with_identified(paper) == (paper, "preset")
+    assert fake_identify == []
+    with pytest.raises(UserInputError, match="controller.inner.identify"):
+        load_scenario("step_pitch", ["controller.inner.identify=always"])
+
+
+def test_the_simulation_designs_on_the_scenarios_own_plant(cache, monkeypatch):
+    """The real experiment, short: the heavy cabin with a lighter payload identifies
+    a higher natural frequency than its preset's models, and the joint controllers
+    are placed on what was identified (k_p b kept: corrected_design)."""
+    sc = load_scenario(
+        "step_pitch",
+        ["plant.preset=heavy_cabin", IDENT, "plant.payload.mass_kg=120", "duration_s=0.2"],
+    )
+    import simpro_mj.identify as ident
+    from simpro_mj.sim import CoSimulation
+
+    monkeypatch.setitem(ident.DEFAULT_IDENTIFY_PARAMS, "duration_s", 4.0)  # short PRBS
+    preset_a0 = sc["controller"]["inner"]["identified"]["actuator1"]["a0"]
+    cs = CoSimulation(sc)
+    assert cs.identified_source == "identified"
+    own = cs.scenario["controller"]["inner"]["identified"]
+    assert own["actuator1"]["a0"] > 1.2 * preset_a0  # lighter: stiffer per kg
+    assert len(list(cache.glob("*.json"))) == 1
