@@ -18,8 +18,8 @@ def test_shipped_presets_and_the_default():
     assert {"paper", "heavy_cabin"} <= set(shipped_presets())
     sc = load_scenario("step_pitch")
     assert sc["plant"]["preset"] == "paper"
-    assert sc["plant"]["payload"]["mass_kg"] == pytest.approx(18.0)
-    assert sc["actuator"]["pneumatics"]["valve"]["sonic_conductance_dm3_per_s_bar"] == 2.3
+    assert sc["plant"]["payload"]["mass_kg"] == pytest.approx(22.7)
+    assert sc["actuator"]["pneumatics"]["valve"]["sonic_conductance_dm3_per_s_bar"] == 2.85
     # the preset's identified models are what design_plant: identified uses
     assert sc["controller"]["inner"]["identified"] == load_preset("paper")["identified"]
     heavy = load_scenario("step_pitch", ["plant.preset=heavy_cabin"])
@@ -33,7 +33,7 @@ def test_scenario_values_override_the_preset():
     assert sc["plant"]["payload"]["mass_kg"] == 40.0
     sc = load_scenario("step_pitch", ["actuator.pneumatics.valve.underlap_fraction=0.03"])
     assert sc["actuator"]["pneumatics"]["valve"]["underlap_fraction"] == 0.03
-    assert sc["actuator"]["pneumatics"]["valve"]["sonic_conductance_dm3_per_s_bar"] == 2.3
+    assert sc["actuator"]["pneumatics"]["valve"]["sonic_conductance_dm3_per_s_bar"] == 2.85
 
 
 def test_unknown_preset_is_a_one_line_error():

@@ -138,4 +138,7 @@ def test_a_one_percent_change_fails_the_check(monkeypatch):
     got, _ = mr.entry("step_pitch")
     bad = differences(got, REF["scenarios"]["step_pitch"])
     assert any(b.startswith("samples.pitch_rad") for b in bad), bad
-    assert any(b.startswith("samples.heave_m") for b in bad), bad
+    # the heavier cabin needs more force and pressure to hold (heave itself stays within
+    # one encoder count: the K K_I = 3 loop holds it)
+    assert any(b.startswith("stats.f1_n") for b in bad), bad
+    assert any(b.startswith(("samples.p1a_pa", "stats.p1a_pa")) for b in bad), bad

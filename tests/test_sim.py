@@ -17,6 +17,7 @@ import pytest
 from controllers.analysis import outer_step, real_inner_step, step_metrics
 from controllers.geometry import nominal_geometry
 from controllers.kinematics import jacobian
+from controllers.task_space import outer_law
 from simpro_mj.cmd_compare import compare
 from simpro_mj.scenario import load_scenario
 from simpro_mj.sim import simulate
@@ -94,9 +95,11 @@ def test_transient_agrees_with_real_inner_loop_analysis():
     assert res.status == "ok"
     t, y = _pitch_step_response(res.columns)
     jac = jacobian(nominal_geometry().home)
+    law, c = outer_law("I", "backward")  # the shipped I law: PI with c = 0
     tp, yp = real_inner_step(
-        "I", 3.0, 0.06, 4.9, variant="corrected", jac=jac, axis=1, setpoint_filter=("ramp", 0.06)
-    )
+        law, 3.0, 0.06, 4.9, variant="corrected", jac=jac, axis=1, pi_zero=c,
+        setpoint_filter=("ramp", (0.06, 0.03, 0.03)),  # the shipped per-leg ramps
+    )  # fmt: skip
     n = min(len(y), len(tp))
     rms_real = np.sqrt(np.mean((y[:n] - yp[:n, 1]) ** 2))
     delay = np.interp(tp[:n], np.arange(100) * 0.06, outer_step("I", 3.0, 0.06, 100))
