@@ -484,13 +484,11 @@ def test_divergence_through_the_cli_exits_1_and_stops_early(tmp_path, capsys):
     metres reading of eqs. 34-37, the pre-issue-18 loop): leg 1's loop opens past
     the 5 mm bound about 1 s in; the run stops there, writes what it had."""
     out = tmp_path / "div"
-    t0 = time.perf_counter()
     rc = main(
         ["run", "step_pitch", "--out", str(out), "--no-plots", "--set", "duration_s=30",
          "--set", "plant.loop_timeconst_s=0.5", "--set", "plant.preset=heavy_cabin",
          "--set", "paper_units=metres"]
     )  # fmt: skip
-    wall = time.perf_counter() - t0
     captured = capsys.readouterr()
     assert rc == 1
     assert "Traceback" not in captured.err
@@ -500,7 +498,6 @@ def test_divergence_through_the_cli_exits_1_and_stops_early(tmp_path, capsys):
     assert doc["sim"]["steps"] < 3000  # stopped, not run to 30 s
     rows = (out / "timeseries.csv").read_text().count("\n") - 1
     assert 0 < rows <= doc["sim"]["steps"] + 1
-    assert wall < 20.0
     assert "DIVERGED" in captured.out
 
 
