@@ -18,14 +18,17 @@ Jury conditions ``|a0| < 1``, ``P(1) > 0``, ``P(-1) > 0`` give closed forms:
 For any order :func:`stability_limit` finds the first gain at which a root
 reaches the unit circle (``z = 1``, ``z = -1`` or a complex pair: zero of the
 imaginary part of ``-A/B`` on the circle, refined with ``brentq``) and checks
-it with :func:`jury_stable` on both sides.
+it with the poles (:func:`schur_stable`) just above.
 
 The "real inner loop" replaces the delay by the discretised joint controller
 and the identified plant (ZOH at 1 ms), lifted to the outer period
 (``Phi = A_cl^n``, ``Gamma = sum A_cl^i B_cl``), mapped to the task space
 with the IK Jacobian at home.
 
-Imports numpy and scipy only.
+Imports numpy and scipy; python-control (``control``) on use, for the root
+loci and step information (``analyze``). The pieces every run's preflight
+uses stay numpy (the discretisation, the realisation, the stability
+limit): each says why and is tested against python-control.
 """
 
 from __future__ import annotations
@@ -46,7 +49,7 @@ from .design import (
 from .joint import discretise, leg_state_space
 
 __all__ = [
-    "jury_stable",
+    "schur_stable",
     "outer_polynomials",
     "closed_form_limit",
     "stability_limit",
@@ -71,26 +74,20 @@ __all__ = [
 # --------------------------------------------------------------------------
 # Outer loop with the inner loop as a delay (eqs. 21, 24-27)
 # --------------------------------------------------------------------------
-def jury_stable(coeffs, tol: float = 0.0) -> bool:
-    """Jury (Schur-Cohn) test: all roots of ``coeffs`` (highest power first) in |z| < 1.
+def schur_stable(coeffs, tol: float = 0.0) -> bool:
+    """All roots of ``coeffs`` (highest power first) inside the unit circle, ``|z| < 1 - tol``.
 
-    With ``P(z) = a_n z^n + ... + a_0`` and its reciprocal
-    ``P*(z) = z^n P(1/z)``, ``P`` is Schur stable iff ``|a_0| < |a_n|`` and
-    ``(a_n P - a_0 P*) / z`` (degree n - 1, the next pair of rows of Jury's
-    table) is Schur stable. Coefficients of the reduced polynomial, low power
-    first: ``b_j = a_n a_{j+1} - a_0 a_{n-1-j}``.
+    The poles of ``1 / P(z)``; they replace the hand-written Jury (Schur-Cohn)
+    table of the first version (issue 14): same verdict on every polynomial
+    whose largest root is not within 1e-9 of the circle
+    (``tests/test_analysis.py``).
     """
     a = np.trim_zeros(np.asarray(coeffs, dtype=float), "f")
     if a.size == 0:
-        raise ValueError("jury_stable: zero polynomial")
-    a = a[::-1]  # low power first
-    while a.size > 1:
-        n = a.size - 1
-        if not abs(a[0]) < abs(a[n]) - tol:
-            return False
-        a = a[n] * a[1:] - a[0] * a[::-1][1:]
-        a = a / np.max(np.abs(a))  # keep the numbers O(1)
-    return True
+        raise ValueError("schur_stable: zero polynomial")
+    if a.size == 1:
+        return True
+    return bool(np.max(np.abs(np.roots(a))) < 1.0 - tol)
 
 
 def outer_polynomials(
@@ -139,8 +136,13 @@ def stability_limit(a, b, g_max: float = 1e4) -> float:
     Candidates are the gains at which a root lies on the unit circle:
     ``g = -A(1)/B(1)``, ``g = -A(-1)/B(-1)``, and ``g = -A(e^jw)/B(e^jw)`` where
     that is real (zeros of its imaginary part, refined by ``brentq``). The
-    smallest positive candidate at which the Jury test fails just above is
-    returned (``inf`` if none below ``g_max``).
+    smallest positive candidate at which the closed loop is unstable just above
+    is returned (``inf`` if none below ``g_max``).
+
+    Kept by hand: python-control 0.10's ``stability_margins`` of ``B / A``
+    reports a spurious crossing at ``w = 0`` (``gm ~ 1e-15``, the integrator
+    at ``z = 1``) and misses the one at ``w = pi`` (PI, ``d = 1``: ``inf``
+    instead of 41.7), measured in ``tests/test_analysis.py``.
     """
     from scipy.optimize import brentq
 
@@ -164,7 +166,7 @@ def stability_limit(a, b, g_max: float = 1e4) -> float:
     cands = sorted(c for c in cands if 0 < c < g_max and np.isfinite(c))
     for g in cands:
         eps = 1e-9 * max(g, 1.0)
-        if not jury_stable(np.polyadd(a, (g + eps) * b)):
+        if not schur_stable(np.polyadd(a, (g + eps) * b)):
             return float(g)
     return float("inf")
 
@@ -200,15 +202,27 @@ def outer_step(
 
 
 def root_locus(a, b, gains) -> np.ndarray:
-    """Roots (len(gains), order) of ``A + g B`` for each gain."""
-    gains = np.asarray(gains, float)
-    return np.array([np.sort_complex(np.roots(np.polyadd(a, g * b))) for g in gains])
+    """Roots (len(gains), order) of ``A + g B`` for each gain.
+
+    :func:`control.root_locus_map` of the loop ``B / A`` (discrete); its
+    branches are ordered for continuity from one gain to the next.
+    """
+    import control  # imported on use: ``import controllers`` stays light
+
+    loop = control.tf(np.asarray(b, float), np.asarray(a, float), True)
+    return np.asarray(control.root_locus_map(loop, np.asarray(gains, float)).loci)
 
 
 # --------------------------------------------------------------------------
 # Inner loops
 # --------------------------------------------------------------------------
 def _companion(num, den):
+    """Controllable canonical ``(A, B, C, D)`` of ``num / den``.
+
+    Kept by hand (it runs in every run's preflight, which python-control's
+    1-2 s import would slow): equal to :func:`control.tf2ss` exactly
+    (``tests/test_analysis.py``).
+    """
     num = np.atleast_1d(np.asarray(num, float))
     den = np.asarray(den, float)
     num, den = num / den[0], den / den[0]
@@ -240,26 +254,32 @@ def tf_step(num, den, t) -> np.ndarray:
 
 
 def step_metrics(t, y, final: float | None = None, settle: float = 0.02) -> dict:
-    """Rise time 10-90 %, settling time (band ``settle``), overshoot (%) of a step."""
+    """Rise time 10-90 %, settling time (band ``settle``), overshoot (%) of a step.
+
+    :func:`control.step_info` on the samples with ``final`` as the steady
+    state (default the last sample). A response that never reaches 90 % of it
+    has no rise time, overshoot or settling (NaN, 0, NaN: ``step_info`` would
+    raise); a zero final value is refused (``step_info`` divides by it).
+    """
+    import control  # imported on use: ``import controllers`` stays light
+
     t = np.asarray(t, float)
     y = np.asarray(y, float)
     yf = float(y[-1]) if final is None else float(final)
-    out = {"final": yf}
-    try:
-        t10 = t[np.nonzero(y >= 0.1 * yf)[0][0]]
-        t90 = t[np.nonzero(y >= 0.9 * yf)[0][0]]
-        out["rise_time_s"] = float(t90 - t10)
-    except IndexError:
-        out["rise_time_s"] = float("nan")
-    out["overshoot_pct"] = float(max(0.0, (y.max() - yf) / abs(yf) * 100.0)) if yf else 0.0
-    outside = np.nonzero(np.abs(y - yf) > settle * abs(yf))[0]
-    if not outside.size:
-        out["settling_time_s"] = float(t[0])
-    elif outside[-1] + 1 < t.size:
-        out["settling_time_s"] = float(t[outside[-1] + 1])
-    else:
-        out["settling_time_s"] = float("nan")  # not settled within the record
-    return out
+    if yf == 0.0:
+        raise ValueError("step_metrics: the final value is 0; allowed: a step to a non-zero value")
+    nan = float("nan")
+    if not np.any(np.sign(yf) * (y - 0.9 * yf) >= 0):
+        return {"final": yf, "rise_time_s": nan, "overshoot_pct": 0.0, "settling_time_s": nan}
+    info = control.step_info(
+        y, T=t, yfinal=yf, SettlingTimeThreshold=settle, RiseTimeLimits=(0.1, 0.9)
+    )
+    return {
+        "final": yf,
+        "rise_time_s": float(info["RiseTime"]),
+        "overshoot_pct": float(info["Overshoot"]),
+        "settling_time_s": float(info["SettlingTime"]),
+    }
 
 
 def inner_summary(

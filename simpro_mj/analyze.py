@@ -188,7 +188,8 @@ def _outer_delay(mode, gain, period, delay, pi_zero, duration) -> dict:
         "gain": gain,
         "stability_limit": lim,
         "stability_limit_closed_form": closed,
-        "jury_stable_at_gain": an.jury_stable(np.polyadd(a, gain * b)),
+        # key kept (the JSON contract); the poles decide it now (issue 14)
+        "jury_stable_at_gain": an.schur_stable(np.polyadd(a, gain * b)),
         "poles": _pairs(poles),
         "pole_magnitudes": [float(abs(p)) for p in poles],
         "step": an.step_metrics(t, y, final=1.0) if max(abs(poles)) < 1 else None,

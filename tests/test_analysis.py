@@ -10,11 +10,12 @@ import pytest
 from controllers import analysis as an
 from controllers.analysis import (
     closed_form_limit,
-    jury_stable,
     outer_poles,
     outer_polynomials,
     real_inner_closed_loop,
     real_inner_limit,
+    root_locus,
+    schur_stable,
     stability_limit,
     step_metrics,
     tf_step,
@@ -23,7 +24,23 @@ from controllers.analysis import (
 T = 0.06
 
 
-def test_jury_matches_roots_on_random_polynomials():
+def _jury_table(coeffs) -> bool:
+    """The hand-written Jury (Schur-Cohn) test that ``schur_stable`` replaced (issue 14):
+    ``|a_0| < |a_n|`` and the reduced ``(a_n P - a_0 P*) / z`` Schur, recursively."""
+    a = np.trim_zeros(np.asarray(coeffs, dtype=float), "f")[::-1]
+    while a.size > 1:
+        n = a.size - 1
+        if not abs(a[0]) < abs(a[n]):
+            return False
+        a = a[n] * a[1:] - a[0] * a[::-1][1:]
+        a = a / np.max(np.abs(a))
+    return True
+
+
+def test_poles_agree_with_the_jury_table_on_random_polynomials():
+    """The poles and the Jury table give the same verdict on 500 random real polynomials of
+    degree 1-10 whose largest root is not within 1e-3 of the unit circle (nearer, both are
+    decided by rounding)."""
     rng = np.random.default_rng(1)
     checked = 0
     for _ in range(500):
@@ -33,9 +50,101 @@ def test_jury_matches_roots_on_random_polynomials():
         if abs(np.abs(roots).max() - 1) < 1e-3:
             continue
         coeffs = np.real(np.poly(roots)) * rng.uniform(0.5, 3) * rng.choice([-1, 1])
-        assert jury_stable(coeffs) == (np.abs(roots).max() < 1)
+        truth = np.abs(roots).max() < 1
+        assert schur_stable(coeffs) == truth
+        assert _jury_table(coeffs) == truth
         checked += 1
     assert checked > 400
+
+
+def test_stability_margins_are_not_the_outer_limit():
+    """Why stability_limit keeps its own crossing search: python-control's gain margin of
+    B / A misses the z = -1 crossing of the PI law (eq. 24: 41.7 at T = 60 ms) and reports
+    a spurious one at w = 0 for the I law (the integrator at z = 1). If a python-control
+    release fixes both, this test fails and stability_limit can use it."""
+    import warnings
+
+    import control
+
+    def margin(mode):
+        a, b = outer_polynomials(mode, T, 1, 0.2)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            gm = control.stability_margins(control.tf(b, a, True))[0]
+        return gm, stability_limit(a, b)
+
+    gm_i, lim_i = margin("I")
+    gm_pi, lim_pi = margin("PI")
+    assert lim_i == pytest.approx(1 / T) and lim_pi == pytest.approx(2 / (0.8 * T))
+    assert not (gm_i == pytest.approx(lim_i, rel=1e-6) and gm_pi == pytest.approx(lim_pi, rel=1e-6))
+
+
+def test_root_locus_is_the_roots_of_A_plus_gB():
+    """control.root_locus_map gives, per gain, the roots of A + g B (to 1e-9, any order)."""
+    for mode, d in (("I", 1), ("PI", 1), ("I", 3), ("PI", 2)):
+        a, b = outer_polynomials(mode, T, d, 0.2)
+        gains = np.linspace(0.0, 60.0, 241)
+        loc = root_locus(a, b, gains)
+        assert loc.shape == (gains.size, a.size - 1)
+        for g, row in zip(gains, loc, strict=True):
+            want = np.sort_complex(np.roots(np.polyadd(a, g * b)))
+            np.testing.assert_allclose(np.sort_complex(row), want, atol=1e-9)
+
+
+def test_companion_is_control_tf2ss():
+    """The realisation kept by hand (it runs in every preflight) is python-control's tf2ss,
+    entry for entry, on the paper's plants (eqs. 34-35) and a proper transfer function."""
+    import control
+
+    from controllers.design import paper_plant
+
+    cases = [(p.num, p.den) for p in map(paper_plant, ("actuator1", "actuator2"))]
+    cases.append(([2.0, 3.0, 1.0], [1.0, 4.0, 5.0]))
+    for num, den in cases:
+        ref = control.tf2ss(num, den)
+        for g, w in zip(an._companion(num, den), (ref.A, ref.B, ref.C, ref.D), strict=True):
+            np.testing.assert_array_equal(g, w)
+
+
+def _step_metrics_by_hand(t, y, yf, settle=0.02):
+    """The hand-written step metrics that control.step_info replaced (issue 14)."""
+    out = {"final": yf}
+    try:
+        t10 = t[np.nonzero(y >= 0.1 * yf)[0][0]]
+        t90 = t[np.nonzero(y >= 0.9 * yf)[0][0]]
+        out["rise_time_s"] = float(t90 - t10)
+    except IndexError:
+        out["rise_time_s"] = float("nan")
+    out["overshoot_pct"] = float(max(0.0, (y.max() - yf) / abs(yf) * 100.0))
+    outside = np.nonzero(np.abs(y - yf) > settle * abs(yf))[0]
+    if not outside.size:
+        out["settling_time_s"] = float(t[0])
+    elif outside[-1] + 1 < t.size:
+        out["settling_time_s"] = float(t[outside[-1] + 1])
+    else:
+        out["settling_time_s"] = float("nan")
+    return out
+
+
+@pytest.mark.parametrize(
+    "num, den, t_end",
+    [
+        ([16.0], [1, 4.0, 16.0], 6.0),  # zeta 0.5: overshoot 16.3 %
+        ([1.0], [1, 1.0], 8.0),  # first order: no overshoot
+        ([100.0], [1, 2.0, 100.0], 3.0),  # zeta 0.1, not settled within 3 s
+        ([1.0], [1, 0.1], 3.0),  # reaches 26 %: no rise time
+    ],
+)
+def test_step_info_equals_the_hand_written_metrics(num, den, t_end):
+    """step_metrics (control.step_info) equals the hand-written definitions exactly on
+    the sample grid (same samples picked: 10/90 % crossings, last exit from the 2 % band)."""
+    t = np.arange(0, t_end, 1e-3)
+    y = tf_step(num, den, t)
+    got = step_metrics(t, y, final=num[0] / den[-1])
+    want = _step_metrics_by_hand(t, y, num[0] / den[-1])
+    assert got.keys() == want.keys()
+    for k in want:
+        np.testing.assert_allclose(got[k], want[k], rtol=1e-12, atol=0, equal_nan=True, err_msg=k)
 
 
 def test_I_limit_by_hand_jury():

@@ -5,10 +5,11 @@ from __future__ import annotations
 import subprocess
 import sys
 
+import control
 import numpy as np
 import pytest
 
-from controllers.analysis import _companion, tf_step
+from controllers.analysis import tf_step
 from controllers.design import (
     PLANTS,
     Plant,
@@ -137,12 +138,17 @@ def test_printed_denominator_implies_p1_p2_and_redesign_meets_spec():
 # --------------------------------------------------------------------------
 # discrete implementation
 # --------------------------------------------------------------------------
+def _ss(plant):
+    s = control.tf2ss(plant.num, plant.den)
+    return s.A, s.B, s.C, s.D
+
+
 def _simulate(jc, step, t_end=3.0, q0=0.25):
     """Legs = plants eqs. (34)-(35) in SI under the controllers' units reading,
     discretised by ZOH (exact for the held volts)."""
     dt = jc.dt
     plants = [paper_plant(a, jc.reading) for a in ("actuator1", "actuator2", "actuator3")]
-    mats = [discretise(*_companion(p.num, p.den), dt, "zoh") for p in plants]
+    mats = [discretise(*_ss(p), dt, "zoh") for p in plants]
     xs = [np.zeros(3) for _ in range(3)]
     ref = q0 + np.asarray(step, float)
     n = int(round(t_end / dt))
@@ -274,3 +280,23 @@ def test_controllers_import_without_mujoco():
         "assert not bad, bad\n"
     )
     subprocess.run([sys.executable, "-c", code], check=True)
+
+
+@pytest.mark.parametrize("variant", ["printed", "corrected", "redesigned"])
+def test_the_closed_forms_equal_c2d(variant):
+    """discretise (the closed forms the 1 ms controllers run on, kept by hand: see its notes)
+    equals python-control's c2d on the joint controllers' realisation, Tustin and ZOH, to
+    1e-12 of each matrix's largest entry (inv against solve: rounding only)."""
+    des = design_for("actuator2", variant, plant=paper_plant("actuator2"))
+    r0, (kp, m1, m0) = split_integrator(des)
+    a = np.array([[0.0, 1.0], [-des.c0, -des.c1]])
+    b = np.array([[0.0], [1.0]])
+    c = np.array([[m0 - kp * des.c0, m1 - kp * des.c1]])
+    d = np.array([[kp]])
+    for method in ("tustin", "zoh"):
+        ref = control.c2d(control.ss(a, b, c, d), 1e-3, method=method)
+        got = discretise(a, b, c, d, 1e-3, method)
+        for g, w in zip(got, (ref.A, ref.B, ref.C, ref.D), strict=True):
+            np.testing.assert_allclose(g, w, rtol=0, atol=1e-12 * np.abs(w).max())
+    with pytest.raises(ValueError, match="allowed"):
+        discretise(a, b, c, d, 1e-3, "euler")
