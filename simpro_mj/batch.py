@@ -345,7 +345,8 @@ def plan(paths: Iterable[str], sets: Iterable[str] = ()) -> Plan:
     """
     from .errors import UserInputError
     from .params import parse_set
-    from .sweep import MAX_VARIANTS, load_sweep
+    from .sweep import MAX_VARIANTS
+    from .variants import load_sweep
 
     sets = list(sets or ())
     for expr in sets:

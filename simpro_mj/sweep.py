@@ -18,7 +18,7 @@ A scenario file may carry a ``sweep:`` block next to its scenario keys::
 Rules
 -----
 * **Paths** are the dotted paths of ``--set`` (``controller.outer.gains``),
-  checked against :data:`simpro_mj.scenario.DEFAULT_SCENARIO` (and, below
+  checked against :data:`simpro_mj.scenario_defaults.DEFAULT_SCENARIO` (and, below
   ``actuator.pneumatics``, :data:`simpro_mj.pneumatics.DEFAULT_PNEUMATIC_PARAMS`);
   an unknown one is refused with the closest valid key. ``name`` and
   ``sweep`` cannot be swept.
@@ -69,29 +69,27 @@ import itertools
 import math
 import re
 import zlib
-from collections.abc import Iterable, Mapping
+from collections.abc import Mapping
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from .errors import UserInputError
-from .params import check_keys, check_tagged, closest, key_text, parse_set
+from .params import check_keys, check_tagged, closest, key_text
+from .scenario_defaults import DEFAULT_SCENARIO
 
 __all__ = [
     "DISTRIBUTIONS",
     "Distribution",
     "SweepSpec",
-    "Variant",
-    "SweepFile",
     "parse_sweep",
     "count_variants",
     "MAX_VARIANTS",
     "expand",
     "draw",
-    "load_sweep",
     "format_value",
+    "broadcast_value",
 ]
 
 #: Distribution name -> (required keys, optional keys).
@@ -163,8 +161,6 @@ class SweepSpec:
 
 def _defaults_at(path: str, where: str) -> Any:
     """The default value at a dotted scenario path; unknown keys name the closest one."""
-    from .scenario import DEFAULT_SCENARIO
-
     parts = path.split(".")
     if parts[0] in _NOT_SWEPT:
         raise UserInputError(
@@ -195,6 +191,20 @@ def _defaults_at(path: str, where: str) -> Any:
         node = node[part]
         done.append(part)
     return node
+
+
+def broadcast_value(path: str, value: Any) -> Any:
+    """The value a variant sets at ``path``: a copy of ``value``, or ``value`` repeated
+    when the default there is a list of numbers and ``value`` one number (gains, per-leg
+    offsets: see the module docstring)."""
+    try:
+        default = _defaults_at(path, path)
+    except UserInputError:
+        default = None  # reported by the validation of the variant
+    n = _numeric_list_len(default)
+    if n is not None and _is_number(value):
+        return [value] * n
+    return copy.deepcopy(value)
 
 
 def _is_number(x: Any) -> bool:
@@ -466,125 +476,3 @@ def expand(spec: SweepSpec | None) -> list[Point]:
                 name = f"{name}_{n}"
             out.append(Point(name, values, i))
     return out
-
-
-# ------------------------------------------------------------------ loading
-
-
-@dataclass
-class Variant:
-    """One resolved variant of a scenario file.
-
-    ``scenario`` is the resolved scenario (plain JSON data, what a worker
-    runs) or ``None`` with ``error`` the one-line reason it is invalid.
-    """
-
-    file: str
-    scenario_name: str
-    name: str
-    values: dict
-    sample: int | None
-    seed: int | None
-    scenario: dict | None
-    error: str | None = None
-
-
-@dataclass
-class SweepFile:
-    """A scenario file and its variants (``error``: the file itself is invalid)."""
-
-    path: str
-    scenario_name: str
-    spec: SweepSpec | None
-    variants: list[Variant]
-    error: str | None = None
-
-
-def _apply(tree: dict, path: str, value: Any) -> None:
-    from .scenario import _set
-
-    try:
-        default = _defaults_at(path, path)
-    except UserInputError:
-        default = None
-    n = _numeric_list_len(default)
-    if n is not None and _is_number(value):
-        value = [value] * n  # one number for a per-axis / per-leg list
-    _set(tree, path, copy.deepcopy(value))
-
-
-def _one_line(exc: BaseException) -> str:
-    return " ".join(str(exc).split())
-
-
-def load_sweep(name_or_path: str | Path, sets: Iterable[str] = ()) -> SweepFile:
-    """Read a scenario file and expand its ``sweep:`` block into resolved variants.
-
-    Parameters
-    ----------
-    name_or_path : str or Path
-        A YAML path or a shipped scenario name (as :func:`load_scenario`).
-    sets : iterable of str
-        ``KEY=VALUE`` overrides applied to the base of every variant.
-
-    Returns
-    -------
-    SweepFile
-        ``variants`` in expansion order; a variant that fails validation has
-        ``scenario=None`` and its reason in ``error``.
-
-    Raises
-    ------
-    UserInputError
-        The file cannot be found or read, is not a mapping, its ``sweep:``
-        block is malformed, or a ``--set`` is malformed.
-    """
-    from .scenario import DEFAULT_SCENARIO, _merge, _set, read_document, resolve_scenario
-
-    path, doc = read_document(name_or_path)
-    doc = dict(doc)
-    block = doc.pop("sweep", None)
-    spec = parse_sweep(block) if block is not None else None
-    defaults = DEFAULT_SCENARIO
-    preset = (_merge(DEFAULT_SCENARIO, doc).get("plant") or {}).get("preset")
-    if isinstance(preset, str):
-        # the preset lies between the defaults and the file, as in resolve_scenario;
-        # merging the bare defaults first would pin the preset's keys to them
-        from .presets import scenario_overlay
-
-        try:
-            defaults = _merge(DEFAULT_SCENARIO, scenario_overlay(preset))
-        except UserInputError:
-            pass  # an unknown preset: resolve_scenario reports it for each variant
-    base = _merge(defaults, doc)
-    for expr in sets or ():
-        key, value = parse_set(expr)
-        _set(base, key, value)
-    sname = str(base.get("name") or path.stem)
-    base_seed = base.get("seed")
-    variants = []
-    for point in expand(spec):
-        tree = copy.deepcopy(base)
-        for p, v in point.values.items():
-            _apply(tree, p, v)
-        if point.sample is not None and _is_number(tree.get("seed")):
-            tree["seed"] = int(tree["seed"]) + point.sample
-        seed = tree.get("seed") if _is_number(tree.get("seed")) else base_seed
-        try:
-            resolved = resolve_scenario(tree, (), default_name=path.stem, base=path.parent)
-            error = None
-        except UserInputError as exc:
-            resolved, error = None, _one_line(exc)
-        variants.append(
-            Variant(
-                file=str(path),
-                scenario_name=sname,
-                name=point.name,
-                values=point.values,
-                sample=point.sample,
-                seed=seed,
-                scenario=resolved,
-                error=error,
-            )
-        )
-    return SweepFile(path=str(path), scenario_name=sname, spec=spec, variants=variants)

@@ -32,7 +32,8 @@ from simpro_mj.batch import stability_of
 from simpro_mj.cli import main
 from simpro_mj.errors import UserInputError
 from simpro_mj.scenario import load_scenario, scenario_hash, scenarios_dir
-from simpro_mj.sweep import expand, load_sweep, parse_sweep
+from simpro_mj.sweep import expand, parse_sweep
+from simpro_mj.variants import load_sweep
 
 BASE = {
     "duration_s": 1.0,

@@ -277,7 +277,7 @@ def test_cue_metrics_known_answers(braking_run):
 def test_sweep_variants_get_the_preset_like_a_run():
     # a sweep's variants resolve as `simpro-sim run` does: plant preset between the
     # defaults and the file (it used to be pinned to the bare defaults: 250 kg)
-    from simpro_mj.sweep import load_sweep
+    from simpro_mj.variants import load_sweep
 
     run = load_scenario("cue_braking.yaml")
     sw = load_sweep("sweep_cueing.yaml")

@@ -251,12 +251,12 @@ def test_a_set_point_after_the_end_is_warned_and_recorded(tmp_path, capsys):
 
 def test_a_grid_of_a_million_is_counted_not_expanded(hostile, monkeypatch):
     """Without --strict the file is an invalid row of the batch; nothing is expanded."""
-    import simpro_mj.sweep as sweep
+    import simpro_mj.variants as variants
 
     def never(spec):
         raise AssertionError("expanded")
 
-    monkeypatch.setattr(sweep, "expand", never)
+    monkeypatch.setattr(variants, "expand", never)
     from simpro_mj.batch import plan
 
     p = plan([str(hostile / "grid1e6.yaml")])
