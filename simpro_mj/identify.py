@@ -234,7 +234,7 @@ def run_experiment(tree: dict, leg: int, model=None) -> dict:
     )
     force_range = act.params.force_range
     if np.any(f_hold > force_range[1]) or np.any(f_hold < force_range[0]):
-        from .preflight import holding_force_model, max_payload
+        from .payload import holding_force_model, max_payload
 
         f0, slope = holding_force_model(m, d, idx, 100.0)  # affine in the mass: any probe
         cap = np.where(f_hold >= 0, force_range[1], force_range[0])

@@ -36,6 +36,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from .errors import PhysicsError, UserInputError
+from .payload import holding_force_model, max_payload
 
 __all__ = ["check_payload", "gain_warnings", "stability_limit", "preflight", "UTILISATION_WARN"]
 
@@ -58,39 +59,6 @@ def _poses(scenario: Mapping) -> tuple[np.ndarray, np.ndarray]:
         spread = first[np.linspace(0, first.size - 1, _MAX_POSES - 7).astype(int)]
         first = np.unique(np.concatenate([[0], extremes, spread]))
     return t[first], pose[first]
-
-
-def holding_force_model(model, data, index, probe_kg: float = 1.0):
-    """Static slide forces at the present (assembled) pose as ``f_empty + slope m``.
-
-    Returns ``(f_empty, slope)`` (N and N/kg, (3,)) for a payload of mass m:
-    holding forces are affine in the payload mass at a fixed pose. The
-    model's payload mass is changed for the two static solves and restored.
-    """
-    from .pneumatics import holding_forces
-
-    body = model.body("payload").id
-    saved = float(model.body_mass[body])
-    try:
-        model.body_mass[body] = probe_kg
-        f_probe = holding_forces(model, data, index)
-        model.body_mass[body] = 1e-6  # MuJoCo needs a mass; load_model uses the same
-        f_empty = holding_forces(model, data, index)
-    finally:
-        model.body_mass[body] = saved
-    return f_empty, (f_probe - f_empty) / probe_kg
-
-
-def max_payload(f_empty, slope, force_range) -> float:
-    """Largest payload (kg) whose holding forces stay within ``force_range`` (N)."""
-    f_min, f_max = force_range
-    m_max = math.inf
-    for f0, k in zip(np.ravel(f_empty), np.ravel(slope), strict=True):
-        if k > 0:
-            m_max = min(m_max, (f_max - f0) / k)
-        elif k < 0:
-            m_max = min(m_max, (f_min - f0) / k)
-    return m_max
 
 
 def check_payload(scenario: Mapping, model=None) -> dict:
