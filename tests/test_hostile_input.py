@@ -3,7 +3,7 @@
 Every row is a class of hostile input with the case the issue saw (and one
 more of the same class): through ``simpro_mj.cli.main`` it exits 2 with one
 line ``error: ... at <field>: ...; allowed: <bound>`` of readable length,
-naming the field the user typed. A case that would hang fails through a 60 s
+naming the field the user typed. A case that would hang fails through a 300 s
 alarm instead of hanging the suite (a guard, not a timing assertion: the
 refusals take milliseconds; docs/robustness.md states the figures).
 
@@ -39,10 +39,12 @@ def no_hang():
     """Fail a case that hangs instead of hanging the suite (SIGALRM, main thread)."""
 
     def hung(signum, frame):  # noqa: ARG001
-        raise AssertionError("a hostile input was not refused (still running after 60 s)")
+        raise AssertionError("a hostile input was not refused (still running after 300 s)")
 
+    # a hang guard, not a speed check: far above any case's run time even on a loaded
+    # 2-core machine (a 0.5 s run took over 60 s at load 14 there)
     previous = signal.signal(signal.SIGALRM, hung)
-    signal.alarm(60)
+    signal.alarm(300)
     yield
     signal.alarm(0)
     signal.signal(signal.SIGALRM, previous)
