@@ -281,6 +281,16 @@ def predict(model: LoopModel, omega) -> dict:
     e_imu = np.diag([1.0, 1.0, 0.0])
     legs = _leg_loops(model)
     imu = _imu_filter(model)
+    filters = model.setpoint_filter
+    if filters is not None and not isinstance(filters, list):
+        filters = [filters] * 3
+    sf_sys = None if filters is None else [ct.ss(*f, dt) for f in filters]
+
+    def f_sf(z):
+        if sf_sys is None:
+            return np.ones(3)
+        return np.array([_eval(f, z) for f in sf_sys])
+
     slow = None
     if model.mode != "joint_only":
         slow = [
@@ -302,8 +312,9 @@ def predict(model: LoopModel, omega) -> dict:
         # fast chain from a task command x and the leg voltages u_ff to the pose
         f_x = jinv @ np.diag(g) @ jac
         f_u = jinv @ np.diag(d)
-        # leg velocity feed-forward from the 1 ms set-point: u_ff = kv (1 - z^-1)/dt J r
-        vff = np.diag(model.velocity_ff) @ jac * ((1.0 - 1.0 / zf) / dt)
+        # leg velocity feed-forward from the 1 ms set-point: u_ff = kv F_sf (1 - z^-1)/dt J r
+        # (F_sf the legs' set-point filters, as on q_d)
+        vff = np.diag(model.velocity_ff * f_sf(zf)) @ jac * ((1.0 - 1.0 / zf) / dt)
         direct = f_x + f_u @ vff
         if model.mode == "joint_only":
             h = direct

@@ -12,9 +12,9 @@ Jacobian::
 
 so the joint controller only has to supply what the model misses. A step in
 the set-point would give one sample of ``Δ / dt``: with Fig. 13's set-point
-filter in front of the joint loops the rate is filtered by the same filter
-(the caller's job: a linear filter commutes with the difference), which turns
-a step into the ramp the filtered reference follows.
+filter in front of the joint loops the rate goes through the same filter (a
+linear filter commutes with the difference), which turns a step into the ramp
+the filtered reference follows.
 
 Numbers only (no MuJoCo); :class:`controllers.frequency.LoopModel`'s
 ``velocity_ff`` is the same term in the linear prediction.
@@ -83,8 +83,15 @@ def leg_velocity_feedforward(
     plants: Sequence[Plant],
     geometry: PlatformGeometry | None = None,
     u_limit: float | None = None,
+    setpoint_filter=None,
 ) -> np.ndarray:
-    """The feed-forward voltages ``(a0_i / b_i) q̇_d,i`` (V), (n, 3), unfiltered.
+    """The feed-forward voltages ``(a0_i / b_i) q̇_d,i`` (V), (n, 3).
+
+    ``setpoint_filter`` (optional, a fresh :class:`controllers.setpoint_filter.SetpointFilter`)
+    filters the leg rates as Fig. 13's filter filters ``q_d`` (reset to zero
+    rates, then one update per step), so the voltage goes with the filtered
+    reference the joint loops follow: the ramp filter turns a step's one sample
+    of ``Δ / dt`` into ``Δ / T_f`` over ``T_f``.
 
     ``u_limit`` (V, optional) clips them to ``[-u_limit, u_limit]``: the valve's
     span around its closed centre (5 V on the MPYE-5). A set-point step has a
@@ -95,7 +102,12 @@ def leg_velocity_feedforward(
     0.95° against 0.43 % and 0.59° without the feed-forward; clipped 0.40 %
     and 0.59°.
     """
-    u = leg_rates(ref, dt, geometry) * velocity_gains(plants)
+    rates = leg_rates(ref, dt, geometry)
+    if setpoint_filter is not None:
+        setpoint_filter.reset([0.0, 0.0, 0.0])
+        update = setpoint_filter.update
+        rates = np.array([update(r) for r in rates.tolist()]).reshape(-1, 3)
+    u = rates * velocity_gains(plants)
     if u_limit is not None:
         if not (np.isfinite(u_limit) and u_limit > 0):
             raise ValueError(f"u_limit must be > 0 V, got {u_limit!r}")

@@ -215,7 +215,13 @@ class CoSimulation:
             legs = [Plant(**ident[a]) for a in ("actuator1", "actuator2", "actuator3")]
             j = self.joint  # clipped to the valve's span around its centre (5 V)
             span = min(j.u_offset - j.u_min, j.u_max - j.u_offset)
-            self.u_ff = leg_velocity_feedforward(self.ref, dt, legs, self.geometry, span)
+            # through a filter like Fig. 13's, as the reference the joint loops follow
+            vfilt = SetpointFilter(
+                sf["type"], dt=dt, time=(np.asarray(sf["time_ms"], float) * 1e-3).tolist()
+            )
+            self.u_ff = leg_velocity_feedforward(
+                self.ref, dt, legs, self.geometry, span, setpoint_filter=vfilt
+            )
         if self.mode == "joint_only":
             # the baseline: q_d = IK(y_d) of the nominal model, every 1 ms
             # (reference() has already clamped the set-points if the scenario asks)

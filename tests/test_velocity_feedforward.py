@@ -51,6 +51,25 @@ def test_a_step_is_clipped_to_the_valve_span():
     assert np.count_nonzero(np.abs(u).sum(axis=1)) == 1
 
 
+def test_the_setpoint_filter_turns_a_step_into_the_ramps_rate():
+    """Through the 60 ms ramp filter a 3 deg pitch step's rate is delta/60 ms for 60
+    samples: the voltage of the filtered reference's speed, whose integral is the
+    step's leg displacement."""
+    from controllers.setpoint_filter import SetpointFilter
+
+    ref = np.tile(HOME, (200, 1))
+    ref[50:, 1] += np.radians(3.0)
+    plants = [Plant(b=1.0, a1=1.0, a0=1.0)] * 3  # 1 V per m/s
+    filt = SetpointFilter("ramp", dt=1e-3, time=0.06)
+    u = leg_velocity_feedforward(ref, 1e-3, plants, u_limit=5.0, setpoint_filter=filt)
+    dq = inverse_kinematics(ref[-1]) - inverse_kinematics(ref[0])
+    moving = np.abs(u).sum(axis=1) > 0
+    assert np.count_nonzero(moving) == 60 and moving[50:110].all()
+    # J at the end pose instead of the chord: first order in delta, 1.1 % for 3 deg
+    assert np.allclose(u.sum(axis=0) * 1e-3, dq, rtol=2e-2)
+    assert np.abs(u).max() < 5.0  # no clipping needed
+
+
 def test_joint_controllers_add_the_feedforward_before_saturation():
     a, b = JointControllers(), JointControllers()
     q = [0.1, 0.2, 0.3]
