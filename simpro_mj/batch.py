@@ -655,8 +655,7 @@ def analytic(scenario: Mapping) -> dict:
     period = o["period_ms"] * 1e-3
     sf = c["setpoint_filter"]
     # Fig. 13's filter, in the analysis: (kind, per-leg times) hashable for the caches
-    times = sf["time_ms"] if isinstance(sf["time_ms"], list) else [sf["time_ms"]] * 3
-    filt = (sf["type"], tuple(float(t) * 1e-3 for t in times))
+    filt = (sf["type"], tuple(t * 1e-3 for t in sf["time_ms"]))  # validated: 3 per-leg times
     key = (
         period, i["variant"], i["discretisation"], float(i["zeta"]), float(i["wn_rad_s"]), filt
     )  # fmt: skip
