@@ -29,8 +29,8 @@ _API = {
     "compare": "api",
     "load": "api",
     "Result": "api",
-    "shipped_scenarios": "scenario",
-    "UserInputError": "errors",
+    "shipped_scenarios": "config.scenario",
+    "UserInputError": "core.errors",
 }
 
 

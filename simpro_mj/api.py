@@ -11,7 +11,7 @@ A scenario is a shipped name (``"step_pitch"``), a path to a YAML file or a
 mapping (a scenario document). Overrides are a mapping of dotted keys to
 values, ``{"controller.outer.gains": [3, 3, 3], "duration_s": 5}``, with the
 meaning and the checks of the command line's ``--set KEY=VALUE``: a mistake
-raises :class:`~simpro_mj.errors.UserInputError` (a ``ValueError``) whose
+raises :class:`~simpro_mj.core.errors.UserInputError` (a ``ValueError``) whose
 one-line message names the key and what is allowed.
 
 Nothing is written to disk unless ``out`` is given; then the result folder is
@@ -27,7 +27,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from .errors import UserInputError
+from simpro_mj.core.errors import UserInputError
 
 __all__ = ["Result", "load", "run", "compare"]
 
@@ -111,7 +111,7 @@ def load(scenario: str | Path | Mapping, overrides: Mapping | None = None) -> di
     dict
         The resolved scenario, as ``scenario.yaml`` of a result folder holds it.
     """
-    from .scenario import load_scenario, resolve_scenario
+    from simpro_mj.config.scenario import load_scenario, resolve_scenario
 
     if isinstance(scenario, Mapping):
         return resolve_scenario(copy.deepcopy(dict(scenario)), _sets(overrides))
@@ -144,12 +144,12 @@ def run(
     """
     resolved = load(scenario, overrides)
     if out is not None:
-        from .runner import execute
+        from simpro_mj.report.runner import execute
 
         res, metrics = execute(resolved, Path(out), plots=plots, quiet=True)
         return Result(resolved, res.columns, metrics, res.folder)
-    from .results import _jsonable
-    from .runner import measure
+    from simpro_mj.report.results import _jsonable
+    from simpro_mj.report.runner import measure
 
     res, metrics, extra = measure(resolved, quiet=True)
     metrics.update(extra)

@@ -227,7 +227,7 @@ def test_inner_summary_corrected_cancels_plant():
 
 
 def test_cli_json_contract(capsys, tmp_path):
-    from simpro_mj.cli import main
+    from simpro_mj.commands.main import main
 
     rc = main(["analyze", "--json", "--out", str(tmp_path)])
     out = capsys.readouterr().out
@@ -246,7 +246,7 @@ def test_cli_json_contract(capsys, tmp_path):
 
 
 def test_cli_set_and_bad_set(capsys):
-    from simpro_mj.cli import main
+    from simpro_mj.commands.main import main
 
     rc = main(["analyze", "--json", "--no-plots", "--set", "outer.period_s=0.03"])
     d = json.loads(capsys.readouterr().out)

@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 import simpro_mj as s
-from simpro_mj.scenario import load_scenario
-from simpro_mj.sim import simulate
+from simpro_mj.config.scenario import load_scenario
+from simpro_mj.sim.loop import simulate
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -1,4 +1,7 @@
-"""design_plant: identified on the scenario's own plant (simpro_mj.autoident, issue 18)."""
+"""design_plant: identified on the scenario's own plant (issue 18).
+
+See :mod:`simpro_mj.identification.auto`.
+"""
 
 from __future__ import annotations
 
@@ -6,9 +9,9 @@ import json
 
 import pytest
 
-import simpro_mj.autoident as ai
-from simpro_mj.errors import UserInputError
-from simpro_mj.scenario import load_scenario
+import simpro_mj.identification.auto as ai
+from simpro_mj.config.scenario import load_scenario
+from simpro_mj.core.errors import UserInputError
 
 IDENT = "controller.inner.design_plant=identified"
 
@@ -24,7 +27,7 @@ def cache(tmp_path, monkeypatch):
 def fake_identify(monkeypatch):
     """Counts the experiments and returns models scaled by the payload (the real
     experiment is tested below, once)."""
-    import simpro_mj.identify as ident
+    import simpro_mj.identification.identify as ident
 
     calls = []
 
@@ -88,8 +91,8 @@ def test_the_simulation_designs_on_the_scenarios_own_plant(cache, monkeypatch):
         "step_pitch",
         ["plant.preset=heavy_cabin", IDENT, "plant.payload.mass_kg=120", "duration_s=0.2"],
     )
-    import simpro_mj.identify as ident
-    from simpro_mj.sim import CoSimulation
+    import simpro_mj.identification.identify as ident
+    from simpro_mj.sim.loop import CoSimulation
 
     monkeypatch.setitem(ident.DEFAULT_IDENTIFY_PARAMS, "duration_s", 4.0)  # short PRBS
     preset_a0 = sc["controller"]["inner"]["identified"]["actuator1"]["a0"]

@@ -28,12 +28,12 @@ import yaml
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
-from simpro_mj.batch import stability_of
-from simpro_mj.cli import main
-from simpro_mj.errors import UserInputError
-from simpro_mj.scenario import load_scenario, scenario_hash, scenarios_dir
-from simpro_mj.sweep import expand, parse_sweep
-from simpro_mj.variants import load_sweep
+from simpro_mj.batch.batch import stability_of
+from simpro_mj.commands.main import main
+from simpro_mj.config.scenario import load_scenario, scenario_hash, scenarios_dir
+from simpro_mj.config.sweep import expand, parse_sweep
+from simpro_mj.config.variants import load_sweep
+from simpro_mj.core.errors import UserInputError
 
 BASE = {
     "duration_s": 1.0,
@@ -220,7 +220,7 @@ def test_shipped_sweeps_expand_and_validate(capsys):
 
 
 def test_failing_variant_and_invalid_file_reported_others_complete(tmp_path, monkeypatch, capsys):
-    import simpro_mj.sim as sim_mod
+    import simpro_mj.sim.loop as sim_mod
 
     real = sim_mod.simulate
 
@@ -258,7 +258,7 @@ def test_failing_variant_and_invalid_file_reported_others_complete(tmp_path, mon
 
 
 def test_resume_skips_complete_and_recomputes_incomplete(tmp_path, monkeypatch):
-    import simpro_mj.sim as sim_mod
+    import simpro_mj.sim.loop as sim_mod
 
     real, calls = sim_mod.simulate, []
 

@@ -1,7 +1,7 @@
 """Issue 13, batches end cleanly: signals, a killed parent, a cluster without workers.
 
 Every test that signals a subprocess waits for its readiness file
-(``SIMPRO_READY_FILE``, :mod:`simpro_mj.readiness`): the batch writes it once
+(``SIMPRO_READY_FILE``, :mod:`simpro_mj.sim.readiness`): the batch writes it once
 its handlers are installed and the variants submitted, and each pool worker
 writes ``<file>.worker-<pid>`` once its variant steps. The waits are bounded
 only so that a broken build fails instead of hanging; nothing depends on how
@@ -21,7 +21,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from simpro_mj import results
+from simpro_mj.report import results
 
 ROOT = Path(__file__).resolve().parents[1]
 LONG = 600.0  # s simulated: the variants are still running when the signal comes
@@ -42,7 +42,7 @@ def _start(tmp_path: Path, argv: list[str]) -> tuple[subprocess.Popen, Path]:
     ready = tmp_path / "ready"
     env = dict(os.environ, MPLBACKEND="Agg", PYTHONPATH=str(ROOT), SIMPRO_READY_FILE=str(ready))
     proc = subprocess.Popen(
-        [sys.executable, "-m", "simpro_mj.cli", *argv],
+        [sys.executable, "-m", "simpro_mj.commands.main", *argv],
         cwd=tmp_path,
         env=env,
         stdout=subprocess.PIPE,
@@ -211,8 +211,8 @@ def test_a_signal_stops_a_local_dask_batch(tmp_path):
 
 def test_a_dask_cluster_without_workers_ends_the_batch(tmp_path, capsys, monkeypatch):
     distributed = pytest.importorskip("distributed")
-    import simpro_mj.batch as batch
-    from simpro_mj.cli import main
+    import simpro_mj.batch.batch as batch
+    from simpro_mj.commands.main import main
 
     monkeypatch.setattr(batch, "NO_WORKERS_S", 1.0)  # the stated time, shortened
     with distributed.LocalCluster(

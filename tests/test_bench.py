@@ -11,9 +11,9 @@ import math
 
 import pytest
 
-from simpro_mj.bench import STAGES, measure
-from simpro_mj.cli import main
-from simpro_mj.scenario import load_scenario
+from simpro_mj.batch.bench import STAGES, measure
+from simpro_mj.commands.main import main
+from simpro_mj.config.scenario import load_scenario
 
 
 @pytest.fixture(scope="module")

@@ -14,7 +14,7 @@ import pytest
 from controllers.frames import pose_base_to_iso, static_specific_force
 from controllers.frequency import CHAIN_CHANNELS, OMCT_RAD_S, chain_response
 from controllers.washout import ClassicalWashout
-from simpro_mj.chain_response import (
+from simpro_mj.analysis.chain_response import (
     PAIRS,
     chain_scenario,
     chain_summary,
@@ -23,10 +23,10 @@ from simpro_mj.chain_response import (
     omct_periods_ms,
     plan_chain,
 )
-from simpro_mj.cli import main
-from simpro_mj.cueing import check_cueing, vehicle_input, washout_params
-from simpro_mj.errors import UserInputError
-from simpro_mj.scenario import load_scenario
+from simpro_mj.commands.main import main
+from simpro_mj.config.cueing import check_cueing, vehicle_input, washout_params
+from simpro_mj.config.scenario import load_scenario
+from simpro_mj.core.errors import UserInputError
 
 DT = 0.001
 

@@ -11,7 +11,7 @@ import pytest
 
 from controllers.frames import GRAVITY
 from controllers.geometry import H0
-from simpro_mj.cueing import (
+from simpro_mj.config.cueing import (
     CUE_COLUMNS,
     check_cueing,
     cue_metrics,
@@ -19,15 +19,15 @@ from simpro_mj.cueing import (
     shift_correlations,
     vehicle_input,
 )
-from simpro_mj.errors import UserInputError
-from simpro_mj.scenario import load_scenario, resolve_scenario
-from simpro_mj.telemetry import (
+from simpro_mj.config.scenario import load_scenario, resolve_scenario
+from simpro_mj.config.telemetry import (
     TELEMETRY_COLUMNS,
     Telemetry,
     TelemetryError,
     read_telemetry,
     write_telemetry,
 )
+from simpro_mj.core.errors import UserInputError
 
 HEADER = ",".join(TELEMETRY_COLUMNS)
 
@@ -112,7 +112,15 @@ def test_bad_telemetry_through_the_cli_exits_2_with_one_line(tmp_path):
     scen = tmp_path / "s.yaml"
     scen.write_text(f"duration_s: 0.01\nsetpoint:\n  cueing: {{telemetry: {bad.name}}}\n")
     r = subprocess.run(
-        [sys.executable, "-m", "simpro_mj.cli", "run", str(scen), "--out", str(tmp_path / "o")],
+        [
+            sys.executable,
+            "-m",
+            "simpro_mj.commands.main",
+            "run",
+            str(scen),
+            "--out",
+            str(tmp_path / "o"),
+        ],
         capture_output=True,
         text=True,
         timeout=120,
@@ -173,7 +181,7 @@ def test_shipped_cue_scenarios_load():
 
 @pytest.fixture(scope="module")
 def braking_run(tmp_path_factory):
-    from simpro_mj.sim import CoSimulation
+    from simpro_mj.sim.loop import CoSimulation
 
     csv = _braking_csv(tmp_path_factory.mktemp("cue") / "b.csv")
     sc = _scenario(csv)
@@ -191,7 +199,7 @@ def test_head_sensors_feel_gravity_then_the_braking_cue(braking_run):
     # qpos (second differences; the sensor's value is one step old, sim.py)
     import mujoco
 
-    from simpro_mj.model import load_model
+    from simpro_mj.plant.model import load_model
 
     m = load_model(sc["plant"])
     d = mujoco.MjData(m)
@@ -277,7 +285,7 @@ def test_cue_metrics_known_answers(braking_run):
 def test_sweep_variants_get_the_preset_like_a_run():
     # a sweep's variants resolve as `simpro-sim run` does: plant preset between the
     # defaults and the file (it used to be pinned to the bare defaults: 250 kg)
-    from simpro_mj.variants import load_sweep
+    from simpro_mj.config.variants import load_sweep
 
     run = load_scenario("cue_braking.yaml")
     sw = load_sweep("sweep_cueing.yaml")

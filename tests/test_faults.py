@@ -1,4 +1,4 @@
-"""Fault schedule (simpro_mj.faults) on arrays: events, hooks, validation.
+"""Fault schedule (simpro_mj.plant.faults) on arrays: events, hooks, validation.
 
 The end-to-end runs (faults acting in the co-simulation) are in
 ``tests/test_faults_sim.py``.
@@ -9,9 +9,9 @@ import math
 import numpy as np
 import pytest
 
-from simpro_mj.errors import UserInputError
-from simpro_mj.faults import FLAG_BITS, NEVER, FaultSchedule, flag_series
-from simpro_mj.scenario import load_scenario, resolve_scenario
+from simpro_mj.config.scenario import load_scenario, resolve_scenario
+from simpro_mj.core.errors import UserInputError
+from simpro_mj.plant.faults import FLAG_BITS, NEVER, FaultSchedule, flag_series
 
 DT = 1e-3
 PA = 101325.0

@@ -1,7 +1,7 @@
 """Faults acting in the co-simulation, end to end (issue 8).
 
-``simpro_mj.sim`` calls the hooks of :class:`simpro_mj.faults.FaultSchedule`
-as the module docstring of ``simpro_mj/faults.py`` describes and logs the
+``simpro_mj.sim.loop`` calls the hooks of :class:`simpro_mj.plant.faults.FaultSchedule`
+as the module docstring of ``simpro_mj/plant/faults.py`` describes and logs the
 columns ``fault_flags`` and ``supply_pa``.
 
 Each fault runs a few seconds of a shipped scenario and checks a physical
@@ -13,9 +13,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from simpro_mj.faults import FLAG_BITS, flag_series
-from simpro_mj.scenario import load_scenario
-from simpro_mj.sim import simulate
+from simpro_mj.config.scenario import load_scenario
+from simpro_mj.plant.faults import FLAG_BITS, flag_series
+from simpro_mj.sim.loop import simulate
 
 PA = 101325.0
 

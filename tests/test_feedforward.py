@@ -11,8 +11,8 @@ from controllers import analysis as an
 from controllers.geometry import nominal_geometry
 from controllers.kinematics import inverse_kinematics, jacobian
 from controllers.task_space import TaskSpaceController
-from simpro_mj.cli import main
-from simpro_mj.scenario import load_scenario
+from simpro_mj.commands.main import main
+from simpro_mj.config.scenario import load_scenario
 
 HOME = nominal_geometry().home
 
@@ -135,8 +135,8 @@ def test_model_tau_is_validated(capsys):
 @pytest.fixture(scope="module")
 def ff_step():
     """Fig. 15's pitch step on the default plant with the feed-forward scheme, 8 s."""
-    from simpro_mj.metrics import compute_metrics
-    from simpro_mj.sim import simulate
+    from simpro_mj.analysis.metrics import compute_metrics
+    from simpro_mj.sim.loop import simulate
 
     sc = load_scenario("step_pitch", ["controller.mode=feedforward", "duration_s=8.0"])
     res = simulate(sc)
@@ -147,7 +147,7 @@ def ff_step():
 def test_step_on_the_default_plant_meets_the_floors(ff_step):
     """Issue 15's floors on a short step (final window 6.4-8 s, 5.4 s after the step):
     overshoot <= 10 %; the steady-state error of the true pose below the sensor floor
-    the plant's sensors define (:meth:`simpro_mj.sensors.Sensors.resolution_floor`:
+    the plant's sensors define (:meth:`simpro_mj.plant.sensors.Sensors.resolution_floor`:
     the IMU's noise averaged over 1 s, the height encoder's resolution)."""
     res, met = ff_step
     assert met["axes"]["pitch"]["overshoot_pct"] <= 10.0

@@ -1,7 +1,7 @@
 """Issue 13, hostile input is refused fast: the catalogue beside test_robustness's.
 
 Every row is a class of hostile input with the case the issue saw (and one
-more of the same class): through ``simpro_mj.cli.main`` it exits 2 with one
+more of the same class): through ``simpro_mj.commands.main.main`` it exits 2 with one
 line ``error: ... at <field>: ...; allowed: <bound>`` of readable length,
 naming the field the user typed. A case that would hang fails through a 300 s
 alarm instead of hanging the suite (a guard, not a timing assertion: the
@@ -24,11 +24,11 @@ import yaml
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from simpro_mj import safe_yaml
-from simpro_mj.cli import main
-from simpro_mj.errors import UserInputError
-from simpro_mj.scenario import load_scenario
-from simpro_mj.sweep import MAX_VARIANTS
+from simpro_mj.commands.main import main
+from simpro_mj.config.scenario import load_scenario
+from simpro_mj.config.sweep import MAX_VARIANTS
+from simpro_mj.core import safe_yaml
+from simpro_mj.core.errors import UserInputError
 
 #: A readable error line: the 100,000-character key is cut (one line, < 400 chars).
 READABLE = 400
@@ -253,13 +253,13 @@ def test_a_set_point_after_the_end_is_warned_and_recorded(tmp_path, capsys):
 
 def test_a_grid_of_a_million_is_counted_not_expanded(hostile, monkeypatch):
     """Without --strict the file is an invalid row of the batch; nothing is expanded."""
-    import simpro_mj.variants as variants
+    import simpro_mj.config.variants as variants
 
     def never(spec):
         raise AssertionError("expanded")
 
     monkeypatch.setattr(variants, "expand", never)
-    from simpro_mj.batch import plan
+    from simpro_mj.batch.batch import plan
 
     p = plan([str(hostile / "grid1e6.yaml")])
     assert len(p.jobs) == 1 and "1,048,576" in p.jobs[0].error
@@ -277,8 +277,8 @@ def test_local_dask_starts_no_more_workers_than_tasks(monkeypatch, tmp_path):
         raise Refuse
 
     monkeypatch.setattr(distributed, "LocalCluster", fake_cluster)
-    from simpro_mj import executors
-    from simpro_mj.batch import run_variant
+    from simpro_mj.batch.batch import run_variant
+    from simpro_mj.sim import executors
 
     with pytest.raises(Refuse):
         executors.run_dask([(0, {})], "local", 12, lambda k, r: None, fn=run_variant)

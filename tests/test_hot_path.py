@@ -15,11 +15,11 @@ from controllers.geometry import nominal_geometry
 from controllers.joint import ANTI_WINDUP, JointControllers
 from controllers.kinematics import PoseKinematics, inverse_kinematics, reachable
 from controllers.task_space import TaskSpaceController, _segment_limit
-from simpro_mj.model import StateReader, loop_closure_error, measured_pose
-from simpro_mj.pneumatics import NonlinearActuators
-from simpro_mj.scenario import load_scenario
-from simpro_mj.sensors import SensorConfig, Sensors
-from simpro_mj.sim import CoSimulation
+from simpro_mj.config.scenario import load_scenario
+from simpro_mj.plant.model import StateReader, loop_closure_error, measured_pose
+from simpro_mj.plant.pneumatics import NonlinearActuators
+from simpro_mj.plant.sensors import SensorConfig, Sensors
+from simpro_mj.sim.loop import CoSimulation
 
 
 @pytest.fixture(scope="module")

@@ -1,4 +1,4 @@
-"""Tests of simpro_mj.identify: the Fig. 12 identification in simulation."""
+"""Tests of simpro_mj.identification.identify: the Fig. 12 identification in simulation."""
 
 from __future__ import annotations
 
@@ -9,11 +9,11 @@ import mujoco
 import numpy as np
 import pytest
 
-from simpro_mj import cli
-from simpro_mj.identify import default_tree, fit_eq19, identify, paper_models
-from simpro_mj.model import assemble, load_model
-from simpro_mj.params import apply_overrides
-from simpro_mj.pneumatics import NonlinearActuators, holding_forces, slide_mass_matrix
+from simpro_mj.commands import main as cli
+from simpro_mj.core.keys import apply_overrides
+from simpro_mj.identification.identify import default_tree, fit_eq19, identify, paper_models
+from simpro_mj.plant.model import assemble, load_model
+from simpro_mj.plant.pneumatics import NonlinearActuators, holding_forces, slide_mass_matrix
 
 
 def _tree(*sets):
@@ -49,7 +49,7 @@ def _physics_prediction(tree):
 
 
 def test_fit_recovers_a_known_model():
-    from simpro_mj.identify import _prbs, _simulate_velocity
+    from simpro_mj.identification.identify import _prbs, _simulate_velocity
 
     dt = 1e-3
     rng = np.random.default_rng(0)

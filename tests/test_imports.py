@@ -29,9 +29,11 @@ ALLOWED: dict[tuple[str, str], str] = {}
 def _modules() -> dict[str, Path]:
     mods = {}
     for pkg in PACKAGES:
-        for path in sorted((ROOT / pkg).glob("*.py")):
-            name = pkg if path.stem == "__init__" else f"{pkg}.{path.stem}"
-            mods[name] = path
+        for path in sorted((ROOT / pkg).rglob("*.py")):
+            parts = path.relative_to(ROOT).with_suffix("").parts
+            if parts[-1] == "__init__":
+                parts = parts[:-1]
+            mods[".".join(parts)] = path
     return mods
 
 
@@ -149,13 +151,13 @@ def _path_in(comp: list[str], graph: dict[str, set[str]]) -> str:
 def test_the_graph_is_read():
     """The walker sees module-level, function-level and relative imports (not a vacuous graph)."""
     graph = import_graph()
-    assert "simpro_mj.scenario" in graph and "controllers.joint" in graph
+    assert "simpro_mj.config.scenario" in graph and "controllers.joint" in graph
     # cmd_run wires the runner (module level, relative)
-    assert "simpro_mj.runner" in graph["simpro_mj.cmd_run"]
+    assert "simpro_mj.report.runner" in graph["simpro_mj.commands.run"]
     # the controllers' design imports its errors (module level)
     assert "controllers.errors" in graph["controllers.design"]
     # a function-level import counts: the API builds the runner lazily
-    assert "simpro_mj.runner" in graph["simpro_mj.api"]
+    assert "simpro_mj.report.runner" in graph["simpro_mj.api"]
 
 
 def test_a_cycle_is_found():
@@ -190,3 +192,48 @@ def test_controllers_import_no_simulation_module():
                 names = [node.module or ""]
             bad += [f"{name}: {n}" for n in names if n.split(".")[0] in ("simpro_mj", "mujoco")]
     assert not bad, bad
+
+
+#: The rooms of ``simpro_mj`` from the bottom up (docs/architecture.md): a room
+#: imports only the rooms before it. ``api`` sits on top of all of them.
+ROOMS = (
+    "core",
+    "plant",
+    "config",
+    "identification",
+    "sim",
+    "analysis",
+    "report",
+    "batch",
+    "commands",
+    "api",
+)
+
+
+def _room(module: str) -> str | None:
+    parts = module.split(".")
+    if parts[0] != "simpro_mj" or len(parts) == 1:
+        return None
+    return parts[1]
+
+
+def test_every_module_is_in_a_room():
+    """No module left in the flat folder: each sits in one of the rooms."""
+    stray = [m for m in _modules() if m.startswith("simpro_mj.") and _room(m) not in ROOMS]
+    assert not stray, f"modules outside the rooms {ROOMS}: {stray}"
+
+
+def test_rooms_import_one_way():
+    """A room imports only the rooms below it (core < plant < config < identification <
+    sim < analysis < report < batch < commands < api), at module or function level."""
+    rank = {r: i for i, r in enumerate(ROOMS)}
+    bad = []
+    for src, targets in import_graph().items():
+        a = _room(src)
+        if a is None:
+            continue
+        for dst in targets:
+            b = _room(dst)
+            if b is not None and rank[b] > rank[a]:
+                bad.append(f"{src} -> {dst}")
+    assert not bad, "imports against the rooms' order: " + "; ".join(sorted(bad))

@@ -9,8 +9,8 @@ import sys
 import numpy as np
 import pytest
 
-from simpro_mj.manoeuvres import ManoeuvreError, ManoeuvreSpec, generate, lane_change_path
-from simpro_mj.telemetry import read_telemetry
+from simpro_mj.config.manoeuvres import ManoeuvreError, ManoeuvreSpec, generate, lane_change_path
+from simpro_mj.config.telemetry import read_telemetry
 
 pytest.importorskip("vehiclemodels")
 
@@ -64,7 +64,7 @@ def test_bad_specs_are_one_line_errors():
 
 def test_manoeuvre_command_writes_a_telemetry_file(tmp_path):
     out = tmp_path / "b.csv"
-    cmd = [sys.executable, "-m", "simpro_mj.cli", "manoeuvre", "bump", "--out", str(out)]
+    cmd = [sys.executable, "-m", "simpro_mj.commands.main", "manoeuvre", "bump", "--out", str(out)]
     r = subprocess.run(cmd + ["--set", "speed_kmh=30"], capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr
     tel = read_telemetry(out)

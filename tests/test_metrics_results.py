@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 
 from controllers.geometry import H0
-from simpro_mj import results as results_mod
-from simpro_mj.metrics import SETTLING_FLOOR, compute_metrics
-from simpro_mj.results import print_summary, read_timeseries, write_results
-from simpro_mj.scenario import load_scenario, reference, scenario_hash
+from simpro_mj.analysis.metrics import SETTLING_FLOOR, compute_metrics
+from simpro_mj.config.scenario import load_scenario, reference, scenario_hash
+from simpro_mj.report import results as results_mod
+from simpro_mj.report.results import print_summary, read_timeseries, write_results
 
 DT = 0.001
 T_STEP = 1.0
@@ -178,7 +178,7 @@ def test_write_results_is_atomic(tmp_path, step_all, monkeypatch):
     metrics = compute_metrics(cols, step_all)
     out = tmp_path / "run"
     write_results(out, cols, metrics, step_all, {"plots": False, "sim": {"tag": "first"}})
-    import simpro_mj.plots as plots
+    import simpro_mj.report.plots as plots
 
     seen = {}
 
@@ -234,7 +234,7 @@ def test_csv_write_is_fast(tmp_path, step_all):
 
 
 def test_plot_compare_writes_one_figure(tmp_path, step_all):
-    from simpro_mj.plots import plot_compare
+    from simpro_mj.report.plots import plot_compare
 
     joint_only = _columns(step_all, lambda t, ref: _first_order(0.3)(t, ref) - 0.002)
     task = _columns(step_all, _first_order(0.5))

@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 
 from controllers import PAPER_POINTS_MM, inverse_kinematics, nominal_geometry
-from simpro_mj.errors import UserInputError
-from simpro_mj.model import (
+from simpro_mj.core.errors import UserInputError
+from simpro_mj.plant.model import (
     PlantIndex,
     add_slide_drives,
     assemble,
@@ -17,7 +17,7 @@ from simpro_mj.model import (
     mobility,
     model_params,
 )
-from simpro_mj.pneumatics import PneumaticParams
+from simpro_mj.plant.pneumatics import PneumaticParams
 
 G = nominal_geometry()
 

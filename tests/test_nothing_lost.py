@@ -9,7 +9,7 @@
 * an interrupted re-run keeps the previous complete result and writes the
   partial one beside it;
 * a failing write names the user's folder, never the hidden temporary one;
-* ``--resume`` uses :func:`simpro_mj.results.is_complete` only.
+* ``--resume`` uses :func:`simpro_mj.report.results.is_complete` only.
 """
 
 from __future__ import annotations
@@ -25,9 +25,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from simpro_mj import results
-from simpro_mj.cli import main
-from simpro_mj.scenario import load_scenario, scenarios_dir
+from simpro_mj.commands.main import main
+from simpro_mj.config.scenario import load_scenario, scenarios_dir
+from simpro_mj.report import results
 
 ROOT = Path(__file__).resolve().parents[1]
 SHORT = ["--set", "duration_s=1.1", "--no-plots"]
@@ -119,7 +119,7 @@ def test_a_second_writer_is_refused_while_the_first_holds_the_folder(tmp_path, c
     first check to its last write); it says so by creating a readiness file."""
     out, ready = tmp_path / "r", tmp_path / "ready"
     code = (
-        "import sys; from pathlib import Path; from simpro_mj import results\n"
+        "import sys; from pathlib import Path; from simpro_mj.report import results\n"
         f"with results.locked({str(out)!r}):\n"
         f"    Path({str(ready)!r}).touch()\n"
         "    sys.stdin.readline()\n"
@@ -161,8 +161,8 @@ def test_an_interrupted_rerun_keeps_the_complete_result(tmp_path):
 
 
 def test_the_interrupted_message_names_both_folders(tmp_path):
-    from simpro_mj.runner import interrupted_message
-    from simpro_mj.sim import SimResult
+    from simpro_mj.report.runner import interrupted_message
+    from simpro_mj.sim.loop import SimResult
 
     res = SimResult({}, "interrupted", "SIGINT", {"simulated_s": 1.5}, {"duration_s": 10.0})
     res.folder = tmp_path / "r.partial"
@@ -186,7 +186,7 @@ def test_a_failing_write_names_the_users_folder(tmp_path, capsys, monkeypatch, c
 
 
 def test_is_complete_is_the_one_check_and_resume_uses_it(tmp_path):
-    from simpro_mj.batch import run_batch
+    from simpro_mj.batch.batch import run_batch
 
     out = tmp_path / "b"
     argv = dict(sets=["duration_s=1.1"], jobs=1, plots=False, summary_plots=False)
@@ -230,7 +230,7 @@ def test_ctrl_c_during_a_rerun_keeps_the_complete_result(tmp_path):
     before = _snapshot(out)
     ready = tmp_path / "ready"
     env = dict(os.environ, MPLBACKEND="Agg", PYTHONPATH=str(ROOT), SIMPRO_READY_FILE=str(ready))
-    cmd = [sys.executable, "-m", "simpro_mj.cli", "run", "step_pitch", "--out", str(out),
+    cmd = [sys.executable, "-m", "simpro_mj.commands.main", "run", "step_pitch", "--out", str(out),
            "--no-plots", "--set", "duration_s=600"]  # fmt: skip
     proc = subprocess.Popen(cmd, cwd=tmp_path, env=env, stderr=subprocess.PIPE, text=True)
     try:

@@ -73,7 +73,7 @@ def test_the_installed_wheel_runs_the_main_job_from_an_empty_folder(wheel, tmp_p
     code = (
         "import sys, simpro_mj, controllers; "
         "print(simpro_mj.__file__); print(controllers.__file__); "
-        "from simpro_mj.cli import main; sys.exit(main())"
+        "from simpro_mj.commands.main import main; sys.exit(main())"
     )
     proc = subprocess.run(
         [sys.executable, "-c", code, "run", "step_pitch.yaml", "--no-plots",

@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 
 from controllers.task_space import outer_law
-from simpro_mj.metrics import compute_metrics
-from simpro_mj.scenario import load_scenario
-from simpro_mj.sim import simulate
+from simpro_mj.analysis.metrics import compute_metrics
+from simpro_mj.config.scenario import load_scenario
+from simpro_mj.sim.loop import simulate
 
 
 def _axes(name, *sets, duration=6.0):

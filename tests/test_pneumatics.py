@@ -1,4 +1,4 @@
-"""Tests of simpro_mj.pneumatics: flow law, equilibrium, integration, MuJoCo coupling."""
+"""Tests of simpro_mj.plant.pneumatics: flow law, equilibrium, integration, MuJoCo coupling."""
 
 from __future__ import annotations
 
@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 from scipy.signal import lti, step
 
-from simpro_mj.errors import UserInputError
-from simpro_mj.model import PlantIndex, assemble, check_physics, load_model
-from simpro_mj.pneumatics import (
+from simpro_mj.core.errors import UserInputError
+from simpro_mj.plant.model import PlantIndex, assemble, check_physics, load_model
+from simpro_mj.plant.pneumatics import (
     RHO_REF,
     LinearActuators,
     NonlinearActuators,

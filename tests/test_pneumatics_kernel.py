@@ -11,13 +11,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from simpro_mj import pneumatics_kernel as pk
-from simpro_mj.errors import UserInputError
-from simpro_mj.metrics import compute_metrics
-from simpro_mj.pneumatics import NonlinearActuators
-from simpro_mj.results import versions
-from simpro_mj.scenario import load_scenario
-from simpro_mj.sim import CoSimulation
+from simpro_mj.analysis.metrics import compute_metrics
+from simpro_mj.config.scenario import load_scenario
+from simpro_mj.core.errors import UserInputError
+from simpro_mj.plant import pneumatics_kernel as pk
+from simpro_mj.plant.pneumatics import NonlinearActuators
+from simpro_mj.report.results import versions
+from simpro_mj.sim.loop import CoSimulation
 
 needs_numba = pytest.mark.skipif(not pk._HAVE_NUMBA, reason="numba not installed")
 

@@ -1,4 +1,7 @@
-"""Plant presets (simpro_mj.presets) and the calibration command (simpro_mj.calibrate)."""
+"""Plant presets (simpro_mj.config.presets) and the calibration command.
+
+See :mod:`simpro_mj.analysis.calibrate`.
+"""
 
 from __future__ import annotations
 
@@ -7,11 +10,11 @@ import math
 import pytest
 import yaml
 
-from simpro_mj import cli
-from simpro_mj.calibrate import TOLERANCES, load_targets, paper_targets, residuals
-from simpro_mj.errors import UserInputError
-from simpro_mj.presets import load_preset, shipped_presets
-from simpro_mj.scenario import load_scenario
+from simpro_mj.analysis.calibrate import TOLERANCES, load_targets, paper_targets, residuals
+from simpro_mj.commands import main as cli
+from simpro_mj.config.presets import load_preset, shipped_presets
+from simpro_mj.config.scenario import load_scenario
+from simpro_mj.core.errors import UserInputError
 
 
 def test_shipped_presets_and_the_default():
@@ -126,7 +129,7 @@ def test_default_preset_keeps_its_velocity_gains_at_one_volt():
     """The default preset is fitted at +-0.3 V and +-1 V (docs/paper-notes.md 3.2): at
     +-1 V of PRBS its identified velocity gains stay within eqs. (34)-(35)'s +-15 %
     under the volts reading (the preset fitted at +-0.3 V only lost 13 % / 25 %)."""
-    from simpro_mj.identify import default_tree, identify
+    from simpro_mj.identification.identify import default_tree, identify
 
     tree = default_tree("paper")
     tree["identify"]["prbs_amplitude_v"] = [1.0, 1.0, 1.0]

@@ -13,7 +13,7 @@ holds, per shipped scenario, the metrics, per-column statistics of the full
   changed by 1 %: :func:`test_a_one_percent_change_fails_the_check` keeps it so.
 * :func:`test_series_bit_identical` (same machine only): the SHA-256 of every
   logged column, asserted where the machine fingerprint
-  (:mod:`simpro_mj.machine`: CPU instruction-set flags, numpy's SIMD dispatch,
+  (:mod:`simpro_mj.report.machine`: CPU instruction-set flags, numpy's SIMD dispatch,
   library versions, kernel) has an entry in the file.
 
 Regenerate after an intended, reviewed change of behaviour with
@@ -33,7 +33,7 @@ import pytest
 sys.path.insert(0, str(Path(__file__).resolve().parent / "data"))
 import make_reference as mr  # noqa: E402
 
-from simpro_mj.machine import fingerprint_id  # noqa: E402
+from simpro_mj.report.machine import fingerprint_id  # noqa: E402
 
 REF = json.loads(mr.OUT.read_text(encoding="utf-8"))
 BITS = REF.get("bits", {}).get(fingerprint_id())
@@ -125,7 +125,7 @@ def test_every_logged_column_has_a_stated_tolerance(run):
 
 def test_a_one_percent_change_fails_the_check(monkeypatch):
     """The tolerances are not loose enough to hide a real change of the plant."""
-    import simpro_mj.scenario as scenario_module
+    import simpro_mj.config.scenario as scenario_module
 
     load = scenario_module.load_scenario
     plant = load("step_pitch")["plant"]

@@ -16,11 +16,11 @@ import mujoco
 import numpy as np
 import pytest
 
-from simpro_mj.cli import main
-from simpro_mj.model import MODEL_PATH, load_spec
-from simpro_mj.runner import execute
-from simpro_mj.scenario import load_scenario
-from simpro_mj.sim import CoSimulation
+from simpro_mj.commands.main import main
+from simpro_mj.config.scenario import load_scenario
+from simpro_mj.plant.model import MODEL_PATH, load_spec
+from simpro_mj.report.runner import execute
+from simpro_mj.sim.loop import CoSimulation
 
 PITCH_STEP_S = 1.0  # step_pitch.yaml: 3 deg at t = 1 s
 
@@ -43,7 +43,7 @@ def pitch_run(tmp_path_factory) -> Path:
 
 
 def _scene(pitch_run, width=320, height=240, camera="side"):
-    from simpro_mj.render import ReplayScene, load_recording
+    from simpro_mj.report.render import ReplayScene, load_recording
 
     rec = load_recording(pitch_run)
     try:
@@ -58,7 +58,7 @@ def _scene(pitch_run, width=320, height=240, camera="side"):
 
 def test_qpos_recorded_is_the_simulated_state(pitch_run):
     """qpos.npz holds the full qpos at every logged row; its slides are q_i."""
-    from simpro_mj.render import load_recording
+    from simpro_mj.report.render import load_recording
 
     rec = load_recording(pitch_run)
     m = mujoco.MjModel.from_xml_path(str(MODEL_PATH))
@@ -127,7 +127,7 @@ def _tilt_deg(ids: np.ndarray, geom_id: int) -> float:
 
 def test_pitch_step_tilts_the_rendered_platform_and_ghost(pitch_run):
     """Segmentation of the side view: the platform tilts by the logged pitch, the right way."""
-    from simpro_mj.render import _nearest, ghost_poses
+    from simpro_mj.report.render import _nearest, ghost_poses
 
     rec, scene = _scene(pitch_run)
     m = scene.model
@@ -318,8 +318,8 @@ class _FakeViewer:
 
 def test_view_plays_the_recording_paced_by_the_clock(pitch_run):
     """play(): row nearest to start + speed * elapsed, ghost posed, overlay with the pose."""
-    from simpro_mj.cmd_view import play
-    from simpro_mj.render import load_recording, replay_model
+    from simpro_mj.commands.view import play
+    from simpro_mj.report.render import load_recording, replay_model
 
     rec = load_recording(pitch_run)
     model, data = replay_model(rec.scenario)
@@ -342,7 +342,7 @@ def test_view_plays_the_recording_paced_by_the_clock(pitch_run):
 
 def test_gl_backend_falls_back_and_names_what_is_missing(pitch_run, tmp_path, monkeypatch, capsys):
     """A backend that cannot start is skipped for the next; none working: one line, exit 2."""
-    from simpro_mj import render
+    from simpro_mj.report import render
 
     _scene(pitch_run, 16, 16)[1].close()
     monkeypatch.delenv("MUJOCO_GL", raising=False)
@@ -363,7 +363,7 @@ def test_interrupted_render_leaves_no_file(pitch_run, tmp_path, monkeypatch):
     """Ctrl-C while frames arrive: KeyboardInterrupt, no video, no temporary file left."""
     import tempfile
 
-    from simpro_mj import render
+    from simpro_mj.report import render
 
     _scene(pitch_run, 16, 16)[1].close()
     calls = []

@@ -19,8 +19,7 @@ from controllers.frequency import (
 )
 from controllers.geometry import nominal_geometry
 from controllers.kinematics import jacobian
-from simpro_mj.cli import main
-from simpro_mj.response import (
+from simpro_mj.analysis.response import (
     check_periods,
     default_periods_ms,
     loop_model,
@@ -28,7 +27,8 @@ from simpro_mj.response import (
     plan_response,
     summary,
 )
-from simpro_mj.scenario import load_scenario
+from simpro_mj.commands.main import main
+from simpro_mj.config.scenario import load_scenario
 
 ACTS = ("actuator1", "actuator2", "actuator3")
 
@@ -220,36 +220,18 @@ def test_bad_input_is_one_line_exit_2(args, field, capsys, tmp_path):
     assert not out.exists()  # refused before anything ran
 
 
-def _command_imports(module_file) -> set:
-    """Command modules (``cli.COMMANDS``) that a module of simpro_mj imports."""
-    import ast
-    from pathlib import Path
-
-    from simpro_mj.cli import COMMANDS
-
-    commands = {v.rsplit(".", 1)[-1] for v in COMMANDS.values()}
-    found = set()
-    for node in ast.walk(ast.parse(Path(module_file).read_text())):
-        if isinstance(node, ast.ImportFrom):
-            mod = node.module or ""
-            if node.level == 1 or mod.startswith("simpro_mj"):
-                tail = mod.rsplit(".", 1)[-1] if mod and mod != "simpro_mj" else None
-                found |= {tail} if tail else {a.name for a in node.names}
-        elif isinstance(node, ast.Import):
-            found |= {
-                a.name.rsplit(".", 1)[-1] for a in node.names if a.name.startswith("simpro_mj.")
-            }
-    return (found & commands) - {Path(module_file).stem}
-
-
 def test_response_imports_no_command_module():
-    """docs/architecture.md: commands only wire; the executors live in simpro_mj.executors,
-    not in the batch command."""
-    import simpro_mj.chain_response
-    import simpro_mj.cmd_response
-    import simpro_mj.executors
-    import simpro_mj.response
+    """docs/architecture.md: commands only wire; the executors live in simpro_mj.sim.executors,
+    not in the batch command, and the response command imports no other command."""
+    from test_imports import import_graph
 
-    mods = (simpro_mj.cmd_response, simpro_mj.response, simpro_mj.chain_response)
-    for mod in (*mods, simpro_mj.executors):
-        assert _command_imports(mod.__file__) == set(), mod.__name__
+    graph = import_graph()
+    for name in (
+        "simpro_mj.commands.response",
+        "simpro_mj.analysis.response",
+        "simpro_mj.analysis.chain_response",
+        "simpro_mj.sim.executors",
+    ):
+        bad = {m for m in graph[name] if m.startswith(("simpro_mj.commands.", "simpro_mj.batch"))}
+        assert bad == set(), (name, bad)
+    assert "simpro_mj.sim.executors" in graph["simpro_mj.analysis.response"]  # not vacuous

@@ -1,9 +1,9 @@
 """Issue 8: a user's mistake or an unstable design gives a clear answer.
 
-* a table of bad inputs through ``simpro_mj.cli.main`` for every subcommand:
+* a table of bad inputs through ``simpro_mj.commands.main.main`` for every subcommand:
   exit 2, one stderr line ``error: <what> at <field>: <allowed>``, no traceback;
 * a hypothesis fuzz of the scenario loader: it accepts a document or raises
-  :class:`~simpro_mj.errors.UserInputError`, nothing else;
+  :class:`~simpro_mj.core.errors.UserInputError`, nothing else;
 * preflight: payload too heavy (error with the limit), gains above the
   analysed limit (warning, recorded);
 * divergence through the CLI: exit 1, ``status: diverged`` with the reason,
@@ -33,16 +33,16 @@ import yaml
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
-from simpro_mj import results
-from simpro_mj.cli import main
-from simpro_mj.errors import UserInputError
-from simpro_mj.scenario import (
+from simpro_mj.commands.main import main
+from simpro_mj.config.scenario import (
     DEFAULT_SCENARIO,
     load_scenario,
     resolve_scenario,
     scenarios_dir,
     shipped_scenarios,
 )
+from simpro_mj.core.errors import UserInputError
+from simpro_mj.report import results
 
 ROOT = Path(__file__).resolve().parents[1]
 SHORT = ["--set", "duration_s=0.2", "--no-plots"]
@@ -218,7 +218,7 @@ BAD_INPUTS = [
     (["identify", "--actuators", "4"], "--actuators", ["invalid choice"]),
 ]
 
-if importlib.util.find_spec("simpro_mj.batch") is not None:
+if importlib.util.find_spec("simpro_mj.batch.batch") is not None:
     BAD_INPUTS += [
         (["batch", "{tmp}/no_such_file.yaml", "--strict"], "no_such_file.yaml", []),
         # a path naming nothing is refused before anything runs, --strict or not
@@ -268,7 +268,7 @@ def test_help_exits_0(capsys):
 
 
 def test_an_internal_error_is_one_line_exit_3(capsys, monkeypatch):
-    import simpro_mj.cmd_workspace as ws
+    import simpro_mj.commands.workspace as ws
 
     def boom(*a, **k):
         raise ZeroDivisionError("a bug")
@@ -440,7 +440,7 @@ def test_yaml_is_read_with_a_safe_loader(tmp_path):
 
 
 def test_max_liftable_payload_is_stated_and_just_below_passes(tmp_path, capsys):
-    from simpro_mj.preflight import check_payload
+    from simpro_mj.analysis.preflight import check_payload
 
     info = check_payload(load_scenario("step_pitch"))
     assert 1150 < info["max_payload_kg"] < 1250  # 1209 kg (leg 1, as-built CoM 60 mm off)
@@ -466,7 +466,7 @@ def test_gain_above_the_analysed_limit_is_warned_and_recorded(tmp_path, capsys):
     assert doc["warnings"] == [lines[0].removeprefix("warning: ")]
     assert doc["preflight"]["stability"]["limit"] == pytest.approx(11.8447, abs=1e-3)
     # the shipped gains are inside the limit, on the linear plant too (limit 14.08)
-    from simpro_mj.preflight import gain_warnings
+    from simpro_mj.analysis.preflight import gain_warnings
 
     assert gain_warnings(load_scenario("step_pitch"))[0] == []
     w, info = gain_warnings(load_scenario("step_pitch", ["actuator.model=linear"]))
@@ -503,7 +503,7 @@ def test_divergence_through_the_cli_exits_1_and_stops_early(tmp_path, capsys):
 
 def test_non_finite_force_names_the_state(tmp_path, monkeypatch):
     """A NaN out of the actuator model stops the run naming what went non-finite."""
-    import simpro_mj.pneumatics as pn
+    import simpro_mj.plant.pneumatics as pn
 
     real = pn.NonlinearActuators.step
     calls = {"n": 0}
@@ -514,7 +514,7 @@ def test_non_finite_force_names_the_state(tmp_path, monkeypatch):
         return f * np.nan if calls["n"] > 200 else f
 
     monkeypatch.setattr(pn.NonlinearActuators, "step", poisoned)
-    from simpro_mj.runner import execute
+    from simpro_mj.report.runner import execute
 
     res, doc = execute(load_scenario("step_pitch", ["duration_s=2"]), tmp_path / "nan", False)
     assert doc["status"] == "diverged"
@@ -526,7 +526,7 @@ def test_non_finite_force_names_the_state(tmp_path, monkeypatch):
 
 
 def test_an_interrupt_while_writing_keeps_the_previous_folder(tmp_path, monkeypatch):
-    from simpro_mj.runner import execute
+    from simpro_mj.report.runner import execute
 
     sc = load_scenario("step_pitch", ["duration_s=0.2"])
     out = tmp_path / "run"
@@ -583,7 +583,7 @@ def test_interrupted_run_leaves_a_marked_partial_folder(tmp_path, sig):
     out = tmp_path / "long"
     ready = tmp_path / "ready"
     env = dict(os.environ, MPLBACKEND="Agg", PYTHONPATH=str(ROOT), SIMPRO_READY_FILE=str(ready))
-    cmd = [sys.executable, "-m", "simpro_mj.cli", "run", "step_pitch", "--out", str(out),
+    cmd = [sys.executable, "-m", "simpro_mj.commands.main", "run", "step_pitch", "--out", str(out),
            "--no-plots", "--set", "duration_s=600"]  # fmt: skip
     proc = subprocess.Popen(
         cmd, cwd=tmp_path, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
@@ -618,7 +618,7 @@ def test_interrupted_run_leaves_a_marked_partial_folder(tmp_path, sig):
 
 
 def test_same_scenario_twice_gives_identical_files(tmp_path):
-    from simpro_mj.runner import execute
+    from simpro_mj.report.runner import execute
 
     sc = load_scenario("step_all", ["duration_s=1.0"])
     _, a = execute(sc, tmp_path / "a", plots=False, quiet=True)

@@ -8,8 +8,7 @@ import pytest
 from controllers.errors import WorkspaceError
 from controllers.geometry import H0
 from controllers.kinematics import reachable
-from simpro_mj.errors import UserInputError
-from simpro_mj.scenario import (
+from simpro_mj.config.scenario import (
     DEFAULT_SCENARIO,
     SetpointError,
     load_scenario,
@@ -19,6 +18,7 @@ from simpro_mj.scenario import (
     scenarios_dir,
     shipped_scenarios,
 )
+from simpro_mj.core.errors import UserInputError
 
 SHIPPED = [
     "cue_braking",
@@ -78,7 +78,7 @@ def test_as_built_defaults_and_plant_tree():
     assert s["sensors"]["potentiometer"]["offset_mm"] == [1.5, -1.0, 2.0]
     assert s["sensors"]["potentiometer"]["gain_error_pct"] == [0.8, -0.6, 0.5]
     # the plant tree is accepted by the model loader as is
-    from simpro_mj.model import load_spec
+    from simpro_mj.plant.model import load_spec
 
     load_spec(plant)
 

@@ -1,7 +1,7 @@
 """The compiled sensor kernel and fused state read (numba, ``SIMPRO_KERNEL``) equal the Python path.
 
 ``Sensors.sample_floats`` and the loop's ``StateReader.read`` + sensors +
-``loop_closure_max`` run in ``simpro_mj/sensors_kernel.py`` when numba is
+``loop_closure_max`` run in ``simpro_mj/plant/sensors_kernel.py`` when numba is
 selected; the results must be the Python path's bits (round-half-even, the
 sign of a quantised zero, NaN), so every comparison here is exact.
 """
@@ -14,11 +14,11 @@ import mujoco
 import numpy as np
 import pytest
 
-from simpro_mj import pneumatics_kernel as pk
-from simpro_mj.model import StateReader
-from simpro_mj.scenario import load_scenario
-from simpro_mj.sensors import DEFAULT_SENSORS, SensorConfig, Sensors
-from simpro_mj.sim import CoSimulation
+from simpro_mj.config.scenario import load_scenario
+from simpro_mj.plant import pneumatics_kernel as pk
+from simpro_mj.plant.model import StateReader
+from simpro_mj.plant.sensors import DEFAULT_SENSORS, SensorConfig, Sensors
+from simpro_mj.sim.loop import CoSimulation
 
 needs_numba = pytest.mark.skipif(not pk._HAVE_NUMBA, reason="numba not installed")
 

@@ -14,9 +14,9 @@ from controllers.setpoint_filter import (
     filter_state_space,
     leg_times,
 )
-from simpro_mj.errors import UserInputError
-from simpro_mj.scenario import load_scenario
-from simpro_mj.sim import simulate
+from simpro_mj.config.scenario import load_scenario
+from simpro_mj.core.errors import UserInputError
+from simpro_mj.sim.loop import simulate
 
 DT = 1e-3
 

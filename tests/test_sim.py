@@ -2,7 +2,7 @@
 
 Floors and tolerances used here:
 
-* sensor-resolution floor: :meth:`simpro_mj.sensors.Sensors.resolution_floor`
+* sensor-resolution floor: :meth:`simpro_mj.plant.sensors.Sensors.resolution_floor`
   (IMU: 3 sigma of the 0.005 deg noise averaged over 1 s of 200 Hz samples =
   0.0011 deg; height encoder: one 0.01 mm step). The task loop integrates the
   *measured* error, so it cannot remove error below what the sensors resolve.
@@ -18,9 +18,9 @@ from controllers.analysis import outer_step, real_inner_step, step_metrics
 from controllers.geometry import nominal_geometry
 from controllers.kinematics import jacobian
 from controllers.task_space import outer_law
-from simpro_mj.cmd_compare import compare
-from simpro_mj.scenario import load_scenario
-from simpro_mj.sim import simulate
+from simpro_mj.commands.compare import compare
+from simpro_mj.config.scenario import load_scenario
+from simpro_mj.sim.loop import simulate
 
 AXES = ("roll", "pitch", "heave")
 
@@ -139,8 +139,8 @@ def test_divergence_stops_and_keeps_what_was_computed(monkeypatch, tmp_path, cap
     """A loop opening past the bound stops the run; the rows up to it are written."""
     import json
 
-    import simpro_mj.sim as sim_mod
-    from simpro_mj.cli import main
+    import simpro_mj.sim.loop as sim_mod
+    from simpro_mj.commands.main import main
 
     # a bound below the 1e-7 m resting closure error: trips at the first sample
     monkeypatch.setattr(sim_mod, "LOOP_OPEN_BOUND", 1e-8)

@@ -5,9 +5,9 @@ import json
 import numpy as np
 import pytest
 
-from simpro_mj.cli import main
-from simpro_mj.params import apply_overrides
-from simpro_mj.validate_ik import DEFAULTS, validate
+from simpro_mj.analysis.validate_ik import DEFAULTS, validate
+from simpro_mj.commands.main import main
+from simpro_mj.core.keys import apply_overrides
 
 
 def test_dynamic_drive_matches_ik_within_issue_bounds():

@@ -2,13 +2,13 @@
 
 Per shipped co-simulation scenario (:data:`SCENARIOS`) the file stores
 
-* ``metrics``: the metrics document of :func:`simpro_mj.metrics.compute_metrics`;
+* ``metrics``: the metrics document of :func:`simpro_mj.analysis.metrics.compute_metrics`;
 * ``sim``: the deterministic part of ``SimResult.sim`` (steps, worst loop closure);
 * ``stats``: per logged column its mean, RMS, minimum, maximum and final value
   over the full 1 ms series;
 * ``samples``: the compared columns sampled every :data:`SAMPLE_EVERY_S`;
 
-and, under ``bits``, per machine fingerprint (:mod:`simpro_mj.machine`) the
+and, under ``bits``, per machine fingerprint (:mod:`simpro_mj.report.machine`) the
 SHA-256 of every logged column's raw float64 bytes.
 
 ``tests/test_reference_metrics.py`` compares a new run with the stored figures
@@ -165,7 +165,7 @@ def settling_windows(res, metrics: dict) -> dict:
     window of milliseconds; a response that grazes the band edge, one that
     spans the graze.
     """
-    from simpro_mj.metrics import final_window
+    from simpro_mj.analysis.metrics import final_window
 
     t = np.asarray(res.columns["time_s"])
     out = {}
@@ -195,9 +195,9 @@ def settling_windows(res, metrics: dict) -> dict:
 def run_scenario(name: str):
     """Run one shipped scenario: ``(scenario, SimResult, metrics as stored)``."""
     sys.path.insert(0, str(ROOT))
-    from simpro_mj.metrics import compute_metrics
-    from simpro_mj.scenario import load_scenario
-    from simpro_mj.sim import simulate
+    from simpro_mj.analysis.metrics import compute_metrics
+    from simpro_mj.config.scenario import load_scenario
+    from simpro_mj.sim.loop import simulate
 
     scenario = load_scenario(name)
     res = simulate(scenario)
@@ -266,7 +266,7 @@ def main(argv=None) -> int:
     )
     args = ap.parse_args(argv)
     sys.path.insert(0, str(ROOT))
-    from simpro_mj.machine import fingerprint_id, machine_fingerprint
+    from simpro_mj.report.machine import fingerprint_id, machine_fingerprint
 
     fp = machine_fingerprint()
     fid = fingerprint_id(fp)

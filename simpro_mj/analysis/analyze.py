@@ -1,0 +1,645 @@
+"""``simpro-sim analyze``: stability analysis of the joint and task-space loops.
+
+Computes (numbers from :mod:`controllers.analysis`, plots here):
+
+* inner loops: closed-loop poles, damping, step metrics of the printed
+  (eqs. 36-37), corrected and redesigned controllers with the plants of
+  eqs. (34)-(35);
+* outer loop with the inner loop as a delay (eqs. 21, 24-27): poles at the
+  chosen gains, step responses, root loci of the I (Fig. 8) and PI (Fig. 9)
+  laws, exact stability limits (Jury) beside the paper's 20 and 50;
+* the same outer loop around the real (discretised, lifted) inner loops,
+  mapped to the task space with the IK Jacobian at home, and a sweep of the
+  inner bandwidth showing when the delay assumption holds.
+
+Parameters (``--set KEY=VALUE``): see :data:`DEFAULTS`.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+from controllers import analysis as an
+from controllers.design import PAPER_SPEC
+from controllers.geometry import nominal_geometry
+from controllers.kinematics import jacobian
+from simpro_mj.core.errors import UserInputError
+from simpro_mj.core.keys import apply_overrides, check_number
+
+HELP = "stability analysis of the joint and task-space loops (root loci, Jury limits)"
+
+#: The paper's statements, for comparison.
+PAPER = {
+    "I_stability_limit": 20.0,
+    "PI_stability_limit": 50.0,
+    "I_gain": 3.0,
+    "PI_gain": 20.0,
+    "inner_zeta": PAPER_SPEC["zeta"],
+    "inner_wn_rad_s": PAPER_SPEC["wn"],
+}
+
+DEFAULTS: dict = {
+    # unit of Y in eqs. (34)-(37) (controllers.design.READINGS): "volts" (the joint
+    # potentiometer, 20 V/m) or "metres"; sets the SI gains of the printed controllers
+    "paper_units": "volts",
+    "outer": {
+        "gain": 3.0,  # K K_I of the I law (section 5.2.3)
+        "pi_gain": 20.0,  # K K_I at which Fig. 9 marks the PI poles
+        "period_s": 0.06,
+        "delay_samples": 1,  # eq. (21)
+        "pi_zero": 0.2,  # C = T (z + 0.2)/(z - 1)
+        "alt_period_s": 0.03,  # section 5.1: 30 ms with q(k) = q_d(k - 2)
+        "alt_delay_samples": 2,
+        "locus_gain_max": 60.0,
+        "step_duration_s": 3.0,
+    },
+    "inner": {
+        "variant": "corrected",  # joint controller used in the real-inner-loop analysis
+        "dt_s": 0.001,
+        "method": "tustin",
+        "zeta": PAPER_SPEC["zeta"],  # redesign spec
+        "wn_rad_s": PAPER_SPEC["wn"],
+        "p1_rad_s": None,  # None: from the printed denominator (76.0)
+        "p2_rad_s": None,  # None: from the printed denominator (56.7)
+        "step_duration_s": 3.0,
+    },
+    "feedforward": {
+        # controller.mode = feedforward (docs/feedforward.md): the correction's I law
+        # gain (controller.feedforward.gains) and its reference model's time constant
+        "gain": 1.0,
+        "model_tau_s": 0.2,
+        # the joint loops' lag taken out of the correction's error: joints (measured,
+        # controller.feedforward.lag's default) | model (the reference model above)
+        "lag": "joints",
+        # leg velocity feed-forward (a0/b) J dy_d/dt in the frequency response
+        # (controller.feedforward.leg_velocity; not in the linear step, where a
+        # step's rate is one clipped sample)
+        "leg_velocity": True,
+        "step_duration_s": 4.0,
+    },
+    "sweep": {
+        # redesigned inner loops with wn scaled, p1, p2 = (7.6, 5.67) wn
+        "wn_rad_s": [5.0, 10.0, 20.0, 40.0, 80.0, 160.0],
+    },
+}
+
+ACTUATORS = ("actuator1", "actuator2")
+VARIANTS = ("printed", "corrected", "redesigned")
+
+
+def add_arguments(parser) -> None:
+    parser.add_argument(
+        "--out",
+        default=os.path.join("results", "analyze"),
+        help="directory for the plots (default results/analyze)",
+    )
+    parser.add_argument("--no-plots", action="store_true", help="compute only, write no files")
+
+
+def _pairs(z) -> list:
+    z = np.atleast_1d(np.asarray(z, dtype=complex))
+    return [[float(v.real), float(v.imag)] for v in z]
+
+
+def _check(p: dict) -> None:
+    o, i = p["outer"], p["inner"]
+    check_number(p, "inner.dt_s", 0.0, 1.0, lo_open=True, unit=" s")
+    for key in ("period_s", "alt_period_s"):
+        check_number(p, f"outer.{key}", 0.0, 10.0, lo_open=True, unit=" s")
+    for key in ("gain", "pi_gain"):
+        check_number(p, f"outer.{key}", 0.0, 1e4)
+    check_number(p, "outer.pi_zero", -1.0, 1.0, lo_open=True, hi_open=True)
+    check_number(p, "outer.locus_gain_max", 0.0, 1e4, lo_open=True)
+    check_number(p, "feedforward.model_tau_s", 0.0, 10.0, unit=" s")
+    check_number(p, "feedforward.gain", 0.0, 1e4)
+    if not isinstance(p["feedforward"]["leg_velocity"], bool):
+        raise UserInputError(
+            f"wrong type at feedforward.leg_velocity: {p['feedforward']['leg_velocity']!r}; "
+            "allowed: true or false"
+        )
+    if p["feedforward"]["lag"] not in ("model", "joints"):
+        raise UserInputError(
+            f"invalid value at feedforward.lag: {p['feedforward']['lag']!r}; "
+            "allowed: ['model', 'joints']"
+        )
+    check_number(p, "feedforward.step_duration_s", 0.0, 600.0, lo_open=True, unit=" s")
+    for key in ("outer.step_duration_s", "inner.step_duration_s"):
+        check_number(p, key, 0.0, 600.0, lo_open=True, unit=" s")
+    check_number(p, "inner.zeta", 0.0, 2.0, lo_open=True, hi_open=True)
+    check_number(p, "inner.wn_rad_s", 0.0, 1e4, lo_open=True, unit=" rad/s")
+    for key in ("p1_rad_s", "p2_rad_s"):
+        if i[key] is not None:
+            check_number(p, f"inner.{key}", 0.0, 1e5, lo_open=True, unit=" rad/s")
+    wn = p["sweep"]["wn_rad_s"]
+    if not isinstance(wn, list) or not wn:
+        raise UserInputError(
+            f"wrong type at sweep.wn_rad_s: {wn!r}; allowed: a non-empty list of numbers"
+        )
+    for k in range(len(wn)):
+        if isinstance(wn[k], bool) or not isinstance(wn[k], (int, float)):
+            raise UserInputError(f"wrong type at sweep.wn_rad_s[{k}]: {wn[k]!r}; allowed: a number")
+        if not (np.isfinite(wn[k]) and 0 < wn[k] <= 1e4):
+            raise UserInputError(
+                f"invalid value at sweep.wn_rad_s[{k}]: {wn[k]!r}; allowed: 0 < wn <= 1e4 rad/s"
+            )
+    from controllers.design import READINGS
+
+    if p["paper_units"] not in READINGS:
+        raise UserInputError(
+            f"invalid value at paper_units: {p['paper_units']!r}; allowed: {list(READINGS)}"
+        )
+    if i["variant"] not in VARIANTS:
+        raise UserInputError(
+            f"invalid value at inner.variant: {i['variant']!r}; allowed: one of {list(VARIANTS)}"
+        )
+    if i["method"] not in ("tustin", "zoh"):
+        raise UserInputError(
+            f"invalid value at inner.method: {i['method']!r}; allowed: one of ['tustin', 'zoh']"
+        )
+    for key in ("period_s", "alt_period_s"):
+        ratio = o[key] / i["dt_s"]
+        if abs(ratio - round(ratio)) > 1e-9 * max(1.0, ratio):
+            raise UserInputError(
+                f"invalid value at outer.{key}: {o[key]} s; allowed: a positive integer multiple "
+                f"of inner.dt_s = {i['dt_s']} s"
+            )
+    for key in ("delay_samples", "alt_delay_samples"):
+        check_number(p, f"outer.{key}", 1, 100, integer=True, unit=" samples")
+
+
+def _outer_delay(mode, gain, period, delay, pi_zero, duration) -> dict:
+    a, b = an.outer_polynomials(mode, period, delay, pi_zero)
+    lim = an.stability_limit(a, b)
+    try:
+        closed = an.closed_form_limit(mode, period, delay, pi_zero)
+    except NotImplementedError:
+        closed = None
+    poles = an.outer_poles(mode, gain, period, delay, pi_zero)
+    n = int(round(duration / period)) + 1
+    y = an.outer_step(mode, gain, period, n, delay, pi_zero)
+    t = np.arange(n) * period
+    return {
+        "period_s": period,
+        "delay_samples": delay,
+        "gain": gain,
+        "stability_limit": lim,
+        "stability_limit_closed_form": closed,
+        # key kept (the JSON contract); the poles decide it now (issue 14)
+        "jury_stable_at_gain": an.schur_stable(np.polyadd(a, gain * b)),
+        "poles": _pairs(poles),
+        "pole_magnitudes": [float(abs(p)) for p in poles],
+        "step": an.step_metrics(t, y, final=1.0) if max(abs(poles)) < 1 else None,
+        "_t": t,
+        "_y": y,
+        "_ab": (a, b),
+    }
+
+
+def _real(mode, gain, period, p, spec, jac, duration) -> dict:
+    i = p["inner"]
+    kw = dict(variant=i["variant"], dt=i["dt_s"], method=i["method"], spec=spec)
+    lifted = an.lifted_inner(period, **kw)
+    f = an.outer_closed_loop(mode, gain, period, lifted, jac, p["outer"]["pi_zero"])[0]
+    rho = an.spectral_radius(f)
+    lim = an.real_inner_limit(mode, period, jac=jac, pi_zero=p["outer"]["pi_zero"], **kw)
+    per_leg = {
+        act: an.real_inner_limit(
+            mode, period, actuators=(act,), pi_zero=p["outer"]["pi_zero"], **kw
+        )
+        for act in ACTUATORS
+    }
+    t, y = an.real_inner_step(
+        mode, gain, period, duration, jac=jac, pi_zero=p["outer"]["pi_zero"], axis=2, **kw
+    )
+    return {
+        "variant": i["variant"],
+        "period_s": period,
+        "gain": gain,
+        "stability_limit": lim,
+        "stability_limit_per_leg": per_leg,
+        "spectral_radius_at_gain": rho,
+        "stable_at_gain": rho < 1.0,
+        "step_heave": an.step_metrics(t, y[:, 2], final=1.0) if rho < 1.0 else None,
+        "_t": t,
+        "_y": y,
+    }
+
+
+def _feedforward(p: dict, spec: dict, jac, real_i: dict) -> dict:
+    """The feed-forward scheme (``controller.mode = feedforward``) on the paper's plants.
+
+    Its correction closes the same loop as the I law around the real inner
+    loops (the feed-forward path is outside the loop): the characteristic
+    polynomial, hence the stability limit, is the I law's, for the
+    correction's gain ``feedforward.gain``. What changes is the response: the
+    unit step on pitch and the closed-loop frequency response per axis
+    (:func:`controllers.frequency.predict`), beside the joint-only scheme and
+    the I law at ``outer.gain``.
+    """
+    from controllers.design import design_for, paper_plant
+    from controllers.frequency import LoopModel, predict
+    from controllers.velocity_feedforward import velocity_gains
+    from simpro_mj.analysis.response import figures
+
+    o, i, ff = p["outer"], p["inner"], p["feedforward"]
+    reading = p["paper_units"]
+    acts = ("actuator1", "actuator2", "actuator3")
+    plants = [paper_plant(a, reading) for a in acts]
+    sp = dict(spec) if i["variant"] == "redesigned" else {}
+    designs = [
+        design_for(a, i["variant"], plant=pl, reading=reading, **sp)
+        for a, pl in zip(acts, plants, strict=True)
+    ]
+    kw = dict(variant=i["variant"], dt=i["dt_s"], method=i["method"], spec=spec)
+    t, y = an.real_inner_step(
+        "feedforward", ff["gain"], o["period_s"], ff["step_duration_s"], jac=jac, axis=1,
+        model_tau=ff["model_tau_s"], lag=ff["lag"], **kw,
+    )  # fmt: skip
+    f_hz = np.geomspace(0.02, 5.0, 240)
+    freq = {}
+    for mode in ("joint_only", "I", "feedforward"):
+        model = LoopModel(
+            plants=plants, designs=designs, jac=jac, mode=mode,
+            gains=ff["gain"] if mode == "feedforward" else o["gain"],
+            period=o["period_s"], dt=i["dt_s"], method=i["method"], pi_zero=o["pi_zero"],
+            model_tau=ff["model_tau_s"], lag=ff["lag"], velocity_ff=(
+                velocity_gains(plants) if mode == "feedforward" and ff["leg_velocity"] else 0.0
+            ),
+        )  # fmt: skip
+        h = predict(model, 2 * np.pi * f_hz)["true"]
+        ph = np.degrees(np.unwrap(np.angle(h), axis=0))
+        freq[mode] = {
+            ax: figures(f_hz, h[:, j, j], ph[:, j, j])
+            for j, ax in enumerate(("roll", "pitch", "heave"))
+        }
+    if ff["lag"] == "joints":
+        # e = y_d - y - J^-1 (q_d - q) = -c[k-1] in the linear loop: z^2 - z + T g,
+        # stable (Jury) for 0 < T g < 1
+        limit = 1.0 / o["period_s"]
+        note = ("the correction sees its own last value, z^2 - z + T K K_I: stable "
+                "below 1/T (the IMU filter's lag, not in this model, adds a little)")  # fmt: skip
+    else:
+        limit = real_i["stability_limit"]
+        note = ("the correction closes the I loop around the real inner loops: same "
+                "characteristic polynomial, same limit")  # fmt: skip
+    stable = ff["gain"] < limit
+    return {
+        "gain": ff["gain"],
+        "model_tau_s": ff["model_tau_s"],
+        "lag": ff["lag"],
+        "leg_velocity": ff["leg_velocity"],
+        "stability_limit": limit,
+        "stability_limit_note": note,
+        "stable_at_gain": stable,
+        "step_pitch": an.step_metrics(t, y[:, 1], final=1.0) if stable else None,
+        "frequency_response": freq,
+        "_t": t,
+        "_y": y,
+    }
+
+
+def compute(p: dict) -> dict:
+    """All numbers of the analysis for the parameter tree ``p`` (see :data:`DEFAULTS`)."""
+    _check(p)
+    o, i = p["outer"], p["inner"]
+    spec = {"zeta": i["zeta"], "wn": i["wn_rad_s"]}
+    if i["p1_rad_s"] is not None:
+        spec["p1"] = i["p1_rad_s"]
+    if i["p2_rad_s"] is not None:
+        spec["p2"] = i["p2_rad_s"]
+    from controllers.design import redesigned_design
+    from controllers.errors import DesignError
+
+    for act in ACTUATORS:  # the redesign must be feasible before anything is computed
+        try:
+            redesigned_design(act, **spec)
+        except DesignError as exc:
+            raise UserInputError(
+                f"infeasible joint design at inner.wn_rad_s: {exc}; allowed: a zeta, wn_rad_s "
+                "(and p1_rad_s, p2_rad_s) the pole placement can meet, e.g. 0.7, 10"
+            ) from exc
+    from controllers.design import paper_units_info
+
+    units = paper_units_info(p["paper_units"])
+    res: dict = {"paper": PAPER, "paper_units": units, "inner": {}, "outer": {}}
+    for act in ACTUATORS:
+        res["inner"][act] = {}
+        for var in VARIANTS:
+            s = an.inner_summary(
+                act, var, t_end=i["step_duration_s"], spec=spec, reading=p["paper_units"]
+            )
+            wn, zeta = s["wn_rad_s"], s["zeta"]
+            dom = int(np.argmin(np.where(np.abs(s["closed_loop_poles"].imag) > 0, wn, np.inf)))
+            res["inner"][act][var] = {
+                "controller": s["controller"],
+                "closed_loop_poles": _pairs(s["closed_loop_poles"]),
+                "wn_rad_s": wn.tolist(),
+                "zeta": zeta.tolist(),
+                "slowest_complex_pair": {"wn_rad_s": float(wn[dom]), "zeta": float(zeta[dom])},
+                "step": s["step"],
+                "fraction_at_outer_period": float(np.interp(o["period_s"], s["t"], s["y"])),
+                "_t": s["t"],
+                "_y": s["y"],
+            }
+    dur = o["step_duration_s"]
+    res["outer"]["I"] = _outer_delay(
+        "I", o["gain"], o["period_s"], o["delay_samples"], o["pi_zero"], dur
+    )
+    res["outer"]["PI"] = _outer_delay(
+        "PI", o["pi_gain"], o["period_s"], o["delay_samples"], o["pi_zero"], dur
+    )
+    res["outer"]["I"]["paper_stability_limit"] = PAPER["I_stability_limit"]
+    res["outer"]["PI"]["paper_stability_limit"] = PAPER["PI_stability_limit"]
+    res["outer"]["alt_period"] = {
+        m: _outer_delay(m, g, o["alt_period_s"], o["alt_delay_samples"], o["pi_zero"], dur)
+        for m, g in (("I", o["gain"]), ("PI", o["pi_gain"]))
+    }
+    jac = jacobian(nominal_geometry().home)
+    res["outer"]["real_inner"] = {
+        "jacobian_at_home": jac,
+        "I": _real("I", o["gain"], o["period_s"], p, spec, jac, dur),
+        "PI": _real("PI", o["pi_gain"], o["period_s"], p, spec, jac, dur),
+        "alt_period": {
+            "I": _real("I", o["gain"], o["alt_period_s"], p, spec, jac, dur),
+            "PI": _real("PI", o["pi_gain"], o["alt_period_s"], p, spec, jac, dur),
+        },
+    }
+    by_variant = {}
+    for var in VARIANTS:
+        kw = dict(variant=var, dt=i["dt_s"], method=i["method"], spec=spec, pi_zero=o["pi_zero"])
+        by_variant[var] = {
+            m: {
+                "stability_limit": an.real_inner_limit(m, o["period_s"], jac=jac, **kw),
+                "per_leg": {
+                    act: an.real_inner_limit(m, o["period_s"], actuators=(act,), **kw)
+                    for act in ACTUATORS
+                },
+            }
+            for m in ("I", "PI")
+        }
+    res["outer"]["real_inner"]["by_variant"] = by_variant
+    sweep = []
+    for wn in p["sweep"]["wn_rad_s"]:
+        sp = {"zeta": i["zeta"], "wn": float(wn), "p1": 7.6 * wn, "p2": 5.67 * wn}
+        s = an.inner_summary("actuator2", "redesigned", t_end=i["step_duration_s"], spec=sp)
+        kw = dict(variant="redesigned", dt=i["dt_s"], method=i["method"], spec=sp, jac=jac)
+        sweep.append(
+            {
+                "wn_rad_s": float(wn),
+                "inner_fraction_at_T": float(np.interp(o["period_s"], s["t"], s["y"])),
+                "inner_settling_time_s": s["step"]["settling_time_s"],
+                "I_stability_limit": an.real_inner_limit("I", o["period_s"], **kw),
+                "PI_stability_limit": an.real_inner_limit("PI", o["period_s"], **kw),
+            }
+        )
+    res["outer"]["feedforward"] = _feedforward(p, spec, jac, res["outer"]["real_inner"]["I"])
+    res["outer"]["delay_assumption_sweep"] = {
+        "delay_model": {
+            "I_stability_limit": res["outer"]["I"]["stability_limit"],
+            "PI_stability_limit": res["outer"]["PI"]["stability_limit"],
+        },
+        "rows": sweep,
+    }
+    return res
+
+
+def _strip(obj):
+    """Drop private ``_`` entries (arrays for plotting) before JSON output."""
+    if isinstance(obj, dict):
+        return {k: _strip(v) for k, v in obj.items() if not str(k).startswith("_")}
+    if isinstance(obj, list | tuple):
+        return [_strip(v) for v in obj]
+    if isinstance(obj, float) and not np.isfinite(obj):
+        return None if np.isnan(obj) else ("inf" if obj > 0 else "-inf")
+    return obj
+
+
+def plot(res: dict, p: dict, out: Path) -> list[str]:
+    """Root loci (Figs. 8-9), step responses and the delay-assumption plot as PNG."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    out.mkdir(parents=True, exist_ok=True)
+    files = []
+    o = p["outer"]
+    th = np.linspace(0, 2 * np.pi, 400)
+    for mode, fig_no in (("I", 8), ("PI", 9)):
+        r = res["outer"][mode]
+        a, b = r["_ab"]
+        gains = np.linspace(0.0, o["locus_gain_max"], 1201)
+        loc = an.root_locus(a, b, gains)
+        fig, ax = plt.subplots(figsize=(6, 6))
+        ax.plot(np.cos(th), np.sin(th), "k:", lw=0.8, label="unit circle")
+        for j in range(loc.shape[1]):
+            ax.plot(loc[:, j].real, loc[:, j].imag, ".", ms=1.5, color="C0")
+        pz = np.array([complex(*v) for v in r["poles"]])
+        ax.plot(pz.real, pz.imag, "rs", label=f"poles at K K_I = {r['gain']:g}")
+        lim = r["stability_limit"]
+        pl = an.outer_poles(mode, lim, o["period_s"], o["delay_samples"], o["pi_zero"])
+        ax.plot(
+            pl.real,
+            pl.imag,
+            "kx",
+            ms=9,
+            label=f"limit K K_I = {lim:.2f} (paper {r['paper_stability_limit']:g})",
+        )
+        ax.set_aspect("equal")
+        ax.set_xlabel("Re z")
+        ax.set_ylabel("Im z")
+        ax.set_title(
+            f"{mode} law, T = {o['period_s'] * 1e3:g} ms, one-sample inner delay "
+            f"(cf. Fig. {fig_no})",
+            fontsize=9,
+        )
+        ax.legend(fontsize=8, loc="lower left")
+        ax.grid(alpha=0.3)
+        f = out / f"root_locus_{mode}.png"
+        fig.savefig(f, dpi=120)
+        plt.close(fig)
+        files.append(str(f))
+
+    fig, ax = plt.subplots(figsize=(8, 4.5))
+    for mode, c in (("I", "C0"), ("PI", "C1")):
+        r = res["outer"][mode]
+        ax.step(
+            r["_t"],
+            r["_y"],
+            where="post",
+            color=c,
+            label=f"{mode}, K K_I={r['gain']:g}, delay model",
+        )
+        rr = res["outer"]["real_inner"][mode]
+        ax.plot(
+            rr["_t"],
+            rr["_y"][:, 2],
+            color=c,
+            ls="--",
+            label=f"{mode}, real inner loops ({rr['variant']}), heave",
+        )
+    ff = res["outer"]["feedforward"]
+    lag = (
+        "lag from the joints" if ff["lag"] == "joints" else f"model {ff['model_tau_s'] * 1e3:g} ms"
+    )
+    label = f"feedforward, K K_I={ff['gain']:g}, {lag}, pitch"
+    ax.plot(ff["_t"], ff["_y"][:, 1], color="C2", label=label)
+    ax.axhline(1.0, color="k", lw=0.6)
+    ax.set_ylim(-0.5, 2.0)
+    ax.set_xlabel("t (s)")
+    ax.set_ylabel("task output / step")
+    ax.set_title("Outer-loop unit-step responses", fontsize=9)
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3)
+    f = out / "outer_step.png"
+    fig.savefig(f, dpi=120)
+    plt.close(fig)
+    files.append(str(f))
+
+    fig, axes = plt.subplots(1, 2, figsize=(10, 4), sharey=True)
+    for ax, act in zip(axes, ACTUATORS, strict=True):
+        for var in VARIANTS:
+            r = res["inner"][act][var]
+            ax.plot(r["_t"], r["_y"], label=f"{var} (OS {r['step']['overshoot_pct']:.0f} %)")
+        ax.axvline(o["period_s"], color="k", ls=":", lw=0.8, label="outer period")
+        ax.set_title(f"{act}: joint-loop step (continuous)", fontsize=9)
+        ax.set_xlabel("t (s)")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8)
+    axes[0].set_ylabel("q / q_d")
+    f = out / "inner_step.png"
+    fig.savefig(f, dpi=120)
+    plt.close(fig)
+    files.append(str(f))
+
+    rows = res["outer"]["delay_assumption_sweep"]["rows"]
+    if rows:
+        fig, ax = plt.subplots(figsize=(7, 4))
+        wn = [r["wn_rad_s"] for r in rows]
+        ax.semilogx(wn, [r["I_stability_limit"] for r in rows], "o-", label="I, real inner")
+        ax.semilogx(wn, [r["PI_stability_limit"] for r in rows], "s-", label="PI, real inner")
+        dm = res["outer"]["delay_assumption_sweep"]["delay_model"]
+        ax.axhline(dm["I_stability_limit"], color="C0", ls=":", label="I, delay model")
+        ax.axhline(dm["PI_stability_limit"], color="C1", ls=":", label="PI, delay model")
+        ax.set_xlabel("inner-loop wn (rad/s), zeta = 0.7, redesigned")
+        ax.set_ylabel("largest stable K K_I")
+        ax.set_title(
+            f"When is the inner loop a one-sample delay? T = {o['period_s'] * 1e3:g} ms", fontsize=9
+        )
+        ax.grid(alpha=0.3, which="both")
+        ax.legend(fontsize=8)
+        f = out / "delay_assumption.png"
+        fig.savefig(f, dpi=120)
+        plt.close(fig)
+        files.append(str(f))
+    return files
+
+
+def _summary(res: dict, files: list[str]) -> str:
+    u = res["paper_units"]
+    lines = [
+        f"Inner (joint) loops, continuous, plants eqs. (34)-(35); paper_units = {u['reading']} "
+        f"(Y in {u['y_unit']}, {u['y_per_metre']:g} per m): k_p in V/m"
+    ]
+    for act in ACTUATORS:
+        for var in VARIANTS:
+            r = res["inner"][act][var]
+            d = r["slowest_complex_pair"]
+            st = r["step"]
+            lines.append(
+                f"  {act:9s} {var:10s} k_p={r['controller']['kp']:7.1f} slowest pair "
+                f"zeta={d['zeta']:.3f} wn={d['wn_rad_s']:.2f} "
+                f"rad/s | rise {st['rise_time_s']:.3f} s, settle {st['settling_time_s']:.3f} s, "
+                f"OS {st['overshoot_pct']:.1f} %, q(T)/q_d={r['fraction_at_outer_period']:.2f}"
+            )
+    o = res["outer"]
+    lines.append("Outer loop, inner loop = delay (eqs. 21, 24):")
+    for m in ("I", "PI"):
+        r = o[m]
+        lines.append(
+            f"  {m:2s} T={r['period_s'] * 1e3:g} ms d={r['delay_samples']}: limit K K_I < "
+            f"{r['stability_limit']:.3f} (paper {r['paper_stability_limit']:g}); "
+            f"poles at {r['gain']:g}: " + ", ".join(f"{complex(*z):.4f}" for z in r["poles"])
+        )
+    for m in ("I", "PI"):
+        r = o["alt_period"][m]
+        lines.append(
+            f"  {m:2s} T={r['period_s'] * 1e3:g} ms d={r['delay_samples']}: limit K K_I < "
+            f"{r['stability_limit']:.3f}"
+        )
+    ri = o["real_inner"]
+    lines.append(f"Outer loop around the real inner loops ({ri['I']['variant']}, J at home):")
+    for key, r in (
+        ("I", ri["I"]),
+        ("PI", ri["PI"]),
+        ("I", ri["alt_period"]["I"]),
+        ("PI", ri["alt_period"]["PI"]),
+    ):
+        legs = ", ".join(f"{k} {v:.2f}" for k, v in r["stability_limit_per_leg"].items())
+        lines.append(
+            f"  {key:2s} T={r['period_s'] * 1e3:g} ms: limit {r['stability_limit']:.3f} "
+            f"(per leg: {legs}); at K K_I={r['gain']:g}: rho={r['spectral_radius_at_gain']:.4f}"
+            f" {'stable' if r['stable_at_gain'] else 'UNSTABLE'}"
+        )
+    for var, r in ri["by_variant"].items():
+        lines.append(
+            f"  {var:10s} T={res['outer']['I']['period_s'] * 1e3:g} ms: "
+            + "; ".join(
+                f"{m} limit {r[m]['stability_limit']:.3f} (per leg "
+                + ", ".join(f"{k} {v:.2f}" for k, v in r[m]["per_leg"].items())
+                + ")"
+                for m in ("I", "PI")
+            )
+        )
+    ff = o["feedforward"]
+    st = ff["step_pitch"]
+    lines.append(
+        f"Feed-forward scheme (lag {ff['lag']}"
+        + (f", model tau {ff['model_tau_s'] * 1e3:g} ms" if ff["lag"] == "model" else "")
+        + f", K K_I = {ff['gain']:g}): limit {ff['stability_limit']:.3f}"
+        + (" (1/T)" if ff["lag"] == "joints" else " (the I loop's)")
+        + "; pitch step "
+        + (
+            f"rise {st['rise_time_s']:.3f} s, OS {st['overshoot_pct']:.1f} %, "
+            f"settle {st['settling_time_s']:.3f} s"
+            if st
+            else "unstable"
+        )
+    )
+    for mode, axes in ff["frequency_response"].items():
+        v = axes["pitch"]
+        bw = v["bandwidth_3db_hz"]
+        bw_text = f">{v['bandwidth_above_hz']:.2f}" if bw is None else f"{bw:.2f}"
+        lines.append(
+            f"  {mode:11s} pitch: bandwidth {bw_text} Hz, phase "
+            f"{v['phase_deg_at_0_5_hz']:.1f} deg at 0.5 Hz, {v['phase_deg_at_1_hz']:.1f} at 1 Hz, "
+            f"delay {v['equivalent_delay_ms']:.0f} ms"
+        )
+    lines.append("Delay assumption (redesigned inner loops, wn swept):")
+    for r in o["delay_assumption_sweep"]["rows"]:
+        lines.append(
+            f"  wn={r['wn_rad_s']:6.1f} rad/s: q(T)/q_d={r['inner_fraction_at_T']:.2f}, "
+            f"limits I {r['I_stability_limit']:.2f}, PI {r['PI_stability_limit']:.2f}"
+        )
+    if files:
+        lines.append("Plots: " + ", ".join(files))
+    return "\n".join(lines)
+
+
+def run(args) -> int:
+    from simpro_mj.core.jsonout import emit_json
+
+    p = apply_overrides(DEFAULTS, args.sets)
+    res = compute(p)
+    files = [] if args.no_plots else plot(res, p, Path(args.out))
+    if args.json:
+        out = _strip(res)
+        out["params"] = p
+        out["plots"] = files
+        emit_json(out)
+    else:
+        print(_summary(res, files))
+    return 0

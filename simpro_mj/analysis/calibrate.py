@@ -1,0 +1,468 @@
+"""``simpro-sim calibrate``: fit the plant's uncertain parameters to identified models.
+
+The workflow of a rig owner: identify the rig (Fig. 12's experiment) ->
+calibrate the simulated plant so that ``simpro-sim identify`` on it gives the
+same models -> simulate. The targets are eq. (19)'s natural frequency
+``wn = sqrt(a0)``, damping ratio ``zeta = a1 / (2 wn)`` and velocity gain
+``b / a0`` per actuator: by default eqs. (34)-(35) in SI under the
+``paper_units`` reading (``b / 20`` for potentiometer volts), or a rig
+owner's YAML file (:func:`load_targets`).
+
+What is fitted, and why these (everything else is a catalogue value or the
+geometry of section 5.2.1):
+
+* ``model.payload.mass_kg``: the moving mass sets the natural frequencies
+  (``a0 = K / m``, stiffness K fixed by the cylinder and the pressures);
+  Table 1 is lost, so the mass is the least known number of the plant;
+* ``pneumatics.cylinder.viscous_friction_n_s_per_m`` (leg 1; legs 2-3 one
+  value): the damping ratios (``a1 = beta / m`` plus the valve's small
+  flow-pressure coefficient);
+* ``pneumatics.valve.sonic_conductance_dm3_per_s_bar``: the velocity gains
+  scale with the flow the valve and its hoses pass (the catalogue's
+  2000 l/min is for the bare valve);
+* ``pneumatics.valve.underlap_fraction`` (leg 1; legs 2-3 one value): the
+  flow gain around the centre (both edges meter inside the underlap), which
+  moves leg 1's gain against legs 2-3's.
+
+Amplitudes (``amplitudes_v``, default ±0.3 V and ±1 V of PRBS): the paper's
+models come from a PRBS whose magnitude "was selected to obtain the adequate
+excitation" (section 5.2.2), not printed. A plant calibrated at ±0.3 V alone
+reproduces eqs. (34)-(35) there and nowhere else: its velocity gains fall by
+13 % (leg 1) and 25 % (legs 2-3) at ±1 V, the range the closed-loop steps of
+Figs. 14-16 drive the valves through (valve 1 reaches 3.6 V on a 3° pitch
+step), because the underlap that gives the small-signal gain is a fraction of
+the valve's stroke. Fitting both amplitudes asks for the reading that eqs.
+(34)-(35) describe the rig over its working range: more conductance, less
+underlap (docs/paper-notes.md section 3).
+
+Legs 2 and 3 are mirror images in the nominal model (same identified model),
+so actuator 3 is not excited during the fit; the final identification runs
+all three. The cost per evaluation is two short identification experiments
+(``calibrate.duration_s`` of PRBS each).
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from pathlib import Path
+
+import numpy as np
+
+from simpro_mj.core.errors import UserInputError
+
+__all__ = [
+    "HELP",
+    "TOLERANCES",
+    "PARAMETERS",
+    "paper_targets",
+    "load_targets",
+    "residuals",
+    "calibrate",
+]
+
+HELP = "fit masses, friction and valve flow so that identify reproduces target models"
+
+#: Acceptance band of the fit (issue 18): relative on wn and b/a0, absolute on zeta.
+TOLERANCES = {"wn_rad_s": 0.15, "zeta": 0.1, "velocity_gain_m_s_per_v": 0.15}
+
+#: Fitted parameters: name, tree path (``[i]`` selects legs), start, bounds.
+_FRICTION = "pneumatics.cylinder.viscous_friction_n_s_per_m"
+_VALVE = "pneumatics.valve."
+PARAMETERS = (
+    ("payload_kg", "model.payload.mass_kg", None, 30.0, (0.0, 600.0)),
+    ("friction1_n_s_per_m", _FRICTION, (0,), 6800.0, (0.0, 4e4)),
+    ("friction23_n_s_per_m", _FRICTION, (1, 2), 150.0, (50.0, 5e3)),
+    ("coulomb_n", "pneumatics.cylinder.coulomb_friction_n", (0, 1, 2), 20.0, (1.0, 300.0)),
+    ("conductance_dm3_per_s_bar", _VALVE + "sonic_conductance_dm3_per_s_bar", None, 2.8,
+     (0.3, 7.87)),
+    ("underlap1", _VALVE + "underlap_fraction", (0,), 0.015, (0.003, 0.15)),
+    ("underlap23", _VALVE + "underlap_fraction", (1, 2), 0.03, (0.003, 0.15)),
+)  # fmt: skip
+
+
+def paper_targets(reading: str = "volts") -> dict:
+    """Eqs. (34)-(35) as targets: ``{actuator: {wn_rad_s, zeta, velocity_gain_m_s_per_v}}``."""
+    from controllers.design import ACTUATORS, paper_plant
+
+    out = {}
+    for a in ACTUATORS:
+        p = paper_plant(a, reading)
+        wn = math.sqrt(p.a0)
+        out[a] = {"wn_rad_s": wn, "zeta": p.a1 / (2 * wn), "velocity_gain_m_s_per_v": p.b / p.a0}
+    return out
+
+
+def load_targets(path: str | Path) -> dict:
+    """A rig owner's identified models from YAML.
+
+    Each of ``actuator1``, ``actuator2``, ``actuator3`` is either eq. (19)'s
+    coefficients in SI ``{b, a1, a0}`` (m/s^3/V, 1/s, 1/s^2) or
+    ``{wn_rad_s, zeta, velocity_gain_m_s_per_v}``. Raises
+    :class:`UserInputError` (one line, the field and what is allowed).
+    """
+    from simpro_mj.core.keys import read_yaml
+
+    p = Path(path)
+    doc = read_yaml(p, "targets")
+    acts = ("actuator1", "actuator2", "actuator3")
+    if not isinstance(doc, dict):
+        raise UserInputError(
+            f"wrong type at {p.name} (top level): {type(doc).__name__}; allowed: a mapping "
+            f"with keys {list(acts)}"
+        )
+    extra = sorted(str(k) for k in doc if k not in acts)
+    if extra:
+        raise UserInputError(f"unknown key at {extra[0]}: allowed keys are {list(acts)}")
+    out = {}
+    for a in acts:
+        if a not in doc:
+            raise UserInputError(f"missing key at {a}: allowed: a mapping of b, a1, a0")
+        node = doc[a]
+        forms = ({"b", "a1", "a0"}, {"wn_rad_s", "zeta", "velocity_gain_m_s_per_v"})
+        if not isinstance(node, dict) or set(node) not in forms:
+            raise UserInputError(
+                f"invalid value at {a}: {node!r}; allowed: {{b, a1, a0}} (SI) or "
+                "{wn_rad_s, zeta, velocity_gain_m_s_per_v}"
+            )
+        vals = {}
+        for k, v in node.items():
+            ok = isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
+            if not ok or v <= 0 and k != "a1" or v < 0:
+                raise UserInputError(
+                    f"invalid value at {a}.{k}: {v!r}; allowed: a finite number > 0"
+                    + (" (>= 0 for a1)" if k == "a1" else "")
+                )
+            vals[k] = float(v)
+        if "b" in vals:
+            wn = math.sqrt(vals["a0"])
+            vals = {
+                "wn_rad_s": wn,
+                "zeta": vals["a1"] / (2 * wn),
+                "velocity_gain_m_s_per_v": vals["b"] / vals["a0"],
+            }
+        out[a] = vals
+    return out
+
+
+def _set_path(tree: dict, path: str, legs, value: float) -> None:
+    parts = path.split(".")
+    node = tree
+    for part in parts[:-1]:
+        node = node[part]
+    if legs is None:
+        node[parts[-1]] = float(value)
+    else:
+        arr = list(np.broadcast_to(np.asarray(node[parts[-1]], float), (3,)))
+        for i in legs:
+            arr[i] = float(value)
+        node[parts[-1]] = [float(x) for x in arr]
+
+
+def apply_values(tree: dict, values: dict) -> dict:
+    """A copy of the identify tree with the fitted parameters set."""
+    out = copy.deepcopy(tree)
+    for name, path, legs, _, _ in PARAMETERS:
+        if name in values:
+            _set_path(out, path, legs, values[name])
+    return out
+
+
+def residuals(identified: dict, targets: dict) -> dict:
+    """Per actuator and quantity: the error in units of its tolerance (|r| <= 1 passes)."""
+    out = {}
+    for a, r in identified.items():
+        t = targets[a]
+        out[a] = {
+            "wn_rad_s": (r["wn_rad_s"] / t["wn_rad_s"] - 1.0) / TOLERANCES["wn_rad_s"],
+            "zeta": (r["zeta"] - t["zeta"]) / TOLERANCES["zeta"],
+            "velocity_gain_m_s_per_v": (
+                r["velocity_gain_m_s_per_v"] / t["velocity_gain_m_s_per_v"] - 1.0
+            )
+            / TOLERANCES["velocity_gain_m_s_per_v"],
+        }
+    return out
+
+
+def calibrate(
+    tree: dict,
+    targets: dict,
+    *,
+    duration_s: float = 4.0,
+    max_evaluations: int = 40,
+    progress=None,
+    amplitudes_v=(0.3, 1.0),
+) -> dict:
+    """Fit :data:`PARAMETERS` with ``scipy.optimize.least_squares``.
+
+    Parameters
+    ----------
+    tree : dict
+        The identify tree (:func:`simpro_mj.identification.identify.default_tree`), the start.
+    targets : dict
+        ``{actuator: {wn_rad_s, zeta, velocity_gain_m_s_per_v}}``.
+    duration_s : float
+        PRBS per actuator and evaluation (s).
+    max_evaluations : int
+        Budget of identification runs (each excites actuators 1 and 2).
+    progress : callable(int, float), optional
+        Called after each evaluation with its number and the cost.
+    amplitudes_v : sequence of float
+        PRBS amplitudes (V) at which the targets are fitted (module docstring);
+        each evaluation runs one identification per amplitude.
+
+    Returns
+    -------
+    dict
+        ``values`` (fitted), ``identified`` (at the fit, actuators 1-2),
+        ``residuals`` (per tolerance), ``evaluations``, ``cost``.
+    """
+    from scipy.optimize import least_squares
+
+    from simpro_mj.core.errors import PhysicsError
+    from simpro_mj.identification.identify import identify
+
+    names = [p[0] for p in PARAMETERS]
+    start = {}
+    for name, path, legs, default, _ in PARAMETERS:
+        node = tree
+        for part in path.split("."):
+            node = node[part]
+        v = float(np.broadcast_to(np.asarray(node, float), (3,))[legs[0]]) if legs else float(node)
+        start[name] = v if v > 0 else default
+    lo = np.array([max(b[0], 1e-3) for *_, b in PARAMETERS])
+    hi = np.array([b[1] for *_, b in PARAMETERS])
+    x0 = np.log(np.clip([start[n] for n in names], lo * 1.0001, hi * 0.9999))
+    base = copy.deepcopy(tree)
+    base["identify"]["duration_s"] = float(duration_s)
+    amplitudes = [float(a) for a in amplitudes_v]
+    if not amplitudes or not all(0.0 < a <= 5.0 for a in amplitudes):
+        raise UserInputError(
+            f"invalid value at amplitudes_v: {amplitudes_v!r}; allowed: 1+ amplitudes in (0, 5] V"
+        )
+    acts = ("actuator1", "actuator2")
+    count = [0]
+    best = {"cost": math.inf}
+
+    class _Budget(Exception):
+        pass
+
+    def fun(x):
+        if count[0] >= max_evaluations:
+            raise _Budget  # least_squares' max_nfev does not count its Jacobian's runs
+        values = dict(zip(names, np.exp(x).tolist(), strict=True))
+        count[0] += 1
+        trial = apply_values(base, values)
+        r, ident, res = [], None, None
+        try:
+            for amp in amplitudes:
+                trial["identify"]["prbs_amplitude_v"] = [amp] * 3
+                got = identify(trial, legs=(1, 2))
+                rs = residuals(got, {a: targets[a] for a in acts})
+                r.extend(rs[a][k] for a in acts for k in TOLERANCES)
+                if ident is None:  # the first amplitude's models are reported
+                    ident, res = got, rs
+            r = np.array(r)
+        except (PhysicsError, UserInputError):
+            ident, res, r = None, None, np.full(6 * len(amplitudes), 10.0)
+        cost = float(r @ r)
+        if cost < best["cost"]:
+            best.update(cost=cost, values=values, identified=ident, residuals=res)
+        if progress is not None:
+            progress(count[0], cost)
+        return r
+
+    try:
+        least_squares(
+            fun, x0, bounds=(np.log(lo), np.log(hi)), diff_step=0.02, max_nfev=max_evaluations
+        )
+    except _Budget:
+        pass
+    best["evaluations"] = count[0]
+    return best
+
+
+# ------------------------------------------------------------------ plausibility, preset
+
+
+def plausibility(tree: dict) -> dict:
+    """Physical reading of a fitted plant: moving mass, friction against a seal's, valve flow.
+
+    Bands (assumptions, stated): a 125 mm cylinder's seals give 100-2000 N s/m of
+    viscous friction (Richer & Hurmuzlu's order of magnitude); more on leg 1 is the
+    passive guide's bearings it drives. The MPYE-5-3/8 passes 2000 l/min (ANR,
+    C = 7.87 dm^3/(s bar)) bare; hoses and fittings lower the effective value.
+    """
+    from simpro_mj.plant.pneumatics import DEFAULT_PNEUMATIC_PARAMS as ref
+
+    m = tree["model"]
+    p = tree["pneumatics"]
+    payload = float(m["payload"]["mass_kg"])
+    platform = float(m["platform_mass_kg"])
+    visc = np.broadcast_to(np.asarray(p["cylinder"]["viscous_friction_n_s_per_m"], float), (3,))
+    c = float(p["valve"]["sonic_conductance_dm3_per_s_bar"])
+    c_ref = float(ref["valve"]["sonic_conductance_dm3_per_s_bar"])
+    under = np.broadcast_to(np.asarray(p["valve"]["underlap_fraction"], float), (3,))
+    return {
+        "moving_mass_kg": {
+            "payload": payload,
+            "platform": platform,
+            "total": payload + platform,
+            "note": "payload + platform on the legs (legs' own rods and the guide come from "
+            "the MJCF); Table 1 is lost",
+        },
+        "viscous_friction_n_s_per_m": {
+            "values": visc.tolist(),
+            "seal_band": [100.0, 2000.0],
+            "within_seal_band": [bool(100.0 <= v <= 2000.0) for v in visc],
+            "note": "above the band on leg 1: the guide's bearings lumped on the leg",
+        },
+        "valve_flow": {
+            "sonic_conductance_dm3_per_s_bar": c,
+            "fraction_of_catalogue": c / c_ref,
+            "nominal_flow_l_per_min": 2000.0 * c / c_ref,
+            "note": "effective conductance of valve + hoses + fittings",
+        },
+        "underlap_fraction": under.tolist(),
+    }
+
+
+def preset_document(name: str, tree: dict, base: dict, result: dict, targets: dict, extra=None):
+    """The preset YAML document: only the values that differ from ``base``'s."""
+
+    def diff(a, b):
+        out = {}
+        for k, v in a.items():
+            if isinstance(v, dict) and isinstance(b.get(k), dict):
+                d = diff(v, b[k])
+                if d:
+                    out[k] = d
+            elif v != b.get(k):
+                out[k] = v
+        return out
+
+    ident = result.get("identified") or {}
+    doc = {
+        "name": name,
+        "description": f"calibrated by simpro-sim calibrate ({len(targets)} target models)",
+        "plant": diff(tree["model"], base["model"]),
+        "pneumatics": diff(tree["pneumatics"], base["pneumatics"]),
+        "identified": {
+            a: {k: round(float(ident[a][k]), 4) for k in ("b", "a1", "a0")} for a in ident
+        },
+        "calibration": {
+            "targets": targets,
+            "tolerances": TOLERANCES,
+            "residuals_per_tolerance": result.get("residuals"),
+            "fitted": result.get("values"),
+            "evaluations": result.get("evaluations"),
+            "plausibility": plausibility(tree),
+        }
+        | (extra or {}),
+    }
+    return doc
+
+
+# ------------------------------------------------------------------------- CLI
+
+
+def add_arguments(parser) -> None:
+    parser.add_argument(
+        "--targets",
+        default=None,
+        help="YAML of identified models per actuator ({b, a1, a0} in SI, or wn_rad_s, zeta, "
+        "velocity_gain_m_s_per_v); default eqs. (34)-(35) under paper_units",
+    )
+    parser.add_argument("--start", default="paper", help="preset to start from (default paper)")
+    parser.add_argument("--name", default="calibrated", help="name of the written preset")
+    parser.add_argument(
+        "--out", default=None, help="preset YAML to write (default results/calibrate/NAME.yaml)"
+    )
+    parser.add_argument(
+        "--evaluations", type=int, default=30, help="budget of identification runs (30)"
+    )
+    parser.add_argument(
+        "--duration", type=float, default=4.0, help="PRBS per actuator and evaluation, s (4)"
+    )
+    parser.add_argument(
+        "--amplitudes", type=float, nargs="+", default=[0.3, 1.0], metavar="V",
+        help="PRBS amplitudes fitted at once, V (0.3 1.0: small signal and the steps' range)",
+    )  # fmt: skip
+
+
+def run(args) -> int:
+    import sys
+
+    import yaml
+    from tqdm import tqdm
+
+    from simpro_mj.core.keys import apply_overrides
+    from simpro_mj.identification.identify import default_tree, identify
+
+    if args.evaluations < 1 or args.evaluations > 1000:
+        raise UserInputError(
+            f"invalid value at --evaluations: {args.evaluations}; allowed: 1..1000"
+        )
+    if not (0.5 <= args.duration <= 60.0):
+        raise UserInputError(f"invalid value at --duration: {args.duration}; allowed: 0.5..60 s")
+    if not all(0.0 < a <= 5.0 for a in args.amplitudes):
+        raise UserInputError(
+            f"invalid value at --amplitudes: {args.amplitudes}; allowed: amplitudes in (0, 5] V"
+        )
+    tree = apply_overrides(default_tree(args.start), args.sets)
+    from simpro_mj.identification.identify import check_tree
+
+    check_tree(tree)
+    targets = (
+        paper_targets(tree["paper_units"]) if args.targets is None else load_targets(args.targets)
+    )
+    out = Path(args.out) if args.out else Path("results") / "calibrate" / f"{args.name}.yaml"
+    if out.suffix not in (".yaml", ".yml"):
+        raise UserInputError(f"invalid value at --out: {out}; allowed: a path ending in .yaml")
+    bar = tqdm(total=args.evaluations, desc="calibrate", unit="eval", file=sys.stderr)
+
+    def progress(i, cost):
+        bar.set_postfix(cost=f"{cost:.3g}")
+        bar.update(1)
+
+    result = calibrate(
+        tree, targets, duration_s=args.duration, max_evaluations=args.evaluations,
+        progress=progress, amplitudes_v=args.amplitudes,
+    )  # fmt: skip
+    bar.close()
+    fitted = apply_values(tree, result["values"])
+    final = identify(fitted)  # all three actuators, the identify command's settings
+    result["identified"] = final
+    result["residuals"] = residuals(final, targets)
+    base = default_tree("heavy_cabin")
+    doc = preset_document(args.name, fitted, base, result, targets)
+    doc["calibration"]["paper_units"] = tree["paper_units"]
+    doc["calibration"]["amplitudes_v"] = [float(a) for a in args.amplitudes]
+    by_amp = {}
+    for amp in args.amplitudes[1:]:  # the other amplitudes' models at the fit, for the record
+        t2 = copy.deepcopy(fitted)
+        t2["identify"]["prbs_amplitude_v"] = [float(amp)] * 3
+        got = identify(t2, legs=(1, 2))
+        by_amp[f"{amp:g}_v"] = {a: {k: round(float(got[a][k]), 4) for k in TOLERANCES} for a in got}
+    doc["calibration"]["identified_at_other_amplitudes"] = by_amp
+    import json
+
+    doc = json.loads(json.dumps(doc, default=float))  # plain floats for YAML
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(yaml.safe_dump(doc, sort_keys=False), encoding="utf-8")
+    worst = max(abs(v) for r in result["residuals"].values() for v in r.values())
+    if args.json:
+        from simpro_mj.core.jsonout import emit_json
+
+        emit_json(doc)
+    else:
+        for a, r in final.items():
+            t = targets[a]
+            print(
+                f"{a}: wn {r['wn_rad_s']:.2f} (target {t['wn_rad_s']:.2f}) rad/s, zeta "
+                f"{r['zeta']:.3f} ({t['zeta']:.3f}), b/a0 {r['velocity_gain_m_s_per_v']:.4f} "
+                f"({t['velocity_gain_m_s_per_v']:.4f}) m/s/V"
+            )
+        verdict = "within" if worst <= 1.0 else "OUTSIDE"
+        print(f"worst residual {worst:.2f} x tolerance: {verdict} the tolerances; wrote {out}")
+    return 0

@@ -1,0 +1,450 @@
+"""Whole-chain frequency response of the motion cueing (issue 16): vehicle -> driver's head.
+
+``simpro-sim response --chain``. For each vehicle channel (specific force
+``fx, fy, fz`` and roll and pitch rates ``wx, wy``, vehicle frame V, ISO
+8855) and each frequency, one run of the scenario with its vehicle input
+replaced by a sine on that channel alone (``setpoint.cueing.sine``: the car
+at rest plus the sine), through the washout, the controllers, the
+pneumatics and the multibody, to MuJoCo's ``head_accel`` and ``head_gyro``
+at the driver's head. After ``settle_s`` (default 10 s: five time constants
+of the washout's slowest poles, ``heave_omega_b`` and ``rot_omega`` at
+0.5 rad/s), ``periods`` whole periods of the input and of the five head
+channels are fitted by least squares (:func:`controllers.frequency.fit_sine`)
+and their ratio is the response.
+
+Rows are the pairs of the Objective Motion Cueing Test (ICAO 9625, 4th ed.,
+Attachment 2) that a roll-pitch-heave platform has: the direct responses
+pitch, roll, surge, sway and heave, and the cross-couplings pitch-to-surge
+(``wy -> fx``: the rotational channel tilts the cabin, gravity leaks into
+``f_x``), roll-to-sway, surge-to-pitch (``fx -> wy``: the rotation of tilt
+coordination, which the rate limit keeps near the canals' threshold) and
+sway-to-roll. Frequencies: the twelve OMCT frequencies (0.1 to 15.85 rad/s)
+on the 1 ms period grid. Gains are in the edge units (``m/s^2`` per
+``m/s^2``, ``deg/s`` per ``deg/s``, and mixed for the cross-couplings).
+
+Beside the measurement, two linear predictions
+(:func:`controllers.frequency.chain_response`):
+
+``washout``
+    The washout alone: its discrete filters (Tustin, at its period, held on
+    the 1 ms grid) on an ideal platform (pose = set-point) with the head at
+    the pose's reference point P: what the algorithm asks for.
+``predicted``
+    The washout, then the scenario's linearised platform loop
+    (:func:`simpro_mj.analysis.response.loop_model`, the pose-response prediction of
+    ``simpro-sim response``), then the rigid cabin with the head where the
+    MJCF puts it (0.75 m above P: the tangential acceleration of a pitch or
+    roll adds to the tilt's gravity cue and grows as w^2).
+
+The difference measured - washout is what the platform adds; measured -
+predicted is what the linear model misses (valves, friction, the
+nonlinear pneumatics). The washout's rate and angle limits and the
+workspace soft limit are not in the predictions: ``rate_limited_pct`` and
+``softened_pct`` give the share of the fitted cueing samples where they
+acted (not a small-signal point: lower the amplitude).
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from controllers.frequency import CHAIN_CHANNELS, OMCT_RAD_S, chain_response, fit_sine
+from simpro_mj.core.errors import UserInputError
+
+__all__ = [
+    "CHANNELS",
+    "PAIRS",
+    "DEFAULT_AMPLITUDES",
+    "ChainPlan",
+    "omct_periods_ms",
+    "plan_chain",
+    "chain_scenario",
+    "fit_columns",
+    "measure_chain_point",
+    "measure_chain",
+    "predictions",
+    "chain_summary",
+]
+
+CHANNELS = CHAIN_CHANNELS
+#: The cueing block's ``sine.channel`` of each channel (telemetry column names).
+_SINE_CHANNEL = {
+    "fx": "fx_mps2",
+    "fy": "fy_mps2",
+    "fz": "fz_mps2",
+    "wx": "wx_rad_s",
+    "wy": "wy_rad_s",
+}
+#: Edge unit and its factor to SI per channel.
+_UNITS = {
+    "fx": ("m/s^2", 1.0),
+    "fy": ("m/s^2", 1.0),
+    "fz": ("m/s^2", 1.0),
+    "wx": ("deg/s", math.pi / 180.0),
+    "wy": ("deg/s", math.pi / 180.0),
+}
+#: OMCT pairs of a roll-pitch-heave platform: (input, output) -> name.
+PAIRS = {
+    ("wy", "wy"): "pitch",
+    ("wx", "wx"): "roll",
+    ("fx", "fx"): "surge",
+    ("fy", "fy"): "sway",
+    ("fz", "fz"): "heave",
+    ("wy", "fx"): "pitch-to-surge",
+    ("wx", "fy"): "roll-to-sway",
+    ("fx", "wy"): "surge-to-pitch",
+    ("fy", "wx"): "sway-to-roll",
+}
+#: Small-signal amplitudes (edge units). 0.3 m/s^2 keeps the tilt rate of the default
+#: washout below its 3 deg/s limit at every frequency (peak w |LP(jw)| k_x a / g =
+#: 2.5 * 0.5 * 0.3 / 9.81 = 2.2 deg/s at w_t = 5 rad/s) and the heave within
+#: 19 mm; 1 deg/s tilts the cabin by at most 2 deg through the rotational channel.
+DEFAULT_AMPLITUDES = {"f": 0.3, "w": 1.0}
+MAX_AMPLITUDES = {"f": 9.80665, "w": 90.0}
+DEFAULT_SETTLE_S = 10.0
+
+
+def omct_periods_ms() -> list[int]:
+    """The twelve OMCT frequencies on the 1 ms period grid, longest period first."""
+    return sorted({int(round(2000.0 * math.pi / w)) for w in OMCT_RAD_S}, reverse=True)
+
+
+@dataclass
+class ChainPlan:
+    """What :func:`measure_chain` runs: one task per (channel, period)."""
+
+    scenario: dict
+    channels: tuple
+    periods_ms: list
+    amplitudes: dict  # SI per channel
+    settle_s: float
+    periods: int
+    tasks: list = field(default_factory=list)
+
+
+def _check_amplitude(value, kind: str) -> float:
+    where = "--amplitude-mps2" if kind == "f" else "--amplitude-deg-s"
+    unit = "m/s^2" if kind == "f" else "deg/s"
+    top = MAX_AMPLITUDES[kind]
+    ok = isinstance(value, (int, float)) and not isinstance(value, bool)
+    if not (ok and math.isfinite(value) and 0 < value <= top):
+        raise UserInputError(
+            f"invalid value at {where}: {value!r}; allowed: 0 < amplitude <= {top:g} {unit}"
+        )
+    return float(value)
+
+
+def plan_chain(
+    scenario: Mapping,
+    *,
+    periods_ms: Sequence[int] | None = None,
+    amplitude_mps2: float | None = None,
+    amplitude_deg_s: float | None = None,
+    channels: Sequence[str] = CHANNELS,
+    settle_s: float = DEFAULT_SETTLE_S,
+    periods: int = 2,
+) -> ChainPlan:
+    """Check the test's parameters and build its tasks (plain data for the workers)."""
+    from simpro_mj.analysis.response import check_run_length, check_settle_periods
+
+    af = _check_amplitude(
+        DEFAULT_AMPLITUDES["f"] if amplitude_mps2 is None else amplitude_mps2, "f"
+    )
+    aw = _check_amplitude(
+        DEFAULT_AMPLITUDES["w"] if amplitude_deg_s is None else amplitude_deg_s, "w"
+    )
+    if not channels:
+        raise UserInputError(f"invalid value at --channels: empty; allowed: {list(CHANNELS)}")
+    for c in channels:
+        if c not in CHANNELS:
+            raise UserInputError(f"invalid value at --channels: {c!r}; allowed: {list(CHANNELS)}")
+    if len(set(channels)) != len(channels):
+        raise UserInputError(
+            "invalid value at --channels: a channel given twice; allowed: distinct"
+        )
+    check_settle_periods(settle_s, periods)
+    periods_ms = omct_periods_ms() if periods_ms is None else sorted(periods_ms, reverse=True)
+    check_run_length(settle_s, periods, periods_ms)
+    amps = {c: (af if c[0] == "f" else aw * math.pi / 180.0) for c in CHANNELS}
+    plan = ChainPlan(
+        scenario=copy.deepcopy(dict(scenario)),
+        channels=tuple(channels),
+        periods_ms=list(periods_ms),
+        amplitudes=amps,
+        settle_s=float(settle_s),
+        periods=int(periods),
+    )
+    for c in plan.channels:
+        for p in plan.periods_ms:
+            plan.tasks.append(
+                {
+                    "scenario": chain_scenario(scenario, c, p, amps[c], settle_s, periods),
+                    "channel": c,
+                    "period_ms": int(p),
+                    "settle_s": float(settle_s),
+                    "periods": int(periods),
+                }
+            )
+    return plan
+
+
+def _cue_block(scenario: Mapping) -> dict:
+    """The scenario's cueing block (its algorithm and parameters), or the defaults."""
+    from simpro_mj.config.cueing import check_cueing
+
+    cue = (scenario.get("setpoint") or {}).get("cueing")
+    if cue:
+        return {"algorithm": cue["algorithm"], "parameters": dict(cue["parameters"])}
+    full = check_cueing({"sine": {"channel": "fx_mps2", "amplitude": 1.0, "period_s": 1.0}})
+    return {"algorithm": full["algorithm"], "parameters": full["parameters"]}
+
+
+def chain_scenario(
+    scenario: Mapping, channel: str, period_ms: int, amplitude: float, settle_s: float, periods: int
+) -> dict:
+    """The scenario driven by a vehicle sine of ``amplitude`` (SI) on ``channel`` alone,
+    through its washout (or the default one), for ``settle_s`` plus ``periods`` periods,
+    logged every step, faults removed."""
+    sc = copy.deepcopy(dict(scenario))
+    block = _cue_block(scenario)
+    sc["setpoint"] = {
+        "cueing": {
+            "telemetry": None,
+            "manoeuvre": None,
+            "sine": {
+                "channel": _SINE_CHANNEL[channel],
+                "amplitude": float(amplitude),
+                "period_s": period_ms / 1000.0,
+            },
+            **block,
+        }
+    }
+    sc["duration_s"] = round(settle_s + periods * period_ms / 1000.0, 3)
+    sc["faults"] = []
+    sc["logging"] = dict(sc.get("logging") or {}, decimation=1)
+    return sc
+
+
+def fit_columns(columns: Mapping, task: Mapping, dt: float = 0.001) -> dict:
+    """Fit a run's vehicle input and head channels over the settled whole periods.
+
+    ``columns``: ``time_s``, ``veh_*`` and ``head_*`` (:data:`simpro_mj.config.cueing.CUE_COLUMNS`).
+    Returns ``ref`` (the input's complex amplitude, ``[re, im]`` SI) and ``head``
+    (one ``[re, im]`` per :data:`CHANNELS`), and the fitted rows ``k0``, ``k1``.
+    """
+    period = task["period_ms"] / 1000.0
+    k0 = int(round(task["settle_s"] / dt))
+    k1 = k0 + int(round(task["periods"] * period / dt))
+    t = np.asarray(columns["time_s"], float)[k0:k1]
+    if t.size < k1 - k0 or t.size < 4:
+        raise ValueError(f"run too short: {t.size} samples, the fit needs {k1 - k0}")
+    w = 2.0 * math.pi / period
+
+    def col(side: str, ch: str) -> np.ndarray:
+        kind = "f" if ch[0] == "f" else "w"
+        unit = "mps2" if kind == "f" else "rad_s"
+        return np.asarray(columns[f"{side}_{kind}{ch[1]}_{unit}"], float)[k0:k1]
+
+    ref = fit_sine(t, col("veh", task["channel"]), w)
+    head = fit_sine(t, np.column_stack([col("head", c) for c in CHANNELS]), w)
+    return {
+        "ref": [ref.real, ref.imag],
+        "head": [[v.real, v.imag] for v in head],
+        "k0": k0,
+        "k1": k1,
+    }
+
+
+def measure_chain_point(task: Mapping) -> dict:
+    """Run one vehicle sine through the chain and fit it (worker side; pickles by name).
+
+    Returns ``status``, ``reason``, and when ``ok``: ``channel``, ``period_ms``, ``ref``,
+    ``head`` (:func:`fit_columns`), ``saturated_pct`` (fitted steps with a valve at a
+    rail), ``rate_limited_pct`` and ``softened_pct`` (fitted cueing samples where the
+    tilt rate limit or the workspace soft limit acted).
+    """
+    from simpro_mj.config.cueing import vehicle_input
+    from simpro_mj.sim.loop import CoSimulation
+
+    try:
+        res = CoSimulation(task["scenario"]).run()
+        if res.status != "ok":
+            return {"status": res.status, "reason": res.reason}
+        c = res.columns
+        fit = fit_columns(c, task, res.sim["timestep_s"])
+        k0, k1 = fit["k0"], fit["k1"]
+        u = np.column_stack([c[f"u{i}_v"][k0:k1] for i in (1, 2, 3)])
+        sat = np.any((u <= 0.0) | (u >= 10.0), axis=1).mean() * 100.0
+        info = vehicle_input(task["scenario"])[4]
+        e = info["every"]
+        lim = np.asarray(info["rate_limited"])[k0 // e : -(-k1 // e)]
+        soft = np.asarray(info["softened"])[k0 // e : -(-k1 // e)]
+        return {
+            "status": "ok",
+            "reason": None,
+            "channel": task["channel"],
+            "period_ms": task["period_ms"],
+            "ref": fit["ref"],
+            "head": fit["head"],
+            "saturated_pct": float(sat),
+            "rate_limited_pct": float(lim.mean() * 100.0) if lim.size else 0.0,
+            "softened_pct": float(soft.mean() * 100.0) if soft.size else 0.0,
+        }
+    except UserInputError as exc:
+        return {"status": "invalid", "reason": " ".join(str(exc).split())}
+    except Exception as exc:  # noqa: BLE001 - a failure is this frequency's, not the test's
+        return {"status": "failed", "reason": f"{type(exc).__name__}: {' '.join(str(exc).split())}"}
+
+
+def measure_chain(plan: ChainPlan, *, jobs: int = 1, scheduler=None, progress: bool = False):
+    """Run every task of ``plan``; results in task order (:func:`measure_chain_point`)."""
+    from simpro_mj.analysis.response import measure
+
+    return measure(
+        plan,
+        jobs=jobs,
+        scheduler=scheduler,
+        progress=progress,
+        fn=measure_chain_point,
+        desc="chain response",
+    )
+
+
+def head_jacobian(scenario: Mapping, step: float = 1e-4) -> np.ndarray:
+    """How the head site moves per pose at home, ISO axes (m per rad, m per m), (3, 3).
+
+    Central differences of MuJoCo's assembled closed chain
+    (:func:`simpro_mj.plant.model.assemble` at the IK of home +- ``step``). The mechanism
+    moves the head by more than a rigid rotation about P: P itself moves back and
+    forth on the guide's arc (0.43 m per rad of pitch, 0.50 m per m of heave).
+    """
+    import mujoco
+
+    from controllers.kinematics import inverse_kinematics
+    from simpro_mj.plant.model import assemble
+    from simpro_mj.sim.loop import CoSimulation
+
+    cs = CoSimulation(dict(scenario))
+    m, d, idx, c = cs.model, cs.data, cs.idx, cs.sensor_cfg
+    home = np.asarray(cs.geometry.home, float)
+
+    def head(pose) -> np.ndarray:
+        q = inverse_kinematics(np.asarray(pose, float), cs.geometry)
+        mujoco.mj_resetData(m, d)
+        assemble(m, d, (q - c.pot_offset_m) / c.pot_gain, index=idx)
+        mujoco.mj_kinematics(m, d)
+        return d.site("head").xpos.copy()
+
+    t = np.diag([-1.0, -1.0, 1.0])  # base <-> ISO (vectors and angles, controllers.frames)
+    jac = np.empty((3, 3))
+    for j in range(3):
+        e = np.zeros(3)
+        e[j] = step
+        jac[:, j] = (head(home + e) - head(home - e)) / (2 * step)
+    return t @ jac @ t
+
+
+def predictions(plan: ChainPlan, omega) -> dict:
+    """``washout`` and ``predicted`` (or None when the loop has no linear model):
+    complex (len(omega), 5, 5) per :func:`controllers.frequency.chain_response`."""
+    from controllers.frequency import predict
+    from controllers.washout import ClassicalWashout
+    from simpro_mj.config.cueing import washout_params
+
+    sc = plan.tasks[0]["scenario"] if plan.tasks else plan.scenario
+    wash = ClassicalWashout(washout_params(sc["setpoint"]["cueing"]))
+    out = {"washout": chain_response(wash, omega), "predicted": None, "note": None}
+    try:
+        from simpro_mj.analysis.response import loop_model
+
+        loop = predict(loop_model(sc), omega)["true"]
+        t = np.diag([-1.0, -1.0, 1.0])  # base <-> ISO angles (controllers.frames)
+        out["predicted"] = chain_response(
+            wash, omega, pose=t @ loop @ t, head_jac=head_jacobian(sc)
+        )
+    except Exception as exc:  # noqa: BLE001 - the measurement stands without it
+        out["note"] = f"no loop prediction: {type(exc).__name__}: {exc}"
+    return out
+
+
+def _edge(cin: str, cout: str, h: complex) -> complex:
+    return h * _UNITS[cin][1] / _UNITS[cout][1]
+
+
+def _unwrapped(h_dense: np.ndarray) -> np.ndarray:
+    return np.degrees(np.unwrap(np.angle(h_dense)))
+
+
+def chain_summary(plan: ChainPlan, results: list) -> dict:
+    """Rows (one per OMCT pair and frequency) and the failures, JSON-ready."""
+    periods = sorted(plan.periods_ms, reverse=True)
+    omega = 2 * np.pi * 1000.0 / np.array(periods, float)
+    # the predictions on a dense grid from well below, so that their phase unwraps from
+    # the low-frequency asymptote whatever frequencies were asked for
+    dense = np.unique(np.r_[np.geomspace(omega.min() / 20, omega.max(), 300), omega])
+    at = np.searchsorted(dense, omega)
+    pred = predictions(plan, dense)
+    by_key = {(r.get("channel"), r.get("period_ms")): r for r in results if r.get("status") == "ok"}
+    from simpro_mj.analysis.response import failures
+
+    failed = failures(plan.tasks, results, "channel")
+    rows = []
+    for (cin, cout), name in PAIRS.items():
+        if cin not in plan.channels:
+            continue
+        i, o = CHANNELS.index(cin), CHANNELS.index(cout)
+        hw = pred["washout"][:, o, i]
+        ph_w = _unwrapped(hw)[at]
+        hp = pred["predicted"][:, o, i] if pred["predicted"] is not None else None
+        ph_p = _unwrapped(hp)[at] if hp is not None else None
+        for n, p in enumerate(periods):
+            r = by_key.get((cin, p))
+            if r is None:
+                continue
+            hm = complex(*r["head"][o]) / complex(*r["ref"])
+            raw = math.degrees(np.angle(hm))
+            near = ph_p[n] if ph_p is not None else ph_w[n]
+            phase = raw + 360.0 * round((near - raw) / 360.0)  # the branch of the prediction
+            g = abs(_edge(cin, cout, hm))
+            gw = abs(_edge(cin, cout, hw[at[n]]))
+            row = {
+                "test": name,
+                "input": cin,
+                "output": cout,
+                "unit": f"{_UNITS[cout][0]} per {_UNITS[cin][0]}",
+                "frequency_hz": float(omega[n] / (2 * np.pi)),
+                "omega_rad_s": float(omega[n]),
+                "period_ms": p,
+                "amplitude": plan.amplitudes[cin] / _UNITS[cin][1],
+                "gain": g,
+                "gain_db": 20 * math.log10(max(g, 1e-300)),
+                "phase_deg": float(phase),
+                "washout_gain_db": 20 * math.log10(max(gw, 1e-300)),
+                "washout_phase_deg": float(ph_w[n]),
+                "predicted_gain_db": None,
+                "predicted_phase_deg": None,
+                "platform_db": 20 * math.log10(max(g, 1e-300) / max(gw, 1e-300)),
+                "platform_deg": float(np.degrees(np.angle(hm / hw[at[n]]))),
+                "saturated_pct": r["saturated_pct"],
+                "rate_limited_pct": r["rate_limited_pct"],
+                "softened_pct": r["softened_pct"],
+            }
+            if hp is not None:
+                gp = abs(_edge(cin, cout, hp[at[n]]))
+                row["predicted_gain_db"] = 20 * math.log10(max(gp, 1e-300))
+                row["predicted_phase_deg"] = float(ph_p[n])
+            rows.append(row)
+    nonlinear = sorted(
+        {r["test"] for r in rows if r["rate_limited_pct"] > 0 or r["softened_pct"] > 0}
+    )
+    return {
+        "rows": rows,
+        "failed": failed,
+        "prediction_note": pred["note"],
+        "not_small_signal": nonlinear,
+    }

@@ -1,0 +1,375 @@
+"""``simpro-sim bench [SCENARIO]``: the cost of one co-simulation step (issue 7).
+
+Measured in one process and one invocation, on the shipped model and a
+scenario (default ``step_pitch.yaml``), ``--repeats`` times; every figure is
+the median over the repeats:
+
+* ``full_step_us``: wall time of :meth:`simpro_mj.sim.loop.CoSimulation.run`
+  (sensors, joint loops, task loop amortised, pneumatics, logging,
+  ``mj_step1``/``mj_step2``) per 1 ms step; ``realtime_factor`` = simulated
+  seconds per wall second of that loop = ``timestep / full_step_us``.
+* ``bare_step_us``: ``mj_step`` alone on the same model along the *same*
+  state trajectory: the run's initial state and its recorded actuator
+  forces are replayed by :func:`mujoco.rollout.rollout`, a loop in C that
+  sets the recorded ``ctrl`` and calls ``mj_step`` with no Python between
+  steps (the physical floor). ``bare_python_loop_us`` is the same replay
+  from a Python loop (``d.ctrl[:] = u_k; mj_step(m, d)``): the floor of any
+  Python-driven loop. ``bare_same_trajectory`` says whether both replays end
+  in exactly the run's final state (MuJoCo is deterministic, so they should).
+* ``ratio`` = ``full_step_us / bare_step_us``.
+* ``stages_us``: per-stage wall time per step from an instrumented run
+  (``CoSimulation.run(profile=...)``; ``time.perf_counter_ns`` around each
+  stage). The clock calls themselves cost about 0.05 us each (ten per step),
+  so the stages sum to a little more than ``full_step_us``
+  (``instrumented_step_us`` is that run's own time per step).
+* ``throughput``: ``--batch-runs`` copies of the scenario in a
+  :class:`concurrent.futures.ProcessPoolExecutor` (``spawn``; each worker
+  builds its own model) with 1 and with 2 workers, in simulated seconds per
+  wall second; worker start-up (imports, model compilation) is done before
+  the clock starts.
+
+``docs/performance.md`` holds the figures of this machine and how they scale.
+"""
+
+from __future__ import annotations
+
+import copy
+import os
+import statistics
+import time
+
+from simpro_mj.report.machine import describe_machine
+
+HELP = "time the co-simulation step against bare mj_step, per stage, and batch throughput"
+
+STAGES = ("sensors", "controllers", "pneumatics", "physics", "logging")
+
+
+def add_arguments(parser) -> None:
+    parser.add_argument(
+        "scenario",
+        nargs="?",
+        default="step_pitch.yaml",
+        help="shipped scenario name or a path (default step_pitch.yaml)",
+    )
+    parser.add_argument(
+        "--repeats", default=5, help="measurements per figure; the median is reported (default 5)"
+    )
+    parser.add_argument(
+        "--duration", default=None, help="simulated seconds per run (default: the scenario's)"
+    )
+    parser.add_argument(
+        "--batch-runs",
+        default=4,
+        help="scenario copies per throughput measurement (default 4)",
+    )
+    parser.add_argument(
+        "--no-batch", action="store_true", help="skip the 1- and 2-worker throughput part"
+    )
+    parser.add_argument(
+        "--video",
+        action="store_true",
+        help="instead: time simpro-sim render on a 20 s run at 25 fps, 640x480 with the plot "
+        "strip (--duration changes the run's length; needs simpro-sim[video])",
+    )
+
+
+#: Upper bounds of the counts (a benchmark of the median of 100 is already minutes).
+MAX_REPEATS = 100
+MAX_BATCH_RUNS = 64
+
+
+def _positive_int(value, field: str, hi: int) -> int:
+    from simpro_mj.core.errors import UserInputError
+    from simpro_mj.core.keys import value_text
+
+    text = str(value).strip()
+    n = int(text) if text.isdigit() and len(text) <= 9 else 0
+    if not 1 <= n <= hi:
+        raise UserInputError(
+            f"invalid value at {field}: {value_text(value)}; allowed: an integer 1..{hi}"
+        )
+    return n
+
+
+def _duration(value) -> float:
+    import math
+
+    from simpro_mj.core.errors import UserInputError
+
+    try:
+        s = float(value)
+    except (TypeError, ValueError):
+        s = math.nan
+    if not (math.isfinite(s) and s >= 0.01):
+        from simpro_mj.core.keys import value_text
+
+        raise UserInputError(
+            f"invalid value at --duration: {value_text(value)}; allowed: a number of seconds "
+            ">= 0.01"
+        )
+    return s
+
+
+# ------------------------------------------------------------------ measurements
+
+
+def _record(scenario: dict, model):
+    """One run at full logging: its initial physics state, controls and final state.
+
+    Logging does not touch the dynamics, so the trajectory is the timed runs'
+    whatever their decimation.
+    """
+    import mujoco
+    import numpy as np
+
+    from simpro_mj.sim.loop import CoSimulation
+
+    sc = copy.deepcopy(scenario)
+    sc["logging"]["decimation"] = 1
+    cs = CoSimulation(sc, model=model)
+    cs._initial_state()
+    spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
+    state0 = np.empty(mujoco.mj_stateSize(model, spec))
+    mujoco.mj_getState(model, cs.data, state0, spec)
+    warm0 = cs.data.qacc_warmstart.copy()
+    res = cs.run()
+    if res.status != "ok":
+        from simpro_mj.core.errors import PhysicsError
+
+        raise PhysicsError(f"the benchmark scenario did not run to the end: {res.reason}")
+    n = res.sim["steps"]
+    ctrl = np.zeros((n, model.nu))
+    for i, a in enumerate(cs.idx.actuators):
+        ctrl[:, a] = res.columns[f"f{i + 1}_n"][:n]  # the force applied over step k
+    return state0, warm0, ctrl, cs.data.qpos.copy()
+
+
+def _bare_rollout(model, state0, warm0, ctrl, final_qpos) -> tuple[float, bool]:
+    """us per mj_step replaying ``ctrl`` in C (mujoco.rollout); and trajectory match."""
+    import mujoco
+    import numpy as np
+    from mujoco import rollout
+
+    spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
+    n = len(ctrl)
+    data = mujoco.MjData(model)
+    out = np.empty((1, n, mujoco.mj_stateSize(model, spec)))
+    t0 = time.perf_counter()
+    rollout.rollout(model, data, state0[None], ctrl[None], initial_warmstart=warm0[None], state=out)
+    wall = time.perf_counter() - t0
+    mujoco.mj_setState(model, data, out[0, -1], spec)
+    return wall / n * 1e6, bool(np.array_equal(data.qpos, final_qpos))
+
+
+def _bare_python(model, state0, warm0, ctrl, final_qpos) -> tuple[float, bool]:
+    """us per mj_step replaying ``ctrl`` from a Python loop; and trajectory match."""
+    import mujoco
+    import numpy as np
+
+    spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
+    data = mujoco.MjData(model)
+    mujoco.mj_setState(model, data, state0, spec)
+    data.qacc_warmstart[:] = warm0
+    c, step, rows = data.ctrl, mujoco.mj_step, list(ctrl)
+    t0 = time.perf_counter()
+    for u in rows:
+        c[:] = u
+        step(model, data)
+    wall = time.perf_counter() - t0
+    return wall / len(rows) * 1e6, bool(np.array_equal(data.qpos, final_qpos))
+
+
+def _batch_job(scenario: dict) -> float:
+    """Worker: run one scenario (model built in this process); simulated seconds."""
+    from simpro_mj.sim.loop import simulate
+
+    res = simulate(scenario)
+    return res.sim["simulated_s"]
+
+
+def _warm_up(_=None) -> bool:
+    """Worker start-up outside the clock: imports and one model compilation.
+
+    Sleeps a little so that, with as many tasks in flight as workers, each
+    worker takes one.
+    """
+    from simpro_mj.plant.model import load_model
+    from simpro_mj.sim.loop import CoSimulation  # noqa: F401
+
+    load_model()
+    time.sleep(0.2)
+    return True
+
+
+def _throughput(pool, workers: int, scenario: dict, runs: int) -> float:
+    """Simulated seconds per wall second of ``runs`` copies on ``workers`` processes."""
+    t0 = time.perf_counter()
+    simulated = sum(pool.map(_batch_job, [scenario] * runs))
+    return simulated / (time.perf_counter() - t0)
+
+
+def measure(
+    scenario: dict, repeats: int = 5, *, batch: bool = True, batch_runs: int = 4, log=None
+) -> dict:
+    """Run the benchmark on a resolved scenario; the figures of ``--json``.
+
+    Each repeat measures, in this order, a plain run, the two bare replays
+    and an instrumented run, so that a change of machine load during the
+    benchmark touches all of them alike; the medians are reported.
+    """
+    from concurrent.futures import ProcessPoolExecutor
+    from multiprocessing import get_context
+
+    from simpro_mj.plant.model import load_model
+    from simpro_mj.sim.loop import CoSimulation
+    from simpro_mj.sim.readiness import signal_ready
+    from simpro_mj.sim.workers import init_worker, stop_pool
+
+    def say(msg):
+        if log is not None:
+            log(msg)
+
+    model = load_model(scenario["plant"])
+    dt = float(model.opt.timestep)
+    say("recording the trajectory")
+    state0, warm0, ctrl, final_qpos = _record(scenario, model)
+    full, bare, bare_py, instr = [], [], [], []
+    stages = {s: [] for s in STAGES}
+    same = True
+    for r in range(repeats):
+        say(f"repeat {r + 1}/{repeats}")
+        res = CoSimulation(scenario, model=model).run()
+        full.append(res.sim["wall_s"] / res.sim["steps"] * 1e6)
+        us, ok1 = _bare_rollout(model, state0, warm0, ctrl, final_qpos)
+        bare.append(us)
+        us, ok2 = _bare_python(model, state0, warm0, ctrl, final_qpos)
+        bare_py.append(us)
+        same = same and ok1 and ok2
+        prof: dict = {}
+        res = CoSimulation(scenario, model=model).run(profile=prof)
+        instr.append(res.sim["wall_s"] / res.sim["steps"] * 1e6)
+        for s in STAGES:
+            stages[s].append(prof[s] / prof["steps"] / 1e3)
+    full_us, bare_us = statistics.median(full), statistics.median(bare)
+    out = {
+        "scenario": scenario["name"],
+        "duration_s": float(scenario["duration_s"]),
+        "steps": int(len(ctrl)),
+        "logging_decimation": int(scenario["logging"]["decimation"]),
+        "bare_step_us": bare_us,
+        "bare_python_loop_us": statistics.median(bare_py),
+        "bare_same_trajectory": same,
+        "full_step_us": full_us,
+        "ratio": full_us / bare_us,
+        "realtime_factor": dt * 1e6 / full_us,
+        "stages_us": {s: statistics.median(v) for s, v in stages.items()},
+        "instrumented_step_us": statistics.median(instr),
+        "throughput": None,
+        "repeats": repeats,
+        "samples": {"full_step_us": full, "bare_step_us": bare, "bare_python_loop_us": bare_py},
+        "machine": describe_machine(),
+    }
+    if batch:
+        tput = {1: [], 2: []}
+        ctx = get_context("spawn")
+        for workers in (1, 2):
+            # workers stop with the benchmark and never outlive it (simpro_mj.sim.workers)
+            pool = ProcessPoolExecutor(
+                max_workers=workers,
+                mp_context=ctx,
+                initializer=init_worker,
+                initargs=(os.getpid(),),
+            )
+            try:
+                list(pool.map(_warm_up, range(workers)))
+                signal_ready("throughput")
+                for r in range(repeats):
+                    say(f"throughput, {workers} worker(s), {r + 1}/{repeats}")
+                    tput[workers].append(_throughput(pool, workers, scenario, batch_runs))
+            except BaseException:
+                stop_pool(pool)
+                raise
+            pool.shutdown(wait=True)
+        w1, w2 = statistics.median(tput[1]), statistics.median(tput[2])
+        out["throughput"] = {
+            "workers_1": w1,
+            "workers_2": w2,
+            "speedup": w2 / w1,
+            "runs": batch_runs,
+            "samples": {"workers_1": tput[1], "workers_2": tput[2]},
+        }
+    return out
+
+
+# ------------------------------------------------------------------ command
+
+
+def _table(r: dict) -> str:
+    m = r["machine"]
+    lines = [
+        f"simpro-sim bench: {r['scenario']}, {r['duration_s']:g} s simulated "
+        f"({r['steps']} steps, logging every {r['logging_decimation']}), "
+        f"median of {r['repeats']}",
+        f"machine: {m['cpu']}, {m['cores']} cores; Python {m['python']}, "
+        f"MuJoCo {m['mujoco']}, numpy {m['numpy']}; kernels {m['kernels']}",
+        "",
+        f"  full step            {r['full_step_us']:8.2f} us",
+        f"  bare mj_step (C)     {r['bare_step_us']:8.2f} us"
+        + ("" if r["bare_same_trajectory"] else "   (replay left the trajectory!)"),
+        f"  bare (Python loop)   {r['bare_python_loop_us']:8.2f} us",
+        f"  ratio full/bare      {r['ratio']:8.2f}",
+        f"  realtime factor      {r['realtime_factor']:8.1f} x",
+        "",
+        "  stage (instrumented) us/step",
+    ]
+    for s in STAGES:
+        lines.append(f"    {s:<18s} {r['stages_us'][s]:8.2f}")
+    lines.append(f"    {'sum':<18s} {sum(r['stages_us'].values()):8.2f}")
+    tp = r["throughput"]
+    if tp:
+        lines += [
+            "",
+            f"  batch of {tp['runs']} runs      simulated s / wall s",
+            f"    1 worker           {tp['workers_1']:8.1f}",
+            f"    2 workers          {tp['workers_2']:8.1f}   (x{tp['speedup']:.2f})",
+        ]
+    return "\n".join(lines)
+
+
+def run(args) -> int:
+    import sys
+
+    from simpro_mj.config.scenario import load_scenario
+
+    repeats = _positive_int(args.repeats, "--repeats", MAX_REPEATS)
+    runs = _positive_int(args.batch_runs, "--batch-runs", MAX_BATCH_RUNS)
+    sets = list(args.sets)
+    if args.duration is not None:
+        sets.append(f"duration_s={_duration(args.duration)!r}")
+    scenario = load_scenario(args.scenario, sets)
+    if args.video:
+        from simpro_mj.report.render import benchmark, benchmark_table
+
+        if args.duration is None:
+            scenario["duration_s"] = 20.0
+        result = benchmark(scenario, progress=not args.json)
+        if args.json:
+            from simpro_mj.core.jsonout import emit_json
+
+            emit_json(result)
+        else:
+            print(benchmark_table(result))
+        return 0
+    from simpro_mj.report.runner import sigterm_as_interrupt
+
+    progress = None if args.json else (lambda msg: print(f"  {msg}", file=sys.stderr))
+    with sigterm_as_interrupt():  # SIGTERM: exit 130 like Ctrl-C, workers stopped
+        result = measure(scenario, repeats, batch=not args.no_batch, batch_runs=runs, log=progress)
+    if args.json:
+        from simpro_mj.core.jsonout import emit_json
+
+        emit_json(result)
+    else:
+        print(_table(result))
+    return 0

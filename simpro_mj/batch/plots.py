@@ -1,0 +1,306 @@
+"""Summary figures of a batch (``OUT/plots/*.png``), matplotlib Agg only.
+
+Per scenario file (``<folder>`` is its folder name under OUT):
+
+* ``<folder>_vs_<label>.png``: metrics against the swept parameter (the
+  gain ``controller.outer.gains`` if swept, else the numeric grid path with
+  the most values), one line per combination of the other grid values:
+  rms error of roll, pitch (deg) and heave (mm), and the measured envelope
+  growth rate (1/s) with the analytic one dashed. Unstable variants are
+  ringed in red; the analytic limit is a dashed vertical line, the simulated
+  one dotted. Not drawn for Monte Carlo files or grids without a numeric path.
+* ``<folder>_responses.png``: the task-space responses of every variant
+  overlaid (roll, pitch in deg; heave in mm), the first variant's set-point
+  dashed black; one colour per variant (Monte Carlo: per grid combination);
+  unstable or failed runs in grey behind, the y range that of the others.
+* ``<folder>_mc_ss_error.png`` (Monte Carlo files): box plots with the
+  samples of the absolute steady-state error per axis, one box per grid
+  combination (e.g. joint_only vs task_space), log scale.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+
+import numpy as np  # noqa: E402
+from matplotlib.figure import Figure  # noqa: E402
+
+__all__ = ["plot_summary", "plot_metric_vs_param", "plot_responses", "plot_mc"]
+
+DPI = 110
+MAX_OVERLAY = 100
+_AXES = (("roll", "deg", 180.0 / math.pi), ("pitch", "deg", 180.0 / math.pi), ("heave", "mm", 1e3))
+_GAIN = "controller.outer.gains"
+
+
+def _x(value) -> float | None:
+    """A swept value as a number: a number, or a list of equal numbers."""
+    if isinstance(value, bool):
+        return None
+    if isinstance(value, (int, float)):
+        return float(value)
+    if (
+        isinstance(value, list)
+        and value
+        and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value)
+    ):
+        if len({float(v) for v in value}) == 1:
+            return float(value[0])
+    return None
+
+
+def _combo(row: Mapping, paths, skip=None) -> str:
+    from simpro_mj.config.sweep import format_value
+
+    parts = [f"{p.split('.')[-1]}={format_value(row['values'][p])}" for p in paths if p != skip]
+    return ", ".join(parts) or "all"
+
+
+def _colours(labels: list[str]) -> dict[str, str]:
+    uniq = list(dict.fromkeys(labels))
+    return {lab: f"C{i % 10}" for i, lab in enumerate(uniq)}
+
+
+def _save(fig: Figure, path: Path) -> Path:
+    fig.savefig(path, dpi=DPI)
+    return path
+
+
+def plot_metric_vs_param(rows: list[dict], info: Mapping, stability: list[dict], out: Path):
+    """Metrics against the swept parameter (module docstring); None if not applicable."""
+    grid = info["grid_paths"]
+    if info["monte_carlo"] or not grid:
+        return None
+    numeric = [p for p in grid if all(_x(r["values"].get(p)) is not None for r in rows)]
+    numeric = [p for p in numeric if len({_x(r["values"][p]) for r in rows}) >= 2]
+    if not numeric:
+        return None
+    xpath = (
+        _GAIN
+        if _GAIN in numeric
+        else max(numeric, key=lambda p: len({_x(r["values"][p]) for r in rows}))
+    )
+    label = xpath.split(".")[-1]
+    groups: dict[str, list[dict]] = {}
+    for r in rows:
+        groups.setdefault(_combo(r, grid, skip=xpath), []).append(r)
+    colours = _colours(list(groups))
+    has_growth = any(r.get("growth_rate_1_s") is not None for r in rows)
+    n = 3 + int(has_growth)
+    fig = Figure(figsize=(8, 2.6 * n), layout="constrained")
+    axes = fig.subplots(n, 1, sharex=True)
+    for name, members in groups.items():
+        members = sorted(members, key=lambda r: _x(r["values"][xpath]))
+        xs = np.array([_x(r["values"][xpath]) for r in members])
+        bad = np.array([r.get("stable") is False or r["status"] != "ok" for r in members])
+        col = colours[name]
+        for ax, (axis, unit, _) in zip(axes[:3], _AXES, strict=True):
+            ys = np.array([r.get(f"{axis}_rms_err_{unit}") or np.nan for r in members], float)
+            ax.plot(xs, ys, "o-", color=col, lw=1.2, ms=4, label=name)
+            if bad.any():
+                ax.plot(xs[bad], ys[bad], "o", mfc="none", mec="red", ms=9, mew=1.5)
+        if has_growth:
+            ax = axes[3]
+            gs = np.array([r.get("growth_rate_1_s") for r in members], float)
+            ax.plot(xs, gs, "o-", color=col, lw=1.2, ms=4, label=f"{name} (simulated)")
+            if bad.any():
+                ax.plot(xs[bad], gs[bad], "o", mfc="none", mec="red", ms=9, mew=1.5)
+            ana = np.array([r.get("analytic_growth_rate_1_s") for r in members], float)
+            if np.isfinite(ana).any():
+                ax.plot(xs, ana, "--", color=col, lw=1.0, label=f"{name} (analysis)")
+    for s in stability:
+        name = ", ".join(f"{k.split('.')[-1]}={v}" for k, v in s["group"].items()) or "all"
+        col = colours.get(name, "k")
+        for ax in axes:
+            if s.get("analytic_limit") is not None and math.isfinite(s["analytic_limit"]):
+                ax.axvline(s["analytic_limit"], color=col, ls="--", lw=0.9)
+            if s.get("simulated_limit") is not None:
+                ax.axvline(s["simulated_limit"], color=col, ls=":", lw=1.2)
+    for ax, (axis, unit, _) in zip(axes[:3], _AXES, strict=True):
+        ax.set_ylabel(f"{axis} rms error [{unit}]")
+        ax.set_yscale("log")
+        ax.grid(True, which="both", alpha=0.3)
+    if has_growth:
+        axes[3].axhline(0.0, color="k", lw=0.6)
+        axes[3].set_ylabel("envelope growth [1/s]")
+        axes[3].grid(True, alpha=0.3)
+        axes[3].legend(loc="best", fontsize=7)
+    axes[0].legend(loc="best", fontsize=8)
+    axes[-1].set_xlabel(f"{xpath}" + (" (K K_I, 1/s)" if xpath == _GAIN else ""))
+    fig.suptitle(
+        f"{info['scenario']}: metrics vs {label} (red ring: unstable or not ok; "
+        "dashed: analytic limit, dotted: simulated)",
+        fontsize=9,
+    )
+    return _save(fig, out / f"{info['folder']}_vs_{label}.png")
+
+
+def plot_responses(rows: list[dict], info: Mapping, batch_out: Path, out: Path):
+    """Task-space responses of the variants overlaid; None if none has a time series."""
+    from simpro_mj.report.results import read_timeseries
+
+    grid = info["grid_paths"]
+    runs = [r for r in rows if r["status"] in ("ok", "diverged") and r["folder"]][:MAX_OVERLAY]
+    if not runs:
+        return None
+    labels = [_combo(r, grid) if info["monte_carlo"] else r["variant"] for r in runs]
+    colours = _colours(labels)
+    fig = Figure(figsize=(9, 8), layout="constrained")
+    axes = fig.subplots(3, 1, sharex=True)
+    seen, ref_drawn, n_bad = set(), False, 0
+    span = [[np.inf, -np.inf] for _ in _AXES]  # y range of the stable runs
+    for r, lab in zip(runs, labels, strict=True):
+        path = batch_out / r["folder"] / "timeseries.csv"
+        if not path.is_file():
+            continue
+        c = read_timeseries(path)
+        t = c["time_s"]
+        # unstable runs in grey behind: they would hide the others' scale
+        bad = r.get("stable") is False or r["status"] != "ok"
+        n_bad += bad
+        for k, (ax, (axis, _unit, scale)) in enumerate(zip(axes, _AXES, strict=True)):
+            true = "heave_m" if axis == "heave" else f"{axis}_rad"
+            ref = "heave_ref_m" if axis == "heave" else f"{axis}_ref_rad"
+            home = c[ref][0] if axis == "heave" else 0.0  # heave relative to the start
+            y = (c[true] - home) * scale
+            if bad:
+                ax.plot(
+                    t,
+                    y,
+                    color="0.6",
+                    lw=0.5,
+                    alpha=0.35,
+                    zorder=1,
+                    label="unstable or not ok" if n_bad == 1 else None,
+                )
+            else:
+                ax.plot(
+                    t,
+                    y,
+                    color=colours[lab],
+                    lw=0.8,
+                    alpha=0.85,
+                    zorder=2,
+                    label=lab if lab not in seen else None,
+                )
+                fin = y[np.isfinite(y)]
+                if fin.size:
+                    span[k] = [min(span[k][0], fin.min()), max(span[k][1], fin.max())]
+            if not ref_drawn:
+                ax.plot(t, (c[ref] - home) * scale, "k--", lw=1.0, zorder=3, label="set-point")
+        ref_drawn = True
+        if not bad:
+            seen.add(lab)
+    for k, (ax, (axis, unit, _)) in enumerate(zip(axes, _AXES, strict=True)):
+        lo, hi = span[k]
+        if np.isfinite(lo) and np.isfinite(hi):
+            pad = 0.15 * max(hi - lo, 1e-3)
+            ax.set_ylim(lo - pad, hi + pad)
+        ax.set_ylabel(f"{axis} [{unit}]" + (" from start" if axis == "heave" else ""))
+        ax.grid(True, alpha=0.3)
+    axes[-1].set_xlabel("time [s]")
+    if len(seen) <= 12:
+        axes[0].legend(loc="best", fontsize=7)
+    fig.suptitle(f"{info['scenario']}: task-space responses of {len(runs)} variants", fontsize=10)
+    return _save(fig, out / f"{info['folder']}_responses.png")
+
+
+def plot_mc(rows: list[dict], info: Mapping, out: Path):
+    """Distribution of |steady-state error| per axis and grid combination (Monte Carlo)."""
+    if not info["monte_carlo"]:
+        return None
+    grid = info["grid_paths"]
+    ok = [r for r in rows if r["status"] == "ok"]
+    if not ok:
+        return None
+    groups: dict[str, list[dict]] = {}
+    for r in ok:
+        groups.setdefault(_combo(r, grid), []).append(r)
+    names = list(groups)
+    fig = Figure(figsize=(4 + 2 * len(names), 4.5), layout="constrained")
+    axes = fig.subplots(1, 3)
+    rng = np.random.default_rng(0)  # jitter of the dots only
+    for ax, (axis, unit, _) in zip(axes, _AXES, strict=True):
+        data = []
+        for name in names:
+            v = [
+                abs(r.get(f"{axis}_ss_err_{unit}"))
+                for r in groups[name]
+                if r.get(f"{axis}_ss_err_{unit}") is not None
+            ]
+            data.append(np.maximum(np.array(v, float), 1e-9))
+        ax.boxplot(data, showfliers=False)
+        ax.set_xticks(range(1, len(names) + 1), names, rotation=20, fontsize=8)
+        for i, d in enumerate(data, start=1):
+            ax.plot(
+                i + rng.uniform(-0.12, 0.12, d.size),
+                d,
+                "o",
+                ms=3,
+                alpha=0.6,
+                color=f"C{(i - 1) % 10}",
+            )
+        ax.set_yscale("log")
+        ax.set_ylabel(f"|{axis} steady-state error| [{unit}]")
+        ax.grid(True, which="both", alpha=0.3)
+    n = max(len(g) for g in groups.values())
+    fig.suptitle(
+        f"{info['scenario']}: steady-state error over {n} Monte Carlo samples", fontsize=10
+    )
+    return _save(fig, out / f"{info['folder']}_mc_ss_error.png")
+
+
+def plot_summary(report, jobs) -> list[Path]:
+    """All summary figures of a batch :class:`~simpro_mj.batch.batch.Report`."""
+    out = Path(report.out) / "plots"
+    out.mkdir(parents=True, exist_ok=True)
+    paths: list[Path] = []
+    for info in report.files:
+        if info["error"]:
+            continue
+        rows = [
+            r
+            for r, j in zip(report.rows, jobs, strict=True)
+            if j.folder.split("/")[0] == info["folder"] and j.variant != "-"
+        ]
+        if not rows:
+            continue
+        stab = [s for s in report.stability if s["scenario"] == info["scenario"]]
+        for p in (
+            plot_metric_vs_param([r for r in rows if r["status"] != "invalid"], info, stab, out),
+            plot_responses(rows, info, Path(report.out), out),
+            plot_mc(rows, info, out),
+            plot_cue_tradeoff(rows, info, out),
+        ):
+            if p is not None:
+                paths.append(p)
+    return paths
+
+
+def plot_cue_tradeoff(rows: list[dict], info: Mapping, out: Path):
+    """Cueing sweeps (issue 16): perceived longitudinal correlation against the
+    pitch workspace used, one point per variant labelled with its values;
+    marker size: valve saturation. None when the rows have no cueing columns."""
+    pts = [r for r in rows if r.get("cue_long_corr") is not None and r["status"] == "ok"]
+    if not pts:
+        return None
+    fig = Figure(figsize=(7.5, 5), layout="constrained")
+    ax = fig.add_subplot()
+    for r in pts:
+        x = float(r["cue_pitch_box_frac"])
+        y = float(r["cue_long_corr"])
+        size = 30 + 3000 * float(r.get("cue_valve_sat_frac") or 0.0)
+        ax.scatter([x], [y], s=size, color="tab:red", alpha=0.7)
+        label = ", ".join(f"{k.split('.')[-1]}={v:g}" for k, v in r["values"].items())
+        ax.annotate(label, (x, y), fontsize=6, xytext=(4, 3), textcoords="offset points")
+    ax.set_xlabel("pitch workspace used (fraction of the cueing box)")
+    ax.set_ylabel("perceived longitudinal correlation")
+    ax.grid(True, alpha=0.3)
+    fig.suptitle(f"{info['scenario']}: cue correlation vs workspace (marker: valve saturation)")
+    return _save(fig, out / f"{info['scenario']}_cue_tradeoff.png")

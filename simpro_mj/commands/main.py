@@ -1,0 +1,185 @@
+"""The ``simpro-sim`` command line: it only wires.
+
+Every subcommand lives in its own module under ``simpro_mj`` exposing
+
+* ``HELP``: one-line description,
+* ``add_arguments(parser)``: its own options,
+* ``run(args) -> int``: the job (exit code).
+
+Conventions shared by all subcommands (added here): ``--set KEY=VALUE``
+(dotted path, repeatable) overrides any parameter, ``--json`` prints exactly
+one JSON object on stdout and nothing else there, ``--out DIR`` chooses where
+files go. A user's mistake exits 2 with one line ``error: ...`` on stderr.
+
+Exit codes: 0 done, 1 the simulation diverged, 2 a user's mistake (bad
+scenario, ``--set``, arguments, a file that cannot be read or written),
+3 an internal error (a bug: one line on stderr; ``SIMPRO_DEBUG=1`` shows the
+traceback), 130 interrupted (Ctrl-C, SIGTERM), 141 stdout closed.
+docs/robustness.md lists the messages.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import os
+import sys
+
+from controllers.errors import DesignError, KinematicsError
+from simpro_mj.core.errors import PhysicsError, UserInputError
+from simpro_mj.core.jsonout import emit_json  # noqa: F401 - the commands' --json, re-exported
+
+#: subcommand -> module; a module that does not exist yet is simply not offered.
+COMMANDS = {
+    "run": "simpro_mj.commands.run",
+    "compare": "simpro_mj.commands.compare",
+    "validate-ik": "simpro_mj.analysis.validate_ik",
+    "workspace": "simpro_mj.commands.workspace",
+    "identify": "simpro_mj.identification.identify",
+    "calibrate": "simpro_mj.analysis.calibrate",
+    "analyze": "simpro_mj.analysis.analyze",
+    "batch": "simpro_mj.batch.batch",
+    "bench": "simpro_mj.batch.bench",
+    "render": "simpro_mj.commands.render",
+    "view": "simpro_mj.commands.view",
+    "manoeuvre": "simpro_mj.commands.manoeuvre",
+    "response": "simpro_mj.commands.response",
+}
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse that reports mistakes on one line with exit status 2."""
+
+    def error(self, message: str):  # noqa: D401 - argparse API
+        sys.stderr.write(f"error: {self.prog}: {message}\n")
+        raise SystemExit(2)
+
+
+def _available(only: str | None = None) -> dict:
+    """The command modules, or only the one named (so that a command starts, or
+    refuses a mistake, without importing every other command's dependencies)."""
+    mods = {}
+    for name, path in COMMANDS.items():
+        if only is not None and name != only:
+            continue
+        try:
+            mods[name] = importlib.import_module(path)
+        except ModuleNotFoundError as exc:
+            if exc.name != path:
+                raise
+    return mods
+
+
+def build_parser(only: str | None = None) -> tuple[argparse.ArgumentParser, dict]:
+    """The parser of every command, or of the one named by ``only`` (a COMMANDS key)."""
+    mods = _available(only)
+    parser = _Parser(
+        prog="simpro-sim",
+        description="Co-simulation of the SIMPRO 3-DOF pneumatic motion platform (MuJoCo).",
+    )
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    sub.required = True
+    for name, mod in mods.items():
+        p = sub.add_parser(name, help=mod.HELP, description=mod.HELP)
+        p.add_argument(
+            "--set",
+            dest="sets",
+            action="append",
+            default=[],
+            metavar="KEY=VALUE",
+            help="override a parameter by dotted path (repeatable)",
+        )
+        p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+        mod.add_arguments(p)
+        p.set_defaults(_run=mod.run)
+    return parser, mods
+
+
+#: Longest error line printed (characters); a longer one keeps its start and its
+#: end (where "allowed: ..." is) around "...". Fields echo cut values already.
+MAX_MESSAGE_CHARS = 1000
+
+
+def _one_line(exc: BaseException) -> str:
+    text = " ".join(str(exc).split())
+    if len(text) > MAX_MESSAGE_CHARS:
+        half = MAX_MESSAGE_CHARS // 2 - 3
+        text = f"{text[:half]} ... {text[-half:]}"
+    return text
+
+
+def _check_gl_backend() -> str | None:
+    """MuJoCo loads the OpenGL backend named by ``MUJOCO_GL`` when first imported:
+    a backend whose library is missing makes that import fail (one line, not a
+    traceback). Returns the message, or None. With ``MUJOCO_GL`` unset the
+    import loads no GL library and cannot fail this way: nothing is imported,
+    so a mistake in the arguments is refused without paying for MuJoCo."""
+    if not os.environ.get("MUJOCO_GL"):
+        return None
+    try:
+        import mujoco  # noqa: F401
+    except Exception as exc:  # noqa: BLE001 - only MUJOCO_GL can break this import
+        from simpro_mj.report.render import GL_LIBRARIES
+
+        gl = os.environ.get("MUJOCO_GL", "")
+        lib = GL_LIBRARIES.get(gl.strip().lower(), "its OpenGL library")
+        return (
+            f"cannot load MuJoCo with MUJOCO_GL={gl!r} (needs {lib}): {type(exc).__name__}: "
+            f"{_one_line(exc)}; allowed: MUJOCO_GL unset, or a backend whose library is installed"
+        )
+    return None
+
+
+def main(argv=None) -> int:
+    os.environ.setdefault("MPLBACKEND", "Agg")
+    problem = _check_gl_backend()
+    if problem:
+        sys.stderr.write(f"error: {problem}\n")
+        return 2
+    words = sys.argv[1:] if argv is None else list(argv)
+    # the command's own module only (the first word, when it names one); --help
+    # and mistakes in the command name see them all
+    only = words[0] if words and words[0] in COMMANDS else None
+    parser, _ = build_parser(only)
+    try:
+        args = parser.parse_args(words)
+    except SystemExit as exc:  # argparse: --help (0) or a misuse (2, one line already)
+        return exc.code if isinstance(exc.code, int) else 2
+    try:
+        return int(args._run(args) or 0)
+    except (UserInputError, KinematicsError, DesignError) as exc:
+        # KinematicsError/DesignError reach here only from a check that did not
+        # wrap them with a field path; their messages still name the limit
+        sys.stderr.write(f"error: {_one_line(exc)}\n")
+        return 2
+    except PhysicsError as exc:
+        sys.stderr.write(f"error: simulation diverged: {exc}\n")
+        return 1
+    except KeyboardInterrupt:
+        sys.stderr.write("error: interrupted\n")
+        return 130
+    except BrokenPipeError:
+        # stdout closed by a reader such as `| head`: results are already on disk
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 141
+    except OSError as exc:
+        # a folder or file the user named that cannot be written or read
+        where = exc.filename if exc.filename is not None else "--out"
+        sys.stderr.write(
+            f"error: cannot access at {where}: {exc.strerror or _one_line(exc)}; "
+            "allowed: a readable input and a writable output folder\n"
+        )
+        return 2
+    except Exception as exc:
+        if os.environ.get("SIMPRO_DEBUG"):
+            raise
+        sys.stderr.write(
+            f"error: internal error in simpro-sim {args.command}: "
+            f"{type(exc).__name__}: {_one_line(exc)} (a bug, please report it with the "
+            "command line; SIMPRO_DEBUG=1 shows the traceback)\n"
+        )
+        return 3
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,99 @@
+"""``simpro-sim manoeuvre TYPE``: a vehicle manoeuvre as a telemetry CSV (issue 16).
+
+Runs the CommonRoad multi-body vehicle (:mod:`simpro_mj.config.manoeuvres`, extra
+``[vehicle]``) and writes the driver's head motion in the telemetry format
+(:mod:`simpro_mj.config.telemetry`), ready for a scenario's ``setpoint.cueing.telemetry``.
+Parameters by ``--set``: ``speed_kmh``, ``vehicle``, ``deceleration_mps2``,
+``bump_height_m``, ``bump_length_m``, ``lead_s``, ``duration_s`` (0: automatic),
+``rate_hz``.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from simpro_mj.config.manoeuvres import MANOEUVRES, ManoeuvreSpec, generate
+from simpro_mj.config.telemetry import write_telemetry
+from simpro_mj.core.errors import UserInputError
+from simpro_mj.core.keys import apply_overrides
+
+HELP = "generate a vehicle manoeuvre (braking, lane_change, slalom, bump) as telemetry CSV"
+
+DEFAULT_SPEED_KMH = {"braking": 100.0, "lane_change": 80.0, "slalom": 60.0, "bump": 40.0}
+DEFAULTS = {
+    "speed_kmh": 0.0,  # 0: the manoeuvre's default (DEFAULT_SPEED_KMH)
+    "vehicle": "bmw_320i",
+    "deceleration_mps2": 5.0,
+    "bump_height_m": 0.06,
+    "bump_length_m": 0.5,
+    "lead_s": 1.0,
+    "duration_s": 0.0,
+    "rate_hz": 200.0,
+}
+
+
+def add_arguments(parser) -> None:
+    parser.add_argument("manoeuvre", choices=MANOEUVRES, help="what to drive")
+    parser.add_argument(
+        "--out", default=None, help="CSV to write (default <manoeuvre>_<speed>kmh.csv here)"
+    )
+    parser.add_argument(
+        "--force", action="store_true", help="replace --out if it exists (default: refuse)"
+    )
+
+
+def spec_from(args) -> ManoeuvreSpec:
+    p = apply_overrides(DEFAULTS, args.sets)
+    speed = p["speed_kmh"] or DEFAULT_SPEED_KMH[args.manoeuvre]
+    spec = ManoeuvreSpec(
+        manoeuvre=args.manoeuvre,
+        speed_kmh=float(speed),
+        vehicle=str(p["vehicle"]),
+        deceleration_mps2=float(p["deceleration_mps2"]),
+        bump_height_m=float(p["bump_height_m"]),
+        bump_length_m=float(p["bump_length_m"]),
+        lead_s=float(p["lead_s"]),
+        duration_s=float(p["duration_s"]) or None,
+        rate_hz=float(p["rate_hz"]),
+    )
+    spec.check()
+    return spec
+
+
+def run(args) -> int:
+    spec = spec_from(args)
+    out = Path(args.out or f"{spec.manoeuvre}_{spec.speed_kmh:g}kmh.csv")
+    if out.exists() and not args.force:
+        raise UserInputError(
+            f"invalid value at --out: {out} exists; allowed: a new file, or --force"
+        )
+    if not out.parent.is_dir():
+        raise UserInputError(f"invalid value at --out: folder {out.parent} does not exist")
+    tel = generate(spec)
+    comment = (
+        f"simpro-sim manoeuvre {spec.manoeuvre}: {tel.source}\n"
+        "frame: ISO 8855 vehicle frame at the driver's head (x forward, y left, z up);\n"
+        "specific force includes gravity (fz = +9.81 at rest); "
+        "format: simpro_mj/config/telemetry.py"
+    )
+    tmp = out.with_name(out.name + ".partial")
+    write_telemetry(tmp, tel, comment)
+    tmp.replace(out)
+    summary = {
+        "file": str(out),
+        "manoeuvre": spec.manoeuvre,
+        "speed_kmh": spec.speed_kmh,
+        "vehicle": spec.vehicle,
+        "duration_s": float(tel.t[-1]),
+        "samples": int(tel.t.size),
+        "peak_abs_f_mps2": [
+            float(abs(tel.f[:, k] - (9.81 if k == 2 else 0)).max()) for k in range(3)
+        ],
+    }
+    if args.json:
+        from simpro_mj.commands.main import emit_json
+
+        emit_json(summary)
+    else:
+        print(f"wrote {out}: {tel.source}, {tel.t[-1]:.2f} s, {tel.t.size} samples")
+    return 0

@@ -1,0 +1,138 @@
+"""Plant presets: named sets of the plant's uncertain parameters (YAML, package data).
+
+A preset holds what the paper does not print and a calibration fits (Table 1
+is lost): the moving masses, leg friction, valve flow. Scenarios name one in
+``plant.preset``; ``simpro-sim identify --preset`` and ``simpro-sim
+calibrate`` use the same files. Shipped presets (``simpro_mj/presets/``):
+
+* ``paper`` (default): calibrated so that ``simpro-sim identify`` reproduces
+  eqs. (34)-(35) under the potentiometer-volts reading
+  (``docs/paper-notes.md`` section 3);
+* ``heavy_cabin``: the earlier default, 250 kg cabin + 120 kg platform and the
+  catalogue valve (its identified models are far from eqs. 34-35).
+
+A preset file is a mapping::
+
+    name: paper
+    description: ...
+    plant: {payload: {mass_kg: ...}, ...}         # over simpro_mj.plant.model.DEFAULT_MODEL_PARAMS
+    pneumatics: {cylinder: {...}, valve: {...}}   # over DEFAULT_PNEUMATIC_PARAMS
+    identified: {actuator1: {b, a1, a0}, ...}     # what identify measures on it (SI)
+    calibration: {...}                            # free-form record (targets, residuals)
+
+Values in a scenario's own ``plant`` and ``actuator.pneumatics`` override the
+preset's.
+"""
+
+from __future__ import annotations
+
+import copy
+from collections.abc import Mapping
+from pathlib import Path
+
+from simpro_mj.core.errors import UserInputError
+from simpro_mj.core.keys import closest, read_yaml
+
+__all__ = [
+    "DEFAULT_PRESET",
+    "PRESET_KEYS",
+    "presets_dir",
+    "shipped_presets",
+    "load_preset",
+    "scenario_overlay",
+]
+
+DEFAULT_PRESET = "paper"
+PRESET_KEYS = ("name", "description", "plant", "pneumatics", "identified", "calibration")
+_ACTS = ("actuator1", "actuator2", "actuator3")
+
+
+def presets_dir() -> Path:
+    """The folder of the shipped presets (package data)."""
+    return Path(__file__).resolve().parents[1] / "presets"
+
+
+def shipped_presets() -> list[str]:
+    """Names of the shipped presets, sorted."""
+    return sorted(p.stem for p in presets_dir().glob("*.yaml"))
+
+
+def _path(name_or_path: str) -> Path:
+    text = str(name_or_path)
+    if text in shipped_presets():
+        return presets_dir() / f"{text}.yaml"
+    p = Path(text).expanduser()
+    if text.endswith((".yaml", ".yml")) and p.is_file():
+        return p
+    raise UserInputError(
+        f"unknown preset at plant.preset: {text!r}; allowed: {shipped_presets()} or a path "
+        f"to a preset YAML file{closest(text, shipped_presets())}"
+    )
+
+
+def load_preset(name_or_path: str) -> dict:
+    """Read and check a preset (shipped name or path); returns the mapping.
+
+    Raises
+    ------
+    UserInputError
+        Unknown name (listing the shipped ones), unreadable or invalid YAML,
+        unknown top-level keys, an ``identified`` block that is not three
+        ``{b, a1, a0}`` mappings of positive numbers. The plant and pneumatics
+        values are checked where they are used (the scenario, the model).
+    """
+    path = _path(name_or_path)
+    doc = read_yaml(path, "preset")
+    if not isinstance(doc, Mapping):
+        raise UserInputError(
+            f"wrong type at {path.name} (top level): {type(doc).__name__}; allowed: a mapping "
+            f"with keys {list(PRESET_KEYS)}"
+        )
+    for k in doc:
+        if k not in PRESET_KEYS:
+            raise UserInputError(
+                f"unknown key at {path.name}: {k!r}; allowed keys are {list(PRESET_KEYS)}"
+            )
+    for k in ("plant", "pneumatics"):
+        if not isinstance(doc.get(k) or {}, Mapping):
+            raise UserInputError(f"wrong type at {path.name}: {k}; allowed: a mapping")
+    ident = doc.get("identified")
+    if ident is not None:
+        ok = isinstance(ident, Mapping) and set(ident) == set(_ACTS)
+        for a in _ACTS if ok else ():
+            node = ident[a]
+            ok = ok and isinstance(node, Mapping) and set(node) == {"b", "a1", "a0"}
+            ok = ok and all(
+                isinstance(v, int | float) and not isinstance(v, bool) and v >= 0
+                for v in node.values()
+            )
+        if not ok:
+            raise UserInputError(
+                f"invalid value at {path.name}: identified; allowed: {{b, a1, a0}} (SI, >= 0) "
+                f"for each of {list(_ACTS)}"
+            )
+    out = copy.deepcopy(dict(doc))
+    out.setdefault("name", path.stem)
+    return out
+
+
+def scenario_overlay(name_or_path: str) -> dict:
+    """The preset as a partial scenario tree (plant, actuator.pneumatics, identified)."""
+    p = load_preset(name_or_path)
+    out: dict = {"plant": copy.deepcopy(dict(p.get("plant") or {}))}
+    out["plant"]["preset"] = str(name_or_path)
+    if p.get("pneumatics"):
+        out["actuator"] = {"pneumatics": copy.deepcopy(dict(p["pneumatics"]))}
+    if p.get("identified"):
+        ident = {a: {k: float(v) for k, v in p["identified"][a].items()} for a in _ACTS}
+        out["controller"] = {"inner": {"identified": ident}}
+    return out
+
+
+def identify_overlay(name_or_path: str) -> dict:
+    """The preset as a partial ``identify`` tree (model, pneumatics)."""
+    p = load_preset(name_or_path)
+    return {
+        "model": copy.deepcopy(dict(p.get("plant") or {})),
+        "pneumatics": copy.deepcopy(dict(p.get("pneumatics") or {})),
+    }

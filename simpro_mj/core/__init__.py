@@ -1,0 +1,8 @@
+"""The base every room stands on (imports nothing of the project).
+
+- :mod:`.errors`: ``UserInputError`` (a ``ValueError``), ``PhysicsError`` and the others.
+- :mod:`.keys`: dotted keys (``--set KEY=VALUE``), key checks and their one-line
+  messages (``closest`` valid key, allowed values).
+- :mod:`.safe_yaml`: YAML without aliases bombs or non-finite surprises.
+- :mod:`.jsonout`: the ``--json`` contract (one JSON object on stdout).
+"""

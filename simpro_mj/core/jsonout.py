@@ -1,0 +1,28 @@
+"""The ``--json`` contract: one JSON object on stdout and nothing else there.
+
+Its own module so that every command can print JSON without importing
+:mod:`simpro_mj.commands.main` (which imports the commands: imports run one way).
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+
+__all__ = ["emit_json"]
+
+
+def emit_json(obj) -> None:
+    """Print one JSON object on stdout (numpy scalars and arrays as plain numbers)."""
+    json.dump(obj, sys.stdout, indent=2, sort_keys=False, default=_json_default)
+    sys.stdout.write("\n")
+
+
+def _json_default(o):
+    import numpy as np
+
+    if isinstance(o, np.generic):
+        return o.item()
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    raise TypeError(f"not JSON serialisable: {type(o).__name__}")

@@ -1,0 +1,336 @@
+"""Nested parameter trees and ``--set KEY=VALUE`` overrides.
+
+A parameter tree is a plain nested ``dict`` whose leaves are numbers, strings,
+booleans or lists. Units live in the key names at this edge (``pitch_deg``,
+``heave_mm``, ``mass_kg``); code converts to SI right after reading.
+"""
+
+from __future__ import annotations
+
+import copy
+import difflib
+import math
+import re
+from collections.abc import Iterable, Mapping
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from simpro_mj.core.errors import UserInputError
+
+__all__ = [
+    "parse_set",
+    "apply_overrides",
+    "set_path",
+    "get_path",
+    "closest",
+    "check_keys",
+    "check_number",
+    "key_text",
+    "check_tagged",
+    "short_text",
+    "value_text",
+]
+
+
+_PLAIN_KEY = re.compile(r"^[A-Za-z0-9_.\-]+$")
+#: Longest key or value echoed whole in a message (characters); longer ones are cut.
+ECHO_CHARS = 60
+
+
+def short_text(text: str, limit: int = ECHO_CHARS) -> str:
+    """``text``, or its start and end around ``...`` with its length when longer
+    than ``limit``: a 100,000-character key or a 300-digit number stays readable."""
+    if len(text) <= limit:
+        return text
+    keep = max(limit - 24, 8)
+    return f"{text[: keep - keep // 3]}...{text[-(keep // 3) :]} ({len(text):,} chars)"
+
+
+def value_text(value: Any) -> str:
+    """``repr(value)`` cut by :func:`short_text` (for ``got ...`` in messages)."""
+    return short_text(repr(value))
+
+
+def key_text(key: Any) -> str:
+    """A key as it appears in a dotted path: plain names as they are, anything
+    else (spaces, newlines, non-strings) quoted, so a message stays one line;
+    a long one cut (:func:`short_text`)."""
+    text = key if isinstance(key, str) and _PLAIN_KEY.match(key) else repr(key)
+    return short_text(text, 2 * ECHO_CHARS)
+
+
+def closest(name: str, choices: Iterable[str]) -> str:
+    """A ' (did you mean X?)' hint, or '' when nothing is close."""
+    match = difflib.get_close_matches(name[:200], list(choices), n=1, cutoff=0.5)
+    return f" (did you mean '{match[0]}'?)" if match else ""
+
+
+def check_tagged(
+    entry: Mapping,
+    path: str,
+    tag: str,
+    kinds: Mapping[str, tuple[tuple[str, ...], Mapping[str, Any]]],
+    noun: str = "",
+) -> tuple[str, tuple[str, ...], Mapping[str, Any]]:
+    """Check a tagged entry such as ``{type: step, time_s: 1, value: 3}``.
+
+    The tag (``entry[tag]``) picks the entry's kind in ``kinds``, which maps
+    each kind to its required keys and its optional keys with defaults; the
+    entry's other keys must be among them.
+
+    Parameters
+    ----------
+    entry : mapping
+        The entry as read from YAML.
+    path : str
+        Its dotted path, for messages (``setpoint.pitch_deg[0]``).
+    tag : str
+        The key naming the kind (``type``, ``distribution``).
+    kinds : mapping
+        ``kind -> (required keys, {optional key: default})``.
+    noun : str, optional
+        Appended to the kind in messages (``"distribution"``: "a normal
+        distribution needs ...").
+
+    Returns
+    -------
+    (kind, required, optional)
+
+    Raises
+    ------
+    UserInputError
+        Missing or unknown tag, unknown key (with the closest valid one),
+        missing required key; one line, ``<what> at <path>: <allowed>``.
+    """
+    names = list(kinds)
+    kind = entry.get(tag)
+    if not isinstance(kind, str) or kind not in kinds:
+        if tag not in entry:
+            raise UserInputError(f"missing key at {path}.{tag}: allowed: one of {names}")
+        raise UserInputError(
+            f"invalid value at {path}.{tag}: {value_text(kind)}; allowed: one of {names}"
+            f"{closest(str(kind), names)}"
+        )
+    required, optional = kinds[kind]
+    label = f"{kind} {noun}".strip()
+    allowed = [tag, *required, *optional]
+    for key in entry:
+        if key not in allowed:
+            raise UserInputError(
+                f"unknown key at {path}.{key_text(key)}: allowed keys of a {label} are "
+                f"{allowed}{closest(str(key), allowed)}"
+            )
+    for key in required:
+        if key not in entry:
+            raise UserInputError(f"missing key at {path}.{key}: a {label} needs {list(required)}")
+    return kind, required, optional
+
+
+def parse_set(expr: str) -> tuple[str, Any]:
+    """Parse ``a.b.c=VALUE``; VALUE is read as YAML (numbers, lists, booleans).
+
+    Raises
+    ------
+    UserInputError
+        If the expression has no ``=`` or an empty key, or VALUE is not YAML.
+    """
+    from simpro_mj.core.safe_yaml import YAMLLimitError, load
+
+    if "=" not in expr:
+        raise UserInputError(
+            f"malformed --set at {value_text(expr)}: expected KEY=VALUE with a dotted KEY, e.g. "
+            "controller.mode=task_space"
+        )
+    key, _, raw = expr.partition("=")
+    key = key.strip()
+    if not key or any(not part for part in key.split(".")):
+        raise UserInputError(
+            f"malformed --set at {value_text(expr)}: expected KEY=VALUE with KEY a dotted path "
+            "like a.b.c"
+        )
+    try:
+        value = load(raw) if raw.strip() else ""
+    except YAMLLimitError as exc:
+        raise UserInputError(
+            f"invalid value at {key_text(key)}: {exc.problem}; allowed: {exc.allowed}"
+        ) from exc
+    except yaml.YAMLError as exc:
+        raise UserInputError(
+            f"malformed --set at {key_text(key)}: value {value_text(raw)} is not valid YAML"
+        ) from exc
+    return key, value
+
+
+def get_path(tree: Mapping, path: str) -> Any:
+    node: Any = tree
+    for part in path.split("."):
+        if not isinstance(node, Mapping) or part not in node:
+            raise KeyError(path)
+        node = node[part]
+    return node
+
+
+def set_path(tree: dict, path: str, value: Any, strict: bool = True) -> None:
+    """Set a dotted path in a nested dict.
+
+    With ``strict`` the path must already exist (unknown keys are refused with
+    the closest valid key) and the new value must have a compatible type.
+    """
+    parts = path.split(".")
+    node: Any = tree
+    for depth, part in enumerate(parts):
+        here = ".".join(parts[: depth + 1])
+        last = depth == len(parts) - 1
+        if not isinstance(node, dict):
+            raise UserInputError(
+                f"unknown key at {key_text(here)}: '{key_text(parts[depth - 1])}' has no sub-keys"
+            )
+        if part not in node:
+            if strict:
+                raise UserInputError(
+                    f"unknown key at {key_text(here)}: allowed keys are {sorted(node)}"
+                    f"{closest(part, node)}"
+                )
+            if last:
+                node[part] = value
+                return
+            node[part] = {}
+        if last:
+            if strict:
+                _check_type(here, node[part], value)
+            node[part] = value
+            return
+        node = node[part]
+
+
+def _check_type(path: str, old: Any, new: Any) -> None:
+    if old is None or new is None:
+        return
+    num = (int, float)
+    if isinstance(old, bool) or isinstance(new, bool):
+        ok, kind = isinstance(old, bool) == isinstance(new, bool), "true or false"
+    elif isinstance(old, num):
+        ok, kind = isinstance(new, num), "a number"
+    elif isinstance(old, dict):
+        ok, kind = isinstance(new, dict), "a mapping"
+    elif isinstance(old, list):
+        ok, kind = isinstance(new, list), "a list"
+    else:
+        ok, kind = isinstance(new, type(old)), f"a {type(old).__name__}"
+    if not ok:
+        raise UserInputError(
+            f"wrong type at {key_text(path)}: got {type(new).__name__} {value_text(new)}; "
+            f"allowed: {kind} like {value_text(old)}"
+        )
+
+
+def apply_overrides(tree: Mapping, sets: Iterable[str], strict: bool = True) -> dict:
+    """Return a deep copy of ``tree`` with every ``KEY=VALUE`` applied in order."""
+    out = copy.deepcopy(dict(tree))
+    for expr in sets or ():
+        key, value = parse_set(expr)
+        set_path(out, key, value, strict=strict)
+    return out
+
+
+def check_keys(tree: Mapping, ref: Mapping, path: str) -> None:
+    """Refuse keys of ``tree`` that ``ref`` does not have, recursively.
+
+    Only key names and the mapping/leaf shape are checked (values are the
+    owner's job). ``path`` is the dotted prefix used in the messages.
+
+    Raises
+    ------
+    UserInputError
+        ``unknown key at <path>: allowed keys are [...] (did you mean ...?)`` or
+        ``wrong type at <path>: expected a mapping``.
+    """
+    for key, sub in tree.items():
+        here = f"{path}.{key_text(key)}" if path else key_text(key)
+        if key not in ref:
+            raise UserInputError(
+                f"unknown key at {here}: allowed keys are {sorted(ref)}{closest(str(key), ref)}"
+            )
+        if isinstance(ref[key], Mapping):
+            if not isinstance(sub, Mapping):
+                raise UserInputError(
+                    f"wrong type at {here}: got {type(sub).__name__} {value_text(sub)}; "
+                    "allowed: a mapping"
+                )
+            check_keys(sub, ref[key], here)
+
+
+def check_number(
+    tree: Mapping,
+    path: str,
+    lo: float = -math.inf,
+    hi: float = math.inf,
+    *,
+    lo_open: bool = False,
+    hi_open: bool = False,
+    integer: bool = False,
+    unit: str = "",
+) -> float:
+    """The number at dotted ``path`` of ``tree``, checked to be finite and in range.
+
+    Raises
+    ------
+    UserInputError
+        ``wrong type at <path>: ...`` for a non-number (booleans included) or
+        ``invalid value at <path>: <value>; allowed: <range>`` for NaN, inf,
+        a value out of range or (``integer``) a fractional one.
+    """
+    value = get_path(tree, path)
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise UserInputError(
+            f"wrong type at {path}: got {type(value).__name__} {value_text(value)}; "
+            "allowed: a number"
+        )
+    x = float(value)
+    lo_ok = x > lo if lo_open else x >= lo
+    hi_ok = x < hi if hi_open else x <= hi
+    if not (math.isfinite(x) and lo_ok and hi_ok and (not integer or x == int(x))):
+        parts = []
+        if lo > -math.inf:
+            parts.append(f"{'>' if lo_open else '>='} {lo:g}{unit}")
+        if hi < math.inf:
+            parts.append(f"{'<' if hi_open else '<='} {hi:g}{unit}")
+        allowed = ("an integer " if integer else "a finite number ") + " and ".join(parts)
+        raise UserInputError(
+            f"invalid value at {path}: {value_text(value)}; allowed: {allowed.strip()}"
+        )
+    return int(x) if integer else x
+
+
+# ------------------------------------------------------------------ YAML files
+
+
+def read_yaml(path: Path, what: str = "file") -> Any:
+    """Read a YAML file within the bounds of :mod:`simpro_mj.core.safe_yaml` (size,
+    depth, alias expansion, number length; duplicate keys and empty files
+    refused); one-line :class:`UserInputError` naming ``what`` and the file
+    (line and column for a syntax error)."""
+    from simpro_mj.core.safe_yaml import YAMLLimitError, read_file
+
+    try:
+        return read_file(path, what)
+    except (OSError, UnicodeDecodeError) as exc:
+        raise UserInputError(
+            f"unreadable {what} at {path}: {exc.__class__.__name__}: {short_text(str(exc))}; "
+            "allowed: a UTF-8 YAML file"
+        ) from exc
+    except yaml.MarkedYAMLError as exc:
+        mark = exc.problem_mark or exc.context_mark
+        where = f"{path} line {mark.line + 1}, column {mark.column + 1}" if mark else str(path)
+        problem = short_text(" ".join(str(exc.problem or exc).split()), 200)
+        if isinstance(exc, YAMLLimitError):
+            allowed = exc.allowed
+        else:
+            allowed = "each key once" if "duplicate key" in problem else "a YAML mapping of keys"
+        raise UserInputError(f"invalid YAML at {where}: {problem}; allowed: {allowed}") from exc
+    except yaml.YAMLError as exc:
+        raise UserInputError(
+            f"invalid YAML at {path}: {short_text(str(exc), 200)}; allowed: a YAML mapping of keys"
+        ) from exc

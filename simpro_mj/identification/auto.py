@@ -1,0 +1,182 @@
+"""The identified models of a scenario's own plant (issue 18: ``design_plant: identified``).
+
+A plant preset (:mod:`simpro_mj.config.presets`) carries the models ``simpro-sim
+identify`` measures on *its* plant (``controller.inner.identified``). A
+scenario that changes the plant (a heavier payload, another valve, more
+friction: ``plant.*`` or ``actuator.pneumatics.*``) makes them stale. With
+``controller.inner.design_plant: identified`` the joint controllers are placed
+on the identified models — the paper's procedure, identify then place poles —
+so they must be the scenario's own: :func:`identified_models` runs Fig. 12's
+experiment (:func:`simpro_mj.identification.identify.identify`) on the scenario's plant and
+caches the result under the hash of everything the experiment depends on.
+
+Which models a scenario uses (:func:`identified_models`):
+
+* ``controller.inner.identify: auto`` (default): the preset's models when the
+  scenario's plant is the preset's (no experiment), else the scenario's own,
+  identified once and cached;
+* ``preset``: the preset's models (or the scenario's ``controller.inner.identified``)
+  as given, even for a changed plant.
+
+The cache is a folder of small JSON files, one per plant hash:
+``$SIMPRO_CACHE_DIR``, else ``$XDG_CACHE_HOME/simpro-sim``, else
+``~/.cache/simpro-sim``, sub-folder ``identified``. A file is written under a
+temporary name and renamed, so concurrent runs (a batch) never read half a
+file; an unwritable cache only costs the experiment again.
+"""
+
+from __future__ import annotations
+
+import copy
+import hashlib
+import json
+import os
+import tempfile
+from collections.abc import Mapping
+from pathlib import Path
+
+__all__ = [
+    "IDENTIFY_CHOICES",
+    "cache_dir",
+    "plant_tree",
+    "plant_hash",
+    "identified_models",
+    "with_identified",
+]
+
+from simpro_mj.config.scenario import IDENTIFY_CHOICES  # values of controller.inner.identify
+
+_ACTS = ("actuator1", "actuator2", "actuator3")
+_memo: dict[str, dict] = {}
+
+
+def cache_dir() -> Path:
+    """The folder of cached identifications (module docstring)."""
+    root = os.environ.get("SIMPRO_CACHE_DIR")
+    if root:
+        return Path(root) / "identified"
+    xdg = os.environ.get("XDG_CACHE_HOME")
+    base = Path(xdg) if xdg else Path.home() / ".cache"
+    return base / "simpro-sim" / "identified"
+
+
+def plant_tree(scenario: Mapping) -> dict:
+    """The ``identify`` tree of the scenario's own plant: its preset's experiment
+    settings with the scenario's ``plant`` and ``actuator.pneumatics`` values."""
+    from simpro_mj.config.scenario import _merge
+    from simpro_mj.identification.identify import default_tree
+
+    preset = scenario["plant"]["preset"]
+    tree = default_tree(preset)
+    model = {k: v for k, v in scenario["plant"].items() if k != "preset"}
+    tree["model"] = _merge(tree["model"], model)
+    tree["pneumatics"] = _merge(tree["pneumatics"], scenario["actuator"].get("pneumatics") or {})
+    tree["paper_units"] = scenario["paper_units"]
+    return tree
+
+
+def plant_hash(tree: Mapping) -> str:
+    """SHA-256 of what the experiment depends on: model, pneumatics, identify settings
+    and the package versions that compute it."""
+    import mujoco
+    import numpy as np
+
+    from simpro_mj import __version__
+
+    key = {
+        "model": tree["model"],
+        "pneumatics": tree["pneumatics"],
+        "identify": tree["identify"],
+        "versions": [__version__, mujoco.__version__, np.__version__],
+    }
+    text = json.dumps(key, sort_keys=True, default=str)
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def _is_presets_plant(scenario: Mapping) -> bool:
+    """The scenario's plant and pneumatics are what its preset resolves to with no
+    plant key of the scenario's own (the shipped as-built errors included): the
+    preset's models stand for it."""
+    from simpro_mj.config.presets import scenario_overlay
+    from simpro_mj.config.scenario import DEFAULT_SCENARIO, _merge
+
+    preset = scenario["plant"]["preset"]
+    base = _merge(DEFAULT_SCENARIO, scenario_overlay(preset))
+    base["plant"]["preset"] = preset
+
+    def text(tree):
+        return json.dumps(
+            [tree["plant"], tree["actuator"].get("pneumatics") or {}], sort_keys=True, default=str
+        )
+
+    return text(scenario) == text(base)
+
+
+def _read(path: Path) -> dict | None:
+    try:
+        doc = json.loads(path.read_text(encoding="utf-8"))
+        return {a: {k: float(doc[a][k]) for k in ("b", "a1", "a0")} for a in _ACTS}
+    except (OSError, ValueError, KeyError, TypeError):
+        return None  # missing or damaged: identify again
+
+
+def _write(path: Path, models: dict) -> None:
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=".tmp-", dir=path.parent)
+        with os.fdopen(fd, "w", encoding="utf-8") as f:
+            json.dump(models, f, indent=1)
+        os.replace(tmp, path)
+    except OSError:
+        pass  # no cache: the next run identifies again
+
+
+def identified_models(scenario: Mapping, progress=None) -> tuple[dict, str]:
+    """``({actuator: {b, a1, a0}}, source)`` for the scenario (module docstring).
+
+    ``source`` is ``"preset"`` (the scenario's ``controller.inner.identified``),
+    ``"cache"`` or ``"identified"`` (the experiment ran now). ``progress``, when
+    given, is called with a one-line message before an experiment.
+    """
+    inner = scenario["controller"]["inner"]
+    given = {a: dict(inner["identified"][a]) for a in _ACTS}
+    if inner.get("identify", "auto") == "preset":
+        return given, "preset"
+    if _is_presets_plant(scenario):
+        return given, "preset"
+    tree = plant_tree(scenario)
+    h = plant_hash(tree)
+    if h in _memo:
+        return copy.deepcopy(_memo[h]), "cache"
+    path = cache_dir() / f"{h}.json"
+    models = _read(path)
+    source = "cache"
+    if models is None:
+        from simpro_mj.identification.identify import identify
+
+        if progress is not None:
+            progress(f"identifying the scenario's own plant (Fig. 12), cached in {path.parent}")
+        got = identify(tree)
+        models = {a: {k: float(got[a][k]) for k in ("b", "a1", "a0")} for a in _ACTS}
+        _write(path, models)
+        source = "identified"
+    _memo[h] = copy.deepcopy(models)
+    return models, source
+
+
+def with_identified(scenario: Mapping, progress=None) -> tuple[Mapping, str]:
+    """The scenario with ``controller.inner.identified`` its own plant's models when
+    ``design_plant: identified`` (:func:`identified_models`); ``(scenario, source)``.
+    Other scenarios come back as they are, ``source`` ``"preset"``: with the
+    paper's design plants the identified models only linearise the plant for the
+    preflight's analysis, which keeps the preset's (no experiment per variant of a
+    Monte-Carlo sweep)."""
+    if scenario["controller"]["inner"]["design_plant"] != "identified":
+        return scenario, "preset"
+    models, source = identified_models(scenario, progress)
+    if source == "preset":
+        return scenario, source
+    out = dict(scenario)
+    ctl = out["controller"] = dict(scenario["controller"])
+    ctl["inner"] = dict(ctl["inner"], identified=models)
+    return out, source

@@ -1,0 +1,571 @@
+"""``simpro-sim identify``: the paper's actuator identification (Fig. 12) in simulation.
+
+Per actuator i, around mid-stroke under the nominal payload:
+
+1. the closed chain is assembled at q = 250 mm on every leg; the holding
+   forces come from the static inverse dynamics
+   (:func:`simpro_mj.plant.pneumatics.holding_forces`), the actuators are reset at
+   the matching pneumatic equilibrium (valve voltages ``u_h``);
+2. every leg runs a proportional position loop
+   :math:`u_j = u_{h,j} + K_{p,j}(q_{ref} - q_j)` (our own tiny loop: the
+   plant imports no controller); after a settling time a pseudo-random binary
+   sequence (maximum-length, ``prbs_clock_ms`` per bit, ±``prbs_amplitude_v``)
+   is added to the valve voltage of leg i only;
+3. the co-simulation runs at 1 ms: read q, qdot -> voltages -> actuator
+   ``step`` -> ``data.ctrl`` -> ``mj_step``; MuJoCo warnings and loop closure
+   are checked;
+4. eq. (19), :math:`Y/U = b / (s (s^2 + a_1 s + a_0))`, is fitted to the
+   recorded valve voltage (deviation from 5 V) and slide motion. Because (19)
+   has a pure integrator, it is fitted on the slide velocity
+   :math:`sY = b/(s^2 + a_1 s + a_0)\\,(U - d)` by continuous-time output
+   error (ZOH-discretised at 1 ms, ``scipy.optimize.least_squares``), with d
+   an input offset (the holding voltage's deviation from 5 V), started from a
+   discrete ARX(2, 2) least-squares estimate converted to continuous time.
+
+Reported per actuator: b, a1, a0, :math:`ω_n = \\sqrt{a_0}`,
+:math:`ζ = a_1 / (2 ω_n)`, velocity gain b/a0 (m/s/V), next to the paper's
+eqs. (34) and (35) in SI under the ``paper_units`` reading of the tree
+(``"volts"``: Y is the potentiometer signal, b / 20; ``"metres"``: as printed,
+:mod:`controllers.design`). The plant is the ``preset`` of the tree
+(:mod:`simpro_mj.config.presets`, default ``paper``) with ``--set`` overrides.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from pathlib import Path
+
+import numpy as np
+
+from simpro_mj.core.errors import PhysicsError, UserInputError
+from simpro_mj.core.keys import apply_overrides, check_number
+from simpro_mj.plant.model import (
+    DEFAULT_MODEL_PARAMS,
+    PlantIndex,
+    assemble,
+    check_physics,
+    load_model,
+)
+from simpro_mj.plant.pneumatics import (
+    ACTUATOR_KINDS,
+    DEFAULT_PNEUMATIC_PARAMS,
+    holding_forces,
+    make_actuators,
+)
+
+__all__ = [
+    "HELP",
+    "PAPER",
+    "DEFAULT_IDENTIFY_PARAMS",
+    "default_tree",
+    "paper_models",
+    "document",
+    "run_experiment",
+    "fit_eq19",
+    "identify",
+    "summary",
+    "add_arguments",
+    "run",
+]
+
+HELP = "identify eq. (19) per actuator in simulation (Fig. 12: P loop + PRBS, least squares)"
+
+#: The paper's identified models, eq. (34) (actuator 1) and eq. (35) (2 and 3;
+#: the printed "s^2 + 7.276 + 1349" misses an s).
+PAPER = {
+    "actuator1": {"b": 245.94, "a1": 27.72, "a0": 253.0},
+    "actuator2": {"b": 2008.3, "a1": 7.276, "a0": 1349.0},
+    "actuator3": {"b": 2008.3, "a1": 7.276, "a0": 1349.0},
+}
+
+#: Experiment settings (the paper does not print them: our choices).
+DEFAULT_IDENTIFY_PARAMS: dict = {
+    "duration_s": 20.0,  # excitation time per actuator
+    "settle_s": 1.0,  # P loops alone before the PRBS starts
+    "position_mm": 250.0,  # operating point: mid-stroke
+    # P gains (V/m). Low enough for the loop to stay stable with the paper's
+    # plants too (eq. 35 needs K_p b < a1 a0: K_p < 4.9 V/m).
+    "kp_v_per_m": [15.0, 3.0, 3.0],
+    # PRBS: ±amplitude on the excited valve, one bit per clock; a 20 ms clock
+    # gives a flat spectrum up to ~ 0.44/20 ms = 22 Hz (> the 2.5-6 Hz of ω_n)
+    "prbs_amplitude_v": [0.3, 0.3, 0.3],
+    "prbs_clock_ms": 20.0,
+    "prbs_bits": 10,  # sequence period 1023 bits = 20.5 s
+    "seed": 1,  # shift of the sequence
+    "actuator_kind": "nonlinear",
+    # discard the first part of the record in the fit (initial transient), s
+    "fit_skip_s": 0.2,
+    # loop-closure bound checked during the run, mm
+    "loop_bound_mm": 1.0,
+}
+
+
+def default_tree(preset: str | None = None) -> dict:
+    """The full parameter tree of ``identify``: paper_units, preset, model, pneumatics,
+    identify; the model and pneumatics are the defaults with ``preset``'s values
+    (default :data:`simpro_mj.config.presets.DEFAULT_PRESET`) over them."""
+    from simpro_mj.config.presets import DEFAULT_PRESET, identify_overlay
+    from simpro_mj.config.scenario import _merge
+
+    preset = DEFAULT_PRESET if preset is None else preset
+    over = identify_overlay(preset)
+    return {
+        # unit of Y in eqs. (34)-(35) for the comparison (controllers.design.READINGS)
+        "paper_units": "volts",
+        "preset": preset,
+        "model": _merge(DEFAULT_MODEL_PARAMS, over["model"]),
+        "pneumatics": _merge(DEFAULT_PNEUMATIC_PARAMS, over["pneumatics"]),
+        "identify": copy.deepcopy(DEFAULT_IDENTIFY_PARAMS),
+    }
+
+
+def paper_models(reading: str = "volts") -> dict:
+    """Eqs. (34)-(35) in SI under ``reading``: ``{actuator: {b, a1, a0, wn_rad_s, ...}}``."""
+    from controllers.design import ACTUATORS, paper_plant
+
+    out = {}
+    for a in ACTUATORS:
+        p = paper_plant(a, reading)
+        out[a] = _coefficients(p.b, p.a1, p.a0)
+    return out
+
+
+def _leg_values(x, name: str) -> np.ndarray:
+    arr = np.broadcast_to(np.asarray(x, float), (3,)).copy() if np.ndim(x) == 0 else None
+    if arr is None:
+        arr = np.asarray(x, float)
+    if arr.shape != (3,) or not np.all(np.isfinite(arr)) or np.any(arr < 0):
+        raise UserInputError(
+            f"invalid value at identify.{name}: {x!r}; expected a number or 3 numbers >= 0"
+        )
+    return arr
+
+
+def check_tree(tree: dict) -> dict:
+    """Validate the ``identify`` settings and the pneumatics tree (the model's
+    values are checked by :func:`simpro_mj.plant.model.load_model`); returns ``tree``
+    with the pneumatics normalised.
+
+    Raises
+    ------
+    UserInputError
+        Naming the dotted path and what is allowed.
+    """
+    from controllers.design import READINGS
+    from simpro_mj.config.scenario import _check_pneumatics
+
+    if tree.get("paper_units") not in READINGS:
+        raise UserInputError(
+            f"invalid value at paper_units: {tree.get('paper_units')!r}; allowed: {list(READINGS)}"
+        )
+    tree["model"].pop("preset", None)
+    tree["pneumatics"] = _check_pneumatics(tree["pneumatics"], "pneumatics")
+    i = "identify"
+    check_number(tree, f"{i}.duration_s", 0.5, 3600.0, unit=" s")
+    check_number(tree, f"{i}.settle_s", 0.0, 3600.0, unit=" s")
+    check_number(tree, f"{i}.position_mm", 50.0, 450.0, unit=" mm")
+    ms = check_number(tree, f"{i}.prbs_clock_ms", 1.0, 10**6, unit=" ms")
+    if ms != round(ms):
+        raise UserInputError(
+            f"invalid value at {i}.prbs_clock_ms: {ms:g}; allowed: a positive integer "
+            "multiple of the 1 ms physics step"
+        )
+    check_number(tree, f"{i}.prbs_bits", 2, 24, integer=True)
+    check_number(tree, f"{i}.seed", 0, 2**31, integer=True)
+    check_number(tree, f"{i}.fit_skip_s", 0.0, tree[i]["duration_s"], hi_open=True, unit=" s")
+    check_number(tree, f"{i}.loop_bound_mm", 0.0, lo_open=True, unit=" mm")
+    amp = _leg_values(tree[i]["prbs_amplitude_v"], "prbs_amplitude_v")
+    if np.any(amp > 5.0):
+        raise UserInputError(
+            f"invalid value at {i}.prbs_amplitude_v: {tree[i]['prbs_amplitude_v']!r}; "
+            "allowed: <= 5 V (the valve's half range)"
+        )
+    _leg_values(tree[i]["kp_v_per_m"], "kp_v_per_m")
+    return tree
+
+
+def _prbs(n_steps: int, clock: int, bits: int, seed: int) -> np.ndarray:
+    """±1 maximum-length sequence, each bit held ``clock`` steps."""
+    from scipy.signal import max_len_seq
+
+    seq = max_len_seq(bits)[0].astype(float) * 2.0 - 1.0
+    seq = np.roll(seq, int(seed))
+    n_bits = -(-n_steps // clock)
+    reps = -(-n_bits // seq.size)
+    return np.repeat(np.tile(seq, reps)[:n_bits], clock)[:n_steps]
+
+
+def run_experiment(tree: dict, leg: int, model=None) -> dict:
+    """Run the Fig. 12 experiment on ``leg`` (1..3); return the record.
+
+    Returns
+    -------
+    dict
+        ``t`` (s), ``u`` (V, applied voltage of the leg, saturated),
+        ``q`` (m), ``qdot`` (m/s) of the leg from the start of the excitation,
+        ``u_hold`` (V), ``force_hold`` (N, all legs), ``q_all`` (m, all legs).
+
+    Raises
+    ------
+    PhysicsError
+        On a MuJoCo warning, a non-finite state or an opened loop.
+    """
+    import mujoco
+
+    check_tree(tree)
+    ip = tree["identify"]
+    kind = ip["actuator_kind"]
+    if kind not in ACTUATOR_KINDS:
+        raise UserInputError(
+            f"invalid value at identify.actuator_kind: '{kind}'; allowed {list(ACTUATOR_KINDS)}"
+        )
+    m = model if model is not None else load_model(tree["model"])
+    d = mujoco.MjData(m)
+    idx = PlantIndex.of(m)
+    dt = float(m.opt.timestep)
+    q_ref = float(ip["position_mm"]) * 1e-3
+    if not 0.05 <= q_ref <= 0.45:
+        raise UserInputError(
+            f"invalid value at identify.position_mm: {ip['position_mm']}; allowed 50..450 mm"
+        )
+    q0 = np.full(3, q_ref)
+    assemble(m, d, q0, index=idx)
+    f_hold = holding_forces(m, d, idx)
+    from controllers.design import paper_coefficients
+
+    act = make_actuators(
+        kind, tree["pneumatics"], model=m, linear_plants=paper_coefficients(tree["paper_units"])
+    )
+    force_range = act.params.force_range
+    if np.any(f_hold > force_range[1]) or np.any(f_hold < force_range[0]):
+        from simpro_mj.plant.payload import holding_force_model, max_payload
+
+        f0, slope = holding_force_model(m, d, idx, 100.0)  # affine in the mass: any probe
+        cap = np.where(f_hold >= 0, force_range[1], force_range[0])
+        worst = int(np.argmax(f_hold / cap))
+        raise UserInputError(
+            f"payload too heavy at model.payload.mass_kg: {tree['model']['payload']['mass_kg']:g} "
+            f"kg needs {abs(f_hold[worst]) / 1e3:.2f} kN on cylinder {worst + 1} at q = "
+            f"{ip['position_mm']:g} mm, which makes at most "
+            f"{abs(force_range[1] if f_hold[worst] >= 0 else force_range[0]) / 1e3:.2f} kN; "
+            f"allowed: <= {max(0.0, max_payload(f0, slope, force_range)):.0f} kg at this supply "
+            "pressure (pneumatics.supply_pressure_bar_gauge)"
+        )
+    act.reset(q0, np.zeros(3), force=f_hold)
+    u_hold = act.u_hold.copy()
+    kp = _leg_values(ip["kp_v_per_m"], "kp_v_per_m")
+    amp = _leg_values(ip["prbs_amplitude_v"], "prbs_amplitude_v")[leg - 1]
+    n_settle = int(round(float(ip["settle_s"]) / dt))
+    n_exc = int(round(float(ip["duration_s"]) / dt))
+    if n_exc < 500:
+        raise UserInputError("invalid value at identify.duration_s: allowed >= 0.5 s")
+    clock = max(1, int(round(float(ip["prbs_clock_ms"]) * 1e-3 / dt)))
+    prbs = amp * _prbs(n_exc, clock, int(ip["prbs_bits"]), int(ip["seed"]))
+    loop_bound = float(ip["loop_bound_mm"]) * 1e-3
+
+    j = leg - 1
+    sq, sd, ia = idx.slide_qpos, idx.slide_dof, idx.actuators
+    rec_u = np.empty(n_exc)
+    rec_q = np.empty(n_exc)
+    rec_v = np.empty(n_exc)
+    q_all = np.empty((n_exc, 3))
+    warn0 = d.warning.number.copy()
+    d.ctrl[ia] = f_hold
+    u = np.empty(3)
+    qpos, qvel, ctrl = d.qpos, d.qvel, d.ctrl
+    for k in range(n_settle + n_exc):
+        q = qpos[sq]
+        qd = qvel[sd]
+        np.subtract(q_ref, q, out=u)
+        u *= kp
+        u += u_hold
+        e = k - n_settle
+        if e >= 0:
+            u[j] += prbs[e]
+        np.clip(u, 0.0, 10.0, out=u)
+        ctrl[ia] = act.step(u, q, qd, dt)
+        if e >= 0:
+            rec_u[e] = u[j]
+            rec_q[e] = q[j]
+            rec_v[e] = qd[j]
+            q_all[e] = q
+        mujoco.mj_step(m, d)
+        if k % 250 == 0:
+            check_physics(m, d, warn0, loop_bound=loop_bound, index=idx)
+    check_physics(m, d, warn0, loop_bound=loop_bound, index=idx)
+    if np.any(q_all < 0.0) or np.any(q_all > 0.5):
+        raise PhysicsError(
+            f"identification of actuator {leg} hit an end stop: lower identify.prbs_amplitude_v "
+            "or raise identify.kp_v_per_m"
+        )
+    return {
+        "t": np.arange(n_exc) * dt,
+        "u": rec_u,
+        "q": rec_q,
+        "qdot": rec_v,
+        "u_hold": u_hold,
+        "force_hold": f_hold,
+        "q_all": q_all,
+        "dt": dt,
+    }
+
+
+def _simulate_velocity(theta, u, dt):
+    """ZOH simulation of v = b/(s^2 + a1 s + a0) (u - d); theta = (b, a1, a0, d)."""
+    from scipy.signal import cont2discrete, lfilter
+
+    b, a1, a0, d = theta
+    num, den, _ = cont2discrete(([b], [1.0, a1, a0]), dt, method="zoh")
+    return lfilter(np.ravel(num), den, u - d)
+
+
+def _arx_guess(u, v, dt):
+    """ARX(2,2) with a constant, converted to (b, a1, a0, d) in continuous time."""
+    phi = np.column_stack([-v[1:-1], -v[:-2], u[1:-1], u[:-2], np.ones(v.size - 2)])
+    th = np.linalg.lstsq(phi, v[2:], rcond=None)[0]
+    al1, al2, be1, be2, c = th
+    zp = np.roots([1.0, al1, al2])
+    with np.errstate(all="ignore"):
+        sp = np.log(zp.astype(complex)) / dt
+    a1 = float(-np.real(sp.sum()))
+    a0 = float(np.real(np.prod(sp)))
+    dc = (be1 + be2) / (1.0 + al1 + al2)
+    b = dc * a0
+    d = -c / (be1 + be2) if abs(be1 + be2) > 1e-12 else 0.0
+    return b, a1, a0, d
+
+
+def fit_eq19(u, qdot, dt: float, skip: int = 0, guess=None) -> dict:
+    """Fit eq. (19) to a record (continuous output error on the velocity).
+
+    Parameters
+    ----------
+    u : array
+        Valve voltage, V (absolute: 5 V is the centre).
+    qdot : array
+        Slide velocity, m/s (the derivative of eq. 19's output Y).
+    dt : float
+        Sample time, s.
+    skip : int
+        Samples excluded at the start from the residual.
+    guess : (b, a1, a0), optional
+        Starting point; default the ARX estimate (the paper's values if the
+        ARX poles are unusable).
+
+    Returns
+    -------
+    dict
+        b, a1, a0, offset_v (d), wn_rad_s, zeta, velocity_gain_m_s_per_v,
+        fit_percent (100 (1 - |v - v̂| / |v - mean v|), the NRMSE fit).
+    """
+    from scipy.optimize import least_squares
+
+    u = np.asarray(u, float) - 5.0
+    v = np.asarray(qdot, float)
+    if guess is None:
+        b0, a10, a00, d0 = _arx_guess(u, v, dt)
+        if not (b0 > 0 and a10 > 0 and a00 > 0 and np.isfinite(b0 + a10 + a00)):
+            b0, a10, a00, d0 = 100.0, 10.0, 300.0, float(np.mean(u))
+    else:
+        b0, a10, a00 = guess
+        d0 = float(np.mean(u))
+    sl = slice(skip, None)
+    scale = np.array([b0, max(a10, 1.0), a00, 1.0])
+
+    def res(x):
+        return (_simulate_velocity(x * scale, u, dt) - v)[sl]
+
+    x0 = np.array([1.0, a10 / scale[1], 1.0, d0])
+    lo = np.array([1e-6, 0.0, 1e-6, -5.0])
+    hi = np.array([np.inf, np.inf, np.inf, 5.0])
+    x0 = np.clip(x0, lo + 1e-9, hi - 1e-9)
+    sol = least_squares(res, x0, bounds=(lo, hi), x_scale="jac", max_nfev=400)
+    b, a1, a0, d = sol.x * scale
+    err = sol.fun
+    vv = v[sl] - v[sl].mean()
+    fit = 100.0 * (1.0 - np.linalg.norm(err) / max(np.linalg.norm(vv), 1e-300))
+    return _coefficients(b, a1, a0) | {"offset_v": float(d), "fit_percent": float(fit)}
+
+
+def _coefficients(b, a1, a0) -> dict:
+    wn = math.sqrt(a0)
+    return {
+        "b": float(b),
+        "a1": float(a1),
+        "a0": float(a0),
+        "wn_rad_s": wn,
+        "zeta": a1 / (2.0 * wn),
+        "velocity_gain_m_s_per_v": b / a0,
+    }
+
+
+def identify(tree: dict | None = None, legs=(1, 2, 3), records: dict | None = None) -> dict:
+    """Identify eq. (19) for each leg in ``legs``; ``{"actuator<i>": {...}}``.
+
+    ``records``, when given, receives each leg's experiment record and fit.
+    """
+    tree = check_tree(default_tree() if tree is None else tree)
+    ip = tree["identify"]
+    model = load_model(tree["model"])
+    out = {}
+    for leg in legs:
+        rec = run_experiment(tree, leg, model=model)
+        skip = int(round(float(ip["fit_skip_s"]) / rec["dt"]))
+        res = fit_eq19(rec["u"], rec["qdot"], rec["dt"], skip=skip)
+        res["holding_force_n"] = float(rec["force_hold"][leg - 1])
+        res["holding_voltage_v"] = float(rec["u_hold"][leg - 1])
+        out[f"actuator{leg}"] = res
+        if records is not None:
+            records[f"actuator{leg}"] = rec | {"fit": res}
+    return out
+
+
+def summary(results: dict, reading: str = "volts", preset: str = "") -> str:
+    """Table of fitted vs paper coefficients (ω_n, ζ, b/a0), the paper's in SI
+    under ``reading``."""
+    from controllers.design import paper_units_info
+
+    info = paper_units_info(reading)
+    paper = paper_models(reading)
+    lines = [
+        f"plant preset {preset or '-'}; paper eqs. (34)-(35) in SI under paper_units = "
+        f"{reading} (Y in {info['y_unit']}: b / {info['y_per_metre']:g})",
+        f"{'':10s} {'b':>9s} {'a1':>8s} {'a0':>8s} {'wn rad/s':>9s} {'zeta':>7s} "
+        f"{'b/a0 m/s/V':>11s} {'fit %':>6s}",
+    ]
+    for name, r in results.items():
+        p = paper[name]
+        lines.append(
+            f"{name:10s} {r['b']:9.2f} {r['a1']:8.3f} {r['a0']:8.1f} {r['wn_rad_s']:9.2f} "
+            f"{r['zeta']:7.3f} {r['velocity_gain_m_s_per_v']:11.4f} {r.get('fit_percent', 0):6.1f}"
+        )
+        lines.append(
+            f"{'  paper':10s} {p['b']:9.2f} {p['a1']:8.3f} {p['a0']:8.1f} {p['wn_rad_s']:9.2f} "
+            f"{p['zeta']:7.3f} {p['velocity_gain_m_s_per_v']:11.4f}"
+        )
+        lines.append(
+            f"{'  ratio':10s} {'':9s} {'':8s} {'':8s} {r['wn_rad_s'] / p['wn_rad_s']:9.3f} "
+            f"{r['zeta'] - p['zeta']:+7.3f} "
+            f"{r['velocity_gain_m_s_per_v'] / p['velocity_gain_m_s_per_v']:11.4f}"
+        )
+    return "\n".join(lines)
+
+
+def plot(results: dict, records: dict, path: Path, reading: str = "volts") -> None:
+    """Step responses (fitted vs paper) and a window of measured vs fitted velocity."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from scipy.signal import lti, step
+
+    names = list(results)
+    fig, axes = plt.subplots(2, len(names), figsize=(4.6 * len(names), 7), squeeze=False)
+    for c, name in enumerate(names):
+        r, p = results[name], paper_models(reading)[name]
+        t = np.linspace(0, 1.0, 1000)
+        ax = axes[0, c]
+        for coef, lab, sty in ((r, "simulation fit", "-"), (p, "paper eq. (34)/(35)", "--")):
+            _, y = step(lti([coef["b"]], [1.0, coef["a1"], coef["a0"], 0.0]), T=t)
+            ax.plot(t, y * 1e3, sty, label=lab)
+        ax.set_title(f"{name}: 1 V step, position")
+        ax.set_xlabel("t (s)")
+        ax.set_ylabel("Δq (mm)")
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=8)
+        rec = records[name]
+        n = min(rec["t"].size, 3000)
+        s0 = rec["t"].size // 2
+        sl = slice(s0, s0 + n)
+        vhat = _simulate_velocity(
+            (r["b"], r["a1"], r["a0"], r["offset_v"]), rec["u"] - 5.0, rec["dt"]
+        )
+        ax = axes[1, c]
+        ax.plot(rec["t"][sl], rec["qdot"][sl] * 1e3, lw=0.8, label="MuJoCo + pneumatics")
+        ax.plot(rec["t"][sl], vhat[sl] * 1e3, lw=0.8, label=f"fit ({r['fit_percent']:.0f} %)")
+        ax.set_xlabel("t (s)")
+        ax.set_ylabel("qdot (mm/s)")
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=8)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+# ------------------------------------------------------------------------- CLI
+
+
+def add_arguments(parser) -> None:
+    parser.add_argument(
+        "--out", default="results/identify", help="output directory (default results/identify)"
+    )
+    parser.add_argument(
+        "--duration", type=float, default=None, help="excitation time per actuator, s (20)"
+    )
+    parser.add_argument(
+        "--actuators",
+        type=int,
+        nargs="+",
+        choices=(1, 2, 3),
+        default=[1, 2, 3],
+        help="which actuators (default 1 2 3)",
+    )
+    parser.add_argument("--no-plot", action="store_true", help="do not write the figure")
+    parser.add_argument(
+        "--preset",
+        default=None,
+        help="plant preset: a shipped name (paper, heavy_cabin) or a preset YAML path",
+    )
+
+
+def document(results: dict, tree: dict) -> dict:
+    """What ``identify.json`` and ``--json`` hold: the reading, the preset, per actuator
+    the identified model (SI) with the paper's in SI and the ratios."""
+    from controllers.design import paper_units_info
+
+    reading = tree["paper_units"]
+    paper = paper_models(reading)
+    acts = {}
+    for name, r in results.items():
+        p = paper[name]
+        acts[name] = dict(r) | {
+            "paper": p,
+            "wn_ratio": r["wn_rad_s"] / p["wn_rad_s"],
+            "zeta_difference": r["zeta"] - p["zeta"],
+            "velocity_gain_ratio": r["velocity_gain_m_s_per_v"] / p["velocity_gain_m_s_per_v"],
+        }
+    return {
+        "paper_units": paper_units_info(reading),
+        "units": {"b": "m/s^3/V", "a1": "1/s", "a0": "1/s^2", "velocity_gain": "m/s/V"},
+        "preset": tree["preset"],
+        "actuators": acts,
+    }
+
+
+def run(args) -> int:
+    import json
+
+    from simpro_mj.core.jsonout import emit_json
+
+    tree = apply_overrides(default_tree(args.preset), args.sets)
+    if args.duration is not None:
+        tree["identify"]["duration_s"] = float(args.duration)
+    records: dict = {}
+    legs = sorted(set(args.actuators))
+    results = identify(tree, legs=legs, records=records)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    doc = document(results, tree)
+    (out / "identify.json").write_text(json.dumps(doc, indent=2))
+    if not args.no_plot:
+        plot(results, records, out / "identify.png", tree["paper_units"])
+    if args.json:
+        emit_json(doc)
+    else:
+        print(summary(results, tree["paper_units"], str(tree["preset"])))
+        print(
+            f"wrote {out / 'identify.json'}" + ("" if args.no_plot else f", {out / 'identify.png'}")
+        )
+    return 0

@@ -1,0 +1,498 @@
+"""Loading, perturbing and inspecting the MuJoCo model of the platform.
+
+One entry point, :func:`load_model`, reads ``simpro_mj/models/simpro_platform.xml``
+(package data) and applies parameter overrides with :class:`mujoco.MjSpec` (payload, as-built
+attachment-point errors, guide dimensions), so that a scenario's plant can
+differ from the controller's nominal model. :func:`assemble` then finds the
+closed-loop configuration for given slide positions (the loops of a
+perturbed model do not close at ``qpos0``).
+"""
+
+from __future__ import annotations
+
+import copy
+import ctypes
+import math
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+from simpro_mj.core.errors import PhysicsError, UserInputError
+from simpro_mj.core.keys import apply_overrides, closest
+
+__all__ = [
+    "MODEL_PATH",
+    "DEFAULT_MODEL_PARAMS",
+    "PlantIndex",
+    "load_model",
+    "load_spec",
+    "add_slide_drives",
+    "model_params",
+    "loop_closure_error",
+    "loop_closure_jacobian",
+    "mobility",
+    "assemble",
+    "measured_pose",
+    "StateReader",
+    "check_physics",
+    "WARNING_NAMES",
+]
+
+#: The shipped model; ``SIMPRO_MODEL`` in the environment points elsewhere.
+MODEL_PATH = Path(
+    os.environ.get(
+        "SIMPRO_MODEL", Path(__file__).resolve().parents[1] / "models" / "simpro_platform.xml"
+    )
+)
+
+# the parameters are plain data in simpro_mj.plant.model_params (scenarios read them
+# without importing MuJoCo); re-exported here
+from simpro_mj.plant.model_params import BASE_POINTS, DEFAULT_MODEL_PARAMS, LEG_POINTS  # noqa: E402
+
+WARNING_NAMES = {int(v): k for k, v in mujoco.mjtWarning.__members__.items() if k != "mjNWARNING"}
+
+
+def model_params(overrides=None, base: dict | None = None) -> dict:
+    """Default model parameters with ``--set``-style overrides applied."""
+    return apply_overrides(DEFAULT_MODEL_PARAMS if base is None else base, overrides or [])
+
+
+def _vec(params: dict, path: str, n: int) -> np.ndarray:
+    node = params
+    for part in path.split("."):
+        node = node[part]
+    arr = np.asarray(node, dtype=float)
+    if arr.shape != (n,) or not np.all(np.isfinite(arr)):
+        raise UserInputError(
+            f"invalid value at model.{path}: expected a list of {n} finite numbers"
+        )
+    return arr
+
+
+#: A scenario's ``plant`` may name the preset its values came from
+#: (:mod:`simpro_mj.config.presets`); the model itself ignores the name.
+PRESET_KEY = "preset"
+
+
+def _check_params(params: dict) -> None:
+    unknown = set(params) - set(DEFAULT_MODEL_PARAMS) - {PRESET_KEY}
+    if unknown:
+        k = sorted(unknown)[0]
+        raise UserInputError(
+            f"unknown key at model.{k}: allowed keys are {sorted(DEFAULT_MODEL_PARAMS)}"
+            f"{closest(k, DEFAULT_MODEL_PARAMS)}"
+        )
+    anchors = params["anchor_offsets_mm"]
+    for k in anchors:
+        if k not in DEFAULT_MODEL_PARAMS["anchor_offsets_mm"]:
+            raise UserInputError(
+                f"unknown key at model.anchor_offsets_mm.{k}: allowed keys are "
+                f"{list(DEFAULT_MODEL_PARAMS['anchor_offsets_mm'])}"
+            )
+    for path, lo, lo_open, unit in (
+        ("payload.mass_kg", 0.0, False, " kg"),
+        ("platform_mass_kg", 0.0, True, " kg"),
+        ("loop_timeconst_s", 0.0, True, " s"),
+        ("guide.radius_offset_mm", -1000.0, True, " mm"),
+    ):
+        node = params
+        for part in path.split("."):
+            node = node[part]
+        ok = isinstance(node, (int, float)) and not isinstance(node, bool)
+        if not ok or not np.isfinite(node) or node < lo or (lo_open and node == lo):
+            allowed = f"{'>' if lo_open else '>='} {lo:g}{unit}, finite"
+            raise UserInputError(f"invalid value at model.{path}: {node!r}; allowed: {allowed}")
+    # a heavy payload is refused with its limit by simpro_mj.analysis.preflight before a run
+    if params["payload"]["mass_kg"] > 1e5:
+        raise UserInputError(
+            f"invalid value at model.payload.mass_kg: {params['payload']['mass_kg']!r}; "
+            "allowed: <= 1e5 kg"
+        )
+
+
+def load_spec(params: dict | None = None, path: Path | str | None = None) -> mujoco.MjSpec:
+    """The model as an :class:`mujoco.MjSpec` with the parameters applied."""
+    p = copy.deepcopy(DEFAULT_MODEL_PARAMS) if params is None else params
+    _check_params(p)
+    spec = mujoco.MjSpec.from_file(str(path or MODEL_PATH))
+
+    payload = spec.body("payload")
+    payload.pos = _vec(p, "payload.com_mm", 3) * 1e-3
+    # mass 0 would make the payload body massless: MuJoCo needs a tiny mass there
+    spec.geom("payload").mass = max(float(p["payload"]["mass_kg"]), 1e-6)
+    spec.geom("platform_frame").mass = float(p["platform_mass_kg"])
+
+    for name in BASE_POINTS:
+        off = _vec(p, f"anchor_offsets_mm.{name}", 3) * 1e-3
+        leg = int(name[1])
+        spec.site(name).pos = np.asarray(spec.site(name).pos) + off
+        body = spec.body(f"leg{leg}_barrel")
+        body.pos = np.asarray(body.pos) + off
+    for name in LEG_POINTS:
+        off = _vec(p, f"anchor_offsets_mm.{name}", 3) * 1e-3
+        spec.site(name).pos = np.asarray(spec.site(name).pos) + off
+
+    dr = float(p["guide"]["radius_offset_mm"]) * 1e-3
+    dc = _vec(p, "guide.centre_offset_mm", 2) * 1e-3
+    if dr or np.any(dc):
+        upper, lower = spec.body("guide_upper"), spec.body("guide_lower")
+        tip = np.asarray(spec.body("bracket").pos, dtype=float)  # link vector at home
+        r0 = np.linalg.norm(tip)
+        if r0 + dr <= 0.1:
+            raise UserInputError(
+                "invalid value at model.guide.radius_offset_mm: the guide radius must stay > 100 mm"
+            )
+        new_tip = tip * (r0 + dr) / r0
+        for body in (upper, lower):
+            body.pos = np.asarray(body.pos) + np.array([dc[0], 0.0, dc[1]])
+        spec.body("bracket").pos = new_tip
+        spec.site("guide_lower_tip").pos = new_tip
+        for gname in ("guide_upper", "guide_lower"):
+            spec.geom(gname).fromto = np.concatenate([[0.0, 0.0, 0.0], new_tip])
+
+    tc = float(p["loop_timeconst_s"])
+    for eq in spec.equalities:
+        eq.solref = [tc, 1.0]
+    return spec
+
+
+def add_slide_drives(spec: mujoco.MjSpec) -> None:
+    """Add one joint-equality constraint per slide (``drive1..3``) to impose q.
+
+    They are as stiff as the loop closures (same solref/solimp). Set the target
+    at run time with ``model.eq_data[id, 0] = q - model.qpos0[slide]`` (a joint
+    equality acts on ``qpos - qpos0``).
+    """
+    ref = spec.equalities[0]
+    for i in (1, 2, 3):
+        spec.add_equality(
+            type=mujoco.mjtEq.mjEQ_JOINT,
+            name=f"drive{i}",
+            name1=f"leg{i}",
+            objtype=mujoco.mjtObj.mjOBJ_JOINT,
+            solref=list(ref.solref),
+            solimp=list(ref.solimp),
+        )
+
+
+def load_model(params: dict | None = None, path: Path | str | None = None) -> mujoco.MjModel:
+    """Compile the platform model with parameter overrides.
+
+    Parameters
+    ----------
+    params : dict, optional
+        A tree like :data:`DEFAULT_MODEL_PARAMS` (use :func:`model_params` to
+        build one from ``--set`` expressions). ``None``: the nominal model.
+    path : path, optional
+        Another MJCF file (default :data:`MODEL_PATH`).
+
+    Raises
+    ------
+    UserInputError
+        For unknown keys or invalid values (the message names the field).
+    """
+    spec = load_spec(params, path)
+    model = spec.compile()
+    if model.opt.timestep <= 0:
+        raise UserInputError("invalid model: timestep must be > 0")
+    return model
+
+
+@dataclass(frozen=True)
+class PlantIndex:
+    """Index arrays into ``qpos``/``qvel``/``ctrl``/``sensordata`` (precomputed once)."""
+
+    slide_qpos: np.ndarray
+    slide_dof: np.ndarray
+    actuators: np.ndarray
+    site_p: int
+    connect_sites: np.ndarray  # (n_loops, 2) site ids
+    loop_names: tuple
+    sensor: dict  # sensor name -> slice into sensordata
+
+    @classmethod
+    def of(cls, model: mujoco.MjModel) -> PlantIndex:
+        slides = [model.joint(f"leg{i}") for i in (1, 2, 3)]
+        pairs, names = [], []
+        for k in range(model.neq):
+            if model.eq_type[k] == mujoco.mjtEq.mjEQ_CONNECT and model.eq_objtype[k] == int(
+                mujoco.mjtObj.mjOBJ_SITE
+            ):
+                pairs.append((model.eq_obj1id[k], model.eq_obj2id[k]))
+                names.append(model.eq(k).name)
+        sensor = {}
+        for s in range(model.nsensor):
+            adr, dim = model.sensor_adr[s], model.sensor_dim[s]
+            sensor[model.sensor(s).name] = slice(int(adr), int(adr + dim))
+        return cls(
+            slide_qpos=np.array([j.qposadr[0] for j in slides]),
+            slide_dof=np.array([j.dofadr[0] for j in slides]),
+            actuators=np.array([model.actuator(f"leg{i}").id for i in (1, 2, 3)]),
+            site_p=model.site("P").id,
+            connect_sites=np.array(pairs, dtype=int).reshape(-1, 2),
+            loop_names=tuple(names),
+            sensor=sensor,
+        )
+
+
+def loop_closure_error(model: mujoco.MjModel, data: mujoco.MjData, index=None) -> np.ndarray:
+    """Distance (m) between the two sites of each loop-closing ``connect``.
+
+    Uses ``data.site_xpos``, so it is valid after ``mj_step``/``mj_kinematics``.
+    Returns one value per loop (``PlantIndex.loop_names``); take ``.max()``
+    for the worst.
+    """
+    idx = index or PlantIndex.of(model)
+    s = idx.connect_sites
+    return np.linalg.norm(data.site_xpos[s[:, 0]] - data.site_xpos[s[:, 1]], axis=1)
+
+
+def loop_closure_jacobian(model, data, index=None) -> tuple[np.ndarray, np.ndarray]:
+    """Residual (3L,) and Jacobian (3L, nv) of the loop-closure equations."""
+    idx = index or PlantIndex.of(model)
+    jp1, jp2 = np.zeros((3, model.nv)), np.zeros((3, model.nv))
+    res, jac = [], []
+    for a, b in idx.connect_sites:
+        mujoco.mj_jacSite(model, data, jp1, None, int(a))
+        mujoco.mj_jacSite(model, data, jp2, None, int(b))
+        res.append(data.site_xpos[a] - data.site_xpos[b])
+        jac.append(jp1 - jp2)
+    return np.concatenate(res), np.vstack(jac)
+
+
+def mobility(model, data, hold_slides: bool = False, tol: float = 1e-9) -> int:
+    """Degrees of freedom of the closed chain at the current configuration.
+
+    ``nv - rank(J)`` with J the loop-closure Jacobian (plus unit rows for the
+    slide joints when ``hold_slides``). Redundant rows (planar loops closed
+    with 3-D connects) are handled by the numerical rank.
+    """
+    idx = PlantIndex.of(model)
+    mujoco.mj_kinematics(model, data)
+    mujoco.mj_comPos(model, data)
+    _, jac = loop_closure_jacobian(model, data, idx)
+    if hold_slides:
+        rows = np.zeros((3, model.nv))
+        rows[np.arange(3), idx.slide_dof] = 1.0
+        jac = np.vstack([jac, rows])
+    sv = np.linalg.svd(jac, compute_uv=False)
+    rank = int(np.sum(sv > tol * max(sv.max(), 1.0)))
+    return model.nv - rank
+
+
+def assemble(
+    model, data, q_slides=None, tol: float = 1e-12, max_iter: int = 50, index=None
+) -> float:
+    """Close the loops by Newton iteration with the slides held at ``q_slides``.
+
+    Starts from ``data.qpos`` and moves all joints (least-norm steps) until the
+    loop-closure residual is below ``tol`` (m). ``q_slides`` defaults to the
+    current slide positions. Velocities are zeroed. Returns the final residual.
+
+    Raises
+    ------
+    PhysicsError
+        If the loops cannot be closed (slides outside the assemblable range).
+    """
+    idx = index or PlantIndex.of(model)
+    if q_slides is not None:
+        data.qpos[idx.slide_qpos] = q_slides
+    target = data.qpos[idx.slide_qpos].copy()
+    sel = np.zeros((3, model.nv))
+    sel[np.arange(3), idx.slide_dof] = 1.0
+    res = np.inf
+    for _ in range(max_iter):
+        mujoco.mj_kinematics(model, data)
+        mujoco.mj_comPos(model, data)
+        r, jac = loop_closure_jacobian(model, data, idx)
+        r = np.concatenate([r, data.qpos[idx.slide_qpos] - target])
+        jac = np.vstack([jac, sel])
+        res = float(np.max(np.abs(r)))
+        if res < tol:
+            break
+        dq = -np.linalg.lstsq(jac, r, rcond=None)[0]
+        mujoco.mj_integratePos(model, data.qpos, dq, 1.0)
+    else:
+        if res > 1e-8:
+            raise PhysicsError(
+                f"cannot assemble the closed chain at q = {np.round(target * 1e3, 2)} mm "
+                f"(loop residual {res:.2e} m)"
+            )
+    data.qvel[:] = 0.0
+    mujoco.mj_forward(model, data)
+    return res
+
+
+def measured_pose(data, site_p: int) -> np.ndarray:
+    """(roll, pitch, h) of the platform frame from MuJoCo, eq. (8) inverted.
+
+    ``R = Ry(pitch) Rx(roll)``: pitch = atan2(-R20, R00), roll = atan2(R21, R22).
+    (:meth:`StateReader.pose` is the same computation on pre-bound views.)
+    """
+    r = data.site_xmat[site_p].tolist()
+    # one arctan2 call for both angles: numpy's kernel gives the same bits for
+    # a 2-vector as for two scalars (it is not libm's atan2, so no math.atan2)
+    roll, pitch = np.arctan2((r[7], -r[6]), (r[8], r[0])).tolist()
+    return np.array([roll, pitch, data.site_xpos[site_p, 2]])
+
+
+class StateReader:
+    """What the 1 ms loop reads from MuJoCo, as Python floats, on pre-bound views.
+
+    ``MjData`` arrays never move, so the views into ``qpos``, ``qvel``,
+    ``site_xpos`` and ``site_xmat`` are taken once. Three slides, one pose and
+    four loops are too few for numpy's per-call cost (about 0.5 us); reading a
+    whole small array with ``tolist()`` and indexing Python lists is cheaper.
+    The results equal, bit for bit, ``data.qpos[index.slide_qpos]``,
+    :func:`measured_pose` and ``loop_closure_error(...).max()``.
+
+    Parameters
+    ----------
+    model, data : mujoco.MjModel, mujoco.MjData
+    index : PlantIndex, optional
+    """
+
+    def __init__(self, model: mujoco.MjModel, data: mujoco.MjData, index=None):
+        idx = index or PlantIndex.of(model)
+        self._data = data  # keeps the buffer of buffer_view() alive
+        # Each read converts only the span of entries it needs: every element
+        # of a tolist() is a new Python float (~15 ns each), and the model has
+        # more joints and sites than the loop looks at.
+        qa, dof = idx.slide_qpos.tolist(), idx.slide_dof.tolist()
+        self._qpos = data.qpos[min(qa) : max(qa) + 1]  # views
+        self._qvel = data.qvel[min(dof) : max(dof) + 1]
+        self._slide_qpos = [a - min(qa) for a in qa]
+        self._slide_dof = [a - min(dof) for a in dof]
+        self._xmat = data.site_xmat[idx.site_p]  # (9,) view, row-major R
+        sites = [int(idx.site_p)] + idx.connect_sites.ravel().tolist()
+        lo, hi = min(sites), max(sites)
+        self._xpos_flat = data.site_xpos[lo : hi + 1].reshape(-1)  # view, sites lo..hi
+        self._h_at = 3 * (int(idx.site_p) - lo) + 2
+        self._pairs = [(3 * (int(a) - lo), 3 * (int(b) - lo)) for a, b in idx.connect_sites]
+        # arctan2((R21, -R20), (R22, R00)) in one call on pre-allocated buffers
+        self._nd = np.empty(4)
+        self._num, self._den, self._ang = self._nd[:2], self._nd[2:], np.empty(2)
+
+    def buffer_view(self):
+        """The state's offsets in one flat view of MuJoCo's data buffer, or None.
+
+        MuJoCo allocates ``qpos``, ``qvel``, ``site_xpos`` and ``site_xmat``
+        in one block (``mjData.buffer``), so a single float64 view covering
+        them lets a compiled kernel read the whole state through one array
+        argument (:func:`simpro_mj.plant.sensors_kernel._gather`). Returns ``(view,
+        qpos (3), qvel (3), xmat, h, pairs)`` as element offsets into the
+        read-only ``view``, or None when the four arrays do not lie within
+        one span of ``data.nbuffer`` bytes (then the caller reads as
+        :meth:`read` does).
+        """
+        arrays = (self._qpos, self._qvel, self._xpos_flat, self._xmat)
+        starts = [a.__array_interface__["data"][0] for a in arrays]
+        lo = min(starts)
+        hi = max(s + a.nbytes for s, a in zip(starts, arrays, strict=True))
+        if hi - lo > self._data.nbuffer or any((s - lo) % 8 for s in starts):
+            return None
+        if not all(a.dtype == np.float64 and a.strides == (8,) for a in arrays):
+            return None
+        raw = (ctypes.c_double * ((hi - lo) // 8)).from_address(lo)
+        view = np.frombuffer(raw, dtype=np.float64)
+        view.flags.writeable = False
+        qp, qv, xp, xm = ((s - lo) // 8 for s in starts)
+        return (
+            view,
+            [qp + a for a in self._slide_qpos],
+            [qv + a for a in self._slide_dof],
+            xm,
+            xp + self._h_at,
+            [(xp + a, xp + b) for a, b in self._pairs],
+        )
+
+    def slides(self) -> tuple[list, list]:
+        """Slide positions q (m) and velocities q_dot (m/s), three each."""
+        qp, qv = self._qpos.tolist(), self._qvel.tolist()
+        a, b, c = self._slide_qpos
+        i, j, k = self._slide_dof
+        return [qp[a], qp[b], qp[c]], [qv[i], qv[j], qv[k]]
+
+    def pose(self) -> list:
+        """[roll, pitch, h] of the platform frame: :func:`measured_pose` as floats."""
+        return self._pose(self._xpos_flat.tolist())
+
+    def _pose(self, x: list) -> list:
+        """:meth:`pose` with ``site_xpos`` already read (flat list ``x``)."""
+        r = self._xmat.tolist()
+        nd = self._nd
+        nd[0], nd[1], nd[2], nd[3] = r[7], -r[6], r[8], r[0]
+        roll, pitch = np.arctan2(self._num, self._den, out=self._ang).tolist()
+        return [roll, pitch, x[self._h_at]]
+
+    def read(self) -> tuple[list, list, list, list]:
+        """Everything the loop reads after ``mj_step1``, in one call.
+
+        Returns ``(q, q_dot, pose, xpos)``: :meth:`slides`, :meth:`pose` and
+        the flat ``site_xpos`` list they were read from, which
+        :meth:`loop_closure_max` takes to avoid reading it again (the state
+        does not change until ``mj_step2``).
+        """
+        qp, qv, x = self._qpos.tolist(), self._qvel.tolist(), self._xpos_flat.tolist()
+        a, b, c = self._slide_qpos
+        i, j, k = self._slide_dof
+        return [qp[a], qp[b], qp[c]], [qv[i], qv[j], qv[k]], self._pose(x), x
+
+    def loop_closure_max(self, xpos: list | None = None) -> float:
+        """Worst loop-closure distance (m): ``loop_closure_error(...).max()``.
+
+        Same arithmetic as ``np.linalg.norm(axis=1)`` on three components,
+        ``sqrt((dx^2 + dy^2) + dz^2)``, except that the square root is taken
+        once, of the largest sum: IEEE ``sqrt`` is correctly rounded, hence
+        monotone, so ``sqrt(max s_i) == max sqrt(s_i)`` bit for bit. A NaN
+        is returned as NaN, as by ``ndarray.max``.
+
+        ``xpos``: ``site_xpos`` as a flat list read at the current state
+        (from :meth:`read`); read now when omitted.
+        """
+        x = self._xpos_flat.tolist() if xpos is None else xpos
+        worst = 0.0
+        for a, b in self._pairs:
+            dx, dy, dz = x[a] - x[b], x[a + 1] - x[b + 1], x[a + 2] - x[b + 2]
+            e = dx * dx + dy * dy + dz * dz
+            if e > worst:
+                worst = e
+            elif e != e:
+                return e  # NaN, as ndarray.max
+        return math.sqrt(worst)
+
+
+def check_physics(model, data, warnings_before=None, loop_bound: float | None = None, index=None):
+    """Raise :class:`PhysicsError` on divergence after a step.
+
+    Checks, in order: MuJoCo warning counters that grew since
+    ``warnings_before`` (from ``data.warning.number.copy()``), non-finite
+    ``qpos``/``qvel``, and loop-closure error above ``loop_bound`` (m).
+    """
+    counts = data.warning.number
+    if warnings_before is not None and np.any(counts > warnings_before):
+        k = int(np.flatnonzero(counts > warnings_before)[0])
+        raise PhysicsError(
+            f"MuJoCo warning {WARNING_NAMES.get(k, k)} at t = {data.time:.3f} s "
+            f"(info {data.warning.lastinfo[k]})"
+        )
+    if not (np.all(np.isfinite(data.qpos)) and np.all(np.isfinite(data.qvel))):
+        bad = np.flatnonzero(~np.isfinite(data.qpos))
+        which = (
+            model.joint(int(np.searchsorted(model.jnt_qposadr, bad[0], "right") - 1)).name
+            if bad.size
+            else "qvel"
+        )
+        raise PhysicsError(f"non-finite state ({which}) at t = {data.time:.3f} s")
+    if loop_bound is not None:
+        err = loop_closure_error(model, data, index)
+        if err.max() > loop_bound:
+            idx = index or PlantIndex.of(model)
+            k = int(err.argmax())
+            raise PhysicsError(
+                f"kinematic loop '{idx.loop_names[k]}' opened: closure error "
+                f"{err[k] * 1e3:.3f} mm > bound {loop_bound * 1e3:.3f} mm at t = {data.time:.3f} s"
+            )

@@ -1,0 +1,106 @@
+"""Figures of a cueing run (issue 16), in the style of the motion-cueing literature.
+
+``cueing.png``: per channel (longitudinal, lateral, vertical specific force;
+roll and pitch rate) the vehicle's stimulus (grey), the vehicle's perceived
+(black) and the simulator's perceived (red), with the perception threshold
+band shaded, as Reid & Nahon (1986) and Telban & Cardullo (2005) compare
+cueing algorithms. ``cue_pose.png``: the washout's set-points (blue) and the
+platform's pose (green) with the workspace box (dashed), and the leg strokes.
+matplotlib Agg only, no pyplot.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from pathlib import Path
+
+import numpy as np
+from matplotlib.figure import Figure
+
+from simpro_mj.config.cueing import CHANNELS, perceived
+
+__all__ = ["plot_cueing"]
+
+VEHICLE = "0.6"
+VEHICLE_PERCEIVED = "k"
+SIMULATOR_PERCEIVED = "tab:red"
+_LABELS = {
+    "longitudinal_f": ("a) longitudinal specific force", 1.0, "m/s²"),
+    "lateral_f": ("b) lateral specific force", 1.0, "m/s²"),
+    "vertical_f": ("c) vertical specific force − g", 1.0, "m/s²"),
+    "roll_rate": ("d) roll rate", 180.0 / math.pi, "deg/s"),
+    "pitch_rate": ("e) pitch rate", 180.0 / math.pi, "deg/s"),
+}
+
+
+def plot_cueing(columns: Mapping, scenario: Mapping, out_dir, dpi: int = 120) -> list[Path]:
+    """Write ``cueing.png`` and ``cue_pose.png``; returns their paths."""
+    out_dir = Path(out_dir)
+    t, veh, sim = perceived(columns)
+    name = scenario.get("name", "run")
+    fig = Figure(figsize=(9, 10), layout="constrained")
+    axes = fig.subplots(len(CHANNELS), 1, sharex=True)
+    for ax, (ch, vc, _sc, kind, k) in zip(axes, CHANNELS, strict=True):
+        title, scale, unit = _LABELS[ch]
+        raw = np.asarray(columns[vc], float) - (9.80665 if ch == "vertical_f" else 0.0)
+        pv = (veh.f if kind == "f" else veh.w)[:, k]
+        ps = (sim.f if kind == "f" else sim.w)[:, k]
+        thr = (veh.f_threshold if kind == "f" else veh.w_threshold)[k]
+        ax.axhspan(-thr * scale, thr * scale, color="0.9", lw=0, label="threshold")
+        ax.plot(t, raw * scale, color=VEHICLE, lw=0.8, label="vehicle")
+        ax.plot(t, pv * scale, color=VEHICLE_PERCEIVED, lw=1.4, label="vehicle, perceived")
+        ax.plot(t, ps * scale, color=SIMULATOR_PERCEIVED, lw=1.2, label="simulator, perceived")
+        ax.set_ylabel(unit)
+        ax.set_title(title, fontsize=9, loc="left")
+        ax.grid(True, alpha=0.3)
+    axes[0].legend(loc="best", fontsize=7, ncol=2)
+    axes[-1].set_xlabel("time [s]")
+    fig.suptitle(f"{name}: vehicle vs simulator, perceived (otoliths, canals)")
+    paths = [_save(fig, out_dir / "cueing.png", dpi)]
+
+    fig = Figure(figsize=(9, 8), layout="constrained")
+    axes = fig.subplots(4, 1, sharex=True)
+    box = scenario_box(scenario)
+    for ax, (axis, unit, scale, disp) in zip(
+        axes[:3],
+        (("roll", "rad", 180 / math.pi, "deg"), ("pitch", "rad", 180 / math.pi, "deg"),
+         ("heave", "m", 1e3, "mm")),
+        strict=True,
+    ):  # fmt: skip
+        off = 1.265 if axis == "heave" else 0.0
+        ax.plot(t, (np.asarray(columns[f"{axis}_ref_{unit}"], float) - off) * scale,
+                color="tab:blue", lw=1.3, label="washout set-point")  # fmt: skip
+        ax.plot(t, (np.asarray(columns[f"{axis}_{unit}"], float) - off) * scale,
+                color="tab:green", lw=1.1, label="platform")  # fmt: skip
+        if box is not None:
+            for v in box[axis]:
+                ax.axhline((v - off) * scale, color="k", ls="--", lw=0.7)
+        ax.set_ylabel(f"{axis} [{disp}]")
+        ax.grid(True, alpha=0.3)
+    for i in (1, 2, 3):
+        axes[3].plot(t, np.asarray(columns[f"q{i}_m"], float) * 1e3, lw=1.0, label=f"leg {i}")
+    axes[3].axhline(0.0, color="k", lw=0.8)
+    axes[3].axhline(500.0, color="k", lw=0.8)
+    axes[3].set_ylabel("stroke [mm]")
+    axes[3].set_xlabel("time [s]")
+    axes[3].grid(True, alpha=0.3)
+    axes[0].legend(loc="best", fontsize=7)
+    axes[3].legend(loc="best", fontsize=7, ncol=3)
+    fig.suptitle(f"{name}: platform pose vs washout set-points; workspace box dashed")
+    paths.append(_save(fig, out_dir / "cue_pose.png", dpi))
+    return paths
+
+
+def scenario_box(scenario: Mapping):
+    from simpro_mj.config.cueing import vehicle_input
+
+    try:
+        return vehicle_input(scenario)[4]["box"]
+    except Exception:  # noqa: BLE001 - a figure without the box is still a figure
+        return None
+
+
+def _save(fig: Figure, path: Path, dpi: int) -> Path:
+    fig.savefig(path, dpi=dpi)
+    return path

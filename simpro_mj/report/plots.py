@@ -1,0 +1,225 @@
+"""Figures of a run in the paper's style (Figs. 14-16), matplotlib Agg only.
+
+The figures are built with :class:`matplotlib.figure.Figure` (no pyplot, no
+global state, no display): desired values in blue, the platform's output in
+green as in Figs. 14 and 16, angles in degrees and heights in millimetres.
+Columns that a run did not log are skipped (the figure needing them is not
+written).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+
+import numpy as np  # noqa: E402
+from matplotlib.figure import Figure  # noqa: E402
+
+__all__ = ["plot_run", "plot_compare", "DESIRED", "OUTPUT"]
+
+DESIRED = "tab:blue"  # "in blue the wanted value" (Fig. 14)
+OUTPUT = "tab:green"  # "in green the output"
+MEASURED = "0.55"
+DPI = 120
+
+#: (title, ref column, true column, measured column, scale to display unit, unit)
+_TASK = (
+    ("a) Roll", "roll_ref_rad", "roll_rad", "roll_meas_rad", 180.0 / math.pi, "deg"),
+    ("b) Pitch", "pitch_ref_rad", "pitch_rad", "pitch_meas_rad", 180.0 / math.pi, "deg"),
+    ("c) Height", "heave_ref_m", "heave_m", "heave_meas_m", 1e3, "mm"),
+)
+
+
+def _has(columns: Mapping, *names: str) -> bool:
+    return all(n in columns for n in names)
+
+
+def _col(columns: Mapping, name: str) -> np.ndarray:
+    return np.asarray(columns[name], dtype=float)
+
+
+def _title(scenario: Mapping, what: str) -> str:
+    mode = scenario.get("controller", {}).get("mode", "?")
+    return f"{scenario.get('name', 'run')}: {what} ({mode})"
+
+
+def _save(fig: Figure, path: Path) -> Path:
+    fig.savefig(path, dpi=DPI)
+    return path
+
+
+#: Colours of the fault intervals shaded on every time plot of a run.
+_FAULT_COLOURS = {
+    "supply_drop": "tab:red",
+    "valve_stuck": "tab:orange",
+    "sensor_frozen": "tab:purple",
+    "sensor_dropout": "tab:pink",
+    "sensor_bias": "tab:brown",
+    "potentiometer_failure": "tab:olive",
+}
+
+
+def _shade_faults(fig: Figure, scenario: Mapping) -> None:
+    """Shade each scheduled fault's interval on every axis of ``fig`` (one legend entry)."""
+    from simpro_mj.plant.faults import fault_intervals
+
+    spans = fault_intervals(scenario) if scenario.get("faults") else []
+    if not spans:
+        return
+    axes = [ax for ax in fig.axes if ax.get_visible()]
+    for n, ax in enumerate(axes):
+        seen = set()
+        for kind, start, end in spans:
+            label = f"fault: {kind}" if n == 0 and kind not in seen else None
+            seen.add(kind)
+            ax.axvspan(start, end, color=_FAULT_COLOURS.get(kind, "0.5"), alpha=0.12, lw=0,
+                       label=label)  # fmt: skip
+    if axes:
+        axes[0].legend(loc="best", fontsize=8)
+
+
+def _task_axes(fig: Figure, columns: Mapping, ncols: int = 1, col: int = 0, axes=None):
+    """Draw the three task-space panels into column ``col`` of a 3 x ncols grid."""
+    t = _col(columns, "time_s")
+    drawn = []
+    for row, (title, ref, true, meas, scale, unit) in enumerate(_TASK):
+        if axes is not None:
+            ax = axes[row]
+        else:
+            ax = fig.add_subplot(3, ncols, row * ncols + col + 1)
+        if not _has(columns, ref, true):
+            ax.set_visible(False)
+            continue
+        if meas in columns:
+            ax.plot(t, _col(columns, meas) * scale, color=MEASURED, lw=0.6,
+                    label="measured (sensors)")  # fmt: skip
+        ax.plot(t, _col(columns, ref) * scale, color=DESIRED, lw=1.4, label="desired")
+        ax.plot(t, _col(columns, true) * scale, color=OUTPUT, lw=1.2, label="output")
+        ax.set_ylabel(f"{title.split(') ')[1]} [{unit}]")
+        ax.grid(True, alpha=0.3)
+        drawn.append(ax)
+    if drawn:
+        drawn[-1].set_xlabel("time [s]")
+    return drawn
+
+
+def plot_run(columns: Mapping[str, np.ndarray], scenario: Mapping, out_dir) -> list[Path]:
+    """Write the figures of one run as PNG files.
+
+    Parameters
+    ----------
+    columns : mapping of str to ndarray
+        The logged time series (SI), see :func:`simpro_mj.analysis.metrics.compute_metrics`.
+    scenario : mapping
+        The resolved scenario (name and mode in the titles).
+    out_dir : path
+        Existing folder for the files.
+
+    Returns
+    -------
+    list of Path
+        ``task_space.png`` (desired blue vs output green, roll/pitch in deg,
+        height in mm; Figs. 14/16), ``joints.png`` (slide set-points vs
+        positions, mm), ``valves.png`` (valve voltages, V) and
+        ``pressures.png`` (chamber pressures, bar absolute, with the supply
+        pressure when logged), each only if its columns are present. Scheduled
+        faults (``scenario["faults"]``) are shaded on every figure.
+    """
+    out_dir = Path(out_dir)
+    t = _col(columns, "time_s")
+    paths = []
+
+    fig = Figure(figsize=(8, 8), layout="constrained")
+    drawn = _task_axes(fig, columns)
+    if drawn:
+        drawn[0].legend(loc="best", fontsize=8)
+        fig.suptitle(_title(scenario, "task space, desired (blue) vs output (green)"))
+        _shade_faults(fig, scenario)
+        paths.append(_save(fig, out_dir / "task_space.png"))
+
+    legs = [i for i in (1, 2, 3) if _has(columns, f"q{i}_ref_m", f"q{i}_m")]
+    if legs:
+        fig = Figure(figsize=(8, 8), layout="constrained")
+        axes = fig.subplots(len(legs), 1, sharex=True, squeeze=False)[:, 0]
+        for ax, i in zip(axes, legs, strict=True):
+            ax.plot(t, _col(columns, f"q{i}_ref_m") * 1e3, color=DESIRED, lw=1.4, label="set-point")
+            ax.plot(t, _col(columns, f"q{i}_m") * 1e3, color=OUTPUT, lw=1.2, label="position")
+            ax.set_ylabel(f"q{i} [mm]")
+            ax.grid(True, alpha=0.3)
+        axes[0].legend(loc="best", fontsize=8)
+        axes[-1].set_xlabel("time [s]")
+        fig.suptitle(_title(scenario, "joint space, slide set-points vs positions"))
+        _shade_faults(fig, scenario)
+        paths.append(_save(fig, out_dir / "joints.png"))
+
+    valves = [i for i in (1, 2, 3) if f"u{i}_v" in columns]
+    if valves:
+        fig = Figure(figsize=(8, 4.5), layout="constrained")
+        ax = fig.add_subplot()
+        for i in valves:
+            ax.plot(t, _col(columns, f"u{i}_v"), lw=0.9, label=f"valve {i}")
+        ax.axhline(5.0, color="k", lw=0.6, ls="--", label="closed centre (5 V)")
+        ax.set_ylim(-0.3, 10.3)
+        ax.set_xlabel("time [s]")
+        ax.set_ylabel("voltage [V]")
+        ax.grid(True, alpha=0.3)
+        ax.legend(loc="best", fontsize=8)
+        fig.suptitle(_title(scenario, "valve commands"))
+        _shade_faults(fig, scenario)
+        paths.append(_save(fig, out_dir / "valves.png"))
+
+    chambers = [i for i in (1, 2, 3) if _has(columns, f"p{i}a_pa", f"p{i}b_pa")]
+    if chambers:
+        fig = Figure(figsize=(8, 8), layout="constrained")
+        axes = fig.subplots(len(chambers), 1, sharex=True, squeeze=False)[:, 0]
+        for ax, i in zip(axes, chambers, strict=True):
+            ax.plot(t, _col(columns, f"p{i}a_pa") * 1e-5, lw=1.0, label="cap side (a)")
+            ax.plot(t, _col(columns, f"p{i}b_pa") * 1e-5, lw=1.0, label="rod side (b)")
+            if "supply_pa" in columns:
+                ax.plot(t, _col(columns, "supply_pa") * 1e-5, color="k", lw=0.8, ls="--",
+                        label="supply")  # fmt: skip
+            ax.set_ylabel(f"leg {i} [bar abs]")
+            ax.grid(True, alpha=0.3)
+        axes[0].legend(loc="best", fontsize=8)
+        axes[-1].set_xlabel("time [s]")
+        fig.suptitle(_title(scenario, "chamber pressures"))
+        _shade_faults(fig, scenario)
+        paths.append(_save(fig, out_dir / "pressures.png"))
+    if _has(columns, "head_fx_mps2", "veh_fx_mps2"):  # a cueing run (issue 16)
+        from simpro_mj.report.cue_plots import plot_cueing
+
+        paths += plot_cueing(columns, scenario, out_dir, DPI)
+    return paths
+
+
+def plot_compare(
+    columns_joint_only: Mapping[str, np.ndarray],
+    columns_task_space: Mapping[str, np.ndarray],
+    scenario: Mapping,
+    out_dir,
+) -> list[Path]:
+    """Fig. 15 a/b in one figure: joint control only (left) vs task-space control (right).
+
+    Rows roll, pitch (deg) and height (mm) with shared y limits per row, so
+    the steady-state error of a) and its absence in b) read directly.
+
+    Returns
+    -------
+    list of Path
+        ``[out_dir / "compare.png"]``.
+    """
+    out_dir = Path(out_dir)
+    fig = Figure(figsize=(12, 8), layout="constrained")
+    grid = fig.subplots(3, 2, sharex=True, sharey="row")
+    _task_axes(fig, columns_joint_only, axes=grid[:, 0])
+    _task_axes(fig, columns_task_space, axes=grid[:, 1])
+    grid[0, 0].set_title("a) joint control only")
+    grid[0, 1].set_title("b) joint control + kinematic task-space control")
+    grid[0, 0].legend(loc="best", fontsize=8)
+    fig.suptitle(f"{scenario.get('name', 'run')}: Fig. 15 a/b (blue desired, green output)")
+    return [_save(fig, out_dir / "compare.png")]

@@ -1,0 +1,245 @@
+"""The executors of many simulations: here, a spawn process pool, or Dask.
+
+``simpro-sim batch`` (:mod:`simpro_mj.batch.batch`) and ``simpro-sim response``
+(:mod:`simpro_mj.analysis.response`) run their tasks through :func:`run_tasks` with their
+own worker function: a task is plain data (it pickles to a pool worker or a
+Dask worker), a worker function is top level in its module (it pickles by
+name). Pool workers end themselves if their parent dies (:mod:`simpro_mj.sim.workers`);
+readiness is signalled once the tasks are submitted
+(:mod:`simpro_mj.sim.readiness`). No command lives here.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import time
+from collections.abc import Callable, Mapping
+
+from simpro_mj.sim.readiness import signal_ready
+
+__all__ = [
+    "MAX_JOBS",
+    "NO_WORKERS_S",
+    "NoWorkers",
+    "Progress",
+    "dask_module",
+    "one_line",
+    "run_dask",
+    "run_here",
+    "run_pool",
+    "run_tasks",
+]
+
+#: A Dask run whose cluster has had no live worker this long (s) ends with an error.
+NO_WORKERS_S = 60.0
+#: Most worker processes (``--jobs``); a run never starts more than it has tasks.
+MAX_JOBS = 256
+
+
+def one_line(exc: BaseException) -> str:
+    """``Type: message`` on one line (a failed task's reason)."""
+    text = " ".join(str(exc).split())
+    return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
+
+
+class Progress:
+    """tqdm bar with done/failed/left, or nothing."""
+
+    def __init__(self, total: int, enabled: bool, desc: str = "batch"):
+        self.done = self.failed = 0
+        self.total = total
+        self.bar = None
+        if enabled and total and sys.stderr.isatty():
+            from tqdm import tqdm
+
+            self.bar = tqdm(total=total, desc=desc, unit="run", file=sys.stderr, dynamic_ncols=True)
+            self._post()
+
+    def _post(self, refresh: bool = True) -> None:
+        left = self.total - self.done - self.failed
+        text = f"done={self.done} failed={self.failed} left={left}"
+        self.bar.set_postfix_str(text, refresh=refresh)
+
+    def update(self, status: str) -> None:
+        if status == "ok":
+            self.done += 1
+        else:
+            self.failed += 1
+        if self.bar is not None:
+            self._post(refresh=False)  # shown by the update, with the new count
+            self.bar.update(1)
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
+
+
+Callback = Callable[[int, dict], None]
+#: A worker function: a task (plain data, with ``ship`` on Dask) -> a result dict
+#: with ``status`` and ``reason`` (:func:`simpro_mj.batch.batch.run_variant`;
+#: ``simpro-sim response`` passes its own). Top level in its module, so that it pickles by name.
+Worker = Callable[[Mapping], dict]
+
+
+def run_tasks(
+    tasks: list[tuple[int, dict]],
+    done: Callback,
+    *,
+    fn: Worker,
+    jobs: int = 1,
+    scheduler: str | None = None,
+    no_workers_s: float | None = None,
+) -> None:
+    """Run ``fn(task)`` for each ``(key, task)``; ``done(key, result)`` in this process
+    as each finishes (``jobs == 1`` here, a spawn pool, or Dask with ``scheduler``).
+    A worker that dies fails its task only.
+
+    Raises
+    ------
+    KeyboardInterrupt
+        SIGINT/SIGTERM (the pool's workers are stopped, Dask's futures cancelled),
+        or a task here that reports ``status == "interrupted"``.
+    NoWorkers
+        Dask: no live worker for ``no_workers_s`` (default :data:`NO_WORKERS_S`).
+    """
+    if not tasks:
+        return
+    if scheduler is not None:
+        run_dask(tasks, scheduler, jobs, done, fn=fn, no_workers_s=no_workers_s)
+    elif jobs == 1:
+        run_here(tasks, done, fn=fn)
+    else:
+        run_pool(tasks, jobs, done, fn=fn)
+
+
+def run_here(tasks: list[tuple[int, dict]], done: Callback, fn: Worker) -> None:
+    """The tasks one after the other in this process."""
+    signal_ready("batch")
+    for key, task in tasks:
+        result = fn(task)
+        done(key, result)
+        if result.get("status") == "interrupted":  # Ctrl-C/SIGTERM stopped this variant
+            raise KeyboardInterrupt(result.get("reason") or "interrupted")
+
+
+def run_pool(tasks: list[tuple[int, dict]], jobs: int, done: Callback, fn: Worker) -> None:
+    """The tasks on a spawn process pool of at most ``jobs`` workers."""
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+
+    from simpro_mj.sim.workers import init_worker, run_task, stop_pool
+
+    ctx = multiprocessing.get_context("spawn")  # no inherited MuJoCo/threads state
+    pool = ProcessPoolExecutor(
+        max_workers=min(jobs, len(tasks)),
+        mp_context=ctx,
+        initializer=init_worker,  # SIGTERM stops a variant; no worker outlives the batch
+        initargs=(os.getpid(),),
+    )
+    try:
+        futures = {pool.submit(run_task, fn, task): key for key, task in tasks}
+        signal_ready("batch")
+        for fut in as_completed(futures):
+            try:
+                result = fut.result()
+            except Exception as exc:  # noqa: BLE001 - a dead worker fails its variant only
+                result = {"status": "failed", "reason": one_line(exc), "metrics": None}
+            done(futures[fut], result)
+    except BaseException:
+        stop_pool(pool)  # the workers are gone when this returns
+        raise
+    pool.shutdown(wait=True)
+
+
+def dask_module():
+    """``dask.distributed``, or a one-line :class:`UserInputError` naming the extra."""
+    from simpro_mj.core.errors import UserInputError
+
+    try:
+        import distributed
+    except ImportError as exc:
+        raise UserInputError(
+            "missing package at --scheduler: dask.distributed is not installed; allowed: "
+            "pip install 'simpro-sim[cluster]'"
+        ) from exc
+    return distributed
+
+
+class NoWorkers(RuntimeError):
+    """The Dask cluster had no live worker for :data:`NO_WORKERS_S` seconds."""
+
+
+def run_dask(
+    tasks: list[tuple[int, dict]],
+    scheduler: str,
+    jobs: int,
+    done: Callback,
+    no_workers_s: float | None = None,
+    *,
+    fn: Worker,
+) -> None:
+    """The tasks on a Dask scheduler (``"local"``: a local cluster of ``jobs`` workers)."""
+    import logging
+
+    distributed = dask_module()
+    cluster = None
+    try:
+        if scheduler == "local":
+            cluster = distributed.LocalCluster(
+                n_workers=min(jobs, len(tasks)),  # never more workers than tasks
+                threads_per_worker=1,
+                processes=True,
+                dashboard_address=None,
+                silence_logs=logging.ERROR,
+            )
+            client = distributed.Client(cluster)
+        else:
+            client = distributed.Client(scheduler)
+    except (OSError, TimeoutError, ValueError) as exc:
+        from simpro_mj.core.errors import UserInputError
+
+        if cluster is not None:
+            cluster.close()
+        raise UserInputError(
+            f"no scheduler at --scheduler {scheduler}: {one_line(exc)}; allowed: a running "
+            "Dask scheduler address (tcp://host:8786) or 'local'"
+        ) from exc
+    limit = NO_WORKERS_S if no_workers_s is None else no_workers_s
+    futures: dict = {}
+    try:
+        for key, task in tasks:
+            fut = client.submit(fn, dict(task, ship=True), pure=False)
+            futures[fut] = key
+        signal_ready("batch")
+        pending = set(futures)
+        seen_worker = time.monotonic()
+        while pending:
+            try:
+                finished = distributed.wait(
+                    list(pending), timeout=min(1.0, limit), return_when="FIRST_COMPLETED"
+                ).done
+            except (TimeoutError, distributed.TimeoutError):
+                finished = set()
+            for fut in finished:
+                pending.discard(fut)
+                try:
+                    result = fut.result()
+                except Exception as exc:  # noqa: BLE001 - a lost worker fails its variant only
+                    result = {"status": "failed", "reason": one_line(exc), "metrics": None}
+                done(futures[fut], result)
+            if finished or client.scheduler_info().get("workers"):
+                seen_worker = time.monotonic()
+            elif time.monotonic() - seen_worker > limit:
+                raise NoWorkers(
+                    f"no live Dask worker for {limit:g} s at --scheduler {scheduler}: "
+                    f"{len(pending)} variant(s) not run (cancelled); allowed: a scheduler "
+                    "with workers (dask worker ADDRESS), or --scheduler local"
+                )
+    except BaseException:
+        client.cancel(list(futures), force=True)
+        raise
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()

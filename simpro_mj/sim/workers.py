@@ -1,0 +1,122 @@
+"""Worker processes that stop with their batch and never outlive it.
+
+``simpro-sim batch`` and ``simpro-sim bench`` run variants in a
+``ProcessPoolExecutor`` of spawned workers. Each worker starts with
+:func:`init_worker` (the pool's ``initializer``), which
+
+* ignores SIGINT: Ctrl-C at a terminal reaches the whole process group, and
+  the parent decides what stops (it sends SIGTERM, :func:`stop_pool`);
+* turns SIGTERM into ``KeyboardInterrupt`` while a task runs
+  (:func:`run_task`): the simulation hands back what it computed, the
+  variant's folder is written marked ``PARTIAL`` and the worker exits (it
+  takes no further task, not even one the pool had queued); an idle worker
+  exits at once;
+* starts a watchdog thread that polls ``os.getppid()`` every
+  :data:`POLL_S`: when the parent is gone (``kill -9``, a crash), the worker
+  has been re-parented: an idle worker exits at once, a busy one sends itself
+  SIGTERM (its variant writes what it had) and exits when the task returns,
+  or outright :data:`GRACE_S` later. No worker keeps running, or idles, after
+  its batch.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import signal
+import threading
+import time
+
+__all__ = ["POLL_S", "GRACE_S", "init_worker", "run_task", "stop_pool", "watch_parent"]
+
+#: How often a worker checks that its parent is alive (s).
+POLL_S = 0.5
+#: How long a stopped worker may take to write its partial result (s) before SIGKILL.
+GRACE_S = 30.0
+
+_busy = False
+_ending = False  # SIGTERM received or parent gone: no further task
+
+
+def _on_sigterm(signum, frame):  # noqa: ARG001 - signal handler signature
+    global _ending
+    _ending = True
+    if _busy:
+        raise KeyboardInterrupt(f"signal {signal.Signals(signum).name}")
+    os._exit(128 + signum)
+
+
+def init_worker(parent_pid: int) -> None:
+    """Pool initializer: the signal handling and the parent watchdog (module docstring).
+
+    With ``SIMPRO_READY_FILE`` set, the worker's own readiness file (its
+    variant is stepping) is ``<file>.worker-<pid>``, so it never stands for
+    the parent's.
+    """
+    from simpro_mj.sim.readiness import ENV
+
+    if os.environ.get(ENV):
+        os.environ[ENV] = f"{os.environ[ENV]}.worker-{os.getpid()}"
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, _on_sigterm)
+    watch_parent(parent_pid)
+
+
+def watch_parent(parent_pid: int, poll_s: float = POLL_S, grace_s: float = GRACE_S) -> None:
+    """Start a daemon thread that ends this process when ``parent_pid`` is no
+    longer its parent (SIGTERM to itself, then ``os._exit`` after ``grace_s``)."""
+
+    def watch() -> None:
+        global _ending
+        while os.getppid() == parent_pid:
+            time.sleep(poll_s)
+        _ending = True  # run_task exits once the variant has written what it had
+        if not _busy:
+            os._exit(1)
+        os.kill(os.getpid(), signal.SIGTERM)
+        time.sleep(grace_s)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="simpro-parent-watch", daemon=True).start()
+
+
+def run_task(fn, *args):
+    """Run ``fn(*args)`` in a worker as a task: SIGTERM interrupts it (module docstring)."""
+    global _busy
+    if _ending:  # a task queued before the stop (the pool prefetches one)
+        os._exit(1)
+    _busy = True
+    try:
+        return fn(*args)
+    finally:
+        _busy = False
+        if _ending:  # stopped: the partial result is written, nobody collects it
+            os._exit(1)
+
+
+def stop_pool(pool, grace_s: float = GRACE_S) -> None:
+    """Stop a ``ProcessPoolExecutor`` now and wait until its workers are gone.
+
+    Tasks not started are cancelled; every live worker gets SIGTERM (a running
+    variant ends ``interrupted`` and writes its partial folder; an idle worker
+    exits), and any still alive after ``grace_s`` (or at a second Ctrl-C) is
+    killed.
+    """
+    procs = list((getattr(pool, "_processes", None) or {}).values())
+    pool.shutdown(wait=False, cancel_futures=True)
+    for p in procs:
+        with contextlib.suppress(OSError, ValueError):
+            if p.is_alive():
+                p.terminate()
+    try:
+        deadline = time.monotonic() + grace_s
+        for p in procs:
+            p.join(max(0.0, deadline - time.monotonic()))
+    except KeyboardInterrupt:
+        pass  # a second Ctrl-C: no more waiting
+    finally:
+        for p in procs:
+            with contextlib.suppress(OSError, ValueError):
+                if p.is_alive():
+                    p.kill()
+                    p.join(5.0)
