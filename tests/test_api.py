@@ -28,6 +28,11 @@ def _python(code: str, cwd: Path) -> subprocess.CompletedProcess:
 def test_importing_the_package_or_the_controllers_does_not_import_mujoco(tmp_path):
     proc = _python(
         "import sys, simpro_mj, controllers, controllers.kinematics, controllers.analysis; "
+        # the scenario room too: loading and validating a scenario (its typed models, a
+        # sweep's variants) reads defaults and checks values, it builds no plant
+        "import simpro_mj.config.scenario as sc, simpro_mj.config.variants as va; "
+        "sc.load_scenario('step_pitch'); sc.scenario_model(sc.load_scenario('cue_braking')); "
+        "va.load_sweep('sweep_outer_gain'); "
         "print('mujoco' in sys.modules)",
         tmp_path,
     )

@@ -27,7 +27,12 @@ from pathlib import Path
 
 import pytest
 
-from simpro_mj.config.scenario import load_scenario, scenario_hash, shipped_scenarios
+from simpro_mj.config.scenario import (
+    load_scenario,
+    scenario_hash,
+    scenario_model,
+    shipped_scenarios,
+)
 from simpro_mj.config.variants import load_sweep
 
 DATA = Path(__file__).resolve().parent / "data" / "scenario_hashes.json"
@@ -142,6 +147,18 @@ def test_sweep_variant_hashes_unchanged(name, pinned, current):
     assert list(got) == list(want)  # the same variants, in the same order
     changed = [v for v in want if got[v] != want[v]]
     assert not changed, f"{name}: {len(changed)} of {len(want)} changed, e.g. {changed[:3]}"
+
+
+@pytest.mark.parametrize("name", ["step_pitch", "fault_supply_drop", "cue_braking"])
+def test_the_typed_model_is_the_resolved_scenario(name):
+    """``scenario_model`` of a resolved scenario gives it back (the typed view of the same
+    data), its blocks as attributes."""
+    resolved = load_scenario(name)
+    model = scenario_model(resolved)
+    assert model.model_dump() == resolved
+    assert model.controller.outer.gains == resolved["controller"]["outer"]["gains"]
+    assert model.duration_s == resolved["duration_s"]
+    assert [f.type for f in model.faults] == [f["type"] for f in resolved["faults"]]
 
 
 def test_hash_sees_a_change():

@@ -46,6 +46,8 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from scipy import signal
+from scipy.integrate import solve_ivp
 
 from simpro_mj.config.telemetry import Telemetry
 from simpro_mj.core.errors import UserInputError
@@ -111,7 +113,7 @@ class ManoeuvreSpec:
 
 def available() -> bool:
     """True if commonroad-vehicle-models is installed."""
-    try:
+    try:  # commonroad-vehicle-models is an optional extra ([vehicle])
         import vehiclemodels  # noqa: F401
     except ImportError:
         return False
@@ -119,7 +121,7 @@ def available() -> bool:
 
 
 def _params(vehicle: str):
-    try:
+    try:  # the optional extra [vehicle]
         from vehiclemodels import parameters_vehicle1, parameters_vehicle2, parameters_vehicle3
     except ImportError:
         raise ManoeuvreError(
@@ -174,7 +176,7 @@ def _run_mb(p, v0: float, t_end: float, steer_fn, acc_fn, rate_hz: float, v_stop
     turns stiff as its wheels stop below 0.1 m/s); the rest of the grid is
     then filled with the vehicle at rest (states held, derivatives zero).
     """
-    from scipy.integrate import solve_ivp
+    # commonroad-vehicle-models is an optional extra ([vehicle]): imported when used
     from vehiclemodels.init_mb import init_mb
     from vehiclemodels.vehicle_dynamics_mb import vehicle_dynamics_mb
 
@@ -303,8 +305,6 @@ def generate(spec: ManoeuvreSpec) -> Telemetry:
 
 def _bump(spec: ManoeuvreSpec, p, v0: float) -> Telemetry:
     """Half-car over a cosine bump (see the module docstring)."""
-    from scipy import signal
-
     ms, iy, a, b = p.m_s, p.I_y_s, p.a, p.b
     muf, mur = p.m_uf, p.m_ur
     ksf, ksr, csf, csr = 2 * p.K_sf, 2 * p.K_sr, 2 * p.K_sdf, 2 * p.K_sdr  # per axle

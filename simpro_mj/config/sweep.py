@@ -75,9 +75,11 @@ from typing import Any
 
 import numpy as np
 
+from simpro_mj.config.cueing import sweep_defaults
 from simpro_mj.config.defaults import DEFAULT_SCENARIO
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.keys import check_keys, check_tagged, closest, key_text
+from simpro_mj.plant.pneumatics import DEFAULT_PNEUMATIC_PARAMS
 
 __all__ = [
     "DISTRIBUTIONS",
@@ -171,12 +173,8 @@ def _defaults_at(path: str, where: str) -> Any:
     done: list[str] = []
     for part in parts:
         if done == ["actuator", "pneumatics"]:
-            from simpro_mj.plant.pneumatics import DEFAULT_PNEUMATIC_PARAMS
-
             node = DEFAULT_PNEUMATIC_PARAMS
         if done == ["setpoint"] and part == "cueing":  # issue 16: the washout parameters
-            from simpro_mj.config.cueing import sweep_defaults
-
             node = {"cueing": sweep_defaults()}
         if not isinstance(node, Mapping):
             raise UserInputError(

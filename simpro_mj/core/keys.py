@@ -18,6 +18,7 @@ from typing import Any
 import yaml
 
 from simpro_mj.core.errors import UserInputError
+from simpro_mj.core.safe_yaml import YAMLLimitError, load, read_file
 
 __all__ = [
     "parse_set",
@@ -136,8 +137,6 @@ def parse_set(expr: str) -> tuple[str, Any]:
     UserInputError
         If the expression has no ``=`` or an empty key, or VALUE is not YAML.
     """
-    from simpro_mj.core.safe_yaml import YAMLLimitError, load
-
     if "=" not in expr:
         raise UserInputError(
             f"malformed --set at {value_text(expr)}: expected KEY=VALUE with a dotted KEY, e.g. "
@@ -312,8 +311,6 @@ def read_yaml(path: Path, what: str = "file") -> Any:
     depth, alias expansion, number length; duplicate keys and empty files
     refused); one-line :class:`UserInputError` naming ``what`` and the file
     (line and column for a syntax error)."""
-    from simpro_mj.core.safe_yaml import YAMLLimitError, read_file
-
     try:
         return read_file(path, what)
     except (OSError, UnicodeDecodeError) as exc:
