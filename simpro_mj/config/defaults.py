@@ -2,10 +2,12 @@
 
 :data:`DEFAULT_SCENARIO` is the tree a scenario file is merged over
 (:func:`simpro_mj.config.scenario.load_scenario`); what each key means is said
-beside it, what is allowed is checked by :func:`simpro_mj.config.scenario.validate_scenario`.
-It lives apart from the checks so that :mod:`simpro_mj.config.sweep` can check a
+beside it. It is the one source of every default and of every leaf's type (a
+float default takes any finite number, an int an integral one, a list that many
+numbers); the ranges and choices are the typed models' (:mod:`simpro_mj.config.models`).
+It lives apart from them so that :mod:`simpro_mj.config.sweep` can check a
 sweep's paths against it while :mod:`simpro_mj.config.scenario` counts a sweep
-file's variants: imports run ``scenario -> sweep -> scenario_defaults``.
+file's variants: imports run ``scenario -> sweep -> defaults``.
 """
 
 from __future__ import annotations
