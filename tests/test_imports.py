@@ -237,3 +237,37 @@ def test_rooms_import_one_way():
             if b is not None and rank[b] > rank[a]:
                 bad.append(f"{src} -> {dst}")
     assert not bad, "imports against the rooms' order: " + "; ".join(sorted(bad))
+
+
+def _commands_importing_commands(graph: dict[str, set[str]]) -> list[str]:
+    """``src -> dst`` for every command module importing another (``main`` excepted)."""
+    commands = {m for m in graph if m.startswith("simpro_mj.commands.")}
+    return sorted(
+        f"{src} -> {dst}"
+        for src in commands
+        if src != "simpro_mj.commands.main"
+        for dst in graph[src]
+        if dst in commands
+    )
+
+
+def test_commands_import_no_other_command():
+    """Commands only wire: a command module imports no other command module (what two
+    commands share lives in a room below, e.g. ``report.video_options``); only
+    ``commands.main`` knows them all, by name (``importlib`` through ``COMMANDS``)."""
+    graph = import_graph()
+    bad = _commands_importing_commands(graph)
+    assert not bad, "a command imports another command: " + "; ".join(bad)
+    # the check flags a command importing another, and lets main import them all
+    fake = {
+        "simpro_mj.commands.main": {"simpro_mj.commands.a"},
+        "simpro_mj.commands.a": {"simpro_mj.commands.b", "simpro_mj.report.x"},
+        "simpro_mj.commands.b": set(),
+    }
+    assert _commands_importing_commands(fake) == ["simpro_mj.commands.a -> simpro_mj.commands.b"]
+    # main loads every command by name: each is a module of this room, and every
+    # module of the room but main is a command
+    from simpro_mj.commands.main import COMMANDS
+
+    commands = {m for m in graph if m.startswith("simpro_mj.commands.")}
+    assert set(COMMANDS.values()) == commands - {"simpro_mj.commands.main"}

@@ -127,14 +127,14 @@ def _tilt_deg(ids: np.ndarray, geom_id: int) -> float:
 
 def test_pitch_step_tilts_the_rendered_platform_and_ghost(pitch_run):
     """Segmentation of the side view: the platform tilts by the logged pitch, the right way."""
-    from simpro_mj.report.render import _nearest, ghost_poses
+    from simpro_mj.report.render import ghost_poses, nearest_rows
 
     rec, scene = _scene(pitch_run)
     m = scene.model
     frame, ghost = m.geom("platform_frame").id, m.geom("ghost_frame").id
     tilt, ghost_tilt, pitch, ref = [], [], [], []
     for t in (0.9, 2.9):  # before the step, after it has settled
-        row = int(_nearest(rec.time_s, np.array([t]))[0])
+        row = int(nearest_rows(rec.time_s, np.array([t]))[0])
         gp, gq = ghost_poses(rec.columns, np.array([row]))
         scene.pose(rec.qpos[row], gp[0], gq[0])
         tilt.append(_tilt_deg(scene.segmentation(), frame))
@@ -318,8 +318,8 @@ class _FakeViewer:
 
 def test_view_plays_the_recording_paced_by_the_clock(pitch_run):
     """play(): row nearest to start + speed * elapsed, ghost posed, overlay with the pose."""
-    from simpro_mj.commands.view import play
     from simpro_mj.report.render import load_recording, replay_model
+    from simpro_mj.report.viewer import play
 
     rec = load_recording(pitch_run)
     model, data = replay_model(rec.scenario)

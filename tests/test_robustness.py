@@ -218,7 +218,7 @@ BAD_INPUTS = [
     (["identify", "--actuators", "4"], "--actuators", ["invalid choice"]),
 ]
 
-if importlib.util.find_spec("simpro_mj.batch.batch") is not None:
+if importlib.util.find_spec("simpro_mj.commands.batch") is not None:
     BAD_INPUTS += [
         (["batch", "{tmp}/no_such_file.yaml", "--strict"], "no_such_file.yaml", []),
         # a path naming nothing is refused before anything runs, --strict or not

@@ -18,8 +18,8 @@ from controllers.analysis import outer_step, real_inner_step, step_metrics
 from controllers.geometry import nominal_geometry
 from controllers.kinematics import jacobian
 from controllers.task_space import outer_law
-from simpro_mj.commands.compare import compare
 from simpro_mj.config.scenario import load_scenario
+from simpro_mj.report.compare import compare
 from simpro_mj.sim.loop import simulate
 
 AXES = ("roll", "pitch", "heave")

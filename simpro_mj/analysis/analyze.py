@@ -17,7 +17,6 @@ Parameters (``--set KEY=VALUE``): see :data:`DEFAULTS`.
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import numpy as np
@@ -27,9 +26,7 @@ from controllers.design import PAPER_SPEC
 from controllers.geometry import nominal_geometry
 from controllers.kinematics import jacobian
 from simpro_mj.core.errors import UserInputError
-from simpro_mj.core.keys import apply_overrides, check_number
-
-HELP = "stability analysis of the joint and task-space loops (root loci, Jury limits)"
+from simpro_mj.core.keys import check_number
 
 #: The paper's statements, for comparison.
 PAPER = {
@@ -88,15 +85,6 @@ DEFAULTS: dict = {
 
 ACTUATORS = ("actuator1", "actuator2")
 VARIANTS = ("printed", "corrected", "redesigned")
-
-
-def add_arguments(parser) -> None:
-    parser.add_argument(
-        "--out",
-        default=os.path.join("results", "analyze"),
-        help="directory for the plots (default results/analyze)",
-    )
-    parser.add_argument("--no-plots", action="store_true", help="compute only, write no files")
 
 
 def _pairs(z) -> list:
@@ -538,7 +526,7 @@ def plot(res: dict, p: dict, out: Path) -> list[str]:
     return files
 
 
-def _summary(res: dict, files: list[str]) -> str:
+def summary(res: dict, files: list[str]) -> str:
     u = res["paper_units"]
     lines = [
         f"Inner (joint) loops, continuous, plants eqs. (34)-(35); paper_units = {u['reading']} "
@@ -629,17 +617,10 @@ def _summary(res: dict, files: list[str]) -> str:
     return "\n".join(lines)
 
 
-def run(args) -> int:
-    from simpro_mj.core.jsonout import emit_json
-
-    p = apply_overrides(DEFAULTS, args.sets)
-    res = compute(p)
-    files = [] if args.no_plots else plot(res, p, Path(args.out))
-    if args.json:
-        out = _strip(res)
-        out["params"] = p
-        out["plots"] = files
-        emit_json(out)
-    else:
-        print(_summary(res, files))
-    return 0
+def document(res: dict, p: dict, files: list[str]) -> dict:
+    """The ``--json`` document: the results without the plotting arrays, the
+    parameters and the plots written."""
+    out = _strip(res)
+    out["params"] = p
+    out["plots"] = files
+    return out

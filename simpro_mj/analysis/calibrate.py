@@ -44,24 +44,28 @@ all three. The cost per evaluation is two short identification experiments
 from __future__ import annotations
 
 import copy
+import json
 import math
 from pathlib import Path
 
 import numpy as np
+from scipy.optimize import least_squares
 
-from simpro_mj.core.errors import UserInputError
+from controllers.design import ACTUATORS, paper_plant
+from simpro_mj.core.errors import PhysicsError, UserInputError
+from simpro_mj.core.keys import read_yaml
+from simpro_mj.identification.identify import default_tree, identify
+from simpro_mj.plant.pneumatics import DEFAULT_PNEUMATIC_PARAMS
 
 __all__ = [
-    "HELP",
     "TOLERANCES",
     "PARAMETERS",
     "paper_targets",
     "load_targets",
     "residuals",
     "calibrate",
+    "calibrate_preset",
 ]
-
-HELP = "fit masses, friction and valve flow so that identify reproduces target models"
 
 #: Acceptance band of the fit (issue 18): relative on wn and b/a0, absolute on zeta.
 TOLERANCES = {"wn_rad_s": 0.15, "zeta": 0.1, "velocity_gain_m_s_per_v": 0.15}
@@ -83,8 +87,6 @@ PARAMETERS = (
 
 def paper_targets(reading: str = "volts") -> dict:
     """Eqs. (34)-(35) as targets: ``{actuator: {wn_rad_s, zeta, velocity_gain_m_s_per_v}}``."""
-    from controllers.design import ACTUATORS, paper_plant
-
     out = {}
     for a in ACTUATORS:
         p = paper_plant(a, reading)
@@ -101,8 +103,6 @@ def load_targets(path: str | Path) -> dict:
     ``{wn_rad_s, zeta, velocity_gain_m_s_per_v}``. Raises
     :class:`UserInputError` (one line, the field and what is allowed).
     """
-    from simpro_mj.core.keys import read_yaml
-
     p = Path(path)
     doc = read_yaml(p, "targets")
     acts = ("actuator1", "actuator2", "actuator3")
@@ -217,11 +217,6 @@ def calibrate(
         ``values`` (fitted), ``identified`` (at the fit, actuators 1-2),
         ``residuals`` (per tolerance), ``evaluations``, ``cost``.
     """
-    from scipy.optimize import least_squares
-
-    from simpro_mj.core.errors import PhysicsError
-    from simpro_mj.identification.identify import identify
-
     names = [p[0] for p in PARAMETERS]
     start = {}
     for name, path, legs, default, _ in PARAMETERS:
@@ -293,8 +288,7 @@ def plausibility(tree: dict) -> dict:
     passive guide's bearings it drives. The MPYE-5-3/8 passes 2000 l/min (ANR,
     C = 7.87 dm^3/(s bar)) bare; hoses and fittings lower the effective value.
     """
-    from simpro_mj.plant.pneumatics import DEFAULT_PNEUMATIC_PARAMS as ref
-
+    ref = DEFAULT_PNEUMATIC_PARAMS
     m = tree["model"]
     p = tree["pneumatics"]
     payload = float(m["payload"]["mass_kg"])
@@ -363,106 +357,37 @@ def preset_document(name: str, tree: dict, base: dict, result: dict, targets: di
     return doc
 
 
-# ------------------------------------------------------------------------- CLI
-
-
-def add_arguments(parser) -> None:
-    parser.add_argument(
-        "--targets",
-        default=None,
-        help="YAML of identified models per actuator ({b, a1, a0} in SI, or wn_rad_s, zeta, "
-        "velocity_gain_m_s_per_v); default eqs. (34)-(35) under paper_units",
-    )
-    parser.add_argument("--start", default="paper", help="preset to start from (default paper)")
-    parser.add_argument("--name", default="calibrated", help="name of the written preset")
-    parser.add_argument(
-        "--out", default=None, help="preset YAML to write (default results/calibrate/NAME.yaml)"
-    )
-    parser.add_argument(
-        "--evaluations", type=int, default=30, help="budget of identification runs (30)"
-    )
-    parser.add_argument(
-        "--duration", type=float, default=4.0, help="PRBS per actuator and evaluation, s (4)"
-    )
-    parser.add_argument(
-        "--amplitudes", type=float, nargs="+", default=[0.3, 1.0], metavar="V",
-        help="PRBS amplitudes fitted at once, V (0.3 1.0: small signal and the steps' range)",
-    )  # fmt: skip
-
-
-def run(args) -> int:
-    import sys
-
-    import yaml
-    from tqdm import tqdm
-
-    from simpro_mj.core.keys import apply_overrides
-    from simpro_mj.identification.identify import default_tree, identify
-
-    if args.evaluations < 1 or args.evaluations > 1000:
-        raise UserInputError(
-            f"invalid value at --evaluations: {args.evaluations}; allowed: 1..1000"
-        )
-    if not (0.5 <= args.duration <= 60.0):
-        raise UserInputError(f"invalid value at --duration: {args.duration}; allowed: 0.5..60 s")
-    if not all(0.0 < a <= 5.0 for a in args.amplitudes):
-        raise UserInputError(
-            f"invalid value at --amplitudes: {args.amplitudes}; allowed: amplitudes in (0, 5] V"
-        )
-    tree = apply_overrides(default_tree(args.start), args.sets)
-    from simpro_mj.identification.identify import check_tree
-
-    check_tree(tree)
-    targets = (
-        paper_targets(tree["paper_units"]) if args.targets is None else load_targets(args.targets)
-    )
-    out = Path(args.out) if args.out else Path("results") / "calibrate" / f"{args.name}.yaml"
-    if out.suffix not in (".yaml", ".yml"):
-        raise UserInputError(f"invalid value at --out: {out}; allowed: a path ending in .yaml")
-    bar = tqdm(total=args.evaluations, desc="calibrate", unit="eval", file=sys.stderr)
-
-    def progress(i, cost):
-        bar.set_postfix(cost=f"{cost:.3g}")
-        bar.update(1)
-
+def calibrate_preset(
+    tree: dict,
+    targets: dict,
+    name: str,
+    *,
+    duration_s: float,
+    max_evaluations: int,
+    amplitudes_v,
+    progress=None,
+) -> tuple[dict, dict]:
+    """Calibrate ``tree`` to ``targets`` and write nothing: returns the preset document
+    (plain data for YAML) and the models identified at the fit (all three actuators,
+    the identify command's settings)."""
     result = calibrate(
-        tree, targets, duration_s=args.duration, max_evaluations=args.evaluations,
-        progress=progress, amplitudes_v=args.amplitudes,
+        tree, targets, duration_s=duration_s, max_evaluations=max_evaluations,
+        progress=progress, amplitudes_v=amplitudes_v,
     )  # fmt: skip
-    bar.close()
     fitted = apply_values(tree, result["values"])
-    final = identify(fitted)  # all three actuators, the identify command's settings
+    final = identify(fitted)
     result["identified"] = final
     result["residuals"] = residuals(final, targets)
     base = default_tree("heavy_cabin")
-    doc = preset_document(args.name, fitted, base, result, targets)
+    doc = preset_document(name, fitted, base, result, targets)
     doc["calibration"]["paper_units"] = tree["paper_units"]
-    doc["calibration"]["amplitudes_v"] = [float(a) for a in args.amplitudes]
+    doc["calibration"]["amplitudes_v"] = [float(a) for a in amplitudes_v]
     by_amp = {}
-    for amp in args.amplitudes[1:]:  # the other amplitudes' models at the fit, for the record
+    for amp in amplitudes_v[1:]:  # the other amplitudes' models at the fit, for the record
         t2 = copy.deepcopy(fitted)
         t2["identify"]["prbs_amplitude_v"] = [float(amp)] * 3
         got = identify(t2, legs=(1, 2))
         by_amp[f"{amp:g}_v"] = {a: {k: round(float(got[a][k]), 4) for k in TOLERANCES} for a in got}
     doc["calibration"]["identified_at_other_amplitudes"] = by_amp
-    import json
-
     doc = json.loads(json.dumps(doc, default=float))  # plain floats for YAML
-    out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(yaml.safe_dump(doc, sort_keys=False), encoding="utf-8")
-    worst = max(abs(v) for r in result["residuals"].values() for v in r.values())
-    if args.json:
-        from simpro_mj.core.jsonout import emit_json
-
-        emit_json(doc)
-    else:
-        for a, r in final.items():
-            t = targets[a]
-            print(
-                f"{a}: wn {r['wn_rad_s']:.2f} (target {t['wn_rad_s']:.2f}) rad/s, zeta "
-                f"{r['zeta']:.3f} ({t['zeta']:.3f}), b/a0 {r['velocity_gain_m_s_per_v']:.4f} "
-                f"({t['velocity_gain_m_s_per_v']:.4f}) m/s/V"
-            )
-        verdict = "within" if worst <= 1.0 else "OUTSIDE"
-        print(f"worst residual {worst:.2f} x tolerance: {verdict} the tolerances; wrote {out}")
-    return 0
+    return doc, final

@@ -42,8 +42,6 @@ from simpro_mj.plant.model import (
     measured_pose,
 )
 
-HELP = "validate the vector-loop IK against the MuJoCo closed chain (paper Fig. 11)"
-
 DEFAULTS = {
     "drive": "dynamic",
     "trajectory": {
@@ -67,11 +65,6 @@ DEFAULTS = {
 }
 DRIVES = ("dynamic", "kinematic")
 READINGS = ("corrected", "printed")
-
-
-def add_arguments(parser) -> None:
-    parser.add_argument("--out", default="results/validate-ik", help="folder for the plot")
-    parser.add_argument("--no-plot", action="store_true", help="skip the plot")
 
 
 def trajectory(t: np.ndarray, params: dict, home: np.ndarray) -> np.ndarray:
@@ -221,37 +214,29 @@ def plot(res: dict, out: Path) -> Path:
     return path
 
 
-def run(args) -> int:
-    params = apply_overrides(DEFAULTS, args.sets)
-    res = validate(params)
-    plot_path = None if args.no_plot else plot(res, Path(args.out))
-    keys = [
-        "max_position_error_m",
-        "max_angle_error_rad",
-        "paper_ik_max_leg_error_m",
-        "paper_ik_max_leg_error_per_leg_m",
-        "paper_ik_reading",
-        "max_joint_tracking_error_m",
-        "max_loop_closure_error_m",
-        "drive",
-        "samples",
-    ]
-    summary = {k: res[k] for k in keys}
-    summary["plot"] = str(plot_path) if plot_path else None
-    if args.json:
-        from simpro_mj.core.jsonout import emit_json
+#: The figures of a validation that ``--json`` reports (the time series stay out).
+SUMMARY_KEYS = (
+    "max_position_error_m",
+    "max_angle_error_rad",
+    "paper_ik_max_leg_error_m",
+    "paper_ik_max_leg_error_per_leg_m",
+    "paper_ik_reading",
+    "max_joint_tracking_error_m",
+    "max_loop_closure_error_m",
+    "drive",
+    "samples",
+)
 
-        emit_json(summary)
-    else:
-        print(f"IK validation, {res['drive']} drive, {res['samples']} samples:")
-        print(f"  max heave error         {res['max_position_error_m'] * 1e3:10.5f} mm")
-        print(f"  max roll/pitch error    {np.degrees(res['max_angle_error_rad']):10.6f} deg")
-        print(f"  max slide tracking err  {res['max_joint_tracking_error_m'] * 1e3:10.5f} mm")
-        print(f"  max loop-closure error  {res['max_loop_closure_error_m'] * 1e3:10.5f} mm")
-        print(
-            f"  paper IK (eqs. 30-33, {res['paper_ik_reading']}) vs vector loops, "
-            f"max leg-displacement difference {res['paper_ik_max_leg_error_m'] * 1e3:.1f} mm"
-        )
-        if plot_path:
-            print(f"  plot: {plot_path}")
-    return 0
+
+def summary(res: dict) -> str:
+    """The human summary of a validation (mm, deg)."""
+    lines = [
+        f"IK validation, {res['drive']} drive, {res['samples']} samples:",
+        f"  max heave error         {res['max_position_error_m'] * 1e3:10.5f} mm",
+        f"  max roll/pitch error    {np.degrees(res['max_angle_error_rad']):10.6f} deg",
+        f"  max slide tracking err  {res['max_joint_tracking_error_m'] * 1e3:10.5f} mm",
+        f"  max loop-closure error  {res['max_loop_closure_error_m'] * 1e3:10.5f} mm",
+        f"  paper IK (eqs. 30-33, {res['paper_ik_reading']}) vs vector loops, "
+        f"max leg-displacement difference {res['paper_ik_max_leg_error_m'] * 1e3:.1f} mm",
+    ]
+    return "\n".join(lines)

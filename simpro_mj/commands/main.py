@@ -1,6 +1,6 @@
 """The ``simpro-sim`` command line: it only wires.
 
-Every subcommand lives in its own module under ``simpro_mj`` exposing
+Every subcommand lives in its own module ``simpro_mj.commands.<name>`` exposing
 
 * ``HELP``: one-line description,
 * ``add_arguments(parser)``: its own options,
@@ -27,19 +27,18 @@ import sys
 
 from controllers.errors import DesignError, KinematicsError
 from simpro_mj.core.errors import PhysicsError, UserInputError
-from simpro_mj.core.jsonout import emit_json  # noqa: F401 - the commands' --json, re-exported
 
 #: subcommand -> module; a module that does not exist yet is simply not offered.
 COMMANDS = {
     "run": "simpro_mj.commands.run",
     "compare": "simpro_mj.commands.compare",
-    "validate-ik": "simpro_mj.analysis.validate_ik",
+    "validate-ik": "simpro_mj.commands.validate_ik",
     "workspace": "simpro_mj.commands.workspace",
-    "identify": "simpro_mj.identification.identify",
-    "calibrate": "simpro_mj.analysis.calibrate",
-    "analyze": "simpro_mj.analysis.analyze",
-    "batch": "simpro_mj.batch.batch",
-    "bench": "simpro_mj.batch.bench",
+    "identify": "simpro_mj.commands.identify",
+    "calibrate": "simpro_mj.commands.calibrate",
+    "analyze": "simpro_mj.commands.analyze",
+    "batch": "simpro_mj.commands.batch",
+    "bench": "simpro_mj.commands.bench",
     "render": "simpro_mj.commands.render",
     "view": "simpro_mj.commands.view",
     "manoeuvre": "simpro_mj.commands.manoeuvre",

@@ -91,7 +91,7 @@ def run(args) -> int:
         ],
     }
     if args.json:
-        from simpro_mj.commands.main import emit_json
+        from simpro_mj.core.jsonout import emit_json
 
         emit_json(summary)
     else:

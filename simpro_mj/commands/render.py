@@ -1,19 +1,21 @@
 """``simpro-sim render RESULT_DIR``: an MP4 replay of recorded runs (issue 17).
 
 The motion comes from the folder's ``qpos.npz`` (no re-simulation); a
-``compare`` folder's runs are drawn side by side. See :mod:`simpro_mj.report.render`.
+``compare`` folder's runs are drawn side by side. See :mod:`simpro_mj.report.render`;
+the options are :mod:`simpro_mj.report.video_options` (shared with ``run/compare --video``).
 """
 
 from __future__ import annotations
 
-import math
-import os
+import sys
 from pathlib import Path
 
-HELP = "render a result folder (or each run of a compare folder, side by side) to MP4"
+from simpro_mj.core.jsonout import emit_json
+from simpro_mj.report.render import find_runs, render_video
+from simpro_mj.report.runner import sigterm_as_interrupt
+from simpro_mj.report.video_options import add_video_options, said, video_options
 
-#: Largest video side accepted (pixels).
-MAX_SIDE = 4096
+HELP = "render a result folder (or each run of a compare folder, side by side) to MP4"
 
 
 def add_arguments(parser) -> None:
@@ -21,190 +23,15 @@ def add_arguments(parser) -> None:
     add_video_options(parser, out=True)
 
 
-def add_video_options(parser, out: bool) -> None:
-    """The options shared by ``render`` and ``run/compare --video``."""
-    from simpro_mj.report.render import CAMERAS
-
-    parser.add_argument("--fps", default="25", help="frames per second of the video (default 25)")
-    parser.add_argument(
-        "--size", default="640x480", help="WIDTHxHEIGHT of each 3D view, even numbers (640x480)"
-    )
-    parser.add_argument(
-        "--speed", default="1", help="playback speed, < 1 is slow motion (0.25: quarter speed)"
-    )
-    parser.add_argument(
-        "--camera", default=CAMERAS[0], help=f"camera of the model: {', '.join(CAMERAS)}"
-    )
-    parser.add_argument("--start", default="0", help="first simulated second shown (default 0)")
-    parser.add_argument("--end", default=None, help="last simulated second (default: the end)")
-    if out:
-        parser.add_argument(
-            "--out", default=None, help="the MP4 to write (default RESULT_DIR/replay.mp4)"
-        )
-    parser.add_argument("--no-strip", action="store_true", help="no plot strip under the 3D view")
-    parser.add_argument("--no-ghost", action="store_true", help="no set-point ghost")
-    parser.add_argument(
-        "--shadows", action="store_true", help="cast shadows (about 3x slower per frame)"
-    )
-    parser.add_argument(
-        "--jobs", default=None, help="render worker processes (default: the CPU count)"
-    )
-
-
-def _number(value, field: str, lo: float, hi: float, lo_open: bool = True) -> float:
-    from simpro_mj.core.errors import UserInputError
-
-    try:
-        x = float(str(value))
-    except ValueError:
-        x = math.nan
-    ok = math.isfinite(x) and (x > lo if lo_open else x >= lo) and x <= hi
-    if not ok:
-        low = f"> {lo:g}" if lo_open else f">= {lo:g}"
-        raise UserInputError(
-            f"invalid value at {field}: {value!r}; allowed: a number {low} and <= {hi:g}"
-        )
-    return x
-
-
-def _size(value) -> tuple[int, int]:
-    from simpro_mj.core.errors import UserInputError
-
-    parts = str(value).lower().split("x")
-    try:
-        w, h = (int(p) for p in parts)
-    except ValueError:
-        w = h = -1
-    if len(parts) != 2 or not (16 <= w <= MAX_SIDE and 16 <= h <= MAX_SIDE) or w % 2 or h % 2:
-        raise UserInputError(
-            f"invalid value at --size: {value!r}; allowed: WIDTHxHEIGHT, even integers "
-            f"16..{MAX_SIDE} (H.264 needs even sides), e.g. 640x480"
-        )
-    return w, h
-
-
-def _out_path(value, default: Path) -> Path:
-    """The video path, checked writable before any rendering."""
-    from simpro_mj.core.errors import UserInputError
-
-    out = Path(value).expanduser() if value else default
-    if out.suffix.lower() != ".mp4":
-        raise UserInputError(
-            f"invalid value at --out: {str(out)!r}; allowed: a file name ending .mp4"
-        )
-    if out.is_dir():
-        raise UserInputError(
-            f"invalid value at --out: {out} is a folder; allowed: an .mp4 file path"
-        )
-    if any(p.exists() and not p.is_dir() for p in out.parents):
-        raise UserInputError(
-            f"cannot write at --out: {out}: a parent is a file, not a folder; "
-            "allowed: a writable .mp4 path"
-        )
-    try:
-        out.parent.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise UserInputError(
-            f"cannot write at --out: {out}: {exc.strerror or exc}; allowed: a writable .mp4 path"
-        ) from None
-    if not os.access(out.parent, os.W_OK | os.X_OK) or (
-        out.exists() and not os.access(out, os.W_OK)
-    ):
-        raise UserInputError(
-            f"cannot write at --out: {out}: permission denied; allowed: a writable .mp4 path"
-        )
-    return out
-
-
-def video_options(args, default_out: Path) -> dict:
-    """Checked keyword arguments of :func:`simpro_mj.report.render.render_video`
-    (one-line errors)."""
-    from simpro_mj.core.errors import UserInputError
-    from simpro_mj.report.render import CAMERAS, require_video
-
-    fps = _number(args.fps, "--fps", 0.0, 240.0)
-    size = _size(args.size)
-    speed = _number(args.speed, "--speed", 0.0, 100.0)
-    if args.camera not in CAMERAS:
-        raise UserInputError(
-            f"unknown camera at --camera: {args.camera!r}; allowed: {', '.join(CAMERAS)}"
-        )
-    start = _number(args.start, "--start", 0.0, 1e9, lo_open=False)
-    end = None if args.end is None else _number(args.end, "--end", 0.0, 1e9)
-    jobs = None
-    if args.jobs is not None:
-        jobs = int(_number(args.jobs, "--jobs", 0.0, 256.0))
-        if jobs != float(args.jobs):
-            raise UserInputError(
-                f"invalid value at --jobs: {args.jobs!r}; allowed: an integer 1..256"
-            )
-    out = _out_path(getattr(args, "out_video", None) or getattr(args, "out", None), default_out)
-    require_video()  # before anything is rendered: the one-line install hint
-    return {
-        "out": out,
-        "fps": fps,
-        "size": size,
-        "speed": speed,
-        "camera": args.camera,
-        "start": start,
-        "end": end,
-        "plots": not args.no_strip,
-        "ghost": not args.no_ghost,
-        "shadows": bool(args.shadows),
-        "jobs": jobs,
-    }
-
-
-def add_video_flag(parser) -> None:
-    """``run/compare --video``: render the result at the end, with render's defaults."""
-    parser.add_argument(
-        "--video",
-        action="store_true",
-        help="also render the result to OUT/replay.mp4 (simpro-sim render's defaults; "
-        "needs simpro-sim[video]; simpro-sim render OUT for other options)",
-    )
-
-
-def video_after_run(folder, quiet: bool) -> dict:
-    """Render a finished run or compare folder to ``folder/replay.mp4``."""
-    import sys
-
-    from simpro_mj.report.render import find_runs, render_video
-
-    folder = Path(folder)
-    info = render_video(
-        find_runs(folder), folder / "replay.mp4", progress=not quiet and sys.stderr.isatty()
-    )
-    if not quiet:
-        print(_said(info))
-    return info
-
-
-def _said(info: dict) -> str:
-    return (
-        f"video: {info['out']} ({info['frames']} frames, {info['width']}x{info['height']}, "
-        f"{info['fps']:g} fps, camera {info['camera']}; {info['wall_s']:.1f} s with "
-        f"{info['workers']} workers, MUJOCO_GL={info['gl']})"
-    )
-
-
 def run(args) -> int:
-    import sys
-
-    from simpro_mj.report.render import find_runs, render_video
-
     folder = Path(args.result_dir)
     runs = find_runs(folder)
     opts = video_options(args, folder / "replay.mp4")
     out = opts.pop("out")
-    from simpro_mj.report.runner import sigterm_as_interrupt
-
     with sigterm_as_interrupt():  # SIGTERM as Ctrl-C: exit 130, no partial video left
         info = render_video(runs, out, progress=not args.json and sys.stderr.isatty(), **opts)
     if args.json:
-        from simpro_mj.core.jsonout import emit_json
-
         emit_json(info)
     else:
-        print(_said(info))
+        print(said(info))
     return 0

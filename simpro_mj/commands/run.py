@@ -18,14 +18,17 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-# the job itself lives in simpro_mj.report.runner; re-exported for existing callers
+from simpro_mj.config.scenario import load_scenario
+from simpro_mj.core.jsonout import emit_json
+from simpro_mj.report.render import require_video
+from simpro_mj.report.results import claim, print_summary
 from simpro_mj.report.runner import (
     EXIT_INTERRUPTED,
     execute,
     interrupted_message,
     sigterm_as_interrupt,
 )
-from simpro_mj.report.runner import warn as _warn  # noqa: F401
+from simpro_mj.report.video_options import add_video_flag, video_after_run
 
 HELP = "run a scenario (shipped name or YAML path) and write time series, metrics and plots"
 
@@ -34,27 +37,18 @@ def add_arguments(parser) -> None:
     parser.add_argument("scenario", help="shipped scenario name (e.g. step_pitch.yaml) or a path")
     parser.add_argument("--out", default=None, help="result folder (default results/<name>)")
     parser.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
-    from simpro_mj.commands.render import add_video_flag
-
     add_video_flag(parser)
 
 
 def run(args) -> int:
-    from simpro_mj.config.scenario import load_scenario
-    from simpro_mj.report.results import claim, print_summary
-
     scenario = load_scenario(args.scenario, args.sets)
     if args.video:
-        from simpro_mj.report.render import require_video
-
         require_video()  # the install hint before the run, not after it
     out = Path(args.out) if args.out else Path("results") / scenario["name"]
     # refused (exit 2) before anything runs: not ours to replace, or busy
     with claim(out, "run", inputs=[args.scenario]), sigterm_as_interrupt():
         res, metrics = execute(scenario, out, plots=not args.no_plots)
     if args.json:
-        from simpro_mj.core.jsonout import emit_json
-
         emit_json(metrics)
     else:
         print_summary(metrics, res.folder)
@@ -64,7 +58,5 @@ def run(args) -> int:
         sys.stderr.write(f"error: {interrupted_message(res, out)}\n")
         return EXIT_INTERRUPTED
     if args.video:  # a diverged run too: its motion up to the divergence
-        from simpro_mj.commands.render import video_after_run
-
         video_after_run(res.folder, quiet=args.json)
     return 0 if res.status == "ok" else 1

@@ -39,7 +39,7 @@ from pathlib import Path
 import numpy as np
 
 from simpro_mj.core.errors import PhysicsError, UserInputError
-from simpro_mj.core.keys import apply_overrides, check_number
+from simpro_mj.core.keys import check_number
 from simpro_mj.plant.model import (
     DEFAULT_MODEL_PARAMS,
     PlantIndex,
@@ -55,7 +55,6 @@ from simpro_mj.plant.pneumatics import (
 )
 
 __all__ = [
-    "HELP",
     "PAPER",
     "DEFAULT_IDENTIFY_PARAMS",
     "default_tree",
@@ -65,11 +64,7 @@ __all__ = [
     "fit_eq19",
     "identify",
     "summary",
-    "add_arguments",
-    "run",
 ]
-
-HELP = "identify eq. (19) per actuator in simulation (Fig. 12: P loop + PRBS, least squares)"
 
 #: The paper's identified models, eq. (34) (actuator 1) and eq. (35) (2 and 3;
 #: the printed "s^2 + 7.276 + 1349" misses an s).
@@ -494,32 +489,6 @@ def plot(results: dict, records: dict, path: Path, reading: str = "volts") -> No
     plt.close(fig)
 
 
-# ------------------------------------------------------------------------- CLI
-
-
-def add_arguments(parser) -> None:
-    parser.add_argument(
-        "--out", default="results/identify", help="output directory (default results/identify)"
-    )
-    parser.add_argument(
-        "--duration", type=float, default=None, help="excitation time per actuator, s (20)"
-    )
-    parser.add_argument(
-        "--actuators",
-        type=int,
-        nargs="+",
-        choices=(1, 2, 3),
-        default=[1, 2, 3],
-        help="which actuators (default 1 2 3)",
-    )
-    parser.add_argument("--no-plot", action="store_true", help="do not write the figure")
-    parser.add_argument(
-        "--preset",
-        default=None,
-        help="plant preset: a shipped name (paper, heavy_cabin) or a preset YAML path",
-    )
-
-
 def document(results: dict, tree: dict) -> dict:
     """What ``identify.json`` and ``--json`` hold: the reading, the preset, per actuator
     the identified model (SI) with the paper's in SI and the ratios."""
@@ -542,30 +511,3 @@ def document(results: dict, tree: dict) -> dict:
         "preset": tree["preset"],
         "actuators": acts,
     }
-
-
-def run(args) -> int:
-    import json
-
-    from simpro_mj.core.jsonout import emit_json
-
-    tree = apply_overrides(default_tree(args.preset), args.sets)
-    if args.duration is not None:
-        tree["identify"]["duration_s"] = float(args.duration)
-    records: dict = {}
-    legs = sorted(set(args.actuators))
-    results = identify(tree, legs=legs, records=records)
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    doc = document(results, tree)
-    (out / "identify.json").write_text(json.dumps(doc, indent=2))
-    if not args.no_plot:
-        plot(results, records, out / "identify.png", tree["paper_units"])
-    if args.json:
-        emit_json(doc)
-    else:
-        print(summary(results, tree["paper_units"], str(tree["preset"])))
-        print(
-            f"wrote {out / 'identify.json'}" + ("" if args.no_plot else f", {out / 'identify.png'}")
-        )
-    return 0

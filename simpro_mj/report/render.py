@@ -178,7 +178,7 @@ def frame_times(start: float, end: float, fps: float, speed: float) -> np.ndarra
     return start + np.arange(max(n, 1)) * (speed / fps)
 
 
-def _nearest(time_s: np.ndarray, t: np.ndarray) -> np.ndarray:
+def nearest_rows(time_s: np.ndarray, t: np.ndarray) -> np.ndarray:
     """Row of the logged sample nearest to each time (exact samples, no interpolation)."""
     i = np.clip(np.searchsorted(time_s, t), 1, len(time_s) - 1)
     left = time_s[i - 1]
@@ -531,7 +531,7 @@ def render_video(
     strip_h = 2 * int(round(height * STRIP_FRACTION / 2)) if plots else 0
     wjobs = []
     for rec in recs:
-        rows = _nearest(rec.time_s, times)
+        rows = nearest_rows(rec.time_s, times)
         job = {
             "scenario": rec.scenario,
             "qpos": rec.qpos[rows],
@@ -542,7 +542,7 @@ def render_video(
             "label": label_image(rec.name, height) if len(recs) > 1 else None,
         }
         if ghost:
-            job["ghost_pos"], job["ghost_quat"] = ghost_poses(rec.columns, _nearest(
+            job["ghost_pos"], job["ghost_quat"] = ghost_poses(rec.columns, nearest_rows(
                 rec.columns["time_s"], times))  # fmt: skip
         if plots:
             job["strip"], job["boxes"] = plot_strip(rec, width, strip_h, start, end)

@@ -1,0 +1,35 @@
+"""``simpro-sim analyze``: stability analysis of the joint and task-space loops.
+
+The numbers and plots are :mod:`simpro_mj.analysis.analyze`; parameters by
+``--set KEY=VALUE`` (see :data:`simpro_mj.analysis.analyze.DEFAULTS`)."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+from simpro_mj.analysis.analyze import DEFAULTS, compute, document, plot, summary
+from simpro_mj.core.jsonout import emit_json
+from simpro_mj.core.keys import apply_overrides
+
+HELP = "stability analysis of the joint and task-space loops (root loci, Jury limits)"
+
+
+def add_arguments(parser) -> None:
+    parser.add_argument(
+        "--out",
+        default=os.path.join("results", "analyze"),
+        help="directory for the plots (default results/analyze)",
+    )
+    parser.add_argument("--no-plots", action="store_true", help="compute only, write no files")
+
+
+def run(args) -> int:
+    p = apply_overrides(DEFAULTS, args.sets)
+    res = compute(p)
+    files = [] if args.no_plots else plot(res, p, Path(args.out))
+    if args.json:
+        emit_json(document(res, p, files))
+    else:
+        print(summary(res, files))
+    return 0

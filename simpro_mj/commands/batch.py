@@ -1,0 +1,86 @@
+"""``simpro-sim batch PATH...``: many runs, sweeps, Monte Carlo, in parallel.
+
+The batch itself (plan, workers, stability, summary) is :mod:`simpro_mj.batch`
+(:func:`simpro_mj.batch.batch.run_batch`; its docstring is the contract).
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from pathlib import Path
+
+from simpro_mj.batch.batch import print_report, run_batch
+from simpro_mj.core.errors import UserInputError
+from simpro_mj.core.jsonout import emit_json
+from simpro_mj.core.keys import short_text
+from simpro_mj.report.runner import EXIT_INTERRUPTED
+from simpro_mj.sim.executors import MAX_JOBS
+
+HELP = "run scenario files, sweeps and Monte Carlo variants in parallel; write summary.csv"
+
+
+def add_arguments(parser) -> None:
+    parser.add_argument(
+        "paths", nargs="+", metavar="PATH", help="scenario files, shipped names or folders"
+    )
+    parser.add_argument(
+        "--out", default="results/batch", help="output folder (default results/batch)"
+    )
+    parser.add_argument(
+        "--jobs",
+        type=int,
+        default=None,
+        metavar="N",
+        help="worker processes (default: the number of CPUs; 1: in this process)",
+    )
+    parser.add_argument(
+        "--resume", action="store_true", help="skip variants whose result folder is complete"
+    )
+    parser.add_argument(
+        "--strict",
+        action="store_true",
+        help="refuse the whole batch if any file or variant is invalid (exit 2)",
+    )
+    parser.add_argument(
+        "--scheduler",
+        default=None,
+        metavar="ADDRESS",
+        help="run on a Dask distributed scheduler at ADDRESS, or 'local' for a LocalCluster",
+    )
+    parser.add_argument(
+        "--no-plots", action="store_true", help="skip each variant's PNGs (summary plots stay)"
+    )
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
+def run(args) -> int:
+    jobs = args.jobs if args.jobs is not None else (os.cpu_count() or 1)
+    if not 1 <= jobs <= MAX_JOBS:
+        raise UserInputError(
+            f"invalid value at --jobs: {short_text(str(jobs))}; allowed: an integer 1..{MAX_JOBS}"
+        )
+    report = run_batch(
+        args.paths,
+        Path(args.out),
+        sets=args.sets,
+        jobs=jobs,
+        resume=args.resume,
+        strict=args.strict,
+        scheduler=args.scheduler,
+        plots=not args.no_plots,
+        progress=not args.quiet and not args.json,
+    )
+    if args.json:
+        emit_json(report.document())
+    else:
+        print_report(report)
+    if report.stopped is not None:
+        c = report.counts
+        finished = len(report.rows) - c["cancelled"] - c["invalid"]
+        sys.stderr.write(
+            f"error: batch stopped: {report.stopped}; {finished} variant(s) finished, "
+            f"{c['cancelled']} cancelled; summary in {report.out / 'summary.csv'}\n"
+        )
+        return EXIT_INTERRUPTED if report.stopped.startswith("interrupted") else 1
+    return 0 if report.all_ok else 1

@@ -1,0 +1,98 @@
+"""``simpro-sim bench [SCENARIO]``: the cost of one co-simulation step (issue 7).
+
+The measurements are :mod:`simpro_mj.batch.bench` (``--video``:
+:func:`simpro_mj.report.render.benchmark`); ``docs/performance.md`` holds the figures.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+
+from simpro_mj.batch.bench import MAX_BATCH_RUNS, MAX_REPEATS, measure, table
+from simpro_mj.config.scenario import load_scenario
+from simpro_mj.core.errors import UserInputError
+from simpro_mj.core.jsonout import emit_json
+from simpro_mj.core.keys import value_text
+from simpro_mj.report.render import benchmark, benchmark_table
+from simpro_mj.report.runner import sigterm_as_interrupt
+
+HELP = "time the co-simulation step against bare mj_step, per stage, and batch throughput"
+
+
+def add_arguments(parser) -> None:
+    parser.add_argument(
+        "scenario",
+        nargs="?",
+        default="step_pitch.yaml",
+        help="shipped scenario name or a path (default step_pitch.yaml)",
+    )
+    parser.add_argument(
+        "--repeats", default=5, help="measurements per figure; the median is reported (default 5)"
+    )
+    parser.add_argument(
+        "--duration", default=None, help="simulated seconds per run (default: the scenario's)"
+    )
+    parser.add_argument(
+        "--batch-runs",
+        default=4,
+        help="scenario copies per throughput measurement (default 4)",
+    )
+    parser.add_argument(
+        "--no-batch", action="store_true", help="skip the 1- and 2-worker throughput part"
+    )
+    parser.add_argument(
+        "--video",
+        action="store_true",
+        help="instead: time simpro-sim render on a 20 s run at 25 fps, 640x480 with the plot "
+        "strip (--duration changes the run's length; needs simpro-sim[video])",
+    )
+
+
+def _positive_int(value, field: str, hi: int) -> int:
+    text = str(value).strip()
+    n = int(text) if text.isdigit() and len(text) <= 9 else 0
+    if not 1 <= n <= hi:
+        raise UserInputError(
+            f"invalid value at {field}: {value_text(value)}; allowed: an integer 1..{hi}"
+        )
+    return n
+
+
+def _duration(value) -> float:
+    try:
+        s = float(value)
+    except (TypeError, ValueError):
+        s = math.nan
+    if not (math.isfinite(s) and s >= 0.01):
+        raise UserInputError(
+            f"invalid value at --duration: {value_text(value)}; allowed: a number of seconds "
+            ">= 0.01"
+        )
+    return s
+
+
+def run(args) -> int:
+    repeats = _positive_int(args.repeats, "--repeats", MAX_REPEATS)
+    runs = _positive_int(args.batch_runs, "--batch-runs", MAX_BATCH_RUNS)
+    sets = list(args.sets)
+    if args.duration is not None:
+        sets.append(f"duration_s={_duration(args.duration)!r}")
+    scenario = load_scenario(args.scenario, sets)
+    if args.video:
+        if args.duration is None:
+            scenario["duration_s"] = 20.0
+        result = benchmark(scenario, progress=not args.json)
+        if args.json:
+            emit_json(result)
+        else:
+            print(benchmark_table(result))
+        return 0
+    progress = None if args.json else (lambda msg: print(f"  {msg}", file=sys.stderr))
+    with sigterm_as_interrupt():  # SIGTERM: exit 130 like Ctrl-C, workers stopped
+        result = measure(scenario, repeats, batch=not args.no_batch, batch_runs=runs, log=progress)
+    if args.json:
+        emit_json(result)
+    else:
+        print(table(result))
+    return 0

@@ -1,0 +1,100 @@
+"""``simpro-sim calibrate``: fit the plant's uncertain parameters to identified models.
+
+The fit is :mod:`simpro_mj.analysis.calibrate`; this module parses, shows the
+progress, writes the preset YAML and prints the verdict."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import yaml
+from tqdm import tqdm
+
+from simpro_mj.core.errors import UserInputError
+from simpro_mj.core.jsonout import emit_json
+from simpro_mj.core.keys import apply_overrides
+
+HELP = "fit masses, friction and valve flow so that identify reproduces target models"
+
+
+def add_arguments(parser) -> None:
+    parser.add_argument(
+        "--targets",
+        default=None,
+        help="YAML of identified models per actuator ({b, a1, a0} in SI, or wn_rad_s, zeta, "
+        "velocity_gain_m_s_per_v); default eqs. (34)-(35) under paper_units",
+    )
+    parser.add_argument("--start", default="paper", help="preset to start from (default paper)")
+    parser.add_argument("--name", default="calibrated", help="name of the written preset")
+    parser.add_argument(
+        "--out", default=None, help="preset YAML to write (default results/calibrate/NAME.yaml)"
+    )
+    parser.add_argument(
+        "--evaluations", type=int, default=30, help="budget of identification runs (30)"
+    )
+    parser.add_argument(
+        "--duration", type=float, default=4.0, help="PRBS per actuator and evaluation, s (4)"
+    )
+    parser.add_argument(
+        "--amplitudes", type=float, nargs="+", default=[0.3, 1.0], metavar="V",
+        help="PRBS amplitudes fitted at once, V (0.3 1.0: small signal and the steps' range)",
+    )  # fmt: skip
+
+
+def _check(args) -> None:
+    if args.evaluations < 1 or args.evaluations > 1000:
+        raise UserInputError(
+            f"invalid value at --evaluations: {args.evaluations}; allowed: 1..1000"
+        )
+    if not (0.5 <= args.duration <= 60.0):
+        raise UserInputError(f"invalid value at --duration: {args.duration}; allowed: 0.5..60 s")
+    if not all(0.0 < a <= 5.0 for a in args.amplitudes):
+        raise UserInputError(
+            f"invalid value at --amplitudes: {args.amplitudes}; allowed: amplitudes in (0, 5] V"
+        )
+
+
+def run(args) -> int:
+    _check(args)
+    # the fit loads MuJoCo (the identification's plant): only once the options are good,
+    # so that a mistake is refused within a second
+    from simpro_mj.analysis.calibrate import calibrate_preset, load_targets, paper_targets
+    from simpro_mj.identification.identify import check_tree, default_tree
+
+    tree = apply_overrides(default_tree(args.start), args.sets)
+    check_tree(tree)
+    targets = (
+        paper_targets(tree["paper_units"]) if args.targets is None else load_targets(args.targets)
+    )
+    out = Path(args.out) if args.out else Path("results") / "calibrate" / f"{args.name}.yaml"
+    if out.suffix not in (".yaml", ".yml"):
+        raise UserInputError(f"invalid value at --out: {out}; allowed: a path ending in .yaml")
+    bar = tqdm(total=args.evaluations, desc="calibrate", unit="eval", file=sys.stderr)
+
+    def progress(i, cost):
+        bar.set_postfix(cost=f"{cost:.3g}")
+        bar.update(1)
+
+    doc, final = calibrate_preset(
+        tree, targets, args.name, duration_s=args.duration, max_evaluations=args.evaluations,
+        amplitudes_v=args.amplitudes, progress=progress,
+    )  # fmt: skip
+    bar.close()
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(yaml.safe_dump(doc, sort_keys=False), encoding="utf-8")
+    worst = max(abs(v) for r in doc["calibration"]["residuals_per_tolerance"].values()
+                for v in r.values())  # fmt: skip
+    if args.json:
+        emit_json(doc)
+    else:
+        for a, r in final.items():
+            t = targets[a]
+            print(
+                f"{a}: wn {r['wn_rad_s']:.2f} (target {t['wn_rad_s']:.2f}) rad/s, zeta "
+                f"{r['zeta']:.3f} ({t['zeta']:.3f}), b/a0 {r['velocity_gain_m_s_per_v']:.4f} "
+                f"({t['velocity_gain_m_s_per_v']:.4f}) m/s/V"
+            )
+        verdict = "within" if worst <= 1.0 else "OUTSIDE"
+        print(f"worst residual {worst:.2f} x tolerance: {verdict} the tolerances; wrote {out}")
+    return 0

@@ -1,0 +1,60 @@
+"""``simpro-sim identify``: the paper's actuator identification (Fig. 12) in simulation.
+
+The experiment and the fit are :mod:`simpro_mj.identification.identify`."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from simpro_mj.core.jsonout import emit_json
+from simpro_mj.core.keys import apply_overrides
+from simpro_mj.identification.identify import default_tree, document, identify, plot, summary
+
+HELP = "identify eq. (19) per actuator in simulation (Fig. 12: P loop + PRBS, least squares)"
+
+
+def add_arguments(parser) -> None:
+    parser.add_argument(
+        "--out", default="results/identify", help="output directory (default results/identify)"
+    )
+    parser.add_argument(
+        "--duration", type=float, default=None, help="excitation time per actuator, s (20)"
+    )
+    parser.add_argument(
+        "--actuators",
+        type=int,
+        nargs="+",
+        choices=(1, 2, 3),
+        default=[1, 2, 3],
+        help="which actuators (default 1 2 3)",
+    )
+    parser.add_argument("--no-plot", action="store_true", help="do not write the figure")
+    parser.add_argument(
+        "--preset",
+        default=None,
+        help="plant preset: a shipped name (paper, heavy_cabin) or a preset YAML path",
+    )
+
+
+def run(args) -> int:
+    tree = apply_overrides(default_tree(args.preset), args.sets)
+    if args.duration is not None:
+        tree["identify"]["duration_s"] = float(args.duration)
+    records: dict = {}
+    legs = sorted(set(args.actuators))
+    results = identify(tree, legs=legs, records=records)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    doc = document(results, tree)
+    (out / "identify.json").write_text(json.dumps(doc, indent=2))
+    if not args.no_plot:
+        plot(results, records, out / "identify.png", tree["paper_units"])
+    if args.json:
+        emit_json(doc)
+    else:
+        print(summary(results, tree["paper_units"], str(tree["preset"])))
+        print(
+            f"wrote {out / 'identify.json'}" + ("" if args.no_plot else f", {out / 'identify.png'}")
+        )
+    return 0

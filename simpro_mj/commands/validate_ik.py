@@ -1,0 +1,33 @@
+"""``simpro-sim validate-ik``: the paper's Fig. 11 with MuJoCo in place of ADAMS.
+
+The validation is :mod:`simpro_mj.analysis.validate_ik`."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from simpro_mj.analysis.validate_ik import DEFAULTS, SUMMARY_KEYS, plot, summary, validate
+from simpro_mj.core.jsonout import emit_json
+from simpro_mj.core.keys import apply_overrides
+
+HELP = "validate the vector-loop IK against the MuJoCo closed chain (paper Fig. 11)"
+
+
+def add_arguments(parser) -> None:
+    parser.add_argument("--out", default="results/validate-ik", help="folder for the plot")
+    parser.add_argument("--no-plot", action="store_true", help="skip the plot")
+
+
+def run(args) -> int:
+    params = apply_overrides(DEFAULTS, args.sets)
+    res = validate(params)
+    plot_path = None if args.no_plot else plot(res, Path(args.out))
+    doc = {k: res[k] for k in SUMMARY_KEYS}
+    doc["plot"] = str(plot_path) if plot_path else None
+    if args.json:
+        emit_json(doc)
+    else:
+        print(summary(res))
+        if plot_path:
+            print(f"  plot: {plot_path}")
+    return 0

@@ -1,0 +1,68 @@
+"""Joint-only vs task-space control on the same plant and seed (paper Fig. 15 a/b).
+
+:func:`compare` runs a scenario in both modes into one folder, :func:`table` is the
+comparison ``simpro-sim compare`` prints and writes to ``comparison.txt``.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from pathlib import Path
+
+from simpro_mj.analysis.preflight import preflight
+from simpro_mj.report.runner import execute, warn
+
+__all__ = ["MODES", "compare", "table"]
+
+#: The two runs of a comparison, in order.
+MODES = ("joint_only", "task_space")
+
+
+def compare(scenario: dict, out: Path, plots: bool = True, *, quiet: bool = False) -> dict:
+    """Run both modes into ``out/joint_only`` and ``out/task_space``; returns both metrics.
+
+    The preflight checks (:mod:`simpro_mj.analysis.preflight`) run once, before either
+    run, on the task-space variant (the one with an outer loop); their
+    warnings are printed once unless ``quiet`` and recorded in both folders.
+    An interrupted run stops the comparison (``results`` then holds fewer
+    than two modes).
+    """
+    task = copy.deepcopy(scenario)
+    task["controller"]["mode"] = "task_space"
+    warnings, _ = preflight(task)  # raises for a payload the cylinders cannot hold
+    warn(warnings, quiet)
+    results, metrics = {}, {}
+    for mode in MODES:
+        sc = copy.deepcopy(scenario)
+        sc["controller"]["mode"] = mode
+        res, met = execute(sc, out / mode, plots=plots, quiet=True)
+        results[mode], metrics[mode] = res, met
+        if res.status == "interrupted":
+            return {"metrics": metrics, "results": results}
+    if plots:
+        # matplotlib is loaded only when figures are drawn
+        from simpro_mj.report.plots import plot_compare
+
+        plot_compare(results["joint_only"].columns, results["task_space"].columns, scenario, out)
+    return {"metrics": metrics, "results": results}
+
+
+def table(metrics: dict) -> str:
+    """The step figures of both modes side by side (deg, mm, s, %)."""
+    rows = ["axis   metric                 joint_only    task_space"]
+    deg = 180.0 / math.pi
+    units = {"roll": ("deg", deg), "pitch": ("deg", deg), "heave": ("mm", 1e3)}
+    for axis, (unit, scale) in units.items():
+        for key, label, s in (
+            ("steady_state_error", f"ss error [{unit}]", scale),
+            ("rise_time_s", "rise time [s]", 1.0),
+            ("settling_time_s", "settling [s]", 1.0),
+            ("overshoot_pct", "overshoot [%]", 1.0),
+        ):
+            vals = []
+            for mode in MODES:
+                v = metrics[mode]["axes"][axis].get(key)
+                vals.append("-" if v is None else f"{v * s:.4g}")
+            rows.append(f"{axis:6s} {label:22s} {vals[0]:>10s}    {vals[1]:>10s}")
+    return "\n".join(rows)

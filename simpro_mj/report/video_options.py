@@ -1,0 +1,184 @@
+"""The video options shared by ``simpro-sim render`` and ``run/compare --video``.
+
+Checked here, once, for every command that renders (one-line
+:class:`~simpro_mj.core.errors.UserInputError` naming the option and the
+allowed values); the rendering itself is :func:`simpro_mj.report.render.render_video`.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import sys
+from pathlib import Path
+
+from simpro_mj.core.errors import UserInputError
+from simpro_mj.report.render import CAMERAS, find_runs, render_video, require_video
+
+__all__ = [
+    "MAX_SIDE",
+    "add_video_flag",
+    "add_video_options",
+    "number",
+    "said",
+    "video_after_run",
+    "video_options",
+]
+
+#: Largest video side accepted (pixels).
+MAX_SIDE = 4096
+
+
+def add_video_options(parser, out: bool) -> None:
+    """The options shared by ``render`` and ``run/compare --video``."""
+    parser.add_argument("--fps", default="25", help="frames per second of the video (default 25)")
+    parser.add_argument(
+        "--size", default="640x480", help="WIDTHxHEIGHT of each 3D view, even numbers (640x480)"
+    )
+    parser.add_argument(
+        "--speed", default="1", help="playback speed, < 1 is slow motion (0.25: quarter speed)"
+    )
+    parser.add_argument(
+        "--camera", default=CAMERAS[0], help=f"camera of the model: {', '.join(CAMERAS)}"
+    )
+    parser.add_argument("--start", default="0", help="first simulated second shown (default 0)")
+    parser.add_argument("--end", default=None, help="last simulated second (default: the end)")
+    if out:
+        parser.add_argument(
+            "--out", default=None, help="the MP4 to write (default RESULT_DIR/replay.mp4)"
+        )
+    parser.add_argument("--no-strip", action="store_true", help="no plot strip under the 3D view")
+    parser.add_argument("--no-ghost", action="store_true", help="no set-point ghost")
+    parser.add_argument(
+        "--shadows", action="store_true", help="cast shadows (about 3x slower per frame)"
+    )
+    parser.add_argument(
+        "--jobs", default=None, help="render worker processes (default: the CPU count)"
+    )
+
+
+def add_video_flag(parser) -> None:
+    """``run/compare --video``: render the result at the end, with render's defaults."""
+    parser.add_argument(
+        "--video",
+        action="store_true",
+        help="also render the result to OUT/replay.mp4 (simpro-sim render's defaults; "
+        "needs simpro-sim[video]; simpro-sim render OUT for other options)",
+    )
+
+
+def number(value, field: str, lo: float, hi: float, lo_open: bool = True) -> float:
+    """``value`` as a float in ``(lo, hi]`` (``[lo, hi]`` unless ``lo_open``), else a
+    one-line error naming ``field``."""
+    try:
+        x = float(str(value))
+    except ValueError:
+        x = math.nan
+    ok = math.isfinite(x) and (x > lo if lo_open else x >= lo) and x <= hi
+    if not ok:
+        low = f"> {lo:g}" if lo_open else f">= {lo:g}"
+        raise UserInputError(
+            f"invalid value at {field}: {value!r}; allowed: a number {low} and <= {hi:g}"
+        )
+    return x
+
+
+def _size(value) -> tuple[int, int]:
+    parts = str(value).lower().split("x")
+    try:
+        w, h = (int(p) for p in parts)
+    except ValueError:
+        w = h = -1
+    if len(parts) != 2 or not (16 <= w <= MAX_SIDE and 16 <= h <= MAX_SIDE) or w % 2 or h % 2:
+        raise UserInputError(
+            f"invalid value at --size: {value!r}; allowed: WIDTHxHEIGHT, even integers "
+            f"16..{MAX_SIDE} (H.264 needs even sides), e.g. 640x480"
+        )
+    return w, h
+
+
+def _out_path(value, default: Path) -> Path:
+    """The video path, checked writable before any rendering."""
+    out = Path(value).expanduser() if value else default
+    if out.suffix.lower() != ".mp4":
+        raise UserInputError(
+            f"invalid value at --out: {str(out)!r}; allowed: a file name ending .mp4"
+        )
+    if out.is_dir():
+        raise UserInputError(
+            f"invalid value at --out: {out} is a folder; allowed: an .mp4 file path"
+        )
+    if any(p.exists() and not p.is_dir() for p in out.parents):
+        raise UserInputError(
+            f"cannot write at --out: {out}: a parent is a file, not a folder; "
+            "allowed: a writable .mp4 path"
+        )
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise UserInputError(
+            f"cannot write at --out: {out}: {exc.strerror or exc}; allowed: a writable .mp4 path"
+        ) from None
+    if not os.access(out.parent, os.W_OK | os.X_OK) or (
+        out.exists() and not os.access(out, os.W_OK)
+    ):
+        raise UserInputError(
+            f"cannot write at --out: {out}: permission denied; allowed: a writable .mp4 path"
+        )
+    return out
+
+
+def video_options(args, default_out: Path) -> dict:
+    """Checked keyword arguments of :func:`simpro_mj.report.render.render_video`
+    (one-line errors)."""
+    fps = number(args.fps, "--fps", 0.0, 240.0)
+    size = _size(args.size)
+    speed = number(args.speed, "--speed", 0.0, 100.0)
+    if args.camera not in CAMERAS:
+        raise UserInputError(
+            f"unknown camera at --camera: {args.camera!r}; allowed: {', '.join(CAMERAS)}"
+        )
+    start = number(args.start, "--start", 0.0, 1e9, lo_open=False)
+    end = None if args.end is None else number(args.end, "--end", 0.0, 1e9)
+    jobs = None
+    if args.jobs is not None:
+        jobs = int(number(args.jobs, "--jobs", 0.0, 256.0))
+        if jobs != float(args.jobs):
+            raise UserInputError(
+                f"invalid value at --jobs: {args.jobs!r}; allowed: an integer 1..256"
+            )
+    out = _out_path(getattr(args, "out_video", None) or getattr(args, "out", None), default_out)
+    require_video()  # before anything is rendered: the one-line install hint
+    return {
+        "out": out,
+        "fps": fps,
+        "size": size,
+        "speed": speed,
+        "camera": args.camera,
+        "start": start,
+        "end": end,
+        "plots": not args.no_strip,
+        "ghost": not args.no_ghost,
+        "shadows": bool(args.shadows),
+        "jobs": jobs,
+    }
+
+
+def video_after_run(folder, quiet: bool) -> dict:
+    """Render a finished run or compare folder to ``folder/replay.mp4``."""
+    folder = Path(folder)
+    info = render_video(
+        find_runs(folder), folder / "replay.mp4", progress=not quiet and sys.stderr.isatty()
+    )
+    if not quiet:
+        print(said(info))
+    return info
+
+
+def said(info: dict) -> str:
+    """One line about a rendered video."""
+    return (
+        f"video: {info['out']} ({info['frames']} frames, {info['width']}x{info['height']}, "
+        f"{info['fps']:g} fps, camera {info['camera']}; {info['wall_s']:.1f} s with "
+        f"{info['workers']} workers, MUJOCO_GL={info['gl']})"
+    )
