@@ -28,7 +28,7 @@ import yaml
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
-from simpro_mj.batch.batch import stability_of
+from simpro_mj.batch.stability import stability_of
 from simpro_mj.commands.main import main
 from simpro_mj.config.scenario import load_scenario, scenario_hash, scenarios_dir
 from simpro_mj.config.sweep import expand, parse_sweep

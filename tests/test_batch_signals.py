@@ -211,7 +211,7 @@ def test_a_signal_stops_a_local_dask_batch(tmp_path):
 
 def test_a_dask_cluster_without_workers_ends_the_batch(tmp_path, capsys, monkeypatch):
     distributed = pytest.importorskip("distributed")
-    import simpro_mj.batch.batch as batch
+    import simpro_mj.batch.runner as batch
     from simpro_mj.commands.main import main
 
     monkeypatch.setattr(batch, "NO_WORKERS_S", 1.0)  # the stated time, shortened

@@ -259,7 +259,7 @@ def test_a_grid_of_a_million_is_counted_not_expanded(hostile, monkeypatch):
         raise AssertionError("expanded")
 
     monkeypatch.setattr(variants, "expand", never)
-    from simpro_mj.batch.batch import plan
+    from simpro_mj.batch.plan import plan
 
     p = plan([str(hostile / "grid1e6.yaml")])
     assert len(p.jobs) == 1 and "1,048,576" in p.jobs[0].error
@@ -277,7 +277,7 @@ def test_local_dask_starts_no_more_workers_than_tasks(monkeypatch, tmp_path):
         raise Refuse
 
     monkeypatch.setattr(distributed, "LocalCluster", fake_cluster)
-    from simpro_mj.batch.batch import run_variant
+    from simpro_mj.batch.worker import run_variant
     from simpro_mj.sim import executors
 
     with pytest.raises(Refuse):

@@ -186,7 +186,7 @@ def test_a_failing_write_names_the_users_folder(tmp_path, capsys, monkeypatch, c
 
 
 def test_is_complete_is_the_one_check_and_resume_uses_it(tmp_path):
-    from simpro_mj.batch.batch import run_batch
+    from simpro_mj.batch.runner import run_batch
 
     out = tmp_path / "b"
     argv = dict(sets=["duration_s=1.1"], jobs=1, plots=False, summary_plots=False)

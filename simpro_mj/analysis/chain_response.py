@@ -55,6 +55,7 @@ import numpy as np
 
 from controllers.frequency import CHAIN_CHANNELS, OMCT_RAD_S, chain_response, fit_sine
 from simpro_mj.core.errors import UserInputError
+from simpro_mj.core.messages import one_line
 
 __all__ = [
     "CHANNELS",
@@ -296,7 +297,7 @@ def measure_chain_point(task: Mapping) -> dict:
             "softened_pct": float(soft.mean() * 100.0) if soft.size else 0.0,
         }
     except UserInputError as exc:
-        return {"status": "invalid", "reason": " ".join(str(exc).split())}
+        return {"status": "invalid", "reason": one_line(exc)}
     except Exception as exc:  # noqa: BLE001 - a failure is this frequency's, not the test's
         return {"status": "failed", "reason": f"{type(exc).__name__}: {' '.join(str(exc).split())}"}
 

@@ -11,16 +11,14 @@ are the outer gains inside the analysed stability limit.
   constraint geometry does not depend on them), so two static solves per pose
   also give the largest payload the cylinders can hold there.
 * :func:`gain_warnings` is a warning (users study instability): a task-space
-  outer gain above the limit of :func:`controllers.analysis.real_inner_limit`,
-  the outer loop around the discretised joint loops, lifted to the outer
-  period, with the IK Jacobian at home, where the joint loops are the
-  scenario's controllers (variant, discretisation, design plant) on the plant
-  the actuator model stands for: ``linear`` is eq. (19) with the
-  ``actuator.pneumatics.linear`` coefficients (eqs. 34-35 in SI under
-  ``paper_units`` by default, and the analysis is then exact up to
-  saturation), ``nonlinear`` is linearised by ``controller.inner.identified``
-  (the plant preset's identified models), each joint loop behind the
-  scenario's set-point filter (Fig. 13). For the shipped I loop at T = 60 ms
+  outer gain above the analysed limit of :func:`simpro_mj.analysis.stability.outer_loop`
+  (the outer loop around the scenario's discretised joint loops, lifted to the
+  outer period, with the IK Jacobian at home) on the plant the actuator model
+  stands for: ``linear`` is eq. (19) with the ``actuator.pneumatics.linear``
+  coefficients (eqs. 34-35 in SI under ``paper_units`` by default, and the
+  analysis is then exact up to saturation), ``nonlinear`` is linearised by
+  ``controller.inner.identified`` (the plant preset's identified models), each
+  joint loop behind the scenario's set-point filter (Fig. 13). For the shipped I loop at T = 60 ms
   (backward Euler, ramps of 60 / 30 / 30 ms) that is 14.08 (linear) and 11.84
   (nonlinear, preset ``paper``); with Fig. 7's forward integrator 7.52 (linear).
 
@@ -35,8 +33,13 @@ from collections.abc import Mapping
 
 import numpy as np
 
+from controllers.geometry import nominal_geometry
+from controllers.kinematics import inverse_kinematics
+from simpro_mj.analysis.stability import outer_loop
+from simpro_mj.config.scenario import late_setpoints, reference
 from simpro_mj.core.errors import PhysicsError, UserInputError
 from simpro_mj.plant.payload import holding_force_model, max_payload
+from simpro_mj.plant.pneumatics import PneumaticParams
 
 __all__ = ["check_payload", "gain_warnings", "stability_limit", "preflight", "UTILISATION_WARN"]
 
@@ -47,8 +50,6 @@ _MAX_POSES = 60  # static solves per check (0.5 ms each)
 
 def _poses(scenario: Mapping) -> tuple[np.ndarray, np.ndarray]:
     """Set-point poses to check: the start, each axis' extremes, and a spread."""
-    from simpro_mj.config.scenario import reference
-
     duration = float(scenario["duration_s"])
     t = np.linspace(0.0, duration, int(min(2001, duration / 0.05 + 1)))
     pose = reference(scenario, t)
@@ -87,12 +88,11 @@ def check_payload(scenario: Mapping, model=None) -> dict:
         platform already needs more, ``supply too low at
         actuator.pneumatics.supply_pressure_bar_gauge: ...``.
     """
+    # MuJoCo is loaded by the first check that needs the plant, not by importing the
+    # preflight (the compare command imports it and refuses bad input within a second)
     import mujoco
 
-    from controllers.geometry import nominal_geometry
-    from controllers.kinematics import inverse_kinematics
     from simpro_mj.plant.model import PlantIndex, assemble, load_model
-    from simpro_mj.plant.pneumatics import PneumaticParams
 
     params = PneumaticParams.from_tree(scenario["actuator"].get("pneumatics") or {})
     f_min, f_max = params.force_range
@@ -174,66 +174,9 @@ def check_payload(scenario: Mapping, model=None) -> dict:
     )
 
 
-def _inner_legs(scenario: Mapping, dt: float):
-    """The joint loops as the analysis sees them: the scenario's controllers on the
-    plant its actuator model stands for. Returns (legs, plant description)."""
-    from controllers.analysis import inner_discrete_loop, with_setpoint_filter
-    from controllers.design import (
-        ACTUATORS,
-        Plant,
-        corrected_design,
-        paper_coefficients,
-        paper_plant,
-        printed_design,
-        redesigned_design,
-    )
-    from controllers.setpoint_filter import filter_state_space, leg_times
-
-    inner = scenario["controller"]["inner"]
-    reading = scenario["paper_units"]
-    identified = {a: Plant(**inner["identified"][a]) for a in ACTUATORS}
-    if inner["design_plant"] == "identified":
-        design_plants = identified
-    else:
-        design_plants = {a: paper_plant(a, reading) for a in ACTUATORS}
-    if scenario["actuator"]["model"] == "linear":
-        from simpro_mj.plant.pneumatics import PneumaticParams, fill_linear
-
-        p = PneumaticParams.from_tree(scenario["actuator"].get("pneumatics") or {})
-        p = fill_linear(p, paper_coefficients(reading))
-        plants = {
-            a: Plant(b=float(p.lin_b[i]), a1=float(p.lin_a1[i]), a0=float(p.lin_a0[i]))
-            for i, a in enumerate(ACTUATORS)
-        }
-        what = "the linear actuators' eq. (19) plants"
-    else:
-        plants = identified
-        what = "the identified plant controller.inner.identified"
-    legs = []
-    for a in ACTUATORS:
-        if inner["variant"] == "printed":
-            design = printed_design(a, reading)
-        elif inner["variant"] == "corrected":
-            design = corrected_design(a, design_plants[a])
-        else:
-            design = redesigned_design(
-                a, zeta=inner["zeta"], wn=inner["wn_rad_s"], plant=design_plants[a]
-            )
-        legs.append(inner_discrete_loop(design, plants[a], dt, inner["discretisation"]))
-    sf = scenario["controller"]["setpoint_filter"]
-    times = leg_times(np.asarray(sf["time_ms"], float) * 1e-3)
-    legs = [
-        with_setpoint_filter(leg, filter_state_space(sf["type"], dt, t))
-        for leg, t in zip(legs, times, strict=True)
-    ]
-    return legs, (
-        f"real inner loops: {sf['type']} set-point filter, {inner['variant']} joint "
-        f"controllers on {what}"
-    )
-
-
 def stability_limit(scenario: Mapping, dt: float = 1e-3) -> dict:
-    """The analysed limit of the scenario's outer loop (see the module docstring).
+    """The analysed limit of the scenario's outer loop on the plant its actuator model
+    stands for (:func:`simpro_mj.analysis.stability.outer_loop`, plant ``"actuator"``).
 
     Returns
     -------
@@ -242,27 +185,8 @@ def stability_limit(scenario: Mapping, dt: float = 1e-3) -> dict:
         ``spectral_radius`` at the scenario's gains, ``delay_model_limit``
         (eq. 21's one-sample delay, for comparison).
     """
-    from controllers import analysis as an
-    from controllers.geometry import nominal_geometry
-    from controllers.kinematics import jacobian
-
-    outer = scenario["controller"]["outer"]
-    from controllers.task_space import outer_law
-
-    mode, c = outer_law(outer["type"], outer["integrator"], outer["pi_zero"])
-    period = outer["period_ms"] * 1e-3
-    legs, basis = _inner_legs(scenario, dt)
-    jac = jacobian(nominal_geometry().home)
-    limit = an.real_inner_limit(mode, period, dt=dt, jac=jac, pi_zero=c, legs=legs)
-    lifted = an.lifted_inner(period, dt=dt, legs=legs)
-    f = an.outer_closed_loop(mode, np.asarray(outer["gains"], float), period, lifted, jac, c)[0]
-    a, b = an.outer_polynomials(mode, period, int(outer["delay_samples"]), c)
-    return {
-        "limit": float(limit),
-        "basis": basis,
-        "spectral_radius": an.spectral_radius(f),
-        "delay_model_limit": float(an.stability_limit(a, b)),
-    }
+    info = outer_loop(scenario, plant="actuator", dt=dt)
+    return {k: info[k] for k in ("limit", "basis", "spectral_radius", "delay_model_limit")}
 
 
 def gain_warnings(scenario: Mapping) -> tuple[list[str], dict]:
@@ -301,7 +225,7 @@ def gain_warnings(scenario: Mapping) -> tuple[list[str], dict]:
 def preflight(scenario: Mapping, model=None) -> tuple[list[str], dict]:
     """Payload check (raises), gain warnings and set-point components that start
     after the run ends (warned: they never act); returns ``(warnings, figures)``."""
-    from simpro_mj.config.scenario import late_setpoints
+    # the identification runs the plant (MuJoCo): loaded when a preflight runs
     from simpro_mj.identification.auto import with_identified
 
     scenario = with_identified(scenario)[0]  # design_plant identified: its own plant's

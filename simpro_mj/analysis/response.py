@@ -49,6 +49,7 @@ from controllers.frequency import (
     unwrapped_phase_deg,
 )
 from simpro_mj.core.errors import UserInputError
+from simpro_mj.core.messages import one_line
 
 __all__ = [
     "AXES",
@@ -315,7 +316,7 @@ def measure_point(task: Mapping) -> dict:
             "saturated_pct": float(sat),
         }
     except UserInputError as exc:
-        return {"status": "invalid", "reason": " ".join(str(exc).split())}
+        return {"status": "invalid", "reason": one_line(exc)}
     except Exception as exc:  # noqa: BLE001 - a failure is this frequency's, not the test's
         return {"status": "failed", "reason": f"{type(exc).__name__}: {' '.join(str(exc).split())}"}
 

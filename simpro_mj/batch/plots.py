@@ -257,7 +257,7 @@ def plot_mc(rows: list[dict], info: Mapping, out: Path):
 
 
 def plot_summary(report, jobs) -> list[Path]:
-    """All summary figures of a batch :class:`~simpro_mj.batch.batch.Report`."""
+    """All summary figures of a batch :class:`~simpro_mj.batch.summary.Report`."""
     out = Path(report.out) / "plots"
     out.mkdir(parents=True, exist_ok=True)
     paths: list[Path] = []

@@ -1,7 +1,7 @@
 """``simpro-sim batch PATH...``: many runs, sweeps, Monte Carlo, in parallel.
 
 The batch itself (plan, workers, stability, summary) is :mod:`simpro_mj.batch`
-(:func:`simpro_mj.batch.batch.run_batch`; its docstring is the contract).
+(:func:`simpro_mj.batch.runner.run_batch`; its module docstring is the contract).
 """
 
 from __future__ import annotations
@@ -10,7 +10,8 @@ import os
 import sys
 from pathlib import Path
 
-from simpro_mj.batch.batch import print_report, run_batch
+from simpro_mj.batch.runner import run_batch
+from simpro_mj.batch.tables import print_report
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.jsonout import emit_json
 from simpro_mj.core.keys import short_text

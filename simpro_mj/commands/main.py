@@ -21,12 +21,17 @@ docs/robustness.md lists the messages.
 from __future__ import annotations
 
 import argparse
+import functools
 import importlib
 import os
 import sys
 
 from controllers.errors import DesignError, KinematicsError
 from simpro_mj.core.errors import PhysicsError, UserInputError
+from simpro_mj.core.messages import MAX_MESSAGE_CHARS, one_line
+
+#: an error line of this command line: one line, at most MAX_MESSAGE_CHARS
+_one_line = functools.partial(one_line, max_chars=MAX_MESSAGE_CHARS)
 
 #: subcommand -> module; a module that does not exist yet is simply not offered.
 COMMANDS = {
@@ -92,19 +97,6 @@ def build_parser(only: str | None = None) -> tuple[argparse.ArgumentParser, dict
         mod.add_arguments(p)
         p.set_defaults(_run=mod.run)
     return parser, mods
-
-
-#: Longest error line printed (characters); a longer one keeps its start and its
-#: end (where "allowed: ..." is) around "...". Fields echo cut values already.
-MAX_MESSAGE_CHARS = 1000
-
-
-def _one_line(exc: BaseException) -> str:
-    text = " ".join(str(exc).split())
-    if len(text) > MAX_MESSAGE_CHARS:
-        half = MAX_MESSAGE_CHARS // 2 - 3
-        text = f"{text[:half]} ... {text[-half:]}"
-    return text
 
 
 def _check_gl_backend() -> str | None:

@@ -27,6 +27,7 @@ from simpro_mj.config.scenario import (
 from simpro_mj.config.sweep import SweepSpec, _is_number, broadcast_value, expand, parse_sweep
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.keys import parse_set
+from simpro_mj.core.messages import one_line
 
 __all__ = ["Variant", "SweepFile", "load_sweep"]
 
@@ -58,10 +59,6 @@ class SweepFile:
     spec: SweepSpec | None
     variants: list[Variant]
     error: str | None = None
-
-
-def _one_line(exc: BaseException) -> str:
-    return " ".join(str(exc).split())
 
 
 def load_sweep(name_or_path: str | Path, sets: Iterable[str] = ()) -> SweepFile:
@@ -117,7 +114,7 @@ def load_sweep(name_or_path: str | Path, sets: Iterable[str] = ()) -> SweepFile:
             resolved = resolve_scenario(tree, (), default_name=path.stem, base=path.parent)
             error = None
         except UserInputError as exc:
-            resolved, error = None, _one_line(exc)
+            resolved, error = None, one_line(exc)
         variants.append(
             Variant(
                 file=str(path),

@@ -128,14 +128,14 @@ def versions(resolved: Mapping | None = None) -> dict:
     return out
 
 
-def _jsonable(obj: Any) -> Any:
+def jsonable(obj: Any) -> Any:
     """Plain JSON types: numpy scalars/arrays converted, NaN and inf as null."""
     if isinstance(obj, Mapping):
-        return {str(k): _jsonable(v) for k, v in obj.items()}
+        return {str(k): jsonable(v) for k, v in obj.items()}
     if isinstance(obj, (list, tuple)):
-        return [_jsonable(v) for v in obj]
+        return [jsonable(v) for v in obj]
     if isinstance(obj, np.ndarray):
-        return _jsonable(obj.tolist())
+        return jsonable(obj.tolist())
     if isinstance(obj, (bool, np.bool_)):
         return bool(obj)
     if isinstance(obj, (int, np.integer)):
@@ -274,11 +274,11 @@ def write_results(
         write_timeseries(tmp / "timeseries.csv", columns)
         for name, named in (arrays or {}).items():
             np.savez_compressed(tmp / name, **named)
-        text = json.dumps(_jsonable(doc), indent=2, allow_nan=False)
+        text = json.dumps(jsonable(doc), indent=2, allow_nan=False)
         (tmp / "metrics.json").write_text(text + "\n", encoding="utf-8")
         with (tmp / "scenario.yaml").open("w", encoding="utf-8") as fh:
             fh.write(f"# resolved scenario, sha256 {doc['scenario']['hash']}\n")
-            yaml.safe_dump(_jsonable(scenario), fh, sort_keys=False, default_flow_style=None)
+            yaml.safe_dump(jsonable(scenario), fh, sort_keys=False, default_flow_style=None)
         if make_plots:
             from simpro_mj.report.plots import plot_run
 

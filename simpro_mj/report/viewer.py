@@ -22,6 +22,7 @@ import numpy as np
 
 from simpro_mj.config.scenario import load_scenario
 from simpro_mj.core.errors import UserInputError
+from simpro_mj.core.messages import one_line
 from simpro_mj.report.render import (
     find_runs,
     ghost_poses,
@@ -46,7 +47,7 @@ def check_display() -> None:
 
         ok = glfw.init()
     except Exception as exc:  # noqa: BLE001 - any GLFW failure means no window
-        ok, why = False, " ".join(str(exc).split())
+        ok, why = False, one_line(exc)
     else:
         why = "glfw.init() failed"
     if not ok:

@@ -1,6 +1,6 @@
 """The executors of many simulations: here, a spawn process pool, or Dask.
 
-``simpro-sim batch`` (:mod:`simpro_mj.batch.batch`) and ``simpro-sim response``
+``simpro-sim batch`` (:mod:`simpro_mj.batch.runner`) and ``simpro-sim response``
 (:mod:`simpro_mj.analysis.response`) run their tasks through :func:`run_tasks` with their
 own worker function: a task is plain data (it pickles to a pool worker or a
 Dask worker), a worker function is top level in its module (it pickles by
@@ -16,6 +16,7 @@ import sys
 import time
 from collections.abc import Callable, Mapping
 
+from simpro_mj.core.messages import one_line
 from simpro_mj.sim.readiness import signal_ready
 
 __all__ = [
@@ -24,7 +25,6 @@ __all__ = [
     "NoWorkers",
     "Progress",
     "dask_module",
-    "one_line",
     "run_dask",
     "run_here",
     "run_pool",
@@ -35,12 +35,6 @@ __all__ = [
 NO_WORKERS_S = 60.0
 #: Most worker processes (``--jobs``); a run never starts more than it has tasks.
 MAX_JOBS = 256
-
-
-def one_line(exc: BaseException) -> str:
-    """``Type: message`` on one line (a failed task's reason)."""
-    text = " ".join(str(exc).split())
-    return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
 
 
 class Progress:
@@ -77,7 +71,7 @@ class Progress:
 
 Callback = Callable[[int, dict], None]
 #: A worker function: a task (plain data, with ``ship`` on Dask) -> a result dict
-#: with ``status`` and ``reason`` (:func:`simpro_mj.batch.batch.run_variant`;
+#: with ``status`` and ``reason`` (:func:`simpro_mj.batch.worker.run_variant`;
 #: ``simpro-sim response`` passes its own). Top level in its module, so that it pickles by name.
 Worker = Callable[[Mapping], dict]
 
@@ -144,7 +138,11 @@ def run_pool(tasks: list[tuple[int, dict]], jobs: int, done: Callback, fn: Worke
             try:
                 result = fut.result()
             except Exception as exc:  # noqa: BLE001 - a dead worker fails its variant only
-                result = {"status": "failed", "reason": one_line(exc), "metrics": None}
+                result = {
+                    "status": "failed",
+                    "reason": one_line(exc, with_type=True),
+                    "metrics": None,
+                }
             done(futures[fut], result)
     except BaseException:
         stop_pool(pool)  # the workers are gone when this returns
@@ -202,7 +200,8 @@ def run_dask(
         if cluster is not None:
             cluster.close()
         raise UserInputError(
-            f"no scheduler at --scheduler {scheduler}: {one_line(exc)}; allowed: a running "
+            f"no scheduler at --scheduler {scheduler}: {one_line(exc, with_type=True)}; "
+            "allowed: a running "
             "Dask scheduler address (tcp://host:8786) or 'local'"
         ) from exc
     limit = NO_WORKERS_S if no_workers_s is None else no_workers_s
@@ -226,7 +225,11 @@ def run_dask(
                 try:
                     result = fut.result()
                 except Exception as exc:  # noqa: BLE001 - a lost worker fails its variant only
-                    result = {"status": "failed", "reason": one_line(exc), "metrics": None}
+                    result = {
+                        "status": "failed",
+                        "reason": one_line(exc, with_type=True),
+                        "metrics": None,
+                    }
                 done(futures[fut], result)
             if finished or client.scheduler_info().get("workers"):
                 seen_worker = time.monotonic()

@@ -1,0 +1,242 @@
+"""A batch: many runs, sweeps, Monte Carlo, in parallel (``simpro-sim batch PATH...``).
+
+Each PATH is a scenario file, a shipped scenario name or a folder (its
+``*.yaml``/``*.yml`` files, sorted). A file's ``sweep:`` block
+(:mod:`simpro_mj.config.sweep`) expands into variants; a file without one is one
+variant named ``base``. ``--set`` overrides apply to the base of every variant.
+
+The batch is planned (:mod:`.plan`), run by workers (:mod:`.worker`) on an
+executor (:mod:`simpro_mj.sim.executors`), judged (:mod:`.stability`) and
+summarised (:mod:`.summary`, :mod:`.tables`, :mod:`.plots`); :func:`run_batch`
+does all of it.
+
+Execution
+---------
+Every variant runs headless in a worker: :func:`simpro_mj.batch.worker.run_variant` gets the
+resolved scenario (plain JSON data) and its folder, builds its own MuJoCo
+model, runs, writes a normal result folder (:func:`simpro_mj.report.runner.execute`,
+atomic) and returns a small dict. No model is ever pickled.
+
+* ``--jobs N`` (default ``os.cpu_count()``, at most :data:`MAX_JOBS`): a
+  ``ProcessPoolExecutor`` with ``spawn`` workers, never more than the
+  variants to run; ``--jobs 1`` runs in this process, one after another.
+* ``--scheduler ADDRESS``: the same tasks on a running Dask distributed
+  scheduler; ``--scheduler local`` starts a ``LocalCluster`` of ``--jobs``
+  single-threaded worker processes (no more than the variants to run). The
+  worker writes into a temporary folder and sends the files back, so the
+  results land in the same layout here whether or not the workers share this
+  file system
+  (``pip install 'simpro-sim[cluster]'``).
+* A progress bar (tqdm, stderr; off with ``--quiet`` or when stderr is not a
+  terminal) shows done/failed/left and the time left.
+
+Statuses
+--------
+``ok``; ``diverged`` (the run's physics check stopped it, results kept);
+``interrupted`` (Ctrl-C during the run, partial results kept);
+``failed`` (an exception in the worker: its one-line reason); ``invalid``
+(the file, its sweep block or this variant failed validation); ``cancelled``
+(not finished: the batch was stopped before it ended; a variant stopped while
+running leaves its partial folder, marked ``PARTIAL``).
+
+A PATH that names nothing (no file, folder or shipped scenario) is the
+command line's mistake: exit 2 before anything runs. One bad variant or file
+never stops the others;
+``--strict`` instead refuses the whole batch (exit 2, one line naming the
+file) before anything runs if any file or variant is invalid. Exit code: 0
+when every variant is ``ok``, 1 otherwise.
+
+Stopping
+--------
+SIGINT (Ctrl-C) and SIGTERM stop the batch the same way: variants not started
+are cancelled, running ones get SIGTERM in their worker (the simulation hands
+back what it computed and the folder is written marked ``PARTIAL``; Dask
+tasks are cancelled), the workers are waited for (SIGKILL after
+:data:`simpro_mj.sim.workers.GRACE_S`), ``summary.csv``/``summary.json`` are
+written for what finished with the rest ``cancelled`` (``stopped`` says why),
+one line ``error: batch stopped: ...`` and exit 130. Workers never outlive
+the batch: each polls its parent (:mod:`simpro_mj.sim.workers`) and ends itself
+when the batch is gone, even after a ``kill -9``. A Dask cluster with no live
+worker for :data:`NO_WORKERS_S` seconds ends the batch the same way with
+``error: batch stopped: no live Dask worker ...`` and exit 1.
+``SIMPRO_READY_FILE`` (:mod:`simpro_mj.sim.readiness`) is written once the
+handlers are installed and the variants submitted.
+
+``--resume`` skips a variant whose folder is complete
+(:func:`simpro_mj.report.results.is_complete`: the result marker, ``metrics.json``
+with status ``ok`` or ``diverged``, a non-empty ``timeseries.csv``, no
+``PARTIAL``) and whose ``scenario.hash`` equals the variant's
+:func:`~simpro_mj.config.scenario.scenario_hash`. Anything else is recomputed.
+
+``--out`` must be new, empty or an earlier batch's folder (its
+``.simpro-result`` marker of kind ``batch``); anything else is refused (exit
+2) before anything runs, and a second batch writing the same ``--out`` at the
+same time is refused (:func:`simpro_mj.report.results.claim`). The row of a skipped
+variant is rebuilt from its files, so the summary is complete and the same as a fresh run's.
+
+Layout
+------
+``OUT/<scenario>/<variant>/`` result folders, ``OUT/summary.csv`` (one row
+per variant, expansion order), ``OUT/summary.json`` (the rows with full
+precision, the stability-limit table, counts) and ``OUT/plots/*.png``
+(:mod:`simpro_mj.batch.plots`).
+
+The columns of ``summary.csv``: :mod:`simpro_mj.batch.summary`; the stability
+criterion and limit: :mod:`simpro_mj.batch.stability`.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+from collections.abc import Iterable, Mapping
+from pathlib import Path
+
+from simpro_mj.batch.plan import plan, scenario_files
+from simpro_mj.batch.stability import stability_of_folder
+from simpro_mj.batch.summary import Report, summary_row, write_summary
+from simpro_mj.batch.tables import monte_carlo_table, stability_table
+from simpro_mj.batch.worker import install, run_variant
+from simpro_mj.config.scenario import scenario_hash
+from simpro_mj.core.errors import UserInputError
+from simpro_mj.report.results import claim, is_complete, write_marker
+from simpro_mj.report.runner import sigterm_as_interrupt
+from simpro_mj.sim import executors as _executors
+from simpro_mj.sim.executors import MAX_JOBS, NoWorkers, Progress, dask_module, run_tasks
+
+__all__ = ["MAX_JOBS", "NO_WORKERS_S", "run_batch"]
+
+#: A Dask batch whose cluster has had no live worker this long (s) ends with an error
+#: (read at each batch: tests shorten it).
+NO_WORKERS_S = _executors.NO_WORKERS_S
+
+
+def run_batch(
+    paths: Iterable[str],
+    out: Path,
+    sets: Iterable[str] = (),
+    jobs: int = 1,
+    resume: bool = False,
+    strict: bool = False,
+    scheduler: str | None = None,
+    plots: bool = True,
+    progress: bool = False,
+    summary_plots: bool = True,
+) -> Report:
+    """Plan, run and summarise a batch (see the module docstring).
+
+    Raises
+    ------
+    UserInputError
+        ``--strict`` with an invalid file or variant, a malformed ``--set``,
+        or ``--scheduler`` without dask or without a reachable scheduler; an
+        ``out`` that is not a batch folder or is being written by another batch.
+    """
+
+    wall0 = time.perf_counter()
+    out = Path(out)
+    inputs = [f for f, _ in scenario_files(paths)]
+
+    with claim(out, "batch", inputs=inputs), sigterm_as_interrupt():
+        return _run_batch(
+            paths, out, sets, jobs, resume, strict, scheduler, plots, progress, summary_plots, wall0
+        )
+
+
+def _run_batch(
+    paths, out, sets, jobs, resume, strict, scheduler, plots, progress, summary_plots, wall0
+) -> Report:
+
+    p = plan(paths, sets)
+    if strict:
+        for job in p.jobs:
+            if job.error:
+                which = f" (variant {job.variant})" if job.variant != "-" else ""
+                raise UserInputError(f"invalid scenario at {job.file}{which}: {job.error}")
+    if scheduler is not None:
+        dask_module()  # say so before anything runs
+    rows: list[dict | None] = [None] * len(p.jobs)
+    tasks: list[tuple[int, dict]] = []
+    skipped = 0
+    for job in p.jobs:
+        if job.scenario is None:
+            rows[job.index] = summary_row(job, None)
+            continue
+        folder = out / job.folder
+        doc = _complete(folder, job.scenario) if resume else None
+        if doc is not None:
+            result = {
+                "status": doc["status"],
+                "reason": doc.get("reason"),
+                "metrics": doc,
+                "stability": stability_of_folder(folder, doc["status"]),
+            }
+            rows[job.index] = summary_row(job, result, skipped=True)
+            skipped += 1
+            continue
+        tasks.append((job.index, {"scenario": job.scenario, "out": str(folder), "plots": plots}))
+    if skipped and progress:
+        sys.stderr.write(f"resume: {skipped} complete variant(s) skipped\n")
+    bar = Progress(len(tasks), progress)
+
+    def done(key: int, result: dict) -> None:
+        files = result.pop("files", None)
+        if files is not None:
+            install(files, out / p.jobs[key].folder)
+        rows[key] = summary_row(p.jobs[key], result)
+        bar.update(rows[key]["status"])
+
+    out.mkdir(parents=True, exist_ok=True)
+    write_marker(out, "batch")
+    stopped = None
+    try:
+        run_tasks(
+            tasks, done, jobs=jobs, scheduler=scheduler, fn=run_variant, no_workers_s=NO_WORKERS_S
+        )
+    except KeyboardInterrupt as exc:  # SIGINT, or SIGTERM (sigterm_as_interrupt)
+        stopped = f"interrupted ({exc})" if str(exc) else "interrupted"
+    except NoWorkers as exc:
+        stopped = str(exc)
+    finally:
+        bar.close()
+        # what finished is recorded, the rest is 'cancelled'; also on an error
+        final = [r if r is not None else summary_row(p.jobs[i], None) for i, r in enumerate(rows)]
+        report = Report(out=out, rows=final, paths=p.paths, files=p.files, skipped=skipped)
+        report.stability = stability_table(report.rows, p.jobs)
+        report.monte_carlo = monte_carlo_table(report.rows, p.jobs)
+        report.stopped = stopped
+        for row in report.rows:
+            if stopped and row["status"] == "cancelled" and not row["reason"]:
+                row["reason"] = f"not finished: batch stopped: {stopped}"
+        report.wall_s = time.perf_counter() - wall0
+        write_summary(report)
+    if stopped is not None:
+        return report  # no summary plots: the user asked to stop, or the cluster is gone
+    if summary_plots:
+        # matplotlib only when the figures are drawn: a batch refused for a bad path or
+        # --strict answers within a second
+        from simpro_mj.batch.plots import plot_summary
+
+        report.plots = [str(x) for x in plot_summary(report, p.jobs)]
+    report.wall_s = time.perf_counter() - wall0
+    write_summary(report)
+    return report
+
+
+def _complete(folder: Path, scenario: Mapping) -> dict | None:
+    """The metrics.json document of a complete result folder for ``scenario``, else None.
+
+    Complete is :func:`simpro_mj.report.results.is_complete` (the one documented
+    check), and the folder's scenario hash must be the variant's.
+    """
+
+    if not is_complete(folder):
+        return None
+    try:
+        doc = json.loads((folder / "metrics.json").read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    if (doc.get("scenario") or {}).get("hash") != scenario_hash(scenario):
+        return None
+    return doc

@@ -1,0 +1,224 @@
+"""A batch's summary: one row per variant, the report, ``summary.csv`` and ``summary.json``.
+
+summary.csv columns: ``variant``, ``scenario``, ``folder`` (relative to
+OUT), one column per swept path (the value as declared, or as drawn),
+``sample`` (Monte Carlo), ``seed``, ``status``, ``reason``, per axis
+``<axis>_ss_err_<u>`` (signed mean error over the final window),
+``<axis>_rms_err_<u>``, ``<axis>_max_err_<u>``, ``<axis>_rise_s``,
+``<axis>_settling_s``, ``<axis>_overshoot_pct`` with ``u`` = deg (roll,
+pitch) or mm (heave), then ``stable``, ``growth_rate_1_s``, for sweeps of
+``controller.outer.gains`` ``analytic_limit``, ``analytic_limit_delay_model``
+and ``analytic_growth_rate_1_s``, and last ``realtime_factor`` (the only
+wall-clock column).
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+import os
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from simpro_mj.batch.plan import Job
+from simpro_mj.batch.stability import analytic
+from simpro_mj.config.cueing import SUMMARY_COLUMNS, summary_columns
+from simpro_mj.config.sweep import format_value
+from simpro_mj.report.results import jsonable
+
+__all__ = [
+    "AXES",
+    "RUN_STATUSES",
+    "STATUSES",
+    "Report",
+    "csv_columns",
+    "metric_columns",
+    "summary_row",
+    "summary_csv_text",
+    "write_summary",
+]
+
+#: Variant statuses, and those a finished run can have.
+STATUSES = ("ok", "diverged", "interrupted", "failed", "invalid", "cancelled")
+RUN_STATUSES = ("ok", "diverged")
+
+#: (axis, unit of its columns, SI to that unit)
+AXES = (("roll", "deg", 180.0 / math.pi), ("pitch", "deg", 180.0 / math.pi), ("heave", "mm", 1e3))
+#: (column suffix, metrics.json key, scaled to the axis unit?)
+_METRICS = (
+    ("ss_err", "steady_state_error", True),
+    ("rms_err", "rms_error", True),
+    ("max_err", "max_abs_error", True),
+    ("rise_s", "rise_time_s", False),
+    ("settling_s", "settling_time_s", False),
+    ("overshoot_pct", "overshoot_pct", False),
+)
+
+
+def metric_columns() -> list[str]:
+    """Per-axis metric column names of summary.csv (units in the names)."""
+    out = []
+    for axis, unit, _ in AXES:
+        for suffix, _, scaled in _METRICS:
+            out.append(f"{axis}_{suffix}_{unit}" if scaled else f"{axis}_{suffix}")
+    return out
+
+
+def _sim_rt(doc: Mapping) -> float | None:
+    sim = doc.get("sim") or {}
+    rt = sim.get("realtime_factor")
+    if rt is None:
+        rt = (sim.get("wall_clock") or {}).get("realtime_factor")
+    return rt
+
+
+def summary_row(job: Job, result: Mapping | None, skipped: bool = False) -> dict:
+    """One summary row (SI converted to the column units)."""
+    row: dict[str, Any] = {
+        "variant": job.variant,
+        "scenario": job.scenario_name,
+        "folder": job.folder if job.scenario is not None else "",
+        "file": job.file,
+        "values": dict(job.values),
+        "sample": job.sample,
+        "seed": job.seed,
+        "status": "invalid" if job.error else "cancelled",
+        "reason": job.error,
+        "skipped": skipped,
+    }
+    for col in metric_columns():
+        row[col] = None
+    row.update(stable=None, growth_rate_1_s=None, stability_note=None)
+    if job.gain_sweep:
+        row.update(
+            analytic_limit=None, analytic_limit_delay_model=None, analytic_growth_rate_1_s=None
+        )
+    row["realtime_factor"] = None
+    if job.scenario is not None and job.gain_sweep:
+        row.update(analytic(job.scenario))
+    if result is None:
+        return row
+    row["status"] = result.get("status", "failed")
+    row["reason"] = result.get("reason")
+    doc = result.get("metrics")
+    if doc:
+        axes = doc.get("axes") or {}
+        for axis, unit, scale in AXES:
+            m = axes.get(axis) or {}
+            for suffix, key, scaled in _METRICS:
+                v = m.get(key)
+                row[f"{axis}_{suffix}_{unit}" if scaled else f"{axis}_{suffix}"] = (
+                    None if v is None else float(v) * (scale if scaled else 1.0)
+                )
+        row["realtime_factor"] = _sim_rt(doc)
+        cue = doc.get("cueing") or (doc.get("metrics") or {}).get("cueing")
+        if cue:  # issue 16
+            row.update(summary_columns(cue))
+    stab = result.get("stability")
+    if stab:
+        row["stable"] = stab["stable"]
+        row["growth_rate_1_s"] = stab["growth_rate_1_s"]
+        row["stability_note"] = stab["why"]
+    return row
+
+
+@dataclass
+class Report:
+    """What a batch did: rows in expansion order, the stability table, files written."""
+
+    out: Path
+    rows: list[dict]
+    paths: list[str]
+    files: list[dict]
+    stability: list[dict] = field(default_factory=list)
+    monte_carlo: list[dict] = field(default_factory=list)
+    plots: list[str] = field(default_factory=list)
+    skipped: int = 0
+    wall_s: float = 0.0
+    #: why the batch stopped before its end (a signal, no Dask workers), else None
+    stopped: str | None = None
+
+    @property
+    def counts(self) -> dict:
+        c = {s: 0 for s in STATUSES}
+        for r in self.rows:
+            c[r["status"]] = c.get(r["status"], 0) + 1
+        return c
+
+    @property
+    def all_ok(self) -> bool:
+        return bool(self.rows) and all(r["status"] == "ok" for r in self.rows)
+
+    def document(self) -> dict:
+
+        return jsonable(
+            {
+                "out": str(self.out),
+                "summary_csv": str(self.out / "summary.csv"),
+                "counts": self.counts,
+                "skipped": self.skipped,
+                "wall_s": self.wall_s,
+                "stopped": self.stopped,
+                "swept_paths": self.paths,
+                "files": self.files,
+                "stability": self.stability,
+                "monte_carlo": self.monte_carlo,
+                "plots": self.plots,
+                "variants": self.rows,
+            }
+        )
+
+
+def _cell(v: Any) -> str:
+
+    if v is None:
+        return ""
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, float):
+        return f"{v:.6g}"
+    if isinstance(v, (list, tuple, dict)):
+        return format_value(v)
+    return str(v)
+
+
+def csv_columns(report: Report) -> list[str]:
+    """summary.csv's columns for this batch (module docstring)."""
+    cols = ["variant", "scenario", "folder", *report.paths]
+    if any(r["sample"] is not None for r in report.rows):
+        cols.append("sample")
+    cols += ["seed", "status", "reason", *metric_columns(), "stable", "growth_rate_1_s"]
+    if any("analytic_limit" in r for r in report.rows):
+        cols += ["analytic_limit", "analytic_limit_delay_model", "analytic_growth_rate_1_s"]
+    if any("cue_long_corr" in r for r in report.rows):  # cueing runs (issue 16)
+        cols += list(SUMMARY_COLUMNS)
+    cols.append("realtime_factor")
+    return cols
+
+
+def summary_csv_text(report: Report) -> str:
+    cols = csv_columns(report)
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(cols)
+    for r in report.rows:
+        w.writerow([_cell(r["values"].get(c) if c in report.paths else r.get(c)) for c in cols])
+    return buf.getvalue()
+
+
+def _atomic_write(path: Path, text: str) -> None:
+    tmp = path.with_name(f".{path.name}.tmp")
+    tmp.write_text(text, encoding="utf-8")
+    os.replace(tmp, path)
+
+
+def write_summary(report: Report) -> None:
+    """Write ``summary.csv`` and ``summary.json`` into the batch folder (atomically)."""
+    report.out.mkdir(parents=True, exist_ok=True)
+    _atomic_write(report.out / "summary.csv", summary_csv_text(report))
+    text = json.dumps(report.document(), indent=2, allow_nan=False)
+    _atomic_write(report.out / "summary.json", text + "\n")

@@ -1,0 +1,206 @@
+"""A batch's tables: the stability limit per gain sweep, the Monte Carlo spread, and
+the human summary :func:`print_report` prints.
+
+Stability limit: see :mod:`simpro_mj.batch.stability`. Monte Carlo: per file and
+grid combination, the median, 90th percentile and maximum of |steady-state
+error| over the variants with status ``ok``.
+"""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+from simpro_mj.batch.plan import GAIN_PATH, Job
+from simpro_mj.batch.summary import AXES, Report
+from simpro_mj.config.sweep import format_value
+
+__all__ = ["monte_carlo_table", "print_report", "stability_table"]
+
+
+def _gain(values: Mapping) -> float | None:
+    """The common K K_I of a variant's swept gains, or None (unequal per-axis gains)."""
+    g = values.get(GAIN_PATH)
+    if isinstance(g, (int, float)) and not isinstance(g, bool):
+        return float(g)
+    if isinstance(g, list) and g and len({float(x) for x in g}) == 1:
+        return float(g[0])
+    return None
+
+
+def stability_table(rows: list[dict], jobs: list[Job]) -> list[dict]:
+    """Analytic vs simulated stability limit per gain sweep group (module docstring)."""
+
+    groups: dict[tuple, list[tuple[float, dict, Job]]] = {}
+    for row, job in zip(rows, jobs, strict=True):
+        if not job.gain_sweep or job.mc or row["stable"] is None:
+            continue
+        g = _gain(job.values)
+        if g is None:
+            continue
+        others = tuple((p, format_value(job.values[p])) for p in job.grid_paths if p != GAIN_PATH)
+        groups.setdefault((job.scenario_name, others), []).append((g, row, job))
+    table = []
+    for (sname, others), members in groups.items():
+        members.sort(key=lambda m: m[0])
+        gains = [m[0] for m in members]
+        stable = [bool(m[1]["stable"]) for m in members]
+        unstable_at = [g for g, s in zip(gains, stable, strict=True) if not s]
+        hi = min(unstable_at) if unstable_at else None
+        below = [m for m in members if m[1]["stable"] and (hi is None or m[0] < hi)]
+        lo_m = below[-1] if below else None
+        lo = lo_m[0] if lo_m else None
+        estimate = None
+        if lo is not None and hi is not None:
+            hi_m = next(m for m in members if m[0] == hi)
+            s_lo, s_hi = lo_m[1]["growth_rate_1_s"], hi_m[1]["growth_rate_1_s"]
+            if s_lo is not None and s_hi is not None and s_lo < 0 < s_hi:
+                estimate = lo + (hi - lo) * (-s_lo) / (s_hi - s_lo)
+            else:
+                estimate = 0.5 * (lo + hi)
+        first = members[0][2].scenario
+        ana = members[0][1].get("analytic_limit")
+        note = []
+        if first["actuator"]["model"] != "linear":
+            note.append("nonlinear pneumatics: the analysis assumes eq. (19) plants")
+        if any(s and g > hi for g, s in zip(gains, stable, strict=True) if hi is not None):
+            note.append("not monotonic: a stable gain above an unstable one")
+        table.append(
+            {
+                "scenario": sname,
+                "group": {p: v for p, v in others},
+                "outer_type": first["controller"]["outer"]["type"],
+                "period_ms": first["controller"]["outer"]["period_ms"],
+                "actuator_model": first["actuator"]["model"],
+                "gains": gains,
+                "stable": stable,
+                "growth_rate_1_s": [m[1]["growth_rate_1_s"] for m in members],
+                "largest_stable": lo,
+                "smallest_unstable": hi,
+                "simulated_limit": estimate,
+                "analytic_limit": ana,
+                "analytic_limit_delay_model": members[0][1].get("analytic_limit_delay_model"),
+                "simulated_over_analytic": (estimate / ana) if estimate and ana else None,
+                "note": "; ".join(note) or None,
+            }
+        )
+    return table
+
+
+def monte_carlo_table(rows: list[dict], jobs: list[Job]) -> list[dict]:
+    """Distribution of |steady-state error| per Monte Carlo file and grid combination.
+
+    Per axis the median, 90th percentile and maximum over the variants with
+    status ``ok`` (deg, deg, mm as in the summary columns).
+    """
+
+    files: dict[str, dict] = {}
+    for row, job in zip(rows, jobs, strict=True):
+        if not job.mc:
+            continue
+        f = files.setdefault(job.scenario_name, {"samples": 0, "groups": {}})
+        f["samples"] = max(f["samples"], (job.sample or 0) + 1)
+        group = ", ".join(
+            f"{p.split('.')[-1]}={format_value(job.values[p])}" for p in job.grid_paths
+        )
+        f["groups"].setdefault(group or "all", []).append(row)
+    out = []
+    for sname, f in files.items():
+        groups = []
+        for name, members in f["groups"].items():
+            ok = [r for r in members if r["status"] == "ok"]
+            axes = {}
+            for axis, unit, _ in AXES:
+                v = np.abs(
+                    [
+                        r[f"{axis}_ss_err_{unit}"]
+                        for r in ok
+                        if r[f"{axis}_ss_err_{unit}"] is not None
+                    ]
+                )
+                axes[axis] = {
+                    "unit": unit,
+                    "median": float(np.median(v)) if v.size else None,
+                    "p90": float(np.percentile(v, 90)) if v.size else None,
+                    "max": float(v.max()) if v.size else None,
+                }
+            groups.append({"group": name, "n": len(ok), "of": len(members), "axes": axes})
+        out.append({"scenario": sname, "samples": f["samples"], "groups": groups})
+    return out
+
+
+def _num(v: Any, digits: int = 4) -> str:
+    return "-" if v is None else f"{v:.{digits}g}"
+
+
+def print_report(report: Report, file=None) -> None:
+    """The human summary: a line per variant, the stability table, counts, paths."""
+    file = sys.stdout if file is None else file
+    header = (
+        f"{'variant':<34} {'status':<9} {'stable':<6} {'roll ss':>9} {'pitch ss':>9} "
+        f"{'heave ss':>9} {'growth':>7} {'rt x':>6}"
+    )
+    last = None
+    for r in report.rows:
+        if r["scenario"] != last:
+            print(f"\n{r['scenario']}  ({r['file']})", file=file)
+            print(header + "\n" + "-" * len(header), file=file)
+            last = r["scenario"]
+        stable = "-" if r["stable"] is None else ("yes" if r["stable"] else "NO")
+        print(
+            f"{r['variant']:<34} {r['status']:<9} {stable:<6} "
+            f"{_num(r['roll_ss_err_deg'], 3):>9} {_num(r['pitch_ss_err_deg'], 3):>9} "
+            f"{_num(r['heave_ss_err_mm'], 3):>9} {_num(r['growth_rate_1_s'], 2):>7} "
+            f"{_num(r['realtime_factor'], 3):>6}",
+            file=file,
+        )
+        if r["status"] not in ("ok", "diverged") or (r["status"] == "diverged" and r["reason"]):
+            print(f"    {r['status']}: {r['reason']}", file=file)
+    print(
+        "(ss: steady-state error, deg, deg, mm; growth: error envelope, 1/s; "
+        "rt x: realtime factor)",
+        file=file,
+    )
+    for m in report.monte_carlo:
+        print(
+            f"\nMonte Carlo {m['scenario']}, |steady-state error| over {m['samples']} samples "
+            "(median / 90th percentile / max):",
+            file=file,
+        )
+        for g in m["groups"]:
+            cells = []
+            for axis, unit, _ in AXES:
+                st = g["axes"][axis]
+                cells.append(
+                    f"{axis} {_num(st['median'], 3)} / {_num(st['p90'], 3)} / "
+                    f"{_num(st['max'], 3)} {unit}"
+                )
+            print(f"  {g['group']:<24} n={g['n']:<3} " + "; ".join(cells), file=file)
+    if report.stability:
+        print("\nstability limit, K K_I (1/s):", file=file)
+        print(
+            f"{'scenario':<20} {'group':<26} {'analytic':>9} {'delay mdl':>9} "
+            f"{'stable <=':>9} {'unstable >=':>11} {'simulated':>9} {'sim/ana':>7}",
+            file=file,
+        )
+        for s in report.stability:
+            group = ",".join(f"{k.split('.')[-1]}={v}" for k, v in s["group"].items()) or "-"
+            print(
+                f"{s['scenario']:<20} {group:<26} {_num(s['analytic_limit']):>9} "
+                f"{_num(s['analytic_limit_delay_model']):>9} {_num(s['largest_stable']):>9} "
+                f"{_num(s['smallest_unstable']):>11} {_num(s['simulated_limit']):>9} "
+                f"{_num(s['simulated_over_analytic'], 3):>7}",
+                file=file,
+            )
+            if s["note"]:
+                print(f"    note: {s['note']}", file=file)
+    c = report.counts
+    counts = ", ".join(f"{k} {v}" for k, v in c.items() if v)
+    extra = f", {report.skipped} skipped (complete)" if report.skipped else ""
+    print(f"\n{len(report.rows)} variants: {counts}{extra}; {report.wall_s:.1f} s", file=file)
+    print(f"summary: {report.out / 'summary.csv'}", file=file)
+    for pth in report.plots:
+        print(f"plot: {pth}", file=file)
