@@ -49,12 +49,12 @@ def _physics_prediction(tree):
 
 
 def test_fit_recovers_a_known_model():
-    from simpro_mj.identification.identify import _prbs, _simulate_velocity
+    from simpro_mj.identification.identify import _prbs, simulate_velocity
 
     dt = 1e-3
     rng = np.random.default_rng(0)
     u = 5.0 + 0.2 * _prbs(8000, 20, 10, 3)
-    v = _simulate_velocity((120.0, 9.0, 300.0, 0.03), u - 5.0, dt)
+    v = simulate_velocity((120.0, 9.0, 300.0, 0.03), u - 5.0, dt)
     v += 1e-4 * rng.standard_normal(v.size)
     r = fit_eq19(u, v, dt)
     assert r["b"] == pytest.approx(120.0, rel=0.02)

@@ -9,7 +9,7 @@
 * an interrupted re-run keeps the previous complete result and writes the
   partial one beside it;
 * a failing write names the user's folder, never the hidden temporary one;
-* ``--resume`` uses :func:`simpro_mj.report.results.is_complete` only.
+* ``--resume`` uses :func:`simpro_mj.report.folders.is_complete` only.
 """
 
 from __future__ import annotations
@@ -27,7 +27,7 @@ import pytest
 
 from simpro_mj.commands.main import main
 from simpro_mj.config.scenario import load_scenario, scenarios_dir
-from simpro_mj.report import results
+from simpro_mj.report import folders, results
 
 ROOT = Path(__file__).resolve().parents[1]
 SHORT = ["--set", "duration_s=1.1", "--no-plots"]
@@ -95,7 +95,7 @@ def test_a_result_folder_is_replaced_and_an_empty_one_used(tmp_path, capsys):
     empty = tmp_path / "empty"
     empty.mkdir()
     assert main(["run", "step_pitch", "--out", str(empty), *SHORT]) == 0
-    assert results.result_kind(empty) == "run" and results.is_complete(empty)
+    assert folders.result_kind(empty) == "run" and folders.is_complete(empty)
     mask = os.umask(0o022)
     os.umask(mask)
     assert (empty.stat().st_mode & 0o777) == 0o777 & ~mask  # not mkdtemp's 0700
@@ -107,7 +107,7 @@ def test_a_result_folder_is_replaced_and_an_empty_one_used(tmp_path, capsys):
     batch = tmp_path / "b"
     assert main(["batch", "step_pitch", "--jobs", "1", "--out", str(batch), *SHORT]) == 0
     capsys.readouterr()
-    assert results.result_kind(batch) == "batch"
+    assert folders.result_kind(batch) == "batch"
     assert main(["run", "step_pitch", "--out", str(batch), *SHORT]) == 2
     assert "simpro-sim batch result" in _one_error_line(capsys.readouterr().err)
     assert main(["batch", "step_pitch", "--jobs", "1", "--out", str(empty), *SHORT]) == 2
@@ -119,8 +119,8 @@ def test_a_second_writer_is_refused_while_the_first_holds_the_folder(tmp_path, c
     first check to its last write); it says so by creating a readiness file."""
     out, ready = tmp_path / "r", tmp_path / "ready"
     code = (
-        "import sys; from pathlib import Path; from simpro_mj.report import results\n"
-        f"with results.locked({str(out)!r}):\n"
+        "import sys; from pathlib import Path; from simpro_mj.report import folders\n"
+        f"with folders.locked({str(out)!r}):\n"
         f"    Path({str(ready)!r}).touch()\n"
         "    sys.stdin.readline()\n"
     )
@@ -151,8 +151,8 @@ def test_an_interrupted_rerun_keeps_the_complete_result(tmp_path):
     extra = {"status": "interrupted", "reason": "SIGINT", "plots": False}
     where = results.write_results(out, short, {}, sc, dict(extra))
     assert where == tmp_path / "r.partial"
-    assert _snapshot(out) == before and results.is_complete(out)
-    assert (where / results.PARTIAL_MARKER).is_file() and not results.is_complete(where)
+    assert _snapshot(out) == before and folders.is_complete(out)
+    assert (where / folders.PARTIAL_MARKER).is_file() and not folders.is_complete(where)
     # a second interrupted run replaces the partial one, not the complete one
     assert results.write_results(out, short, {}, sc, dict(extra)) == where
     # a partial result is replaced in place by the next one (nothing complete lost)
@@ -192,26 +192,26 @@ def test_is_complete_is_the_one_check_and_resume_uses_it(tmp_path):
     argv = dict(sets=["duration_s=1.1"], jobs=1, plots=False, summary_plots=False)
     first = run_batch(["step_pitch"], out, **argv)
     folder = out / first.rows[0]["folder"]
-    assert results.is_complete(folder)
+    assert folders.is_complete(folder)
     # the case of the issue: a PARTIAL marker and a 0-byte time series
-    (folder / results.PARTIAL_MARKER).write_text("partial\n")
+    (folder / folders.PARTIAL_MARKER).write_text("partial\n")
     (folder / "timeseries.csv").write_bytes(b"")
-    assert not results.is_complete(folder)
+    assert not folders.is_complete(folder)
     again = run_batch(["step_pitch"], out, resume=True, **argv)
     assert again.skipped == 0 and again.rows[0]["status"] == "ok"
-    assert results.is_complete(folder)
+    assert folders.is_complete(folder)
     assert run_batch(["step_pitch"], out, resume=True, **argv).skipped == 1  # intact: skipped
     # each condition alone makes a folder incomplete
     for breaking in ("empty", "status", "marker"):
         run_batch(["step_pitch"], out, **argv)
         if breaking == "marker":
-            (folder / results.RESULT_MARKER).unlink()
+            (folder / folders.RESULT_MARKER).unlink()
         elif breaking == "empty":
             (folder / "timeseries.csv").write_bytes(b"")
         else:
             doc = json.loads((folder / "metrics.json").read_text())
             (folder / "metrics.json").write_text(json.dumps(dict(doc, status="interrupted")))
-        assert not results.is_complete(folder), breaking
+        assert not folders.is_complete(folder), breaking
     # a variant folder without the marker is not simpro-sim's: reported, not replaced
     before = _snapshot(folder)
     row = run_batch(["step_pitch"], out, resume=True, **argv).rows[0]
@@ -248,5 +248,5 @@ def test_ctrl_c_during_a_rerun_keeps_the_complete_result(tmp_path):
     last = stderr.strip().splitlines()[-1]
     assert f"partial results in {partial}" in last
     assert f"the complete result in {out} is kept" in last
-    assert _snapshot(out) == before and results.is_complete(out)
-    assert (partial / results.PARTIAL_MARKER).is_file() and not results.is_complete(partial)
+    assert _snapshot(out) == before and folders.is_complete(out)
+    assert (partial / folders.PARTIAL_MARKER).is_file() and not folders.is_complete(partial)

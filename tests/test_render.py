@@ -43,7 +43,8 @@ def pitch_run(tmp_path_factory) -> Path:
 
 
 def _scene(pitch_run, width=320, height=240, camera="side"):
-    from simpro_mj.report.render import ReplayScene, load_recording
+    from simpro_mj.report.recording import load_recording
+    from simpro_mj.report.scene import ReplayScene
 
     rec = load_recording(pitch_run)
     try:
@@ -58,7 +59,7 @@ def _scene(pitch_run, width=320, height=240, camera="side"):
 
 def test_qpos_recorded_is_the_simulated_state(pitch_run):
     """qpos.npz holds the full qpos at every logged row; its slides are q_i."""
-    from simpro_mj.report.render import load_recording
+    from simpro_mj.report.recording import load_recording
 
     rec = load_recording(pitch_run)
     m = mujoco.MjModel.from_xml_path(str(MODEL_PATH))
@@ -127,7 +128,7 @@ def _tilt_deg(ids: np.ndarray, geom_id: int) -> float:
 
 def test_pitch_step_tilts_the_rendered_platform_and_ghost(pitch_run):
     """Segmentation of the side view: the platform tilts by the logged pitch, the right way."""
-    from simpro_mj.report.render import ghost_poses, nearest_rows
+    from simpro_mj.report.recording import ghost_poses, nearest_rows
 
     rec, scene = _scene(pitch_run)
     m = scene.model
@@ -318,7 +319,8 @@ class _FakeViewer:
 
 def test_view_plays_the_recording_paced_by_the_clock(pitch_run):
     """play(): row nearest to start + speed * elapsed, ghost posed, overlay with the pose."""
-    from simpro_mj.report.render import load_recording, replay_model
+    from simpro_mj.report.recording import load_recording
+    from simpro_mj.report.scene import replay_model
     from simpro_mj.report.viewer import play
 
     rec = load_recording(pitch_run)

@@ -19,14 +19,8 @@ from controllers.frequency import (
 )
 from controllers.geometry import nominal_geometry
 from controllers.kinematics import jacobian
-from simpro_mj.analysis.response import (
-    check_periods,
-    default_periods_ms,
-    loop_model,
-    measure,
-    plan_response,
-    summary,
-)
+from simpro_mj.analysis.response import check_periods, default_periods_ms, measure, plan_response
+from simpro_mj.analysis.response_summary import loop_model, summary
 from simpro_mj.commands.main import main
 from simpro_mj.config.scenario import load_scenario
 

@@ -10,7 +10,8 @@ from controllers.geometry import nominal_geometry
 from controllers.joint import JointControllers
 from controllers.kinematics import inverse_kinematics
 from controllers.velocity_feedforward import leg_rates, leg_velocity_feedforward, velocity_gains
-from simpro_mj.analysis.response import loop_model, measure, plan_response, summary
+from simpro_mj.analysis.response import measure, plan_response
+from simpro_mj.analysis.response_summary import loop_model, summary
 from simpro_mj.config.scenario import load_scenario
 
 HOME = nominal_geometry().home

@@ -17,14 +17,23 @@ Parameters (``--set KEY=VALUE``): see :data:`DEFAULTS`.
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 
 from controllers import analysis as an
-from controllers.design import PAPER_SPEC
+from controllers.design import (
+    PAPER_SPEC,
+    READINGS,
+    design_for,
+    paper_plant,
+    paper_units_info,
+    redesigned_design,
+)
+from controllers.errors import DesignError
+from controllers.frequency import LoopModel, predict
 from controllers.geometry import nominal_geometry
 from controllers.kinematics import jacobian
+from controllers.velocity_feedforward import velocity_gains
+from simpro_mj.analysis.response_summary import figures
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.keys import check_number
 
@@ -133,7 +142,6 @@ def _check(p: dict) -> None:
             raise UserInputError(
                 f"invalid value at sweep.wn_rad_s[{k}]: {wn[k]!r}; allowed: 0 < wn <= 1e4 rad/s"
             )
-    from controllers.design import READINGS
 
     if p["paper_units"] not in READINGS:
         raise UserInputError(
@@ -227,10 +235,6 @@ def _feedforward(p: dict, spec: dict, jac, real_i: dict) -> dict:
     (:func:`controllers.frequency.predict`), beside the joint-only scheme and
     the I law at ``outer.gain``.
     """
-    from controllers.design import design_for, paper_plant
-    from controllers.frequency import LoopModel, predict
-    from controllers.velocity_feedforward import velocity_gains
-    from simpro_mj.analysis.response import figures
 
     o, i, ff = p["outer"], p["inner"], p["feedforward"]
     reading = p["paper_units"]
@@ -298,8 +302,6 @@ def compute(p: dict) -> dict:
         spec["p1"] = i["p1_rad_s"]
     if i["p2_rad_s"] is not None:
         spec["p2"] = i["p2_rad_s"]
-    from controllers.design import redesigned_design
-    from controllers.errors import DesignError
 
     for act in ACTUATORS:  # the redesign must be feasible before anything is computed
         try:
@@ -309,7 +311,6 @@ def compute(p: dict) -> dict:
                 f"infeasible joint design at inner.wn_rad_s: {exc}; allowed: a zeta, wn_rad_s "
                 "(and p1_rad_s, p2_rad_s) the pole placement can meet, e.g. 0.7, 10"
             ) from exc
-    from controllers.design import paper_units_info
 
     units = paper_units_info(p["paper_units"])
     res: dict = {"paper": PAPER, "paper_units": units, "inner": {}, "outer": {}}
@@ -403,218 +404,6 @@ def _strip(obj):
     if isinstance(obj, float) and not np.isfinite(obj):
         return None if np.isnan(obj) else ("inf" if obj > 0 else "-inf")
     return obj
-
-
-def plot(res: dict, p: dict, out: Path) -> list[str]:
-    """Root loci (Figs. 8-9), step responses and the delay-assumption plot as PNG."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    out.mkdir(parents=True, exist_ok=True)
-    files = []
-    o = p["outer"]
-    th = np.linspace(0, 2 * np.pi, 400)
-    for mode, fig_no in (("I", 8), ("PI", 9)):
-        r = res["outer"][mode]
-        a, b = r["_ab"]
-        gains = np.linspace(0.0, o["locus_gain_max"], 1201)
-        loc = an.root_locus(a, b, gains)
-        fig, ax = plt.subplots(figsize=(6, 6))
-        ax.plot(np.cos(th), np.sin(th), "k:", lw=0.8, label="unit circle")
-        for j in range(loc.shape[1]):
-            ax.plot(loc[:, j].real, loc[:, j].imag, ".", ms=1.5, color="C0")
-        pz = np.array([complex(*v) for v in r["poles"]])
-        ax.plot(pz.real, pz.imag, "rs", label=f"poles at K K_I = {r['gain']:g}")
-        lim = r["stability_limit"]
-        pl = an.outer_poles(mode, lim, o["period_s"], o["delay_samples"], o["pi_zero"])
-        ax.plot(
-            pl.real,
-            pl.imag,
-            "kx",
-            ms=9,
-            label=f"limit K K_I = {lim:.2f} (paper {r['paper_stability_limit']:g})",
-        )
-        ax.set_aspect("equal")
-        ax.set_xlabel("Re z")
-        ax.set_ylabel("Im z")
-        ax.set_title(
-            f"{mode} law, T = {o['period_s'] * 1e3:g} ms, one-sample inner delay "
-            f"(cf. Fig. {fig_no})",
-            fontsize=9,
-        )
-        ax.legend(fontsize=8, loc="lower left")
-        ax.grid(alpha=0.3)
-        f = out / f"root_locus_{mode}.png"
-        fig.savefig(f, dpi=120)
-        plt.close(fig)
-        files.append(str(f))
-
-    fig, ax = plt.subplots(figsize=(8, 4.5))
-    for mode, c in (("I", "C0"), ("PI", "C1")):
-        r = res["outer"][mode]
-        ax.step(
-            r["_t"],
-            r["_y"],
-            where="post",
-            color=c,
-            label=f"{mode}, K K_I={r['gain']:g}, delay model",
-        )
-        rr = res["outer"]["real_inner"][mode]
-        ax.plot(
-            rr["_t"],
-            rr["_y"][:, 2],
-            color=c,
-            ls="--",
-            label=f"{mode}, real inner loops ({rr['variant']}), heave",
-        )
-    ff = res["outer"]["feedforward"]
-    lag = (
-        "lag from the joints" if ff["lag"] == "joints" else f"model {ff['model_tau_s'] * 1e3:g} ms"
-    )
-    label = f"feedforward, K K_I={ff['gain']:g}, {lag}, pitch"
-    ax.plot(ff["_t"], ff["_y"][:, 1], color="C2", label=label)
-    ax.axhline(1.0, color="k", lw=0.6)
-    ax.set_ylim(-0.5, 2.0)
-    ax.set_xlabel("t (s)")
-    ax.set_ylabel("task output / step")
-    ax.set_title("Outer-loop unit-step responses", fontsize=9)
-    ax.legend(fontsize=8)
-    ax.grid(alpha=0.3)
-    f = out / "outer_step.png"
-    fig.savefig(f, dpi=120)
-    plt.close(fig)
-    files.append(str(f))
-
-    fig, axes = plt.subplots(1, 2, figsize=(10, 4), sharey=True)
-    for ax, act in zip(axes, ACTUATORS, strict=True):
-        for var in VARIANTS:
-            r = res["inner"][act][var]
-            ax.plot(r["_t"], r["_y"], label=f"{var} (OS {r['step']['overshoot_pct']:.0f} %)")
-        ax.axvline(o["period_s"], color="k", ls=":", lw=0.8, label="outer period")
-        ax.set_title(f"{act}: joint-loop step (continuous)", fontsize=9)
-        ax.set_xlabel("t (s)")
-        ax.grid(alpha=0.3)
-        ax.legend(fontsize=8)
-    axes[0].set_ylabel("q / q_d")
-    f = out / "inner_step.png"
-    fig.savefig(f, dpi=120)
-    plt.close(fig)
-    files.append(str(f))
-
-    rows = res["outer"]["delay_assumption_sweep"]["rows"]
-    if rows:
-        fig, ax = plt.subplots(figsize=(7, 4))
-        wn = [r["wn_rad_s"] for r in rows]
-        ax.semilogx(wn, [r["I_stability_limit"] for r in rows], "o-", label="I, real inner")
-        ax.semilogx(wn, [r["PI_stability_limit"] for r in rows], "s-", label="PI, real inner")
-        dm = res["outer"]["delay_assumption_sweep"]["delay_model"]
-        ax.axhline(dm["I_stability_limit"], color="C0", ls=":", label="I, delay model")
-        ax.axhline(dm["PI_stability_limit"], color="C1", ls=":", label="PI, delay model")
-        ax.set_xlabel("inner-loop wn (rad/s), zeta = 0.7, redesigned")
-        ax.set_ylabel("largest stable K K_I")
-        ax.set_title(
-            f"When is the inner loop a one-sample delay? T = {o['period_s'] * 1e3:g} ms", fontsize=9
-        )
-        ax.grid(alpha=0.3, which="both")
-        ax.legend(fontsize=8)
-        f = out / "delay_assumption.png"
-        fig.savefig(f, dpi=120)
-        plt.close(fig)
-        files.append(str(f))
-    return files
-
-
-def summary(res: dict, files: list[str]) -> str:
-    u = res["paper_units"]
-    lines = [
-        f"Inner (joint) loops, continuous, plants eqs. (34)-(35); paper_units = {u['reading']} "
-        f"(Y in {u['y_unit']}, {u['y_per_metre']:g} per m): k_p in V/m"
-    ]
-    for act in ACTUATORS:
-        for var in VARIANTS:
-            r = res["inner"][act][var]
-            d = r["slowest_complex_pair"]
-            st = r["step"]
-            lines.append(
-                f"  {act:9s} {var:10s} k_p={r['controller']['kp']:7.1f} slowest pair "
-                f"zeta={d['zeta']:.3f} wn={d['wn_rad_s']:.2f} "
-                f"rad/s | rise {st['rise_time_s']:.3f} s, settle {st['settling_time_s']:.3f} s, "
-                f"OS {st['overshoot_pct']:.1f} %, q(T)/q_d={r['fraction_at_outer_period']:.2f}"
-            )
-    o = res["outer"]
-    lines.append("Outer loop, inner loop = delay (eqs. 21, 24):")
-    for m in ("I", "PI"):
-        r = o[m]
-        lines.append(
-            f"  {m:2s} T={r['period_s'] * 1e3:g} ms d={r['delay_samples']}: limit K K_I < "
-            f"{r['stability_limit']:.3f} (paper {r['paper_stability_limit']:g}); "
-            f"poles at {r['gain']:g}: " + ", ".join(f"{complex(*z):.4f}" for z in r["poles"])
-        )
-    for m in ("I", "PI"):
-        r = o["alt_period"][m]
-        lines.append(
-            f"  {m:2s} T={r['period_s'] * 1e3:g} ms d={r['delay_samples']}: limit K K_I < "
-            f"{r['stability_limit']:.3f}"
-        )
-    ri = o["real_inner"]
-    lines.append(f"Outer loop around the real inner loops ({ri['I']['variant']}, J at home):")
-    for key, r in (
-        ("I", ri["I"]),
-        ("PI", ri["PI"]),
-        ("I", ri["alt_period"]["I"]),
-        ("PI", ri["alt_period"]["PI"]),
-    ):
-        legs = ", ".join(f"{k} {v:.2f}" for k, v in r["stability_limit_per_leg"].items())
-        lines.append(
-            f"  {key:2s} T={r['period_s'] * 1e3:g} ms: limit {r['stability_limit']:.3f} "
-            f"(per leg: {legs}); at K K_I={r['gain']:g}: rho={r['spectral_radius_at_gain']:.4f}"
-            f" {'stable' if r['stable_at_gain'] else 'UNSTABLE'}"
-        )
-    for var, r in ri["by_variant"].items():
-        lines.append(
-            f"  {var:10s} T={res['outer']['I']['period_s'] * 1e3:g} ms: "
-            + "; ".join(
-                f"{m} limit {r[m]['stability_limit']:.3f} (per leg "
-                + ", ".join(f"{k} {v:.2f}" for k, v in r[m]["per_leg"].items())
-                + ")"
-                for m in ("I", "PI")
-            )
-        )
-    ff = o["feedforward"]
-    st = ff["step_pitch"]
-    lines.append(
-        f"Feed-forward scheme (lag {ff['lag']}"
-        + (f", model tau {ff['model_tau_s'] * 1e3:g} ms" if ff["lag"] == "model" else "")
-        + f", K K_I = {ff['gain']:g}): limit {ff['stability_limit']:.3f}"
-        + (" (1/T)" if ff["lag"] == "joints" else " (the I loop's)")
-        + "; pitch step "
-        + (
-            f"rise {st['rise_time_s']:.3f} s, OS {st['overshoot_pct']:.1f} %, "
-            f"settle {st['settling_time_s']:.3f} s"
-            if st
-            else "unstable"
-        )
-    )
-    for mode, axes in ff["frequency_response"].items():
-        v = axes["pitch"]
-        bw = v["bandwidth_3db_hz"]
-        bw_text = f">{v['bandwidth_above_hz']:.2f}" if bw is None else f"{bw:.2f}"
-        lines.append(
-            f"  {mode:11s} pitch: bandwidth {bw_text} Hz, phase "
-            f"{v['phase_deg_at_0_5_hz']:.1f} deg at 0.5 Hz, {v['phase_deg_at_1_hz']:.1f} at 1 Hz, "
-            f"delay {v['equivalent_delay_ms']:.0f} ms"
-        )
-    lines.append("Delay assumption (redesigned inner loops, wn swept):")
-    for r in o["delay_assumption_sweep"]["rows"]:
-        lines.append(
-            f"  wn={r['wn_rad_s']:6.1f} rad/s: q(T)/q_d={r['inner_fraction_at_T']:.2f}, "
-            f"limits I {r['I_stability_limit']:.2f}, PI {r['PI_stability_limit']:.2f}"
-        )
-    if files:
-        lines.append("Plots: " + ", ".join(files))
-    return "\n".join(lines)
 
 
 def document(res: dict, p: dict, files: list[str]) -> dict:

@@ -51,11 +51,19 @@ import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
+import mujoco
 import numpy as np
 
-from controllers.frequency import CHAIN_CHANNELS, OMCT_RAD_S, chain_response, fit_sine
+from controllers.frequency import CHAIN_CHANNELS, OMCT_RAD_S, chain_response, fit_sine, predict
+from controllers.kinematics import inverse_kinematics
+from controllers.washout import ClassicalWashout
+from simpro_mj.analysis.response import check_run_length, check_settle_periods, failures, measure
+from simpro_mj.analysis.response_summary import loop_model
+from simpro_mj.config.cueing import check_cueing, vehicle_input, washout_params
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.messages import one_line
+from simpro_mj.plant.model import assemble
+from simpro_mj.sim.loop import CoSimulation
 
 __all__ = [
     "CHANNELS",
@@ -151,8 +159,6 @@ def plan_chain(
     periods: int = 2,
 ) -> ChainPlan:
     """Check the test's parameters and build its tasks (plain data for the workers)."""
-    from simpro_mj.analysis.response import check_run_length, check_settle_periods
-
     af = _check_amplitude(
         DEFAULT_AMPLITUDES["f"] if amplitude_mps2 is None else amplitude_mps2, "f"
     )
@@ -196,8 +202,6 @@ def plan_chain(
 
 def _cue_block(scenario: Mapping) -> dict:
     """The scenario's cueing block (its algorithm and parameters), or the defaults."""
-    from simpro_mj.config.cueing import check_cueing
-
     cue = (scenario.get("setpoint") or {}).get("cueing")
     if cue:
         return {"algorithm": cue["algorithm"], "parameters": dict(cue["parameters"])}
@@ -269,9 +273,6 @@ def measure_chain_point(task: Mapping) -> dict:
     rail), ``rate_limited_pct`` and ``softened_pct`` (fitted cueing samples where the
     tilt rate limit or the workspace soft limit acted).
     """
-    from simpro_mj.config.cueing import vehicle_input
-    from simpro_mj.sim.loop import CoSimulation
-
     try:
         res = CoSimulation(task["scenario"]).run()
         if res.status != "ok":
@@ -304,8 +305,6 @@ def measure_chain_point(task: Mapping) -> dict:
 
 def measure_chain(plan: ChainPlan, *, jobs: int = 1, scheduler=None, progress: bool = False):
     """Run every task of ``plan``; results in task order (:func:`measure_chain_point`)."""
-    from simpro_mj.analysis.response import measure
-
     return measure(
         plan,
         jobs=jobs,
@@ -324,12 +323,6 @@ def head_jacobian(scenario: Mapping, step: float = 1e-4) -> np.ndarray:
     moves the head by more than a rigid rotation about P: P itself moves back and
     forth on the guide's arc (0.43 m per rad of pitch, 0.50 m per m of heave).
     """
-    import mujoco
-
-    from controllers.kinematics import inverse_kinematics
-    from simpro_mj.plant.model import assemble
-    from simpro_mj.sim.loop import CoSimulation
-
     cs = CoSimulation(dict(scenario))
     m, d, idx, c = cs.model, cs.data, cs.idx, cs.sensor_cfg
     home = np.asarray(cs.geometry.home, float)
@@ -353,16 +346,11 @@ def head_jacobian(scenario: Mapping, step: float = 1e-4) -> np.ndarray:
 def predictions(plan: ChainPlan, omega) -> dict:
     """``washout`` and ``predicted`` (or None when the loop has no linear model):
     complex (len(omega), 5, 5) per :func:`controllers.frequency.chain_response`."""
-    from controllers.frequency import predict
-    from controllers.washout import ClassicalWashout
-    from simpro_mj.config.cueing import washout_params
 
     sc = plan.tasks[0]["scenario"] if plan.tasks else plan.scenario
     wash = ClassicalWashout(washout_params(sc["setpoint"]["cueing"]))
     out = {"washout": chain_response(wash, omega), "predicted": None, "note": None}
     try:
-        from simpro_mj.analysis.response import loop_model
-
         loop = predict(loop_model(sc), omega)["true"]
         t = np.diag([-1.0, -1.0, 1.0])  # base <-> ISO angles (controllers.frames)
         out["predicted"] = chain_response(
@@ -391,7 +379,6 @@ def chain_summary(plan: ChainPlan, results: list) -> dict:
     at = np.searchsorted(dense, omega)
     pred = predictions(plan, dense)
     by_key = {(r.get("channel"), r.get("period_ms")): r for r in results if r.get("status") == "ok"}
-    from simpro_mj.analysis.response import failures
 
     failed = failures(plan.tasks, results, "channel")
     rows = []

@@ -36,6 +36,8 @@ from collections.abc import Mapping
 
 import numpy as np
 
+from simpro_mj.config.cueing import cue_metrics  # issue 16: vehicle vs simulator, perceived
+
 __all__ = [
     "AXES",
     "UNITS",
@@ -118,6 +120,13 @@ def step_info(
     floor: float = 0.0,
 ) -> dict:
     """Rise time, overshoot and settling time of a step response.
+
+    Not :func:`controllers.analysis.step_metrics` (:func:`control.step_info`):
+    that one reads the crossings on the sample grid and settles in a band
+    proportional to the final value; a run's figures interpolate the 10 %,
+    90 % and band crossings between logged rows and give the band a floor
+    (the sensors' resolution, :data:`SETTLING_FLOOR`), and the reference
+    metrics (``tests/test_reference_metrics.py``) hold these numbers.
 
     Parameters
     ----------
@@ -289,8 +298,6 @@ def compute_metrics(columns: Mapping[str, np.ndarray], scenario: Mapping) -> dic
                 m[key] = info[key]
         result["axes"][axis] = m
     if scenario.get("setpoint", {}).get("cueing") and "head_fx_mps2" in columns:
-        from simpro_mj.config.cueing import cue_metrics  # issue 16: vehicle vs simulator, perceived
-
         result["cueing"] = cue_metrics(columns, scenario)
     for i in (1, 2, 3):
         qr, qm = f"q{i}_ref_m", f"q{i}_m"

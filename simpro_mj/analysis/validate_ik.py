@@ -28,6 +28,7 @@ import mujoco
 import numpy as np
 
 from controllers.errors import WorkspaceError
+from controllers.geometry import nominal_geometry
 from controllers.kinematics import check_reachable, inverse_kinematics, paper_inverse_kinematics
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.keys import apply_overrides, check_number
@@ -104,8 +105,6 @@ def validate(params: dict | None = None) -> dict:
     drive_ids = np.array([model.eq(f"drive{i}").id for i in (1, 2, 3)])
     q_ref0 = model.qpos0[idx.slide_qpos].copy()  # joint equality acts on qpos - qpos0
 
-    from controllers.geometry import nominal_geometry
-
     home = nominal_geometry().home
     dt = model.opt.timestep
     n = int(round(p["trajectory"]["duration_s"] / dt))
@@ -179,6 +178,7 @@ def validate(params: dict | None = None) -> dict:
 
 def plot(res: dict, out: Path) -> Path:
     """Desired vs simulated pose and the paper IK's leg displacements (Agg)."""
+    # matplotlib when the figure is drawn (--no-plot skips it)
     import matplotlib
 
     matplotlib.use("Agg")

@@ -35,17 +35,28 @@ from __future__ import annotations
 
 import copy
 import os
+import shutil
 import statistics
+import tempfile
 import time
+from concurrent.futures import ProcessPoolExecutor
+from multiprocessing import get_context
+from pathlib import Path
 
+import mujoco
+import numpy as np
+from mujoco import rollout
+
+from simpro_mj.core.errors import PhysicsError
+from simpro_mj.plant.model import load_model
 from simpro_mj.report.machine import describe_machine
+from simpro_mj.report.render import render_video, require_video
+from simpro_mj.report.runner import execute
+from simpro_mj.sim.loop import CoSimulation, simulate
+from simpro_mj.sim.readiness import signal_ready
+from simpro_mj.sim.workers import init_worker, stop_pool
 
 STAGES = ("sensors", "controllers", "pneumatics", "physics", "logging")
-
-
-#: Upper bounds of the counts (a benchmark of the median of 100 is already minutes).
-MAX_REPEATS = 100
-MAX_BATCH_RUNS = 64
 
 
 # ------------------------------------------------------------------ measurements
@@ -57,11 +68,6 @@ def _record(scenario: dict, model):
     Logging does not touch the dynamics, so the trajectory is the timed runs'
     whatever their decimation.
     """
-    import mujoco
-    import numpy as np
-
-    from simpro_mj.sim.loop import CoSimulation
-
     sc = copy.deepcopy(scenario)
     sc["logging"]["decimation"] = 1
     cs = CoSimulation(sc, model=model)
@@ -72,8 +78,6 @@ def _record(scenario: dict, model):
     warm0 = cs.data.qacc_warmstart.copy()
     res = cs.run()
     if res.status != "ok":
-        from simpro_mj.core.errors import PhysicsError
-
         raise PhysicsError(f"the benchmark scenario did not run to the end: {res.reason}")
     n = res.sim["steps"]
     ctrl = np.zeros((n, model.nu))
@@ -84,10 +88,6 @@ def _record(scenario: dict, model):
 
 def _bare_rollout(model, state0, warm0, ctrl, final_qpos) -> tuple[float, bool]:
     """us per mj_step replaying ``ctrl`` in C (mujoco.rollout); and trajectory match."""
-    import mujoco
-    import numpy as np
-    from mujoco import rollout
-
     spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
     n = len(ctrl)
     data = mujoco.MjData(model)
@@ -101,9 +101,6 @@ def _bare_rollout(model, state0, warm0, ctrl, final_qpos) -> tuple[float, bool]:
 
 def _bare_python(model, state0, warm0, ctrl, final_qpos) -> tuple[float, bool]:
     """us per mj_step replaying ``ctrl`` from a Python loop; and trajectory match."""
-    import mujoco
-    import numpy as np
-
     spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
     data = mujoco.MjData(model)
     mujoco.mj_setState(model, data, state0, spec)
@@ -119,8 +116,6 @@ def _bare_python(model, state0, warm0, ctrl, final_qpos) -> tuple[float, bool]:
 
 def _batch_job(scenario: dict) -> float:
     """Worker: run one scenario (model built in this process); simulated seconds."""
-    from simpro_mj.sim.loop import simulate
-
     res = simulate(scenario)
     return res.sim["simulated_s"]
 
@@ -131,9 +126,6 @@ def _warm_up(_=None) -> bool:
     Sleeps a little so that, with as many tasks in flight as workers, each
     worker takes one.
     """
-    from simpro_mj.plant.model import load_model
-    from simpro_mj.sim.loop import CoSimulation  # noqa: F401
-
     load_model()
     time.sleep(0.2)
     return True
@@ -155,13 +147,6 @@ def measure(
     and an instrumented run, so that a change of machine load during the
     benchmark touches all of them alike; the medians are reported.
     """
-    from concurrent.futures import ProcessPoolExecutor
-    from multiprocessing import get_context
-
-    from simpro_mj.plant.model import load_model
-    from simpro_mj.sim.loop import CoSimulation
-    from simpro_mj.sim.readiness import signal_ready
-    from simpro_mj.sim.workers import init_worker, stop_pool
 
     def say(msg):
         if log is not None:
@@ -273,3 +258,69 @@ def table(r: dict) -> str:
             f"    2 workers          {tp['workers_2']:8.1f}   (x{tp['speedup']:.2f})",
         ]
     return "\n".join(lines)
+
+
+# ------------------------------------------------------------------ video
+
+#: Issue 17's target for the video benchmark (s, on a 2-core machine).
+BENCH_TARGET_S = 90.0
+
+
+def measure_video(scenario: dict, *, fps=25.0, size=(640, 480), jobs=None, progress=True) -> dict:
+    """Time a replay video of a run (``simpro-sim bench --video``).
+
+    The scenario is run first (not timed) into a temporary folder, then
+    rendered with the plot strip and the ghost; ``render_s`` is the wall time
+    of :func:`render_video` from the start of the worker processes to the
+    closed MP4 (strip drawing, encoding and worker start-up included).
+    """
+    require_video()
+    tmp = Path(tempfile.mkdtemp(prefix="simpro-video-bench-"))
+    try:
+        execute(scenario, tmp / "run", plots=False, quiet=True)
+        info = render_video([tmp / "run"], tmp / "run" / "replay.mp4", fps=fps, size=size,
+                            jobs=jobs, progress=progress)  # fmt: skip
+        mb = (tmp / "run" / "replay.mp4").stat().st_size / 1e6
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    return {
+        "scenario": scenario.get("name"),
+        "duration_s": scenario["duration_s"],
+        "fps": fps,
+        "size": f"{size[0]}x{size[1]}",
+        "video_size": f"{info['width']}x{info['height']}",
+        "frames": info["frames"],
+        "workers": info["workers"],
+        "gl": info["gl"],
+        "render_s": info["wall_s"],
+        "s_per_frame": info["s_per_frame"],
+        "worker_s_per_frame": info["s_per_frame"] * info["workers"],
+        # CPU time the workers spent per frame: what the frames cost on an idle machine
+        "worker_cpu_s_per_frame": info["worker_cpu_s_per_frame"],
+        "load_average": os.getloadavg()[0] if hasattr(os, "getloadavg") else None,
+        "mp4_mb": mb,
+        "target_s": BENCH_TARGET_S,
+        "within_target": info["wall_s"] <= BENCH_TARGET_S,
+        "machine": describe_machine(),
+    }
+
+
+def video_table(r: dict) -> str:
+    """The human table of a :func:`measure_video` result."""
+    m = r["machine"]
+    return "\n".join(
+        [
+            f"video benchmark: {r['scenario']}, {r['duration_s']:g} s at {r['fps']:g} fps, "
+            f"{r['size']} view + plot strip ({r['video_size']}), ghost on",
+            f"  frames            {r['frames']}",
+            f"  workers           {r['workers']} (MUJOCO_GL={r['gl']})",
+            f"  render wall time  {r['render_s']:.1f} s (target <= {r['target_s']:g} s: "
+            f"{'met' if r['within_target'] else 'NOT met'})",
+            f"  per frame         {r['s_per_frame']:.3f} s wall, "
+            f"{r['worker_s_per_frame']:.3f} s per worker, "
+            f"{r['worker_cpu_s_per_frame']:.3f} s of worker CPU",
+            f"  load average      {r['load_average']} (other jobs slow the wall time)",
+            f"  MP4               {r['mp4_mb']:.1f} MB",
+            f"  machine           {m['cpu']}, {m['cores']} cores, MuJoCo {m['mujoco']}",
+        ]
+    )

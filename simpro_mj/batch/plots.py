@@ -31,6 +31,9 @@ matplotlib.use("Agg")
 import numpy as np  # noqa: E402
 from matplotlib.figure import Figure  # noqa: E402
 
+from simpro_mj.config.sweep import format_value  # noqa: E402
+from simpro_mj.report.results import read_timeseries  # noqa: E402
+
 __all__ = ["plot_summary", "plot_metric_vs_param", "plot_responses", "plot_mc"]
 
 DPI = 110
@@ -56,7 +59,6 @@ def _x(value) -> float | None:
 
 
 def _combo(row: Mapping, paths, skip=None) -> str:
-    from simpro_mj.config.sweep import format_value
 
     parts = [f"{p.split('.')[-1]}={format_value(row['values'][p])}" for p in paths if p != skip]
     return ", ".join(parts) or "all"
@@ -143,8 +145,6 @@ def plot_metric_vs_param(rows: list[dict], info: Mapping, stability: list[dict],
 
 def plot_responses(rows: list[dict], info: Mapping, batch_out: Path, out: Path):
     """Task-space responses of the variants overlaid; None if none has a time series."""
-    from simpro_mj.report.results import read_timeseries
-
     grid = info["grid_paths"]
     runs = [r for r in rows if r["status"] in ("ok", "diverged") and r["folder"]][:MAX_OVERLAY]
     if not runs:

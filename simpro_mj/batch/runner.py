@@ -63,7 +63,7 @@ worker for :data:`NO_WORKERS_S` seconds ends the batch the same way with
 handlers are installed and the variants submitted.
 
 ``--resume`` skips a variant whose folder is complete
-(:func:`simpro_mj.report.results.is_complete`: the result marker, ``metrics.json``
+(:func:`simpro_mj.report.folders.is_complete`: the result marker, ``metrics.json``
 with status ``ok`` or ``diverged``, a non-empty ``timeseries.csv``, no
 ``PARTIAL``) and whose ``scenario.hash`` equals the variant's
 :func:`~simpro_mj.config.scenario.scenario_hash`. Anything else is recomputed.
@@ -71,7 +71,7 @@ with status ``ok`` or ``diverged``, a non-empty ``timeseries.csv``, no
 ``--out`` must be new, empty or an earlier batch's folder (its
 ``.simpro-result`` marker of kind ``batch``); anything else is refused (exit
 2) before anything runs, and a second batch writing the same ``--out`` at the
-same time is refused (:func:`simpro_mj.report.results.claim`). The row of a skipped
+same time is refused (:func:`simpro_mj.report.folders.claim`). The row of a skipped
 variant is rebuilt from its files, so the summary is complete and the same as a fresh run's.
 
 Layout
@@ -100,7 +100,7 @@ from simpro_mj.batch.tables import monte_carlo_table, stability_table
 from simpro_mj.batch.worker import install, run_variant
 from simpro_mj.config.scenario import scenario_hash
 from simpro_mj.core.errors import UserInputError
-from simpro_mj.report.results import claim, is_complete, write_marker
+from simpro_mj.report.folders import claim, is_complete, write_marker
 from simpro_mj.report.runner import sigterm_as_interrupt
 from simpro_mj.sim import executors as _executors
 from simpro_mj.sim.executors import MAX_JOBS, NoWorkers, Progress, dask_module, run_tasks
@@ -227,7 +227,7 @@ def _run_batch(
 def _complete(folder: Path, scenario: Mapping) -> dict | None:
     """The metrics.json document of a complete result folder for ``scenario``, else None.
 
-    Complete is :func:`simpro_mj.report.results.is_complete` (the one documented
+    Complete is :func:`simpro_mj.report.folders.is_complete` (the one documented
     check), and the folder's scenario hash must be the variant's.
     """
 

@@ -18,7 +18,7 @@ from pathlib import Path
 from simpro_mj.batch.stability import stability_of_folder
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.messages import one_line
-from simpro_mj.report.results import install_folder
+from simpro_mj.report.folders import install_folder
 from simpro_mj.report.runner import execute
 
 __all__ = ["install", "run_variant"]

@@ -8,9 +8,10 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from simpro_mj.analysis.analyze import DEFAULTS, compute, document, plot, summary
+from simpro_mj.analysis.analyze import DEFAULTS, compute, document
 from simpro_mj.core.jsonout import emit_json
 from simpro_mj.core.keys import apply_overrides
+from simpro_mj.report.analyze import plot, summary
 
 HELP = "stability analysis of the joint and task-space loops (root loci, Jury limits)"
 

@@ -11,8 +11,8 @@ from pathlib import Path
 from simpro_mj.config.scenario import load_scenario
 from simpro_mj.core.jsonout import emit_json
 from simpro_mj.report.compare import compare, table
+from simpro_mj.report.folders import claim, write_marker
 from simpro_mj.report.render import require_video
-from simpro_mj.report.results import claim, write_marker
 from simpro_mj.report.runner import EXIT_INTERRUPTED, interrupted_message, sigterm_as_interrupt
 from simpro_mj.report.video_options import add_video_flag, video_after_run
 

@@ -9,7 +9,6 @@ from pathlib import Path
 
 from simpro_mj.core.jsonout import emit_json
 from simpro_mj.core.keys import apply_overrides
-from simpro_mj.identification.identify import default_tree, document, identify, plot, summary
 
 HELP = "identify eq. (19) per actuator in simulation (Fig. 12: P loop + PRBS, least squares)"
 
@@ -38,6 +37,10 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
+    # the experiment loads MuJoCo and scipy: after argparse has checked the options
+    from simpro_mj.identification.identify import default_tree, document, identify
+    from simpro_mj.report.identify import plot, summary
+
     tree = apply_overrides(default_tree(args.preset), args.sets)
     if args.duration is not None:
         tree["identify"]["duration_s"] = float(args.duration)

@@ -110,6 +110,7 @@ def _check_gl_backend() -> str | None:
     try:
         import mujoco  # noqa: F401
     except Exception as exc:  # noqa: BLE001 - only MUJOCO_GL can break this import
+        # only when MUJOCO_GL is broken: every command starts without the render room
         from simpro_mj.report.render import GL_LIBRARIES
 
         gl = os.environ.get("MUJOCO_GL", "")

@@ -15,6 +15,7 @@ from pathlib import Path
 from simpro_mj.config.manoeuvres import MANOEUVRES, ManoeuvreSpec, generate
 from simpro_mj.config.telemetry import write_telemetry
 from simpro_mj.core.errors import UserInputError
+from simpro_mj.core.jsonout import emit_json
 from simpro_mj.core.keys import apply_overrides
 
 HELP = "generate a vehicle manoeuvre (braking, lane_change, slalom, bump) as telemetry CSV"
@@ -91,8 +92,6 @@ def run(args) -> int:
         ],
     }
     if args.json:
-        from simpro_mj.core.jsonout import emit_json
-
         emit_json(summary)
     else:
         print(f"wrote {out}: {tel.source}, {tel.t[-1]:.2f} s, {tel.t.size} samples")

@@ -11,7 +11,8 @@ import sys
 from pathlib import Path
 
 from simpro_mj.core.jsonout import emit_json
-from simpro_mj.report.render import find_runs, render_video
+from simpro_mj.report.recording import find_runs
+from simpro_mj.report.render import render_video
 from simpro_mj.report.runner import sigterm_as_interrupt
 from simpro_mj.report.video_options import add_video_options, said, video_options
 

@@ -20,8 +20,9 @@ from pathlib import Path
 
 from simpro_mj.config.scenario import load_scenario
 from simpro_mj.core.jsonout import emit_json
+from simpro_mj.report.folders import claim
 from simpro_mj.report.render import require_video
-from simpro_mj.report.results import claim, print_summary
+from simpro_mj.report.results import print_summary
 from simpro_mj.report.runner import (
     EXIT_INTERRUPTED,
     execute,

@@ -6,7 +6,6 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from simpro_mj.analysis.validate_ik import DEFAULTS, SUMMARY_KEYS, plot, summary, validate
 from simpro_mj.core.jsonout import emit_json
 from simpro_mj.core.keys import apply_overrides
 
@@ -19,6 +18,9 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
+    # the validation loads MuJoCo: after argparse has checked the options
+    from simpro_mj.analysis.validate_ik import DEFAULTS, SUMMARY_KEYS, plot, summary, validate
+
     params = apply_overrides(DEFAULTS, args.sets)
     res = validate(params)
     plot_path = None if args.no_plot else plot(res, Path(args.out))

@@ -13,7 +13,7 @@ or GLFW cannot start) the command stops with one line suggesting
 from __future__ import annotations
 
 from simpro_mj.core.errors import UserInputError
-from simpro_mj.report.render import replay_model
+from simpro_mj.report.scene import replay_model
 from simpro_mj.report.video_options import number
 from simpro_mj.report.viewer import check_display, play, recording_for
 

@@ -6,6 +6,7 @@ import numpy as np
 
 from controllers.geometry import nominal_geometry
 from controllers.workspace import combined_ranges, workspace_ranges
+from simpro_mj.core.jsonout import emit_json
 from simpro_mj.core.keys import apply_overrides, check_number
 
 HELP = "print the reachable workspace (single-axis ranges and their combinations)"
@@ -41,8 +42,6 @@ def run(args) -> int:
         ],
     }
     if args.json:
-        from simpro_mj.core.jsonout import emit_json
-
         emit_json(out)
         return 0
     print(f"Reachable workspace (stroke 0..500 mm, margin {p['margin_mm']} mm), about home:")

@@ -1,6 +1,7 @@
 """The base every room stands on (imports nothing of the project).
 
 - :mod:`.errors`: ``UserInputError`` (a ``ValueError``), ``PhysicsError`` and the others.
+- :mod:`.messages`: an exception as one line (the CLI's errors, a task's reason).
 - :mod:`.keys`: dotted keys (``--set KEY=VALUE``), key checks and their one-line
   messages (``closest`` valid key, allowed values).
 - :mod:`.safe_yaml`: YAML without aliases bombs or non-finite surprises.

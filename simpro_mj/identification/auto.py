@@ -35,6 +35,18 @@ import tempfile
 from collections.abc import Mapping
 from pathlib import Path
 
+import mujoco
+import numpy as np
+
+from simpro_mj import __version__
+from simpro_mj.config.presets import scenario_overlay
+from simpro_mj.config.scenario import (
+    DEFAULT_SCENARIO,
+    IDENTIFY_CHOICES,  # values of controller.inner.identify
+    _merge,
+)
+from simpro_mj.identification import identify as identify_module
+
 __all__ = [
     "IDENTIFY_CHOICES",
     "cache_dir",
@@ -43,8 +55,6 @@ __all__ = [
     "identified_models",
     "with_identified",
 ]
-
-from simpro_mj.config.scenario import IDENTIFY_CHOICES  # values of controller.inner.identify
 
 _ACTS = ("actuator1", "actuator2", "actuator3")
 _memo: dict[str, dict] = {}
@@ -63,11 +73,9 @@ def cache_dir() -> Path:
 def plant_tree(scenario: Mapping) -> dict:
     """The ``identify`` tree of the scenario's own plant: its preset's experiment
     settings with the scenario's ``plant`` and ``actuator.pneumatics`` values."""
-    from simpro_mj.config.scenario import _merge
-    from simpro_mj.identification.identify import default_tree
 
     preset = scenario["plant"]["preset"]
-    tree = default_tree(preset)
+    tree = identify_module.default_tree(preset)
     model = {k: v for k, v in scenario["plant"].items() if k != "preset"}
     tree["model"] = _merge(tree["model"], model)
     tree["pneumatics"] = _merge(tree["pneumatics"], scenario["actuator"].get("pneumatics") or {})
@@ -78,10 +86,6 @@ def plant_tree(scenario: Mapping) -> dict:
 def plant_hash(tree: Mapping) -> str:
     """SHA-256 of what the experiment depends on: model, pneumatics, identify settings
     and the package versions that compute it."""
-    import mujoco
-    import numpy as np
-
-    from simpro_mj import __version__
 
     key = {
         "model": tree["model"],
@@ -97,8 +101,6 @@ def _is_presets_plant(scenario: Mapping) -> bool:
     """The scenario's plant and pneumatics are what its preset resolves to with no
     plant key of the scenario's own (the shipped as-built errors included): the
     preset's models stand for it."""
-    from simpro_mj.config.presets import scenario_overlay
-    from simpro_mj.config.scenario import DEFAULT_SCENARIO, _merge
 
     preset = scenario["plant"]["preset"]
     base = _merge(DEFAULT_SCENARIO, scenario_overlay(preset))
@@ -152,11 +154,9 @@ def identified_models(scenario: Mapping, progress=None) -> tuple[dict, str]:
     models = _read(path)
     source = "cache"
     if models is None:
-        from simpro_mj.identification.identify import identify
-
         if progress is not None:
             progress(f"identifying the scenario's own plant (Fig. 12), cached in {path.parent}")
-        got = identify(tree)
+        got = identify_module.identify(tree)  # by attribute: tests replace it
         models = {a: {k: float(got[a][k]) for k in ("b", "a1", "a0")} for a in _ACTS}
         _write(path, models)
         source = "identified"

@@ -34,10 +34,21 @@ from __future__ import annotations
 
 import copy
 import math
-from pathlib import Path
 
+import mujoco
 import numpy as np
+from scipy.optimize import least_squares
+from scipy.signal import cont2discrete, lfilter, max_len_seq
 
+from controllers.design import (
+    ACTUATORS,
+    READINGS,
+    paper_coefficients,
+    paper_plant,
+    paper_units_info,
+)
+from simpro_mj.config.presets import DEFAULT_PRESET, identify_overlay
+from simpro_mj.config.scenario import _check_pneumatics, _merge
 from simpro_mj.core.errors import PhysicsError, UserInputError
 from simpro_mj.core.keys import check_number
 from simpro_mj.plant.model import (
@@ -47,6 +58,7 @@ from simpro_mj.plant.model import (
     check_physics,
     load_model,
 )
+from simpro_mj.plant.payload import holding_force_model, max_payload
 from simpro_mj.plant.pneumatics import (
     ACTUATOR_KINDS,
     DEFAULT_PNEUMATIC_PARAMS,
@@ -62,8 +74,8 @@ __all__ = [
     "document",
     "run_experiment",
     "fit_eq19",
+    "simulate_velocity",
     "identify",
-    "summary",
 ]
 
 #: The paper's identified models, eq. (34) (actuator 1) and eq. (35) (2 and 3;
@@ -100,8 +112,6 @@ def default_tree(preset: str | None = None) -> dict:
     """The full parameter tree of ``identify``: paper_units, preset, model, pneumatics,
     identify; the model and pneumatics are the defaults with ``preset``'s values
     (default :data:`simpro_mj.config.presets.DEFAULT_PRESET`) over them."""
-    from simpro_mj.config.presets import DEFAULT_PRESET, identify_overlay
-    from simpro_mj.config.scenario import _merge
 
     preset = DEFAULT_PRESET if preset is None else preset
     over = identify_overlay(preset)
@@ -117,8 +127,6 @@ def default_tree(preset: str | None = None) -> dict:
 
 def paper_models(reading: str = "volts") -> dict:
     """Eqs. (34)-(35) in SI under ``reading``: ``{actuator: {b, a1, a0, wn_rad_s, ...}}``."""
-    from controllers.design import ACTUATORS, paper_plant
-
     out = {}
     for a in ACTUATORS:
         p = paper_plant(a, reading)
@@ -147,9 +155,6 @@ def check_tree(tree: dict) -> dict:
     UserInputError
         Naming the dotted path and what is allowed.
     """
-    from controllers.design import READINGS
-    from simpro_mj.config.scenario import _check_pneumatics
-
     if tree.get("paper_units") not in READINGS:
         raise UserInputError(
             f"invalid value at paper_units: {tree.get('paper_units')!r}; allowed: {list(READINGS)}"
@@ -182,8 +187,6 @@ def check_tree(tree: dict) -> dict:
 
 def _prbs(n_steps: int, clock: int, bits: int, seed: int) -> np.ndarray:
     """±1 maximum-length sequence, each bit held ``clock`` steps."""
-    from scipy.signal import max_len_seq
-
     seq = max_len_seq(bits)[0].astype(float) * 2.0 - 1.0
     seq = np.roll(seq, int(seed))
     n_bits = -(-n_steps // clock)
@@ -206,8 +209,6 @@ def run_experiment(tree: dict, leg: int, model=None) -> dict:
     PhysicsError
         On a MuJoCo warning, a non-finite state or an opened loop.
     """
-    import mujoco
-
     check_tree(tree)
     ip = tree["identify"]
     kind = ip["actuator_kind"]
@@ -227,15 +228,12 @@ def run_experiment(tree: dict, leg: int, model=None) -> dict:
     q0 = np.full(3, q_ref)
     assemble(m, d, q0, index=idx)
     f_hold = holding_forces(m, d, idx)
-    from controllers.design import paper_coefficients
 
     act = make_actuators(
         kind, tree["pneumatics"], model=m, linear_plants=paper_coefficients(tree["paper_units"])
     )
     force_range = act.params.force_range
     if np.any(f_hold > force_range[1]) or np.any(f_hold < force_range[0]):
-        from simpro_mj.plant.payload import holding_force_model, max_payload
-
         f0, slope = holding_force_model(m, d, idx, 100.0)  # affine in the mass: any probe
         cap = np.where(f_hold >= 0, force_range[1], force_range[0])
         worst = int(np.argmax(f_hold / cap))
@@ -306,10 +304,8 @@ def run_experiment(tree: dict, leg: int, model=None) -> dict:
     }
 
 
-def _simulate_velocity(theta, u, dt):
+def simulate_velocity(theta, u, dt):
     """ZOH simulation of v = b/(s^2 + a1 s + a0) (u - d); theta = (b, a1, a0, d)."""
-    from scipy.signal import cont2discrete, lfilter
-
     b, a1, a0, d = theta
     num, den, _ = cont2discrete(([b], [1.0, a1, a0]), dt, method="zoh")
     return lfilter(np.ravel(num), den, u - d)
@@ -354,8 +350,6 @@ def fit_eq19(u, qdot, dt: float, skip: int = 0, guess=None) -> dict:
         b, a1, a0, offset_v (d), wn_rad_s, zeta, velocity_gain_m_s_per_v,
         fit_percent (100 (1 - |v - v̂| / |v - mean v|), the NRMSE fit).
     """
-    from scipy.optimize import least_squares
-
     u = np.asarray(u, float) - 5.0
     v = np.asarray(qdot, float)
     if guess is None:
@@ -369,7 +363,7 @@ def fit_eq19(u, qdot, dt: float, skip: int = 0, guess=None) -> dict:
     scale = np.array([b0, max(a10, 1.0), a00, 1.0])
 
     def res(x):
-        return (_simulate_velocity(x * scale, u, dt) - v)[sl]
+        return (simulate_velocity(x * scale, u, dt) - v)[sl]
 
     x0 = np.array([1.0, a10 / scale[1], 1.0, d0])
     lo = np.array([1e-6, 0.0, 1e-6, -5.0])
@@ -416,83 +410,9 @@ def identify(tree: dict | None = None, legs=(1, 2, 3), records: dict | None = No
     return out
 
 
-def summary(results: dict, reading: str = "volts", preset: str = "") -> str:
-    """Table of fitted vs paper coefficients (ω_n, ζ, b/a0), the paper's in SI
-    under ``reading``."""
-    from controllers.design import paper_units_info
-
-    info = paper_units_info(reading)
-    paper = paper_models(reading)
-    lines = [
-        f"plant preset {preset or '-'}; paper eqs. (34)-(35) in SI under paper_units = "
-        f"{reading} (Y in {info['y_unit']}: b / {info['y_per_metre']:g})",
-        f"{'':10s} {'b':>9s} {'a1':>8s} {'a0':>8s} {'wn rad/s':>9s} {'zeta':>7s} "
-        f"{'b/a0 m/s/V':>11s} {'fit %':>6s}",
-    ]
-    for name, r in results.items():
-        p = paper[name]
-        lines.append(
-            f"{name:10s} {r['b']:9.2f} {r['a1']:8.3f} {r['a0']:8.1f} {r['wn_rad_s']:9.2f} "
-            f"{r['zeta']:7.3f} {r['velocity_gain_m_s_per_v']:11.4f} {r.get('fit_percent', 0):6.1f}"
-        )
-        lines.append(
-            f"{'  paper':10s} {p['b']:9.2f} {p['a1']:8.3f} {p['a0']:8.1f} {p['wn_rad_s']:9.2f} "
-            f"{p['zeta']:7.3f} {p['velocity_gain_m_s_per_v']:11.4f}"
-        )
-        lines.append(
-            f"{'  ratio':10s} {'':9s} {'':8s} {'':8s} {r['wn_rad_s'] / p['wn_rad_s']:9.3f} "
-            f"{r['zeta'] - p['zeta']:+7.3f} "
-            f"{r['velocity_gain_m_s_per_v'] / p['velocity_gain_m_s_per_v']:11.4f}"
-        )
-    return "\n".join(lines)
-
-
-def plot(results: dict, records: dict, path: Path, reading: str = "volts") -> None:
-    """Step responses (fitted vs paper) and a window of measured vs fitted velocity."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    from scipy.signal import lti, step
-
-    names = list(results)
-    fig, axes = plt.subplots(2, len(names), figsize=(4.6 * len(names), 7), squeeze=False)
-    for c, name in enumerate(names):
-        r, p = results[name], paper_models(reading)[name]
-        t = np.linspace(0, 1.0, 1000)
-        ax = axes[0, c]
-        for coef, lab, sty in ((r, "simulation fit", "-"), (p, "paper eq. (34)/(35)", "--")):
-            _, y = step(lti([coef["b"]], [1.0, coef["a1"], coef["a0"], 0.0]), T=t)
-            ax.plot(t, y * 1e3, sty, label=lab)
-        ax.set_title(f"{name}: 1 V step, position")
-        ax.set_xlabel("t (s)")
-        ax.set_ylabel("Δq (mm)")
-        ax.grid(True, alpha=0.3)
-        ax.legend(fontsize=8)
-        rec = records[name]
-        n = min(rec["t"].size, 3000)
-        s0 = rec["t"].size // 2
-        sl = slice(s0, s0 + n)
-        vhat = _simulate_velocity(
-            (r["b"], r["a1"], r["a0"], r["offset_v"]), rec["u"] - 5.0, rec["dt"]
-        )
-        ax = axes[1, c]
-        ax.plot(rec["t"][sl], rec["qdot"][sl] * 1e3, lw=0.8, label="MuJoCo + pneumatics")
-        ax.plot(rec["t"][sl], vhat[sl] * 1e3, lw=0.8, label=f"fit ({r['fit_percent']:.0f} %)")
-        ax.set_xlabel("t (s)")
-        ax.set_ylabel("qdot (mm/s)")
-        ax.grid(True, alpha=0.3)
-        ax.legend(fontsize=8)
-    fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-
-
 def document(results: dict, tree: dict) -> dict:
     """What ``identify.json`` and ``--json`` hold: the reading, the preset, per actuator
     the identified model (SI) with the paper's in SI and the ratios."""
-    from controllers.design import paper_units_info
 
     reading = tree["paper_units"]
     paper = paper_models(reading)

@@ -1,8 +1,12 @@
-"""What is written: result folders, figures, videos.
+"""What is written and shown: result folders, figures, tables, videos.
 
-- :mod:`.results`: the result folder (atomic, marked, never over a user's file).
+- :mod:`.folders`: result folders on disk (whose, the lock, the atomic install, complete).
+- :mod:`.results`: what a run writes (``timeseries.csv``, ``metrics.json``) and its summary.
 - :mod:`.runner`: one scenario run into a folder (preflight, run, metrics, plots).
-- :mod:`.plots`, :mod:`.cue_plots`: figures (Agg).
-- :mod:`.render`: MP4 replays (MuJoCo offscreen).
+- :mod:`.compare`: joint-only vs task-space on the same plant (Fig. 15).
+- :mod:`.plots`, :mod:`.cue_plots`: a run's figures (Agg); :mod:`.identify`,
+  :mod:`.analyze`, :mod:`.response`: the figures and tables of those commands.
+- :mod:`.recording`, :mod:`.scene`, :mod:`.render`, :mod:`.video_options`,
+  :mod:`.viewer`: MP4 replays (MuJoCo offscreen) and the interactive viewer's playback.
 - :mod:`.machine`: the machine fingerprint recorded with every result.
 """

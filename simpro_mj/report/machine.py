@@ -21,6 +21,10 @@ import os
 import platform
 from importlib import metadata
 
+import numpy as np
+
+from simpro_mj.plant import pneumatics_kernel
+
 __all__ = ["machine_fingerprint", "fingerprint_id", "describe_machine"]
 
 #: CPU flags (``/proc/cpuinfo``) that select floating-point code paths: vector
@@ -91,10 +95,6 @@ def machine_fingerprint() -> dict:
         versions of Python, numpy and MuJoCo, and ``kernels`` (the
         kernel choice of ``SIMPRO_KERNEL``, with numba's version).
     """
-    import numpy as np
-
-    from simpro_mj.plant import pneumatics_kernel
-
     kernels = pneumatics_kernel.kernel_label()
     return {
         "machine": platform.machine(),
@@ -116,10 +116,7 @@ def fingerprint_id(fingerprint: dict | None = None) -> str:
 
 def describe_machine() -> dict:
     """CPU model, logical cores and the versions that set a benchmark's figures."""
-    import mujoco
-    import numpy as np
-
-    from simpro_mj.plant.pneumatics_kernel import kernel_label
+    import mujoco  # its version: loaded by the bench that asks, not by every result
 
     cpu = platform.processor() or platform.machine()
     try:
@@ -136,5 +133,5 @@ def describe_machine() -> dict:
         "python": platform.python_version(),
         "mujoco": mujoco.__version__,
         "numpy": np.__version__,
-        "kernels": kernel_label(),
+        "kernels": pneumatics_kernel.kernel_label(),
     }

@@ -20,6 +20,9 @@ matplotlib.use("Agg")
 import numpy as np  # noqa: E402
 from matplotlib.figure import Figure  # noqa: E402
 
+from simpro_mj.plant.faults import fault_intervals  # noqa: E402
+from simpro_mj.report.cue_plots import plot_cueing  # noqa: E402
+
 __all__ = ["plot_run", "plot_compare", "DESIRED", "OUTPUT"]
 
 DESIRED = "tab:blue"  # "in blue the wanted value" (Fig. 14)
@@ -66,8 +69,6 @@ _FAULT_COLOURS = {
 
 def _shade_faults(fig: Figure, scenario: Mapping) -> None:
     """Shade each scheduled fault's interval on every axis of ``fig`` (one legend entry)."""
-    from simpro_mj.plant.faults import fault_intervals
-
     spans = fault_intervals(scenario) if scenario.get("faults") else []
     if not spans:
         return
@@ -191,8 +192,6 @@ def plot_run(columns: Mapping[str, np.ndarray], scenario: Mapping, out_dir) -> l
         _shade_faults(fig, scenario)
         paths.append(_save(fig, out_dir / "pressures.png"))
     if _has(columns, "head_fx_mps2", "veh_fx_mps2"):  # a cueing run (issue 16)
-        from simpro_mj.report.cue_plots import plot_cueing
-
         paths += plot_cueing(columns, scenario, out_dir, DPI)
     return paths
 

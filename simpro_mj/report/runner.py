@@ -16,11 +16,18 @@ its first step under the signal handlers (:mod:`simpro_mj.sim.readiness`).
 from __future__ import annotations
 
 import contextlib
+import json
 import signal
 import sys
 import threading
 from pathlib import Path
 
+import numpy as np
+
+from simpro_mj.analysis.metrics import compute_metrics
+from simpro_mj.analysis.preflight import preflight
+from simpro_mj.plant.faults import flag_series
+from simpro_mj.report.results import write_results
 from simpro_mj.sim.readiness import signal_ready
 
 __all__ = [
@@ -50,10 +57,6 @@ def _end_stop_warnings(columns, scenario) -> tuple[list[str], list[dict]]:
     stop without a fault means the loop is unstable or the set-point too
     aggressive, which a plot of the pose alone would not tell.
     """
-    import numpy as np
-
-    from simpro_mj.plant.faults import flag_series
-
     t = columns.get("time_s")
     if t is None or not len(t):
         return [], []
@@ -106,10 +109,6 @@ def execute(scenario: dict, out: Path, plots: bool = True, *, quiet: bool = Fals
     KeyboardInterrupt
         If the simulation does not hand back a partial result on Ctrl-C.
     """
-    import json
-
-    from simpro_mj.report.results import write_results
-
     out = Path(out)
     res, metrics, extra = measure(scenario, quiet=quiet)
     extra["plots"] = plots
@@ -131,8 +130,8 @@ def measure(scenario: dict, *, quiet: bool = False):
         end-stop hits), ``warnings`` and ``preflight``. Warnings go to stderr
         unless ``quiet``.
     """
-    from simpro_mj.analysis.metrics import compute_metrics
-    from simpro_mj.analysis.preflight import preflight
+    # the loop loads MuJoCo: when a run starts, not when a command that refuses bad
+    # input within a second imports the runner
     from simpro_mj.sim import loop as sim_module
 
     warnings, figures = preflight(scenario)
@@ -154,8 +153,6 @@ def measure(scenario: dict, *, quiet: bool = False):
 
 def recording(res) -> dict:
     """``qpos.npz`` of a result folder: what ``simpro-sim render`` replays."""
-    import numpy as np
-
     if res.qpos is None:
         return {}
     return {

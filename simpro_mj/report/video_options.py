@@ -13,7 +13,9 @@ import sys
 from pathlib import Path
 
 from simpro_mj.core.errors import UserInputError
-from simpro_mj.report.render import CAMERAS, find_runs, render_video, require_video
+from simpro_mj.report.recording import find_runs
+from simpro_mj.report.render import render_video, require_video
+from simpro_mj.report.scene import CAMERAS
 
 __all__ = [
     "MAX_SIDE",

@@ -23,14 +23,14 @@ import numpy as np
 from simpro_mj.config.scenario import load_scenario
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.messages import one_line
-from simpro_mj.report.render import (
+from simpro_mj.report.recording import (
     find_runs,
     ghost_poses,
     load_recording,
     nearest_rows,
-    pose_data,
     recording_of,
 )
+from simpro_mj.report.scene import pose_data
 
 __all__ = ["check_display", "overlay", "play", "recording_for"]
 
