@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
-from simpro_mj.config.cueing import CHANNELS, perceived
+from simpro_mj.analysis.cue_metrics import CHANNELS, perceived
 
 __all__ = ["plot_cueing"]
 
