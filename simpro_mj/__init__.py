@@ -6,7 +6,9 @@ The Python API (:mod:`simpro_mj.api`)::
     r = s.run("step_pitch", {"duration_s": 2})
     r.metrics["axes"]["pitch"], r.columns["pitch_rad"], r.to_frame()
     s.compare("step_all")                 # {"joint_only": Result, "task_space": Result}
-    s.load("step_pitch")                  # the resolved scenario
+    s.load_scenario("step_pitch")         # the resolved scenario (also s.load)
+    r.plot("task_space")                  # a matplotlib Figure (Fig. 16)
+    s.sweep("sweep_outer_gain", jobs=2)   # every variant of a sweep file
     s.shipped_scenarios()
 
 ``import simpro_mj`` is light: MuJoCo is imported when a plant is built.
@@ -19,7 +21,10 @@ __all__ = [
     "run",
     "compare",
     "load",
+    "load_scenario",
+    "sweep",
     "Result",
+    "SweepResult",
     "shipped_scenarios",
     "UserInputError",
 ]
@@ -28,7 +33,10 @@ _API = {
     "run": "api",
     "compare": "api",
     "load": "api",
+    "load_scenario": "api",
+    "sweep": "api",
     "Result": "api",
+    "SweepResult": "api",
     "shipped_scenarios": "config.scenario",
     "UserInputError": "core.errors",
 }

@@ -6,6 +6,10 @@
 >>> r.columns["pitch_rad"]                            # 1 ms log, SI units
 >>> both = s.compare("step_all", {"duration_s": 4})   # joint-only vs task-space
 >>> both["task_space"].to_frame()                     # pandas, if installed
+>>> r.plot("task_space")                              # a matplotlib Figure (Fig. 16)
+>>> s.sweep("sweep_outer_gain", jobs=2).rows()        # one row per variant
+
+``docs/examples/quickstart.py`` runs all of it (``tests/test_api.py`` runs it too).
 
 A scenario is a shipped name (``"step_pitch"``), a path to a YAML file or a
 mapping (a scenario document). Overrides are a mapping of dotted keys to
@@ -27,9 +31,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from simpro_mj.config.variants import load_sweep
 from simpro_mj.core.errors import UserInputError
+from simpro_mj.core.keys import closest
 
-__all__ = ["Result", "load", "run", "compare"]
+__all__ = ["Result", "SweepResult", "load", "load_scenario", "run", "compare", "sweep"]
 
 
 @dataclass(frozen=True)
@@ -78,6 +84,44 @@ class Result:
             raise ImportError("Result.to_frame needs pandas: pip install pandas") from exc
         return pd.DataFrame(self.columns).set_index("time_s")
 
+    def plot(self, which: str = "task_space", path: str | Path | None = None):
+        """A figure of the run, as ``simpro-sim run --plots`` draws it.
+
+        Parameters
+        ----------
+        which : str
+            ``task_space`` (desired vs output, roll/pitch in deg, height in mm:
+            Figs. 14/16), ``joints``, ``valves`` or ``pressures``
+            (:data:`simpro_mj.report.plots.RUN_FIGURES`).
+        path : path, optional
+            Also save the figure there (PNG).
+
+        Returns
+        -------
+        matplotlib.figure.Figure
+            Drawn without a display (no pyplot state): ``fig.savefig(...)``, or
+            show it in a notebook by leaving it last in a cell.
+
+        Raises
+        ------
+        UserInputError
+            ``which`` is not one of the run's figures.
+        """
+        # matplotlib is loaded when a figure is asked for, not by ``import simpro_mj``
+        from simpro_mj.report.plots import DPI, RUN_FIGURES, run_figures
+
+        figures = run_figures(self.columns, self.scenario, only=which)
+        if which not in figures:
+            allowed = [n for n in RUN_FIGURES if n in run_figures(self.columns, self.scenario)]
+            raise UserInputError(
+                f"invalid figure {which!r}; allowed: {', '.join(allowed)}"
+                + closest(str(which), allowed)
+            )
+        fig = figures[which]
+        if path is not None:
+            fig.savefig(path, dpi=DPI)
+        return fig
+
 
 def _sets(overrides: Mapping | None) -> list[str]:
     """Overrides as ``--set`` expressions (JSON is YAML, so values keep their types)."""
@@ -116,6 +160,12 @@ def load(scenario: str | Path | Mapping, overrides: Mapping | None = None) -> di
     if isinstance(scenario, Mapping):
         return resolve_scenario(copy.deepcopy(dict(scenario)), _sets(overrides))
     return load_scenario(str(scenario), _sets(overrides))
+
+
+def load_scenario(scenario: str | Path | Mapping, overrides: Mapping | None = None) -> dict:
+    """Resolve a scenario: the same as :func:`load` (the name the command line's
+    modules use)."""
+    return load(scenario, overrides)
 
 
 def run(
@@ -171,3 +221,111 @@ def compare(scenario: str | Path | Mapping, overrides: Mapping | None = None) ->
         sc["controller"]["mode"] = mode
         out[mode] = run(sc)
     return out
+
+
+@dataclass(frozen=True)
+class SweepResult:
+    """The variants of a sweep file, run.
+
+    Attributes
+    ----------
+    file : str
+        The sweep file's path.
+    results : dict of str to Result
+        Each valid variant's run, by variant name, in expansion order.
+    values : dict of str to dict
+        Each variant's swept values (dotted key to value).
+    errors : dict of str to str
+        Each invalid variant's one-line reason (it did not run).
+    """
+
+    file: str
+    results: dict
+    values: dict
+    errors: dict
+
+    def rows(self) -> list[dict]:
+        """One row per variant: ``variant``, the swept keys, ``status``, and per axis
+        ``<axis>_overshoot_pct``, ``<axis>_settling_time_s``, ``<axis>_iae``,
+        ``<axis>_steady_state_error`` (SI: rad, m)."""
+        out = []
+        for name, vals in self.values.items():
+            row: dict[str, Any] = {"variant": name, **vals}
+            res = self.results.get(name)
+            row["status"] = res.status if res is not None else "invalid"
+            axes = res.metrics.get("axes", {}) if res is not None else {}
+            for axis in ("roll", "pitch", "heave"):
+                m = axes.get(axis) or {}
+                for key in SWEEP_ROW_METRICS:
+                    row[f"{axis}_{key}"] = m.get(key)
+            row["error"] = self.errors.get(name)
+            out.append(row)
+        return out
+
+    def to_frame(self):
+        """:meth:`rows` as a :class:`pandas.DataFrame` indexed by ``variant``."""
+        try:
+            import pandas as pd  # optional extra ("simpro-sim[frame]")
+        except ImportError as exc:  # pragma: no cover - depends on the environment
+            raise ImportError("SweepResult.to_frame needs pandas: pip install pandas") from exc
+        return pd.DataFrame(self.rows()).set_index("variant")
+
+
+#: The per-axis metrics of a :meth:`SweepResult.rows` row.
+SWEEP_ROW_METRICS = ("overshoot_pct", "settling_time_s", "iae", "steady_state_error")
+
+
+def _sweep_task(task: dict) -> dict:
+    """One variant, in this process or a pool worker (top level: it pickles by name)."""
+    # MuJoCo is loaded when a plant is built (issue 14), not by ``import simpro_mj``
+    from simpro_mj.report.results import _jsonable
+    from simpro_mj.report.runner import measure
+
+    res, metrics, extra = measure(task["scenario"], quiet=True)
+    metrics.update(extra)
+    return {"status": res.status, "columns": res.columns, "metrics": _jsonable(metrics)}
+
+
+def sweep(
+    scenario_file: str | Path, overrides: Mapping | None = None, *, jobs: int = 1
+) -> SweepResult:
+    """Run every variant of a sweep file (a scenario with a ``sweep:`` block).
+
+    As ``simpro-sim batch`` plans it, without writing anything: each variant is
+    resolved and checked first; an invalid one is reported in ``errors`` and the
+    others run.
+
+    Parameters
+    ----------
+    scenario_file : str or path
+        A shipped name (``"sweep_outer_gain"``) or a YAML path.
+    overrides : mapping, optional
+        Dotted keys to values applied to the base of every variant (``--set``).
+    jobs : int
+        Worker processes (1: here, one after the other).
+
+    Returns
+    -------
+    SweepResult
+    """
+    from simpro_mj.sim.executors import MAX_JOBS, run_tasks  # no MuJoCo until a plant is built
+
+    if not isinstance(jobs, int) or isinstance(jobs, bool) or not 1 <= jobs <= MAX_JOBS:
+        raise UserInputError(f"invalid jobs: {jobs!r}; allowed: an integer 1..{MAX_JOBS}")
+    sw = load_sweep(str(scenario_file), _sets(overrides))
+    if sw.error:
+        raise UserInputError(sw.error)
+    values = {v.name: dict(v.values) for v in sw.variants}
+    errors = {v.name: v.error for v in sw.variants if v.scenario is None}
+    valid = [v for v in sw.variants if v.scenario is not None]
+    tasks = [(i, {"scenario": v.scenario}) for i, v in enumerate(valid)]
+    done: dict[int, dict] = {}
+    run_tasks(tasks, lambda key, out: done.__setitem__(key, out), fn=_sweep_task, jobs=jobs)
+    results = {}
+    for i, v in enumerate(valid):
+        out = done.get(i) or {}
+        if "columns" in out:
+            results[v.name] = Result(v.scenario, out["columns"], out["metrics"], None)
+        else:  # a worker that died fails its variant only
+            errors[v.name] = out.get("reason") or "the worker ended without a result"
+    return SweepResult(sw.path, results, values, errors)

@@ -20,6 +20,7 @@ from controllers.analysis import (
     step_metrics,
     tf_step,
 )
+from controllers.analysis.inner import companion
 
 T = 0.06
 
@@ -102,7 +103,7 @@ def test_companion_is_control_tf2ss():
     cases.append(([2.0, 3.0, 1.0], [1.0, 4.0, 5.0]))
     for num, den in cases:
         ref = control.tf2ss(num, den)
-        for g, w in zip(an._companion(num, den), (ref.A, ref.B, ref.C, ref.D), strict=True):
+        for g, w in zip(companion(num, den), (ref.A, ref.B, ref.C, ref.D), strict=True):
             np.testing.assert_array_equal(g, w)
 
 

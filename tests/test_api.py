@@ -105,3 +105,73 @@ def test_result_to_frame():
     df = r.to_frame()
     assert isinstance(df, pd.DataFrame) and df.index.name == "time_s"
     assert len(df) == len(r.columns["time_s"])
+
+
+def test_load_scenario_is_load():
+    over = {"duration_s": 2}
+    assert s.load_scenario("step_pitch", over) == s.load("step_pitch", over)
+
+
+def test_plot_draws_the_run_and_refuses_an_unknown_figure(tmp_path):
+    r = s.run("step_pitch", {"duration_s": 1.2})
+    fig = r.plot()  # task space, Fig. 16's layout: roll, pitch (deg), height (mm)
+    axes = [ax for ax in fig.axes if ax.get_visible()]
+    assert len(axes) == 3
+    lines = {ln.get_label(): ln for ln in axes[1].get_lines()}
+    # the pitch panel's desired and output lines are the logged columns in degrees
+    np.testing.assert_allclose(lines["desired"].get_ydata(), np.degrees(r.columns["pitch_ref_rad"]))
+    np.testing.assert_allclose(lines["output"].get_ydata(), np.degrees(r.columns["pitch_rad"]))
+    assert max(lines["desired"].get_ydata()) == pytest.approx(3.0)  # the 3 deg step at 1 s
+    png = tmp_path / "valves.png"
+    r.plot("valves", png)
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    with pytest.raises(s.UserInputError) as info:
+        r.plot("valvs")
+    msg = str(info.value)
+    assert "\n" not in msg and "allowed: task_space, joints, valves, pressures" in msg
+    assert "did you mean 'valves'?" in msg
+
+
+def test_sweep_runs_each_variant_as_run_would(tmp_path):
+    f = tmp_path / "gains.yaml"
+    f.write_text(
+        "name: gains\nduration_s: 0.4\n"
+        "setpoint:\n  pitch_deg:\n    - {type: step, time_s: 0.1, value: 1.0}\n"
+        "sweep:\n  grid:\n    controller.outer.gains: [2, 3, -1]\n"
+    )
+    sw = s.sweep(f)
+    assert len(sw.values) == 3 and len(sw.results) == 2 and len(sw.errors) == 1
+    (bad,) = sw.errors.values()
+    assert "\n" not in bad and "controller.outer.gains" in bad
+    rows = {r["variant"]: r for r in sw.rows()}
+    assert sorted(r["status"] for r in rows.values()) == ["invalid", "ok", "ok"]
+    for name, res in sw.results.items():
+        gain = rows[name]["controller.outer.gains"]
+        alone = s.run(f, {"controller.outer.gains": [gain] * 3})
+        alone_cols = alone.columns
+        for k in ("pitch_rad", "q1_m", "u1_v"):
+            assert np.array_equal(res.columns[k], alone_cols[k]), (name, k)
+        assert rows[name]["pitch_overshoot_pct"] == res.metrics["axes"]["pitch"]["overshoot_pct"]
+    assert list(tmp_path.iterdir()) == [f]  # nothing written
+    with pytest.raises(s.UserInputError):
+        s.sweep(f, jobs=0)
+
+
+def test_the_docs_example_runs(tmp_path):
+    """docs/examples/quickstart.py, the API's walk-through, runs from any folder and
+    writes only into the folder it is given."""
+    out = tmp_path / "out"
+    proc = subprocess.run(
+        [sys.executable, str(ROOT / "docs" / "examples" / "quickstart.py"), str(out)],
+        cwd=tmp_path,
+        env=dict(os.environ, PYTHONPATH=str(ROOT), MPLBACKEND="Agg"),
+        capture_output=True,
+        text=True,
+    )
+    assert proc.returncode == 0, proc.stderr
+    text = proc.stdout
+    assert "step_pitch: ok, overshoot" in text and "K K_I = 2: overshoot" in text
+    assert "joint_only: pitch steady-state error" in text
+    assert text.count(" ok pitch overshoot ") == 2  # the two variants of the sweep
+    assert (out / "step_pitch.png").stat().st_size > 10_000
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]

@@ -109,6 +109,86 @@ def _task_axes(fig: Figure, columns: Mapping, ncols: int = 1, col: int = 0, axes
     return drawn
 
 
+#: The figures of one run, by name (:func:`run_figures`), in the order they are written.
+RUN_FIGURES = ("task_space", "joints", "valves", "pressures")
+
+
+def run_figures(
+    columns: Mapping[str, np.ndarray], scenario: Mapping, only: str | None = None
+) -> dict[str, Figure]:
+    """The figures of one run, by name (:data:`RUN_FIGURES`), each only if its columns
+    are present; ``only`` builds just the one named. Scheduled faults are shaded.
+
+    ``task_space``: desired (blue) vs output (green), roll/pitch in deg, height in mm
+    (Figs. 14/16); ``joints``: slide set-points vs positions (mm); ``valves``: valve
+    voltages (V); ``pressures``: chamber pressures (bar absolute, with the supply).
+    """
+    t = _col(columns, "time_s")
+    figs: dict[str, Figure] = {}
+    if only in (None, "task_space"):
+        fig = Figure(figsize=(8, 8), layout="constrained")
+        drawn = _task_axes(fig, columns)
+        if drawn:
+            drawn[0].legend(loc="best", fontsize=8)
+            fig.suptitle(_title(scenario, "task space, desired (blue) vs output (green)"))
+            figs["task_space"] = fig
+
+    if only in (None, "joints"):
+        legs = [i for i in (1, 2, 3) if _has(columns, f"q{i}_ref_m", f"q{i}_m")]
+        if legs:
+            fig = Figure(figsize=(8, 8), layout="constrained")
+            axes = fig.subplots(len(legs), 1, sharex=True, squeeze=False)[:, 0]
+            for ax, i in zip(axes, legs, strict=True):
+                ax.plot(
+                    t, _col(columns, f"q{i}_ref_m") * 1e3, color=DESIRED, lw=1.4, label="set-point"
+                )
+                ax.plot(t, _col(columns, f"q{i}_m") * 1e3, color=OUTPUT, lw=1.2, label="position")
+                ax.set_ylabel(f"q{i} [mm]")
+                ax.grid(True, alpha=0.3)
+            axes[0].legend(loc="best", fontsize=8)
+            axes[-1].set_xlabel("time [s]")
+            fig.suptitle(_title(scenario, "joint space, slide set-points vs positions"))
+            figs["joints"] = fig
+
+    if only in (None, "valves"):
+        valves = [i for i in (1, 2, 3) if f"u{i}_v" in columns]
+        if valves:
+            fig = Figure(figsize=(8, 4.5), layout="constrained")
+            ax = fig.add_subplot()
+            for i in valves:
+                ax.plot(t, _col(columns, f"u{i}_v"), lw=0.9, label=f"valve {i}")
+            ax.axhline(5.0, color="k", lw=0.6, ls="--", label="closed centre (5 V)")
+            ax.set_ylim(-0.3, 10.3)
+            ax.set_xlabel("time [s]")
+            ax.set_ylabel("voltage [V]")
+            ax.grid(True, alpha=0.3)
+            ax.legend(loc="best", fontsize=8)
+            fig.suptitle(_title(scenario, "valve commands"))
+            figs["valves"] = fig
+
+    if only in (None, "pressures"):
+        chambers = [i for i in (1, 2, 3) if _has(columns, f"p{i}a_pa", f"p{i}b_pa")]
+        if chambers:
+            fig = Figure(figsize=(8, 8), layout="constrained")
+            axes = fig.subplots(len(chambers), 1, sharex=True, squeeze=False)[:, 0]
+            for ax, i in zip(axes, chambers, strict=True):
+                ax.plot(t, _col(columns, f"p{i}a_pa") * 1e-5, lw=1.0, label="cap side (a)")
+                ax.plot(t, _col(columns, f"p{i}b_pa") * 1e-5, lw=1.0, label="rod side (b)")
+                if "supply_pa" in columns:
+                    ax.plot(t, _col(columns, "supply_pa") * 1e-5, color="k", lw=0.8, ls="--",
+                            label="supply")  # fmt: skip
+                ax.set_ylabel(f"leg {i} [bar abs]")
+                ax.grid(True, alpha=0.3)
+            axes[0].legend(loc="best", fontsize=8)
+            axes[-1].set_xlabel("time [s]")
+            fig.suptitle(_title(scenario, "chamber pressures"))
+            figs["pressures"] = fig
+
+    for fig in figs.values():
+        _shade_faults(fig, scenario)
+    return figs
+
+
 def plot_run(columns: Mapping[str, np.ndarray], scenario: Mapping, out_dir) -> list[Path]:
     """Write the figures of one run as PNG files.
 
@@ -132,65 +212,8 @@ def plot_run(columns: Mapping[str, np.ndarray], scenario: Mapping, out_dir) -> l
         faults (``scenario["faults"]``) are shaded on every figure.
     """
     out_dir = Path(out_dir)
-    t = _col(columns, "time_s")
-    paths = []
-
-    fig = Figure(figsize=(8, 8), layout="constrained")
-    drawn = _task_axes(fig, columns)
-    if drawn:
-        drawn[0].legend(loc="best", fontsize=8)
-        fig.suptitle(_title(scenario, "task space, desired (blue) vs output (green)"))
-        _shade_faults(fig, scenario)
-        paths.append(_save(fig, out_dir / "task_space.png"))
-
-    legs = [i for i in (1, 2, 3) if _has(columns, f"q{i}_ref_m", f"q{i}_m")]
-    if legs:
-        fig = Figure(figsize=(8, 8), layout="constrained")
-        axes = fig.subplots(len(legs), 1, sharex=True, squeeze=False)[:, 0]
-        for ax, i in zip(axes, legs, strict=True):
-            ax.plot(t, _col(columns, f"q{i}_ref_m") * 1e3, color=DESIRED, lw=1.4, label="set-point")
-            ax.plot(t, _col(columns, f"q{i}_m") * 1e3, color=OUTPUT, lw=1.2, label="position")
-            ax.set_ylabel(f"q{i} [mm]")
-            ax.grid(True, alpha=0.3)
-        axes[0].legend(loc="best", fontsize=8)
-        axes[-1].set_xlabel("time [s]")
-        fig.suptitle(_title(scenario, "joint space, slide set-points vs positions"))
-        _shade_faults(fig, scenario)
-        paths.append(_save(fig, out_dir / "joints.png"))
-
-    valves = [i for i in (1, 2, 3) if f"u{i}_v" in columns]
-    if valves:
-        fig = Figure(figsize=(8, 4.5), layout="constrained")
-        ax = fig.add_subplot()
-        for i in valves:
-            ax.plot(t, _col(columns, f"u{i}_v"), lw=0.9, label=f"valve {i}")
-        ax.axhline(5.0, color="k", lw=0.6, ls="--", label="closed centre (5 V)")
-        ax.set_ylim(-0.3, 10.3)
-        ax.set_xlabel("time [s]")
-        ax.set_ylabel("voltage [V]")
-        ax.grid(True, alpha=0.3)
-        ax.legend(loc="best", fontsize=8)
-        fig.suptitle(_title(scenario, "valve commands"))
-        _shade_faults(fig, scenario)
-        paths.append(_save(fig, out_dir / "valves.png"))
-
-    chambers = [i for i in (1, 2, 3) if _has(columns, f"p{i}a_pa", f"p{i}b_pa")]
-    if chambers:
-        fig = Figure(figsize=(8, 8), layout="constrained")
-        axes = fig.subplots(len(chambers), 1, sharex=True, squeeze=False)[:, 0]
-        for ax, i in zip(axes, chambers, strict=True):
-            ax.plot(t, _col(columns, f"p{i}a_pa") * 1e-5, lw=1.0, label="cap side (a)")
-            ax.plot(t, _col(columns, f"p{i}b_pa") * 1e-5, lw=1.0, label="rod side (b)")
-            if "supply_pa" in columns:
-                ax.plot(t, _col(columns, "supply_pa") * 1e-5, color="k", lw=0.8, ls="--",
-                        label="supply")  # fmt: skip
-            ax.set_ylabel(f"leg {i} [bar abs]")
-            ax.grid(True, alpha=0.3)
-        axes[0].legend(loc="best", fontsize=8)
-        axes[-1].set_xlabel("time [s]")
-        fig.suptitle(_title(scenario, "chamber pressures"))
-        _shade_faults(fig, scenario)
-        paths.append(_save(fig, out_dir / "pressures.png"))
+    figures = run_figures(columns, scenario)
+    paths = [_save(fig, out_dir / f"{name}.png") for name, fig in figures.items()]
     if _has(columns, "head_fx_mps2", "veh_fx_mps2"):  # a cueing run (issue 16)
         paths += plot_cueing(columns, scenario, out_dir, DPI)
     return paths
