@@ -18,6 +18,7 @@ from controllers.design import (
     paper_plant,
 )
 from controllers.joint import discretise, leg_state_space
+from controllers.setpoint_filter import filter_state_space, leg_times
 
 
 def inner_discrete_loop(
@@ -98,8 +99,6 @@ def _legs(
     spec = dict(spec or {}) if variant == "redesigned" else {}
     filt = [None] * 3
     if setpoint_filter is not None:  # (kind, time or 3 times), one filter per leg
-        from .setpoint_filter import filter_state_space, leg_times
-
         filt = [
             filter_state_space(setpoint_filter[0], dt, t) for t in leg_times(setpoint_filter[1])
         ]
