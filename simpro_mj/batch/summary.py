@@ -24,9 +24,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from simpro_mj.analysis.cue_metrics import SUMMARY_COLUMNS, summary_columns
 from simpro_mj.batch.plan import Job
 from simpro_mj.batch.stability import analytic
-from simpro_mj.analysis.cue_metrics import SUMMARY_COLUMNS, summary_columns
 from simpro_mj.config.sweep import format_value
 from simpro_mj.report.results import jsonable
 
