@@ -16,7 +16,16 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy import signal
+
+
+def _signal():
+    """scipy.signal, imported on first use: it costs about 1 s of import (0.6-1.6 s
+    measured), which every command would otherwise pay before it can refuse a mistake
+    (a scenario's validation imports the washout); a one-line error within a second."""
+    from scipy import signal
+
+    return signal
+
 
 __all__ = ["DiscreteFilter", "FilterError"]
 
@@ -53,7 +62,7 @@ class DiscreteFilter:
             raise FilterError(f"filter {num} / {den} is improper or has den[0] = 0")
         if not (math.isfinite(dt) and dt > 0):
             raise FilterError(f"filter period must be > 0 s, got {dt!r}")
-        b, a, _ = signal.cont2discrete((num, den), dt, method=method)
+        b, a, _ = _signal().cont2discrete((num, den), dt, method=method)
         b = np.ravel(b)
         a = np.ravel(a)
         n = max(a.size, b.size)
@@ -80,7 +89,7 @@ class DiscreteFilter:
         if u0 == 0.0 or len(self._z) == 0:
             self._z = [0.0] * len(self._z)
             return
-        self._z = (signal.lfilter_zi(self.b, self.a) * float(u0)).tolist()
+        self._z = (_signal().lfilter_zi(self.b, self.a) * float(u0)).tolist()
 
     def step(self, u: float) -> float:
         """Advance one sample with input ``u``; returns the output (direct form II transposed)."""
@@ -97,6 +106,6 @@ class DiscreteFilter:
         u = np.asarray(u, dtype=float)
         if not self._z:
             return self.b[0] * u
-        y, zf = signal.lfilter(self.b, self.a, u, zi=np.asarray(self._z))
+        y, zf = _signal().lfilter(self.b, self.a, u, zi=np.asarray(self._z))
         self._z = zf.tolist()
         return y
