@@ -198,12 +198,8 @@ def run(
 
         res, metrics = execute(resolved, Path(out), plots=plots, quiet=True)
         return Result(resolved, res.columns, metrics, res.folder)
-    from simpro_mj.report.results import _jsonable
-    from simpro_mj.report.runner import measure
-
-    res, metrics, extra = measure(resolved, quiet=True)
-    metrics.update(extra)
-    return Result(resolved, res.columns, _jsonable(metrics), None)
+    done = _measured({"scenario": resolved})
+    return Result(resolved, done["columns"], done["metrics"], None)
 
 
 def compare(scenario: str | Path | Mapping, overrides: Mapping | None = None) -> dict[str, Result]:
@@ -275,15 +271,16 @@ class SweepResult:
 SWEEP_ROW_METRICS = ("overshoot_pct", "settling_time_s", "iae", "steady_state_error")
 
 
-def _sweep_task(task: dict) -> dict:
-    """One variant, in this process or a pool worker (top level: it pickles by name)."""
+def _measured(task: dict) -> dict:
+    """One resolved scenario measured without writing anything (:func:`run`, and each
+    variant of :func:`sweep` here or in a pool worker: top level, it pickles by name)."""
     # MuJoCo is loaded when a plant is built (issue 14), not by ``import simpro_mj``
-    from simpro_mj.report.results import _jsonable
+    from simpro_mj.report.results import jsonable
     from simpro_mj.report.runner import measure
 
     res, metrics, extra = measure(task["scenario"], quiet=True)
     metrics.update(extra)
-    return {"status": res.status, "columns": res.columns, "metrics": _jsonable(metrics)}
+    return {"status": res.status, "columns": res.columns, "metrics": jsonable(metrics)}
 
 
 def sweep(
@@ -320,7 +317,7 @@ def sweep(
     valid = [v for v in sw.variants if v.scenario is not None]
     tasks = [(i, {"scenario": v.scenario}) for i, v in enumerate(valid)]
     done: dict[int, dict] = {}
-    run_tasks(tasks, lambda key, out: done.__setitem__(key, out), fn=_sweep_task, jobs=jobs)
+    run_tasks(tasks, lambda key, out: done.__setitem__(key, out), fn=_measured, jobs=jobs)
     results = {}
     for i, v in enumerate(valid):
         out = done.get(i) or {}

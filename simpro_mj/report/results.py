@@ -112,10 +112,6 @@ def jsonable(obj: Any) -> Any:
     return obj
 
 
-#: The name :mod:`simpro_mj.api` imports.
-_jsonable = jsonable
-
-
 def write_timeseries(path, columns: Mapping[str, np.ndarray]) -> Path:
     """Write columns as CSV in one numpy call: header of names, ``%.12g`` values.
 
