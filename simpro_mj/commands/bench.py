@@ -11,9 +11,9 @@ import sys
 
 from simpro_mj.config.scenario import load_scenario
 from simpro_mj.core.errors import UserInputError
+from simpro_mj.core.interrupts import interruptible
 from simpro_mj.core.jsonout import emit_json
 from simpro_mj.core.keys import value_text
-from simpro_mj.report.runner import sigterm_as_interrupt
 
 #: Upper bounds of the counts (a benchmark of the median of 100 is already minutes).
 MAX_REPEATS = 100
@@ -95,7 +95,7 @@ def run(args) -> int:
             print(video_table(result))
         return 0
     progress = None if args.json else (lambda msg: print(f"  {msg}", file=sys.stderr))
-    with sigterm_as_interrupt():  # SIGTERM: exit 130 like Ctrl-C, workers stopped
+    with interruptible():  # SIGTERM: exit 130 like Ctrl-C, workers stopped
         result = measure(scenario, repeats, batch=not args.no_batch, batch_runs=runs, log=progress)
     if args.json:
         emit_json(result)

@@ -9,11 +9,12 @@ import sys
 from pathlib import Path
 
 from simpro_mj.config.scenario import load_scenario
+from simpro_mj.core.interrupts import interruptible
 from simpro_mj.core.jsonout import emit_json
 from simpro_mj.report.compare import compare, table
 from simpro_mj.report.folders import claim, write_marker
 from simpro_mj.report.render import require_video
-from simpro_mj.report.runner import EXIT_INTERRUPTED, interrupted_message, sigterm_as_interrupt
+from simpro_mj.report.runner import EXIT_INTERRUPTED, interrupted_message
 from simpro_mj.report.video_options import add_video_flag, video_after_run
 
 HELP = "run a scenario with joint-only and with task-space control on the same plant and seed"
@@ -33,7 +34,7 @@ def run(args) -> int:
     if args.video:
         require_video()  # the install hint before the run, not after it
     out = Path(args.out) if args.out else Path("results") / f"{scenario['name']}-compare"
-    with claim(out, "compare", inputs=[args.scenario]), sigterm_as_interrupt():
+    with claim(out, "compare", inputs=[args.scenario]), interruptible():
         out.mkdir(parents=True, exist_ok=True)
         write_marker(out, "compare")
         both = compare(scenario, out, plots=not args.no_plots)

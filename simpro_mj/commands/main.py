@@ -22,12 +22,12 @@ from __future__ import annotations
 
 import argparse
 import functools
-import importlib
 import os
 import sys
 
 from controllers.errors import DesignError, KinematicsError
 from simpro_mj.core.errors import PhysicsError, UserInputError
+from simpro_mj.core.interrupts import import_module, interruptible
 from simpro_mj.core.messages import MAX_MESSAGE_CHARS, one_line
 
 #: an error line of this command line: one line, at most MAX_MESSAGE_CHARS
@@ -67,7 +67,7 @@ def _available(only: str | None = None) -> dict:
         if only is not None and name != only:
             continue
         try:
-            mods[name] = importlib.import_module(path)
+            mods[name] = import_module(path)
         except ModuleNotFoundError as exc:
             if exc.name != path:
                 raise
@@ -124,6 +124,17 @@ def _check_gl_backend() -> str | None:
 
 def main(argv=None) -> int:
     os.environ.setdefault("MPLBACKEND", "Agg")
+    try:
+        # Ctrl-C and SIGTERM raise KeyboardInterrupt, held while a module is being
+        # imported so that no extension turns them into ImportError (core.interrupts)
+        with interruptible():
+            return _main(argv)
+    except KeyboardInterrupt:  # while the command's modules were imported
+        sys.stderr.write("error: interrupted\n")
+        return 130
+
+
+def _main(argv) -> int:
     problem = _check_gl_backend()
     if problem:
         sys.stderr.write(f"error: {problem}\n")

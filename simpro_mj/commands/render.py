@@ -10,10 +10,10 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+from simpro_mj.core.interrupts import interruptible
 from simpro_mj.core.jsonout import emit_json
 from simpro_mj.report.recording import find_runs
 from simpro_mj.report.render import render_video
-from simpro_mj.report.runner import sigterm_as_interrupt
 from simpro_mj.report.video_options import add_video_options, said, video_options
 
 HELP = "render a result folder (or each run of a compare folder, side by side) to MP4"
@@ -29,7 +29,7 @@ def run(args) -> int:
     runs = find_runs(folder)
     opts = video_options(args, folder / "replay.mp4")
     out = opts.pop("out")
-    with sigterm_as_interrupt():  # SIGTERM as Ctrl-C: exit 130, no partial video left
+    with interruptible():  # SIGTERM as Ctrl-C: exit 130, no partial video left
         info = render_video(runs, out, progress=not args.json and sys.stderr.isatty(), **opts)
     if args.json:
         emit_json(info)

@@ -19,6 +19,7 @@ import sys
 from pathlib import Path
 
 from simpro_mj.config.scenario import load_scenario
+from simpro_mj.core.interrupts import interruptible
 from simpro_mj.core.jsonout import emit_json
 from simpro_mj.report.folders import claim
 from simpro_mj.report.render import require_video
@@ -27,7 +28,6 @@ from simpro_mj.report.runner import (
     EXIT_INTERRUPTED,
     execute,
     interrupted_message,
-    sigterm_as_interrupt,
 )
 from simpro_mj.report.video_options import add_video_flag, video_after_run
 
@@ -47,7 +47,7 @@ def run(args) -> int:
         require_video()  # the install hint before the run, not after it
     out = Path(args.out) if args.out else Path("results") / scenario["name"]
     # refused (exit 2) before anything runs: not ours to replace, or busy
-    with claim(out, "run", inputs=[args.scenario]), sigterm_as_interrupt():
+    with claim(out, "run", inputs=[args.scenario]), interruptible():
         res, metrics = execute(scenario, out, plots=not args.no_plots)
     if args.json:
         emit_json(metrics)

@@ -6,4 +6,6 @@
   messages (``closest`` valid key, allowed values).
 - :mod:`.safe_yaml`: YAML without aliases bombs or non-finite surprises.
 - :mod:`.jsonout`: the ``--json`` contract (one JSON object on stdout).
+- :mod:`.interrupts`: Ctrl-C and SIGTERM as ``KeyboardInterrupt``, held while an
+  import or a result folder's write runs.
 """

@@ -15,17 +15,15 @@ its first step under the signal handlers (:mod:`simpro_mj.sim.readiness`).
 
 from __future__ import annotations
 
-import contextlib
 import json
-import signal
 import sys
-import threading
 from pathlib import Path
 
 import numpy as np
 
 from simpro_mj.analysis.metrics import compute_metrics
 from simpro_mj.analysis.preflight import preflight
+from simpro_mj.core.interrupts import held_signals
 from simpro_mj.plant.faults import flag_series
 from simpro_mj.report.results import write_results
 from simpro_mj.sim.readiness import signal_ready
@@ -35,7 +33,6 @@ __all__ = [
     "execute",
     "measure",
     "warn",
-    "sigterm_as_interrupt",
     "interrupted_message",
 ]
 
@@ -112,7 +109,7 @@ def execute(scenario: dict, out: Path, plots: bool = True, *, quiet: bool = Fals
     out = Path(out)
     res, metrics, extra = measure(scenario, quiet=quiet)
     extra["plots"] = plots
-    with _deferred_signals():
+    with held_signals():  # a folder is always written whole
         res.folder = write_results(
             out, res.columns, metrics, scenario, extra, arrays=recording(res)
         )
@@ -172,53 +169,6 @@ def _stepping(k: int) -> None:
     """
     if k > 0:
         signal_ready("stepping")
-
-
-def _raise_interrupt(signum, frame):  # noqa: ARG001 - signal handler signature
-    raise KeyboardInterrupt(f"signal {signal.Signals(signum).name}")
-
-
-@contextlib.contextmanager
-def sigterm_as_interrupt():
-    """Within the block, SIGTERM raises KeyboardInterrupt as Ctrl-C does.
-
-    Only in the main thread (Python delivers signals there); elsewhere a no-op.
-    The previous handler is restored on exit.
-    """
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    previous = signal.signal(signal.SIGTERM, _raise_interrupt)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGTERM, previous)
-
-
-@contextlib.contextmanager
-def _deferred_signals():
-    """Hold SIGINT/SIGTERM while a result folder is written, then act on them.
-
-    The write is short (plots included, a few seconds); deferring the signal
-    means a folder is always written whole (the temporary-name write of
-    :func:`simpro_mj.report.results.write_results` protects against anything else).
-    """
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    got: list[int] = []
-
-    def hold(signum, frame):  # noqa: ARG001
-        got.append(signum)
-
-    previous = {s: signal.signal(s, hold) for s in (signal.SIGINT, signal.SIGTERM)}
-    try:
-        yield
-    finally:
-        for s, h in previous.items():
-            signal.signal(s, h)
-    if got:
-        raise KeyboardInterrupt(f"signal {signal.Signals(got[0]).name}")
 
 
 def interrupted_message(res, out) -> str:

@@ -7,7 +7,8 @@
 * ignores SIGINT: Ctrl-C at a terminal reaches the whole process group, and
   the parent decides what stops (it sends SIGTERM, :func:`stop_pool`);
 * turns SIGTERM into ``KeyboardInterrupt`` while a task runs
-  (:func:`run_task`): the simulation hands back what it computed, the
+  (:func:`run_task`; held while the worker imports, see
+  :mod:`simpro_mj.core.interrupts`): the simulation hands back what it computed, the
   variant's folder is written marked ``PARTIAL`` and the worker exits (it
   takes no further task, not even one the pool had queued); an idle worker
   exits at once;
@@ -27,6 +28,8 @@ import signal
 import threading
 import time
 
+from simpro_mj.core.interrupts import guarded_imports, hold_aware, raise_or_hold
+
 __all__ = ["POLL_S", "GRACE_S", "init_worker", "run_task", "stop_pool", "watch_parent"]
 
 #: How often a worker checks that its parent is alive (s).
@@ -38,11 +41,13 @@ _busy = False
 _ending = False  # SIGTERM received or parent gone: no further task
 
 
-def _on_sigterm(signum, frame):  # noqa: ARG001 - signal handler signature
+@hold_aware
+def _on_sigterm(signum, frame):
     global _ending
     _ending = True
     if _busy:
-        raise KeyboardInterrupt(f"signal {signal.Signals(signum).name}")
+        raise_or_hold(signum, frame)  # KeyboardInterrupt, not while importing
+        return
     os._exit(128 + signum)
 
 
@@ -87,7 +92,8 @@ def run_task(fn, *args):
         os._exit(1)
     _busy = True
     try:
-        return fn(*args)
+        with guarded_imports():  # SIGTERM is held while an import runs (core.interrupts)
+            return fn(*args)
     finally:
         _busy = False
         if _ending:  # stopped: the partial result is written, nobody collects it

@@ -1,0 +1,169 @@
+"""Ctrl-C and SIGTERM as ``KeyboardInterrupt``, never in the middle of an import.
+
+A signal handler that raises ``KeyboardInterrupt`` raises it in whatever Python
+code runs next. When that code runs inside the initialisation of a compiled
+module (MuJoCo's bindings, parts of SciPy and Matplotlib are pybind11
+modules), the extension turns the interrupt into ``ImportError:
+initialization failed``, and CPython may also remember an "unhandled
+interrupt" that makes the process die from SIGINT at exit whatever status the
+program returned. Measured on this project before this module existed: of 30
+batches sent Ctrl-C in their first 1.5 s, 2 reported the first variant
+``failed: ImportError`` and then ran the next 600 s variant to its end, and 3
+exited with -2 instead of 130.
+
+So a signal that arrives while the main thread imports, or while a block that
+must not be cut (a result folder being written) runs, is *held* and raised as
+``KeyboardInterrupt`` as soon as the outermost such block ends:
+
+- :func:`interruptible` installs :func:`raise_or_hold` for SIGINT and SIGTERM
+  and counts the main thread's imports (``builtins.__import__``, which import
+  statements and C extensions' imports go through), for the duration of a
+  command;
+- :func:`guarded_imports` counts the imports alone (a pool worker keeps its own
+  SIGTERM handler, which calls :func:`raise_or_hold`);
+- :func:`held_signals` holds the signals for a block (it works with or
+  without :func:`interruptible`);
+- :func:`import_module` is :func:`importlib.import_module` under
+  :func:`held_signals` (that function does not go through ``__import__``).
+
+Only the main thread counts: Python runs signal handlers there.
+"""
+
+from __future__ import annotations
+
+import builtins
+import contextlib
+import importlib
+import signal
+import threading
+
+__all__ = [
+    "guarded_imports",
+    "held_signals",
+    "hold_aware",
+    "import_module",
+    "interruptible",
+    "raise_or_hold",
+]
+
+SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+_holding = 0  # open held blocks and imports in the main thread
+_held: list[int] = []  # signals that arrived while holding
+_original_import = builtins.__import__
+
+
+def hold_aware(handler):
+    """Mark a signal handler that calls :func:`raise_or_hold` itself, so that
+    :func:`held_signals` leaves it in place (the pool workers' SIGTERM handler)."""
+    handler.holds_signals = True
+    return handler
+
+
+def _interrupt(signum: int) -> KeyboardInterrupt:
+    # SIGINT reads as Python's own Ctrl-C (no message); SIGTERM names itself
+    if signum == signal.SIGINT:
+        return KeyboardInterrupt()
+    return KeyboardInterrupt(f"signal {signal.Signals(signum).name}")
+
+
+@hold_aware
+def raise_or_hold(signum, frame=None):  # noqa: ARG001 - signal handler signature
+    """Signal handler: ``KeyboardInterrupt`` now, or when the held block ends."""
+    if _holding:
+        _held.append(signum)
+        return
+    raise _interrupt(signum)
+
+
+def _in_main_thread() -> bool:
+    return threading.current_thread() is threading.main_thread()
+
+
+def _enter() -> None:
+    global _holding
+    _holding += 1
+
+
+def _leave() -> None:
+    """End one held block; at the outermost, raise what arrived meanwhile."""
+    global _holding
+    _holding -= 1
+    if _holding == 0 and _held:
+        signum = _held[0]
+        _held.clear()
+        raise _interrupt(signum)
+
+
+def _guarded_import(name, globals=None, locals=None, fromlist=(), level=0):  # noqa: A002
+    if not _in_main_thread():
+        return _original_import(name, globals, locals, fromlist, level)
+    _enter()
+    try:
+        return _original_import(name, globals, locals, fromlist, level)
+    finally:
+        _leave()
+
+
+@contextlib.contextmanager
+def held_signals():
+    """Within the block, SIGINT/SIGTERM are held; the first is raised as
+    ``KeyboardInterrupt`` when the block (the outermost one) ends.
+
+    A handler that is not hold-aware is replaced by :func:`raise_or_hold` for
+    the block; an ignored signal stays ignored. Outside the main thread this is
+    a no-op.
+    """
+    if not _in_main_thread():
+        yield
+        return
+    previous = {}
+    for s in SIGNALS:
+        h = signal.getsignal(s)
+        if h is not signal.SIG_IGN and not getattr(h, "holds_signals", False):
+            previous[s] = signal.signal(s, raise_or_hold)
+    _enter()
+    try:
+        yield
+    finally:
+        for s, h in previous.items():
+            signal.signal(s, h)
+        _leave()
+
+
+def import_module(name: str):
+    """:func:`importlib.import_module` with the signals held during the import."""
+    with held_signals():
+        return importlib.import_module(name)
+
+
+@contextlib.contextmanager
+def interruptible():
+    """Within the block, SIGINT and SIGTERM raise ``KeyboardInterrupt`` (SIGTERM
+    as Ctrl-C does), held while the main thread imports (module docstring).
+
+    The previous handlers and ``__import__`` are restored on exit; nested use
+    is harmless. Outside the main thread this is a no-op.
+    """
+    if not _in_main_thread():
+        yield
+        return
+    previous = {s: signal.signal(s, raise_or_hold) for s in SIGNALS}
+    try:
+        with guarded_imports():
+            yield
+    finally:
+        for s, h in previous.items():
+            signal.signal(s, h)
+
+
+@contextlib.contextmanager
+def guarded_imports():
+    """Within the block, a signal that arrives while the main thread imports is
+    held until the import ends (for handlers that call :func:`raise_or_hold`)."""
+    before = builtins.__import__
+    builtins.__import__ = _guarded_import
+    try:
+        yield
+    finally:
+        builtins.__import__ = before
