@@ -28,6 +28,8 @@ def test_keys_and_consistency(short):
                 "throughput", "repeats", "machine"):  # fmt: skip
         assert key in r
     assert set(r["stages_us"]) == set(STAGES)
+    assert r["timeseries_write_s"] > 0
+    assert r["timeseries_rows"] == r["steps"] // r["logging_decimation"] + 1
     assert set(r["machine"]) >= {"cpu", "cores", "python", "mujoco", "numpy"}
     assert r["repeats"] == 2 and r["steps"] == 500
     assert r["throughput"] is None  # batch=False

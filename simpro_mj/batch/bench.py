@@ -22,6 +22,9 @@ the median over the repeats:
   stage). The clock calls themselves cost about 0.05 us each (ten per step),
   so the stages sum to a little more than ``full_step_us``
   (``instrumented_step_us`` is that run's own time per step).
+* ``timeseries_write_s``: wall time to write the plain run's columns as
+  ``timeseries.csv`` (:func:`simpro_mj.report.results.write_timeseries`, one
+  ``numpy.savetxt`` call); a speed figure, so here and not in a timed test.
 * ``throughput``: ``--batch-runs`` copies of the scenario in a
   :class:`concurrent.futures.ProcessPoolExecutor` (``spawn``; each worker
   builds its own model) with 1 and with 2 workers, in simulated seconds per
@@ -51,6 +54,7 @@ from simpro_mj.core.errors import PhysicsError
 from simpro_mj.plant.model import load_model
 from simpro_mj.report.machine import describe_machine
 from simpro_mj.report.render import render_video, require_video
+from simpro_mj.report.results import write_timeseries
 from simpro_mj.report.runner import execute
 from simpro_mj.sim.loop import CoSimulation, simulate
 from simpro_mj.sim.readiness import signal_ready
@@ -156,13 +160,17 @@ def measure(
     dt = float(model.opt.timestep)
     say("recording the trajectory")
     state0, warm0, ctrl, final_qpos = _record(scenario, model)
-    full, bare, bare_py, instr = [], [], [], []
+    full, bare, bare_py, instr, write = [], [], [], [], []
     stages = {s: [] for s in STAGES}
     same = True
     for r in range(repeats):
         say(f"repeat {r + 1}/{repeats}")
         res = CoSimulation(scenario, model=model).run()
         full.append(res.sim["wall_s"] / res.sim["steps"] * 1e6)
+        with tempfile.TemporaryDirectory(prefix="simpro-bench-") as tmp:
+            t0 = time.perf_counter()
+            write_timeseries(Path(tmp) / "timeseries.csv", res.columns)
+            write.append(time.perf_counter() - t0)
         us, ok1 = _bare_rollout(model, state0, warm0, ctrl, final_qpos)
         bare.append(us)
         us, ok2 = _bare_python(model, state0, warm0, ctrl, final_qpos)
@@ -187,6 +195,8 @@ def measure(
         "realtime_factor": dt * 1e6 / full_us,
         "stages_us": {s: statistics.median(v) for s, v in stages.items()},
         "instrumented_step_us": statistics.median(instr),
+        "timeseries_write_s": statistics.median(write),
+        "timeseries_rows": int(len(res.columns["time_s"])),
         "throughput": None,
         "repeats": repeats,
         "samples": {"full_step_us": full, "bare_step_us": bare, "bare_python_loop_us": bare_py},
@@ -243,6 +253,7 @@ def table(r: dict) -> str:
         f"  bare (Python loop)   {r['bare_python_loop_us']:8.2f} us",
         f"  ratio full/bare      {r['ratio']:8.2f}",
         f"  realtime factor      {r['realtime_factor']:8.1f} x",
+        f"  timeseries.csv write {r['timeseries_write_s']:8.3f} s  ({r['timeseries_rows']} rows)",
         "",
         "  stage (instrumented) us/step",
     ]
