@@ -25,7 +25,7 @@ def _python(code: str, cwd: Path) -> subprocess.CompletedProcess:
     )
 
 
-def test_importing_the_package_or_the_controllers_does_not_import_mujoco(tmp_path):
+def test_importing_the_package_the_controllers_or_the_actuator_params_skips_mujoco(tmp_path):
     proc = _python(
         "import sys, simpro_mj, controllers, controllers.kinematics, controllers.analysis; "
         # the scenario room too: loading and validating a scenario (its typed models, a
@@ -33,11 +33,16 @@ def test_importing_the_package_or_the_controllers_does_not_import_mujoco(tmp_pat
         "import simpro_mj.config.scenario as sc, simpro_mj.config.variants as va; "
         "sc.load_scenario('step_pitch'); sc.scenario_model(sc.load_scenario('cue_braking')); "
         "va.load_sweep('sweep_outer_gain'); "
-        "print('mujoco' in sys.modules)",
+        # the actuator parameters: the scenario validates actuator.pneumatics with them
+        "import simpro_mj.plant.pneumatics.params; "
+        "before = 'mujoco' in sys.modules; "
+        # the check sees MuJoCo when it is loaded: the actuator factory needs it
+        "import simpro_mj.plant.pneumatics.factory; "
+        "print(before, 'mujoco' in sys.modules)",
         tmp_path,
     )
     assert proc.returncode == 0, proc.stderr
-    assert proc.stdout.strip() == "False"
+    assert proc.stdout.strip() == "False True"
 
 
 def test_the_issue_example_runs_from_any_folder(tmp_path):

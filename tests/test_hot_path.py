@@ -17,7 +17,7 @@ from controllers.kinematics import PoseKinematics, inverse_kinematics, reachable
 from controllers.task_space import TaskSpaceController, _segment_limit
 from simpro_mj.config.scenario import load_scenario
 from simpro_mj.plant.model import StateReader, loop_closure_error, measured_pose
-from simpro_mj.plant.pneumatics import NonlinearActuators
+from simpro_mj.plant.pneumatics.nonlinear import NonlinearActuators
 from simpro_mj.plant.sensors import SensorConfig, Sensors
 from simpro_mj.sim.loop import CoSimulation
 

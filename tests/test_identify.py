@@ -13,7 +13,8 @@ from simpro_mj.commands import main as cli
 from simpro_mj.core.keys import apply_overrides
 from simpro_mj.identification.identify import default_tree, fit_eq19, identify, paper_models
 from simpro_mj.plant.model import assemble, load_model
-from simpro_mj.plant.pneumatics import NonlinearActuators, holding_forces, slide_mass_matrix
+from simpro_mj.plant.pneumatics.nonlinear import NonlinearActuators
+from simpro_mj.plant.pneumatics.statics import holding_forces, slide_mass_matrix
 
 
 def _tree(*sets):

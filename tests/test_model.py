@@ -17,7 +17,7 @@ from simpro_mj.plant.model import (
     mobility,
     model_params,
 )
-from simpro_mj.plant.pneumatics import PneumaticParams
+from simpro_mj.plant.pneumatics.params import PneumaticParams
 
 G = nominal_geometry()
 

@@ -11,18 +11,12 @@ from scipy.signal import lti, step
 
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.plant.model import PlantIndex, assemble, check_physics, load_model
-from simpro_mj.plant.pneumatics import (
-    RHO_REF,
-    LinearActuators,
-    NonlinearActuators,
-    PneumaticParams,
-    holding_forces,
-    iso6358_mass_flow,
-    iso6358_phi,
-    make_actuators,
-    pneumatic_params,
-    slide_mass_matrix,
-)
+from simpro_mj.plant.pneumatics.factory import make_actuators
+from simpro_mj.plant.pneumatics.flow import RHO_REF, iso6358_mass_flow, iso6358_phi
+from simpro_mj.plant.pneumatics.linear import LinearActuators
+from simpro_mj.plant.pneumatics.nonlinear import NonlinearActuators
+from simpro_mj.plant.pneumatics.params import PneumaticParams, pneumatic_params
+from simpro_mj.plant.pneumatics.statics import holding_forces, slide_mass_matrix
 
 DT = 1e-3
 HOME = np.full(3, 0.25)

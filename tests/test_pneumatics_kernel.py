@@ -14,8 +14,8 @@ import pytest
 from simpro_mj.analysis.metrics import compute_metrics
 from simpro_mj.config.scenario import load_scenario
 from simpro_mj.core.errors import UserInputError
-from simpro_mj.plant import pneumatics_kernel as pk
-from simpro_mj.plant.pneumatics import NonlinearActuators
+from simpro_mj.plant import kernels as pk
+from simpro_mj.plant.pneumatics.nonlinear import NonlinearActuators
 from simpro_mj.report.results import versions
 from simpro_mj.sim.loop import CoSimulation
 

@@ -503,7 +503,7 @@ def test_divergence_through_the_cli_exits_1_and_stops_early(tmp_path, capsys):
 
 def test_non_finite_force_names_the_state(tmp_path, monkeypatch):
     """A NaN out of the actuator model stops the run naming what went non-finite."""
-    import simpro_mj.plant.pneumatics as pn
+    import simpro_mj.plant.pneumatics.nonlinear as pn
 
     real = pn.NonlinearActuators.step
     calls = {"n": 0}

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from simpro_mj.config.scenario import load_scenario
-from simpro_mj.plant import pneumatics_kernel as pk
+from simpro_mj.plant import kernels as pk
 from simpro_mj.plant.model import StateReader
 from simpro_mj.plant.sensors import DEFAULT_SENSORS, SensorConfig, Sensors
 from simpro_mj.sim.loop import CoSimulation

@@ -55,7 +55,7 @@ from controllers.design import ACTUATORS, paper_plant
 from simpro_mj.core.errors import PhysicsError, UserInputError
 from simpro_mj.core.keys import read_yaml
 from simpro_mj.identification.identify import default_tree, identify
-from simpro_mj.plant.pneumatics import DEFAULT_PNEUMATIC_PARAMS
+from simpro_mj.plant.pneumatics.params import DEFAULT_PNEUMATIC_PARAMS
 
 __all__ = [
     "TOLERANCES",

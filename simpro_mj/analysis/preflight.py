@@ -5,7 +5,7 @@ are the outer gains inside the analysed stability limit.
   exit 2): the static holding force of the loaded, as-built plant at the
   start pose and along the set-point profile must be within what each
   cylinder can make at the supply pressure (``force_range`` of
-  :class:`simpro_mj.plant.pneumatics.PneumaticParams`: ``(p_s - p_a) A_cap`` pushing,
+  :class:`simpro_mj.plant.pneumatics.params.PneumaticParams`: ``(p_s - p_a) A_cap`` pushing,
   ``(p_s - p_a) A_annulus`` pulling). Holding forces are affine in the
   payload mass at a fixed pose (gravity is linear in the masses, the
   constraint geometry does not depend on them), so two static solves per pose
@@ -39,7 +39,7 @@ from simpro_mj.analysis.stability import outer_loop
 from simpro_mj.config.scenario import late_setpoints, reference
 from simpro_mj.core.errors import PhysicsError, UserInputError
 from simpro_mj.plant.payload import holding_force_model, max_payload
-from simpro_mj.plant.pneumatics import PneumaticParams
+from simpro_mj.plant.pneumatics.params import PneumaticParams
 
 __all__ = ["check_payload", "gain_warnings", "stability_limit", "preflight", "UTILISATION_WARN"]
 

@@ -45,7 +45,7 @@ from controllers.geometry import nominal_geometry
 from controllers.kinematics import jacobian
 from controllers.setpoint_filter import filter_state_space, leg_times
 from controllers.task_space import outer_law
-from simpro_mj.plant.pneumatics import PneumaticParams, fill_linear
+from simpro_mj.plant.pneumatics.params import PneumaticParams, fill_linear
 
 __all__ = ["PLANTS", "inner_legs", "outer_loop"]
 

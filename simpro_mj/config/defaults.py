@@ -132,7 +132,7 @@ DEFAULT_SCENARIO: dict = {
     },
     "actuator": {
         "model": "nonlinear",  # nonlinear (Richer & Hurmuzlu) | linear (eq. 19)
-        # overrides of simpro_mj.plant.pneumatics.DEFAULT_PNEUMATIC_PARAMS (values
+        # overrides of simpro_mj.plant.pneumatics.params.DEFAULT_PNEUMATIC_PARAMS (values
         # are validated by the plant, keys here)
         "pneumatics": {},
     },

@@ -56,8 +56,8 @@ from simpro_mj.config.rules import (
 )
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.keys import check_keys, value_text
-from simpro_mj.plant.pneumatics import ACTUATOR_KINDS as ACTUATOR_MODELS
-from simpro_mj.plant.pneumatics import DEFAULT_PNEUMATIC_PARAMS, PneumaticParams
+from simpro_mj.plant.pneumatics.params import ACTUATOR_KINDS as ACTUATOR_MODELS
+from simpro_mj.plant.pneumatics.params import DEFAULT_PNEUMATIC_PARAMS, PneumaticParams
 
 __all__ = [
     "Scenario",

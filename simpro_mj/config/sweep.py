@@ -19,7 +19,7 @@ Rules
 -----
 * **Paths** are the dotted paths of ``--set`` (``controller.outer.gains``),
   checked against :data:`simpro_mj.config.defaults.DEFAULT_SCENARIO` (and, below
-  ``actuator.pneumatics``, :data:`simpro_mj.plant.pneumatics.DEFAULT_PNEUMATIC_PARAMS`);
+  ``actuator.pneumatics``, :data:`simpro_mj.plant.pneumatics.params.DEFAULT_PNEUMATIC_PARAMS`);
   an unknown one is refused with the closest valid key. ``name`` and
   ``sweep`` cannot be swept.
 * **Grid**: every path maps to a non-empty list of values; the variants are
@@ -79,7 +79,7 @@ from simpro_mj.config.cueing import sweep_defaults
 from simpro_mj.config.defaults import DEFAULT_SCENARIO
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.keys import check_keys, check_tagged, closest, key_text
-from simpro_mj.plant.pneumatics import DEFAULT_PNEUMATIC_PARAMS
+from simpro_mj.plant.pneumatics.params import DEFAULT_PNEUMATIC_PARAMS
 
 __all__ = [
     "DISTRIBUTIONS",

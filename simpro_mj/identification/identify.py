@@ -4,7 +4,7 @@ Per actuator i, around mid-stroke under the nominal payload:
 
 1. the closed chain is assembled at q = 250 mm on every leg; the holding
    forces come from the static inverse dynamics
-   (:func:`simpro_mj.plant.pneumatics.holding_forces`), the actuators are reset at
+   (:func:`simpro_mj.plant.pneumatics.statics.holding_forces`), the actuators are reset at
    the matching pneumatic equilibrium (valve voltages ``u_h``);
 2. every leg runs a proportional position loop
    :math:`u_j = u_{h,j} + K_{p,j}(q_{ref} - q_j)` (our own tiny loop: the
@@ -59,12 +59,9 @@ from simpro_mj.plant.model import (
     load_model,
 )
 from simpro_mj.plant.payload import holding_force_model, max_payload
-from simpro_mj.plant.pneumatics import (
-    ACTUATOR_KINDS,
-    DEFAULT_PNEUMATIC_PARAMS,
-    holding_forces,
-    make_actuators,
-)
+from simpro_mj.plant.pneumatics.factory import make_actuators
+from simpro_mj.plant.pneumatics.params import ACTUATOR_KINDS, DEFAULT_PNEUMATIC_PARAMS
+from simpro_mj.plant.pneumatics.statics import holding_forces
 
 __all__ = [
     "PAPER",

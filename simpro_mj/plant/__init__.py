@@ -3,11 +3,14 @@
 - :mod:`.model_params`, :mod:`.model`: the closed-chain MJCF (package data
   ``simpro_mj/models``), its parameters, loading, assembling, the state reader and
   ``PhysicsError`` from ``data.warning``.
-- :mod:`.pneumatics`, :mod:`.pneumatics_kernel`: valves and cylinders (eqs. 15-19).
+- :mod:`.pneumatics` (a package: params, flow law, nonlinear and linear
+  actuators, statics, factory, kernel): valves and cylinders (eqs. 15-19).
+- :mod:`.kernels`: the ``SIMPRO_KERNEL`` switch of the optional compiled kernels.
 - :mod:`.sensors`, :mod:`.sensors_kernel`: potentiometers, height encoder, IMU.
 - :mod:`.faults`: scheduled supply drops, stuck valves, sensor faults.
 - :mod:`.payload`: statics shared by identification and the preflight.
 
 Each part owns its parameter record and its defaults; the scenario (``config``)
-is validated against them. Only :mod:`.model` imports MuJoCo at import time.
+is validated against them. Only :mod:`.model` and what builds on it (:mod:`.pneumatics.statics`,
+:mod:`.pneumatics.factory`, :mod:`.payload`) import MuJoCo at import time.
 """

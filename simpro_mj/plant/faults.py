@@ -311,7 +311,7 @@ class FaultSchedule:
     @classmethod
     def from_scenario(cls, scenario: Mapping, dt: float) -> FaultSchedule:
         """The schedule of a resolved scenario at physics step ``dt``."""
-        from simpro_mj.plant.pneumatics import PneumaticParams
+        from simpro_mj.plant.pneumatics.params import PneumaticParams
 
         params = PneumaticParams.from_tree(scenario["actuator"].get("pneumatics") or {})
         return cls(

@@ -14,7 +14,7 @@ import math
 
 import numpy as np
 
-from simpro_mj.plant.pneumatics import holding_forces
+from simpro_mj.plant.pneumatics.statics import holding_forces
 
 __all__ = ["holding_force_model", "max_payload"]
 

@@ -23,8 +23,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from simpro_mj.core.errors import UserInputError
-from simpro_mj.plant import pneumatics_kernel as _pk
 from simpro_mj.plant import sensors_kernel as _sk
+from simpro_mj.plant.kernels import kernel_choice
 
 __all__ = ["DEFAULT_SENSORS", "SensorConfig", "Sensors"]
 
@@ -168,7 +168,7 @@ class Sensors:
         self._enc = (config.enc_noise_m, config.enc_res_m)
         self._imu = (config.imu_alpha, config.imu_noise_rad)
         self._kb = None
-        if _pk.kernel_choice() == "numba":  # SIMPRO_KERNEL (pneumatics_kernel.py)
+        if kernel_choice() == "numba":  # SIMPRO_KERNEL (simpro_mj.plant.kernels)
             self._init_kernel()
 
     # -- compiled kernel (sensors_kernel.py) ---------------------------------

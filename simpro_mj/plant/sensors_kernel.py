@@ -24,7 +24,7 @@ so the kernel turns a zero result into ``+0.0``. NaN and inf pass through
 ``rint`` as through the Python path's ``np.round`` fallback.
 
 Selection: the same ``SIMPRO_KERNEL`` switch as the pneumatics kernel
-(:func:`simpro_mj.plant.pneumatics_kernel.kernel_choice`), read when a
+(:func:`simpro_mj.plant.kernels.kernel_choice`), read when a
 :class:`~simpro_mj.plant.sensors.Sensors` object is built.
 """
 

@@ -23,7 +23,7 @@ from importlib import metadata
 
 import numpy as np
 
-from simpro_mj.plant import pneumatics_kernel
+from simpro_mj.plant.kernels import kernel_label
 
 __all__ = ["machine_fingerprint", "fingerprint_id", "describe_machine"]
 
@@ -95,7 +95,7 @@ def machine_fingerprint() -> dict:
         versions of Python, numpy and MuJoCo, and ``kernels`` (the
         kernel choice of ``SIMPRO_KERNEL``, with numba's version).
     """
-    kernels = pneumatics_kernel.kernel_label()
+    kernels = kernel_label()
     return {
         "machine": platform.machine(),
         "cpu_flags": _cpu_flags(),
@@ -133,5 +133,5 @@ def describe_machine() -> dict:
         "python": platform.python_version(),
         "mujoco": mujoco.__version__,
         "numpy": np.__version__,
-        "kernels": pneumatics_kernel.kernel_label(),
+        "kernels": kernel_label(),
     }

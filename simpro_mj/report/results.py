@@ -37,7 +37,7 @@ import yaml
 
 from simpro_mj import __version__
 from simpro_mj.config.scenario import scenario_hash
-from simpro_mj.plant import pneumatics_kernel
+from simpro_mj.plant import kernels
 from simpro_mj.report.folders import (
     PARTIAL_MARKER,
     check_out,
@@ -83,7 +83,7 @@ def versions(resolved: Mapping | None = None) -> dict:
         "numpy": np.__version__,
         "python-control": dist("control"),
         "python": platform.python_version(),
-        "kernels": pneumatics_kernel.kernel_label(),  # SIMPRO_KERNEL: pneumatics + sensors
+        "kernels": kernels.kernel_label(),  # SIMPRO_KERNEL: pneumatics + sensors
         # results are bit-identical only under one fingerprint (simpro_mj.report.machine)
         "machine": fingerprint_id(),
     }

@@ -47,7 +47,8 @@ from simpro_mj.plant.model import (
     load_model,
     measured_pose,
 )
-from simpro_mj.plant.pneumatics import holding_forces, make_actuators
+from simpro_mj.plant.pneumatics.factory import make_actuators
+from simpro_mj.plant.pneumatics.statics import holding_forces
 from simpro_mj.plant.sensors import SensorConfig, Sensors
 
 __all__ = ["COLUMNS", "SimResult", "CoSimulation", "simulate"]

@@ -1,6 +1,6 @@
 """Optional compiled kernel (numba) for :meth:`NonlinearActuators.step` (issue 7).
 
-The pure-Python step in :mod:`simpro_mj.plant.pneumatics` is the reference; this
+The pure-Python step in :mod:`simpro_mj.plant.pneumatics.nonlinear` is the reference; this
 module repeats its float arithmetic operation for operation (same grouping,
 no ``fastmath``, so LLVM does not contract ``a * b + c`` into FMA) in one
 ``@numba.njit(cache=True)`` function. The kernel covers every option of the
@@ -15,22 +15,14 @@ the force product ``Mf @ z`` (BLAS, FMA accumulation). With them in numpy
 the kernel's results are bit-identical to the Python path (measured, see
 ``docs/performance.md``, round 3, and ``tests/test_pneumatics_kernel.py``).
 
-Selection: environment variable ``SIMPRO_KERNEL`` = ``auto`` (default: numba
-if it is importable), ``python`` or ``numba`` (an error if numba is missing),
-read when an actuator object is built. The JIT cache (``cache=True``) lives
+Selection: ``SIMPRO_KERNEL`` (:mod:`simpro_mj.plant.kernels`), read when an
+actuator object is built. The JIT cache (``cache=True``) lives
 next to this file in ``__pycache__``; if that directory is not writable
 (a read-only site-packages) numba uses ``NUMBA_CACHE_DIR`` when set (else it
 silently falls back to a user cache directory, or compiles in every process).
 """
 
 from __future__ import annotations
-
-import importlib.util
-import os
-
-from simpro_mj.core.errors import UserInputError
-
-KERNEL_CHOICES = ("auto", "python", "numba")
 
 # Layout of the kernel's one float64 buffer (a single array argument: numba's
 # call overhead grows by ~70 ns per array argument). The actuator object owns it;
@@ -50,52 +42,7 @@ def buffer_len(n_table: int) -> int:
     return KP_TAB + 3 * n_table
 
 
-_HAVE_NUMBA = importlib.util.find_spec("numba") is not None
 _kernel = None  # the compiled step, built on first use (numba's import costs ~0.2 s)
-
-
-def numba_version() -> str | None:
-    """numba's version if it is installed (without importing it), else None."""
-    if not _HAVE_NUMBA:
-        return None
-    from importlib import metadata
-
-    try:
-        return metadata.version("numba")
-    except metadata.PackageNotFoundError:  # pragma: no cover - a bare source tree
-        return "unknown"
-
-
-def kernel_choice() -> str:
-    """The kernel selected by ``SIMPRO_KERNEL``: ``"python"`` or ``"numba"``.
-
-    Raises
-    ------
-    UserInputError
-        An unknown value, or ``numba`` requested but not installed.
-    """
-    raw = os.environ.get("SIMPRO_KERNEL", "auto")
-    value = raw.strip().lower()
-    if value not in KERNEL_CHOICES:
-        raise UserInputError(
-            f"invalid value at SIMPRO_KERNEL: {raw!r}; allowed: one of {list(KERNEL_CHOICES)}"
-        )
-    if value == "auto":
-        return "numba" if _HAVE_NUMBA else "python"
-    if value == "numba" and not _HAVE_NUMBA:
-        raise UserInputError(
-            "SIMPRO_KERNEL=numba but numba is not installed: pip install 'simpro-sim[fast]'"
-        )
-    return value
-
-
-def kernel_label() -> str:
-    """``"numba 0.68.1"`` or ``"python"``: the kernel new actuators will use."""
-    try:
-        choice = kernel_choice()
-    except UserInputError:
-        return "invalid"
-    return f"numba {numba_version()}" if choice == "numba" else "python"
 
 
 def _psi(r, e, b, n):

@@ -1,0 +1,65 @@
+"""Which compiled kernels run: the ``SIMPRO_KERNEL`` switch (issue 7).
+
+``SIMPRO_KERNEL`` = ``auto`` (default: numba if it is importable), ``python``
+or ``numba`` (an error if numba is missing), read when an actuator
+(:mod:`simpro_mj.plant.pneumatics.kernel`) or a sensor object
+(:mod:`simpro_mj.plant.sensors_kernel`) is built. numba is an optional extra
+(``simpro-sim[fast]``): this module only asks whether it is installed, it
+never imports it (its import costs ~0.2 s).
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import os
+from importlib import metadata
+
+from simpro_mj.core.errors import UserInputError
+
+__all__ = ["KERNEL_CHOICES", "kernel_choice", "kernel_label", "numba_version"]
+
+KERNEL_CHOICES = ("auto", "python", "numba")
+
+_HAVE_NUMBA = importlib.util.find_spec("numba") is not None
+
+
+def numba_version() -> str | None:
+    """numba's version if it is installed (without importing it), else None."""
+    if not _HAVE_NUMBA:
+        return None
+    try:
+        return metadata.version("numba")
+    except metadata.PackageNotFoundError:  # pragma: no cover - a bare source tree
+        return "unknown"
+
+
+def kernel_choice() -> str:
+    """The kernel selected by ``SIMPRO_KERNEL``: ``"python"`` or ``"numba"``.
+
+    Raises
+    ------
+    UserInputError
+        An unknown value, or ``numba`` requested but not installed.
+    """
+    raw = os.environ.get("SIMPRO_KERNEL", "auto")
+    value = raw.strip().lower()
+    if value not in KERNEL_CHOICES:
+        raise UserInputError(
+            f"invalid value at SIMPRO_KERNEL: {raw!r}; allowed: one of {list(KERNEL_CHOICES)}"
+        )
+    if value == "auto":
+        return "numba" if _HAVE_NUMBA else "python"
+    if value == "numba" and not _HAVE_NUMBA:
+        raise UserInputError(
+            "SIMPRO_KERNEL=numba but numba is not installed: pip install 'simpro-sim[fast]'"
+        )
+    return value
+
+
+def kernel_label() -> str:
+    """``"numba 0.68.1"`` or ``"python"``: the kernel new actuators will use."""
+    try:
+        choice = kernel_choice()
+    except UserInputError:
+        return "invalid"
+    return f"numba {numba_version()}" if choice == "numba" else "python"

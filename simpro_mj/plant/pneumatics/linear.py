@@ -1,0 +1,161 @@
+"""Linearised actuators of the paper's eq. (19), on every slide of the closed chain.
+
+Per leg a state φ (pressure difference per unit effective mass) around the
+static holding force F_h, driven by the voltage deviation and the piston speed:
+
+.. math::
+    \\dot φ = b\\,(u - u_h) - a_0 \\dot q - a_1 φ, \\qquad
+    F = F_h + M_q φ + D_q \\dot q + K_q (q - q_0),
+
+with M_q, D_q, K_q the closed chain's mass, joint-damping and gravity-stiffness
+matrices reduced to the slides at home
+(:func:`~simpro_mj.plant.pneumatics.statics.slide_mass_matrix`). Linearised, the multibody gives
+:math:`\\ddot q = φ`, so every leg follows exactly
+:math:`Q/U = b / (s (s^2 + a_1 s + a_0))` (eqs. 19, 34, 35), decoupled.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from simpro_mj.core.errors import UserInputError
+from simpro_mj.plant.pneumatics.nonlinear import NonlinearActuators
+from simpro_mj.plant.pneumatics.params import U_CENTRE, U_MAX, PneumaticParams, fill_linear
+
+__all__ = ["LinearActuators"]
+
+
+class LinearActuators:
+    r"""Linearised actuators reproducing eq. (19) on every slide of the closed chain.
+
+    Per leg an acceleration-like state :math:`φ` (a pressure difference per
+    unit effective mass) obeys
+    :math:`\dot φ = b (u - u_h) - a_0 \dot q - a_1 φ` (integrated exactly over
+    the held step), and the slide forces are
+
+    .. math::
+        F = F_h + M_q φ + D_q \dot q + K_q (q - q_0),
+
+    with :math:`M_q` the mass matrix of the closed chain reduced to the slides,
+    :math:`D_q` the joint damping of the mechanism reduced the same way and
+    :math:`K_q = ∂F_h/∂q` the change of the gravity holding forces with the
+    configuration (all at home, :func:`~.statics.slide_mass_matrix`; leg 1 sees a
+    negative gravity stiffness of about -4.4 kN/m). Linearised about rest the
+    multibody obeys :math:`M_q \ddot q + D_q \dot q = F - F_h - K_q (q - q_0)`, hence
+    :math:`\ddot q = φ` and every leg follows
+    :math:`Q/U = b/(s(s^2 + a_1 s + a_0))` exactly, decoupled from the other
+    legs (the reflected masses of legs 2 and 3 are coupled by about 40 %:
+    a diagonal-mass design would not reproduce eq. 35 in the closed chain).
+
+    Parameters
+    ----------
+    params : dict or PneumaticParams, optional
+        The ``pneumatics`` tree; ``linear`` holds b, a1, a0 per leg.
+    mass_matrix : array (3, 3) or (3,), optional
+        :math:`M_q` in kg (a vector: a diagonal). Default
+        ``linear.effective_mass_kg`` (diagonal; required then).
+    damping_matrix : array (3, 3), optional
+        :math:`D_q` in N s/m (default 0).
+    stiffness_matrix : array (3, 3), optional
+        :math:`K_q` in N/m (default 0); q_0 is the ``q`` given to :meth:`reset`.
+
+    Attributes
+    ----------
+    p1, p2 : ndarray (3,)
+        Nominal chamber pressures consistent with the force (display only: the
+        nonlinear static equilibrium plus the force deviation shared equally).
+    spool : ndarray (3,)
+        Normalised valve command (no spool dynamics in this model).
+    """
+
+    kind = "linear"
+
+    def __init__(self, params=None, mass_matrix=None, damping_matrix=None, stiffness_matrix=None):
+        P = params if isinstance(params, PneumaticParams) else PneumaticParams.from_tree(params)
+        P = fill_linear(P)  # raises if eq. (19)'s coefficients are left null
+        self.params = P
+        m = mass_matrix if mass_matrix is not None else P.lin_mass
+        if m is None:
+            raise UserInputError(
+                "linear actuators need the effective slide masses: give a MuJoCo model to "
+                "make_actuators(..., model=) or set pneumatics.linear.effective_mass_kg"
+            )
+        m = np.asarray(m, float)
+        self.mass_matrix = np.diag(np.broadcast_to(m, (3,))) if m.ndim <= 1 else m.copy()
+        if self.mass_matrix.shape != (3, 3):
+            raise ValueError("mass_matrix must be (3, 3) or (3,)")
+        self.damping_matrix = (
+            np.zeros((3, 3)) if damping_matrix is None else np.asarray(damping_matrix, float)
+        )
+        self.stiffness_matrix = (
+            np.zeros((3, 3)) if stiffness_matrix is None else np.asarray(stiffness_matrix, float)
+        )
+        self.q_ref = np.zeros(3)
+        self._b, self._a0, self._a1 = P.lin_b, P.lin_a0, P.lin_a1
+        self._fmin, self._fmax = P.force_range
+        self._nl = NonlinearActuators(P)  # static pressures for display
+        self.phi = np.zeros(3)
+        self.force_hold = np.zeros(3)
+        self.u_hold = np.full(3, U_CENTRE)
+        self.spool = np.zeros(3)
+        self.p1, self.p2 = np.zeros(3), np.zeros(3)
+        self._p10, self._p20 = np.zeros(3), np.zeros(3)
+        self._dt = None
+
+    def reset(self, q, qdot, force=None) -> None:
+        """At rest holding ``force`` (N) with the valve at the nonlinear model's
+        holding voltage (5 V and the centred-valve force when ``force`` is None)."""
+        self._nl.reset(q, qdot, force)
+        if force is None:
+            self.force_hold[:] = self._nl.force_now(np.zeros(3))
+        else:
+            self.force_hold[:] = np.broadcast_to(np.asarray(force, float), (3,))
+        self.u_hold[:] = self._nl.u_hold
+        self.q_ref[:] = q
+        self._p10[:], self._p20[:] = self._nl.p1, self._nl.p2
+        self.phi[:] = 0.0
+        self.spool[:] = (self.u_hold - U_CENTRE) / 5.0
+        self._update_pressures(np.zeros(3))
+
+    def _update_pressures(self, df):
+        A1, A2 = self.params.area_cap, self.params.area_rod_side
+        self.p1[:] = self._p10 + 0.5 * df / A1
+        self.p2[:] = self._p20 - 0.5 * df / A2
+
+    def set_supply_pressure(self, p_pa: float) -> None:
+        """Change the supply pressure (Pa absolute) at run time (supply-drop fault).
+
+        Eq. (19) has no supply term; what follows p_s is the force bound
+        (``p_s A_cap - p_a A_rod_side - p_a A_rod`` and its mirror) and the
+        display pressures' nonlinear model.
+        """
+        p = float(p_pa)
+        self._nl.set_supply_pressure(p)
+        self._fmin, self._fmax = self.params.force_range_at(p)
+
+    def step(self, u_volts, q, qdot, dt: float) -> np.ndarray:
+        """Advance the states by ``dt`` and return the slide forces (N)."""
+        if dt != self._dt:
+            if not dt > 0:
+                raise ValueError(f"dt must be > 0, got {dt}")
+            self._dt = dt
+            a1 = self._a1
+            self._ea = np.exp(-a1 * dt)
+            safe = np.where(a1 > 0, a1, 1.0)
+            self._ia = np.where(a1 > 0, -np.expm1(-a1 * dt) / safe, dt)
+        u = np.clip(np.asarray(u_volts, float), 0.0, U_MAX)
+        qd = np.asarray(qdot, float)
+        self.spool[:] = (u - U_CENTRE) / 5.0
+        drive = self._b * (u - self.u_hold) - self._a0 * qd
+        self.phi *= self._ea
+        self.phi += self._ia * drive
+        df = (
+            self.mass_matrix @ self.phi
+            + self.damping_matrix @ qd
+            + self.stiffness_matrix @ (np.asarray(q, float) - self.q_ref)
+        )
+        force = self.force_hold + df
+        if self.params.lin_saturate:
+            np.clip(force, self._fmin, self._fmax, out=force)
+        self._update_pressures(force - self.force_hold)
+        return force

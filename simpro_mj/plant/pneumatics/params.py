@@ -1,0 +1,296 @@
+"""Parameters of the electro-pneumatic actuators: defaults, the SI record, checks.
+
+Every number of the valve + cylinder model lives here, edge units in the key
+names (:data:`DEFAULT_PNEUMATIC_PARAMS`); :meth:`PneumaticParams.from_tree`
+validates a ``pneumatics`` tree against it (one-line errors naming the path)
+and converts it to SI. The scenario (``simpro_mj.config``) validates its
+``actuator.pneumatics`` block with it, so this module must not import MuJoCo
+(``tests/test_api.py`` checks it).
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from simpro_mj.core.errors import UserInputError
+from simpro_mj.core.keys import apply_overrides, check_keys
+
+__all__ = [
+    "DEFAULT_PNEUMATIC_PARAMS",
+    "ACTUATOR_KINDS",
+    "U_CENTRE",
+    "U_MAX",
+    "PneumaticParams",
+    "pneumatic_params",
+    "fill_linear",
+]
+
+U_CENTRE = 5.0  # V, closed centre of the MPYE
+U_MAX = 10.0  # V
+
+ACTUATOR_KINDS = ("nonlinear", "linear")
+
+#: Parameters of the actuators, edge units in the key names. Per-leg values
+#: are lists [leg1, leg2, leg3]; a scalar applies to all three legs.
+DEFAULT_PNEUMATIC_PARAMS: dict = {
+    # FESTO MPYE: 6 bar gauge typical supply (brief; Festo operating range 0-10 bar)
+    "supply_pressure_bar_gauge": 6.0,
+    "atmospheric_pressure_kpa": 101.325,  # ISO 2533 sea level
+    "temperature_c": 20.0,  # supply and chamber gas temperature (assumption)
+    "gas_constant_j_per_kg_k": 287.05,  # dry air
+    # Polytropic index of the chamber gas. 1.4 (adiabatic): the small-signal
+    # oscillation (1-6 Hz) is much faster than the wall heat exchange of a
+    # 125 mm chamber (seconds), Richer & Hurmuzlu 2000 sec. 2.2. Calibrated
+    # (the stiffest physical choice, see docs/paper-notes.md (pneumatics)).
+    "polytropic_index": 1.4,
+    "cylinder": {
+        # DNC-125-500 (ISO 15552): bore 125 mm, stroke 500 mm (type code)
+        "bore_mm": 125.0,
+        # ISO 15552 rod for 125 bore (assumption, not read from a datasheet)
+        "rod_mm": 32.0,
+        "stroke_mm": 500.0,
+        # Dead volume per chamber: end-cap cushioning + port + valve-to-cylinder
+        # hose (3/8" hose, ID ~ 10 mm). Calibrated, see docs/paper-notes.md (pneumatics).
+        "dead_volume_cap_l": [0.10, 0.10, 0.10],
+        "dead_volume_rod_l": [0.10, 0.10, 0.10],
+        # Viscous friction coefficient, N s/m. Calibrated per leg (damping
+        # ratio of eqs. 34/35), see docs/paper-notes.md (pneumatics).
+        "viscous_friction_n_s_per_m": [11000.0, 600.0, 600.0],
+        # Coulomb (seal) friction, N: low-friction seals (assumption, kept low:
+        # its describing-function damping at PRBS speeds would dominate the
+        # paper's small damping of legs 2-3, see docs/paper-notes.md (pneumatics))
+        "coulomb_friction_n": [20.0, 20.0, 20.0],
+        # tanh smoothing velocity of the Coulomb law, mm/s (assumption)
+        "coulomb_smoothing_mm_per_s": 5.0,
+    },
+    "valve": {
+        # Sonic conductance C of one fully open metering edge, dm^3/(s bar).
+        # From the MPYE-5-3/8 nominal flow 2000 l/min (ANR, 6 -> 5 bar gauge,
+        # Festo catalogue; assumption, no datasheet at hand) with b = 0.3:
+        # C = qn / (p1 sqrt(1 - ((6/7 - b)/(1 - b))^2)) = 7.87 dm^3/(s bar).
+        "sonic_conductance_dm3_per_s_bar": 7.87,
+        # ISO 6358 critical pressure ratio b (assumption; spool valves 0.2-0.45)
+        "critical_pressure_ratio": 0.3,
+        # start of the laminar (linearised) region, ISO 6358-3 uses 0.999
+        "laminar_pressure_ratio": 0.999,
+        # Underlap of each metering edge as a fraction of the full opening
+        # (Rubio 2009's underlap leakage). Calibrated per leg.
+        "underlap_fraction": [0.02, 0.02, 0.02],
+        # Clearance leakage of a covered edge, fraction of full opening (assumption)
+        "leakage_fraction": 0.002,
+        # Spool response: 1 (first-order lag) or 2 (second order), bandwidth and
+        # damping (assumption: MPYE data not at hand; Project Chrono's valve 35 Hz,
+        # servo-valves 50-120 Hz)
+        "spool_order": 1,
+        "spool_bandwidth_hz": 60.0,
+        "spool_damping_ratio": 0.8,
+    },
+    "integration": {
+        # pressure sub-steps per call of step() (linearly implicit Euler each)
+        "substeps": 1,
+    },
+    "linear": {
+        # eq. (19) coefficients per leg in SI (slide metres per valve volt). null:
+        # eq. (34) actuator 1, eq. (35) actuators 2, 3 in SI under the scenario's
+        # paper_units reading (b / 20 for "volts"), filled in by the caller
+        # (make_actuators(..., linear_plants=...)); the plant knows no paper reading
+        "b_m_per_s3_v": None,
+        "a1_per_s": None,
+        "a0_per_s2": None,
+        # effective mass at each slide, kg (diagonal); null: MuJoCo's full mass
+        # matrix reduced to the slides at home (computed by make_actuators)
+        "effective_mass_kg": None,
+        # force of the linear model is bounded by the cylinder's (same as nonlinear)
+        "saturate_force": True,
+    },
+}
+
+
+def pneumatic_params(overrides=None, base: dict | None = None) -> dict:
+    """Default actuator parameter tree with ``--set``-style overrides applied."""
+    return apply_overrides(DEFAULT_PNEUMATIC_PARAMS if base is None else base, overrides or [])
+
+
+def _per_leg(tree: Mapping, path: str, lo: float = 0.0, hi: float = math.inf, open_lo=False):
+    node = tree
+    for part in path.split("."):
+        node = node[part]
+    arr = np.asarray(node, dtype=float)
+    if arr.ndim == 0:
+        arr = np.full(3, float(arr))
+    ok = arr.shape == (3,) and np.all(np.isfinite(arr))
+    ok = ok and np.all(arr > lo if open_lo else arr >= lo) and np.all(arr <= hi)
+    if not ok:
+        rng = f"{'>' if open_lo else '>='} {lo}" + (f" and <= {hi}" if hi < math.inf else "")
+        raise UserInputError(
+            f"invalid value at pneumatics.{path}: {node!r}; expected a number or a list of 3 "
+            f"numbers {rng}"
+        )
+    return arr
+
+
+def _per_leg_or_none(tree: Mapping, path: str, lo: float = 0.0, open_lo=False):
+    node = tree
+    for part in path.split("."):
+        node = node[part]
+    return None if node is None else _per_leg(tree, path, lo, open_lo=open_lo)
+
+
+def _scalar(tree: Mapping, path: str, lo: float, hi: float = math.inf, open_lo=True) -> float:
+    node = tree
+    for part in path.split("."):
+        node = node[part]
+    try:
+        x = float(node)
+    except (TypeError, ValueError):
+        x = math.nan
+    if not (math.isfinite(x) and (x > lo if open_lo else x >= lo) and x <= hi):
+        raise UserInputError(
+            f"invalid value at pneumatics.{path}: {node!r}; allowed {'>' if open_lo else '>='} "
+            f"{lo}" + (f" and <= {hi}" if hi < math.inf else "")
+        )
+    return x
+
+
+@dataclass(frozen=True)
+class PneumaticParams:
+    """Actuator parameters in SI units (built from the tree by :meth:`from_tree`).
+
+    Arrays have one entry per leg.
+    """
+
+    p_supply: float  # Pa absolute
+    p_atm: float  # Pa
+    temperature: float  # K
+    gas_constant: float  # J/(kg K)
+    n_poly: float
+    area_cap: float  # m^2
+    area_rod_side: float  # m^2 (annulus)
+    stroke: float  # m
+    dead_cap: np.ndarray  # m^3
+    dead_rod: np.ndarray  # m^3
+    viscous: np.ndarray  # N s/m
+    coulomb: np.ndarray  # N
+    v_smooth: float  # m/s
+    conductance: float  # m^3/(s Pa)
+    b_crit: float
+    r_laminar: float
+    underlap: np.ndarray
+    leakage: float
+    spool_order: int
+    spool_omega: float  # rad/s
+    spool_zeta: float
+    substeps: int
+    lin_b: np.ndarray | None  # None: to be filled by make_actuators(linear_plants=)
+    lin_a1: np.ndarray | None
+    lin_a0: np.ndarray | None
+    lin_mass: np.ndarray | None
+    lin_saturate: bool
+
+    @classmethod
+    def from_tree(cls, tree: Mapping | None = None) -> PneumaticParams:
+        """Validate a parameter tree (defaults filled in) and convert to SI.
+
+        Raises
+        ------
+        UserInputError
+            For unknown keys or out-of-range values (the message names the path).
+        """
+        t = copy.deepcopy(DEFAULT_PNEUMATIC_PARAMS)
+        if tree is not None:
+            check_keys(tree, DEFAULT_PNEUMATIC_PARAMS, "pneumatics")
+            for k, v in tree.items():
+                if isinstance(v, Mapping):
+                    t[k].update(copy.deepcopy(dict(v)))
+                else:
+                    t[k] = copy.deepcopy(v)
+        p_atm = _scalar(t, "atmospheric_pressure_kpa", 0.0) * 1e3
+        p_s = _scalar(t, "supply_pressure_bar_gauge", 0.0, 12.0) * 1e5 + p_atm
+        bore = _scalar(t, "cylinder.bore_mm", 0.0) * 1e-3
+        rod = _scalar(t, "cylinder.rod_mm", 0.0, bore * 1e3 * 0.999) * 1e-3
+        a1 = math.pi / 4 * bore**2
+        a2 = a1 - math.pi / 4 * rod**2
+        order = _scalar(t, "valve.spool_order", 0.0, 2.0)
+        if order not in (1.0, 2.0):
+            raise UserInputError(
+                f"invalid value at pneumatics.valve.spool_order: {order}; allowed 1 or 2"
+            )
+        sub = _scalar(t, "integration.substeps", 0.0, 1000.0)
+        if sub != int(sub):
+            raise UserInputError("invalid value at pneumatics.integration.substeps: an integer")
+        lin_m = t["linear"]["effective_mass_kg"]
+        sat = t["linear"]["saturate_force"]
+        if not isinstance(sat, bool):
+            raise UserInputError("wrong type at pneumatics.linear.saturate_force: a boolean")
+        return cls(
+            p_supply=p_s,
+            p_atm=p_atm,
+            temperature=_scalar(t, "temperature_c", -273.15) + 273.15,
+            gas_constant=_scalar(t, "gas_constant_j_per_kg_k", 0.0),
+            n_poly=_scalar(t, "polytropic_index", 1.0, 1.67, open_lo=False),
+            area_cap=a1,
+            area_rod_side=a2,
+            stroke=_scalar(t, "cylinder.stroke_mm", 0.0) * 1e-3,
+            dead_cap=_per_leg(t, "cylinder.dead_volume_cap_l", 0.0, open_lo=True) * 1e-3,
+            dead_rod=_per_leg(t, "cylinder.dead_volume_rod_l", 0.0, open_lo=True) * 1e-3,
+            viscous=_per_leg(t, "cylinder.viscous_friction_n_s_per_m"),
+            coulomb=_per_leg(t, "cylinder.coulomb_friction_n"),
+            v_smooth=_scalar(t, "cylinder.coulomb_smoothing_mm_per_s", 0.0) * 1e-3,
+            conductance=_scalar(t, "valve.sonic_conductance_dm3_per_s_bar", 0.0) * 1e-3 / 1e5,
+            b_crit=_scalar(t, "valve.critical_pressure_ratio", 0.0, 0.528, open_lo=False),
+            r_laminar=_scalar(t, "valve.laminar_pressure_ratio", 0.9, 0.99999),
+            underlap=_per_leg(t, "valve.underlap_fraction", 0.0, 0.5),
+            leakage=_scalar(t, "valve.leakage_fraction", 0.0, 0.5),
+            spool_order=int(order),
+            spool_omega=2 * math.pi * _scalar(t, "valve.spool_bandwidth_hz", 0.0),
+            spool_zeta=_scalar(t, "valve.spool_damping_ratio", 0.0),
+            substeps=int(sub),
+            lin_b=_per_leg_or_none(t, "linear.b_m_per_s3_v"),
+            lin_a1=_per_leg_or_none(t, "linear.a1_per_s"),
+            lin_a0=_per_leg_or_none(t, "linear.a0_per_s2", 0.0, open_lo=True),
+            lin_mass=None if lin_m is None else _per_leg(t, "linear.effective_mass_kg", 0.0, True),
+            lin_saturate=sat,
+        )
+
+    @property
+    def area_rod(self) -> float:
+        """Rod cross-section A_1 - A_2 (m^2), where the atmosphere pushes."""
+        return self.area_cap - self.area_rod_side
+
+    @property
+    def force_range(self) -> tuple[float, float]:
+        """(min, max) pneumatic force with the chambers at the pressure bounds (N)."""
+        return self.force_range_at(self.p_supply)
+
+    def force_range_at(self, ps: float) -> tuple[float, float]:
+        """:attr:`force_range` for a supply pressure ``ps`` (Pa absolute)."""
+        pa = self.p_atm
+        return (
+            pa * self.area_cap - ps * self.area_rod_side - pa * self.area_rod,
+            ps * self.area_cap - pa * self.area_rod_side - pa * self.area_rod,
+        )
+
+
+def fill_linear(P: PneumaticParams, linear_plants=None) -> PneumaticParams:
+    """``P`` with its null ``linear`` coefficients taken from ``linear_plants``.
+
+    ``linear_plants`` is ``(b, a1, a0)``, three per-leg sequences in SI (the
+    caller's eqs. 34-35 under its units reading). Raises
+    :class:`UserInputError` if a coefficient stays undefined.
+    """
+    have = {"lin_b": P.lin_b, "lin_a1": P.lin_a1, "lin_a0": P.lin_a0}
+    keys = {"lin_b": "b_m_per_s3_v", "lin_a1": "a1_per_s", "lin_a0": "a0_per_s2"}
+    for i, name in enumerate(have):
+        if have[name] is None:
+            if linear_plants is None:
+                raise UserInputError(
+                    f"missing value at pneumatics.linear.{keys[name]}: null; allowed: a number "
+                    "or 3 numbers (eq. 19 in SI), or a caller that supplies eqs. 34-35"
+                )
+            have[name] = np.broadcast_to(np.asarray(linear_plants[i], float), (3,)).copy()
+    return replace(P, **have)
