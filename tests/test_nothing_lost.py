@@ -162,7 +162,7 @@ def test_an_interrupted_rerun_keeps_the_complete_result(tmp_path):
 
 def test_the_interrupted_message_names_both_folders(tmp_path):
     from simpro_mj.report.runner import interrupted_message
-    from simpro_mj.sim.loop import SimResult
+    from simpro_mj.sim.result import SimResult
 
     res = SimResult({}, "interrupted", "SIGINT", {"simulated_s": 1.5}, {"duration_s": 10.0})
     res.folder = tmp_path / "r.partial"

@@ -198,15 +198,31 @@ class Sensors:
         return 0
 
     def front(self, reader):
-        """The loop's state read and sensor step in one call, or None.
+        """The loop's state read and sensor step: ``front(k) -> (q, q_dot, pose,
+        q_meas, pose_meas, loop_max)``.
 
-        ``reader`` is the run's :class:`~simpro_mj.plant.model.StateReader`. With
-        the compiled kernel (``SIMPRO_KERNEL``) returns ``front(k) -> (q,
-        q_dot, pose, q_meas, pose_meas, loop_max)``: ``reader.read()``,
-        :meth:`sample_floats` and ``reader.loop_closure_max()`` of the same
-        state, bit for bit, as fresh lists and a float. None on the Python
-        path, or if MuJoCo's state cannot be viewed as one buffer.
+        ``reader`` is the run's :class:`~simpro_mj.plant.model.StateReader`.
+        One contract, two paths with the same bits: ``reader.read()``,
+        :meth:`sample_floats` and ``reader.loop_closure_max()`` of the state
+        at step ``k`` (the Python path), or one compiled call
+        (``SIMPRO_KERNEL``, :mod:`simpro_mj.plant.sensors_kernel`) when
+        MuJoCo's state can be viewed as one buffer. ``q_meas`` and
+        ``pose_meas`` may be the sensor's own lists: copy them to keep them.
         """
+        fused = self._fused_front(reader)
+        if fused is not None:
+            return fused
+        read, sample, loop_max = reader.read, self.sample_floats, reader.loop_closure_max
+
+        def front(k: int):
+            q, qd, pose, xpos = read()
+            q_meas, pose_meas = sample(k, q, pose)
+            return q, qd, pose, q_meas, pose_meas, loop_max(xpos)
+
+        return front
+
+    def _fused_front(self, reader):
+        """:meth:`front` as one compiled call, or None (Python path, or no one buffer)."""
         if self._kb is None:
             return None
         bound = reader.buffer_view()

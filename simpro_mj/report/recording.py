@@ -2,7 +2,7 @@
 
 A result folder written by ``simpro-sim run`` holds ``qpos.npz``: the full
 ``qpos`` of the closed chain at every logged row (a copy taken in the loop,
-:attr:`simpro_mj.sim.loop.SimResult.qpos`). A replay (:mod:`.render`,
+:attr:`simpro_mj.sim.result.SimResult.qpos`). A replay (:mod:`.render`,
 :mod:`.viewer`) shows exactly those positions: nothing is simulated again.
 The set-point ghost is posed from the recorded set-point columns
 (``roll_ref_rad``, ``pitch_ref_rad``, ``heave_ref_m``) through the
@@ -111,7 +111,7 @@ def load_recording(folder) -> Recording:
 
 
 def recording_of(result) -> Recording:
-    """A :class:`Recording` of a run still in memory (:class:`simpro_mj.sim.loop.SimResult`)."""
+    """A :class:`Recording` of a run still in memory (:class:`simpro_mj.sim.result.SimResult`)."""
     if result.qpos is None:
         raise UserInputError("no recorded motion in this run: allowed: a run of this version")
     name = str(result.scenario.get("name", "run"))
