@@ -47,20 +47,21 @@ How the co-simulation loop uses it (``simpro_mj.sim.loop``)
 ------------------------------------------------------
 :meth:`CoSimulation.run <simpro_mj.sim.loop.CoSimulation.run>` builds the schedule
 (:meth:`FaultSchedule.from_scenario`) only if ``scenario["faults"]`` is not
-empty; otherwise ``next_ev`` stays :data:`NEVER` and the loop pays one int
-compare per step. In each step, after the sensors have sampled the state of
-step k and before the controllers read the measurements:
+empty; otherwise the next event stays :data:`NEVER` and the loop pays one int
+compare per step. Faults act by swapping the loop's stage functions
+(:class:`simpro_mj.sim.stages.FaultStages`):
 
-* ``k == next_ev``: :meth:`FaultSchedule.at_event` brings the state to step
+* ``k == next_event``: :meth:`FaultSchedule.at_event` brings the state to step
   k; a changed ``supply_pa`` goes to ``set_supply_pressure`` of the actuators;
-  the loop takes ``valve_active``, ``sensor_active``, ``flags`` and
-  ``next_event`` from the schedule;
-* while ``sensor_active``: :meth:`FaultSchedule.apply_sensors` gives the
-  readings the controllers see (new lists; the sensors' own state is
-  untouched);
-* while ``valve_active``: :meth:`FaultSchedule.apply_valves` replaces the
-  stuck legs' voltages in the joint loops' command before the pneumatics step
-  (the controllers' own state keeps their own command).
+  ``flags`` and ``supply_pa`` go to the log; the sensing and control stages
+  are chosen for ``sensor_active`` and ``valve_active``;
+* while ``sensor_active``: the sensing stage hands the controllers
+  :meth:`FaultSchedule.apply_sensors` of the readings (new lists; the
+  sensors' own state is untouched);
+* while ``valve_active``: the control stage returns
+  :meth:`FaultSchedule.apply_valves` of the joint loops' command: the stuck
+  legs' voltages go to the pneumatics (the controllers' own state keeps their
+  own command).
 
 A fault at ``time_s`` thus acts from the step ``round(time_s / dt)`` on
 (t >= time_s). The log holds the applied voltages (``u*_v``), what the
@@ -92,6 +93,9 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
+
+from simpro_mj.plant.pneumatics.params import PneumaticParams
+from simpro_mj.plant.sensors import DEFAULT_SENSORS
 
 __all__ = [
     "FLAG_BITS",
@@ -236,7 +240,7 @@ class FaultSchedule:
         seed: int = 0,
     ):
         if sensors is None:
-            from simpro_mj.plant.sensors import DEFAULT_SENSORS as sensors
+            sensors = DEFAULT_SENSORS
         self.dt = float(dt)
         self.n_steps = int(n_steps)
         self.nominal_supply_pa = float(supply_pa)
@@ -311,8 +315,6 @@ class FaultSchedule:
     @classmethod
     def from_scenario(cls, scenario: Mapping, dt: float) -> FaultSchedule:
         """The schedule of a resolved scenario at physics step ``dt``."""
-        from simpro_mj.plant.pneumatics.params import PneumaticParams
-
         params = PneumaticParams.from_tree(scenario["actuator"].get("pneumatics") or {})
         return cls(
             scenario.get("faults") or [],

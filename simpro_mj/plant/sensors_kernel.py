@@ -145,7 +145,7 @@ def kernels():
     compiled or loaded from the on-disk cache on the first call in a process."""
     global _kernels
     if _kernels is None:
-        import numba
+        import numba  # the optional extra simpro-sim[fast]: imported on first use
 
         # the callers' compiled bodies resolve these globals: replace them first
         globals()["_quantise"] = _jit(numba, _quantise, inline="always")

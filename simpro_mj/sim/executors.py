@@ -11,13 +11,20 @@ readiness is signalled once the tasks are submitted
 
 from __future__ import annotations
 
+import logging
+import multiprocessing
 import os
 import sys
 import time
 from collections.abc import Callable, Mapping
+from concurrent.futures import ProcessPoolExecutor, as_completed
 
+from tqdm import tqdm
+
+from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.messages import one_line
 from simpro_mj.sim.readiness import signal_ready
+from simpro_mj.sim.workers import init_worker, run_task, stop_pool
 
 __all__ = [
     "MAX_JOBS",
@@ -45,8 +52,6 @@ class Progress:
         self.total = total
         self.bar = None
         if enabled and total and sys.stderr.isatty():
-            from tqdm import tqdm
-
             self.bar = tqdm(total=total, desc=desc, unit="run", file=sys.stderr, dynamic_ncols=True)
             self._post()
 
@@ -119,11 +124,6 @@ def run_here(tasks: list[tuple[int, dict]], done: Callback, fn: Worker) -> None:
 
 def run_pool(tasks: list[tuple[int, dict]], jobs: int, done: Callback, fn: Worker) -> None:
     """The tasks on a spawn process pool of at most ``jobs`` workers."""
-    import multiprocessing
-    from concurrent.futures import ProcessPoolExecutor, as_completed
-
-    from simpro_mj.sim.workers import init_worker, run_task, stop_pool
-
     ctx = multiprocessing.get_context("spawn")  # no inherited MuJoCo/threads state
     pool = ProcessPoolExecutor(
         max_workers=min(jobs, len(tasks)),
@@ -152,10 +152,8 @@ def run_pool(tasks: list[tuple[int, dict]], jobs: int, done: Callback, fn: Worke
 
 def dask_module():
     """``dask.distributed``, or a one-line :class:`UserInputError` naming the extra."""
-    from simpro_mj.core.errors import UserInputError
-
     try:
-        import distributed
+        import distributed  # the optional extra simpro-sim[cluster]: imported on use
     except ImportError as exc:
         raise UserInputError(
             "missing package at --scheduler: dask.distributed is not installed; allowed: "
@@ -178,8 +176,6 @@ def run_dask(
     fn: Worker,
 ) -> None:
     """The tasks on a Dask scheduler (``"local"``: a local cluster of ``jobs`` workers)."""
-    import logging
-
     distributed = dask_module()
     cluster = None
     try:
@@ -195,8 +191,6 @@ def run_dask(
         else:
             client = distributed.Client(scheduler)
     except (OSError, TimeoutError, ValueError) as exc:
-        from simpro_mj.core.errors import UserInputError
-
         if cluster is not None:
             cluster.close()
         raise UserInputError(

@@ -29,6 +29,7 @@ import threading
 import time
 
 from simpro_mj.core.interrupts import guarded_imports, hold_aware, raise_or_hold
+from simpro_mj.sim.readiness import ENV
 
 __all__ = ["POLL_S", "GRACE_S", "init_worker", "run_task", "stop_pool", "watch_parent"]
 
@@ -58,7 +59,6 @@ def init_worker(parent_pid: int) -> None:
     variant is stepping) is ``<file>.worker-<pid>``, so it never stands for
     the parent's.
     """
-    from simpro_mj.sim.readiness import ENV
 
     if os.environ.get(ENV):
         os.environ[ENV] = f"{os.environ[ENV]}.worker-{os.getpid()}"

@@ -163,7 +163,7 @@ def step_kernel():
     loaded from the on-disk cache on the first call in a process."""
     global _kernel
     if _kernel is None:
-        import numba
+        import numba  # the optional extra simpro-sim[fast]: imported on first use
 
         try:
             psi = numba.njit(cache=True, inline="always")(_psi)
