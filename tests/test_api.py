@@ -180,3 +180,19 @@ def test_the_docs_example_runs(tmp_path):
     assert text.count(" ok pitch overshoot ") == 2  # the two variants of the sweep
     assert (out / "step_pitch.png").stat().st_size > 10_000
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
+
+
+def test_no_command_loads_mujoco_before_it_runs(tmp_path):
+    """Each command module imports without MuJoCo (0.35 s of import, more under
+    load), so that a mistake on the command line is refused within a second;
+    MuJoCo loads when a plant is built."""
+    from simpro_mj.commands.main import COMMANDS
+
+    code = (
+        "import importlib, sys; "
+        f"[importlib.import_module(p) for p in {sorted(COMMANDS.values())!r}]; "
+        "print('mujoco' in sys.modules)"
+    )
+    proc = _python(code, tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.strip() == "False"

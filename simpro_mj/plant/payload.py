@@ -14,8 +14,6 @@ import math
 
 import numpy as np
 
-from simpro_mj.plant.pneumatics.statics import holding_forces
-
 __all__ = ["holding_force_model", "max_payload"]
 
 
@@ -26,6 +24,10 @@ def holding_force_model(model, data, index, probe_kg: float = 1.0):
     holding forces are affine in the payload mass at a fixed pose. The
     model's payload mass is changed for the two static solves and restored.
     """
+    # MuJoCo (statics, the plant model) on use: every command imports the preflight,
+    # which imports this module, and refuses a mistake within a second without it
+    from simpro_mj.plant.pneumatics.statics import holding_forces
+
     body = model.body("payload").id
     saved = float(model.body_mass[body])
     try:
