@@ -28,7 +28,10 @@ def model():
 
 
 def test_compiles_with_1ms_step(model):
-    assert model.opt.timestep == pytest.approx(1e-3)
+    from simpro_mj.core.rates import PHYSICS_DT_S
+
+    # the one timestep every period is checked against (simpro_mj.core.rates)
+    assert model.opt.timestep == PHYSICS_DT_S == pytest.approx(1e-3)
     assert model.opt.integrator == mujoco.mjtIntegrator.mjINT_IMPLICITFAST
     assert model.nu == 3
 

@@ -40,6 +40,7 @@ import numpy as np
 from controllers.washout import ClassicalWashout, WashoutParamError, WashoutParams
 from simpro_mj.config.telemetry import read_telemetry, resample
 from simpro_mj.core.errors import UserInputError
+from simpro_mj.core.rates import PHYSICS_DT_S, steps_per_period, whole_steps
 
 __all__ = [
     "PARAMETER_KEYS",
@@ -64,7 +65,6 @@ SINE_CHANNELS = {
     "wy_rad_s": math.pi / 2,
 }
 TELEMETRY_DIR = Path(__file__).resolve().parents[1] / "scenarios" / "telemetry"
-PHYSICS_DT_S = 0.001
 
 #: YAML key -> (WashoutParams field, factor from the YAML unit to SI).
 PARAMETER_KEYS = {
@@ -182,7 +182,7 @@ def check_sine(sine, path: str = "setpoint.cueing.sine") -> dict:
         )
     ok = isinstance(period, (int, float)) and not isinstance(period, bool)
     if not (ok and math.isfinite(period) and 0.02 <= period <= 600.0) or (
-        abs(period * 1e3 - round(period * 1e3)) > 1e-6
+        whole_steps(period) is None
     ):
         raise UserInputError(
             f"invalid value at {path}.period_s: {period!r}; allowed: 0.02..600 s on the 1 ms grid"
@@ -315,12 +315,9 @@ def _chain(key: str):
         f, w = resample(tel, t)
         source = tel.source
     params = washout_params(cue)
-    every = int(round(params.period / PHYSICS_DT_S))
-    if abs(every * PHYSICS_DT_S - params.period) > 1e-9:
-        raise UserInputError(
-            f"invalid value at setpoint.cueing.parameters.period_ms: {params.period * 1e3:g}; "
-            "allowed: a positive integer multiple of the 1 ms physics timestep"
-        )
+    every = steps_per_period(
+        params.period * 1e3, PHYSICS_DT_S, "setpoint.cueing.parameters.period_ms"
+    )
     wash = ClassicalWashout(params)
     res = wash.run(f[::every], w[::every])
     pose = np.repeat(res.pose, every, axis=0)[: t.size]  # zero-order hold

@@ -56,8 +56,10 @@ from simpro_mj.config.rules import (
 )
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.keys import check_keys, value_text
+from simpro_mj.core.rates import whole_steps
 from simpro_mj.plant.pneumatics.params import ACTUATOR_KINDS as ACTUATOR_MODELS
 from simpro_mj.plant.pneumatics.params import DEFAULT_PNEUMATIC_PARAMS, PneumaticParams
+from simpro_mj.plant.sensors import POT_BITS, POT_BITS_TEXT
 
 __all__ = [
     "Scenario",
@@ -130,9 +132,8 @@ class Feedforward(Block):
 def _per_leg_steps(times: list[float]) -> list[float]:
     """One time for every leg or three (controllers.setpoint_filter.leg_times), each
     an integer multiple of the 1 ms step (the ramp averages whole steps)."""
-    ok = len(times) in (1, 3) and all(
-        abs(v / PHYSICS_DT_MS - round(v / PHYSICS_DT_MS)) < 1e-9 for v in times
-    )
+    # 0 is allowed (no ramp): whole_steps asks for at least one step
+    ok = len(times) in (1, 3) and all(v == 0 or whole_steps(v * 1e-3) is not None for v in times)
     if not ok:
         allowed = f"one or 3 (per leg) multiples of the {PHYSICS_DT_MS:g} ms physics step"
         raise Problem.invalid(times, allowed)
@@ -250,7 +251,7 @@ class PlantBlock(Block):
 
 class Potentiometer(Block):
     _path = "sensors.potentiometer"
-    bits: Annotated[int, rule(lambda v: 4 <= v <= 24, "an integer 4..24")]
+    bits: Annotated[int, rule(lambda v: POT_BITS[0] <= v <= POT_BITS[1], POT_BITS_TEXT)]
     range_v: Annotated[float, rule(lambda v: v > 0, "> 0 V")]
     volts_per_mm: Annotated[float, rule(lambda v: v > 0, "> 0 V/mm")]
     noise_lsb: Annotated[float, rule(lambda v: v >= 0, ">= 0 LSB")]

@@ -41,10 +41,7 @@ from pydantic import (
 from simpro_mj.config.defaults import DEFAULT_SCENARIO
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.keys import closest, get_path, key_text, value_text
-
-#: Physics step of ``simpro_mj/models/simpro_platform.xml`` (s); periods are multiples of it.
-PHYSICS_DT_S = 0.001
-PHYSICS_DT_MS = 1
+from simpro_mj.core.rates import PHYSICS_DT_MS, PHYSICS_DT_S, whole_steps
 
 MODES = ("joint_only", "task_space", "feedforward")
 OUTER_TYPES = ("I", "PI")
@@ -163,11 +160,7 @@ def multiple_of_step(value: Any) -> Any:
 
     The one check of a period or sampling rate; ``2.5`` says so, not "integer".
     """
-    ratio = float(value) / PHYSICS_DT_MS
-    # isfinite first: round(inf) raises (found by the hypothesis loader test)
-    if not (math.isfinite(ratio) and ratio >= 1 and abs(ratio - round(ratio)) < 1e-9) or (
-        float(value) > MAX_PERIOD_MS
-    ):
+    if whole_steps(float(value) * 1e-3, PHYSICS_DT_S) is None or float(value) > MAX_PERIOD_MS:
         raise Problem.invalid(
             value,
             f"a positive integer multiple of the {PHYSICS_DT_MS} ms physics step, "

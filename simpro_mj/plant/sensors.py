@@ -23,10 +23,16 @@ from dataclasses import dataclass
 import numpy as np
 
 from simpro_mj.core.errors import UserInputError
+from simpro_mj.core.rates import steps_per_period
 from simpro_mj.plant import sensors_kernel as _sk
 from simpro_mj.plant.kernels import kernel_choice
 
-__all__ = ["DEFAULT_SENSORS", "SensorConfig", "Sensors"]
+__all__ = ["DEFAULT_SENSORS", "POT_BITS", "POT_BITS_TEXT", "SensorConfig", "Sensors"]
+
+#: Resolutions a potentiometer channel may be given (bits); the scenario checks
+#: ``sensors.potentiometer.bits`` against the same range.
+POT_BITS = (4, 24)
+POT_BITS_TEXT = f"an integer {POT_BITS[0]}..{POT_BITS[1]}"
 
 #: Edge-unit defaults; a scenario's ``sensors`` block overrides them.
 DEFAULT_SENSORS: dict = {
@@ -79,14 +85,7 @@ class SensorConfig:
         pot, enc, imu = tree["potentiometer"], tree["height_encoder"], tree["imu"]
 
         def every(ms, where):
-            n = ms * 1e-3 / dt
-            k = int(round(n))
-            if k < 1 or abs(n - k) > 1e-9:
-                raise UserInputError(
-                    f"invalid value at {path}.{where}.rate_ms: {ms}; allowed: a positive "
-                    f"integer multiple of the {dt * 1e3:g} ms timestep"
-                )
-            return k
+            return steps_per_period(ms, dt, f"{path}.{where}.rate_ms")
 
         def positive(v, where, zero_ok=False):
             if not (math.isfinite(v) and (v >= 0 if zero_ok else v > 0)):
@@ -95,9 +94,9 @@ class SensorConfig:
             return float(v)
 
         bits = int(pot["bits"])
-        if not 4 <= bits <= 24:
+        if not POT_BITS[0] <= bits <= POT_BITS[1]:
             raise UserInputError(
-                f"invalid value at {path}.potentiometer.bits: {bits}; allowed 4..24"
+                f"invalid value at {path}.potentiometer.bits: {bits}; allowed: {POT_BITS_TEXT}"
             )
         rng_v = positive(pot["range_v"], "potentiometer.range_v")
         vpm = positive(pot["volts_per_mm"], "potentiometer.volts_per_mm") * 1e3  # V/m

@@ -39,6 +39,7 @@ from controllers.task_space import TaskSpaceController, outer_law
 from controllers.velocity_feedforward import leg_velocity_feedforward
 from simpro_mj.config.scenario import reference
 from simpro_mj.core.errors import PhysicsError, UserInputError
+from simpro_mj.core.rates import steps_per_period
 from simpro_mj.identification.auto import with_identified
 from simpro_mj.plant.faults import NEVER, FaultSchedule
 from simpro_mj.plant.model import PlantIndex, load_model
@@ -53,17 +54,6 @@ __all__ = ["LOOP_OPEN_BOUND", "CoSimulation", "simulate"]
 #: Divergence bound on the loop-closure error (m): far above the 0.5 mm of
 #: normal motion, well below anything physical.
 LOOP_OPEN_BOUND = 5e-3
-
-
-def _ms_to_steps(ms: float, dt: float, path: str) -> int:
-    n = ms * 1e-3 / dt
-    k = int(round(n))
-    if k < 1 or abs(n - k) > 1e-9 * max(1.0, n):
-        raise UserInputError(
-            f"invalid value at {path}: {ms} ms; allowed: a positive integer multiple of the "
-            f"{dt * 1e3:g} ms physics timestep"
-        )
-    return k
 
 
 def _say(message: str) -> None:
@@ -98,7 +88,7 @@ class CoSimulation:
         ctl = scenario["controller"]
         self.mode = ctl["mode"]
         outer = ctl["outer"]
-        self.outer_every = _ms_to_steps(outer["period_ms"], dt, "controller.outer.period_ms")
+        self.outer_every = steps_per_period(outer["period_ms"], dt, "controller.outer.period_ms")
         law, pi_zero = outer_law(outer["type"], outer["integrator"], outer["pi_zero"])
         self.task = TaskSpaceController(
             mode={"task_space": law, "feedforward": "feedforward"}.get(self.mode, "joint_only"),
