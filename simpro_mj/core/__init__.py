@@ -6,6 +6,7 @@
   messages (``closest`` valid key, allowed values).
 - :mod:`.safe_yaml`: YAML without aliases bombs or non-finite surprises.
 - :mod:`.jsonout`: the ``--json`` contract (one JSON object on stdout).
+- :mod:`.rates`: the physics timestep; a period as a whole number of steps.
 - :mod:`.interrupts`: Ctrl-C and SIGTERM as ``KeyboardInterrupt``, held while an
   import or a result folder's write runs.
 """
