@@ -59,7 +59,8 @@ from controllers.kinematics import inverse_kinematics
 from controllers.washout import ClassicalWashout
 from simpro_mj.analysis.response import check_run_length, check_settle_periods, failures, measure
 from simpro_mj.analysis.response_summary import loop_model
-from simpro_mj.config.cueing import check_cueing, vehicle_input, washout_params
+from simpro_mj.config.cueing import vehicle_input, washout_params
+from simpro_mj.config.models import check_cueing
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.messages import one_line
 from simpro_mj.plant.model import assemble

@@ -16,9 +16,11 @@ components::
 (:data:`SINE_CHANNELS`, telemetry column names, SI); it is what
 ``simpro-sim response --chain`` runs, one channel and frequency at a time.
 
-A relative ``telemetry`` path is found beside the scenario file, then among
-the shipped files (``simpro_mj/scenarios/telemetry/``). The resolved scenario
-spells out every parameter. The vehicle input is resampled to the 1 ms
+The block is validated by :class:`simpro_mj.config.models.Cueing` (with the
+rest of the scenario; :func:`simpro_mj.config.models.check_cueing` for a block
+alone). A relative ``telemetry`` path is found beside the scenario file, then
+among the shipped files (``simpro_mj/scenarios/telemetry/``). The resolved
+scenario spells out every parameter. The vehicle input is resampled to the 1 ms
 physics grid (linear), the washout runs at its own period on every
 ``period``-th sample and its set-point is held in between (what the rig's
 computer would do); the chain is computed once per scenario and cached.
@@ -37,16 +39,18 @@ from pathlib import Path
 
 import numpy as np
 
-from controllers.washout import ClassicalWashout, WashoutParamError, WashoutParams
+from controllers.washout import ClassicalWashout, WashoutParams
 from simpro_mj.config.telemetry import read_telemetry, resample
 from simpro_mj.core.errors import UserInputError
-from simpro_mj.core.rates import PHYSICS_DT_S, steps_per_period, whole_steps
+from simpro_mj.core.rates import PHYSICS_DT_S, steps_per_period
 
 __all__ = [
     "PARAMETER_KEYS",
     "ALGORITHMS",
+    "SINE_CHANNELS",
     "TELEMETRY_DIR",
-    "check_cueing",
+    "default_parameters",
+    "manoeuvre_spec",
     "resolve_paths",
     "washout_params",
     "vehicle_input",
@@ -87,107 +91,20 @@ PARAMETER_KEYS = {
     "stroke_margin_mm": ("stroke_margin", 1e-3),
     "knee": ("knee", 1.0),
 }
-_MANOEUVRE_KEYS = {
-    "type": None,
-    "speed_kmh": None,
-    "vehicle": "bmw_320i",
-    "deceleration_mps2": 5.0,
-    "bump_height_m": 0.06,
-    "bump_length_m": 0.5,
-    "lead_s": 1.0,
-}
 
 
-def _defaults_yaml() -> dict:
+def default_parameters() -> dict:
+    """The washout's defaults (:class:`WashoutParams`) as ``parameters`` (YAML units).
+
+    ``rot_order`` an int, the others floats rounded to 12 digits (so that a
+    default reads as ``3.0`` deg/s, not ``3.0000000000000004``).
+    """
     p = WashoutParams()
     out = {}
     for key, (name, factor) in PARAMETER_KEYS.items():
         v = getattr(p, name) / factor
         out[key] = int(round(v)) if name == "rot_order" else float(round(v, 12))
     return out
-
-
-def check_cueing(value, path: str = "setpoint.cueing") -> dict:
-    """Validate a ``cueing`` block; return it with every key spelled out.
-
-    Raises :class:`UserInputError` (one line: the dotted key and what is allowed).
-    """
-    if not isinstance(value, Mapping):
-        raise UserInputError(
-            f"invalid value at {path}: expected a mapping with telemetry or manoeuvre"
-        )
-    allowed = ("telemetry", "manoeuvre", "sine", "algorithm", "parameters")
-    for key in value:
-        if key not in allowed:
-            raise UserInputError(f"unknown key at {path}.{key}: allowed keys are {list(allowed)}")
-    tel, man, sine = value.get("telemetry"), value.get("manoeuvre"), value.get("sine")
-    if sum(v is not None for v in (tel, man, sine)) != 1:
-        raise UserInputError(
-            f"invalid value at {path}: give exactly one of telemetry (a CSV file), manoeuvre "
-            "or sine"
-        )
-    if tel is not None and (not isinstance(tel, str) or not tel.strip()):
-        raise UserInputError(f"invalid value at {path}.telemetry: {tel!r}; allowed: a file name")
-    algo = value.get("algorithm", "classical_washout")
-    if algo not in ALGORITHMS:
-        raise UserInputError(
-            f"invalid value at {path}.algorithm: {algo!r}; allowed: {list(ALGORITHMS)}"
-        )
-    params = value.get("parameters") or {}
-    if not isinstance(params, Mapping):
-        raise UserInputError(f"invalid value at {path}.parameters: expected a mapping")
-    full = _defaults_yaml()
-    for key, v in params.items():
-        if key not in PARAMETER_KEYS:
-            raise UserInputError(
-                f"unknown key at {path}.parameters.{key}: allowed keys are {sorted(PARAMETER_KEYS)}"
-            )
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-            raise UserInputError(
-                f"invalid value at {path}.parameters.{key}: {v!r}; allowed: a finite number"
-            )
-        full[key] = int(v) if key == "rot_order" and v == int(v) else float(v)
-    try:
-        washout_params({"parameters": full})
-    except WashoutParamError as exc:
-        raise UserInputError(f"invalid value at {path}.parameters: {exc}") from None
-    out = {"telemetry": tel, "manoeuvre": None, "algorithm": algo, "parameters": full}
-    if man is not None:
-        out["manoeuvre"] = _check_manoeuvre(man, f"{path}.manoeuvre")
-    if sine is not None:
-        out["sine"] = check_sine(sine, f"{path}.sine")
-    return out
-
-
-def check_sine(sine, path: str = "setpoint.cueing.sine") -> dict:
-    """A ``sine`` vehicle input: ``channel`` (:data:`SINE_CHANNELS`), ``amplitude`` (SI,
-    > 0 up to the channel's limit) and ``period_s`` (0.02..600 s, on the 1 ms grid)."""
-    keys = ("channel", "amplitude", "period_s")
-    if not isinstance(sine, Mapping):
-        raise UserInputError(f"invalid value at {path}: expected a mapping with keys {list(keys)}")
-    for key in sine:
-        if key not in keys:
-            raise UserInputError(f"unknown key at {path}.{key}: allowed keys are {list(keys)}")
-    ch = sine.get("channel")
-    if ch not in SINE_CHANNELS:
-        raise UserInputError(
-            f"invalid value at {path}.channel: {ch!r}; allowed: {list(SINE_CHANNELS)}"
-        )
-    a, period = sine.get("amplitude"), sine.get("period_s")
-    top = SINE_CHANNELS[ch]
-    if isinstance(a, bool) or not isinstance(a, (int, float)) or not 0 < a <= top:
-        raise UserInputError(
-            f"invalid value at {path}.amplitude: {a!r}; allowed: 0 < amplitude <= {top:.4g} "
-            f"({ch.split('_', 1)[1].replace('mps2', 'm/s^2').replace('rad_s', 'rad/s')})"
-        )
-    ok = isinstance(period, (int, float)) and not isinstance(period, bool)
-    if not (ok and math.isfinite(period) and 0.02 <= period <= 600.0) or (
-        whole_steps(period) is None
-    ):
-        raise UserInputError(
-            f"invalid value at {path}.period_s: {period!r}; allowed: 0.02..600 s on the 1 ms grid"
-        )
-    return {"channel": ch, "amplitude": float(a), "period_s": float(period)}
 
 
 def sine_input(sine: Mapping, t) -> tuple[np.ndarray, np.ndarray]:
@@ -206,34 +123,10 @@ def sine_input(sine: Mapping, t) -> tuple[np.ndarray, np.ndarray]:
     return f, w
 
 
-def _check_manoeuvre(man, path: str) -> dict:
-    from simpro_mj.config.manoeuvres import MANOEUVRES, ManoeuvreError
-
-    if not isinstance(man, Mapping):
-        raise UserInputError(f"invalid value at {path}: expected a mapping with type and speed_kmh")
-    for key in man:
-        if key not in _MANOEUVRE_KEYS:
-            raise UserInputError(
-                f"unknown key at {path}.{key}: allowed keys are {sorted(_MANOEUVRE_KEYS)}"
-            )
-    full = dict(_MANOEUVRE_KEYS)
-    full.update(man)
-    if full["type"] not in MANOEUVRES:
-        raise UserInputError(
-            f"invalid value at {path}.type: {full['type']!r}; allowed: {list(MANOEUVRES)}"
-        )
-    if full["speed_kmh"] is None:
-        raise UserInputError(f"invalid value at {path}.speed_kmh: missing; allowed: 10..180")
-    try:
-        _spec(full).check()
-    except ManoeuvreError as exc:
-        raise UserInputError(
-            str(exc).replace("invalid value at ", f"invalid value at {path}.")
-        ) from None
-    return full
-
-
-def _spec(man: Mapping):
+def manoeuvre_spec(man: Mapping):
+    """The :class:`~simpro_mj.config.manoeuvres.ManoeuvreSpec` of a ``manoeuvre`` block."""
+    # imported on use: manoeuvres loads scipy.signal and scipy.integrate (about 1.5 s),
+    # which only a scenario with a manoeuvre needs
     from simpro_mj.config.manoeuvres import ManoeuvreSpec
 
     return ManoeuvreSpec(
@@ -249,7 +142,7 @@ def _spec(man: Mapping):
 
 def sweep_defaults() -> dict:
     """The sweepable tree under ``setpoint.cueing`` (its parameters, YAML units)."""
-    return {"parameters": _defaults_yaml()}
+    return {"parameters": default_parameters()}
 
 
 def resolve_paths(scenario: dict, base: Path | None) -> None:
@@ -306,7 +199,7 @@ def _chain(key: str):
         else:
             from simpro_mj.config.manoeuvres import generate
 
-            tel = generate(_spec(cue["manoeuvre"]))
+            tel = generate(manoeuvre_spec(cue["manoeuvre"]))
         if tel.t[-1] < t[-1] - 1e-9:
             raise UserInputError(
                 f"invalid value at duration_s: {duration:g} s is longer than the vehicle input "

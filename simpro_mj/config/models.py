@@ -7,19 +7,28 @@ then validates the merged tree with :class:`Scenario`. The models add what
 the defaults cannot say: ranges, enumerations (one tuple each, imported from
 the module that uses it: ``controllers``, ``simpro_mj.plant.pneumatics``),
 the tagged unions (:mod:`simpro_mj.config.entries`) and cross-field rules.
+The ``setpoint.cueing`` block (:class:`Cueing`), which the defaults do not
+have, lists its own keys and defaults.
 ``Scenario.model_validate(tree).model_dump()`` is the resolved scenario, the
 plain dict the other rooms read and ``scenario_hash`` hashes.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
-from typing import Annotated, Any
+from typing import Annotated, Any, ClassVar
 
 from pydantic import (
     AfterValidator,
+    BaseModel,
     BeforeValidator,
+    ConfigDict,
+    SkipValidation,
     ValidationError,
+    ValidationInfo,
+    create_model,
+    field_validator,
     model_serializer,
     model_validator,
 )
@@ -32,7 +41,14 @@ from controllers.joint import METHODS as DISCRETISATIONS
 from controllers.setpoint_filter import KINDS as SETPOINT_FILTERS
 from controllers.task_space import INTEGRATORS
 from controllers.task_space import LAGS as FEEDFORWARD_LAGS
-from simpro_mj.config.cueing import check_cueing
+from controllers.washout import WashoutParamError
+from simpro_mj.config.cueing import (
+    ALGORITHMS,
+    SINE_CHANNELS,
+    default_parameters,
+    manoeuvre_spec,
+    washout_params,
+)
 from simpro_mj.config.entries import Components, Faults
 from simpro_mj.config.rules import (
     DELAY_SAMPLES,
@@ -49,13 +65,14 @@ from simpro_mj.config.rules import (
     Block,
     Problem,
     below,
+    listed,
     number,
     one_of,
     rule,
     user_error,
 )
 from simpro_mj.core.errors import UserInputError
-from simpro_mj.core.keys import check_keys, value_text
+from simpro_mj.core.keys import check_keys, key_text, value_text
 from simpro_mj.core.rates import whole_steps
 from simpro_mj.plant.pneumatics.params import ACTUATOR_KINDS as ACTUATOR_MODELS
 from simpro_mj.plant.pneumatics.params import DEFAULT_PNEUMATIC_PARAMS, PneumaticParams
@@ -63,7 +80,9 @@ from simpro_mj.plant.sensors import POT_BITS, POT_BITS_TEXT
 
 __all__ = [
     "Scenario",
+    "Cueing",
     "scenario_model",
+    "check_cueing",
     "check_pneumatics",
     "PAPER_UNITS",
     "INNER_VARIANTS",
@@ -291,6 +310,231 @@ class Logging(Block):
     ]
 
 
+# ------------------------------------------------------------------ setpoint.cueing
+# (issue 16, simpro_mj.config.cueing). Its keys are not in DEFAULT_SCENARIO (a
+# scenario has the block or not), so these models list their own; their messages
+# are those of the hand-written check they replaced, word for word
+# (tests/data/scenario_messages.json, the cue_braking cases).
+
+#: A cueing ``sine``'s period (s): 20 physics steps .. 10 minutes, on the 1 ms grid.
+CUE_SINE_PERIOD_S = (0.02, 600.0)
+
+
+def _is_number(value: Any) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+class CueBlock(BaseModel):
+    """A mapping of the cueing block: a mapping with its own keys, checked before its fields.
+
+    ``_expected`` completes "expected ..." for a value that is not a mapping;
+    ``_listed`` is the allowed keys in the order an unknown key's message
+    lists them (default: sorted). A field left out takes its default, which
+    is validated too (``None`` for a required value: its message says what
+    is allowed).
+    """
+
+    model_config = ConfigDict(extra="forbid", validate_default=True)
+    _expected: ClassVar[str] = "a mapping"
+    _listed: ClassVar[tuple[str, ...]] = ()
+
+    @model_validator(mode="before")
+    @classmethod
+    def _known_keys(cls, data: Any) -> Any:
+        if not isinstance(data, Mapping):
+            raise Problem("invalid value", f": expected {cls._expected}")
+        allowed = list(cls._listed or sorted(cls.model_fields))
+        for key in data:
+            if key not in cls.model_fields:
+                raise Problem("unknown key", f": allowed keys are {allowed}", f".{key_text(key)}")
+        return cls._whole(data)
+
+    @classmethod
+    def _whole(cls, data: Mapping) -> Mapping:
+        """A rule across the given keys, before the fields (none by default)."""
+        return data
+
+
+def _finite(value: Any) -> float:
+    # not rules.number: a string such as '5e-3' stays refused here, as it always was
+    if not _is_number(value) or not math.isfinite(value):
+        raise Problem.invalid(value, "a finite number")
+    return float(value)
+
+
+def _whole_as_int(value: Any) -> int | float:
+    # rot_order: an int when whole, as its default (the shipped scenarios' hashes)
+    x = _finite(value)
+    return int(x) if x == int(x) else x
+
+
+class _WashoutCheck(CueBlock):
+    """The washout's own ranges (:class:`controllers.washout.WashoutParams`), once every
+    parameter is a number."""
+
+    @model_validator(mode="after")
+    def _washout(self):
+        try:
+            washout_params({"parameters": dict(self)})
+        except WashoutParamError as exc:
+            raise Problem("invalid value", f": {exc}") from None
+        return self
+
+
+#: ``setpoint.cueing.parameters``: the keys of :data:`~simpro_mj.config.cueing.PARAMETER_KEYS`
+#: (YAML units), each a finite number, the defaults those of the washout.
+WashoutParameters = create_model(
+    "WashoutParameters",
+    __base__=_WashoutCheck,
+    __module__=__name__,
+    **{
+        key: (
+            Annotated[int | float, BeforeValidator(_whole_as_int)]
+            if isinstance(default, int)
+            else Annotated[float, BeforeValidator(_finite)],
+            default,
+        )
+        for key, default in default_parameters().items()
+    },
+)
+
+
+class CueManoeuvre(CueBlock):
+    """A generated vehicle input (:mod:`simpro_mj.config.manoeuvres`): its
+    ``ManoeuvreSpec``'s fields and defaults; ``type`` and ``speed_kmh`` required.
+
+    The values are kept as given (an integral speed stays an int, as it always
+    did: the scenario's hash) and checked by ``ManoeuvreSpec.check``, the one
+    statement of their ranges.
+    """
+
+    _expected = "a mapping with type and speed_kmh"
+    type: SkipValidation[str | None] = None
+    speed_kmh: SkipValidation[int | float | None] = None
+    vehicle: SkipValidation[str] = "bmw_320i"
+    deceleration_mps2: SkipValidation[int | float] = 5.0
+    bump_height_m: SkipValidation[int | float] = 0.06
+    bump_length_m: SkipValidation[int | float] = 0.5
+    lead_s: SkipValidation[int | float] = 1.0
+
+    @model_validator(mode="after")
+    def _spec(self):
+        # imported on use: manoeuvres loads scipy.signal and scipy.integrate (about
+        # 1.5 s), which only a scenario with a manoeuvre needs
+        from simpro_mj.config.manoeuvres import MANOEUVRES, ManoeuvreError
+
+        if self.type not in MANOEUVRES:
+            raise Problem.invalid(self.type, str(list(MANOEUVRES)), ".type")
+        if self.speed_kmh is None:
+            raise Problem("invalid value", ": missing; allowed: 10..180", ".speed_kmh")
+        try:
+            manoeuvre_spec(dict(self)).check()
+        except ManoeuvreError as exc:
+            # the spec names its field alone ("invalid value at lead_s: ..."): put it below
+            key, _, rest = str(exc).removeprefix("invalid value at ").partition(":")
+            raise Problem("invalid value", f":{rest}", f".{key}") from None
+        return self
+
+
+def _sine_period(value: Any) -> float:
+    lo, hi = CUE_SINE_PERIOD_S
+    if not (_is_number(value) and lo <= value <= hi) or whole_steps(value) is None:
+        raise Problem.invalid(value, f"{lo:g}..{hi:g} s on the {PHYSICS_DT_MS:g} ms grid")
+    return float(value)
+
+
+class CueSine(CueBlock):
+    """A synthetic vehicle input: the vehicle at rest plus ``amplitude sin(2 pi t /
+    period_s)`` (SI) on one ``channel`` (:data:`~simpro_mj.config.cueing.SINE_CHANNELS`)."""
+
+    _listed = ("channel", "amplitude", "period_s")
+    _expected = f"a mapping with keys {list(_listed)}"
+    channel: Annotated[str, listed(SINE_CHANNELS)] = None
+    amplitude: float = None
+    period_s: Annotated[float, BeforeValidator(_sine_period)] = None
+
+    @field_validator("amplitude", mode="before")
+    @classmethod
+    def _up_to_the_channel(cls, value: Any, info: ValidationInfo) -> Any:
+        """0 < amplitude <= the channel's limit (1 g, 90 deg/s)."""
+        channel = info.data.get("channel")
+        if channel is None:  # the channel's own error is the one reported
+            return value
+        top = SINE_CHANNELS[channel]
+        if not (_is_number(value) and 0 < value <= top):
+            unit = channel.split("_", 1)[1].replace("mps2", "m/s^2").replace("rad_s", "rad/s")
+            raise Problem.invalid(value, f"0 < amplitude <= {top:.4g} ({unit})")
+        return float(value)
+
+
+def _file_name(value: Any) -> str | None:
+    # its existence is checked once the scenario's folder is known (cueing.resolve_paths)
+    if value is not None and (not isinstance(value, str) or not value.strip()):
+        raise Problem.invalid(value, "a file name")
+    return value
+
+
+class Cueing(CueBlock):
+    """``setpoint.cueing``: a vehicle input, exactly one of ``telemetry`` (a CSV file),
+    ``manoeuvre`` (generated) or ``sine``, through a motion-cueing ``algorithm`` and
+    its ``parameters`` (:mod:`simpro_mj.config.cueing`)."""
+
+    _expected = "a mapping with telemetry or manoeuvre"
+    _listed = ("telemetry", "manoeuvre", "sine", "algorithm", "parameters")
+    # declared in the order they are checked (the first error is the one reported)
+    telemetry: Annotated[str | None, BeforeValidator(_file_name)] = None
+    algorithm: Annotated[str, listed(ALGORITHMS)] = "classical_washout"
+    # null (or empty) parameters: every default
+    parameters: Annotated[WashoutParameters, BeforeValidator(lambda v: v or {})] = None
+    manoeuvre: CueManoeuvre | None = None
+    sine: CueSine | None = None
+
+    @classmethod
+    def _whole(cls, data: Mapping) -> Mapping:
+        if sum(data.get(k) is not None for k in ("telemetry", "manoeuvre", "sine")) != 1:
+            raise Problem(
+                "invalid value",
+                ": give exactly one of telemetry (a CSV file), manoeuvre or sine",
+            )
+        return data
+
+    @model_serializer(mode="wrap")
+    def _as_resolved(self, handler):
+        """Every key spelled out (``manoeuvre: null`` when absent), ``sine`` only when given:
+        the block the rest of the code reads and the scenario's hash has always seen."""
+        out = handler(self)
+        resolved = {k: out[k] for k in ("telemetry", "manoeuvre", "algorithm", "parameters")}
+        if self.sine is not None:
+            resolved["sine"] = out["sine"]
+        return resolved
+
+
+def check_cueing(value: Any, path: str = "setpoint.cueing") -> dict:
+    """A ``cueing`` block on its own, validated by :class:`Cueing` and spelled out.
+
+    Parameters
+    ----------
+    value : Any
+        The block as written (``{"sine": {...}}``).
+    path : str
+        Its dotted path, for the messages.
+
+    Returns
+    -------
+    dict
+        The block as the resolved scenario holds it (every parameter given).
+
+    Raises
+    ------
+    UserInputError
+        One line naming the dotted key and what is allowed.
+    """
+    try:
+        return Cueing.model_validate(value).model_dump()
+    except ValidationError as exc:
+        raise user_error(exc, path) from None
+
+
 class Setpoint(Block):
     """Per axis a list of components summed on top of the home pose; or a cueing block."""
 
@@ -301,9 +545,7 @@ class Setpoint(Block):
     heave_mm: Components
     # issue 16 (simpro_mj.config.cueing); only in the resolved scenario when given, so
     # that the scenarios without it keep their hash
-    cueing: Annotated[
-        dict | None, BeforeValidator(lambda v: None if v is None else check_cueing(v))
-    ] = None
+    cueing: Cueing | None = None
 
     @model_serializer(mode="wrap")
     def _cueing_when_given(self, handler):

@@ -108,10 +108,14 @@ def _dotted(loc: tuple) -> str:
     return out
 
 
-def user_error(exc: ValidationError) -> UserInputError:
-    """The one-line :class:`UserInputError` for pydantic's first error."""
+def user_error(exc: ValidationError, prefix: str = "") -> UserInputError:
+    """The one-line :class:`UserInputError` for pydantic's first error.
+
+    ``prefix``: the dotted path of what was validated, when that is a block on
+    its own rather than the whole scenario (``setpoint.cueing``).
+    """
     err = exc.errors(include_url=False)[0]
-    path = _dotted(err["loc"])
+    path = ".".join(p for p in (prefix, _dotted(err["loc"])) if p)
     cause = (err.get("ctx") or {}).get("error")
     if isinstance(cause, UserInputError):  # an absolute message (names its own path)
         return UserInputError(str(cause))
@@ -224,6 +228,19 @@ def one_of(choices: tuple) -> AfterValidator:
         return value
 
     return AfterValidator(check)
+
+
+def listed(choices) -> BeforeValidator:
+    """An enumeration checked before any type coercion, ``allowed: [...]`` (the words of
+    the ``setpoint.cueing`` block; :func:`one_of` elsewhere)."""
+    names = list(choices)
+
+    def check(value):
+        if value not in names:
+            raise Problem.invalid(value, str(names))
+        return value
+
+    return BeforeValidator(check)
 
 
 # ------------------------------------------------------------------ blocks
