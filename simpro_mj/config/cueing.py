@@ -175,7 +175,10 @@ def washout_params(cue: Mapping) -> WashoutParams:
     kw = {}
     for key, v in cue["parameters"].items():
         name, factor = PARAMETER_KEYS[key]
-        kw[name] = int(v) if name == "rot_order" else float(v) * factor
+        if name == "rot_order":  # a whole number as int; 1.5 stays 1.5 and is refused
+            kw[name] = int(v) if float(v).is_integer() else float(v)
+        else:
+            kw[name] = float(v) * factor
     return WashoutParams(**kw)
 
 
