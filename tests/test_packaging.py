@@ -56,6 +56,19 @@ def test_the_wheel_holds_the_model_and_every_shipped_scenario(wheel):
     assert not [n for n in names if n.startswith("tests/")]
 
 
+def test_the_wheel_holds_every_package(wheel):
+    """Every tracked package (a folder with ``__init__.py``) of simpro_mj and
+    controllers is in the wheel: ``controllers/analysis/`` once was not, and the
+    editable install of the test venv hid it from the run below."""
+    names = set(zipfile.ZipFile(wheel).namelist())
+    packages = sorted(
+        f for f in _tracked_files() if f.endswith("/__init__.py") and not f.startswith("tests/")
+    )
+    assert "controllers/analysis/__init__.py" in packages
+    missing = [f for f in packages if f not in names]
+    assert not missing, missing
+
+
 def test_the_installed_wheel_runs_the_main_job_from_an_empty_folder(wheel, tmp_path):
     site = tmp_path / "site"
     proc = subprocess.run(
@@ -71,7 +84,12 @@ def test_the_installed_wheel_runs_the_main_job_from_an_empty_folder(wheel, tmp_p
     env.pop("SIMPRO_MODEL", None)
     env.pop("SIMPRO_SCENARIOS", None)
     code = (
-        "import sys, simpro_mj, controllers; "
+        # without the test venv's editable finder, which would supply any module the
+        # wheel lacks from the checkout (it is consulted after PYTHONPATH's folder)
+        "import sys; "
+        "sys.meta_path[:] = [f for f in sys.meta_path if '__editable__' not in "
+        "getattr(f, '__module__', '') and '__editable__' not in getattr(f, '__name__', '')]; "
+        "import simpro_mj, controllers; "
         "print(simpro_mj.__file__); print(controllers.__file__); "
         "from simpro_mj.commands.main import main; sys.exit(main())"
     )
