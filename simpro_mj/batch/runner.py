@@ -100,7 +100,6 @@ from simpro_mj.batch.tables import monte_carlo_table, stability_table
 from simpro_mj.batch.worker import install, run_variant
 from simpro_mj.config.scenario import scenario_hash
 from simpro_mj.core.errors import UserInputError
-from simpro_mj.core.interrupts import interruptible
 from simpro_mj.report.folders import claim, is_complete, write_marker
 from simpro_mj.sim import executors as _executors
 from simpro_mj.sim.executors import MAX_JOBS, NoWorkers, Progress, dask_module, run_tasks
@@ -138,7 +137,7 @@ def run_batch(
     out = Path(out)
     inputs = [f for f, _ in scenario_files(paths)]
 
-    with claim(out, "batch", inputs=inputs), interruptible():
+    with claim(out, "batch", inputs=inputs):
         return _run_batch(
             paths, out, sets, jobs, resume, strict, scheduler, plots, progress, summary_plots, wall0
         )
@@ -194,7 +193,7 @@ def _run_batch(
         run_tasks(
             tasks, done, jobs=jobs, scheduler=scheduler, fn=run_variant, no_workers_s=NO_WORKERS_S
         )
-    except KeyboardInterrupt as exc:  # SIGINT, or SIGTERM (interruptible)
+    except KeyboardInterrupt as exc:  # SIGINT, or SIGTERM (commands.main: interruptible)
         stopped = f"interrupted ({exc})" if str(exc) else "interrupted"
     except NoWorkers as exc:
         stopped = str(exc)

@@ -11,7 +11,6 @@ import sys
 
 from simpro_mj.config.scenario import load_scenario
 from simpro_mj.core.errors import UserInputError
-from simpro_mj.core.interrupts import interruptible
 from simpro_mj.core.jsonout import emit_json
 from simpro_mj.core.keys import value_text
 
@@ -95,8 +94,8 @@ def run(args) -> int:
             print(video_table(result))
         return 0
     progress = None if args.json else (lambda msg: print(f"  {msg}", file=sys.stderr))
-    with interruptible():  # SIGTERM: exit 130 like Ctrl-C, workers stopped
-        result = measure(scenario, repeats, batch=not args.no_batch, batch_runs=runs, log=progress)
+    # SIGTERM: exit 130 like Ctrl-C (commands.main), workers stopped
+    result = measure(scenario, repeats, batch=not args.no_batch, batch_runs=runs, log=progress)
     if args.json:
         emit_json(result)
     else:

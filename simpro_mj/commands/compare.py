@@ -9,7 +9,6 @@ import sys
 from pathlib import Path
 
 from simpro_mj.config.scenario import load_scenario
-from simpro_mj.core.interrupts import interruptible
 from simpro_mj.core.jsonout import emit_json
 from simpro_mj.report.compare import compare, table
 from simpro_mj.report.folders import claim, write_marker
@@ -34,7 +33,7 @@ def run(args) -> int:
     if args.video:
         require_video()  # the install hint before the run, not after it
     out = Path(args.out) if args.out else Path("results") / f"{scenario['name']}-compare"
-    with claim(out, "compare", inputs=[args.scenario]), interruptible():
+    with claim(out, "compare", inputs=[args.scenario]):
         out.mkdir(parents=True, exist_ok=True)
         write_marker(out, "compare")
         both = compare(scenario, out, plots=not args.no_plots)

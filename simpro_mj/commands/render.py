@@ -10,7 +10,6 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from simpro_mj.core.interrupts import interruptible
 from simpro_mj.core.jsonout import emit_json
 from simpro_mj.report.recording import find_runs
 from simpro_mj.report.render import render_video
@@ -29,8 +28,8 @@ def run(args) -> int:
     runs = find_runs(folder)
     opts = video_options(args, folder / "replay.mp4")
     out = opts.pop("out")
-    with interruptible():  # SIGTERM as Ctrl-C: exit 130, no partial video left
-        info = render_video(runs, out, progress=not args.json and sys.stderr.isatty(), **opts)
+    # SIGTERM as Ctrl-C (commands.main): exit 130, no partial video left
+    info = render_video(runs, out, progress=not args.json and sys.stderr.isatty(), **opts)
     if args.json:
         emit_json(info)
     else:

@@ -19,7 +19,6 @@ import sys
 from pathlib import Path
 
 from simpro_mj.config.scenario import load_scenario
-from simpro_mj.core.interrupts import interruptible
 from simpro_mj.core.jsonout import emit_json
 from simpro_mj.report.folders import claim
 from simpro_mj.report.render import require_video
@@ -47,7 +46,7 @@ def run(args) -> int:
         require_video()  # the install hint before the run, not after it
     out = Path(args.out) if args.out else Path("results") / scenario["name"]
     # refused (exit 2) before anything runs: not ours to replace, or busy
-    with claim(out, "run", inputs=[args.scenario]), interruptible():
+    with claim(out, "run", inputs=[args.scenario]):
         res, metrics = execute(scenario, out, plots=not args.no_plots)
     if args.json:
         emit_json(metrics)
