@@ -106,7 +106,8 @@ def _corr(a: np.ndarray, b: np.ndarray) -> float | None:
     return float(np.corrcoef(a, b)[0, 1])
 
 
-def cue_metrics(columns: Mapping, scenario: Mapping, model: VestibularModel | None = None) -> dict:
+def cue_metrics(columns: Mapping, scenario: Mapping, model: VestibularModel | None = None, *,
+                info: Mapping | None = None) -> dict:  # fmt: skip
     """The ``cueing`` block of ``metrics.json``: per channel, vehicle vs simulator, perceived.
 
     Per channel (:data:`CHANNELS`), of the perceived signals: ``rms_error``,
@@ -124,6 +125,11 @@ def cue_metrics(columns: Mapping, scenario: Mapping, model: VestibularModel | No
     Then ``workspace`` (largest excursion per axis as a fraction of the cueing
     box, strokes used, end-stop margin) and ``valves`` (fraction of samples
     with a valve at 0 or 10 V).
+
+    ``info``: the washout's ``box``, ``softened_fraction``,
+    ``rate_limited_fraction`` and ``source`` when the vehicle input did not
+    come from the scenario (a live session); by default they are those of
+    :func:`~simpro_mj.config.cueing.vehicle_input`.
     """
     model = VestibularModel() if model is None else model
     t = np.asarray(columns["time_s"], dtype=float)
@@ -178,7 +184,8 @@ def cue_metrics(columns: Mapping, scenario: Mapping, model: VestibularModel | No
             "onset_false_cue_s": float(false[onset].sum() * dt),
             "onset_right_sign": bool(felt.size) and not bool(false[onset].any()),
         }
-    _, _, _, _, info = vehicle_input(scenario)
+    if info is None:
+        _, _, _, _, info = vehicle_input(scenario)
     box = info["box"]
     usage = {}
     for k, (axis, unit) in enumerate((("roll", "rad"), ("pitch", "rad"), ("heave", "m"))):

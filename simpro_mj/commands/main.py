@@ -48,6 +48,8 @@ COMMANDS = {
     "view": "simpro_mj.commands.view",
     "manoeuvre": "simpro_mj.commands.manoeuvre",
     "response": "simpro_mj.commands.response",
+    "live": "simpro_mj.commands.live",
+    "send": "simpro_mj.commands.send",
 }
 
 

@@ -20,6 +20,25 @@ their public classes; the body of :meth:`CoSimulation.run` only calls stages.
 
 In joint-only mode (the baseline) q_d(t) = IK(y_d(t)) of the nominal model,
 computed for the whole run at once.
+
+Set-points from outside (the live interface)
+--------------------------------------------
+A run normally computes its set-points from the scenario before it steps.
+``CoSimulation(scenario, setpoints="external")`` instead starts every row
+of the set-point buffer at the neutral pose (home; for a cueing scenario the
+vehicle at rest) and lets a driver fill it while the loop runs, through two
+things only (:mod:`simpro_mj.sim.live` is that driver):
+
+* :meth:`CoSimulation.write_setpoints` ``(k, poses, f, w)`` writes rows
+  ``k, k + 1, ...`` of the set-point buffer (and of the vehicle input logged
+  beside it), in place;
+* ``run(pace=...)``: ``pace(k, log) -> next_k`` is called before step ``k``
+  is taken, first at ``k = 0`` and then at each step it returns, with the
+  rows logged so far (``log``, a read-only view of :data:`COLUMNS` rows).
+  Between two calls the loop steps without looking outside; the caller
+  writes the rows its next chunk reads, waits for the wall clock, sends the
+  pose. It ends the run early by raising ``KeyboardInterrupt`` (as a signal
+  does).
 """
 
 from __future__ import annotations
@@ -31,6 +50,7 @@ import mujoco
 import numpy as np
 
 from controllers.design import Plant, paper_coefficients
+from controllers.frames import GRAVITY
 from controllers.geometry import nominal_geometry
 from controllers.joint import JointControllers
 from controllers.kinematics import inverse_kinematics
@@ -69,9 +89,18 @@ class CoSimulation:
         A resolved scenario (:func:`simpro_mj.config.scenario.load_scenario`).
     model : mujoco.MjModel, optional
         A compiled plant; built from ``scenario["plant"]`` when omitted.
+    setpoints : {"scenario", "external"}
+        ``scenario``: the set-points (and a cueing scenario's vehicle input)
+        computed from the scenario for the whole run. ``external``: every row
+        starts at the neutral pose and the vehicle at rest, to be written
+        while the run goes (:meth:`write_setpoints`, ``run(pace=...)``).
     """
 
-    def __init__(self, scenario: dict, model: mujoco.MjModel | None = None):
+    def __init__(self, scenario: dict, model: mujoco.MjModel | None = None, *,
+                 setpoints: str = "scenario"):  # fmt: skip
+        if setpoints not in ("scenario", "external"):
+            raise ValueError(f"setpoints={setpoints!r}; allowed: 'scenario' or 'external'")
+        external = setpoints == "external"
         # design_plant identified: the scenario's own plant's models (cached)
         scenario, self.identified_source = with_identified(scenario, _say)
         self.scenario = scenario
@@ -143,10 +172,17 @@ class CoSimulation:
         self.data = self.platform.data
 
         self.t = np.arange(self.n_steps + 1) * dt
-        self.ref = np.ascontiguousarray(reference(scenario, self.t))
+        if external:  # the neutral pose until write_setpoints says otherwise
+            self.ref = np.tile(np.asarray(self.geometry.home, float), (self.n_steps + 1, 1))
+        else:
+            self.ref = np.ascontiguousarray(reference(scenario, self.t))
         # motion cueing (issue 16): the vehicle side, and the head sensors to log
         self.cueing = bool(scenario["setpoint"].get("cueing"))
-        if self.cueing:
+        if self.cueing and external:  # the vehicle at rest: f = (0, 0, g), w = 0
+            self.veh_f = np.zeros((self.n_steps + 1, 3))
+            self.veh_f[:, 2] = GRAVITY
+            self.veh_w = np.zeros((self.n_steps + 1, 3))
+        elif self.cueing:
             # on use: config.cueing loads scipy's filter design (seconds under load),
             # which no other run needs
             from simpro_mj.config.cueing import vehicle_input
@@ -160,6 +196,11 @@ class CoSimulation:
         # leg velocity feed-forward (feedforward mode): (a0/b) J dy_d/dt per leg
         self.u_ff = None  # (n + 1, 3) volts
         if self.mode == "feedforward" and ctl["feedforward"]["leg_velocity"]:
+            if external:  # it differentiates the whole set-point in advance
+                raise UserInputError(
+                    "invalid value at controller.feedforward.leg_velocity: true needs the "
+                    "set-points in advance; allowed: false with set-points from outside (live)"
+                )
             ident = ctl["inner"]["identified"]
             legs = [Plant(**ident[a]) for a in ("actuator1", "actuator2", "actuator3")]
             j = self.joint  # clipped to the valve's span around its centre (5 V)
@@ -177,6 +218,35 @@ class CoSimulation:
             # (reference() has already clamped the set-points if the scenario asks)
             self.q_joint_only = inverse_kinematics(self.ref, self.geometry, check=False)
 
+    # ------------------------------------------------------------------ live
+    def write_setpoints(self, k: int, poses, f=None, w=None) -> None:
+        """Write rows ``k, k + 1, ...`` of the set-point buffer, in place.
+
+        Parameters
+        ----------
+        k : int
+            The first step written; rows past the run's last step are dropped.
+        poses : array_like, (m, 3) or (3,)
+            Set-point poses (roll rad, pitch rad, heave m absolute), base frame.
+            In joint-only mode their IK is written too.
+        f, w : array_like, (m, 3) or (3,), optional
+            A cueing run's vehicle input at those rows (V frame, SI): only
+            logged (the ``veh_*`` columns), the set-points already follow from it.
+        """
+        poses = np.atleast_2d(np.asarray(poses, float))
+        rows = slice(k, min(k + poses.shape[0], self.n_steps + 1))
+        m = rows.stop - rows.start
+        if m <= 0:
+            return
+        self.ref[rows] = poses[:m]
+        if self.q_joint_only is not None:
+            self.q_joint_only[rows] = inverse_kinematics(poses[:m], self.geometry, check=False)
+        if self.cueing:
+            if f is not None:
+                self.veh_f[rows] = np.atleast_2d(np.asarray(f, float))[:m]
+            if w is not None:
+                self.veh_w[rows] = np.atleast_2d(np.asarray(w, float))[:m]
+
     # ------------------------------------------------------------------ setup
     def _initial_state(self) -> None:
         """Start at rest at the first set-point, as the controller believes it.
@@ -193,7 +263,7 @@ class CoSimulation:
         self.setpoint_filter.reset(q_d0.tolist())
 
     # ------------------------------------------------------------------ run
-    def run(self, progress=None, *, profile: dict | None = None) -> SimResult:
+    def run(self, progress=None, *, profile: dict | None = None, pace=None) -> SimResult:
         """Run the scenario; on divergence or interruption stop and return what was computed.
 
         Parameters
@@ -209,6 +279,9 @@ class CoSimulation:
             sensor faults), ``controllers`` (task and joint loops, stuck
             valves), ``pneumatics``, ``logging`` (the log row); plus
             ``steps``. ``simpro-sim bench`` reports it.
+        pace : callable(int, ndarray) -> int, optional
+            The live interface (module docstring): called before step ``k``,
+            first at 0, then at each step it returns, with the rows logged so far.
 
         Notes
         -----
@@ -239,6 +312,7 @@ class CoSimulation:
             sched = FaultSchedule.from_scenario(self.scenario, dt)
             faults = FaultStages(sched, self.actuators, rec, sense, control, wrap)
         next_ev = faults.next_event if faults is not None else NEVER
+        next_pace = 0 if pace is not None else NEVER
         step1, step2 = wrap(plat.step1, "physics"), wrap(plat.step2, "physics")
         sense, control = wrap(sense, "sensors"), wrap(control, "controllers")
         actuate = wrap(self.actuators.step, "pneumatics")
@@ -250,6 +324,8 @@ class CoSimulation:
             for k in range(n + 1):
                 if k == next_ev:  # a fault starts or ends: it swaps the stages it acts on
                     sense, control, next_ev = faults.at(k)
+                if k == next_pace:  # the live driver: set-points in, wall clock, pose out
+                    next_pace = pace(k, rec.log[: rec.rows])
                 step1()
                 q, qd, pose, q_meas, pose_meas, loop = sense(k)
                 q_r, u, pose_cmd = control(k, pose_meas, q_meas)

@@ -1,0 +1,166 @@
+"""``simpro-sim live SCENARIO --listen HOST:PORT``: the co-simulation paced to the wall clock.
+
+A game's telemetry (UDP datagrams, ``--format outsim`` or ``csv``,
+:mod:`simpro_mj.config.datagrams`) drives the scenario's cueing law, plant
+and controllers at the pace of the wall clock; the platform's pose goes out
+to ``--send`` as one ASCII line per ``1/--send-rate`` s. The session ends
+after ``--duration`` s (default: the scenario's ``duration_s``) or on Ctrl-C /
+SIGTERM, and writes a normal result folder (``render`` replays it) with a
+``realtime`` block in ``metrics.json``. With ``SIMPRO_READY_FILE`` set, the
+file is written once the session listens and its clock runs; it reads
+``listening@HOST:PORT <pid>`` (port 0 in ``--listen`` picks a free one).
+The formats and the pose line: docs/live.md. The session itself is
+:mod:`simpro_mj.sim.live`, its folder :mod:`simpro_mj.report.live`.
+
+Exit codes: 0 the session ran (to its end or to a signal), 1 diverged, 2 a
+user's mistake (a busy port included).
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from pathlib import Path
+
+from simpro_mj.config.datagrams import FORMATS
+from simpro_mj.config.scenario import load_scenario
+from simpro_mj.core.errors import UserInputError
+from simpro_mj.core.jsonout import emit_json
+from simpro_mj.report.folders import claim
+from simpro_mj.report.live import execute_live, live_scenario
+from simpro_mj.report.results import print_summary
+from simpro_mj.sim.live import LiveOptions, parse_address, pose_template
+
+HELP = "run a cueing scenario live: UDP telemetry in, paced to the wall clock, the pose out"
+
+#: Longest session (s): a day.
+MAX_DURATION_S = 86400.0
+
+
+def add_arguments(parser) -> None:
+    parser.add_argument("scenario", help="a cueing scenario (e.g. cue_braking.yaml) or a path")
+    parser.add_argument(
+        "--listen",
+        required=True,
+        metavar="HOST:PORT",
+        help="UDP address the telemetry comes to (port 0: any free port)",
+    )
+    parser.add_argument(
+        "--format",
+        dest="fmt",
+        choices=FORMATS,
+        default="outsim",
+        help="telemetry datagrams: outsim (LFS OutSim, 64/68 bytes) or csv "
+        "(one line of the telemetry columns); default outsim",
+    )
+    parser.add_argument(
+        "--send",
+        default=None,
+        metavar="HOST:PORT",
+        help="send the platform's pose there (UDP, one ASCII line a datagram)",
+    )
+    parser.add_argument(
+        "--send-rate",
+        type=float,
+        default=100.0,
+        metavar="HZ",
+        help="pose datagrams per second, a divisor of 1000 (default 100)",
+    )
+    parser.add_argument(
+        "--send-format",
+        default=None,
+        metavar="TEMPLATE",
+        help="the pose line as a Python format string (docs/live.md); default "
+        "'{t_s:.3f},{roll_deg:.4f},{pitch_deg:.4f},{heave_mm:.3f},{q1_mm:.3f},"
+        "{q2_mm:.3f},{q3_mm:.3f}\\n'",
+    )
+    parser.add_argument(
+        "--duration",
+        type=float,
+        default=None,
+        metavar="S",
+        help="session length (s); default the scenario's duration_s",
+    )
+    parser.add_argument(
+        "--stale-after",
+        type=float,
+        default=0.5,
+        metavar="S",
+        help="input older than this is stale: held until then, then faded to "
+        "rest over 1 s (default 0.5)",
+    )
+    parser.add_argument(
+        "--rt", action="store_true", help="ask for real-time scheduling (SCHED_FIFO, locked memory)"
+    )
+    parser.add_argument("--out", default=None, help="result folder (default results/<name>-live)")
+    parser.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
+    parser.add_argument("--quiet", action="store_true", help="no console line every second")
+
+
+def _options(args) -> LiveOptions:
+    """The options checked, before anything heavy is loaded."""
+    rate = args.send_rate
+    if not (math.isfinite(rate) and 0 < rate <= 1000 and abs(1000 / rate - round(1000 / rate))
+            < 1e-9):  # fmt: skip
+        raise UserInputError(
+            f"invalid value at --send-rate: {rate:g}; allowed: a divisor of 1000 Hz "
+            "(1000, 500, 250, 200, 125, 100, 50, ...)"
+        )
+    if args.duration is not None and not (
+        math.isfinite(args.duration) and 0 < args.duration <= MAX_DURATION_S
+    ):
+        raise UserInputError(
+            f"invalid value at --duration: {args.duration:g}; allowed: > 0 and <= "
+            f"{MAX_DURATION_S:g} s"
+        )
+    if not (math.isfinite(args.stale_after) and 0 < args.stale_after <= 60):
+        raise UserInputError(
+            f"invalid value at --stale-after: {args.stale_after:g}; allowed: > 0 and <= 60 s"
+        )
+    return LiveOptions(
+        listen=parse_address(args.listen, "--listen", bind=True),
+        fmt=args.fmt,
+        send=None if args.send is None else parse_address(args.send, "--send"),
+        send_rate_hz=float(rate),
+        send_format=pose_template(args.send_format),
+        stale_after_s=float(args.stale_after),
+        rt=bool(args.rt),
+    )
+
+
+def _say(line: str) -> None:
+    sys.stderr.write(line + "\n")
+    sys.stderr.flush()
+
+
+def run(args) -> int:
+    options = _options(args)
+    scenario = live_scenario(load_scenario(args.scenario, args.sets), args.duration)
+    out = Path(args.out) if args.out else Path("results") / f"{scenario['name']}-live"
+    with claim(out, "run", inputs=[args.scenario]):
+        say = None if args.quiet else _say
+        res, metrics = execute_live(scenario, options, out, plots=not args.no_plots, say=say)
+    if args.json:
+        emit_json(metrics)
+    else:
+        print_summary(metrics, res.folder)
+        rt = metrics["realtime"]
+        lat, pk = rt["lateness_us"], rt["packets"]
+        print(
+            f"realtime: lateness p50 {_us(lat['p50'])} p99 {_us(lat['p99'])} max "
+            f"{_us(lat['max'])} us, missed {rt['missed_deadlines']} of {rt['deadlines']}, drift "
+            f"{_ms(rt['drift_ms'])} ms; packets {pk['received']} (bad {pk['bad']}, late "
+            f"{pk['late']}); stale {rt['stale_s']:.2f} s; pose sent "
+            f"{(rt.get('pose_sent') or {}).get('datagrams', 0)}"
+        )
+        if res.status == "diverged":
+            print(f"DIVERGED: {res.reason}")
+    return 0 if res.status == "ok" else 1
+
+
+def _us(v) -> str:
+    return "-" if v is None else f"{v:.0f}"
+
+
+def _ms(v) -> str:
+    return "-" if v is None else f"{v:+.1f}"

@@ -1,0 +1,56 @@
+"""``simpro-sim send TELEMETRY.csv --to HOST:PORT``: a telemetry file replayed as UDP datagrams.
+
+The stand-in for a game, so that ``simpro-sim live`` can be tried (and
+tested) without one: the file (:mod:`simpro_mj.config.telemetry`) is
+resampled every ``1/--rate`` s and each sample sent as one datagram of
+``--format`` (:mod:`simpro_mj.config.datagrams`: ``outsim`` packs the
+attitude integrated from the file's rates), at absolute deadlines from the
+first. A refused send (nobody listening) is counted, not fatal.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+
+from simpro_mj.config.datagrams import FORMATS, telemetry_datagrams
+from simpro_mj.config.telemetry import read_telemetry
+from simpro_mj.core.errors import UserInputError
+from simpro_mj.core.jsonout import emit_json
+from simpro_mj.sim.live import parse_address, send_datagrams
+
+HELP = "send a telemetry CSV as paced UDP datagrams (outsim or csv): a game's stand-in for live"
+
+
+def add_arguments(parser) -> None:
+    parser.add_argument("telemetry", metavar="TELEMETRY.csv",
+                        help="a telemetry file (e.g. simpro_mj/scenarios/telemetry/"
+                        "braking_100kmh.csv)")  # fmt: skip
+    parser.add_argument("--to", required=True, metavar="HOST:PORT", help="where to send")
+    parser.add_argument("--format", dest="fmt", choices=FORMATS, default="outsim",
+                        help="datagram format (default outsim)")  # fmt: skip
+    parser.add_argument("--rate", type=float, default=100.0, metavar="HZ",
+                        help="datagrams per second (default 100, at most 1000)")  # fmt: skip
+
+
+def run(args) -> int:
+    address = parse_address(args.to, "--to")
+    if not (math.isfinite(args.rate) and 0 < args.rate <= 1000):
+        raise UserInputError(f"invalid value at --rate: {args.rate:g}; allowed: > 0 and <= 1000")
+    tel = read_telemetry(args.telemetry)
+    times, grams = telemetry_datagrams(tel, args.fmt, args.rate)
+
+    def say(line: str) -> None:
+        if not args.json:
+            sys.stderr.write(line + "\n")
+
+    info = send_datagrams(grams, times, address, say=say)
+    info.update(to=f"{address[0]}:{address[1]}", format=args.fmt, rate_hz=args.rate)
+    if args.json:
+        emit_json(info)
+    else:
+        print(
+            f"sent {info['sent']} {args.fmt} datagrams to {info['to']} in "
+            f"{info['duration_s']:.2f} s ({info['errors']} refused)"
+        )
+    return 0

@@ -1,0 +1,239 @@
+"""Vehicle telemetry as UDP datagrams: the input of a live session (``simpro-sim live``).
+
+Two formats, both decoded to one sample ``(time_s, f, w)`` of the telemetry
+format (:mod:`simpro_mj.config.telemetry`): the specific force ``f`` (gravity
+included, +9.81 m/s^2 on ``z`` at rest) and the angular velocity ``w`` at the
+driver's head, ISO 8855 vehicle frame V (x forward, y left, z up), SI.
+
+``csv``
+    One datagram is one ASCII line of the seven telemetry columns in their
+    order, ``time_s,fx_mps2,fy_mps2,fz_mps2,wx_rad_s,wy_rad_s,wz_rad_s``
+    (a trailing newline is allowed), at most :data:`MAX_CSV_BYTES` bytes.
+
+``outsim``
+    Live for Speed's OutSim packet, the format many games imitate:
+    little-endian, 64 bytes, or 68 with the optional ``int ID``::
+
+        unsigned Time_ms; float AngVel[3]; float Heading, Pitch, Roll;
+        float Accel[3]; float Vel[3]; int Pos[3] (1 m = 65536); [int ID]
+
+    World axes W: X right, Y forward, Z up (at heading 0 the car faces +Y).
+    ``Heading`` turns anticlockwise about Z seen from above, ``Pitch`` about
+    X (nose up > 0), ``Roll`` about Y (right-handed); radians. ``Accel`` is
+    the car's acceleration in W *without* gravity; ``AngVel`` is read in W
+    as well (the classic OutSim gives every vector in world axes; a game
+    that sends body-axis rates would need ``R`` below left out of ``w``).
+    ``Vel`` and ``Pos`` are not used.
+
+    The car's frame C (x right, y forward, z up) is W turned by
+    ``R = Rz(Heading) Rx(Pitch) Ry(Roll)`` (heading first, then pitch about
+    the turned X, then roll about the car's Y: :func:`car_to_world`), so a
+    vector seen in C is ``R^T`` of it in W. V is C with x forward and y left:
+    ``M = [[0, 1, 0], [-1, 0, 0], [0, 0, 1]]`` (a proper rotation: rates map
+    like forces). Then::
+
+        f_V = M R^T (Accel + (0, 0, g))      # gravity added: specific force a - g
+        w_V = M R^T AngVel
+
+    A car braking at 5 m/s^2 while facing +Y sends ``Accel = (0, -5, 0)``
+    and gives ``f_V = (-5, 0, 9.81)``; facing -X (Heading = +90 deg) it
+    sends ``(5, 0, 0)`` and gives the same.
+
+A datagram that is too short, too long or does not decode to finite values
+inside :data:`MAX_SPECIFIC_FORCE` / :data:`MAX_RATE` raises
+:class:`DatagramError` (its ``kind`` says which); the receiver counts and
+skips it, never stops for it.
+
+:func:`telemetry_datagrams` is the other way round, for ``simpro-sim send``:
+a telemetry file resampled at a rate and packed in either format. For
+``outsim`` the car's attitude is integrated from the file's rates (starting
+level, heading 0) and ``Accel``, ``AngVel`` are packed in W through that
+attitude, so the receiver's rotation is exercised, not bypassed; ``Vel`` and
+``Pos`` are zero (a telemetry file does not hold them, and nothing reads them).
+"""
+
+from __future__ import annotations
+
+import math
+import struct
+
+import numpy as np
+
+from controllers.frames import GRAVITY
+from simpro_mj.config.telemetry import TELEMETRY_COLUMNS, Telemetry, resample
+
+__all__ = [
+    "FORMATS",
+    "OUTSIM_BYTES",
+    "MAX_CSV_BYTES",
+    "MAX_SPECIFIC_FORCE",
+    "MAX_RATE",
+    "DatagramError",
+    "car_to_world",
+    "world_to_vehicle",
+    "vehicle_to_world",
+    "decode",
+    "decode_outsim",
+    "decode_csv",
+    "encode_outsim",
+    "encode_csv",
+    "telemetry_datagrams",
+]
+
+FORMATS = ("outsim", "csv")
+#: OutSim packet sizes: without and with the optional ID.
+OUTSIM_BYTES = (64, 68)
+_OUTSIM = struct.Struct("<I3f3f3f3f3i")
+_OUTSIM_ID = struct.Struct("<I3f3f3f3f3ii")
+#: Longest ``csv`` datagram (seven numbers at full precision take about 180 bytes).
+MAX_CSV_BYTES = 512
+#: Largest accepted specific force component (m/s^2): 10 g, beyond any car's.
+MAX_SPECIFIC_FORCE = 10.0 * GRAVITY
+#: Largest accepted angular rate component (rad/s): a car spinning at 3 turns/s.
+MAX_RATE = 6.0 * math.pi
+#: Largest accepted attitude angle (rad) in an OutSim packet.
+_MAX_ANGLE = 4.0 * math.pi
+
+
+class DatagramError(ValueError):
+    """A datagram that is not a sample; ``kind`` is ``short``, ``oversized`` or ``malformed``."""
+
+    def __init__(self, kind: str, message: str):
+        super().__init__(message)
+        self.kind = kind
+
+
+def car_to_world(heading: float, pitch: float, roll: float) -> tuple:
+    """``R = Rz(heading) Rx(pitch) Ry(roll)`` as three row tuples (C -> W)."""
+    ch, sh = math.cos(heading), math.sin(heading)
+    cp, sp = math.cos(pitch), math.sin(pitch)
+    cr, sr = math.cos(roll), math.sin(roll)
+    return (
+        (ch * cr - sh * sp * sr, -sh * cp, ch * sr + sh * sp * cr),
+        (sh * cr + ch * sp * sr, ch * cp, sh * sr - ch * sp * cr),
+        (-cp * sr, sp, cp * cr),
+    )
+
+
+def _attitude(r) -> tuple[float, float, float]:
+    """(heading, pitch, roll) of ``Rz Rx Ry`` (the inverse of :func:`car_to_world`)."""
+    pitch = math.asin(max(-1.0, min(1.0, r[2][1])))
+    roll = math.atan2(-r[2][0], r[2][2])
+    heading = math.atan2(-r[0][1], r[1][1])
+    return heading, pitch, roll
+
+
+def world_to_vehicle(r, v) -> tuple[float, float, float]:
+    """A W vector in V: ``M R^T v`` (module docstring)."""
+    c0 = r[0][0] * v[0] + r[1][0] * v[1] + r[2][0] * v[2]  # R^T v, car x (right)
+    c1 = r[0][1] * v[0] + r[1][1] * v[1] + r[2][1] * v[2]  # car y (forward)
+    c2 = r[0][2] * v[0] + r[1][2] * v[1] + r[2][2] * v[2]  # car z (up)
+    return c1, -c0, c2
+
+
+def vehicle_to_world(r, v) -> tuple[float, float, float]:
+    """A V vector in W: ``R M^T v``."""
+    c = (-v[1], v[0], v[2])  # M^T v: car (right, forward, up)
+    return tuple(r[i][0] * c[0] + r[i][1] * c[1] + r[i][2] * c[2] for i in range(3))
+
+
+def _check(t: float, f, w) -> tuple[float, tuple, tuple]:
+    vals = (t, *f, *w)
+    if not all(map(math.isfinite, vals)):
+        raise DatagramError("malformed", "a value is not finite")
+    if t < 0:
+        raise DatagramError("malformed", f"time {t:g} s < 0")
+    if max(abs(v) for v in f) > MAX_SPECIFIC_FORCE or max(abs(v) for v in w) > MAX_RATE:
+        raise DatagramError(
+            "malformed",
+            f"f={f}, w={w}: allowed |f| <= {MAX_SPECIFIC_FORCE:g} m/s^2, |w| <= {MAX_RATE:g} rad/s",
+        )
+    return t, f, w
+
+
+def decode_outsim(data: bytes) -> tuple[float, tuple, tuple]:
+    """``(time_s, f, w)`` in V from one OutSim packet (module docstring)."""
+    n = len(data)
+    if n not in OUTSIM_BYTES:
+        kind = "short" if n < OUTSIM_BYTES[0] else "oversized"
+        raise DatagramError(kind, f"{n} bytes; allowed: {' or '.join(map(str, OUTSIM_BYTES))}")
+    v = (_OUTSIM if n == OUTSIM_BYTES[0] else _OUTSIM_ID).unpack(data)
+    time_ms, ang, (heading, pitch, roll), acc = v[0], v[1:4], v[4:7], v[7:10]
+    if (
+        not all(map(math.isfinite, (heading, pitch, roll)))
+        or max(abs(heading), abs(pitch), abs(roll)) > _MAX_ANGLE
+    ):
+        raise DatagramError("malformed", f"attitude {heading, pitch, roll} not in +-4 pi rad")
+    r = car_to_world(heading, pitch, roll)
+    f = world_to_vehicle(r, (acc[0], acc[1], acc[2] + GRAVITY))
+    w = world_to_vehicle(r, ang)
+    return _check(time_ms * 1e-3, f, w)
+
+
+def decode_csv(data: bytes) -> tuple[float, tuple, tuple]:
+    """``(time_s, f, w)`` from one ``csv`` line (module docstring)."""
+    if len(data) > MAX_CSV_BYTES:
+        raise DatagramError("oversized", f"{len(data)} bytes; allowed: <= {MAX_CSV_BYTES}")
+    try:
+        cells = data.decode("ascii").strip().split(",")
+        vals = [float(c) for c in cells]
+    except (UnicodeDecodeError, ValueError):
+        raise DatagramError("malformed", "not a line of numbers") from None
+    if len(vals) != len(TELEMETRY_COLUMNS):
+        kind = "short" if len(vals) < len(TELEMETRY_COLUMNS) else "malformed"
+        raise DatagramError(
+            kind, f"{len(vals)} values; allowed: {len(TELEMETRY_COLUMNS)} ({TELEMETRY_COLUMNS})"
+        )
+    return _check(vals[0], tuple(vals[1:4]), tuple(vals[4:7]))
+
+
+def decode(fmt: str, data: bytes) -> tuple[float, tuple, tuple]:
+    """Decode one datagram of format ``fmt`` (:data:`FORMATS`)."""
+    return decode_outsim(data) if fmt == "outsim" else decode_csv(data)
+
+
+def encode_csv(t: float, f, w) -> bytes:
+    """One ``csv`` datagram."""
+    return (",".join(f"{v:.9g}" for v in (t, *f, *w)) + "\n").encode("ascii")
+
+
+def encode_outsim(t: float, f, w, attitude=(0.0, 0.0, 0.0), packet_id: int | None = None) -> bytes:
+    """One OutSim packet of a V-frame sample, the car at ``attitude`` (heading, pitch, roll)."""
+    r = car_to_world(*attitude)
+    fw = vehicle_to_world(r, f)
+    acc = (fw[0], fw[1], fw[2] - GRAVITY)
+    ang = vehicle_to_world(r, w)
+    fields = (int(round(t * 1e3)) & 0xFFFFFFFF, *ang, *attitude, *acc, 0.0, 0.0, 0.0, 0, 0, 0)
+    if packet_id is None:
+        return _OUTSIM.pack(*fields)
+    return _OUTSIM_ID.pack(*fields, int(packet_id))
+
+
+def _attitudes(w: np.ndarray, dt: float) -> list[tuple[float, float, float]]:
+    """The car's attitude at each sample, integrated from V-frame rates (level, heading 0)."""
+    r = np.eye(3)
+    out = []
+    for wv in w:
+        out.append(_attitude(r))
+        wc = np.array([-wv[1], wv[0], wv[2]]) * dt  # M^T w: car axes, rotation vector
+        a = float(np.linalg.norm(wc))
+        if a > 0.0:  # Rodrigues: R <- R exp([wc]x)
+            k = wc / a
+            kx = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+            r = r @ (np.eye(3) + math.sin(a) * kx + (1.0 - math.cos(a)) * (kx @ kx))
+    return out
+
+
+def telemetry_datagrams(tel: Telemetry, fmt: str, rate_hz: float) -> tuple[np.ndarray, list]:
+    """(times, datagrams): ``tel`` resampled every ``1/rate_hz`` s and packed in ``fmt``."""
+    n = int(math.floor(tel.t[-1] * rate_hz + 1e-9)) + 1
+    t = np.arange(n) / rate_hz
+    f, w = resample(tel, t)
+    if fmt == "csv":
+        return t, [encode_csv(*row) for row in zip(t, f.tolist(), w.tolist(), strict=True)]
+    att = _attitudes(w, 1.0 / rate_hz)
+    grams = [
+        encode_outsim(ti, fi, wi, a)
+        for ti, fi, wi, a in zip(t, f.tolist(), w.tolist(), att, strict=True)
+    ]
+    return t, grams

@@ -1,0 +1,123 @@
+"""A live session into a result folder: the job behind ``simpro-sim live``.
+
+The folder is a normal run's (:mod:`simpro_mj.report.results`): the same
+``timeseries.csv`` columns, the received vehicle signals among them
+(``veh_*``: what the washout was given, held between datagrams and faded to
+rest when stale), ``qpos.npz`` for ``simpro-sim render``, the cueing metrics,
+and two blocks of its own in ``metrics.json``:
+
+* ``realtime``: ``lateness_us`` {p50, p99, max} of the chunk deadlines,
+  ``missed_deadlines``, ``drift_ms`` (simulated minus wall time at the end,
+  from the clock's first anchor), ``resyncs`` and ``lost_s``, ``packets``
+  {received, bad, late, ...}, ``stale_s``, ``pose_sent``
+  (:meth:`simpro_mj.sim.live.Pacer.realtime`);
+* ``live``: where the input came from and where the pose went;
+
+and ``realtime.npz``: each chunk deadline's simulated time (``time_s``) and
+how late the session woke for it (``lateness_us``).
+
+``scenario.yaml`` is the scenario run, its ``duration_s`` the session's; its
+``setpoint.cueing`` names the washout and its parameters (its ``telemetry``
+is not what drove the session: ``live`` says what did). A session ended by
+SIGINT or SIGTERM is a session that ended: status ``ok``, ``realtime.ended``
+``signal``, everything up to that moment written.
+"""
+
+from __future__ import annotations
+
+import copy
+import json
+from pathlib import Path
+
+from simpro_mj.analysis.cue_metrics import cue_metrics
+from simpro_mj.analysis.metrics import compute_metrics
+from simpro_mj.analysis.preflight import preflight
+from simpro_mj.core.errors import UserInputError
+from simpro_mj.core.interrupts import held_signals
+from simpro_mj.report.results import write_results
+from simpro_mj.report.runner import recording, warn
+from simpro_mj.sim.live import LiveOptions, run_session
+
+__all__ = ["MAX_LOG_BYTES", "execute_live", "live_scenario"]
+
+#: Largest log a session may preallocate (bytes): beyond, raise logging.decimation.
+MAX_LOG_BYTES = 1 << 30
+
+
+def live_scenario(scenario: dict, duration_s: float | None) -> dict:
+    """The scenario a session runs: ``duration_s`` the session's (default: the scenario's)."""
+    out = copy.deepcopy(scenario)
+    if duration_s is not None:
+        out["duration_s"] = float(duration_s)
+    rows = out["duration_s"] / 1e-3 / int(out["logging"]["decimation"]) + 1
+    nbytes = rows * 8 * 60  # the log's columns, qpos, the head sensors
+    if nbytes > MAX_LOG_BYTES:
+        need = int(rows * 8 * 60 * int(out["logging"]["decimation"]) // MAX_LOG_BYTES) + 1
+        raise UserInputError(
+            f"invalid value at --duration: {out['duration_s']:g} s logs {nbytes / 2**20:.0f} MiB "
+            f"at logging.decimation {out['logging']['decimation']}; allowed: a shorter session "
+            f"or --set logging.decimation={need} or more"
+        )
+    return out
+
+
+def _at_home(scenario: dict) -> dict:
+    """The scenario with its set-points at home: what the preflight can check in advance."""
+    out = copy.deepcopy(scenario)
+    out["setpoint"] = {"roll_deg": [], "pitch_deg": [], "heave_mm": []}
+    return out
+
+
+def execute_live(scenario: dict, options: LiveOptions, out, plots: bool = True, *,
+                 say=None, quiet: bool = False):  # fmt: skip
+    """Run a live session of a resolved scenario (:func:`live_scenario`) and write its folder.
+
+    Returns
+    -------
+    (SimResult, dict)
+        The result (``folder`` set) and what ``metrics.json`` holds.
+    """
+    out = Path(out)
+    home = _at_home(scenario)
+    warnings, figures = preflight(home)  # payload and gains at home; the washout keeps its box
+    warn(warnings, quiet)
+    res, realtime, wash = run_session(scenario, options, say=say)
+    with held_signals():  # from here on a signal waits for the folder to be written
+        ended = "signal" if res.status == "interrupted" else "duration"
+        if res.status == "interrupted":
+            res.status = "ok"
+            res.reason = (
+                f"session ended by a signal at t = {res.sim['simulated_s']:.3f} s "
+                f"(of {scenario['duration_s']:g} s)"
+            )
+        realtime["ended"] = ended
+        host, port = wash.pop("address")
+        source = f"udp {options.fmt} {host}:{port}"
+        metrics = compute_metrics(res.columns, home)
+        lateness = wash.pop("lateness")
+        metrics["cueing"] = cue_metrics(res.columns, scenario, info=dict(wash, source=source))
+        metrics["status"], metrics["reason"] = res.status, res.reason
+        metrics["sensor_floor"] = res.sensor_floor
+        live = {
+            "vehicle_input": source,
+            "pose_out": None
+            if options.send is None
+            else {
+                "to": f"{options.send[0]}:{options.send[1]}",
+                "rate_hz": options.send_rate_hz,
+                "format": options.send_format,
+            },
+            "stale_after_s": options.stale_after_s,
+            "fade_s": options.fade_s,
+        }
+        extra = {
+            "sim": dict(res.sim),
+            "warnings": warnings,
+            "preflight": figures,
+            "realtime": realtime,
+            "live": live,
+            "plots": plots,
+        }
+        arrays = dict(recording(res), **{"realtime.npz": lateness})
+        res.folder = write_results(out, res.columns, metrics, scenario, extra, arrays=arrays)
+    return res, json.loads((res.folder / "metrics.json").read_text(encoding="utf-8"))

@@ -1,0 +1,601 @@
+"""A live session: the co-simulation paced to the wall clock, driven over UDP.
+
+What a motion-rig driver (FlyPT Mover, SimTools) does, with the simulated
+platform in place of the rig: a game's telemetry comes in as UDP datagrams
+(:mod:`simpro_mj.config.datagrams`), the cueing law turns it into set-points
+as the samples arrive, the loop steps the plant in chunks at the pace of the
+wall clock, and the platform's pose goes out as UDP text lines.
+
+The session talks to the co-simulation through its live interface only
+(:mod:`simpro_mj.sim.loop`, "Set-points from outside"): a
+``CoSimulation(scenario, setpoints="external")``, whose set-point rows
+:class:`Pacer` writes with ``write_setpoints`` and whose ``run(pace=...)``
+calls :class:`Pacer` between chunks.
+
+One chunk
+---------
+Every ``chunk`` steps (the greatest common divisor of the washout period and
+the send period: 10 ms by default) the pacer, called before step ``k``:
+
+1. waits until the chunk's deadline ``D(k) = wall0 + k dt`` (absolute, from
+   one anchor: no drift accumulates from sleeping), and records how late it
+   woke: ``lateness(k) = max(0, woke - D(k))``. A chunk that finished after
+   ``D(k)`` (the state at ``t_k`` was not ready at wall time ``t_k``) is a
+   missed deadline, and the next chunk starts at once;
+2. reads every datagram waiting (at most :data:`MAX_DRAIN` a chunk, the rest
+   stays for the next one), skipping and counting the bad and the late ones;
+3. every washout period, steps the washout once with the newest sample
+   (held; faded to rest when stale, :class:`Receiver`) and writes the
+   set-point for the next period;
+4. every send period, sends the newest logged pose (:class:`PoseSender`);
+5. every second, one console line.
+
+The loop then runs the chunk's steps without looking outside: the
+simulation is ahead of the wall clock by up to one chunk, and an input
+reaches the set-points within one washout period of its arrival.
+
+The clock is anchored after the first chunk (which loads the compiled
+kernels), when the readiness file is written. A session that falls more
+than :data:`MAX_BEHIND_S` behind (the machine stalled it) moves its anchor
+instead of running the backlog at full speed: the time lost is counted
+(``resyncs``, and in ``drift_ms``), the session goes on in real time.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import ctypes
+import ctypes.util
+import gc
+import math
+import os
+import socket
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from controllers.frames import GRAVITY
+from controllers.washout import ClassicalWashout
+from simpro_mj.config.datagrams import DatagramError, decode
+from simpro_mj.core.errors import UserInputError
+from simpro_mj.plant.faults import NEVER
+from simpro_mj.sim.readiness import signal_ready
+
+__all__ = [
+    "MAX_BEHIND_S",
+    "MAX_DRAIN",
+    "POSE_FIELDS",
+    "DEFAULT_POSE_FORMAT",
+    "LiveOptions",
+    "Receiver",
+    "PoseSender",
+    "Pacer",
+    "parse_address",
+    "pose_template",
+    "request_realtime",
+    "run_session",
+    "send_datagrams",
+]
+
+#: Behind the wall clock by more than this (s), the session re-anchors its clock.
+MAX_BEHIND_S = 0.1
+#: Most datagrams read at one chunk boundary (a burst never stalls the loop).
+MAX_DRAIN = 256
+#: A game's time going back by more than this (s) is a new stream (a restart), not disorder.
+RESTART_S = 1.0
+#: Receive buffer asked of the kernel (bytes): a second of 1 kB datagrams at 1 kHz.
+RCVBUF_BYTES = 1 << 20
+#: Largest datagram read whole; anything longer is oversized in both formats.
+_RECV_BYTES = 2048
+
+#: The fields a pose line may hold (``--send-format``), degrees and millimetres.
+POSE_FIELDS = (
+    "t_s",
+    "roll_deg",
+    "pitch_deg",
+    "heave_mm",
+    "q1_mm",
+    "q2_mm",
+    "q3_mm",
+    "roll_ref_deg",
+    "pitch_ref_deg",
+    "heave_ref_mm",
+)
+#: The pose line sent by default: the platform's pose and the leg set-points.
+DEFAULT_POSE_FORMAT = (
+    "{t_s:.3f},{roll_deg:.4f},{pitch_deg:.4f},{heave_mm:.3f},{q1_mm:.3f},{q2_mm:.3f},{q3_mm:.3f}\n"
+)
+
+
+def _columns() -> dict:
+    """Column name -> index of a logged row (on use: ``sim.result`` loads MuJoCo)."""
+    from simpro_mj.sim.result import COLUMNS
+
+    return {name: j for j, name in enumerate(COLUMNS)}
+
+
+def parse_address(text: str, option: str, *, bind: bool = False) -> tuple[str, int]:
+    """``HOST:PORT`` as (host, port); a one-line :class:`UserInputError` naming ``option``.
+
+    Port 0 is allowed only where the address is bound (``bind``): the system
+    picks a free port, which the readiness file names.
+    """
+    host, sep, port = str(text).rpartition(":")
+    low = 0 if bind else 1
+    try:
+        p = int(port)
+    except ValueError:
+        p = -1
+    if not sep or not host or not low <= p <= 65535:
+        raise UserInputError(
+            f"invalid value at {option}: {text!r}; allowed: HOST:PORT with a port {low}..65535 "
+            "(e.g. 127.0.0.1:4444)"
+        )
+    return host.strip("[]"), p
+
+
+def pose_template(text: str | None) -> str:
+    """The pose line template, checked: a one-line error names the unknown field."""
+    if text is None:
+        return DEFAULT_POSE_FORMAT
+    tpl = text.replace("\\n", "\n").replace("\\r", "\r").replace("\\t", "\t")
+    try:
+        line = tpl.format(**dict.fromkeys(POSE_FIELDS, 0.0))
+        line.encode("ascii")
+    except KeyError as exc:
+        raise UserInputError(
+            f"invalid value at --send-format: unknown field {exc.args[0]!r}; allowed: "
+            f"{', '.join(POSE_FIELDS)}"
+        ) from None
+    except (ValueError, IndexError, UnicodeEncodeError) as exc:
+        raise UserInputError(
+            f"invalid value at --send-format: {text!r} ({exc}); allowed: an ASCII Python "
+            f"format string of the fields {', '.join(POSE_FIELDS)}, e.g. "
+            "'P{pitch_deg:.2f}R{roll_deg:.2f}\\n'"
+        ) from None
+    return tpl
+
+
+def request_realtime(priority: int = 50) -> str:
+    """Ask for ``SCHED_FIFO`` and locked memory; one line saying what was granted."""
+    parts = []
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+        parts.append(f"SCHED_FIFO priority {priority}")
+    except (AttributeError, OSError) as exc:
+        why = getattr(exc, "strerror", None) or str(exc)
+        return f"--rt: real-time scheduling not permitted ({why}); running at normal priority"
+    libc_name = ctypes.util.find_library("c")
+    ok = False
+    if libc_name:
+        with contextlib.suppress(OSError, AttributeError):
+            ok = ctypes.CDLL(libc_name, use_errno=True).mlockall(3) == 0  # MCL_CURRENT|FUTURE
+    parts.append("memory locked" if ok else "memory not locked (mlockall refused)")
+    return "--rt: " + ", ".join(parts)
+
+
+@dataclass
+class LiveOptions:
+    """What a live session is asked (``simpro-sim live``'s options, checked)."""
+
+    listen: tuple[str, int]
+    fmt: str = "outsim"
+    send: tuple[str, int] | None = None
+    send_rate_hz: float = 100.0
+    send_format: str = DEFAULT_POSE_FORMAT
+    #: input older than this (s) is stale: held until then, then faded to rest
+    stale_after_s: float = 0.5
+    #: the fade from the last sample to the vehicle at rest (s)
+    fade_s: float = 1.0
+    rt: bool = False
+    console: bool = True
+
+
+class Receiver:
+    """The UDP input: a non-blocking socket, the newest sample, the counts.
+
+    The newest valid sample is held; once it is older than ``stale_after_s``
+    it fades linearly, over ``fade_s``, to the vehicle at rest
+    (``f = (0, 0, g)``, ``w = 0``), so that the washout brings the platform
+    back to neutral when the game pauses or the link drops. Before the first
+    sample the input is at rest.
+
+    Attributes
+    ----------
+    received, bad, late, restarts : int
+        Datagrams read; of them, not a sample (``bad_kinds``: short,
+        oversized, malformed); older than the newest sample (out of order or
+        repeated, skipped); game times that jumped back by more than
+        :data:`RESTART_S` (taken as a new stream).
+    """
+
+    REST_F = (0.0, 0.0, GRAVITY)
+    REST_W = (0.0, 0.0, 0.0)
+
+    def __init__(self, address: tuple[str, int], fmt: str, stale_after_s: float, fade_s: float):
+        self.fmt = fmt
+        self.stale_after, self.fade = float(stale_after_s), float(fade_s)
+        family = socket.AF_INET6 if ":" in address[0] else socket.AF_INET
+        self.sock = socket.socket(family, socket.SOCK_DGRAM)
+        try:
+            with contextlib.suppress(OSError):
+                self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, RCVBUF_BYTES)
+            self.sock.bind(address)
+        except OSError as exc:
+            self.sock.close()
+            raise UserInputError(
+                f"cannot listen at --listen {address[0]}:{address[1]}: "
+                f"{exc.strerror or exc}; allowed: a local address and a free UDP port"
+            ) from None
+        self.sock.setblocking(False)
+        self.address = self.sock.getsockname()[:2]
+        self._buf = bytearray(_RECV_BYTES)
+        self.received = self.bad = self.late = self.restarts = 0
+        self.bad_kinds = {"short": 0, "oversized": 0, "malformed": 0}
+        self.last_time: float | None = None  # the game's time of the newest sample
+        self.last_wall: float | None = None  # when it arrived
+        self.f, self.w = self.REST_F, self.REST_W
+
+    def poll(self, now: float) -> int:
+        """Read the datagrams waiting (at most :data:`MAX_DRAIN`); returns how many."""
+        recv, buf, fmt = self.sock.recv_into, self._buf, self.fmt
+        n = 0
+        while n < MAX_DRAIN:
+            try:
+                size = recv(buf)
+            except (BlockingIOError, InterruptedError):
+                break
+            except OSError:  # e.g. ICMP errors surfacing on the socket: not data
+                continue
+            n += 1
+            try:
+                if size >= len(buf):  # filled the buffer: cut short by the read
+                    raise DatagramError("oversized", f">= {size} bytes")
+                t, f, w = decode(fmt, bytes(buf[:size]))
+            except DatagramError as exc:
+                self.bad += 1
+                self.bad_kinds[exc.kind] += 1
+                continue
+            if self.last_time is not None and t <= self.last_time:
+                if self.last_time - t <= RESTART_S:
+                    self.late += 1
+                    continue
+                self.restarts += 1
+            self.last_time, self.last_wall, self.f, self.w = t, now, f, w
+        self.received += n
+        return n
+
+    def sample(self, now: float) -> tuple[tuple, tuple, bool]:
+        """``(f, w, stale)``: the input to use now (held, or faded to rest)."""
+        if self.last_wall is None:
+            return self.REST_F, self.REST_W, True
+        age = now - self.last_wall
+        if age <= self.stale_after:
+            return self.f, self.w, False
+        a = min(1.0, (age - self.stale_after) / self.fade) if self.fade > 0 else 1.0
+        f = tuple((1.0 - a) * v + a * r for v, r in zip(self.f, self.REST_F, strict=True))
+        w = tuple((1.0 - a) * v for v in self.w)
+        return f, w, True
+
+    def counts(self) -> dict:
+        return {
+            "received": self.received,
+            "bad": self.bad,
+            "late": self.late,
+            "bad_kinds": dict(self.bad_kinds),
+            "restarts": self.restarts,
+        }
+
+    def close(self) -> None:
+        self.sock.close()
+
+
+class PoseSender:
+    """The pose out: one ASCII datagram of :data:`POSE_FIELDS` per send period.
+
+    ``roll_deg``, ``pitch_deg``, ``heave_mm``: the simulated platform's pose
+    (base frame, heave from the home height); ``q1_mm``..``q3_mm``: the leg
+    set-points the joint loops follow (slide positions from the bottom of the
+    stroke, what a real rig's controller takes); ``*_ref_*``: the cueing's
+    set-point pose. Send errors are counted, never fatal.
+    """
+
+    def __init__(self, address: tuple[str, int], template: str, home_heave_m: float):
+        family = socket.AF_INET6 if ":" in address[0] else socket.AF_INET
+        self.sock = socket.socket(family, socket.SOCK_DGRAM)
+        self.sock.setblocking(False)
+        self.address, self.template, self.home = address, template, float(home_heave_m)
+        self.sent = self.errors = 0
+        self._col = _columns()
+
+    def send(self, row) -> None:
+        """Send the pose of one logged row (``simpro_mj.sim.result.COLUMNS`` order)."""
+        d = math.degrees
+        c = self._col
+        line = self.template.format(
+            t_s=row[c["time_s"]],
+            roll_deg=d(row[c["roll_rad"]]),
+            pitch_deg=d(row[c["pitch_rad"]]),
+            heave_mm=(row[c["heave_m"]] - self.home) * 1e3,
+            q1_mm=row[c["q1_ref_m"]] * 1e3,
+            q2_mm=row[c["q2_ref_m"]] * 1e3,
+            q3_mm=row[c["q3_ref_m"]] * 1e3,
+            roll_ref_deg=d(row[c["roll_ref_rad"]]),
+            pitch_ref_deg=d(row[c["pitch_ref_rad"]]),
+            heave_ref_mm=(row[c["heave_ref_m"]] - self.home) * 1e3,
+        )
+        try:
+            self.sock.sendto(line.encode("ascii"), self.address)
+            self.sent += 1
+        except OSError:
+            self.errors += 1
+
+    def close(self) -> None:
+        self.sock.close()
+
+
+@dataclass
+class _Stats:
+    lateness_s: np.ndarray
+    n: int = 0
+    missed: int = 0
+    resyncs: int = 0
+    lost_s: float = 0.0
+    stale_s: float = 0.0
+    washout_steps: int = 0
+    rate_limited: int = 0
+    softened: int = 0
+    console: list = field(default_factory=list)
+
+
+class Pacer:
+    """The ``pace`` callback of ``CoSimulation.run`` for a live session (module docstring).
+
+    Parameters
+    ----------
+    sim : CoSimulation
+        Built with ``setpoints="external"``.
+    receiver : Receiver
+    washout : ClassicalWashout
+    wash_every, send_every : int
+        The washout and send periods in steps.
+    sender : PoseSender, optional
+    say : callable(str), optional
+        The console (one line a second); None: silent.
+    clock, sleep : callables
+        ``time.perf_counter`` and ``time.sleep`` (replaceable in tests).
+    """
+
+    def __init__(self, sim, receiver: Receiver, washout: ClassicalWashout, *, wash_every: int,
+                 send_every: int, sender: PoseSender | None = None, say=None,
+                 clock=time.perf_counter, sleep=time.sleep):  # fmt: skip
+        self.sim, self.rx, self.washout, self.sender, self.say = sim, receiver, washout, sender, say
+        self.dt, self.n = sim.dt, sim.n_steps
+        self.wash_every, self.send_every = wash_every, send_every
+        self.chunk = math.gcd(wash_every, send_every)
+        self.clock, self.sleep = clock, sleep
+        self.stats = _Stats(lateness_s=np.zeros(self.n // self.chunk + 2))
+        self.wall0: float | None = None  # the anchor: D(k) = wall0 + k dt
+        self.start_wall: float | None = None  # the first anchor (drift is measured from it)
+        self.k_last = 0
+        self.end_wall: float | None = None
+        self._ones = np.ones((wash_every, 1))
+        self._last_console = 0
+        self._col = _columns()
+
+    # the callback ---------------------------------------------------------
+    def __call__(self, k: int, log) -> int:
+        now = self.clock()
+        st = self.stats
+        if self.wall0 is None and k > 0:
+            # the first chunk has loaded the compiled kernels: the clock starts here
+            self.wall0 = self.start_wall = now - k * self.dt
+            host, port = self.rx.address
+            signal_ready(f"listening@{host}:{port}")
+        if self.wall0 is not None:
+            deadline = self.wall0 + k * self.dt
+            if now < deadline:
+                self.sleep(deadline - now)
+                now = self.clock()
+            else:
+                st.missed += 1
+            late = now - deadline
+            st.lateness_s[st.n] = max(0.0, late)
+            st.n += 1
+            if late > MAX_BEHIND_S:  # stalled: go on in real time from here
+                self.wall0 += late
+                st.resyncs += 1
+                st.lost_s += late
+        self.k_last = k
+        if k >= self.n:
+            self.end_wall = now
+            return NEVER
+        rx = self.rx
+        rx.poll(now)
+        if k % self.wash_every == 0:
+            f, w, stale = rx.sample(now)
+            if stale and self.wall0 is not None:
+                st.stale_s += self.wash_every * self.dt
+            pose = self.washout.step(f, w)
+            st.washout_steps += 1
+            st.rate_limited += self.washout.last_rate_limited
+            st.softened += self.washout.last_softened
+            ones = self._ones
+            self.sim.write_setpoints(k, ones * pose, ones * f, ones * w)
+        if self.sender is not None and k % self.send_every == 0 and len(log):
+            self.sender.send(log[-1].tolist())
+        if self.say is not None and k - self._last_console >= 1000 and len(log):
+            self._last_console = k
+            self.say(self._console_line(k, log[-1]))
+        return k + self.chunk
+
+    def _console_line(self, k: int, row) -> str:
+        st = self.stats
+        recent = st.lateness_s[max(0, st.n - 1000 // self.chunk) : st.n]
+        p99 = float(np.percentile(recent, 99)) * 1e6 if recent.size else 0.0
+        rx, c = self.rx, self._col
+        _, _, stale = rx.sample(self.clock())
+        return (
+            f"live t {k * self.dt:7.2f} s | roll {math.degrees(row[c['roll_rad']]):+6.2f} "
+            f"pitch {math.degrees(row[c['pitch_rad']]):+6.2f} deg heave "
+            f"{(row[c['heave_m']] - self.washout.geometry.home[2]) * 1e3:+6.1f} mm | late p99 "
+            f"{p99:6.0f} us missed {st.missed} | rx {rx.received} bad {rx.bad} late {rx.late}"
+            + (" | input stale" if stale else "")
+        )
+
+    # the figures -----------------------------------------------------------
+    def realtime(self, steps: int) -> dict:
+        """The ``realtime`` block of ``metrics.json`` after the run stopped at ``steps``."""
+        st = self.stats
+        lat = st.lateness_s[: st.n] * 1e6
+        end = self.end_wall if self.end_wall is not None else self.clock()
+        drift = None
+        if self.start_wall is not None:
+            drift = (steps * self.dt - (end - self.start_wall)) * 1e3
+        out = {
+            "lateness_us": {
+                "p50": float(np.percentile(lat, 50)) if lat.size else None,
+                "p99": float(np.percentile(lat, 99)) if lat.size else None,
+                "max": float(lat.max()) if lat.size else None,
+            },
+            "deadlines": int(st.n),
+            "missed_deadlines": int(st.missed),
+            "chunk_steps": self.chunk,
+            "drift_ms": drift,
+            "resyncs": int(st.resyncs),
+            "lost_s": float(st.lost_s),
+            "packets": self.rx.counts(),
+            "stale_s": float(st.stale_s),
+        }
+        if self.sender is not None:
+            out["pose_sent"] = {"datagrams": self.sender.sent, "errors": self.sender.errors}
+        return out
+
+    def lateness(self) -> dict:
+        """Each deadline's simulated time and lateness (``realtime.npz`` of the folder)."""
+        st = self.stats
+        return {
+            "time_s": (np.arange(st.n) + 1) * self.chunk * self.dt,
+            "lateness_us": st.lateness_s[: st.n] * 1e6,
+        }
+
+    def washout_info(self) -> dict:
+        """What the cueing figures need of the washout as it ran (box, limit fractions)."""
+        st, w = self.stats, self.washout
+        m = max(st.washout_steps, 1)
+        return {
+            "box": {k: list(map(float, v)) if k != "scale" else v for k, v in w.box.items()},
+            "rate_limited_fraction": st.rate_limited / m,
+            "softened_fraction": st.softened / m,
+        }
+
+
+@contextlib.contextmanager
+def frozen_gc():
+    """The objects built so far moved out of the collector's way for the session."""
+    gc.collect()
+    gc.freeze()
+    try:
+        yield
+    finally:
+        gc.unfreeze()
+
+
+def run_session(scenario: dict, options: LiveOptions, say=None):
+    """Run one live session of a resolved cueing scenario (``duration_s`` long).
+
+    Returns
+    -------
+    (SimResult, dict, dict)
+        The result (status ``interrupted`` when a signal ended it), the
+        ``realtime`` block and the washout's figures (:meth:`Pacer.washout_info`)
+        with ``lateness`` (:meth:`Pacer.lateness`) and the bound ``address``.
+        The socket is bound before anything heavy is built, so that a busy
+        port is refused at once.
+    """
+    from simpro_mj.config.cueing import washout_params
+    from simpro_mj.core.rates import steps_per_period
+    from simpro_mj.sim.loop import CoSimulation
+
+    cue = scenario["setpoint"].get("cueing")
+    if not cue:
+        raise UserInputError(
+            "invalid value at setpoint.cueing: a live session needs a cueing scenario (the "
+            "vehicle input drives the washout); allowed: e.g. cue_braking.yaml"
+        )
+    rx = Receiver(options.listen, options.fmt, options.stale_after_s, options.fade_s)
+    if say is not None:
+        say(
+            f"live: {scenario['name']}, {options.fmt} datagrams at {rx.address[0]}:"
+            f"{rx.address[1]}, {scenario['duration_s']:g} s (Ctrl-C ends it, the result is kept)"
+        )
+    sender = None
+    try:
+        params = washout_params(cue)
+        wash_every = steps_per_period(
+            params.period * 1e3, 1e-3, "setpoint.cueing.parameters.period_ms"
+        )
+        send_every = steps_per_period(1e3 / options.send_rate_hz, 1e-3, "--send-rate")
+        sim = CoSimulation(scenario, setpoints="external")
+        washout = ClassicalWashout(params, geometry=sim.geometry)
+        if options.send is not None:
+            sender = PoseSender(options.send, options.send_format, sim.geometry.home[2])
+        pacer = Pacer(sim, rx, washout, wash_every=wash_every, send_every=send_every,
+                      sender=sender, say=say)  # fmt: skip
+        if options.rt and say is not None:
+            say(request_realtime())
+        elif options.rt:
+            request_realtime()
+        with frozen_gc():
+            res = sim.run(pace=pacer)
+        realtime = pacer.realtime(int(res.sim["steps"]))
+        info = dict(pacer.washout_info(), lateness=pacer.lateness(), address=rx.address)
+        return res, realtime, info
+    finally:
+        rx.close()
+        if sender is not None:
+            sender.close()
+
+
+def send_datagrams(grams, times, address: tuple[str, int], *, say=None,
+                   clock=time.perf_counter, sleep=time.sleep) -> dict:  # fmt: skip
+    """Send ``grams[i]`` at ``start + times[i]`` (absolute deadlines) to ``address``.
+
+    The stand-in for a game (``simpro-sim send``). Returns the figures:
+    ``sent``, ``errors`` (refused sends, counted), ``duration_s``,
+    ``lateness_us`` {p50, p99, max} of the sends.
+    """
+    family = socket.AF_INET6 if ":" in address[0] else socket.AF_INET
+    sock = socket.socket(family, socket.SOCK_DGRAM)
+    late = np.zeros(len(grams))
+    sent = errors = 0
+    start = clock()
+    try:
+        for i, (g, t) in enumerate(zip(grams, times, strict=True)):
+            deadline = start + float(t)
+            now = clock()
+            if now < deadline:
+                sleep(deadline - now)
+                now = clock()
+            late[i] = max(0.0, now - deadline)
+            try:
+                sock.sendto(g, address)
+                sent += 1
+            except OSError:
+                errors += 1
+            if say is not None and i and i % 1000 == 0:
+                say(f"send t {float(t):7.2f} s | sent {sent} errors {errors}")
+    finally:
+        sock.close()
+    lat = late[: sent + errors] * 1e6
+    return {
+        "sent": sent,
+        "errors": errors,
+        "duration_s": clock() - start,
+        "lateness_us": {
+            "p50": float(np.percentile(lat, 50)) if lat.size else None,
+            "p99": float(np.percentile(lat, 99)) if lat.size else None,
+            "max": float(lat.max()) if lat.size else None,
+        },
+    }
