@@ -79,9 +79,14 @@ def execute_live(scenario: dict, options: LiveOptions, out, plots: bool = True, 
     """
     out = Path(out)
     home = _at_home(scenario)
-    warnings, figures = preflight(home)  # payload and gains at home; the washout keeps its box
-    warn(warnings, quiet)
-    res, realtime, wash = run_session(scenario, options, say=say)
+    found: dict = {}
+
+    def checks() -> None:  # payload and gains at home; the washout keeps its box
+        found["warnings"], found["figures"] = preflight(home)
+        warn(found["warnings"], quiet)
+
+    res, realtime, wash = run_session(scenario, options, say=say, checks=checks)
+    warnings, figures = found["warnings"], found["figures"]
     with held_signals():  # from here on a signal waits for the folder to be written
         ended = "signal" if res.status == "interrupted" else "duration"
         if res.status == "interrupted":

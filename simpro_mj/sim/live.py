@@ -59,6 +59,7 @@ from controllers.frames import GRAVITY
 from controllers.washout import ClassicalWashout
 from simpro_mj.config.datagrams import DatagramError, decode
 from simpro_mj.core.errors import UserInputError
+from simpro_mj.core.interrupts import held_signals
 from simpro_mj.plant.faults import NEVER
 from simpro_mj.sim.readiness import signal_ready
 
@@ -325,11 +326,12 @@ class PoseSender:
             pitch_ref_deg=d(row[c["pitch_ref_rad"]]),
             heave_ref_mm=(row[c["heave_ref_m"]] - self.home) * 1e3,
         )
-        try:
-            self.sock.sendto(line.encode("ascii"), self.address)
-            self.sent += 1
-        except OSError:
-            self.errors += 1
+        with held_signals():  # a signal never falls between the send and its count
+            try:
+                self.sock.sendto(line.encode("ascii"), self.address)
+                self.sent += 1
+            except OSError:
+                self.errors += 1
 
     def close(self) -> None:
         self.sock.close()
@@ -398,7 +400,7 @@ class Pacer:
             if now < deadline:
                 self.sleep(deadline - now)
                 now = self.clock()
-            else:
+            elif now > deadline:
                 st.missed += 1
             late = now - deadline
             st.lateness_s[st.n] = max(0.0, late)
@@ -502,7 +504,7 @@ def frozen_gc():
         gc.unfreeze()
 
 
-def run_session(scenario: dict, options: LiveOptions, say=None):
+def run_session(scenario: dict, options: LiveOptions, say=None, checks=None):
     """Run one live session of a resolved cueing scenario (``duration_s`` long).
 
     Returns
@@ -512,7 +514,7 @@ def run_session(scenario: dict, options: LiveOptions, say=None):
         ``realtime`` block and the washout's figures (:meth:`Pacer.washout_info`)
         with ``lateness`` (:meth:`Pacer.lateness`) and the bound ``address``.
         The socket is bound before anything heavy is built, so that a busy
-        port is refused at once.
+        port is refused at once; ``checks()`` (the preflight) runs next.
     """
     from simpro_mj.config.cueing import washout_params
     from simpro_mj.core.rates import steps_per_period
@@ -532,6 +534,8 @@ def run_session(scenario: dict, options: LiveOptions, say=None):
         )
     sender = None
     try:
+        if checks is not None:
+            checks()
         params = washout_params(cue)
         wash_every = steps_per_period(
             params.period * 1e3, 1e-3, "setpoint.cueing.parameters.period_ms"

@@ -1,0 +1,442 @@
+"""Live sessions: telemetry datagrams in, the co-simulation paced to the wall clock, the pose out.
+
+Network use is loopback only, bounded in count and in time; a session is
+waited for through its readiness file and through what it sends back, never
+through a fixed delay. Nothing here asserts how late the wall clock let the
+loop be (that is a benchmark figure: docs/live.md), only that it is counted.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import select
+import signal
+import socket
+import struct
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from controllers.frames import GRAVITY
+from controllers.washout import ClassicalWashout
+from simpro_mj.commands.main import main
+from simpro_mj.config.datagrams import (
+    DatagramError,
+    decode,
+    decode_csv,
+    decode_outsim,
+    encode_csv,
+    telemetry_datagrams,
+)
+from simpro_mj.config.telemetry import Telemetry, read_telemetry, resample, write_telemetry
+from simpro_mj.core.errors import UserInputError
+from simpro_mj.plant.faults import NEVER
+from simpro_mj.sim.live import MAX_BEHIND_S, Pacer, Receiver, pose_template
+
+ROOT = Path(__file__).resolve().parents[1]
+BRAKING = ROOT / "simpro_mj" / "scenarios" / "telemetry" / "braking_100kmh.csv"
+OUTSIM = struct.Struct("<I3f3f3f3f3i")
+#: float32 packing: a relative 6e-8 of a 10 m/s^2 value, with margin
+F32 = 1e-5
+
+
+def _outsim(time_ms=0, ang=(0, 0, 0), att=(0, 0, 0), acc=(0, 0, 0)) -> bytes:
+    return OUTSIM.pack(time_ms, *ang, *att, *acc, 0, 0, 0, 0, 0, 0)
+
+
+# ------------------------------------------------------------------ formats
+
+
+def test_outsim_braking_is_negative_fx_whatever_the_heading():
+    """A car braking at 5 m/s^2 feels fx = -5 with gravity on z, facing +Y or facing -X."""
+    _, f, w = decode_outsim(_outsim(1000, acc=(0.0, -5.0, 0.0)))
+    assert f == pytest.approx((-5.0, 0.0, GRAVITY), abs=F32)
+    # heading +90 deg (anticlockwise from above): the car faces -X, braking is +X in W
+    t, f, w = decode_outsim(_outsim(2500, ang=(0, 0, 0.1), att=(math.pi / 2, 0, 0), acc=(5, 0, 0)))
+    assert t == 2.5
+    assert f == pytest.approx((-5.0, 0.0, GRAVITY), abs=F32)
+    assert w == pytest.approx((0.0, 0.0, 0.1), abs=F32)  # yaw rate to the left: wz > 0
+
+
+def test_outsim_attitude_tilts_gravity_and_rates_into_the_vehicle_frame():
+    """Nose up by p at rest: gravity gives fx = +g sin p (as accelerating does), fz = g cos p;
+    a nose-up rate about W's X is a negative ISO pitch rate (ISO wy > 0 is nose down)."""
+    p = 0.1
+    _, f, w = decode_outsim(_outsim(att=(0.0, p, 0.0), ang=(0.2, 0.0, 0.0)))
+    assert f == pytest.approx((GRAVITY * math.sin(p), 0.0, GRAVITY * math.cos(p)), abs=F32)
+    assert w == pytest.approx((0.0, -0.2, 0.0), abs=F32)  # X is the pitch axis in W and C
+    # facing -X (heading +90 deg), a rate about W's X is about the car's backward axis
+    _, _, w = decode_outsim(_outsim(att=(math.pi / 2, 0.0, 0.0), ang=(0.2, 0.0, 0.0)))
+    assert w == pytest.approx((-0.2, 0.0, 0.0), abs=F32)
+    # rolled by r about the car's forward axis (right side down): the driver is pressed to the
+    # right as in a left turn, ISO fy (left) = +g sin r
+    r = 0.2
+    _, f, _ = decode_outsim(_outsim(att=(0.0, 0.0, r)))
+    assert f == pytest.approx((0.0, GRAVITY * math.sin(r), GRAVITY * math.cos(r)), abs=F32)
+
+
+@pytest.mark.parametrize("fmt", ["outsim", "csv"])
+def test_a_telemetry_file_survives_the_round_trip(fmt):
+    """send's datagrams decode to the file resampled (outsim: through the integrated attitude)."""
+    tel = read_telemetry(BRAKING)
+    t, grams = telemetry_datagrams(tel, fmt, 100.0)
+    assert len(grams) == int(tel.t[-1] * 100) + 1
+    f, w = resample(tel, t)
+    got = [decode(fmt, g) for g in grams]
+    tol = F32 if fmt == "outsim" else 1e-8
+    assert np.abs(np.array([g[1] for g in got]) - f).max() < tol
+    assert np.abs(np.array([g[2] for g in got]) - w).max() < tol
+    assert np.abs(np.array([g[0] for g in got]) - t).max() < 1e-9
+    if fmt == "outsim":  # the attitude is really exercised: heading and pitch move
+        att = np.array([OUTSIM.unpack(g)[4:7] for g in grams])
+        assert np.abs(att).max() > 1e-3
+
+
+@pytest.mark.parametrize(
+    "data, kind",
+    [
+        (b"", "short"),
+        (b"\x00" * 63, "short"),
+        (b"\x00" * 65, "oversized"),
+        (b"\x00" * 100, "oversized"),
+        (OUTSIM.pack(0, math.nan, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0), "malformed"),
+        (_outsim(acc=(1e6, 0, 0)), "malformed"),
+        (_outsim(att=(1e9, 0, 0)), "malformed"),
+    ],
+)
+def test_bad_outsim_datagrams_are_refused_by_kind(data, kind):
+    with pytest.raises(DatagramError) as err:
+        decode_outsim(data)
+    assert err.value.kind == kind
+
+
+@pytest.mark.parametrize(
+    "data, kind",
+    [
+        (b"hello", "malformed"),
+        (b"1,2,3", "short"),
+        (b"0,0,0,9.8,0,0,0,0", "malformed"),
+        (b"0,nan,0,9.8,0,0,0", "malformed"),
+        (b"0,500,0,9.8,0,0,0", "malformed"),
+        (b"\xff\xfe", "malformed"),
+        (b"0," * 300, "oversized"),
+    ],
+)
+def test_bad_csv_datagrams_are_refused_by_kind(data, kind):
+    with pytest.raises(DatagramError) as err:
+        decode_csv(data)
+    assert err.value.kind == kind
+
+
+def test_pose_template_names_an_unknown_field():
+    assert pose_template("P{pitch_deg:.1f}\\n").format(pitch_deg=-2.25) == "P-2.2\n"
+    with pytest.raises(UserInputError, match="unknown field 'yaw_deg'; allowed: t_s, roll_deg"):
+        pose_template("{yaw_deg}")
+
+
+# ------------------------------------------------------------------ the receiver
+
+
+def _drain(rx: Receiver, expected: int, bound_s: float = 10.0) -> None:
+    """Poll until ``expected`` datagrams were read (loopback: at once; bounded)."""
+    end = time.monotonic() + bound_s
+    while rx.received < expected and time.monotonic() < end:
+        select.select([rx.sock], [], [], 0.05)
+        rx.poll(0.0)
+
+
+def test_receiver_counts_bad_and_late_datagrams_and_keeps_the_newest():
+    rx = Receiver(("127.0.0.1", 0), "csv", stale_after_s=0.5, fade_s=1.0)
+    tx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    try:
+        grams = [
+            encode_csv(1.00, (-1.0, 0.0, GRAVITY), (0, 0, 0)),
+            b"garbage",
+            encode_csv(1.02, (-2.0, 0.0, GRAVITY), (0, 0, 0)),
+            encode_csv(1.01, (-9.0, 0.0, GRAVITY), (0, 0, 0)),  # out of order: late
+            encode_csv(1.02, (-9.0, 0.0, GRAVITY), (0, 0, 0)),  # repeated: late
+            b"1" * 5000,  # oversized (cut at the read buffer)
+            encode_csv(1.03, (-3.0, 0.5, GRAVITY), (0.1, 0, 0)),
+        ]
+        for g in grams:
+            tx.sendto(g, rx.address)
+        _drain(rx, len(grams))
+        c = rx.counts()
+        assert (c["received"], c["bad"], c["late"]) == (7, 2, 2)
+        assert c["bad_kinds"] == {"short": 0, "oversized": 1, "malformed": 1}
+        assert rx.sample(0.0)[:2] == ((-3.0, 0.5, GRAVITY), (0.1, 0.0, 0.0))
+        # a game restarted: its time went back by more than RESTART_S, taken as a new stream
+        tx.sendto(encode_csv(0.0, (-4.0, 0.0, GRAVITY), (0, 0, 0)), rx.address)
+        _drain(rx, 8)
+        assert rx.restarts == 1 and rx.sample(0.0)[0] == (-4.0, 0.0, GRAVITY)
+    finally:
+        tx.close()
+        rx.close()
+
+
+def test_stale_input_is_held_then_faded_to_rest():
+    rx = Receiver(("127.0.0.1", 0), "csv", stale_after_s=0.5, fade_s=1.0)
+    try:
+        assert rx.sample(0.0) == ((0.0, 0.0, GRAVITY), (0.0, 0.0, 0.0), True)  # nothing yet
+        rx.last_time, rx.last_wall = 3.0, 10.0
+        rx.f, rx.w = (-4.0, 2.0, GRAVITY + 1.0), (0.2, 0.0, 0.0)
+        assert rx.sample(10.5) == (rx.f, rx.w, False)  # held for stale_after_s
+        f, w, stale = rx.sample(11.0)  # half-way through the fade
+        assert stale and f == pytest.approx((-2.0, 1.0, GRAVITY + 0.5)) and w[0] == 0.1
+        assert rx.sample(11.5)[:2] == ((0.0, 0.0, GRAVITY), (0.0, 0.0, 0.0))  # at rest
+    finally:
+        rx.close()
+
+
+# ------------------------------------------------------------------ the pacer
+
+
+class _FakeSim:
+    dt, n_steps = 1e-3, 100
+
+    def __init__(self):
+        self.rows = {}
+
+    def write_setpoints(self, k, poses, f, w):
+        self.rows[k] = (np.array(poses), np.array(f))
+
+
+class _Clock:
+    """A wall clock the test moves; ``sleep`` oversleeps by 100 us."""
+
+    def __init__(self, t):
+        self.t = t
+
+    def __call__(self):
+        return self.t
+
+    def sleep(self, s):
+        self.t += s + 1e-4
+
+
+def test_pacer_counts_lateness_and_missed_deadlines_and_reanchors_after_a_stall():
+    sim, clock = _FakeSim(), _Clock(100.0)
+    rx = Receiver(("127.0.0.1", 0), "csv", stale_after_s=0.5, fade_s=1.0)
+    try:
+        pacer = Pacer(sim, rx, ClassicalWashout(), wash_every=10, send_every=10,
+                      clock=clock, sleep=clock.sleep)  # fmt: skip
+        log = np.zeros((0, 1))
+        assert pacer(0, log) == 10  # the first chunk: loads the kernels, no clock yet
+        clock.t = 100.050
+        assert pacer(10, log) == 20  # the anchor: D(k) = 100.040 + k dt
+        clock.t = 100.053  # the chunk took 3 ms: sleep to D(20) = 100.060
+        pacer(20, log)
+        assert clock.t == pytest.approx(100.0601)
+        clock.t = 100.075  # took 15 ms: D(30) = 100.070 missed by 5 ms
+        pacer(30, log)
+        clock.t = 100.300  # stalled: 220 ms behind D(40), beyond MAX_BEHIND_S
+        pacer(40, log)
+        clock.t = 100.305  # re-anchored: D(50) = 100.090 + 0.220 = 100.310
+        pacer(50, log)
+        st = pacer.stats
+        lat = st.lateness_s[: st.n]
+        assert lat == pytest.approx([0.0, 1e-4, 0.005, 0.220, 1e-4], abs=1e-9)
+        assert st.missed == 2 and st.resyncs == 1 and st.lost_s == pytest.approx(0.220)
+        assert 0.220 > MAX_BEHIND_S
+        for k in range(60, 101, 10):
+            clock.t += 0.002
+            nxt = pacer(k, log)
+        assert nxt == NEVER  # the last step: the pacer is done
+        rt = pacer.realtime(100)
+        # it ends at D(100) + 100 us = 100.3601 s: 0.1 s simulated in 0.3201 s since the anchor
+        # (100.040): the 220 ms stall is lost for good, and said so
+        assert rt["drift_ms"] == pytest.approx(-220.1, abs=1e-6)
+        assert rt["missed_deadlines"] == 2 and rt["lateness_us"]["max"] == pytest.approx(220e3)
+        # the washout ran every 10 steps on the input at rest: home set-points, f = (0, 0, g)
+        assert sorted(sim.rows) == list(range(0, 100, 10))
+        poses, f = sim.rows[50]
+        assert poses.shape == (10, 3) and np.allclose(f, [0.0, 0.0, GRAVITY])
+        assert rt["stale_s"] == pytest.approx(0.090)  # no input ever: stale since the anchor
+    finally:
+        rx.close()
+
+
+# ------------------------------------------------------------------ the commands
+
+
+def _one_error_line(capsys) -> str:
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error: "), err
+    return err[0]
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["--listen", "4444"], "invalid value at --listen: '4444'"),
+        (["--listen", "127.0.0.1:0", "--send-rate", "300"], "invalid value at --send-rate: 300"),
+        (["--listen", "127.0.0.1:0", "--send", "x:99999"], "invalid value at --send: 'x:99999'"),
+        (["--listen", "127.0.0.1:0", "--send-format", "{q4_mm}"], "unknown field 'q4_mm'"),
+        (["--listen", "127.0.0.1:0", "--duration", "-1"], "invalid value at --duration: -1"),
+    ],
+)
+def test_live_refuses_bad_options_in_one_line(capsys, tmp_path, args, message):
+    assert main(["live", "cue_braking.yaml", "--out", str(tmp_path / "o"), *args]) == 2
+    assert message in _one_error_line(capsys)
+    assert not (tmp_path / "o").exists()
+
+
+def test_live_refuses_a_busy_port_and_a_scenario_without_cueing(capsys, tmp_path):
+    busy = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    busy.bind(("127.0.0.1", 0))
+    try:
+        port = busy.getsockname()[1]
+        argv = ["live", "cue_braking.yaml", "--listen", f"127.0.0.1:{port}"]
+        assert main([*argv, "--out", str(tmp_path / "a")]) == 2
+        assert f"cannot listen at --listen 127.0.0.1:{port}" in _one_error_line(capsys)
+    finally:
+        busy.close()
+    argv = ["live", "step_pitch.yaml", "--listen", "127.0.0.1:0", "--out", str(tmp_path / "b")]
+    assert main(argv) == 2
+    assert "invalid value at setpoint.cueing: a live session needs" in _one_error_line(capsys)
+
+
+@pytest.mark.parametrize("fmt", ["csv", "outsim"])
+def test_send_replays_a_file_as_datagrams(capsys, tmp_path, fmt):
+    tel = Telemetry(
+        t=np.array([0.0, 0.02, 0.05]),
+        f=np.array([[0.0, 0.0, GRAVITY], [-2.0, 0.5, GRAVITY], [-5.0, 1.0, 10.0]]),
+        w=np.array([[0.0, 0.0, 0.0], [0.01, 0.02, 0.03], [0.0, 0.0, 0.0]]),
+    )
+    path = write_telemetry(tmp_path / "tel.csv", tel)
+    rx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    rx.bind(("127.0.0.1", 0))
+    rx.setblocking(False)
+    try:
+        to = f"127.0.0.1:{rx.getsockname()[1]}"
+        assert (
+            main(["send", str(path), "--to", to, "--format", fmt, "--rate", "200", "--json"]) == 0
+        )
+        info = json.loads(capsys.readouterr().out)
+        assert info["sent"] == 11 and info["errors"] == 0  # 0..0.05 s at 5 ms
+        got = []
+        while True:
+            try:
+                got.append(decode(fmt, rx.recv(4096)))
+            except BlockingIOError:
+                break
+    finally:
+        rx.close()
+    assert len(got) == 11
+    f, w = resample(tel, np.arange(11) * 0.005)
+    tol = F32 if fmt == "outsim" else 1e-8
+    assert np.abs(np.array([g[1] for g in got]) - f).max() < tol
+    assert np.abs(np.array([g[2] for g in got]) - w).max() < tol
+
+
+def _wait_ready(proc, ready: Path, bound_s: float = 300.0) -> bool:
+    """The session's readiness file, not a guessed delay (the bound only stops a hang)."""
+    end = time.monotonic() + bound_s
+    while time.monotonic() < end:
+        if ready.is_file():
+            return True
+        if proc.poll() is not None:
+            return False
+        time.sleep(0.02)
+    return False
+
+
+def _pose_lines(sock) -> list[list[float]]:
+    out = []
+    while True:
+        try:
+            data = sock.recv(4096)
+        except BlockingIOError:
+            return out
+        out.append([float(v) for v in data.decode("ascii").strip().split(",")])
+
+
+def test_a_live_session_driven_over_udp_and_ended_by_sigterm(tmp_path):
+    """The whole path on loopback: csv datagrams (garbage among them) in, the washout tilting
+    the platform nose down for a braking input, the pose lines out, SIGTERM, the folder."""
+    pose = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    pose.bind(("127.0.0.1", 0))
+    pose.setblocking(False)
+    tx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    out, ready = tmp_path / "live", tmp_path / "ready"
+    env = dict(os.environ, MPLBACKEND="Agg", PYTHONPATH=str(ROOT), SIMPRO_READY_FILE=str(ready))
+    cmd = [sys.executable, "-m", "simpro_mj.commands.main", "live", "cue_braking.yaml",
+           "--listen", "127.0.0.1:0", "--format", "csv", "--send",
+           f"127.0.0.1:{pose.getsockname()[1]}", "--duration", "300", "--out", str(out),
+           "--no-plots", "--json"]  # fmt: skip
+    proc = subprocess.Popen(
+        cmd, cwd=tmp_path, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+    )
+    garbage = [b"", b"hello", b"1,2,3", b"0,nan,0,9.8,0,0,0", b"9" * 3000, _outsim()]
+    lines: list[list[float]] = []
+    try:
+        assert _wait_ready(proc, ready), proc.communicate()
+        what = ready.read_text().split()[0]
+        assert what.startswith("listening@127.0.0.1:")
+        address = ("127.0.0.1", int(what.rsplit(":", 1)[1]))
+        for g in garbage:
+            tx.sendto(g, address)
+        # braking at 4 m/s^2, a sample every 20 ms, until the pose lines show the tilt
+        # (3 deg/s rate limit: 2 deg within about 0.7 s); one sample out of order
+        end, t_game, n_sent = time.monotonic() + 120, 0.0, 0
+        while time.monotonic() < end and proc.poll() is None:
+            t_game += 0.02
+            tx.sendto(encode_csv(t_game, (-4.0, 0.0, GRAVITY), (0.0, 0.0, 0.0)), address)
+            n_sent += 1
+            if n_sent == 5:
+                tx.sendto(encode_csv(t_game - 0.01, (-9.0, 0.0, GRAVITY), (0, 0, 0)), address)
+            select.select([pose], [], [], 0.02)
+            lines += _pose_lines(pose)
+            if lines and min(p[2] for p in lines) < -2.0:
+                break
+        proc.send_signal(signal.SIGTERM)
+        stdout, stderr = proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+        tx.close()
+    lines += _pose_lines(pose)
+    pose.close()
+    assert proc.returncode == 0, stderr
+    assert "Traceback" not in stderr
+    doc = json.loads(stdout)
+    assert doc == json.loads((out / "metrics.json").read_text())
+    rt = doc["realtime"]
+    assert doc["status"] == "ok" and rt["ended"] == "signal" and "signal" in doc["reason"]
+    assert rt["packets"]["bad"] == len(garbage)
+    assert rt["packets"]["bad_kinds"] == {"short": 1, "oversized": 1, "malformed": 4}
+    assert rt["packets"]["late"] == 1
+    # the last samples may still wait in the socket when the signal ends the session
+    assert len(garbage) + 1 < rt["packets"]["received"] <= len(garbage) + n_sent + 1
+    for key in ("p50", "p99", "max"):
+        assert rt["lateness_us"][key] >= 0.0  # measured, not judged here
+    assert rt["deadlines"] > 0 and isinstance(rt["drift_ms"], float)
+    # the pose lines: t_s, roll, pitch, heave, q1..q3; as many as the session says it sent
+    assert len(lines) == rt["pose_sent"]["datagrams"] > 0
+    assert all(len(p) == 7 for p in lines)
+    t_pose = np.array([p[0] for p in lines])
+    assert np.all(np.diff(t_pose) > 0)
+    assert min(p[2] for p in lines) < -2.0  # braking: nose down (tilt coordination)
+    assert all(0.0 < q < 500.0 for p in lines for q in p[4:])  # leg set-points in the stroke
+    # the folder: the received signals logged, the motion recorded for render
+    from simpro_mj.report.recording import load_recording
+    from simpro_mj.report.results import read_timeseries
+
+    cols = read_timeseries(out / "timeseries.csv")
+    assert cols["veh_fx_mps2"].min() == pytest.approx(-4.0, abs=1e-9)
+    assert np.all(np.abs(cols["veh_fz_mps2"] - GRAVITY) < 1e-9)
+    assert np.degrees(cols["pitch_rad"].min()) < -2.0
+    assert np.degrees(cols["pitch_ref_rad"].min()) < -1.0  # the washout set-point: nose down
+    assert doc["sim"]["simulated_s"] == pytest.approx(cols["time_s"][-1], abs=1.5e-3)
+    rec = load_recording(out)
+    assert rec.qpos.shape[0] == cols["time_s"].size
+    assert doc["metrics"]["cueing"]["source"].startswith("udp csv 127.0.0.1:")
+    assert doc["metrics"]["cueing"]["channels"]["longitudinal_f"]["vehicle_peak"] < 0
+    lat = np.load(out / "realtime.npz")
+    assert lat["lateness_us"].size == rt["deadlines"]
