@@ -243,6 +243,8 @@ def test_pacer_counts_lateness_and_missed_deadlines_and_reanchors_after_a_stall(
         lat = st.lateness_s[: st.n]
         assert lat == pytest.approx([0.0, 1e-4, 0.005, 0.220, 1e-4], abs=1e-9)
         assert st.missed == 2 and st.resyncs == 1 and st.lost_s == pytest.approx(0.220)
+        # the loop's time on each chunk: from the pacer's return to its next call
+        assert st.compute_s[1:4] == pytest.approx([0.003, 0.0149, 0.225], abs=1e-9)
         assert 0.220 > MAX_BEHIND_S
         for k in range(60, 101, 10):
             clock.t += 0.002

@@ -51,7 +51,7 @@ import math
 import os
 import socket
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -340,6 +340,7 @@ class PoseSender:
 @dataclass
 class _Stats:
     lateness_s: np.ndarray
+    compute_s: np.ndarray
     n: int = 0
     missed: int = 0
     resyncs: int = 0
@@ -348,7 +349,6 @@ class _Stats:
     washout_steps: int = 0
     rate_limited: int = 0
     softened: int = 0
-    console: list = field(default_factory=list)
 
 
 class Pacer:
@@ -377,11 +377,12 @@ class Pacer:
         self.wash_every, self.send_every = wash_every, send_every
         self.chunk = math.gcd(wash_every, send_every)
         self.clock, self.sleep = clock, sleep
-        self.stats = _Stats(lateness_s=np.zeros(self.n // self.chunk + 2))
+        size = self.n // self.chunk + 2
+        self.stats = _Stats(lateness_s=np.zeros(size), compute_s=np.zeros(size))
         self.wall0: float | None = None  # the anchor: D(k) = wall0 + k dt
         self.start_wall: float | None = None  # the first anchor (drift is measured from it)
-        self.k_last = 0
         self.end_wall: float | None = None
+        self._left: float | None = None  # when the last chunk was handed to the loop
         self._ones = np.ones((wash_every, 1))
         self._last_console = 0
         self._col = _columns()
@@ -396,6 +397,8 @@ class Pacer:
             host, port = self.rx.address
             signal_ready(f"listening@{host}:{port}")
         if self.wall0 is not None:
+            if self._left is not None:  # the loop's time on the chunk just stepped
+                st.compute_s[st.n] = now - self._left
             deadline = self.wall0 + k * self.dt
             if now < deadline:
                 self.sleep(deadline - now)
@@ -409,7 +412,6 @@ class Pacer:
                 self.wall0 += late
                 st.resyncs += 1
                 st.lost_s += late
-        self.k_last = k
         if k >= self.n:
             self.end_wall = now
             return NEVER
@@ -430,6 +432,8 @@ class Pacer:
         if self.say is not None and k - self._last_console >= 1000 and len(log):
             self._last_console = k
             self.say(self._console_line(k, log[-1]))
+        if self.wall0 is not None:
+            self._left = self.clock()
         return k + self.chunk
 
     def _console_line(self, k: int, row) -> str:
@@ -451,6 +455,7 @@ class Pacer:
         """The ``realtime`` block of ``metrics.json`` after the run stopped at ``steps``."""
         st = self.stats
         lat = st.lateness_s[: st.n] * 1e6
+        busy = st.compute_s[1 : st.n] * 1e6  # from the second deadline on: one chunk each
         end = self.end_wall if self.end_wall is not None else self.clock()
         drift = None
         if self.start_wall is not None:
@@ -462,6 +467,11 @@ class Pacer:
                 "max": float(lat.max()) if lat.size else None,
             },
             "deadlines": int(st.n),
+            "chunk_compute_us": {
+                "p50": float(np.percentile(busy, 50)) if busy.size else None,
+                "p99": float(np.percentile(busy, 99)) if busy.size else None,
+                "max": float(busy.max()) if busy.size else None,
+            },
             "missed_deadlines": int(st.missed),
             "chunk_steps": self.chunk,
             "drift_ms": drift,
@@ -480,6 +490,7 @@ class Pacer:
         return {
             "time_s": (np.arange(st.n) + 1) * self.chunk * self.dt,
             "lateness_us": st.lateness_s[: st.n] * 1e6,
+            "chunk_compute_us": st.compute_s[: st.n] * 1e6,
         }
 
     def washout_info(self) -> dict:
