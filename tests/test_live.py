@@ -256,7 +256,7 @@ def test_pacer_counts_lateness_and_missed_deadlines_and_reanchors_after_a_stall(
         assert rt["drift_ms"] == pytest.approx(-220.1, abs=1e-6)
         assert rt["missed_deadlines"] == 2 and rt["lateness_us"]["max"] == pytest.approx(220e3)
         # the washout ran every 10 steps on the input at rest: home set-points, f = (0, 0, g)
-        assert sorted(sim.rows) == list(range(0, 100, 10))
+        assert sorted(sim.rows) == list(range(0, 101, 10))  # the last step's row too
         poses, f = sim.rows[50]
         assert poses.shape == (10, 3) and np.allclose(f, [0.0, 0.0, GRAVITY])
         assert rt["stale_s"] == pytest.approx(0.090)  # no input ever: stale since the anchor

@@ -412,14 +412,11 @@ class Pacer:
                 self.wall0 += late
                 st.resyncs += 1
                 st.lost_s += late
-        if k >= self.n:
-            self.end_wall = now
-            return NEVER
         rx = self.rx
         rx.poll(now)
         if k % self.wash_every == 0:
             f, w, stale = rx.sample(now)
-            if stale and self.wall0 is not None:
+            if stale and self.wall0 is not None and k < self.n:
                 st.stale_s += self.wash_every * self.dt
             pose = self.washout.step(f, w)
             st.washout_steps += 1
@@ -427,6 +424,9 @@ class Pacer:
             st.softened += self.washout.last_softened
             ones = self._ones
             self.sim.write_setpoints(k, ones * pose, ones * f, ones * w)
+        if k >= self.n:  # the last step: its row is written, the session ends with it
+            self.end_wall = now
+            return NEVER
         if self.sender is not None and k % self.send_every == 0 and len(log):
             self.sender.send(log[-1].tolist())
         if self.say is not None and k - self._last_console >= 1000 and len(log):
