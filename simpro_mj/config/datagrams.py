@@ -21,8 +21,9 @@ driver's head, ISO 8855 vehicle frame V (x forward, y left, z up), SI.
     ``Heading`` turns anticlockwise about Z seen from above, ``Pitch`` about
     X (nose up > 0), ``Roll`` about Y (right-handed); radians. ``Accel`` is
     the car's acceleration in W *without* gravity; ``AngVel`` is read in W
-    as well (the classic OutSim gives every vector in world axes; a game
-    that sends body-axis rates would need ``R`` below left out of ``w``).
+    as well (the classic OutSim gives every vector in world axes; rates in
+    the car's axes, the alternative reading, would need ``R`` left out of
+    ``w``: docs/live.md).
     ``Vel`` and ``Pos`` are not used.
 
     The car's frame C (x right, y forward, z up) is W turned by
