@@ -337,16 +337,17 @@ def test_send_replays_a_file_as_datagrams(capsys, tmp_path, fmt):
     assert np.abs(np.array([g[2] for g in got]) - w).max() < tol
 
 
-def _wait_ready(proc, ready: Path, bound_s: float = 300.0) -> bool:
-    """The session's readiness file, not a guessed delay (the bound only stops a hang)."""
+def _listening_at(proc, ready: Path, bound_s: float = 300.0):
+    """The session's address from its readiness file once written, not after a guessed
+    delay (the bound only stops a hang); None if the session exits first."""
     end = time.monotonic() + bound_s
-    while time.monotonic() < end:
-        if ready.is_file():
-            return True
-        if proc.poll() is not None:
-            return False
+    while time.monotonic() < end and proc.poll() is None:
+        line = ready.read_text() if ready.is_file() else ""  # written whole (renamed)
+        if line.startswith("listening@"):
+            host, port = line.split()[0].removeprefix("listening@").rsplit(":", 1)
+            return host, int(port)
         time.sleep(0.02)
-    return False
+    return None
 
 
 def _pose_lines(sock) -> list[list[float]]:
@@ -378,10 +379,8 @@ def test_a_live_session_driven_over_udp_and_ended_by_sigterm(tmp_path):
     garbage = [b"", b"hello", b"1,2,3", b"0,nan,0,9.8,0,0,0", b"9" * 3000, _outsim()]
     lines: list[list[float]] = []
     try:
-        assert _wait_ready(proc, ready), proc.communicate()
-        what = ready.read_text().split()[0]
-        assert what.startswith("listening@127.0.0.1:")
-        address = ("127.0.0.1", int(what.rsplit(":", 1)[1]))
+        address = _listening_at(proc, ready)
+        assert address is not None and address[0] == "127.0.0.1", proc.communicate()
         for g in garbage:
             tx.sendto(g, address)
         # braking at 4 m/s^2, a sample every 20 ms, until the pose lines show the tilt
