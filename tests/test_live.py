@@ -37,7 +37,7 @@ from simpro_mj.config.datagrams import (
 from simpro_mj.config.telemetry import Telemetry, read_telemetry, resample, write_telemetry
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.plant.faults import NEVER
-from simpro_mj.sim.live import MAX_BEHIND_S, Pacer, Receiver, pose_template
+from simpro_mj.sim.live import MAX_BEHIND_S, Pacer, Receiver, pose_template, request_realtime
 
 ROOT = Path(__file__).resolve().parents[1]
 BRAKING = ROOT / "simpro_mj" / "scenarios" / "telemetry" / "braking_100kmh.csv"
@@ -138,6 +138,17 @@ def test_pose_template_names_an_unknown_field():
     assert pose_template("P{pitch_deg:.1f}\\n").format(pitch_deg=-2.25) == "P-2.2\n"
     with pytest.raises(UserInputError, match="unknown field 'yaw_deg'; allowed: t_s, roll_deg"):
         pose_template("{yaw_deg}")
+
+
+def test_rt_says_in_one_line_when_it_is_not_permitted(monkeypatch):
+    def refuse(*args):
+        raise PermissionError(1, "Operation not permitted")
+
+    monkeypatch.setattr(os, "sched_setscheduler", refuse)
+    assert request_realtime() == (
+        "--rt: real-time scheduling not permitted (Operation not permitted); running at "
+        "normal priority"
+    )
 
 
 # ------------------------------------------------------------------ the receiver

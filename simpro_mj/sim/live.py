@@ -242,12 +242,12 @@ class Receiver:
         """Read the datagrams waiting (at most :data:`MAX_DRAIN`); returns how many."""
         recv, buf, fmt = self.sock.recv_into, self._buf, self.fmt
         n = 0
-        while n < MAX_DRAIN:
+        for _ in range(MAX_DRAIN):
             try:
                 size = recv(buf)
             except (BlockingIOError, InterruptedError):
                 break
-            except OSError:  # e.g. ICMP errors surfacing on the socket: not data
+            except OSError:  # e.g. an ICMP error surfacing on the socket: not data
                 continue
             n += 1
             try:
@@ -505,6 +505,27 @@ class Pacer:
 
 
 @contextlib.contextmanager
+def realtime_scheduling(wanted: bool, say=None):
+    """:func:`request_realtime` for the block (saying what was granted), then the
+    process's scheduling as it was."""
+    if not wanted:
+        yield
+        return
+    policy = param = None
+    with contextlib.suppress(AttributeError, OSError):
+        policy, param = os.sched_getscheduler(0), os.sched_getparam(0)
+    note = request_realtime()
+    if say is not None:
+        say(note)
+    try:
+        yield
+    finally:
+        if policy is not None:
+            with contextlib.suppress(OSError):
+                os.sched_setscheduler(0, policy, param)
+
+
+@contextlib.contextmanager
 def frozen_gc():
     """The objects built so far moved out of the collector's way for the session."""
     gc.collect()
@@ -558,11 +579,7 @@ def run_session(scenario: dict, options: LiveOptions, say=None, checks=None):
             sender = PoseSender(options.send, options.send_format, sim.geometry.home[2])
         pacer = Pacer(sim, rx, washout, wash_every=wash_every, send_every=send_every,
                       sender=sender, say=say)  # fmt: skip
-        if options.rt and say is not None:
-            say(request_realtime())
-        elif options.rt:
-            request_realtime()
-        with frozen_gc():
+        with realtime_scheduling(options.rt, say), frozen_gc():
             res = sim.run(pace=pacer)
         realtime = pacer.realtime(int(res.sim["steps"]))
         info = dict(pacer.washout_info(), lateness=pacer.lateness(), address=rx.address)
