@@ -29,7 +29,7 @@ from simpro_mj.core.jsonout import emit_json
 from simpro_mj.report.folders import claim
 from simpro_mj.report.live import execute_live, live_scenario
 from simpro_mj.report.results import print_summary
-from simpro_mj.sim.live import LiveOptions, parse_address, pose_template
+from simpro_mj.sim.live import LiveOptions, check_listen, parse_address, pose_template
 
 HELP = "run a cueing scenario live: UDP telemetry in, paced to the wall clock, the pose out"
 
@@ -117,8 +117,10 @@ def _options(args) -> LiveOptions:
         raise UserInputError(
             f"invalid value at --stale-after: {args.stale_after:g}; allowed: > 0 and <= 60 s"
         )
+    listen = parse_address(args.listen, "--listen", bind=True)
+    check_listen(listen)  # a busy port refused now, not after the scenario's seconds
     return LiveOptions(
-        listen=parse_address(args.listen, "--listen", bind=True),
+        listen=listen,
         fmt=args.fmt,
         send=None if args.send is None else parse_address(args.send, "--send"),
         send_rate_hz=float(rate),

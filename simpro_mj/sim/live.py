@@ -69,6 +69,7 @@ __all__ = [
     "POSE_FIELDS",
     "DEFAULT_POSE_FORMAT",
     "LiveOptions",
+    "check_listen",
     "Receiver",
     "PoseSender",
     "Pacer",
@@ -193,6 +194,29 @@ class LiveOptions:
     console: bool = True
 
 
+def _bound_socket(address: tuple[str, int]) -> socket.socket:
+    """A UDP socket bound to ``address``; a one-line error naming ``--listen`` if it cannot be."""
+    family = socket.AF_INET6 if ":" in address[0] else socket.AF_INET
+    sock = socket.socket(family, socket.SOCK_DGRAM)
+    try:
+        with contextlib.suppress(OSError):
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, RCVBUF_BYTES)
+        sock.bind(address)
+    except OSError as exc:
+        sock.close()
+        raise UserInputError(
+            f"cannot listen at --listen {address[0]}:{address[1]}: "
+            f"{exc.strerror or exc}; allowed: a local address and a free UDP port"
+        ) from None
+    return sock
+
+
+def check_listen(address: tuple[str, int]) -> None:
+    """Refuse at once an address that cannot be bound (busy, not local), before the
+    seconds a session takes to build; the session binds it again for good."""
+    _bound_socket(address).close()
+
+
 class Receiver:
     """The UDP input: a non-blocking socket, the newest sample, the counts.
 
@@ -217,18 +241,7 @@ class Receiver:
     def __init__(self, address: tuple[str, int], fmt: str, stale_after_s: float, fade_s: float):
         self.fmt = fmt
         self.stale_after, self.fade = float(stale_after_s), float(fade_s)
-        family = socket.AF_INET6 if ":" in address[0] else socket.AF_INET
-        self.sock = socket.socket(family, socket.SOCK_DGRAM)
-        try:
-            with contextlib.suppress(OSError):
-                self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, RCVBUF_BYTES)
-            self.sock.bind(address)
-        except OSError as exc:
-            self.sock.close()
-            raise UserInputError(
-                f"cannot listen at --listen {address[0]}:{address[1]}: "
-                f"{exc.strerror or exc}; allowed: a local address and a free UDP port"
-            ) from None
+        self.sock = _bound_socket(address)
         self.sock.setblocking(False)
         self.address = self.sock.getsockname()[:2]
         self._buf = bytearray(_RECV_BYTES)
@@ -548,10 +561,6 @@ def run_session(scenario: dict, options: LiveOptions, say=None, checks=None):
         The socket is bound before anything heavy is built, so that a busy
         port is refused at once; ``checks()`` (the preflight) runs next.
     """
-    from simpro_mj.config.cueing import washout_params
-    from simpro_mj.core.rates import steps_per_period
-    from simpro_mj.sim.loop import CoSimulation
-
     cue = scenario["setpoint"].get("cueing")
     if not cue:
         raise UserInputError(
@@ -566,6 +575,11 @@ def run_session(scenario: dict, options: LiveOptions, say=None, checks=None):
         )
     sender = None
     try:
+        # on use, once the port is ours: scipy's filter design and MuJoCo take seconds
+        from simpro_mj.config.cueing import washout_params
+        from simpro_mj.core.rates import steps_per_period
+        from simpro_mj.sim.loop import CoSimulation
+
         if checks is not None:
             checks()
         params = washout_params(cue)
