@@ -37,7 +37,14 @@ from simpro_mj.config.datagrams import (
 from simpro_mj.config.telemetry import Telemetry, read_telemetry, resample, write_telemetry
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.plant.faults import NEVER
-from simpro_mj.sim.live import MAX_BEHIND_S, Pacer, Receiver, pose_template, request_realtime
+from simpro_mj.sim.live import (
+    MAX_BEHIND_S,
+    MAX_DRAIN,
+    Pacer,
+    Receiver,
+    pose_template,
+    request_realtime,
+)
 
 ROOT = Path(__file__).resolve().parents[1]
 BRAKING = ROOT / "simpro_mj" / "scenarios" / "telemetry" / "braking_100kmh.csv"
@@ -186,6 +193,24 @@ def test_receiver_counts_bad_and_late_datagrams_and_keeps_the_newest():
         tx.sendto(encode_csv(0.0, (-4.0, 0.0, GRAVITY), (0, 0, 0)), rx.address)
         _drain(rx, 8)
         assert rx.restarts == 1 and rx.sample(0.0)[0] == (-4.0, 0.0, GRAVITY)
+    finally:
+        tx.close()
+        rx.close()
+
+
+def test_a_burst_is_read_in_bounded_portions():
+    """300 datagrams at once: no chunk boundary reads more than MAX_DRAIN of them."""
+    rx = Receiver(("127.0.0.1", 0), "csv", stale_after_s=0.5, fade_s=1.0)
+    tx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    try:
+        for i in range(300):
+            tx.sendto(encode_csv(0.001 * i, (-1.0, 0.0, GRAVITY), (0, 0, 0)), rx.address)
+        reads, end = [], time.monotonic() + 10.0
+        while sum(reads) < 300 and time.monotonic() < end:
+            select.select([rx.sock], [], [], 0.05)
+            reads.append(rx.poll(0.0))
+        assert sum(reads) == 300 and max(reads) <= MAX_DRAIN < 300
+        assert rx.last_time == pytest.approx(0.299) and rx.late == 0
     finally:
         tx.close()
         rx.close()
