@@ -34,7 +34,7 @@ things only (:mod:`simpro_mj.sim.live` is that driver):
   beside it), in place;
 * ``run(pace=...)``: ``pace(k, log) -> next_k`` is called before step ``k``
   is taken, first at ``k = 0`` and then at each step it returns, with the
-  rows logged so far (``log``, a read-only view of :data:`COLUMNS` rows).
+  rows logged so far (``log``, a view of the :data:`COLUMNS` rows: read it only).
   Between two calls the loop steps without looking outside; the caller
   writes the rows its next chunk reads, waits for the wall clock, sends the
   pose. It ends the run early by raising ``KeyboardInterrupt`` (as a signal
