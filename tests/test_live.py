@@ -400,6 +400,7 @@ def test_a_live_session_driven_over_udp_and_ended_by_sigterm(tmp_path):
     """The whole path on loopback: csv datagrams (garbage among them) in, the washout tilting
     the platform nose down for a braking input, the pose lines out, SIGTERM, the folder."""
     pose = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    pose.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1 << 20)
     pose.bind(("127.0.0.1", 0))
     pose.setblocking(False)
     tx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
@@ -454,11 +455,13 @@ def test_a_live_session_driven_over_udp_and_ended_by_sigterm(tmp_path):
     for key in ("p50", "p99", "max"):
         assert rt["lateness_us"][key] >= 0.0  # measured, not judged here
     assert rt["deadlines"] > 0 and isinstance(rt["drift_ms"], float)
-    # the pose lines: t_s, roll, pitch, heave, q1..q3; as many as the session says it sent
-    assert len(lines) == rt["pose_sent"]["datagrams"] > 0
+    # the pose lines: t_s, roll, pitch, heave, q1..q3, one per 10 ms of simulated time; no
+    # more than the session says it sent (a test starved of CPU may let the kernel drop some)
+    assert 0 < len(lines) <= rt["pose_sent"]["datagrams"]
     assert all(len(p) == 7 for p in lines)
     t_pose = np.array([p[0] for p in lines])
     assert np.all(np.diff(t_pose) > 0)
+    assert np.allclose(np.round((t_pose + 0.001) / 0.01), (t_pose + 0.001) / 0.01, atol=1e-3)
     assert min(p[2] for p in lines) < -2.0  # braking: nose down (tilt coordination)
     assert all(0.0 < q < 500.0 for p in lines for q in p[4:])  # leg set-points in the stroke
     # the folder: the received signals logged, the motion recorded for render
