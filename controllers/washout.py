@@ -23,12 +23,24 @@ Tilt coordination (surge and sway, which SIMPRO cannot translate)::
     pitch_t = asin(-k_x LP(f_x) / g),   roll_t = asin(k_y LP(f_y) / g)
     LP(s) = w_t^2 / (s^2 + 2 zeta_t w_t s + w_t^2)
 
-then limited to ``tilt_limit`` and rate-limited to ``tilt_rate_limit``
-(3 deg/s by default: near the canals' roll/pitch thresholds of 3.0/3.6 deg/s,
-so the rotation that produces the cue is not itself perceived; Groen & Bles
-2004, Reid & Nahon 1985). At rest on a platform tilted by ``pitch_t`` the
-head feels ``f_x = -g sin(pitch_t) = k_x f_x,vehicle``: a sustained
-acceleration ``a`` settles at ``asin(k a / g)``.
+then limited to ``tilt_limit`` and by a second-order rate limit: the tilt rate
+to ``tilt_rate_limit`` (near the canals' roll/pitch thresholds of 3.0/3.6
+deg/s, so the rotation that produces the cue is hardly perceived; Groen & Bles
+2004, Reid & Nahon 1985) and the tilt acceleration to ``tilt_accel_limit``
+(commercial cueing's tilt-acceleration limit: the rate ramps instead of
+jumping), approaching the target no faster than it can stop at it
+(``rate <= sqrt(2 accel |target - tilt|)``). At rest on a platform tilted by
+``pitch_t`` the head feels ``f_x = -g sin(pitch_t) = k_x f_x,vehicle``: a
+sustained acceleration ``a`` settles at ``asin(k a / g)``.
+
+Head offset: the head is ``head_height`` (0.75 m) above the tilt pivot, so an
+angular acceleration ``a''`` away from neutral throws it along the cue's axis
+the wrong way, ``f = h a'' - g a`` (ISO pitch ``a``; roll alike): a pure tilt
+first pushes the driver against the cue it builds. The outward tilt
+acceleration is therefore also limited to ``(jolt_limit + g |a|) / h``, so the
+head's wrong-way specific force stays below ``jolt_limit`` (the otoliths'
+0.17 m/s^2 threshold by default): the onset starts gently and speeds up as the
+tilt's own cue grows.
 
 Rotation (roll and pitch rates)::
 
@@ -93,6 +105,14 @@ class WashoutParams:
     tilt_rate_limit : float
         3 deg/s (rad/s): the tilt rate kept near the canals' threshold (Groen &
         Bles 2004 measured 3 deg/s as the tilt-coordination limit).
+    tilt_accel_limit : float
+        Tilt acceleration limit (rad/s^2), the second-order rate limit.
+    head_height : float
+        The head above the tilt pivot (m), 0.75 (the MJCF ``head`` site); 0 turns
+        the jolt limit off.
+    jolt_limit : float
+        Largest wrong-way specific force (m/s^2) the outward tilt acceleration may
+        throw the head with, 0.17 (the x/y otolith threshold).
     tilt_limit : float
         10 deg (rad): largest tilt, inside the workspace box (about 9-12 deg,
         :func:`controllers.workspace.inscribed_box`), so it acts before the soft limit.
@@ -123,6 +143,9 @@ class WashoutParams:
     tilt_zeta: float = 1.0
     tilt_rate_limit: float = math.radians(3.0)
     tilt_limit: float = math.radians(10.0)
+    tilt_accel_limit: float = math.radians(30.0)
+    head_height: float = 0.75
+    jolt_limit: float = 0.17
     heave_omega: float = 2.5
     heave_zeta: float = 1.0
     heave_omega_b: float = 0.5
@@ -144,6 +167,9 @@ class WashoutParams:
             "tilt_zeta": (lambda v: v > 0, "> 0"),
             "tilt_rate_limit": (lambda v: v > 0, "> 0 rad/s"),
             "tilt_limit": (lambda v: 0 < v < math.pi / 2, "in (0, pi/2) rad"),
+            "tilt_accel_limit": (lambda v: v > 0, "> 0 rad/s^2"),
+            "head_height": (lambda v: 0 <= v <= 2, "0..2 m"),
+            "jolt_limit": (lambda v: v > 0, "> 0 m/s^2"),
             "heave_omega": (lambda v: v > 0, "> 0 rad/s"),
             "heave_zeta": (lambda v: v > 0, "> 0"),
             "heave_omega_b": (lambda v: v > 0, "> 0 rad/s"),
@@ -245,6 +271,7 @@ class ClassicalWashout:
         for f in (self._heave, *self._lp, *self._rot):
             f.reset()
         self._tilt = [0.0, 0.0]  # ISO roll, pitch
+        self._rate = [0.0, 0.0]  # their rates
         self.last_rate_limited = False
         self.last_softened = False
         self.last_parts = (0.0, 0.0, 0.0, 0.0, 0.0)
@@ -258,6 +285,32 @@ class ClassicalWashout:
         pitch = max(-lim, min(lim, math.asin(sx)))
         return roll, pitch
 
+    def _limited_step(self, k: int, target: float) -> bool:
+        """Move tilt ``k`` one period toward ``target`` under the second-order rate
+        limit and the head's jolt limit; True where a limit acted."""
+        p = self.params
+        dt = p.period
+        x, v = self._tilt[k], self._rate[k]
+        d = target - x
+        # the rate that reaches the target this period, capped by the rate limit and
+        # by the rate from which the acceleration limit can still stop at the target
+        want = d / dt
+        cap = min(p.tilt_rate_limit, math.sqrt(2.0 * p.tilt_accel_limit * abs(d)))
+        limited = abs(want) > cap
+        want = max(-cap, min(cap, want))
+        acc = (want - v) / dt
+        amax = p.tilt_accel_limit
+        if p.head_height > 0 and acc * x >= 0:
+            # outward: the head is thrown against the cue by h a''
+            amax = min(amax, (p.jolt_limit + GRAVITY * abs(x)) / p.head_height)
+        if abs(acc) > amax:
+            acc = math.copysign(amax, acc)
+            limited = True
+        v += acc * dt
+        self._rate[k] = v
+        self._tilt[k] = x + v * dt
+        return limited
+
     def step(self, f, w) -> np.ndarray:
         """One cueing period: head specific force ``f`` and angular velocity ``w``
         (3,) in V -> platform set-point (roll, pitch, h) in B (3,)."""
@@ -268,12 +321,8 @@ class ClassicalWashout:
         z = self._heave.step(fz - GRAVITY)
         target = self._tilt_target(self._lp[0].step(fx), self._lp[1].step(fy))
         limited = False
-        for k in range(2):  # rate limit, per period
-            d = target[k] - self._tilt[k]
-            if abs(d) > self._max_step:
-                d = math.copysign(self._max_step, d)
-                limited = True
-            self._tilt[k] += d
+        for k in range(2):
+            limited |= self._limited_step(k, target[k])
         rr = self._rot[0].step(wx)
         rp = self._rot[1].step(wy)
         self.last_rate_limited = limited

@@ -141,9 +141,18 @@ def test_cueing_block_is_spelled_out_and_checked(tmp_path):
         ({}, "exactly one of telemetry"),
         ({"telemetry": "x.csv", "manoeuvre": {"type": "bump", "speed_kmh": 30}}, "exactly one"),
         (
-            {"telemetry": "x.csv", "algorithm": "mpc"},
-            r"algorithm: 'mpc'; allowed: \['classical_washout'\]",
+            {"telemetry": "x.csv", "algorithm": "lqr"},
+            r"algorithm: 'lqr'; allowed: \['classical_washout', 'mpc'\]",
         ),
+        (
+            {"telemetry": "x.csv", "algorithm": "mpc", "parameters": {"tilt_rate_limit_deg_s": 3}},
+            r"unknown key at setpoint.cueing.parameters.tilt_rate_limit_deg_s",
+        ),
+        (
+            {"telemetry": "x.csv", "algorithm": "mpc", "parameters": {"horizon": 1}},
+            r"parameters: mpc parameter horizon=1: allowed a whole number 2..200",
+        ),
+        ({"telemetry": "x.csv", "columns": {"fx": "a"}}, r"columns: column 'fx' unknown"),
         (
             {"telemetry": "x.csv", "parameters": {"gain_q": 1}},
             r"unknown key at setpoint.cueing.parameters.gain_q",

@@ -21,6 +21,9 @@ __all__ = [
     "CHANNELS",
     "SUMMARY_COLUMNS",
     "cue_metrics",
+    "onsets",
+    "perceived_columns",
+    "print_cue_summary",
     "mean_lag",
     "perceived",
     "shift_correlations",
@@ -100,6 +103,67 @@ def mean_lag(a: np.ndarray, b: np.ndarray, dt: float) -> tuple[float | None, boo
         window *= 2
 
 
+def onsets(pv: np.ndarray, thr: float) -> list[tuple[int, int]]:
+    """The onsets of a sensation: ``(start, end)`` sample ranges, each from its
+    magnitude crossing ``thr`` (from below, or a change of sign above it) to where it
+    falls back below ``thr`` or changes sign."""
+    sign = np.where(np.abs(pv) > thr, np.sign(pv), 0.0)
+    out = []
+    start = None
+    for i in np.flatnonzero(np.diff(np.r_[0.0, sign, 0.0]) != 0):
+        if start is not None:
+            out.append((start, int(i)))
+            start = None
+        if i < sign.size and sign[i] != 0:
+            start = int(i)
+    return out
+
+
+def _onset_block(
+    t: np.ndarray,
+    pv: np.ndarray,
+    ps: np.ndarray,
+    veh_raw: np.ndarray,
+    raw: np.ndarray,
+    thr: float,
+) -> dict:
+    """Onset delay and wrong-sign figures of one channel (:func:`cue_metrics`).
+
+    An onset counts where the vehicle's stimulus itself is past the threshold with
+    the sensation's sign when the sensation crosses it (a stimulus, not the
+    otoliths' after-effect once a sustained force ends)."""
+    dt = float(t[1] - t[0])
+    delays, raw_peaks, raw_wrong_s = [], [], 0.0
+    missed = 0
+    for a, b in onsets(pv, thr):
+        s = np.sign(pv[a])
+        if not np.any(s * veh_raw[a : min(b, a + int(round(0.2 / dt)) + 1)] > thr):
+            continue
+        # the head's sensation crossing the threshold with the vehicle's sign, from the
+        # vehicle's crossing until its sensation ends (an onset missed when it never does)
+        hit = np.flatnonzero(s * ps[a:b] > thr)
+        if hit.size:
+            delays.append(float(hit[0] * dt))
+        else:
+            missed += 1
+        # the raw head signal against the vehicle's stimulus, from the vehicle's
+        # crossing to its peak, where the stimulus is past the threshold
+        peak = a + int(np.argmax(np.abs(pv[a:b])))
+        stim = s * veh_raw[a : peak + 1] > thr
+        wrong = np.where(stim, -s * raw[a : peak + 1], 0.0)
+        raw_peaks.append(float(wrong.max()))
+        raw_wrong_s += float((wrong > thr).sum() * dt)
+    return {
+        "onsets": len(delays) + missed,
+        "onset_delay_s": max(delays) if delays else None,
+        "onset_delays_s": delays,
+        "onsets_missed": missed,
+        "onset_raw_wrong_sign_peak": max(raw_peaks) if raw_peaks else None,
+        "onset_raw_wrong_sign_s": raw_wrong_s,
+        "onset_raw_right_sign": bool(raw_peaks) and max(raw_peaks) <= thr,
+    }
+
+
 def _corr(a: np.ndarray, b: np.ndarray) -> float | None:
     if a.size < 2 or a.std() == 0 or b.std() == 0:
         return None
@@ -122,6 +186,17 @@ def cue_metrics(columns: Mapping, scenario: Mapping, model: VestibularModel | No
     ``missed_cue_s`` (the vehicle's above threshold, the simulator's not);
     ``onset_s`` (the vehicle's sensation from crossing its threshold to its
     peak), ``onset_false_cue_s`` and ``onset_right_sign`` (no false cue in it).
+    Every onset (:func:`onsets`: the vehicle's sensation crossing its threshold):
+    ``onset_delay_s`` (the worst, and ``onset_delays_s`` each: the head's sensation
+    crossing the threshold with the vehicle's sign, after the vehicle's; an onset
+    where it never does is counted in ``onsets_missed``);
+    ``onset_raw_wrong_sign_peak`` and ``onset_raw_wrong_sign_s``, the raw head
+    signal (not perceived: the otoliths smooth a jolt away) against the vehicle's
+    sign, from the crossing to the onset's peak, and ``onset_raw_right_sign`` (that
+    peak at most the threshold). Rotation channels: ``false_rotation_s`` and
+    ``false_rotation_peak`` (rad/s), where the head's sensation is above the canal
+    threshold and differs from the vehicle's by more than it: a rotation felt that
+    the car does not make.
     Then ``workspace`` (largest excursion per axis as a fraction of the cueing
     box, strokes used, end-stop margin) and ``valves`` (fraction of samples
     with a valve at 0 or 10 V).
@@ -165,7 +240,9 @@ def cue_metrics(columns: Mapping, scenario: Mapping, model: VestibularModel | No
         felt = np.flatnonzero(np.abs(pv) > thr)
         onset = slice(int(felt[0]), iv + 1) if felt.size and felt[0] <= iv else slice(0, 0)
         lag, lag_bound = mean_lag(pv, ps, dt)
-        out["channels"][name] = {
+        g0 = 9.80665 if name == "vertical_f" else 0.0
+        raw, veh_raw = col[sc] - g0, col[vc] - g0
+        out["channels"][name] = ch = {
             "unit": "m/s^2" if kind == "f" else "rad/s",
             "threshold": thr,
             "rms_error": float(np.sqrt(np.mean((pv - ps) ** 2))),
@@ -184,6 +261,13 @@ def cue_metrics(columns: Mapping, scenario: Mapping, model: VestibularModel | No
             "onset_false_cue_s": float(false[onset].sum() * dt),
             "onset_right_sign": bool(felt.size) and not bool(false[onset].any()),
         }
+        ch.update(_onset_block(t, pv, ps, veh_raw, raw, thr))
+        if kind == "w":
+            wrong_rot = above & (np.abs(ps - pv) > thr)
+            ch["false_rotation_s"] = float(wrong_rot.sum() * dt)
+            ch["false_rotation_peak"] = (
+                float(np.abs(ps - pv)[wrong_rot].max()) if wrong_rot.any() else 0.0
+            )
     if info is None:
         _, _, _, _, info = vehicle_input(scenario)
     box = info["box"]
@@ -211,7 +295,76 @@ def cue_metrics(columns: Mapping, scenario: Mapping, model: VestibularModel | No
         "saturated_fraction_per_valve": [float(v) for v in sat.mean(axis=0)],
     }
     out["source"] = info["source"]
+    out["algorithm"] = info.get("algorithm", "classical_washout")
+    if info.get("solve_time"):
+        out["solve_time"] = info["solve_time"]
     return out
+
+
+def perceived_columns(columns: Mapping, model: VestibularModel | None = None) -> dict:
+    """The perceived signals of a cueing run, vehicle and head, as columns
+    (``perceived.csv``): ``time_s``, ``veh_`` and ``head_`` ``fx_hat_mps2`` ...
+    ``wz_hat_rad_s`` (z: the change from 1 g)."""
+    t, veh, sim = perceived(columns, model)
+    out = {"time_s": t}
+    for prefix, side in (("veh", veh), ("head", sim)):
+        for k, a in enumerate("xyz"):
+            out[f"{prefix}_f{a}_hat_mps2"] = side.f[:, k]
+        for k, a in enumerate("xyz"):
+            out[f"{prefix}_w{a}_hat_rad_s"] = side.w[:, k]
+    return out
+
+
+def print_cue_summary(cue: Mapping, file=None) -> None:
+    """The cueing summary of a run: per channel the perceived correlation, lag, onset
+    delay, raw wrong-sign peak and false cues; workspace, valves and solve times."""
+    import sys
+
+    file = sys.stdout if file is None else file
+
+    def f(v, fmt):
+        width = int(fmt.split(".")[0])
+        return f"{'-':>{width}}" if v is None else format(v, fmt)
+
+    print(f"cueing ({cue.get('algorithm', '?')}, {cue.get('source', '')}), perceived:", file=file)
+    head = (
+        f"{'channel':<15}{'corr':>6}{'lag[s]':>8}{'onset[s]':>9}{'raw wrong':>11}"
+        f"{'false[s]':>9}{'false rot[s]':>13}"
+    )
+    print(head, file=file)
+    print("-" * len(head), file=file)
+    for name, ch in (cue.get("channels") or {}).items():
+        print(
+            f"{name:<15}{f(ch.get('correlation'), '6.2f')}{f(ch.get('mean_lag_s'), '8.2f')}"
+            f"{f(ch.get('onset_delay_s'), '9.2f')}"
+            f"{f(ch.get('onset_raw_wrong_sign_peak'), '11.2f')}"
+            f"{f(ch.get('false_cue_s'), '9.2f')}{f(ch.get('false_rotation_s'), '13.2f')}",
+            file=file,
+        )
+    ws = cue.get("workspace") or {}
+    box = ws.get("box_fraction_max") or {}
+    margin = ws.get("end_stop_margin_m")
+    print(
+        "workspace: box used "
+        + ", ".join(f"{k} {v * 100:.0f} %" for k, v in box.items())
+        + (f"; end-stop margin {margin * 1e3:.0f} mm" if margin is not None else ""),
+        file=file,
+    )
+    sat = (cue.get("valves") or {}).get("saturated_fraction")
+    if sat is not None:
+        print(f"valves: saturated {sat * 100:.1f} % of the time", file=file)
+    st = cue.get("solve_time")
+    if st:
+        print(
+            f"MPC solve time: p50 {st['p50_ms']:.2f} ms, p99 {st['p99_ms']:.2f} ms, "
+            f"max {st['max_ms']:.2f} ms over {st['solves']} solves",
+            file=file,
+        )
+    print(
+        "(raw wrong: the head's specific force against the vehicle's onset, m/s^2, "
+        "threshold 0.17; lag, onset: seconds)",
+        file=file,
+    )
 
 
 def perceived(columns: Mapping, model: VestibularModel | None = None):

@@ -8,8 +8,9 @@ components::
         telemetry: braking_100kmh.csv   # a telemetry CSV (simpro_mj/config/telemetry.py), or
         manoeuvre: null                 # {type: braking|lane_change|slalom|bump, speed_kmh, ...}
         sine: null                      # or {channel: fx_mps2, amplitude: 0.3, period_s: 4.0}
-        algorithm: classical_washout
-        parameters: {}                  # PARAMETER_KEYS, YAML units in the names
+        algorithm: classical_washout    # or mpc (controllers/mpc_cueing.py)
+        parameters: {}                  # PARAMETER_KEYS (mpc: MPC_PARAMETER_KEYS), YAML units
+        columns: {}                     # telemetry column mapping (config/telemetry.py)
 
 ``sine`` is a synthetic vehicle input: the vehicle at rest (``f = (0, 0, g)``,
 ``w = 0``) plus ``amplitude * sin(2 pi t / period_s)`` on one ``channel``
@@ -39,6 +40,7 @@ from pathlib import Path
 
 import numpy as np
 
+from controllers.mpc_cueing import MpcParams
 from controllers.washout import ClassicalWashout, WashoutParams
 from simpro_mj.config.telemetry import read_telemetry, resample
 from simpro_mj.core.errors import UserInputError
@@ -46,6 +48,7 @@ from simpro_mj.core.rates import PHYSICS_DT_S, steps_per_period
 
 __all__ = [
     "PARAMETER_KEYS",
+    "MPC_PARAMETER_KEYS",
     "ALGORITHMS",
     "SINE_CHANNELS",
     "TELEMETRY_DIR",
@@ -58,7 +61,7 @@ __all__ = [
     "CUE_COLUMNS",
 ]
 
-ALGORITHMS = ("classical_washout",)
+ALGORITHMS = ("classical_washout", "mpc")
 #: Channels a ``sine`` vehicle input may drive (telemetry column names, SI) and their
 #: largest amplitude: 1 g of specific force, 90 deg/s.
 SINE_CHANNELS = {
@@ -81,6 +84,9 @@ PARAMETER_KEYS = {
     "tilt_zeta": ("tilt_zeta", 1.0),
     "tilt_rate_limit_deg_s": ("tilt_rate_limit", math.pi / 180.0),
     "tilt_limit_deg": ("tilt_limit", math.pi / 180.0),
+    "tilt_accel_limit_deg_s2": ("tilt_accel_limit", math.pi / 180.0),
+    "head_height_m": ("head_height", 1.0),
+    "jolt_limit_mps2": ("jolt_limit", 1.0),
     "heave_omega_rad_s": ("heave_omega", 1.0),
     "heave_zeta": ("heave_zeta", 1.0),
     "heave_omega_b_rad_s": ("heave_omega_b", 1.0),
@@ -93,17 +99,50 @@ PARAMETER_KEYS = {
 }
 
 
-def default_parameters() -> dict:
-    """The washout's defaults (:class:`WashoutParams`) as ``parameters`` (YAML units).
+#: YAML key -> (MpcParams field, factor from the YAML unit to SI), ``algorithm: mpc``.
+MPC_PARAMETER_KEYS = {
+    "period_ms": ("period", 1e-3),
+    "horizon": ("horizon", 1.0),
+    "gain_x": ("gain_x", 1.0),
+    "gain_y": ("gain_y", 1.0),
+    "gain_z": ("gain_z", 1.0),
+    "gain_rot": ("gain_rot", 1.0),
+    "weight_f": ("weight_f", 1.0),
+    "weight_raw": ("weight_raw", 1.0),
+    "weight_w": ("weight_w", 1.0),
+    "weight_tilt": ("weight_tilt", 1.0),
+    "weight_jerk": ("weight_jerk", 1.0),
+    "tilt_rate_max_deg_s": ("tilt_rate_max", math.pi / 180.0),
+    "tilt_accel_max_deg_s2": ("tilt_accel_max", math.pi / 180.0),
+    "heave_rate_max_mm_s": ("heave_rate_max", 1e-3),
+    "heave_accel_max_mps2": ("heave_accel_max", 1.0),
+    "head_height_m": ("head_height", 1.0),
+    "preview_s": ("preview", 1.0),
+    "heave_fraction": ("heave_fraction", 1.0),
+    "stroke_margin_mm": ("stroke_margin", 1e-3),
+    "box_fraction": ("box_fraction", 1.0),
+}
+#: Whole-number parameters (an int in the resolved scenario).
+_INTEGERS = ("rot_order", "horizon")
 
-    ``rot_order`` an int, the others floats rounded to 12 digits (so that a
-    default reads as ``3.0`` deg/s, not ``3.0000000000000004``).
+
+def parameter_keys(algorithm: str = "classical_washout") -> dict:
+    """The YAML key -> (field, factor) table of ``algorithm``."""
+    return MPC_PARAMETER_KEYS if algorithm == "mpc" else PARAMETER_KEYS
+
+
+def default_parameters(algorithm: str = "classical_washout") -> dict:
+    """The law's defaults (:class:`WashoutParams`, :class:`MpcParams`) as ``parameters``
+    (YAML units).
+
+    ``rot_order`` and ``horizon`` ints, the others floats rounded to 12 digits (so
+    that a default reads as ``3.0`` deg/s, not ``3.0000000000000004``).
     """
-    p = WashoutParams()
+    p = MpcParams() if algorithm == "mpc" else WashoutParams()
     out = {}
-    for key, (name, factor) in PARAMETER_KEYS.items():
+    for key, (name, factor) in parameter_keys(algorithm).items():
         v = getattr(p, name) / factor
-        out[key] = int(round(v)) if name == "rot_order" else float(round(v, 12))
+        out[key] = int(round(v)) if name in _INTEGERS else float(round(v, 12))
     return out
 
 
@@ -170,16 +209,19 @@ def resolve_paths(scenario: dict, base: Path | None) -> None:
     )
 
 
-def washout_params(cue: Mapping) -> WashoutParams:
-    """:class:`WashoutParams` from a resolved block's ``parameters`` (YAML units)."""
+def washout_params(cue: Mapping) -> WashoutParams | MpcParams:
+    """:class:`WashoutParams` (or :class:`MpcParams` for ``algorithm: mpc``) from a
+    resolved block's ``parameters`` (YAML units)."""
+    algorithm = cue.get("algorithm", "classical_washout")
+    keys = parameter_keys(algorithm)
     kw = {}
     for key, v in cue["parameters"].items():
-        name, factor = PARAMETER_KEYS[key]
-        if name == "rot_order":  # a whole number as int; 1.5 stays 1.5 and is refused
+        name, factor = keys[key]
+        if name in _INTEGERS:  # a whole number as int; 1.5 stays 1.5 and is refused
             kw[name] = int(v) if float(v).is_integer() else float(v)
         else:
             kw[name] = float(v) * factor
-    return WashoutParams(**kw)
+    return MpcParams(**kw) if algorithm == "mpc" else WashoutParams(**kw)
 
 
 def _key(cue: Mapping, duration: float) -> str:
@@ -198,7 +240,9 @@ def _chain(key: str):
         source = f"sine {s['channel']} {s['amplitude']:g} x {s['period_s']:g} s"
     else:
         if cue.get("telemetry"):
-            tel = read_telemetry(cue["telemetry"], label=Path(cue["telemetry"]).name)
+            tel = read_telemetry(
+                cue["telemetry"], label=Path(cue["telemetry"]).name, columns=cue.get("columns")
+            )
         else:
             from simpro_mj.config.manoeuvres import generate
 
@@ -214,20 +258,39 @@ def _chain(key: str):
     every = steps_per_period(
         params.period * 1e3, PHYSICS_DT_S, "setpoint.cueing.parameters.period_ms"
     )
-    wash = ClassicalWashout(params)
-    res = wash.run(f[::every], w[::every])
-    pose = np.repeat(res.pose, every, axis=0)[: t.size]  # zero-order hold
+    if cue.get("algorithm") == "mpc":
+        from controllers.mpc_cueing import ModelPredictiveCueing  # on use: imports osqp
+
+        law = ModelPredictiveCueing(params)
+        # the model's own trajectory between solves: a set-point every 1 ms
+        res = law.run(f, w, PHYSICS_DT_S)
+        pose = res.pose
+        none = np.zeros(t.size, bool)
+        info = {
+            "rate_limited": none,
+            "softened": none,
+            "rate_limited_fraction": 0.0,
+            "softened_fraction": 0.0,
+            "solve_time": res.solve_time_stats(),
+        }
+    else:
+        law = ClassicalWashout(params)
+        res = law.run(f[::every], w[::every])
+        pose = np.repeat(res.pose, every, axis=0)[: t.size]  # zero-order hold
+        info = {
+            "rate_limited": res.rate_limited,
+            "softened": res.softened,
+            "rate_limited_fraction": float(res.rate_limited.mean()),
+            "softened_fraction": float(res.softened.mean()),
+        }
     for arr in (f, w, pose):
         arr.setflags(write=False)
-    info = {
-        "source": source,
-        "rate_limited": res.rate_limited,
-        "softened": res.softened,
-        "every": every,
-        "rate_limited_fraction": float(res.rate_limited.mean()),
-        "softened_fraction": float(res.softened.mean()),
-        "box": {k: list(map(float, v)) if k != "scale" else v for k, v in wash.box.items()},
-    }
+    info.update(
+        source=source,
+        every=every,
+        algorithm=cue.get("algorithm", "classical_washout"),
+        box={k: list(map(float, v)) if k != "scale" else v for k, v in law.box.items()},
+    )
     return t, f, w, pose, info
 
 

@@ -24,6 +24,7 @@ from pydantic import (
     BaseModel,
     BeforeValidator,
     ConfigDict,
+    SerializeAsAny,
     SkipValidation,
     ValidationError,
     ValidationInfo,
@@ -38,6 +39,7 @@ from controllers.design import READINGS as PAPER_UNITS
 from controllers.design import VARIANTS as INNER_VARIANTS
 from controllers.errors import DesignError
 from controllers.joint import METHODS as DISCRETISATIONS
+from controllers.mpc_cueing import MpcParamError
 from controllers.setpoint_filter import KINDS as SETPOINT_FILTERS
 from controllers.task_space import INTEGRATORS
 from controllers.task_space import LAGS as FEEDFORWARD_LAGS
@@ -372,31 +374,46 @@ class _WashoutCheck(CueBlock):
     """The washout's own ranges (:class:`controllers.washout.WashoutParams`), once every
     parameter is a number."""
 
+    _algorithm: ClassVar[str] = "classical_washout"
+
     @model_validator(mode="after")
     def _washout(self):
         try:
-            washout_params({"parameters": dict(self)})
-        except WashoutParamError as exc:
+            washout_params({"algorithm": self._algorithm, "parameters": dict(self)})
+        except (WashoutParamError, MpcParamError) as exc:
             raise Problem("invalid value", f": {exc}") from None
         return self
 
 
+class _MpcCheck(_WashoutCheck):
+    """The MPC's own ranges (:class:`controllers.mpc_cueing.MpcParams`)."""
+
+    _algorithm: ClassVar[str] = "mpc"
+
+
+def _parameters_model(name: str, base: type, algorithm: str):
+    return create_model(
+        name,
+        __base__=base,
+        __module__=__name__,
+        **{
+            key: (
+                Annotated[int | float, BeforeValidator(_whole_as_int)]
+                if isinstance(default, int)
+                else Annotated[float, BeforeValidator(_finite)],
+                default,
+            )
+            for key, default in default_parameters(algorithm).items()
+        },
+    )
+
+
 #: ``setpoint.cueing.parameters``: the keys of :data:`~simpro_mj.config.cueing.PARAMETER_KEYS`
 #: (YAML units), each a finite number, the defaults those of the washout.
-WashoutParameters = create_model(
-    "WashoutParameters",
-    __base__=_WashoutCheck,
-    __module__=__name__,
-    **{
-        key: (
-            Annotated[int | float, BeforeValidator(_whole_as_int)]
-            if isinstance(default, int)
-            else Annotated[float, BeforeValidator(_finite)],
-            default,
-        )
-        for key, default in default_parameters().items()
-    },
-)
+WashoutParameters = _parameters_model("WashoutParameters", _WashoutCheck, "classical_washout")
+#: ``setpoint.cueing.parameters`` of ``algorithm: mpc``: the keys of
+#: :data:`~simpro_mj.config.cueing.MPC_PARAMETER_KEYS`, the defaults those of the MPC.
+MpcParameters = _parameters_model("MpcParameters", _MpcCheck, "mpc")
 
 
 class CueManoeuvre(CueBlock):
@@ -480,14 +497,45 @@ class Cueing(CueBlock):
     its ``parameters`` (:mod:`simpro_mj.config.cueing`)."""
 
     _expected = "a mapping with telemetry or manoeuvre"
-    _listed = ("telemetry", "manoeuvre", "sine", "algorithm", "parameters")
+    _listed = ("telemetry", "manoeuvre", "sine", "algorithm", "parameters", "columns")
     # declared in the order they are checked (the first error is the one reported)
     telemetry: Annotated[str | None, BeforeValidator(_file_name)] = None
     algorithm: Annotated[str, listed(ALGORITHMS)] = "classical_washout"
     # null (or empty) parameters: every default
-    parameters: Annotated[WashoutParameters, BeforeValidator(lambda v: v or {})] = None
+    parameters: SerializeAsAny[Annotated[WashoutParameters, BeforeValidator(lambda v: v or {})]] = (
+        None
+    )
     manoeuvre: CueManoeuvre | None = None
     sine: CueSine | None = None
+    #: telemetry column mapping (:data:`~simpro_mj.config.telemetry.MAPPING_HELP`)
+    columns: dict | None = None
+
+    @field_validator("parameters", mode="wrap")
+    @classmethod
+    def _of_the_algorithm(cls, value: Any, handler, info: ValidationInfo) -> Any:
+        """``parameters`` of the chosen ``algorithm``: the washout's, or the MPC's."""
+        if info.data.get("algorithm") != "mpc":
+            return handler(value)
+        try:
+            return MpcParameters.model_validate(value or {})
+        except ValidationError as exc:
+            err = exc.errors()[0]
+            loc = "".join(f".{key_text(k)}" for k in err["loc"])
+            msg = str(err.get("msg", "")).removeprefix("Value error, ")
+            head, _, rest = msg.partition(" at <here>")
+            raise Problem(head or "invalid value", rest, loc) from None
+
+    @field_validator("columns", mode="before")
+    @classmethod
+    def _mapping(cls, value: Any) -> Any:
+        from simpro_mj.config.telemetry import check_mapping
+
+        if value is None or value == {}:
+            return None
+        try:
+            return check_mapping(value)
+        except ValueError as exc:
+            raise Problem("invalid value", f": {exc}") from None
 
     @classmethod
     def _whole(cls, data: Mapping) -> Mapping:
@@ -506,6 +554,8 @@ class Cueing(CueBlock):
         resolved = {k: out[k] for k in ("telemetry", "manoeuvre", "algorithm", "parameters")}
         if self.sine is not None:
             resolved["sine"] = out["sine"]
+        if self.columns is not None:
+            resolved["columns"] = out["columns"]
         return resolved
 
 

@@ -25,6 +25,19 @@ gap between two samples may exceed ``MAX_GAP_S`` (0.1 s: the 10 Hz below
 which a 1-2 Hz vehicle motion is no longer described). Time 0 of the run is
 the file's first time. The run may not outlast the file.
 
+A file with other column names or units plays through a column mapping
+(``setpoint.cueing.columns`` of a scenario, :func:`check_mapping`): per
+required column, the file's column and a scale and offset to SI::
+
+    columns:
+      time_s: {column: t_ms, scale: 0.001}
+      fx_mps2: {column: accel_x_g, scale: 9.80665}
+      fz_mps2: {column: accel_z, offset: 9.80665}   # a log without gravity
+      wy_rad_s: {column: pitch_rate_deg_s, scale: 0.017453292519943295}
+
+(a plain string is the column with scale 1 and offset 0). The value used is
+``scale * cell + offset``. A required column not mapped keeps its own name.
+
 Resampling to the physics grid is linear interpolation
 (:func:`resample`): telemetry is logged at 50-1000 Hz, the grid is 1 ms.
 
@@ -50,6 +63,7 @@ __all__ = [
     "Telemetry",
     "TelemetryError",
     "read_telemetry",
+    "check_mapping",
     "write_telemetry",
     "resample",
 ]
@@ -82,8 +96,44 @@ class Telemetry:
         return float(self.t[-1] - self.t[0]) if self.t.size else 0.0
 
 
-def read_telemetry(path, *, label: str | None = None) -> Telemetry:
+def check_mapping(value) -> dict:
+    """A column mapping, each entry spelled out ``{column, scale, offset}``.
+
+    Raises ``ValueError`` (one line naming the entry) for an unknown column, a
+    column that is not a non-empty string, a scale that is not a finite non-zero
+    number or an offset that is not finite.
+    """
+    if not isinstance(value, dict):
+        raise ValueError(f"expected a mapping of {list(TELEMETRY_COLUMNS)} to file columns")
+    out = {}
+    for std, entry in value.items():
+        if std not in TELEMETRY_COLUMNS:
+            raise ValueError(f"column {std!r} unknown; allowed: {list(TELEMETRY_COLUMNS)}")
+        if isinstance(entry, str):
+            entry = {"column": entry}
+        if not isinstance(entry, dict):
+            raise ValueError(f"{std}: expected a column name or {{column, scale, offset}}")
+        extra = sorted(set(entry) - {"column", "scale", "offset"})
+        if extra:
+            raise ValueError(f"{std}: unknown key {extra[0]!r}; allowed: column, scale, offset")
+        col = entry.get("column")
+        if not isinstance(col, str) or not col.strip():
+            raise ValueError(f"{std}.column: {col!r}; allowed: a column name of the file")
+        scale, offset = entry.get("scale", 1.0), entry.get("offset", 0.0)
+        for key, v, nonzero in (("scale", scale, True), ("offset", offset, False)):
+            ok = isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+            if not ok or (nonzero and v == 0):
+                allowed = "a finite non-zero number" if nonzero else "a finite number"
+                raise ValueError(f"{std}.{key}: {v!r}; allowed: {allowed}")
+        out[std] = {"column": col.strip(), "scale": float(scale), "offset": float(offset)}
+    return out
+
+
+def read_telemetry(path, *, label: str | None = None, columns: dict | None = None) -> Telemetry:
     """Read and check a telemetry CSV; times are shifted to start at 0.
+
+    ``columns``: a mapping (:func:`check_mapping`) from the required columns to
+    the file's, with their scale and offset to SI.
 
     Raises
     ------
@@ -119,13 +169,17 @@ def read_telemetry(path, *, label: str | None = None) -> Telemetry:
             f"telemetry file {name}: empty; allowed: a header {','.join(TELEMETRY_COLUMNS)}"
         )
     header = [h.strip() for h in rows[0]]
-    for col in TELEMETRY_COLUMNS:
-        if col not in header:
+    mapping = check_mapping(columns or {})
+    names = [mapping.get(c, {}).get("column", c) for c in TELEMETRY_COLUMNS]
+    for col, given in zip(TELEMETRY_COLUMNS, names, strict=True):
+        if given not in header:
+            via = f" (mapped to {col} by setpoint.cueing.columns)" if col in mapping else ""
             raise TelemetryError(
-                f"telemetry file {name}: missing column {col} (header, row {lines[0]}); "
-                f"required: {', '.join(TELEMETRY_COLUMNS)}"
+                f"telemetry file {name}: missing column {given}{via} (header, row {lines[0]}); "
+                f"the header has: {', '.join(header)}; required: {', '.join(TELEMETRY_COLUMNS)}"
+                + ("" if via else " or a mapping in setpoint.cueing.columns")
             )
-    pos = [header.index(c) for c in TELEMETRY_COLUMNS]
+    pos = [header.index(c) for c in names]
     body = rows[1:]
     if len(body) < 2:
         raise TelemetryError(f"telemetry file {name}: {len(body)} data rows; allowed: >= 2")
@@ -146,6 +200,9 @@ def read_telemetry(path, *, label: str | None = None) -> Telemetry:
                     "allowed: a finite number"
                 )
             data[i, j] = v
+    for j, c in enumerate(TELEMETRY_COLUMNS):
+        if c in mapping:
+            data[:, j] = mapping[c]["scale"] * data[:, j] + mapping[c]["offset"]
     t = data[:, 0]
     dt = np.diff(t)
     if np.any(dt <= 0):

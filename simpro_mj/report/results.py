@@ -236,6 +236,11 @@ def write_results(
                 encoding="utf-8",
             )
         write_timeseries(tmp / "timeseries.csv", columns)
+        if "head_fx_mps2" in columns and "veh_fx_mps2" in columns:
+            # a cueing run: what the driver perceives, from the logged head signals
+            from simpro_mj.analysis.cue_metrics import perceived_columns
+
+            write_timeseries(tmp / "perceived.csv", perceived_columns(columns))
         for name, named in (arrays or {}).items():
             np.savez_compressed(tmp / name, **named)
         text = json.dumps(jsonable(doc), indent=2, allow_nan=False)
@@ -281,6 +286,14 @@ def print_summary(metrics: Mapping, out_dir=None, file: TextIO | None = None) ->
     if status:
         reason = metrics.get("reason")
         print(f"status: {status}" + (f" ({reason})" if reason else ""), file=file)
+    cue = metrics.get("cueing") or (metrics.get("metrics") or {}).get("cueing")
+    if cue and cue.get("channels"):
+        # a cueing run: what the driver perceives, not a step response
+        from simpro_mj.analysis.cue_metrics import print_cue_summary
+
+        print_cue_summary(cue, file=file)
+        _list_files(out_dir, file)
+        return
     header = f"{'axis':<6} {'ss error':>14} {'rise [s]':>9} {'settling [s]':>13} {'overshoot':>10}"
     print(header, file=file)
     print("-" * len(header), file=file)
@@ -305,6 +318,10 @@ def print_summary(metrics: Mapping, out_dir=None, file: TextIO | None = None) ->
     if window:
         print(f"(ss error: mean of reference - true pose over {window[0]:.2f}..{window[1]:.2f} s)",
               file=file)  # fmt: skip
+    _list_files(out_dir, file)
+
+
+def _list_files(out_dir, file) -> None:
     if out_dir is not None:
         out_dir = Path(out_dir)
         listing = out_dir.iterdir() if out_dir.is_dir() else ()

@@ -1,0 +1,520 @@
+"""Model-predictive motion cueing: a QP on the perceived error, solved every period.
+
+The optimal alternative to :mod:`controllers.washout` (Dagdelen et al. 2009, "Model-based
+predictive motion cueing strategy for vehicle driving simulators"; Bruschetta et al.
+2017): at every period ``T`` the platform's motion over the next ``N`` periods is chosen
+to minimise what the driver would perceive as wrong, through the same otolith and canal
+models the metrics use (:mod:`controllers.vestibular`), subject to the platform's reach.
+
+Model (per tilt axis, linearised about rest, ISO angles, the head ``h`` above the pivot)
+--------------------------------------------------------------------------------------
+The decision is the angular jerk ``j``, held over a period; the platform's state is
+``(a, a', a'')``. With ``a`` the ISO pitch (``theta``), or minus the ISO roll
+(``-phi``), the head's specific force along x, or along y, is::
+
+    f = h a'' - g a
+
+(tilt: gravity's share ``-g a``; the head ``h`` = 0.75 m above the pivot is thrown
+along the same axis by the angular acceleration, the non-minimum-phase zero at
+``s = +sqrt(g/h)`` = 3.6 rad/s that makes a pure tilt first push the wrong way). The
+felt rotation is ``sigma a'`` (``sigma`` +1 for pitch, -1 for roll). The errors fed to
+the vestibular models are those of the head against the scaled vehicle::
+
+    e_f = OTO(f - k_f f_v),  e_w = SCC(sigma a' - k_w w_v),  e_raw = f - k_f f_v
+
+with OTO the otolith model and SCC the canal model of :mod:`controllers.vestibular`
+without its two fastest terms (``tau_s`` = 5 ms and the neural lead ``tau_n`` = 60 ms
+are above the period's Nyquist frequency; the lead enters as ``tau_n a''``). Heave:
+``(z, z', z'')``, ``f_z - g = z''``, ``e_f = OTO(z'' - k_z (f_vz - g))``.
+
+Cost over the horizon, each error in units of its perception threshold::
+
+    sum_k  w_f (e_f/thr_f)^2 + w_raw (e_raw/thr_f)^2 + w_w (e_w/thr_w)^2
+           + w_tilt (a/a_max)^2 + w_jerk (j/j_ref)^2
+
+Constraints at every predicted sample: ``|a| <= a_max`` (the workspace box,
+:func:`controllers.workspace.inscribed_box`), ``|a'| <= rate_max``,
+``|a''| <= accel_max`` (the platform's reach: :class:`MpcParams`), and the same for heave.
+
+Information: at time ``t`` the solve knows the vehicle input up to ``t`` and assumes
+it is held over the horizon; ``preview`` > 0 (an explicit option, named so) lets it see
+the vehicle input ``preview`` seconds ahead instead, as a simulator replaying a
+recording could. The model's own state is the controller's state: the law runs ahead of
+a simulation (:mod:`simpro_mj.config.cueing`) as the washout does, each solve using
+only what the rig's computer would know at that time.
+
+Solver: OSQP (Stellato et al. 2020), one sparse QP of ``3 N`` jerks whose matrix is
+fixed (only the linear cost and the bounds change), warm-started from the previous
+solution. Each solve's wall time is recorded (:attr:`ModelPredictiveCueing.solve_times`).
+Between two solves the set-point is the model's own trajectory under the held jerk,
+evaluated every ``output_period``: smooth to the third derivative.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from .frames import GRAVITY
+from .geometry import PlatformGeometry, nominal_geometry
+from .vestibular import CanalModel, OtolithModel
+from .workspace import inscribed_box
+
+__all__ = ["MpcParams", "ModelPredictiveCueing", "MpcParamError", "MpcResult"]
+
+
+class MpcParamError(ValueError):
+    """An MPC cueing parameter out of its allowed range; the message names the field."""
+
+
+@dataclass(frozen=True)
+class MpcParams:
+    """Parameters of :class:`ModelPredictiveCueing`, SI (rad, s, m).
+
+    Attributes
+    ----------
+    period : float
+        Solve period (s), 0.06: the outer loop's period of the shipped scenarios.
+    horizon : int
+        Prediction horizon in periods, 25 (1.5 s: longer than the otoliths' 0.66 s
+        and the 0.28 s of the head-offset zero, shorter than the adaptation).
+    gain_x, gain_y, gain_z, gain_rot : float
+        Scale of the vehicle's specific force (x, y, z) and rotation rates that the
+        platform is asked to reproduce.
+    weight_f, weight_raw, weight_w, weight_tilt, weight_jerk : float
+        Cost weights (dimensionless: each error in units of its threshold, the
+        tilt in units of its limit, the jerk in units of ``accel_max / period``).
+    tilt_rate_max, tilt_accel_max : float
+        The platform's tilt rate (rad/s) and acceleration (rad/s^2) limits.
+    heave_rate_max, heave_accel_max : float
+        Heave rate (m/s) and acceleration (m/s^2) limits.
+    head_height : float
+        Head above the tilt pivot (m), 0.75 (the MJCF ``head`` site).
+    preview : float
+        Look-ahead into the vehicle input (s), 0: none (the vehicle input is held).
+    heave_fraction, stroke_margin : float
+        As :class:`controllers.washout.WashoutParams`: the workspace box.
+    box_fraction : float
+        Share of the box's half-range the tilt and heave may use, 0.95.
+    """
+
+    period: float = 0.06
+    horizon: int = 25
+    gain_x: float = 0.3
+    gain_y: float = 0.3
+    gain_z: float = 0.5
+    gain_rot: float = 1.0
+    weight_f: float = 1.0
+    weight_raw: float = 0.3
+    weight_w: float = 10.0
+    weight_tilt: float = 0.01
+    weight_jerk: float = 1e-3
+    tilt_rate_max: float = math.radians(15.0)
+    tilt_accel_max: float = math.radians(60.0)
+    heave_rate_max: float = 0.2
+    heave_accel_max: float = 3.0
+    head_height: float = 0.75
+    preview: float = 0.0
+    heave_fraction: float = 0.25
+    stroke_margin: float = 0.01
+    box_fraction: float = 0.95
+
+    def __post_init__(self):
+        checks = {
+            "period": (lambda v: 0 < v <= 0.5, "> 0 and <= 0.5 s"),
+            "horizon": (lambda v: v == int(v) and 2 <= v <= 200, "a whole number 2..200"),
+            "gain_x": (lambda v: 0 <= v <= 2, "0..2"),
+            "gain_y": (lambda v: 0 <= v <= 2, "0..2"),
+            "gain_z": (lambda v: 0 <= v <= 2, "0..2"),
+            "gain_rot": (lambda v: 0 <= v <= 2, "0..2"),
+            "weight_f": (lambda v: v >= 0, ">= 0"),
+            "weight_raw": (lambda v: v >= 0, ">= 0"),
+            "weight_w": (lambda v: v >= 0, ">= 0"),
+            "weight_tilt": (lambda v: v >= 0, ">= 0"),
+            "weight_jerk": (lambda v: v > 0, "> 0"),
+            "tilt_rate_max": (lambda v: v > 0, "> 0 rad/s"),
+            "tilt_accel_max": (lambda v: v > 0, "> 0 rad/s^2"),
+            "heave_rate_max": (lambda v: v > 0, "> 0 m/s"),
+            "heave_accel_max": (lambda v: v > 0, "> 0 m/s^2"),
+            "head_height": (lambda v: 0 <= v <= 2, "0..2 m"),
+            "preview": (lambda v: 0 <= v <= 10, "0..10 s"),
+            "heave_fraction": (lambda v: 0 < v <= 1, "in (0, 1]"),
+            "stroke_margin": (lambda v: 0 <= v < 0.2, "0..0.2 m"),
+            "box_fraction": (lambda v: 0 < v <= 1, "in (0, 1]"),
+        }
+        for name, (ok, allowed) in checks.items():
+            v = getattr(self, name)
+            bad = isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v)
+            if bad or not ok(v):
+                raise MpcParamError(f"mpc parameter {name}={v!r}: allowed {allowed}")
+
+    @classmethod
+    def field_names(cls) -> list[str]:
+        return [f.name for f in dataclasses.fields(cls)]
+
+    def replace(self, **changes) -> MpcParams:
+        """A copy with some fields changed; an unknown name raises, listing the valid ones."""
+        unknown = sorted(set(changes) - set(self.field_names()))
+        if unknown:
+            raise MpcParamError(
+                f"unknown mpc parameter {unknown[0]!r}; allowed: {self.field_names()}"
+            )
+        return dataclasses.replace(self, **changes)
+
+
+@dataclass
+class MpcResult:
+    """Output of :meth:`ModelPredictiveCueing.run`: ``pose`` (n, 3) base-frame
+    set-points at ``t`` (the output grid), ``solve_times`` (s) one per solve,
+    ``status`` OSQP's status string per solve, ``iterations`` per solve."""
+
+    t: np.ndarray
+    pose: np.ndarray
+    solve_times: np.ndarray
+    status: list
+    iterations: np.ndarray
+
+    def solve_time_stats(self) -> dict:
+        """p50, p99 and max of the solve times (ms), and the count of solves."""
+        s = np.asarray(self.solve_times) * 1e3
+        return {
+            "solves": int(s.size),
+            "p50_ms": float(np.percentile(s, 50)),
+            "p99_ms": float(np.percentile(s, 99)),
+            "max_ms": float(s.max()),
+            "not_solved": int(sum(st != "solved" for st in self.status)),
+        }
+
+
+def _ss(num, den):
+    """Controllable canonical (A, B, C, D) of a proper SISO transfer function."""
+    num = np.atleast_1d(np.asarray(num, float))
+    den = np.atleast_1d(np.asarray(den, float))
+    num, den = num / den[0], den / den[0]
+    n = den.size - 1
+    num = np.r_[np.zeros(n + 1 - num.size), num]
+    d = num[0]
+    rest = num[1:] - d * den[1:]
+    a = np.zeros((n, n))
+    a[0, :] = -den[1:]
+    a[1:, :-1] = np.eye(n - 1)
+    b = np.zeros((n, 1))
+    b[0, 0] = 1.0
+    c = rest.reshape(1, n)
+    return a, b, c, np.array([[d]])
+
+
+def _discretise(a: np.ndarray, b: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """Zero-order-hold discretisation by the block matrix exponential."""
+    from scipy.linalg import expm
+
+    n, m = a.shape[0], b.shape[1]
+    big = np.zeros((n + m, n + m))
+    big[:n, :n] = a
+    big[:n, n:] = b
+    e = expm(big * dt)
+    return e[:n, :n], e[:n, n:]
+
+
+class _Axis:
+    """One channel's linear model: state, inputs (jerk, vehicle f, vehicle w) and the
+    cost and constraint outputs, continuous and discretised at the period."""
+
+    def __init__(self, kind: str, p: MpcParams, oto: OtolithModel, scc: CanalModel, amax):
+        h = p.head_height
+        g = GRAVITY
+        oa, ob, oc, od = _ss(*oto.tf())
+        self.kind = kind
+        if kind == "heave":
+            sigma, no_, nc = 0.0, oa.shape[0], 0
+            kf, kw = p.gain_z, 0.0
+            ca = cb = cc = cd = None
+            thr_f, thr_w = oto.thresholds[2], 1.0
+        else:
+            sigma = 1.0 if kind == "pitch" else -1.0
+            tau_l = (
+                scc.tau_l[0 if kind == "roll" else 1]
+                if isinstance(scc.tau_l, tuple)
+                else (scc.tau_l)
+            )
+            k = scc.tau_a * tau_l
+            ca, cb, cc, cd = _ss([k, 0.0, 0.0], np.polymul([scc.tau_a, 1.0], [tau_l, 1.0]))
+            no_, nc = oa.shape[0], ca.shape[0]
+            kf, kw = (p.gain_x, p.gain_rot) if kind == "pitch" else (p.gain_y, p.gain_rot)
+            thr_f = oto.thresholds[0 if kind == "pitch" else 1]
+            thr_w = scc.thresholds[1 if kind == "pitch" else 0]
+        n = 3 + no_ + nc
+        a = np.zeros((n, n))
+        b = np.zeros((n, 3))  # inputs: jerk, vehicle f (scaled), vehicle w (scaled)
+        a[0, 1] = a[1, 2] = 1.0
+        b[2, 0] = 1.0
+        # head specific force (heave: change from g) as a row over the platform states
+        fh = np.zeros(n)
+        if kind == "heave":
+            fh[2] = 1.0
+        else:
+            fh[0], fh[2] = -g, h
+        o = slice(3, 3 + no_)
+        a[o, o] = oa
+        a[o, :] += ob @ fh[None, :]
+        b[o, 1] = -ob[:, 0]
+        rows = {}
+        e_f = np.zeros(n)
+        e_f[o] = oc[0]
+        rows["f"] = (e_f, np.zeros(3))
+        rows["raw"] = (fh.copy(), np.array([0.0, -1.0, 0.0]))
+        if nc:
+            c = slice(3 + no_, n)
+            rate = np.zeros(n)
+            rate[1], rate[2] = sigma, sigma * scc.tau_n
+            a[c, c] = ca
+            a[c, :] += cb @ rate[None, :]
+            b[c, 2] = -cb[:, 0]
+            e_w = cd[0, 0] * rate
+            e_w[c] += cc[0]
+            rows["w"] = (e_w, np.array([0.0, 0.0, -cd[0, 0]]))
+        self.n, self.kf, self.kw = n, kf, kw
+        self.thr_f, self.thr_w = float(thr_f), float(thr_w)
+        self.amax = amax
+        if kind == "heave":
+            self.rate_max, self.accel_max = p.heave_rate_max, p.heave_accel_max
+        else:
+            self.rate_max, self.accel_max = p.tilt_rate_max, p.tilt_accel_max
+        self.rows = rows
+        self.ad, self.bd = _discretise(a, b, p.period)
+
+
+class ModelPredictiveCueing:
+    """MPC motion cueing, one QP per :attr:`MpcParams.period`.
+
+    Parameters
+    ----------
+    params : MpcParams, optional
+    geometry : PlatformGeometry, optional
+        For the workspace box (default :func:`nominal_geometry`).
+    otolith, canal : OtolithModel, CanalModel, optional
+        The perception models in the cost (defaults those of the metrics).
+    **overrides
+        Field values replacing those of ``params``.
+    """
+
+    def __init__(
+        self,
+        params: MpcParams | None = None,
+        geometry: PlatformGeometry | None = None,
+        otolith: OtolithModel | None = None,
+        canal: CanalModel | None = None,
+        **overrides,
+    ):
+        import osqp
+        from scipy import sparse
+
+        p = MpcParams() if params is None else params
+        if overrides:
+            p = p.replace(**overrides)
+        self.params = p
+        self.geometry = nominal_geometry() if geometry is None else geometry
+        self.box = inscribed_box(self.geometry, p.heave_fraction, p.stroke_margin)
+        home = [float(v) for v in self.geometry.home]
+        self._home = home
+        oto = OtolithModel() if otolith is None else otolith
+        scc = CanalModel() if canal is None else canal
+        # symmetric limits inside the box (ISO tilt a: pitch a = theta -> B pitch -a;
+        # roll a = -phi -> B roll +a), heave about home
+        lim = []
+        for k, name in enumerate(("roll", "pitch", "heave")):
+            lo, hi = (float(v) for v in self.box[name])
+            lim.append(p.box_fraction * min(hi - home[k], home[k] - lo))
+        self.axes = [
+            _Axis("pitch", p, oto, scc, lim[1]),
+            _Axis("roll", p, oto, scc, lim[0]),
+            _Axis("heave", p, oto, scc, lim[2]),
+        ]
+        self.N = N = int(p.horizon)
+        self._build()
+        P = sparse.csc_matrix(np.triu(self._P))
+        A = sparse.csc_matrix(self._A)
+        self._solver = osqp.OSQP()
+        self._solver.setup(
+            P,
+            np.zeros(self._P.shape[0]),
+            A,
+            -np.ones(A.shape[0]),
+            np.ones(A.shape[0]),
+            verbose=False,
+            warm_starting=True,
+            polishing=False,
+            # 1e-4: the plan within 0.03 deg of a 1e-5 solve, a fifth of the iterations
+            eps_abs=1e-4,
+            eps_rel=1e-4,
+            max_iter=1000,
+        )
+        self._nu = N
+        self.reset()
+
+    # ------------------------------------------------------------------ the QP
+    def _build(self) -> None:
+        """Per axis the prediction matrices, and the QP's fixed Hessian and constraint
+        matrix (block diagonal over the three axes)."""
+        p, N = self.params, self.N
+        blocks_p, blocks_a = [], []
+        self._pred = []
+        for ax in self.axes:
+            n = ax.n
+            ad, bd = ax.ad, ax.bd
+            # x_{k+1} = Ad x_k + Bu u_k + Bd d_k, k = 0..N-1; X = [x_1..x_N]
+            phi = np.zeros((N * n, n))
+            gam = np.zeros((N * n, N))
+            psi = np.zeros((N * n, 2 * N))  # d_k = (f_k, w_k)
+            apow = np.eye(n)
+            powers = [np.eye(n)]
+            for _ in range(N):
+                apow = ad @ apow
+                powers.append(apow)
+            for k in range(N):
+                phi[k * n : (k + 1) * n] = powers[k + 1]
+                for i in range(k + 1):
+                    m = powers[k - i]
+                    gam[k * n : (k + 1) * n, i] = (m @ bd[:, 0:1])[:, 0]
+                    psi[k * n : (k + 1) * n, 2 * i : 2 * i + 2] = m @ bd[:, 1:3]
+            # cost outputs y = Cy x + Dy d, per sample, scaled by the weights
+            outs = []
+            wf = math.sqrt(p.weight_f) / ax.thr_f
+            wr = math.sqrt(p.weight_raw) / ax.thr_f
+            outs.append((wf * ax.rows["f"][0], wf * ax.rows["f"][1][1:]))
+            outs.append((wr * ax.rows["raw"][0], wr * ax.rows["raw"][1][1:]))
+            if "w" in ax.rows:
+                ww = math.sqrt(p.weight_w) / ax.thr_w
+                outs.append((ww * ax.rows["w"][0], ww * ax.rows["w"][1][1:]))
+            tilt = np.zeros(n)
+            tilt[0] = math.sqrt(p.weight_tilt) / ax.amax
+            outs.append((tilt, np.zeros(2)))
+            ny = len(outs)
+            cy = np.array([o[0] for o in outs])
+            dy = np.array([o[1] for o in outs])
+            CY = np.kron(np.eye(N), cy)  # (N ny, N n)
+            DY = np.kron(np.eye(N), dy)  # (N ny, 2N): the d of sample k enters y_{k+1}? no: y
+            G = CY @ gam
+            jref = ax.accel_max / p.period
+            R = (p.weight_jerk / jref**2) * np.eye(N)
+            blocks_p.append(2.0 * (G.T @ G + R))
+            # constraints: a, a', a'' of x_1..x_N within limits (scaled to +-1)
+            sel = np.zeros((3, n))
+            sel[0, 0] = 1.0 / ax.amax
+            sel[1, 1] = 1.0 / ax.rate_max
+            sel[2, 2] = 1.0 / ax.accel_max
+            S = np.kron(np.eye(N), sel)
+            blocks_a.append(S @ gam)
+            self._pred.append(
+                {"phi": phi, "gam": gam, "psi": psi, "CY": CY, "DY": DY, "G": G, "S": S, "ny": ny}
+            )
+        from scipy.linalg import block_diag
+
+        self._P = block_diag(*blocks_p)
+        self._A = block_diag(*blocks_a)
+
+    def reset(self) -> None:
+        """Back to rest: the platform at home, the perception errors at zero."""
+        self._x = [np.zeros(ax.n) for ax in self.axes]
+        self._u = np.zeros(3 * self.N)
+        self.solve_times: list[float] = []
+        self.status: list[str] = []
+        self.iterations: list[int] = []
+
+    def _d(self, f_future: np.ndarray, w_future: np.ndarray, k: int) -> np.ndarray:
+        """The stacked scaled vehicle inputs (f_k, w_k) of axis ``k`` over the horizon."""
+        ax = self.axes[k]
+        if ax.kind == "pitch":
+            f, w = f_future[:, 0], w_future[:, 1]
+        elif ax.kind == "roll":
+            # a = -phi: f_y = g phi - h phi'' = -(h a'' - g a); compare -f_y; rate sigma = -1
+            f, w = -f_future[:, 1], w_future[:, 0]
+        else:
+            f, w = f_future[:, 2] - GRAVITY, np.zeros(len(f_future))
+        return np.column_stack([ax.kf * f, ax.kw * w]).ravel()
+
+    def solve(self, f_future: np.ndarray, w_future: np.ndarray) -> np.ndarray:
+        """One QP: the vehicle input over the horizon (N, 3) each -> the N jerks per axis
+        (3, N); records the solve's wall time and status."""
+        N = self.N
+        q = []
+        lo, hi = [], []
+        for k, pr in enumerate(self._pred):
+            d = self._d(f_future, w_future, k)
+            free = pr["phi"] @ self._x[k] + pr["psi"] @ d  # X without the jerks
+            yfree = pr["CY"] @ free + pr["DY"] @ d
+            q.append(2.0 * pr["G"].T @ yfree)
+            sfree = pr["S"] @ free
+            lo.append(-1.0 - sfree)
+            hi.append(1.0 - sfree)
+        q = np.concatenate(q)
+        lo, hi = np.concatenate(lo), np.concatenate(hi)
+        # infeasible bounds (a state already outside, e.g. after a limit change) are opened
+        bad = lo > hi
+        lo[bad], hi[bad] = -np.inf, np.inf
+        self._solver.update(q=q, l=lo, u=hi)
+        warm = np.concatenate([np.r_[self._u[i * N + 1 : (i + 1) * N], 0.0] for i in range(3)])
+        self._solver.warm_start(x=warm)
+        t0 = time.perf_counter()
+        res = self._solver.solve(raise_error=False)
+        self.solve_times.append(time.perf_counter() - t0)
+        status = str(res.info.status)
+        self.status.append(status)
+        self.iterations.append(int(res.info.iter))
+        if res.x is None or not np.all(np.isfinite(res.x)):
+            u = warm  # the previous plan, shifted
+        else:
+            u = np.asarray(res.x, float)
+        self._u = u
+        return u.reshape(3, N)
+
+    # ------------------------------------------------------------------ running
+    def run(self, f, w, dt: float) -> MpcResult:
+        """Run over a vehicle input sampled at ``dt`` (which divides the period).
+
+        ``f``, ``w`` (n, 3) in V. Every ``period / dt`` samples a QP is solved with the
+        vehicle input known at that sample (held, or ``preview`` ahead); between solves
+        the platform follows the model under the first jerk. Returns a pose per sample.
+        """
+        f = np.asarray(f, float)
+        w = np.asarray(w, float)
+        if f.ndim != 2 or f.shape[1] != 3 or w.shape != f.shape:
+            raise ValueError(f"f and w must both be (n, 3), got {f.shape} and {w.shape}")
+        p = self.params
+        every = int(round(p.period / dt))
+        if every < 1 or abs(every * dt - p.period) > 1e-9:
+            raise ValueError(f"dt={dt!r} must divide the period {p.period!r}")
+        n = f.shape[0]
+        N = self.N
+        pose = np.empty((n, 3))
+        ahead = int(round(p.preview / dt))
+        tau = dt * np.arange(every)
+        for s in range(0, n, every):
+            # known up to t + preview, held after
+            idx = np.minimum(s + np.minimum(np.arange(N) * every, ahead), n - 1)
+            u = self.solve(f[idx], w[idx])
+            m = min(every, n - s)
+            for k, ax in enumerate(self.axes):
+                x = self._x[k]
+                j = u[k, 0]
+                a = x[0] + x[1] * tau + 0.5 * x[2] * tau**2 + j * tau**3 / 6.0
+                if ax.kind == "pitch":
+                    pose[s : s + m, 1] = -a[:m]  # ISO pitch a -> B pitch -a
+                elif ax.kind == "roll":
+                    pose[s : s + m, 0] = a[:m]  # a = -phi ISO -> B roll = -phi = a
+                else:
+                    pose[s : s + m, 2] = self._home[2] + a[:m]
+                d = self._d(f[[s]], w[[s]], k)[:2]
+                self._x[k] = ax.ad @ x + ax.bd @ np.r_[j, d]
+        st = self.solve_times
+        return MpcResult(
+            t=dt * np.arange(n),
+            pose=pose,
+            solve_times=np.asarray(st),
+            status=list(self.status),
+            iterations=np.asarray(self.iterations),
+        )
