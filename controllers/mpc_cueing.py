@@ -80,7 +80,7 @@ class MpcParams:
     period : float
         Solve period (s), 0.06: the outer loop's period of the shipped scenarios.
     horizon : int
-        Prediction horizon in periods, 25 (1.5 s: longer than the otoliths' 0.66 s
+        Prediction horizon in periods, 20 (1.2 s: longer than the otoliths' 0.66 s
         and the 0.28 s of the head-offset zero, shorter than the adaptation).
     gain_x, gain_y, gain_z, gain_rot : float
         Scale of the vehicle's specific force (x, y, z) and rotation rates that the
@@ -89,7 +89,11 @@ class MpcParams:
         Cost weights (dimensionless: each error in units of its threshold, the
         tilt in units of its limit, the jerk in units of ``accel_max / period``).
     tilt_rate_max, tilt_accel_max : float
-        The platform's tilt rate (rad/s) and acceleration (rad/s^2) limits.
+        The platform's tilt rate (rad/s) and acceleration (rad/s^2) limits: 15 deg/s
+        and 30 deg/s^2. The feed-forward loop follows a set-point up to about 2.9 Hz
+        (docs/feedforward.md) but overshoots a roll-rate reversal of 40 deg/s^2 by
+        about 1 deg (cue_lane_change: felt false roll 1.65 s at 60 deg/s^2, 0.78 s at
+        30 deg/s^2), so the plan is kept at 30.
     heave_rate_max, heave_accel_max : float
         Heave rate (m/s) and acceleration (m/s^2) limits.
     head_height : float
@@ -100,21 +104,25 @@ class MpcParams:
         As :class:`controllers.washout.WashoutParams`: the workspace box.
     box_fraction : float
         Share of the box's half-range the tilt and heave may use, 0.95.
+    rotation_limit : float
+        The head's felt rotation (canal model) may exceed the vehicle's by at most
+        this many canal thresholds, 0.7 (a constraint; 0 turns it off): the tilt
+        that makes a specific force is not felt as a rotation.
     """
 
     period: float = 0.06
-    horizon: int = 25
+    horizon: int = 20
     gain_x: float = 0.3
     gain_y: float = 0.3
     gain_z: float = 0.5
     gain_rot: float = 1.0
     weight_f: float = 1.0
     weight_raw: float = 0.3
-    weight_w: float = 10.0
+    weight_w: float = 6.0
     weight_tilt: float = 0.01
     weight_jerk: float = 1e-3
     tilt_rate_max: float = math.radians(15.0)
-    tilt_accel_max: float = math.radians(60.0)
+    tilt_accel_max: float = math.radians(30.0)
     heave_rate_max: float = 0.2
     heave_accel_max: float = 3.0
     head_height: float = 0.75
@@ -122,6 +130,7 @@ class MpcParams:
     heave_fraction: float = 0.25
     stroke_margin: float = 0.01
     box_fraction: float = 0.95
+    rotation_limit: float = 0.7
 
     def __post_init__(self):
         checks = {
@@ -145,6 +154,7 @@ class MpcParams:
             "heave_fraction": (lambda v: 0 < v <= 1, "in (0, 1]"),
             "stroke_margin": (lambda v: 0 <= v < 0.2, "0..0.2 m"),
             "box_fraction": (lambda v: 0 < v <= 1, "in (0, 1]"),
+            "rotation_limit": (lambda v: v >= 0, ">= 0 (0: off)"),
         }
         for name, (ok, allowed) in checks.items():
             v = getattr(self, name)
@@ -247,7 +257,7 @@ class _Axis:
             kf, kw = (p.gain_x, p.gain_rot) if kind == "pitch" else (p.gain_y, p.gain_rot)
             thr_f = oto.thresholds[0 if kind == "pitch" else 1]
             thr_w = scc.thresholds[1 if kind == "pitch" else 0]
-        n = 3 + no_ + nc
+        n = 3 + no_ + 2 * nc  # platform, otolith error, canal error, vehicle's canal
         a = np.zeros((n, n))
         b = np.zeros((n, 3))  # inputs: jerk, vehicle f (scaled), vehicle w (scaled)
         a[0, 1] = a[1, 2] = 1.0
@@ -268,7 +278,8 @@ class _Axis:
         rows["f"] = (e_f, np.zeros(3))
         rows["raw"] = (fh.copy(), np.array([0.0, -1.0, 0.0]))
         if nc:
-            c = slice(3 + no_, n)
+            c = slice(3 + no_, 3 + no_ + nc)
+            v = slice(3 + no_ + nc, n)
             rate = np.zeros(n)
             rate[1], rate[2] = sigma, sigma * scc.tau_n
             a[c, c] = ca
@@ -277,7 +288,16 @@ class _Axis:
             e_w = cd[0, 0] * rate
             e_w[c] += cc[0]
             rows["w"] = (e_w, np.array([0.0, 0.0, -cd[0, 0]]))
+            # the vehicle's own canal sensation (of the scaled rate), and the head's
+            a[v, v] = ca
+            b[v, 2] = cb[:, 0]
+            veh = np.zeros(n)
+            veh[v] = cc[0]
+            rows["w_vehicle"] = (veh, np.array([0.0, 0.0, cd[0, 0]]))
+            sim = e_w + veh
+            rows["w_head"] = (sim, np.zeros(3))
         self.n, self.kf, self.kw = n, kf, kw
+        self.tau_n = float(scc.tau_n)
         self.thr_f, self.thr_w = float(thr_f), float(thr_w)
         self.amax = amax
         if kind == "heave":
@@ -393,29 +413,57 @@ class ModelPredictiveCueing:
             tilt = np.zeros(n)
             tilt[0] = math.sqrt(p.weight_tilt) / ax.amax
             outs.append((tilt, np.zeros(2)))
-            ny = len(outs)
             cy = np.array([o[0] for o in outs])
             dy = np.array([o[1] for o in outs])
             CY = np.kron(np.eye(N), cy)  # (N ny, N n)
-            DY = np.kron(np.eye(N), dy)  # (N ny, 2N): the d of sample k enters y_{k+1}? no: y
+            # the outputs at x_{k+1} see the vehicle input of that sample, d_{k+1} (the last
+            # one held)
+            shift = np.eye(N, k=1)
+            shift[-1, -1] = 1.0
+            DY = np.kron(shift, dy)  # (N ny, 2N)
             G = CY @ gam
             jref = ax.accel_max / p.period
             R = (p.weight_jerk / jref**2) * np.eye(N)
             blocks_p.append(2.0 * (G.T @ G + R))
             # constraints: a, a', a'' of x_1..x_N within limits (scaled to +-1)
-            sel = np.zeros((3, n))
+            # and, with rotation_limit, the head's felt rotation (canal model) within
+            # rotation_limit thresholds of the vehicle's (in units of the threshold)
+            felt = p.rotation_limit > 0 and "w_head" in ax.rows
+            sel = np.zeros((4 if felt else 3, n))
             sel[0, 0] = 1.0 / ax.amax
             sel[1, 1] = 1.0 / ax.rate_max
             sel[2, 2] = 1.0 / ax.accel_max
+            veh = None
+            if felt:
+                sel[3] = ax.rows["w_head"][0] / ax.thr_w
+                vrow, vd = ax.rows["w_vehicle"]
+                veh = (np.kron(np.eye(N), vrow / ax.thr_w), np.kron(shift, vd[1:] / ax.thr_w))
             S = np.kron(np.eye(N), sel)
             blocks_a.append(S @ gam)
             self._pred.append(
-                {"phi": phi, "gam": gam, "psi": psi, "CY": CY, "DY": DY, "G": G, "S": S, "ny": ny}
+                {
+                    "phi": phi,
+                    "gam": gam,
+                    "psi": psi,
+                    "CY": CY,
+                    "DY": DY,
+                    "G": G,
+                    "S": S,
+                    "rows": sel.shape[0],
+                    "veh": veh,
+                }
             )
         from scipy.linalg import block_diag
 
         self._P = block_diag(*blocks_p)
         self._A = block_diag(*blocks_a)
+        felt = []
+        for pr in self._pred:
+            rows = np.zeros((N, pr["rows"]), bool)
+            if pr["veh"] is not None:
+                rows[:, 3] = True
+            felt.append(rows.ravel())
+        self._felt_rows = np.concatenate(felt)
 
     def reset(self) -> None:
         """Back to rest: the platform at home, the perception errors at zero."""
@@ -431,8 +479,8 @@ class ModelPredictiveCueing:
         if ax.kind == "pitch":
             f, w = f_future[:, 0], w_future[:, 1]
         elif ax.kind == "roll":
-            # a = -phi: f_y = g phi - h phi'' = -(h a'' - g a); compare -f_y; rate sigma = -1
-            f, w = -f_future[:, 1], w_future[:, 0]
+            # a = -phi: f_y = g phi - h phi'' = h a'' - g a, as pitch; the rate sigma = -1
+            f, w = f_future[:, 1], w_future[:, 0]
         else:
             f, w = f_future[:, 2] - GRAVITY, np.zeros(len(f_future))
         return np.column_stack([ax.kf * f, ax.kw * w]).ravel()
@@ -449,8 +497,18 @@ class ModelPredictiveCueing:
             yfree = pr["CY"] @ free + pr["DY"] @ d
             q.append(2.0 * pr["G"].T @ yfree)
             sfree = pr["S"] @ free
-            lo.append(-1.0 - sfree)
-            hi.append(1.0 - sfree)
+            low, high = -np.ones(sfree.size), np.ones(sfree.size)
+            if pr["veh"] is not None:  # the vehicle's felt rotation (free of the jerks)
+                cveh = pr["veh"][0] @ free + pr["veh"][1] @ d
+                # the neural lead on the vehicle's side: tau_n times its rate's change
+                wv = d[1::2]
+                lead = self.axes[k].tau_n * np.gradient(wv) / self.params.period
+                cveh = cveh + lead / self.axes[k].thr_w
+                r = self.params.rotation_limit
+                low[3 :: pr["rows"]] = np.minimum(cveh, 0.0) - r
+                high[3 :: pr["rows"]] = np.maximum(cveh, 0.0) + r
+            lo.append(low - sfree)
+            hi.append(high - sfree)
         q = np.concatenate(q)
         lo, hi = np.concatenate(lo), np.concatenate(hi)
         # infeasible bounds (a state already outside, e.g. after a limit change) are opened
@@ -461,8 +519,14 @@ class ModelPredictiveCueing:
         self._solver.warm_start(x=warm)
         t0 = time.perf_counter()
         res = self._solver.solve(raise_error=False)
-        self.solve_times.append(time.perf_counter() - t0)
         status = str(res.info.status)
+        if "infeasible" in status and self._felt_rows.any():
+            # the felt-rotation limit cannot be met from here: solved again without it
+            lo[self._felt_rows], hi[self._felt_rows] = -np.inf, np.inf
+            self._solver.update(l=lo, u=hi)
+            res = self._solver.solve(raise_error=False)
+            status = str(res.info.status) + " without the rotation limit"
+        self.solve_times.append(time.perf_counter() - t0)
         self.status.append(status)
         self.iterations.append(int(res.info.iter))
         if res.x is None or not np.all(np.isfinite(res.x)):

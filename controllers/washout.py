@@ -272,6 +272,8 @@ class ClassicalWashout:
             f.reset()
         self._tilt = [0.0, 0.0]  # ISO roll, pitch
         self._rate = [0.0, 0.0]  # their rates
+        self._target = [0.0, 0.0]  # the last tilt targets
+        self._started = False
         self.last_rate_limited = False
         self.last_softened = False
         self.last_parts = (0.0, 0.0, 0.0, 0.0, 0.0)
@@ -287,23 +289,29 @@ class ClassicalWashout:
 
     def _limited_step(self, k: int, target: float) -> bool:
         """Move tilt ``k`` one period toward ``target`` under the second-order rate
-        limit and the head's jolt limit; True where a limit acted."""
+        limit and the head's jolt limit; True where a limit acted.
+
+        The tilt follows the target's own rate, plus a closing rate on the error
+        no faster than the acceleration limit can stop (``sqrt(2 accel |e|)``): a
+        slowly moving target is followed without lag, a step is approached without
+        overshoot."""
         p = self.params
         dt = p.period
         x, v = self._tilt[k], self._rate[k]
-        d = target - x
-        # the rate that reaches the target this period, capped by the rate limit and
-        # by the rate from which the acceleration limit can still stop at the target
-        want = d / dt
-        cap = min(p.tilt_rate_limit, math.sqrt(2.0 * p.tilt_accel_limit * abs(d)))
-        limited = abs(want) > cap
-        want = max(-cap, min(cap, want))
+        v_t = (target - self._target[k]) / dt if self._started else 0.0
+        self._target[k] = target
+        e = target - x
+        close = math.sqrt(2.0 * p.tilt_accel_limit * abs(e))
+        want = v_t + max(-close, min(close, e / dt - v_t))
+        tol = 1e-12
+        limited = abs(want) > p.tilt_rate_limit + tol
+        want = max(-p.tilt_rate_limit, min(p.tilt_rate_limit, want))
         acc = (want - v) / dt
         amax = p.tilt_accel_limit
         if p.head_height > 0 and acc * x >= 0:
             # outward: the head is thrown against the cue by h a''
             amax = min(amax, (p.jolt_limit + GRAVITY * abs(x)) / p.head_height)
-        if abs(acc) > amax:
+        if abs(acc) > amax + tol:
             acc = math.copysign(amax, acc)
             limited = True
         v += acc * dt
@@ -323,6 +331,7 @@ class ClassicalWashout:
         limited = False
         for k in range(2):
             limited |= self._limited_step(k, target[k])
+        self._started = True
         rr = self._rot[0].step(wx)
         rp = self._rot[1].step(wy)
         self.last_rate_limited = limited

@@ -291,20 +291,21 @@ def test_sweep_variants_get_the_preset_like_a_run():
     # defaults and the file (it used to be pinned to the bare defaults: 250 kg)
     from simpro_mj.config.variants import load_sweep
 
-    run = load_scenario("cue_braking.yaml")
+    # the sweep runs 11.5 s, the length of the shortest recording it plays
+    run = load_scenario("cue_braking.yaml", ["duration_s=11.5"])
     sw = load_sweep("sweep_cueing.yaml")
     (v,) = [
         x
         for x in sw.variants
         if x.values
         == {
-            "setpoint.cueing.parameters.tilt_rate_limit_deg_s": 3.0,
-            "setpoint.cueing.parameters.gain_x": 0.5,
+            "setpoint.cueing.telemetry": "braking_100kmh.csv",
+            "setpoint.cueing": {"algorithm": "mpc", "parameters": {"preview_s": 1.0}},
         }
     ]
     diff = {k for k in run if run[k] != v.scenario[k]}
     assert diff == {"name", "description"}
-    assert len(sw.variants) == 9
+    assert len(sw.variants) == 9 and all(x.error is None for x in sw.variants)
 
 
 def _direct_r(a, b, k):

@@ -349,6 +349,10 @@ def predictions(plan: ChainPlan, omega) -> dict:
     complex (len(omega), 5, 5) per :func:`controllers.frequency.chain_response`."""
 
     sc = plan.tasks[0]["scenario"] if plan.tasks else plan.scenario
+    if sc["setpoint"]["cueing"].get("algorithm") == "mpc":
+        # a constrained optimisation, not a filter: no transfer function to draw beside
+        note = "no linear prediction: the mpc law is a constrained QP, not a linear filter"
+        return {"washout": None, "predicted": None, "note": note}
     wash = ClassicalWashout(washout_params(sc["setpoint"]["cueing"]))
     out = {"washout": chain_response(wash, omega), "predicted": None, "note": None}
     try:
@@ -387,8 +391,8 @@ def chain_summary(plan: ChainPlan, results: list) -> dict:
         if cin not in plan.channels:
             continue
         i, o = CHANNELS.index(cin), CHANNELS.index(cout)
-        hw = pred["washout"][:, o, i]
-        ph_w = _unwrapped(hw)[at]
+        hw = pred["washout"][:, o, i] if pred["washout"] is not None else None
+        ph_w = _unwrapped(hw)[at] if hw is not None else None
         hp = pred["predicted"][:, o, i] if pred["predicted"] is not None else None
         ph_p = _unwrapped(hp)[at] if hp is not None else None
         for n, p in enumerate(periods):
@@ -397,10 +401,10 @@ def chain_summary(plan: ChainPlan, results: list) -> dict:
                 continue
             hm = complex(*r["head"][o]) / complex(*r["ref"])
             raw = math.degrees(np.angle(hm))
-            near = ph_p[n] if ph_p is not None else ph_w[n]
+            near = ph_p[n] if ph_p is not None else ph_w[n] if ph_w is not None else raw
             phase = raw + 360.0 * round((near - raw) / 360.0)  # the branch of the prediction
             g = abs(_edge(cin, cout, hm))
-            gw = abs(_edge(cin, cout, hw[at[n]]))
+            gw = abs(_edge(cin, cout, hw[at[n]])) if hw is not None else None
             row = {
                 "test": name,
                 "input": cin,
@@ -413,12 +417,14 @@ def chain_summary(plan: ChainPlan, results: list) -> dict:
                 "gain": g,
                 "gain_db": 20 * math.log10(max(g, 1e-300)),
                 "phase_deg": float(phase),
-                "washout_gain_db": 20 * math.log10(max(gw, 1e-300)),
-                "washout_phase_deg": float(ph_w[n]),
+                "washout_gain_db": None if gw is None else 20 * math.log10(max(gw, 1e-300)),
+                "washout_phase_deg": None if gw is None else float(ph_w[n]),
                 "predicted_gain_db": None,
                 "predicted_phase_deg": None,
-                "platform_db": 20 * math.log10(max(g, 1e-300) / max(gw, 1e-300)),
-                "platform_deg": float(np.degrees(np.angle(hm / hw[at[n]]))),
+                "platform_db": None
+                if gw is None
+                else 20 * math.log10(max(g, 1e-300) / max(gw, 1e-300)),
+                "platform_deg": None if gw is None else float(np.degrees(np.angle(hm / hw[at[n]]))),
                 "saturated_pct": r["saturated_pct"],
                 "rate_limited_pct": r["rate_limited_pct"],
                 "softened_pct": r["softened_pct"],

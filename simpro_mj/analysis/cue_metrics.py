@@ -21,6 +21,7 @@ __all__ = [
     "CHANNELS",
     "SUMMARY_COLUMNS",
     "cue_metrics",
+    "false_rotation",
     "onsets",
     "perceived_columns",
     "print_cue_summary",
@@ -101,6 +102,15 @@ def mean_lag(a: np.ndarray, b: np.ndarray, dt: float) -> tuple[float | None, boo
         if not at_edge or w >= last:
             return round(j * step * dt, 9), bool(at_edge)
         window *= 2
+
+
+def false_rotation(pv: np.ndarray, ps: np.ndarray) -> np.ndarray:
+    """The simulator's rotation sensation beyond the vehicle's, in its own direction:
+    ``|ps| - max(0, sign(ps) pv)``. A weaker rotation of the right sense is not false
+    (negative); one of the wrong sense, or one the vehicle does not make, is all false;
+    one stronger than the vehicle's is false by the excess."""
+    s = np.sign(ps)
+    return np.abs(ps) - np.maximum(0.0, s * pv)
 
 
 def onsets(pv: np.ndarray, thr: float) -> list[tuple[int, int]]:
@@ -195,8 +205,8 @@ def cue_metrics(columns: Mapping, scenario: Mapping, model: VestibularModel | No
     sign, from the crossing to the onset's peak, and ``onset_raw_right_sign`` (that
     peak at most the threshold). Rotation channels: ``false_rotation_s`` and
     ``false_rotation_peak`` (rad/s), where the head's sensation is above the canal
-    threshold and differs from the vehicle's by more than it: a rotation felt that
-    the car does not make.
+    threshold and exceeds the vehicle's in its direction by more than it
+    (:func:`false_rotation`): a rotation felt that the car does not make.
     Then ``workspace`` (largest excursion per axis as a fraction of the cueing
     box, strokes used, end-stop margin) and ``valves`` (fraction of samples
     with a valve at 0 or 10 V).
@@ -263,11 +273,10 @@ def cue_metrics(columns: Mapping, scenario: Mapping, model: VestibularModel | No
         }
         ch.update(_onset_block(t, pv, ps, veh_raw, raw, thr))
         if kind == "w":
-            wrong_rot = above & (np.abs(ps - pv) > thr)
+            excess = false_rotation(pv, ps)
+            wrong_rot = above & (excess > thr)
             ch["false_rotation_s"] = float(wrong_rot.sum() * dt)
-            ch["false_rotation_peak"] = (
-                float(np.abs(ps - pv)[wrong_rot].max()) if wrong_rot.any() else 0.0
-            )
+            ch["false_rotation_peak"] = float(excess[wrong_rot].max()) if wrong_rot.any() else 0.0
     if info is None:
         _, _, _, _, info = vehicle_input(scenario)
     box = info["box"]
@@ -390,7 +399,8 @@ def telemetry_of(columns: Mapping) -> Telemetry:
 
 
 #: Cueing columns of ``simpro-sim batch``'s summary.csv (perceived correlations,
-#: false-cue times, workspace and valve usage).
+#: false-cue times, workspace and valve usage; lags, onset delays, the raw wrong-sign
+#: peak at the onsets, felt false rotation, the MPC's p99 solve time).
 SUMMARY_COLUMNS = (
     "cue_long_corr",
     "cue_lat_corr",
@@ -403,6 +413,17 @@ SUMMARY_COLUMNS = (
     "cue_heave_box_frac",
     "cue_end_stop_margin_mm",
     "cue_valve_sat_frac",
+    "cue_algorithm",
+    "cue_main_channel",
+    "cue_long_lag_s",
+    "cue_lat_lag_s",
+    "cue_long_onset_s",
+    "cue_lat_onset_s",
+    "cue_long_raw_wrong_mps2",
+    "cue_lat_raw_wrong_mps2",
+    "cue_roll_false_rot_s",
+    "cue_pitch_false_rot_s",
+    "cue_solve_p99_ms",
 )
 
 
@@ -416,6 +437,8 @@ def summary_columns(cue: Mapping) -> dict:
         return (ch.get(name) or {}).get(key)
 
     margin = ws.get("end_stop_margin_m")
+    lat = abs(g("lateral_f", "vehicle_peak") or 0.0)
+    long = abs(g("longitudinal_f", "vehicle_peak") or 0.0)
     return {
         "cue_long_corr": g("longitudinal_f", "correlation"),
         "cue_lat_corr": g("lateral_f", "correlation"),
@@ -428,4 +451,16 @@ def summary_columns(cue: Mapping) -> dict:
         "cue_heave_box_frac": box.get("heave"),
         "cue_end_stop_margin_mm": None if margin is None else margin * 1e3,
         "cue_valve_sat_frac": (cue.get("valves") or {}).get("saturated_fraction"),
+        "cue_algorithm": cue.get("algorithm"),
+        # the channel the vehicle drives: the larger perceived vehicle peak
+        "cue_main_channel": "lat" if lat > long else "long",
+        "cue_long_lag_s": g("longitudinal_f", "mean_lag_s"),
+        "cue_lat_lag_s": g("lateral_f", "mean_lag_s"),
+        "cue_long_onset_s": g("longitudinal_f", "onset_delay_s"),
+        "cue_lat_onset_s": g("lateral_f", "onset_delay_s"),
+        "cue_long_raw_wrong_mps2": g("longitudinal_f", "onset_raw_wrong_sign_peak"),
+        "cue_lat_raw_wrong_mps2": g("lateral_f", "onset_raw_wrong_sign_peak"),
+        "cue_roll_false_rot_s": g("roll_rate", "false_rotation_s"),
+        "cue_pitch_false_rot_s": g("pitch_rate", "false_rotation_s"),
+        "cue_solve_p99_ms": (cue.get("solve_time") or {}).get("p99_ms"),
     }

@@ -41,7 +41,14 @@ from simpro_mj.core.errors import PhysicsError, UserInputError
 from simpro_mj.plant.payload import holding_force_model, max_payload
 from simpro_mj.plant.pneumatics.params import PneumaticParams
 
-__all__ = ["check_payload", "gain_warnings", "stability_limit", "preflight", "UTILISATION_WARN"]
+__all__ = [
+    "check_payload",
+    "cueing_mode_warnings",
+    "gain_warnings",
+    "stability_limit",
+    "preflight",
+    "UTILISATION_WARN",
+]
 
 #: Warn above this fraction of a cylinder's force spent on holding the payload.
 UTILISATION_WARN = 0.9
@@ -222,6 +229,43 @@ def gain_warnings(scenario: Mapping) -> tuple[list[str], dict]:
     return out, info
 
 
+#: Frequency at which a cueing scenario's loop is checked (Hz): a car's manoeuvres.
+CUE_CHECK_HZ = 0.5
+
+
+def cueing_mode_warnings(scenario: Mapping) -> list[str]:
+    """A cueing scenario on a loop that cannot follow a moving cue (``task_space``:
+    the pose loop alone, ~1 s behind at 0.5 Hz): warned, with the loop's predicted
+    gain and delay at :data:`CUE_CHECK_HZ` beside the feed-forward scheme's."""
+    if not (scenario.get("setpoint") or {}).get("cueing"):
+        return []
+    if scenario["controller"]["mode"] != "task_space":
+        return []
+    from controllers.frequency import predict
+    from simpro_mj.analysis.response_summary import loop_model
+
+    omega = 2.0 * math.pi * CUE_CHECK_HZ
+    figures = {}
+    for mode in ("task_space", "feedforward"):
+        sc = {**scenario, "controller": {**scenario["controller"], "mode": mode}}
+        try:
+            h = complex(predict(loop_model(sc), [omega])["true"][0, 1, 1])  # pitch
+        except Exception:  # noqa: BLE001 - a warning without its numbers is still a warning
+            return [
+                "controller.mode = task_space on a cueing scenario: the pose loop alone lags "
+                "a moving cue; allowed but defeats the cueing: use feedforward"
+            ]
+        lag = (-math.atan2(h.imag, h.real)) % (2 * math.pi)
+        figures[mode] = (20 * math.log10(max(abs(h), 1e-300)), lag / omega)
+    (g_ts, d_ts), (g_ff, d_ff) = figures["task_space"], figures["feedforward"]
+    return [
+        f"controller.mode = task_space on a cueing scenario: the pose loop follows the cue at "
+        f"{CUE_CHECK_HZ:g} Hz with {g_ts:.1f} dB and {d_ts:.2f} s of delay (feedforward: "
+        f"{g_ff:.1f} dB, {d_ff:.2f} s), so the driver feels the cue late; use "
+        "controller.mode = feedforward"
+    ]
+
+
 def preflight(scenario: Mapping, model=None) -> tuple[list[str], dict]:
     """Payload check (raises), gain warnings and set-point components that start
     after the run ends (warned: they never act); returns ``(warnings, figures)``."""
@@ -232,6 +276,7 @@ def preflight(scenario: Mapping, model=None) -> tuple[list[str], dict]:
     payload = check_payload(scenario, model)
     warnings, stability = gain_warnings(scenario)
     warnings += late_setpoints(scenario)
+    warnings += cueing_mode_warnings(scenario)
     for i, u in enumerate(payload.get("utilisation", [])):
         if u > UTILISATION_WARN:
             warnings.append(

@@ -277,10 +277,90 @@ def plot_summary(report, jobs) -> list[Path]:
             plot_responses(rows, info, Path(report.out), out),
             plot_mc(rows, info, out),
             plot_cue_tradeoff(rows, info, out),
+            plot_cue_comparison(rows, info, out),
         ):
             if p is not None:
                 paths.append(p)
     return paths
+
+
+#: The acceptance floors drawn on :func:`plot_cue_comparison` (docs/cueing.md).
+CUE_FLOORS = {"correlation": 0.8, "lag_s": 0.5, "onset_s": 0.3, "false_rot_s": 0.5}
+
+
+def plot_cue_comparison(rows: list[dict], info: Mapping, out: Path):
+    """Cueing laws side by side: per vehicle input (the grid's telemetry) and law, the
+    perceived correlation, mean lag and worst onset delay of the channel the vehicle
+    drives (``cue_main_channel``) and the felt false rotation, the floors dashed.
+    None unless the rows hold two laws or more."""
+    pts = [r for r in rows if r.get("cue_algorithm") is not None and r["status"] == "ok"]
+    laws = []
+    for r in pts:
+        law = _law_label(r)
+        if law not in laws:
+            laws.append(law)
+    if len(laws) < 2:
+        return None
+    inputs = []
+    for r in pts:
+        key = _input_label(r)
+        if key not in inputs:
+            inputs.append(key)
+    panels = (
+        ("correlation", "perceived correlation", "correlation", False),
+        ("lag", "mean lag (s)", "lag_s", True),
+        ("onset", "onset delay, worst (s)", "onset_s", True),
+        ("false_rot", "felt false rotation (s)", "false_rot_s", True),
+    )
+    fig = Figure(figsize=(11, 3.4), layout="constrained")
+    axes = fig.subplots(1, len(panels))
+    width = 0.8 / len(laws)
+    for ax, (what, label, floor, below) in zip(axes, panels, strict=True):
+        for j, law in enumerate(laws):
+            vals = []
+            for key in inputs:
+                r = next((x for x in pts if _law_label(x) == law and _input_label(x) == key), None)
+                vals.append(np.nan if r is None else _main(r, what))
+            x = np.arange(len(inputs)) + (j - (len(laws) - 1) / 2) * width
+            ax.bar(x, vals, width, label=law)
+        ax.axhline(CUE_FLOORS[floor], color="k", ls="--", lw=1)
+        ax.set_xticks(np.arange(len(inputs)), inputs, fontsize=7, rotation=15)
+        ax.set_title(label + (" (floor: at most)" if below else " (floor: at least)"), fontsize=8)
+        ax.grid(True, axis="y", alpha=0.3)
+        ax.tick_params(labelsize=7)
+    axes[0].legend(fontsize=7)
+    fig.suptitle(f"{info['scenario']}: cueing laws side by side (dashed: the floors)", fontsize=10)
+    return _save(fig, out / f"{info['scenario']}_cue_laws.png")
+
+
+def _law_label(r: Mapping) -> str:
+    law = "classical" if r.get("cue_algorithm") == "classical_washout" else "MPC"
+    extra = [
+        format_value(v)
+        for k, v in r["values"].items()
+        if "telemetry" not in k and "manoeuvre" not in k
+    ]
+    text = " ".join(extra)
+    if "preview_s" in text:
+        law += ", preview " + text.split("preview_s=")[-1].split(",")[0].split("}")[0] + " s"
+    return law
+
+
+def _input_label(r: Mapping) -> str:
+    vals = [format_value(v) for k, v in r["values"].items() if "telemetry" in k]
+    return vals[0].removesuffix(".csv") if vals else r["scenario"]
+
+
+def _main(r: Mapping, what: str) -> float:
+    """The figure of the channel the vehicle input drives (``cue_main_channel``); the
+    false rotation: the longer of roll and pitch."""
+    if what == "false_rot":
+        vals = [r.get("cue_roll_false_rot_s"), r.get("cue_pitch_false_rot_s")]
+        vals = [float(v) for v in vals if v is not None]
+        return max(vals) if vals else np.nan
+    side = r.get("cue_main_channel") or "long"
+    v = r.get(f"cue_{side}_{'corr' if what == 'correlation' else what + '_s'}")
+    return np.nan if v is None else float(v)
 
 
 def plot_cue_tradeoff(rows: list[dict], info: Mapping, out: Path):
@@ -297,7 +377,7 @@ def plot_cue_tradeoff(rows: list[dict], info: Mapping, out: Path):
         y = float(r["cue_long_corr"])
         size = 30 + 3000 * float(r.get("cue_valve_sat_frac") or 0.0)
         ax.scatter([x], [y], s=size, color="tab:red", alpha=0.7)
-        label = ", ".join(f"{k.split('.')[-1]}={v:g}" for k, v in r["values"].items())
+        label = ", ".join(f"{k.split('.')[-1]}={format_value(v)}" for k, v in r["values"].items())
         ax.annotate(label, (x, y), fontsize=6, xytext=(4, 3), textcoords="offset points")
     ax.set_xlabel("pitch workspace used (fraction of the cueing box)")
     ax.set_ylabel("perceived longitudinal correlation")

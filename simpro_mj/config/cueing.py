@@ -121,6 +121,7 @@ MPC_PARAMETER_KEYS = {
     "heave_fraction": ("heave_fraction", 1.0),
     "stroke_margin_mm": ("stroke_margin", 1e-3),
     "box_fraction": ("box_fraction", 1.0),
+    "rotation_limit": ("rotation_limit", 1.0),
 }
 #: Whole-number parameters (an int in the resolved scenario).
 _INTEGERS = ("rot_order", "horizon")
@@ -180,8 +181,13 @@ def manoeuvre_spec(man: Mapping):
 
 
 def sweep_defaults() -> dict:
-    """The sweepable tree under ``setpoint.cueing`` (its parameters, YAML units)."""
-    return {"parameters": default_parameters()}
+    """The sweepable tree under ``setpoint.cueing``: the algorithm, the vehicle input
+    and the parameters (YAML units; the washout's keys, the MPC's too)."""
+    return {
+        "algorithm": "classical_washout",
+        "telemetry": "",
+        "parameters": {**default_parameters("mpc"), **default_parameters()},
+    }
 
 
 def resolve_paths(scenario: dict, base: Path | None) -> None:

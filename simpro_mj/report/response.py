@@ -235,9 +235,10 @@ def plot_chain(doc: dict, folder: Path) -> list[str]:
         rs = [r for r in doc["rows"] if r["test"] == name]
         f = [r["omega_rad_s"] for r in rs]
         g.semilogx(f, [r["gain_db"] for r in rs], "o", label="measured (co-simulation)")
-        g.semilogx(f, [r["washout_gain_db"] for r in rs], "k--", lw=1, label="washout alone")
         p.semilogx(f, [r["phase_deg"] for r in rs], "o")
-        p.semilogx(f, [r["washout_phase_deg"] for r in rs], "k--", lw=1)
+        if rs[0]["washout_gain_db"] is not None:
+            g.semilogx(f, [r["washout_gain_db"] for r in rs], "k--", lw=1, label="washout alone")
+            p.semilogx(f, [r["washout_phase_deg"] for r in rs], "k--", lw=1)
         if rs[0]["predicted_gain_db"] is not None:
             g.semilogx(f, [r["predicted_gain_db"] for r in rs], "k-", lw=1, label="linear chain")
             p.semilogx(f, [r["predicted_phase_deg"] for r in rs], "k-", lw=1)
@@ -279,7 +280,7 @@ def print_chain_summary(doc: dict, folder, file=None) -> None:
         print(
             f"{r['test']:15s} {r['omega_rad_s']:6.2f} rad/s  "
             f"{r['gain_db']:7.2f} {r['phase_deg']:7.1f}"
-            f" | {r['washout_gain_db']:7.2f} {r['washout_phase_deg']:7.1f}"
+            f" | {_fmt(r['washout_gain_db'], 2):>7s} {_fmt(r['washout_phase_deg']):>7s}"
             f" | {_fmt(pg, 2):>7s} {_fmt(pp):>7s}{flag}",
             file=file,
         )
