@@ -8,6 +8,8 @@ components::
         telemetry: braking_100kmh.csv   # a telemetry CSV (simpro_mj/config/telemetry.py), or
         manoeuvre: null                 # {type: braking|lane_change|slalom|bump, speed_kmh, ...}
         sine: null                      # or {channel: fx_mps2, amplitude: 0.3, period_s: 4.0}
+        step: null                      # or {channel: fx_mps2, amplitude: -4, start_s: 1,
+                                        #     ramp_s: 0, end_s: null}: a large-signal input
         algorithm: classical_washout    # or mpc (controllers/mpc_cueing.py)
         parameters: {}                  # PARAMETER_KEYS (mpc: MPC_PARAMETER_KEYS), YAML units
         columns: {}                     # telemetry column mapping (config/telemetry.py)
@@ -163,6 +165,32 @@ def sine_input(sine: Mapping, t) -> tuple[np.ndarray, np.ndarray]:
     return f, w
 
 
+def step_input(step: Mapping, t) -> tuple[np.ndarray, np.ndarray]:
+    """``f``, ``w`` (len(t), 3) of a ``step`` vehicle input: the vehicle at rest plus
+    ``amplitude`` on one ``channel`` from ``start_s``, reached over ``ramp_s`` (0: a
+    step), and back to rest the same way from ``end_s`` (null: held)."""
+    from controllers.frames import GRAVITY
+
+    t = np.asarray(t, dtype=float)
+    f = np.zeros((t.size, 3))
+    w = np.zeros((t.size, 3))
+    f[:, 2] = GRAVITY
+    ramp = float(step["ramp_s"])
+
+    def edge(t0: float) -> np.ndarray:
+        if ramp <= 0:
+            return (t >= t0).astype(float)
+        return np.clip((t - t0) / ramp, 0.0, 1.0)
+
+    shape = edge(float(step["start_s"]))
+    if step.get("end_s") is not None:
+        shape = shape - edge(float(step["end_s"]))
+    ch = step["channel"]
+    k = "xyz".index(ch[1])
+    (f if ch[0] == "f" else w)[:, k] += step["amplitude"] * shape
+    return f, w
+
+
 def manoeuvre_spec(man: Mapping):
     """The :class:`~simpro_mj.config.manoeuvres.ManoeuvreSpec` of a ``manoeuvre`` block."""
     # imported on use: manoeuvres loads scipy.signal and scipy.integrate (about 1.5 s),
@@ -244,6 +272,13 @@ def _chain(key: str):
         f, w = sine_input(cue["sine"], t)
         s = cue["sine"]
         source = f"sine {s['channel']} {s['amplitude']:g} x {s['period_s']:g} s"
+    elif cue.get("step"):
+        f, w = step_input(cue["step"], t)
+        s = cue["step"]
+        source = (
+            f"{'ramp' if s['ramp_s'] > 0 else 'step'} {s['channel']} {s['amplitude']:g} "
+            f"from {s['start_s']:g} s"
+        )
     else:
         if cue.get("telemetry"):
             tel = read_telemetry(

@@ -484,6 +484,42 @@ class CueSine(CueBlock):
         return float(value)
 
 
+class CueStep(CueBlock):
+    """A large-signal vehicle input: the vehicle at rest plus ``amplitude`` (SI, signed)
+    on one ``channel`` from ``start_s``, reached over ``ramp_s`` (0: a step), back from
+    ``end_s`` (null: held) (:func:`~simpro_mj.config.cueing.step_input`)."""
+
+    _listed = ("channel", "amplitude", "start_s", "ramp_s", "end_s")
+    _expected = f"a mapping with keys {list(_listed)}"
+    channel: Annotated[str, listed(SINE_CHANNELS)] = None
+    amplitude: float = None
+    start_s: Annotated[float, BeforeValidator(_finite)] = 1.0
+    ramp_s: Annotated[float, BeforeValidator(_finite)] = 0.0
+    end_s: float | None = None
+
+    @field_validator("amplitude", mode="before")
+    @classmethod
+    def _up_to_the_channel(cls, value: Any, info: ValidationInfo) -> Any:
+        """0 < |amplitude| <= the channel's limit (1 g, 90 deg/s)."""
+        channel = info.data.get("channel")
+        if channel is None:
+            return value
+        top = SINE_CHANNELS[channel]
+        if not (_is_number(value) and 0 < abs(value) <= top):
+            raise Problem.invalid(value, f"0 < |amplitude| <= {top:.4g}")
+        return float(value)
+
+    @model_validator(mode="after")
+    def _times(self):
+        if self.start_s < 0:
+            raise Problem.invalid(self.start_s, ">= 0 s", ".start_s")
+        if self.ramp_s < 0:
+            raise Problem.invalid(self.ramp_s, ">= 0 s (0: a step)", ".ramp_s")
+        if self.end_s is not None and not self.end_s >= self.start_s + self.ramp_s:
+            raise Problem.invalid(self.end_s, "null or >= start_s + ramp_s", ".end_s")
+        return self
+
+
 def _file_name(value: Any) -> str | None:
     # its existence is checked once the scenario's folder is known (cueing.resolve_paths)
     if value is not None and (not isinstance(value, str) or not value.strip()):
@@ -497,7 +533,7 @@ class Cueing(CueBlock):
     its ``parameters`` (:mod:`simpro_mj.config.cueing`)."""
 
     _expected = "a mapping with telemetry or manoeuvre"
-    _listed = ("telemetry", "manoeuvre", "sine", "algorithm", "parameters", "columns")
+    _listed = ("telemetry", "manoeuvre", "sine", "step", "algorithm", "parameters", "columns")
     # declared in the order they are checked (the first error is the one reported)
     telemetry: Annotated[str | None, BeforeValidator(_file_name)] = None
     algorithm: Annotated[str, listed(ALGORITHMS)] = "classical_washout"
@@ -507,6 +543,7 @@ class Cueing(CueBlock):
     )
     manoeuvre: CueManoeuvre | None = None
     sine: CueSine | None = None
+    step: CueStep | None = None
     #: telemetry column mapping (:data:`~simpro_mj.config.telemetry.MAPPING_HELP`)
     columns: dict | None = None
 
@@ -539,10 +576,10 @@ class Cueing(CueBlock):
 
     @classmethod
     def _whole(cls, data: Mapping) -> Mapping:
-        if sum(data.get(k) is not None for k in ("telemetry", "manoeuvre", "sine")) != 1:
+        if sum(data.get(k) is not None for k in ("telemetry", "manoeuvre", "sine", "step")) != 1:
             raise Problem(
                 "invalid value",
-                ": give exactly one of telemetry (a CSV file), manoeuvre or sine",
+                ": give exactly one of telemetry (a CSV file), manoeuvre, sine or step",
             )
         return data
 
@@ -554,6 +591,8 @@ class Cueing(CueBlock):
         resolved = {k: out[k] for k in ("telemetry", "manoeuvre", "algorithm", "parameters")}
         if self.sine is not None:
             resolved["sine"] = out["sine"]
+        if self.step is not None:
+            resolved["step"] = out["step"]
         if self.columns is not None:
             resolved["columns"] = out["columns"]
         return resolved
