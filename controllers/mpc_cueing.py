@@ -108,6 +108,12 @@ class MpcParams:
         The head's felt rotation (canal model) may exceed the vehicle's by at most
         this many canal thresholds, 0.7 (a constraint; 0 turns it off): the tilt
         that makes a specific force is not felt as a rotation.
+    lead : float
+        Phase lead of the set-point (s), 0: the set-point at ``t`` is the latest plan
+        evaluated at ``t + lead``, to make up for the platform loop's lag (about
+        0.1 s in roll and pitch, docs/cueing.md). The plan itself is made from what is
+        known at ``t`` (and ``preview``): no look-ahead of its own; must be shorter
+        than the horizon.
     """
 
     period: float = 0.06
@@ -131,6 +137,7 @@ class MpcParams:
     stroke_margin: float = 0.01
     box_fraction: float = 0.95
     rotation_limit: float = 0.7
+    lead: float = 0.0
 
     def __post_init__(self):
         checks = {
@@ -155,6 +162,7 @@ class MpcParams:
             "stroke_margin": (lambda v: 0 <= v < 0.2, "0..0.2 m"),
             "box_fraction": (lambda v: 0 < v <= 1, "in (0, 1]"),
             "rotation_limit": (lambda v: v >= 0, ">= 0 (0: off)"),
+            "lead": (lambda v: 0 <= v <= 0.5, "0..0.5 s"),
         }
         for name, (ok, allowed) in checks.items():
             v = getattr(self, name)
@@ -228,6 +236,30 @@ def _discretise(a: np.ndarray, b: np.ndarray, dt: float) -> tuple[np.ndarray, np
     big[:n, n:] = b
     e = expm(big * dt)
     return e[:n, :n], e[:n, n:]
+
+
+def _plan(x0: np.ndarray, jerks: np.ndarray, period: float, t: np.ndarray) -> np.ndarray:
+    """The planned position at times ``t`` (from now) of a triple integrator from
+    ``x0`` = (position, rate, acceleration) under the jerks held one period each
+    (the last one held beyond the horizon)."""
+    out = np.empty(t.size)
+    seg = np.minimum((t // period).astype(int), jerks.size - 1)
+    x = np.asarray(x0, float).copy()
+    for k in range(int(seg.max()) + 1):
+        sel = seg == k
+        if sel.any():
+            r = t[sel] - k * period
+            j = jerks[k]
+            out[sel] = x[0] + x[1] * r + 0.5 * x[2] * r**2 + j * r**3 / 6.0
+        j, T = jerks[k], period
+        x = np.array(
+            [
+                x[0] + x[1] * T + 0.5 * x[2] * T**2 + j * T**3 / 6.0,
+                x[1] + x[2] * T + 0.5 * j * T**2,
+                x[2] + j * T,
+            ]
+        )
+    return out
 
 
 class _Axis:
@@ -565,7 +597,7 @@ class ModelPredictiveCueing:
             for k, ax in enumerate(self.axes):
                 x = self._x[k]
                 j = u[k, 0]
-                a = x[0] + x[1] * tau + 0.5 * x[2] * tau**2 + j * tau**3 / 6.0
+                a = _plan(x[:3], u[k], p.period, tau + p.lead)
                 if ax.kind == "pitch":
                     pose[s : s + m, 1] = -a[:m]  # ISO pitch a -> B pitch -a
                 elif ax.kind == "roll":

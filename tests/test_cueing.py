@@ -300,7 +300,10 @@ def test_sweep_variants_get_the_preset_like_a_run():
         if x.values
         == {
             "setpoint.cueing.telemetry": "braking_100kmh.csv",
-            "setpoint.cueing": {"algorithm": "mpc", "parameters": {"preview_s": 1.0}},
+            "setpoint.cueing": {
+                "algorithm": "mpc",
+                "parameters": {"preview_s": 1.0, "lead_s": 0.1},
+            },
         }
     ]
     diff = {k for k in run if run[k] != v.scenario[k]}

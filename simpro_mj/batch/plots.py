@@ -328,7 +328,7 @@ def plot_cue_comparison(rows: list[dict], info: Mapping, out: Path):
         ax.set_title(label + (" (floor: at most)" if below else " (floor: at least)"), fontsize=8)
         ax.grid(True, axis="y", alpha=0.3)
         ax.tick_params(labelsize=7)
-    axes[0].legend(fontsize=7)
+    axes[0].legend(fontsize=7, loc="lower left", framealpha=0.9)
     fig.suptitle(f"{info['scenario']}: cueing laws side by side (dashed: the floors)", fontsize=10)
     return _save(fig, out / f"{info['scenario']}_cue_laws.png")
 
@@ -341,8 +341,9 @@ def _law_label(r: Mapping) -> str:
         if "telemetry" not in k and "manoeuvre" not in k
     ]
     text = " ".join(extra)
-    if "preview_s" in text:
-        law += ", preview " + text.split("preview_s=")[-1].split(",")[0].split("}")[0] + " s"
+    for key, name in (("preview_s=", "preview"), ("lead_s=", "lead")):
+        if key in text:
+            law += f", {name} " + text.split(key)[-1].split(",")[0].split(" ")[0] + " s"
     return law
 
 

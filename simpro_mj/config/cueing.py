@@ -124,6 +124,7 @@ MPC_PARAMETER_KEYS = {
     "stroke_margin_mm": ("stroke_margin", 1e-3),
     "box_fraction": ("box_fraction", 1.0),
     "rotation_limit": ("rotation_limit", 1.0),
+    "lead_s": ("lead", 1.0),
 }
 #: Whole-number parameters (an int in the resolved scenario).
 _INTEGERS = ("rot_order", "horizon")
