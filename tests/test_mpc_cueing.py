@@ -81,3 +81,21 @@ def test_parameters_checked():
         MpcParams().replace(gain=1.0)
     with pytest.raises(ValueError, match="divide the period"):
         ModelPredictiveCueing().run(np.zeros((5, 3)), np.zeros((5, 3)), 0.007)
+
+
+def test_lead_evaluates_the_plan_later_and_stays_causal():
+    """``lead`` moves the set-point ahead along the plan (the braking tilt starts about
+    ``lead`` earlier) and, without preview, still leaves the past untouched by a change
+    of the future input."""
+    t, f, w = _braking(400, start=2.0)
+    base = ModelPredictiveCueing().run(f, w, DT).pose
+    led = ModelPredictiveCueing(lead=0.1).run(f, w, DT).pose
+    th0, th1 = -base[:, 1], -led[:, 1]
+    level = 0.5 * th0[-1]
+    cross0 = int(np.argmax(th0 > level))
+    cross1 = int(np.argmax(th1 > level))
+    assert (cross0 - cross1) * DT == pytest.approx(0.1, abs=0.03)
+    f2 = f.copy()
+    f2[300:, 0] = 0.0
+    other = ModelPredictiveCueing(lead=0.1).run(f2, w, DT).pose
+    assert np.array_equal(led[:300], other[:300])
