@@ -64,7 +64,7 @@ from .geometry import PlatformGeometry, nominal_geometry
 from .vestibular import CanalModel, OtolithModel
 from .workspace import inscribed_box
 
-__all__ = ["MpcParams", "ModelPredictiveCueing", "MpcParamError", "MpcResult"]
+__all__ = ["MpcParams", "ModelPredictiveCueing", "MpcParamError", "MpcResult", "MpcStream"]
 
 
 class MpcParamError(ValueError):
@@ -111,7 +111,7 @@ class MpcParams:
     lead : float
         Phase lead of the set-point (s), 0: the set-point at ``t`` is the latest plan
         evaluated at ``t + lead``, to make up for the platform loop's lag (about
-        0.1 s in roll and pitch, docs/cueing.md). The plan itself is made from what is
+        0.1-0.15 s in roll and pitch, docs/cueing.md). The plan itself is made from what is
         known at ``t`` (and ``preview``): no look-ahead of its own; must be shorter
         than the horizon.
     """
@@ -260,6 +260,42 @@ def _plan(x0: np.ndarray, jerks: np.ndarray, period: float, t: np.ndarray) -> np
             ]
         )
     return out
+
+
+class MpcStream:
+    """:class:`ModelPredictiveCueing` sample by sample: :meth:`step` every ``dt``, a QP
+    every period, the plan evaluated in between (what a live session runs). The
+    attributes a live session reads of a washout: ``box``, ``geometry``,
+    ``last_rate_limited`` and ``last_softened`` (always False: the plan is constrained,
+    not limited)."""
+
+    def __init__(self, law: ModelPredictiveCueing, dt: float):
+        p = law.params
+        if p.preview > 0:
+            raise ValueError(f"a stream knows only the past: preview must be 0, got {p.preview}")
+        self.every = int(round(p.period / dt))
+        if self.every < 1 or abs(self.every * dt - p.period) > 1e-9:
+            raise ValueError(f"dt={dt!r} must divide the period {p.period!r}")
+        self.law, self.dt = law, dt
+        self.box, self.geometry = law.box, law.geometry
+        self.last_rate_limited = self.last_softened = False
+        self._k = 0
+        self._u = None
+        self._held = None
+
+    def step(self, f, w) -> np.ndarray:
+        """Vehicle ``f``, ``w`` (3,) now -> the set-point (roll, pitch, h) in B (3,)."""
+        f = np.asarray(f, float)
+        w = np.asarray(w, float)
+        law, N = self.law, self.law.N
+        j = self._k % self.every
+        if j == 0:
+            if self._u is not None:
+                law._advance(self._u, *self._held)
+            self._held = (f.copy(), w.copy())
+            self._u = law.solve(np.tile(f, (N, 1)), np.tile(w, (N, 1)))
+        self._k += 1
+        return law._pose(self._u, np.array([j * self.dt]))[0]
 
 
 class _Axis:
@@ -569,6 +605,32 @@ class ModelPredictiveCueing:
         return u.reshape(3, N)
 
     # ------------------------------------------------------------------ running
+    def stream(self, dt: float) -> MpcStream:
+        """The law sample by sample, every ``dt`` (which divides the period), as a live
+        rig's computer runs it: only the past is known (``preview`` must be 0)."""
+        return MpcStream(self, dt)
+
+    def _advance(self, u: np.ndarray, f_now: np.ndarray, w_now: np.ndarray) -> None:
+        """The model one period on under the first planned jerks and the vehicle input
+        of the solve."""
+        for k, ax in enumerate(self.axes):
+            d = self._d(f_now[None, :], w_now[None, :], k)[:2]
+            self._x[k] = ax.ad @ self._x[k] + ax.bd @ np.r_[u[k, 0], d]
+
+    def _pose(self, u: np.ndarray, t: np.ndarray) -> np.ndarray:
+        """Base-frame set-points (len(t), 3) of the current plan ``t`` after the solve
+        (plus ``lead``)."""
+        out = np.empty((t.size, 3))
+        for k, ax in enumerate(self.axes):
+            a = _plan(self._x[k][:3], u[k], self.params.period, t + self.params.lead)
+            if ax.kind == "pitch":
+                out[:, 1] = -a  # ISO pitch a -> B pitch -a
+            elif ax.kind == "roll":
+                out[:, 0] = a  # a = -phi ISO -> B roll = -phi = a
+            else:
+                out[:, 2] = self._home[2] + a
+        return out
+
     def run(self, f, w, dt: float) -> MpcResult:
         """Run over a vehicle input sampled at ``dt`` (which divides the period).
 
@@ -594,18 +656,8 @@ class ModelPredictiveCueing:
             idx = np.minimum(s + np.minimum(np.arange(N) * every, ahead), n - 1)
             u = self.solve(f[idx], w[idx])
             m = min(every, n - s)
-            for k, ax in enumerate(self.axes):
-                x = self._x[k]
-                j = u[k, 0]
-                a = _plan(x[:3], u[k], p.period, tau + p.lead)
-                if ax.kind == "pitch":
-                    pose[s : s + m, 1] = -a[:m]  # ISO pitch a -> B pitch -a
-                elif ax.kind == "roll":
-                    pose[s : s + m, 0] = a[:m]  # a = -phi ISO -> B roll = -phi = a
-                else:
-                    pose[s : s + m, 2] = self._home[2] + a[:m]
-                d = self._d(f[[s]], w[[s]], k)[:2]
-                self._x[k] = ax.ad @ x + ax.bd @ np.r_[j, d]
+            pose[s : s + m] = self._pose(u, tau[:m])
+            self._advance(u, f[s], w[s])
         st = self.solve_times
         return MpcResult(
             t=dt * np.arange(n),

@@ -99,3 +99,15 @@ def test_lead_evaluates_the_plan_later_and_stays_causal():
     f2[300:, 0] = 0.0
     other = ModelPredictiveCueing(lead=0.1).run(f2, w, DT).pose
     assert np.array_equal(led[:300], other[:300])
+
+
+def test_stream_is_the_run_sample_by_sample():
+    """A live session's stream (a QP every period, the plan every 10 ms) gives the run's
+    set-points exactly; it refuses a preview it cannot have."""
+    t, f, w = _braking(300)
+    ran = ModelPredictiveCueing(lead=0.1).run(f, w, DT).pose
+    st = ModelPredictiveCueing(lead=0.1).stream(DT)
+    streamed = np.array([st.step(f[i], w[i]) for i in range(t.size)])
+    assert np.array_equal(ran, streamed)
+    with pytest.raises(ValueError, match="preview must be 0"):
+        ModelPredictiveCueing(preview=0.5).stream(DT)

@@ -583,12 +583,25 @@ def run_session(scenario: dict, options: LiveOptions, say=None, checks=None):
         if checks is not None:
             checks()
         params = washout_params(cue)
-        wash_every = steps_per_period(
-            params.period * 1e3, 1e-3, "setpoint.cueing.parameters.period_ms"
-        )
+        mpc = cue.get("algorithm") == "mpc"
+        if mpc and params.preview > 0 and say is not None:
+            say(
+                f"live: setpoint.cueing.parameters.preview_s = {params.preview:g} needs the "
+                "vehicle's future, which a live session does not have: played with 0"
+            )
+        # the MPC's plan is sampled every 10 ms between its solves; the washout runs at
+        # its own period
+        period = 0.01 if mpc else params.period
+        wash_every = steps_per_period(period * 1e3, 1e-3, "setpoint.cueing.parameters.period_ms")
         send_every = steps_per_period(1e3 / options.send_rate_hz, 1e-3, "--send-rate")
         sim = CoSimulation(scenario, setpoints="external")
-        washout = ClassicalWashout(params, geometry=sim.geometry)
+        if mpc:
+            from controllers.mpc_cueing import ModelPredictiveCueing  # on use: osqp
+
+            law = ModelPredictiveCueing(params.replace(preview=0.0), geometry=sim.geometry)
+            washout = law.stream(period)
+        else:
+            washout = ClassicalWashout(params, geometry=sim.geometry)
         if options.send is not None:
             sender = PoseSender(options.send, options.send_format, sim.geometry.home[2])
         pacer = Pacer(sim, rx, washout, wash_every=wash_every, send_every=send_every,
