@@ -59,6 +59,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .analysis.inner import companion
 from .frames import GRAVITY
 from .geometry import PlatformGeometry, nominal_geometry
 from .vestibular import CanalModel, OtolithModel
@@ -208,24 +209,6 @@ class MpcResult:
         }
 
 
-def _ss(num, den):
-    """Controllable canonical (A, B, C, D) of a proper SISO transfer function."""
-    num = np.atleast_1d(np.asarray(num, float))
-    den = np.atleast_1d(np.asarray(den, float))
-    num, den = num / den[0], den / den[0]
-    n = den.size - 1
-    num = np.r_[np.zeros(n + 1 - num.size), num]
-    d = num[0]
-    rest = num[1:] - d * den[1:]
-    a = np.zeros((n, n))
-    a[0, :] = -den[1:]
-    a[1:, :-1] = np.eye(n - 1)
-    b = np.zeros((n, 1))
-    b[0, 0] = 1.0
-    c = rest.reshape(1, n)
-    return a, b, c, np.array([[d]])
-
-
 def _discretise(a: np.ndarray, b: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
     """Zero-order-hold discretisation by the block matrix exponential."""
     from scipy.linalg import expm
@@ -305,7 +288,7 @@ class _Axis:
     def __init__(self, kind: str, p: MpcParams, oto: OtolithModel, scc: CanalModel, amax):
         h = p.head_height
         g = GRAVITY
-        oa, ob, oc, od = _ss(*oto.tf())
+        oa, ob, oc, od = companion(*oto.tf())
         self.kind = kind
         if kind == "heave":
             sigma, no_, nc = 0.0, oa.shape[0], 0
@@ -320,7 +303,7 @@ class _Axis:
                 else (scc.tau_l)
             )
             k = scc.tau_a * tau_l
-            ca, cb, cc, cd = _ss([k, 0.0, 0.0], np.polymul([scc.tau_a, 1.0], [tau_l, 1.0]))
+            ca, cb, cc, cd = companion([k, 0.0, 0.0], np.polymul([scc.tau_a, 1.0], [tau_l, 1.0]))
             no_, nc = oa.shape[0], ca.shape[0]
             kf, kw = (p.gain_x, p.gain_rot) if kind == "pitch" else (p.gain_y, p.gain_rot)
             thr_f = oto.thresholds[0 if kind == "pitch" else 1]
