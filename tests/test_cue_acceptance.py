@@ -175,6 +175,9 @@ def test_telemetry_column_mapping_with_units(tmp_path):
     }
     _, f, _, _, _ = vehicle_input(sc)
     assert f[-1, 0] == pytest.approx(-0.3 * GRAVITY)
+    # a run as long as the file allows: the error names that length on the 1 ms grid
+    with pytest.raises(UserInputError, match=r"duration_s: 3.5 s .*allowed: <= 2.990$"):
+        vehicle_input({**sc, "duration_s": 3.5})
     # a wrong column: one line naming it, the mapped key and the file's header
     bad = {**MAPPING, "fx_mps2": {"column": "accel_x", "scale": GRAVITY}}
     with pytest.raises(TelemetryError) as info:

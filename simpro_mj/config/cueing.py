@@ -290,9 +290,11 @@ def _chain(key: str):
 
             tel = generate(manoeuvre_spec(cue["manoeuvre"]))
         if tel.t[-1] < t[-1] - 1e-9:
+            # the longest run the file allows, on the physics grid
+            longest = math.floor(tel.t[-1] / PHYSICS_DT_S + 1e-9) * PHYSICS_DT_S
             raise UserInputError(
                 f"invalid value at duration_s: {duration:g} s is longer than the vehicle input "
-                f"({tel.t[-1]:g} s, {tel.source}); allowed: <= {tel.t[-1]:g}"
+                f"({tel.t[-1]:g} s, {tel.source}); allowed: <= {longest:.3f}"
             )
         f, w = resample(tel, t)
         source = tel.source
