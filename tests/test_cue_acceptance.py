@@ -209,3 +209,19 @@ def test_large_signal_step_and_ramp_inputs():
     lo, hi = info["box"]["pitch"]
     assert lo < pose[:, 1].min() < 0.7 * lo  # nose down, 70-100 % of the box
     assert info["solve_time"]["not_solved"] == 0
+
+
+def test_task_space_on_a_moving_cue_is_warned_with_numbers():
+    """The pose loop alone lags a 0.5 Hz cue by about half a second where the
+    feed-forward scheme lags it by a tenth; the warning gives both."""
+    import re
+
+    from simpro_mj.analysis.preflight import cueing_mode_warnings
+
+    sc = load_scenario("cue_lane_change.yaml", ["controller.mode=task_space"])
+    (msg,) = cueing_mode_warnings(sc)
+    task_space = float(re.search(r"([0-9.]+) s of delay", msg)[1])
+    feedforward = float(re.search(r"dB, ([0-9.]+) s\)", msg)[1])
+    assert "controller.mode = task_space" in msg and "use controller.mode = feedforward" in msg
+    assert task_space > 0.3 > 0.15 > feedforward
+    assert cueing_mode_warnings(load_scenario("cue_lane_change.yaml")) == []
