@@ -259,6 +259,7 @@ def test_failing_variant_and_invalid_file_reported_others_complete(tmp_path, mon
 
 def test_resume_skips_complete_and_recomputes_incomplete(tmp_path, monkeypatch):
     import simpro_mj.sim.loop as sim_mod
+    from simpro_mj.report.folders import record
 
     real, calls = sim_mod.simulate, []
 
@@ -275,10 +276,12 @@ def test_resume_skips_complete_and_recomputes_incomplete(tmp_path, monkeypatch):
     first = (out / "summary.csv").read_text()
     folders = [out / "g" / f"gains={g}" for g in (1, 2, 3)]
     mtime = (folders[0] / "metrics.json").stat().st_mtime_ns
-    # an interrupted run and a missing file are incomplete
+    # an interrupted run and a missing file are incomplete (the status written as
+    # simpro-sim writes it: listed in the folder's marker, else it is the user's file)
     met = json.loads((folders[1] / "metrics.json").read_text())
     met["status"] = "interrupted"
     (folders[1] / "metrics.json").write_text(json.dumps(met))
+    record(folders[1], ["metrics.json"], "run")
     (folders[2] / "timeseries.csv").unlink()
     calls.clear()
     assert main([*argv, "--resume"]) == 0

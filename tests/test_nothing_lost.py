@@ -193,16 +193,23 @@ def test_is_complete_is_the_one_check_and_resume_uses_it(tmp_path):
     first = run_batch(["step_pitch"], out, **argv)
     folder = out / first.rows[0]["folder"]
     assert folders.is_complete(folder)
-    # the case of the issue: a PARTIAL marker and a 0-byte time series
+    # a PARTIAL marker and a 0-byte time series written by hand: not complete, and
+    # not simpro-sim's to replace either (a changed file may be the user's edit)
     (folder / folders.PARTIAL_MARKER).write_text("partial\n")
     (folder / "timeseries.csv").write_bytes(b"")
     assert not folders.is_complete(folder)
+    before = _snapshot(folder)
+    row = run_batch(["step_pitch"], out, resume=True, **argv).rows[0]
+    assert row["status"] == "invalid" and "timeseries.csv (changed since" in row["reason"]
+    assert "PARTIAL" in row["reason"] and _snapshot(folder) == before
+    # the same state as simpro-sim leaves it (listed in its marker): re-run
+    folders.record(folder, ["PARTIAL", "timeseries.csv"], "run")
     again = run_batch(["step_pitch"], out, resume=True, **argv)
     assert again.skipped == 0 and again.rows[0]["status"] == "ok"
     assert folders.is_complete(folder)
     assert run_batch(["step_pitch"], out, resume=True, **argv).skipped == 1  # intact: skipped
     # each condition alone makes a folder incomplete
-    for breaking in ("empty", "status", "marker"):
+    for breaking in ("empty", "status", "blocks", "marker"):
         run_batch(["step_pitch"], out, **argv)
         if breaking == "marker":
             (folder / folders.RESULT_MARKER).unlink()
@@ -210,8 +217,15 @@ def test_is_complete_is_the_one_check_and_resume_uses_it(tmp_path):
             (folder / "timeseries.csv").write_bytes(b"")
         else:
             doc = json.loads((folder / "metrics.json").read_text())
-            (folder / "metrics.json").write_text(json.dumps(dict(doc, status="interrupted")))
+            if breaking == "status":
+                doc = dict(doc, status="interrupted")
+            else:  # only status and hash: no row can be built from it
+                doc = {"status": "ok", "scenario": doc["scenario"]}
+            (folder / "metrics.json").write_text(json.dumps(doc))
         assert not folders.is_complete(folder), breaking
+        if breaking != "marker":
+            folders.record(folder, ["timeseries.csv", "metrics.json"], "run")
+            assert not folders.is_complete(folder), breaking
     # a variant folder without the marker is not simpro-sim's: reported, not replaced
     before = _snapshot(folder)
     row = run_batch(["step_pitch"], out, resume=True, **argv).rows[0]

@@ -46,14 +46,13 @@ from __future__ import annotations
 import copy
 import json
 import math
-from pathlib import Path
 
 import numpy as np
 from scipy.optimize import least_squares
 
 from controllers.design import ACTUATORS, paper_plant
+from simpro_mj.analysis.targets import load_targets
 from simpro_mj.core.errors import PhysicsError, UserInputError
-from simpro_mj.core.keys import read_yaml
 from simpro_mj.identification.identify import default_tree, identify
 from simpro_mj.plant.pneumatics.params import DEFAULT_PNEUMATIC_PARAMS
 
@@ -92,56 +91,6 @@ def paper_targets(reading: str = "volts") -> dict:
         p = paper_plant(a, reading)
         wn = math.sqrt(p.a0)
         out[a] = {"wn_rad_s": wn, "zeta": p.a1 / (2 * wn), "velocity_gain_m_s_per_v": p.b / p.a0}
-    return out
-
-
-def load_targets(path: str | Path) -> dict:
-    """A rig owner's identified models from YAML.
-
-    Each of ``actuator1``, ``actuator2``, ``actuator3`` is either eq. (19)'s
-    coefficients in SI ``{b, a1, a0}`` (m/s^3/V, 1/s, 1/s^2) or
-    ``{wn_rad_s, zeta, velocity_gain_m_s_per_v}``. Raises
-    :class:`UserInputError` (one line, the field and what is allowed).
-    """
-    p = Path(path)
-    doc = read_yaml(p, "targets")
-    acts = ("actuator1", "actuator2", "actuator3")
-    if not isinstance(doc, dict):
-        raise UserInputError(
-            f"wrong type at {p.name} (top level): {type(doc).__name__}; allowed: a mapping "
-            f"with keys {list(acts)}"
-        )
-    extra = sorted(str(k) for k in doc if k not in acts)
-    if extra:
-        raise UserInputError(f"unknown key at {extra[0]}: allowed keys are {list(acts)}")
-    out = {}
-    for a in acts:
-        if a not in doc:
-            raise UserInputError(f"missing key at {a}: allowed: a mapping of b, a1, a0")
-        node = doc[a]
-        forms = ({"b", "a1", "a0"}, {"wn_rad_s", "zeta", "velocity_gain_m_s_per_v"})
-        if not isinstance(node, dict) or set(node) not in forms:
-            raise UserInputError(
-                f"invalid value at {a}: {node!r}; allowed: {{b, a1, a0}} (SI) or "
-                "{wn_rad_s, zeta, velocity_gain_m_s_per_v}"
-            )
-        vals = {}
-        for k, v in node.items():
-            ok = isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
-            if not ok or v <= 0 and k != "a1" or v < 0:
-                raise UserInputError(
-                    f"invalid value at {a}.{k}: {v!r}; allowed: a finite number > 0"
-                    + (" (>= 0 for a1)" if k == "a1" else "")
-                )
-            vals[k] = float(v)
-        if "b" in vals:
-            wn = math.sqrt(vals["a0"])
-            vals = {
-                "wn_rad_s": wn,
-                "zeta": vals["a1"] / (2 * wn),
-                "velocity_gain_m_s_per_v": vals["b"] / vals["a0"],
-            }
-        out[a] = vals
     return out
 
 

@@ -100,11 +100,14 @@ from simpro_mj.batch.tables import monte_carlo_table, stability_table
 from simpro_mj.batch.worker import install, run_variant
 from simpro_mj.config.scenario import scenario_hash
 from simpro_mj.core.errors import UserInputError
-from simpro_mj.report.folders import claim, is_complete, write_marker
+from simpro_mj.report.folders import check_out, claim, is_complete, record
 from simpro_mj.sim import executors as _executors
 from simpro_mj.sim.executors import MAX_JOBS, NoWorkers, Progress, dask_module, run_tasks
 
-__all__ = ["MAX_JOBS", "NO_WORKERS_S", "run_batch"]
+__all__ = ["MAX_JOBS", "NO_WORKERS_S", "SUMMARY_FILES", "run_batch"]
+
+#: What a batch writes at the top of ``--out`` (its variants are result folders).
+SUMMARY_FILES = ("summary.csv", "summary.json", "plots")
 
 #: A Dask batch whose cluster has had no live worker this long (s) ends with an error
 #: (read at each batch: tests shorten it).
@@ -137,7 +140,7 @@ def run_batch(
     out = Path(out)
     inputs = [f for f, _ in scenario_files(paths)]
 
-    with claim(out, "batch", inputs=inputs):
+    with claim(out, "batch", inputs=inputs, writes=SUMMARY_FILES):
         return _run_batch(
             paths, out, sets, jobs, resume, strict, scheduler, plots, progress, summary_plots, wall0
         )
@@ -174,6 +177,13 @@ def _run_batch(
             rows[job.index] = summary_row(job, result, skipped=True)
             skipped += 1
             continue
+        try:  # a variant folder not ours to replace: refused before it runs
+            check_out(folder, "run")
+        except UserInputError as exc:
+            rows[job.index] = summary_row(
+                job, {"status": "invalid", "reason": str(exc), "metrics": None}
+            )
+            continue
         tasks.append((job.index, {"scenario": job.scenario, "out": str(folder), "plots": plots}))
     if skipped and progress:
         sys.stderr.write(f"resume: {skipped} complete variant(s) skipped\n")
@@ -187,7 +197,7 @@ def _run_batch(
         bar.update(rows[key]["status"])
 
     out.mkdir(parents=True, exist_ok=True)
-    write_marker(out, "batch")
+    record(out, SUMMARY_FILES, "batch", pending=True)
     stopped = None
     try:
         run_tasks(
@@ -210,6 +220,8 @@ def _run_batch(
                 row["reason"] = f"not finished: batch stopped: {stopped}"
         report.wall_s = time.perf_counter() - wall0
         write_summary(report)
+        if stopped is not None:
+            record(out, SUMMARY_FILES, "batch")
     if stopped is not None:
         return report  # no summary plots: the user asked to stop, or the cluster is gone
     if summary_plots:
@@ -220,6 +232,7 @@ def _run_batch(
         report.plots = [str(x) for x in plot_summary(report, p.jobs)]
     report.wall_s = time.perf_counter() - wall0
     write_summary(report)
+    record(out, SUMMARY_FILES, "batch")
     return report
 
 

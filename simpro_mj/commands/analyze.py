@@ -12,6 +12,7 @@ from simpro_mj.analysis.analyze import DEFAULTS, compute, document
 from simpro_mj.core.jsonout import emit_json
 from simpro_mj.core.keys import apply_overrides
 from simpro_mj.report.analyze import plot, summary
+from simpro_mj.report.folders import claim, install_figures
 
 HELP = "stability analysis of the joint and task-space loops (root loci, Jury limits)"
 
@@ -27,8 +28,12 @@ def add_arguments(parser) -> None:
 
 def run(args) -> int:
     p = apply_overrides(DEFAULTS, args.sets)
-    res = compute(p)
-    files = [] if args.no_plots else plot(res, p, Path(args.out))
+    if args.no_plots:
+        res, files = compute(p), []
+    else:  # --out checked before the analysis; its figures installed as one folder
+        with claim(Path(args.out), "analyze") as out:
+            res = compute(p)
+            files = [str(f) for f in install_figures(out, lambda tmp: plot(res, p, tmp), "analyze")]
     if args.json:
         emit_json(document(res, p, files))
     else:

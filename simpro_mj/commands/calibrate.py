@@ -14,6 +14,7 @@ from tqdm import tqdm
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.jsonout import emit_json
 from simpro_mj.core.keys import apply_overrides
+from simpro_mj.report.folders import check_file, write_file
 
 HELP = "fit masses, friction and valve flow so that identify reproduces target models"
 
@@ -31,6 +32,10 @@ def add_arguments(parser) -> None:
         "--out", default=None, help="preset YAML to write (default results/calibrate/NAME.yaml)"
     )
     parser.add_argument(
+        "--overwrite", action="store_true",
+        help="replace --out even if simpro-sim did not write it (default: refuse)",
+    )  # fmt: skip
+    parser.add_argument(
         "--evaluations", type=int, default=30, help="budget of identification runs (30)"
     )
     parser.add_argument(
@@ -43,6 +48,13 @@ def add_arguments(parser) -> None:
 
 
 def _check(args) -> None:
+    from simpro_mj.config.rules import NAME_RE
+
+    if not (NAME_RE.match(args.name) and len(args.name) <= 100):
+        raise UserInputError(
+            f"invalid value at --name: {args.name!r}; allowed: letters, digits, '_', '-', '.' "
+            "(a file-name-safe word of at most 100 characters, no path separator)"
+        )
     if args.evaluations < 1 or args.evaluations > 1000:
         raise UserInputError(
             f"invalid value at --evaluations: {args.evaluations}; allowed: 1..1000"
@@ -57,19 +69,21 @@ def _check(args) -> None:
 
 def run(args) -> int:
     _check(args)
-    # the fit loads MuJoCo (the identification's plant): only once the options are good,
-    # so that a mistake is refused within a second
-    from simpro_mj.analysis.calibrate import calibrate_preset, load_targets, paper_targets
+    out = Path(args.out) if args.out else Path("results") / "calibrate" / f"{args.name}.yaml"
+    if out.suffix not in (".yaml", ".yml"):
+        raise UserInputError(f"invalid value at --out: {out}; allowed: a path ending in .yaml")
+    # every input and the output checked before the fit (minutes of work) starts, and
+    # before MuJoCo is imported, so that a mistake is refused within a second
+    check_file(out, args.overwrite)
+    from simpro_mj.analysis.targets import load_targets
+
+    user_targets = None if args.targets is None else load_targets(args.targets)
+    from simpro_mj.analysis.calibrate import calibrate_preset, paper_targets
     from simpro_mj.identification.identify import check_tree, default_tree
 
     tree = apply_overrides(default_tree(args.start), args.sets)
     check_tree(tree)
-    targets = (
-        paper_targets(tree["paper_units"]) if args.targets is None else load_targets(args.targets)
-    )
-    out = Path(args.out) if args.out else Path("results") / "calibrate" / f"{args.name}.yaml"
-    if out.suffix not in (".yaml", ".yml"):
-        raise UserInputError(f"invalid value at --out: {out}; allowed: a path ending in .yaml")
+    targets = paper_targets(tree["paper_units"]) if user_targets is None else user_targets
     bar = tqdm(total=args.evaluations, desc="calibrate", unit="eval", file=sys.stderr)
 
     def progress(i, cost):
@@ -81,8 +95,7 @@ def run(args) -> int:
         amplitudes_v=args.amplitudes, progress=progress,
     )  # fmt: skip
     bar.close()
-    out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(yaml.safe_dump(doc, sort_keys=False), encoding="utf-8")
+    out = write_file(out, yaml.safe_dump(doc, sort_keys=False), args.overwrite)
     worst = max(abs(v) for r in doc["calibration"]["residuals_per_tolerance"].values()
                 for v in r.values())  # fmt: skip
     if args.json:

@@ -11,12 +11,18 @@ from pathlib import Path
 from simpro_mj.config.scenario import load_scenario
 from simpro_mj.core.jsonout import emit_json
 from simpro_mj.report.compare import compare, table
-from simpro_mj.report.folders import claim, write_marker
+from simpro_mj.report.folders import claim, record
 from simpro_mj.report.render import require_video
 from simpro_mj.report.runner import EXIT_INTERRUPTED, interrupted_message
 from simpro_mj.report.video_options import add_video_flag, video_after_run
 
 HELP = "run a scenario with joint-only and with task-space control on the same plant and seed"
+
+
+#: What a compare writes into ``--out``: both runs' folders, the table, the figure.
+COMPARE_FILES = (
+    "joint_only", "task_space", "comparison.txt", "comparison.json", "compare.png", "replay.mp4"
+)  # fmt: skip
 
 
 def add_arguments(parser) -> None:
@@ -33,9 +39,9 @@ def run(args) -> int:
     if args.video:
         require_video()  # the install hint before the run, not after it
     out = Path(args.out) if args.out else Path("results") / f"{scenario['name']}-compare"
-    with claim(out, "compare", inputs=[args.scenario]):
+    with claim(out, "compare", inputs=[args.scenario], writes=COMPARE_FILES):
         out.mkdir(parents=True, exist_ok=True)
-        write_marker(out, "compare")
+        record(out, COMPARE_FILES, "compare", pending=True)
         both = compare(scenario, out, plots=not args.no_plots)
     metrics = both["metrics"]
     for mode, res in both["results"].items():
@@ -46,6 +52,7 @@ def run(args) -> int:
     text = table(metrics)
     (out / "comparison.txt").write_text(text + "\n")
     (out / "comparison.json").write_text(json.dumps(metrics, indent=2, default=float))
+    record(out, COMPARE_FILES, "compare")
     if args.json:
         emit_json(metrics)
     else:

@@ -9,6 +9,7 @@ from pathlib import Path
 
 from simpro_mj.core.jsonout import emit_json
 from simpro_mj.core.keys import apply_overrides
+from simpro_mj.report.folders import claim, install_figures
 
 HELP = "identify eq. (19) per actuator in simulation (Fig. 12: P loop + PRBS, least squares)"
 
@@ -46,13 +47,18 @@ def run(args) -> int:
         tree["identify"]["duration_s"] = float(args.duration)
     records: dict = {}
     legs = sorted(set(args.actuators))
-    results = identify(tree, legs=legs, records=records)
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    doc = document(results, tree)
-    (out / "identify.json").write_text(json.dumps(doc, indent=2))
-    if not args.no_plot:
-        plot(results, records, out / "identify.png", tree["paper_units"])
+    # --out checked before the experiment; its files installed as one folder
+    with claim(Path(args.out), "identify") as out:
+        results = identify(tree, legs=legs, records=records)
+        doc = document(results, tree)
+
+        def fill(tmp: Path) -> list:
+            (tmp / "identify.json").write_text(json.dumps(doc, indent=2))
+            if not args.no_plot:
+                plot(results, records, tmp / "identify.png", tree["paper_units"])
+            return []
+
+        install_figures(out, fill, "identify")
     if args.json:
         emit_json(doc)
     else:

@@ -10,6 +10,9 @@ Parameters by ``--set``: ``speed_kmh``, ``vehicle``, ``deceleration_mps2``,
 
 from __future__ import annotations
 
+import contextlib
+import os
+import tempfile
 from pathlib import Path
 
 from simpro_mj.config.manoeuvres import MANOEUVRES, ManoeuvreSpec, generate
@@ -17,6 +20,7 @@ from simpro_mj.config.telemetry import write_telemetry
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.jsonout import emit_json
 from simpro_mj.core.keys import apply_overrides
+from simpro_mj.report.folders import check_file, record_file
 
 HELP = "generate a vehicle manoeuvre (braking, lane_change, slalom, bump) as telemetry CSV"
 
@@ -39,7 +43,11 @@ def add_arguments(parser) -> None:
         "--out", default=None, help="CSV to write (default <manoeuvre>_<speed>kmh.csv here)"
     )
     parser.add_argument(
-        "--force", action="store_true", help="replace --out if it exists (default: refuse)"
+        "--overwrite",
+        "--force",
+        dest="force",
+        action="store_true",
+        help="replace --out even if simpro-sim did not write it (default: refuse)",
     )
 
 
@@ -64,12 +72,9 @@ def spec_from(args) -> ManoeuvreSpec:
 def run(args) -> int:
     spec = spec_from(args)
     out = Path(args.out or f"{spec.manoeuvre}_{spec.speed_kmh:g}kmh.csv")
-    if out.exists() and not args.force:
-        raise UserInputError(
-            f"invalid value at --out: {out} exists; allowed: a new file, or --force"
-        )
     if not out.parent.is_dir():
         raise UserInputError(f"invalid value at --out: folder {out.parent} does not exist")
+    out = check_file(out, args.force)
     tel = generate(spec)
     comment = (
         f"simpro-sim manoeuvre {spec.manoeuvre}: {tel.source}\n"
@@ -77,9 +82,16 @@ def run(args) -> int:
         "specific force includes gravity (fz = +9.81 at rest); "
         "format: simpro_mj/config/telemetry.py"
     )
-    tmp = out.with_name(out.name + ".partial")
-    write_telemetry(tmp, tel, comment)
-    tmp.replace(out)
+    fd, tmp = tempfile.mkstemp(prefix=f".{out.name}.tmp-", dir=out.parent)
+    os.close(fd)
+    try:
+        write_telemetry(tmp, tel, comment)
+        os.replace(tmp, out)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
+    record_file(out)
     summary = {
         "file": str(out),
         "manoeuvre": spec.manoeuvre,

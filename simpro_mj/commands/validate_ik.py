@@ -8,6 +8,7 @@ from pathlib import Path
 
 from simpro_mj.core.jsonout import emit_json
 from simpro_mj.core.keys import apply_overrides
+from simpro_mj.report.folders import claim, install_figures
 
 HELP = "validate the vector-loop IK against the MuJoCo closed chain (paper Fig. 11)"
 
@@ -22,8 +23,12 @@ def run(args) -> int:
     from simpro_mj.analysis.validate_ik import DEFAULTS, SUMMARY_KEYS, plot, summary, validate
 
     params = apply_overrides(DEFAULTS, args.sets)
-    res = validate(params)
-    plot_path = None if args.no_plot else plot(res, Path(args.out))
+    if args.no_plot:
+        res, plot_path = validate(params), None
+    else:  # --out checked before the validation; the figure installed as one folder
+        with claim(Path(args.out), "validate-ik") as out:
+            res = validate(params)
+            (plot_path,) = install_figures(out, lambda tmp: [plot(res, tmp)], "validate-ik")
     doc = {k: res[k] for k in SUMMARY_KEYS}
     doc["plot"] = str(plot_path) if plot_path else None
     if args.json:

@@ -18,7 +18,9 @@ twin (``CSafeLoader``, several times faster) when PyYAML has it, that
   characters (a 401-digit integer overflowed a float, a 5,000-digit one
   exceeded Python's integer-string limit).
 
-:func:`read_file` also refuses a file larger than :data:`MAX_FILE_BYTES`
+:func:`read_file` opens the file without blocking and reads only a regular
+file (:mod:`simpro_mj.core.safe_files`: a FIFO, a device or a socket is refused
+at once), refuses a file larger than :data:`MAX_FILE_BYTES`
 before reading it (the pure-Python reader parses about 1 MB/s) and one that
 holds no document (empty or comments only).
 
@@ -270,12 +272,25 @@ def read_file(path: Path, what: str = "scenario") -> Any:
     OSError, UnicodeDecodeError
         The file cannot be read as UTF-8.
     """
-    size = Path(path).stat().st_size
-    if size > MAX_FILE_BYTES:
+    from simpro_mj.core.safe_files import UnreadableFile, open_regular
+
+    try:
+        fh = open_regular(path, MAX_FILE_BYTES, what, binary=True)
+    except UnreadableFile as exc:
+        if str(exc).startswith("file too large"):
+            size = Path(path).stat().st_size
+            raise YAMLLimitError(
+                f"a file of {size:,} bytes", f"a {what} file of at most {MAX_FILE_BYTES:,} bytes"
+            ) from None
+        raise
+    with fh:
+        data = fh.read(MAX_FILE_BYTES + 1)
+    if len(data) > MAX_FILE_BYTES:
         raise YAMLLimitError(
-            f"a file of {size:,} bytes", f"a {what} file of at most {MAX_FILE_BYTES:,} bytes"
+            f"a file of over {MAX_FILE_BYTES:,} bytes",
+            f"a {what} file of at most {MAX_FILE_BYTES:,} bytes",
         )
-    doc = load(Path(path).read_text(encoding="utf-8"))
+    doc = load(data.decode("utf-8"))
     if doc is None:
         raise YAMLLimitError(
             "the file holds no keys (empty or comments only)",

@@ -34,26 +34,36 @@ trust) when it carries the marker, its ``metrics.json`` reads and has status
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import json
 import os
+import re
 import shutil
+import stat
 import tempfile
 from collections.abc import Iterable, Iterator
 from pathlib import Path
 
 from simpro_mj import __version__
 from simpro_mj.core.errors import UserInputError
+from simpro_mj.core.safe_files import open_regular, read_text
 
 __all__ = [
     "PARTIAL_MARKER",
     "RESULT_MARKER",
+    "check_file",
     "check_out",
     "claim",
+    "foreign",
+    "record",
+    "install_figures",
     "install_folder",
     "is_complete",
     "locked",
     "partial_sibling",
+    "record_file",
     "result_kind",
+    "write_file",
     "write_marker",
 ]
 
@@ -61,6 +71,11 @@ __all__ = [
 PARTIAL_MARKER = "PARTIAL"
 #: File name of the marker of a folder simpro-sim wrote (and may replace).
 RESULT_MARKER = ".simpro-result"
+#: Largest marker read (bytes): a list of a few hundred files.
+MARKER_MAX_BYTES = 1_000_000
+#: Largest ``metrics.json`` read back (bytes).
+MAX_METRICS_BYTES = 20_000_000
+_HIDDEN = re.compile(r"^\..+\.(?:tmp|old)-[A-Za-z0-9_]+$|^\..+\.lock$")
 
 
 def partial_sibling(out_dir: Path) -> Path:
@@ -74,19 +89,204 @@ def partial_sibling(out_dir: Path) -> Path:
     )
 
 
-def result_kind(folder) -> str | None:
-    """The kind (``run``, ``batch``, ``compare``) in ``folder``'s marker, or None."""
+def _marker(folder) -> dict | None:
+    """The marker document of ``folder`` (a dict), or None: absent, not a regular
+    file (a FIFO is refused at once, never waited on), too large or not JSON."""
     try:
-        doc = json.loads((Path(folder) / RESULT_MARKER).read_text(encoding="utf-8"))
+        doc = json.loads(read_text(Path(folder) / RESULT_MARKER, MARKER_MAX_BYTES, "marker"))
     except (OSError, ValueError):
         return None
-    return doc.get("kind") if isinstance(doc, dict) else None
+    return doc if isinstance(doc, dict) else None
+
+
+def result_kind(folder) -> str | None:
+    """The kind (``run``, ``batch``, ``compare``, ...) in ``folder``'s marker, or None."""
+    doc = _marker(folder)
+    kind = doc.get("kind") if doc else None
+    return kind if isinstance(kind, str) else None
+
+
+def _manifest(doc: dict | None) -> dict | None:
+    """The list of files in a marker (``files``: relative path -> entry), or None
+    when the marker has none (a folder whose files cannot be verified)."""
+    files = doc.get("files") if doc else None
+    return files if isinstance(files, dict) else None
+
+
+def _digest(path: Path) -> str:
+    h = hashlib.sha256()
+    with open_regular(path, 1 << 40, "result", binary=True) as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def _entry(path: Path) -> dict:
+    return {"size": path.stat().st_size, "sha256": _digest(path)}
+
+
+def _ours_hidden(name: str) -> bool:
+    """A hidden temporary, moved-aside or lock entry of :func:`install_folder` or
+    :func:`locked` (``.<name>.tmp-*``, ``.<name>.old-*``, ``.<name>.lock``)."""
+    return bool(_HIDDEN.match(name))
+
+
+def _walk(folder: Path, prefix: str = "") -> Iterator[tuple[str, Path, str]]:
+    """(relative path, path, what) of the entries of ``folder`` a marker lists:
+    regular files (``file``), sub-folders carrying their own marker (``result``),
+    anything else (``other``: links, FIFOs, devices); the marker itself and our
+    hidden temporaries are skipped; plain sub-folders are walked."""
+    try:
+        entries = sorted(os.scandir(folder), key=lambda e: e.name)
+    except OSError:
+        return
+    for e in entries:
+        rel = f"{prefix}{e.name}"
+        if e.name == RESULT_MARKER or _ours_hidden(e.name):
+            continue
+        path = Path(e.path)
+        if e.is_symlink():
+            yield rel, path, "other"
+        elif e.is_dir():
+            if os.path.lexists(path / RESULT_MARKER):
+                yield rel, path, "result"
+            else:
+                yield from _walk(path, rel + "/")
+        elif e.is_file():
+            yield rel, path, "file"
+        else:
+            yield rel, path, "other"
+
+
+def _pending(files: dict, rel: str) -> bool:
+    parts = rel.split("/")
+    for i in range(1, len(parts) + 1):
+        key = "/".join(parts[:i])
+        for k in (key, key + "/"):
+            entry = files.get(k)
+            if isinstance(entry, dict) and entry.get("pending"):
+                return True
+    return False
+
+
+def _matches(files: dict, rel: str, path: Path) -> bool:
+    if _pending(files, rel):
+        return True
+    entry = files.get(rel)
+    if not isinstance(entry, dict):
+        return False
+    try:
+        return entry.get("size") == path.stat().st_size and entry.get("sha256") == _digest(path)
+    except (OSError, ValueError):
+        return False
+
+
+def foreign(folder, only: Iterable[str] | None = None) -> list[str]:
+    """Files under ``folder`` that simpro-sim did not write, or that changed since.
+
+    A file is ours when the marker of its folder lists it (``files``: size and
+    SHA-256 at the time we wrote it) and it still matches; a sub-folder with a
+    marker of its own is checked against its own list. Our hidden temporaries
+    are ours. A folder whose marker holds no list has every file foreign.
+
+    Parameters
+    ----------
+    folder : path
+    only : iterable of str, optional
+        Check only these relative paths (files or folders) instead of everything.
+
+    Returns
+    -------
+    list of str
+        Relative paths, ``name (changed since simpro-sim wrote it)`` for a
+        listed file whose content differs, sorted.
+    """
+    folder = Path(folder)
+    files = _manifest(_marker(folder)) or {}
+    if only is None:
+        items = list(_walk(folder))
+    else:
+        items = []
+        for rel in only:
+            path = folder / rel
+            if not os.path.lexists(path):
+                continue
+            if path.is_dir() and not path.is_symlink():
+                if os.path.lexists(path / RESULT_MARKER):
+                    items.append((rel, path, "result"))
+                else:
+                    items.extend(_walk(path, rel.rstrip("/") + "/"))
+            elif path.is_file() and not path.is_symlink():
+                items.append((rel, path, "file"))
+            else:
+                items.append((rel, path, "other"))
+    out = []
+    for rel, path, what in items:
+        if what == "result":
+            out += [f"{rel}/{x}" for x in foreign(path)]
+        elif what == "other" or not _matches(files, rel, path):
+            listed = what == "file" and rel in files
+            out.append(f"{rel} (changed since simpro-sim wrote it)" if listed else rel)
+    return sorted(out)
+
+
+def _write_marker_doc(folder: Path, doc: dict) -> None:
+    """The marker written whole (temporary name, then renamed): a reader never
+    sees half a list."""
+    text = json.dumps(doc, sort_keys=True)
+    fd, tmp = tempfile.mkstemp(prefix=f"{RESULT_MARKER}.tmp-", dir=folder)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+            fh.write(text + "\n")
+        os.chmod(tmp, 0o666 & ~_umask())
+        os.replace(tmp, folder / RESULT_MARKER)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
 
 
 def write_marker(folder, kind: str) -> None:
-    """Mark ``folder`` as a simpro-sim result of ``kind`` (see :func:`check_out`)."""
-    text = json.dumps({"kind": kind, "simpro-sim": __version__})
-    (Path(folder) / RESULT_MARKER).write_text(text + "\n", encoding="utf-8")
+    """Mark ``folder`` as a simpro-sim result of ``kind`` listing every file in it
+    now (size and SHA-256; sub-folders with a marker of their own apart): what
+    :func:`install_folder` calls on the finished temporary folder."""
+    folder = Path(folder)
+    files = {rel: _entry(path) for rel, path, what in _walk(folder) if what == "file"}
+    _write_marker_doc(folder, {"kind": kind, "simpro-sim": __version__, "files": files})
+
+
+def record(folder, rels: Iterable[str], kind: str, pending: bool = False) -> None:
+    """Add ``rels`` (files or folders, relative to ``folder``) to ``folder``'s list of
+    files written by simpro-sim, for a folder filled in place (``batch``,
+    ``compare``, a video written into a result folder).
+
+    With ``pending``, each is listed as about to be written (any content is
+    ours until the next call lists what was written): a process killed between
+    the write and the list leaves the file ours, not a stranger's.
+    """
+    folder = Path(folder)
+    doc = _marker(folder)
+    files = dict(_manifest(doc) or {}) if doc and doc.get("kind") == kind else {}
+    for rel in rels:
+        rel = rel.rstrip("/")
+        for key in [k for k in files if k == rel or k.startswith(rel + "/")]:
+            del files[key]
+        path = folder / rel
+        if pending:
+            files[rel] = {"pending": True}
+            continue
+        if path.is_dir() and not path.is_symlink():
+            for sub, p, what in _walk(path, rel + "/"):
+                if what == "file":
+                    files[sub] = _entry(p)
+        elif path.is_file() and not path.is_symlink():
+            files[rel] = _entry(path)
+    _write_marker_doc(folder, {"kind": kind, "simpro-sim": __version__, "files": files})
+
+
+def _lost(folder: Path, found: list[str]) -> str:
+    shown = ", ".join(found[:5]) + (f" and {len(found) - 5} more" if len(found) > 5 else "")
+    return _short(shown, 400)
 
 
 def _replaceable(folder: Path, kind: str) -> bool:
@@ -94,15 +294,34 @@ def _replaceable(folder: Path, kind: str) -> bool:
         empty = not any(folder.iterdir())
     except OSError:
         return False
-    return empty or result_kind(folder) == kind
+    return empty or (result_kind(folder) == kind and not foreign(folder))
 
 
-def _short(path: Path, limit: int = 200) -> str:
+def _short(path, limit: int = 200) -> str:
     text = str(path)
     return text if len(text) <= limit else f"{text[:90]}...{text[-90:]}"
 
 
-def check_out(out, kind: str = "run", inputs: Iterable = ()) -> Path:
+#: Kinds filled in place (files added to an existing folder, never replaced whole):
+#: only the paths they write must be theirs (``check_out(writes=...)``).
+IN_PLACE = ("batch", "compare")
+
+
+def _real_out(out: Path) -> Path:
+    """``out`` with a symbolic link as its last part followed (the link is kept and
+    the folder it names written); a dangling link is refused."""
+    if out.is_symlink():
+        if not out.exists():
+            raise UserInputError(
+                f"refused --out at {_short(out)}: a symbolic link to {_short(os.readlink(out))}, "
+                "which does not exist; nothing was touched; allowed: a new folder, or a link "
+                "to an existing folder"
+            )
+        return out.resolve()
+    return out
+
+
+def check_out(out, kind: str = "run", inputs: Iterable = (), writes: Iterable[str] = ()) -> Path:
     """Refuse an output folder that is not simpro-sim's to write; return it absolute.
 
     Parameters
@@ -110,19 +329,23 @@ def check_out(out, kind: str = "run", inputs: Iterable = ()) -> Path:
     out : path
         The ``--out`` folder.
     kind : str
-        What will be written there (``run``, ``batch``, ``compare``): an
-        existing folder must be empty or carry the marker of this kind.
+        What will be written there (``run``, ``batch``, ``compare``, ...): an
+        existing folder must be empty or carry the marker of this kind with
+        every file in it ours (:func:`foreign`); for a kind filled in place
+        (:data:`IN_PLACE`) only the paths in ``writes`` must be ours.
     inputs : iterable of paths
         Files the command reads (the scenario): ``out`` must not hold them.
+    writes : iterable of str
+        For :data:`IN_PLACE` kinds: the relative paths the command writes.
 
     Raises
     ------
     UserInputError
-        ``out`` is a file, the working folder or one above it, holds an input,
-        or is a non-empty folder without the marker of ``kind`` (nothing is
-        touched).
+        ``out`` is a file, a dangling link, the working folder or one above
+        it, holds an input, or is a non-empty folder not ours to write
+        (nothing is touched).
     """
-    out = Path(out).expanduser().absolute()
+    out = _real_out(Path(out).expanduser().absolute())
     real = out.resolve()
     cwd = Path.cwd().resolve()
     if real == cwd or real in cwd.parents:
@@ -139,15 +362,70 @@ def check_out(out, kind: str = "run", inputs: Iterable = ()) -> Path:
             )
     if out.exists() and not out.is_dir():
         raise UserInputError(f"not a folder at {_short(out)}: allowed: a new or existing folder")
-    if out.is_dir() and not _replaceable(out, kind):
-        found = result_kind(out)
+    if not out.is_dir():
+        return out
+    try:
+        empty = not any(out.iterdir())
+    except OSError as exc:
+        raise OSError(exc.errno, exc.strerror, str(out)) from exc
+    if empty:
+        return out
+    found = result_kind(out)
+    if found != kind:
         what = f"a simpro-sim {found} result" if found else "not a simpro-sim result"
         raise UserInputError(
             f"refused --out at {_short(out)}: the folder holds files and is {what} "
             f"(no {RESULT_MARKER} of kind {kind}); nothing was touched; allowed: a new or "
             f"empty folder, or a simpro-sim {kind} result to replace"
         )
+    lost = foreign(out, only=list(writes)) if kind in IN_PLACE else foreign(out)
+    if lost:
+        verb = "overwrite" if kind in IN_PLACE else "delete"
+        raise UserInputError(
+            f"refused --out at {_short(out)}: simpro-sim did not write {_lost(out, lost)} "
+            f"(not in its {RESULT_MARKER} list of files); writing the {kind} result would "
+            f"{verb} them; nothing was touched; allowed: move them out of the folder, or "
+            "choose another --out"
+        )
     return out
+
+
+def _check_parents_free(out: Path) -> None:
+    """Refuse ``out`` inside a folder another process is writing (a ``run --out
+    OUT/x`` while a batch writes ``OUT``): two writers never share a folder."""
+    for parent in out.parents:
+        lock = parent.parent / f".{parent.name}.lock"
+        if str(parent) in _HELD or not os.path.lexists(lock):
+            continue
+        pid = _lock_holder(lock)
+        if pid is not None:
+            raise UserInputError(
+                f"busy at {_short(out)}: another simpro-sim process (pid {pid}) is writing "
+                f"{_short(parent)}, which holds it; allowed: wait for it to end or choose "
+                "another --out"
+            )
+
+
+def _lock_holder(lock: Path) -> str | None:
+    """The pid in a lock file whose ``flock`` another process holds, else None."""
+    try:
+        import fcntl
+    except ImportError:  # pragma: no cover - not POSIX
+        return None
+    try:
+        fd = os.open(lock, os.O_RDONLY | os.O_NONBLOCK)
+    except OSError:
+        return None
+    try:
+        if not stat.S_ISREG(os.fstat(fd).st_mode):
+            return None
+        try:
+            fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+        except BlockingIOError:
+            return os.read(fd, 32).decode("ascii", "replace").strip() or "?"
+        return None
+    finally:
+        os.close(fd)
 
 
 _HELD: dict[str, list] = {}
@@ -229,12 +507,18 @@ def locked(out) -> Iterator[Path]:
 
 
 @contextlib.contextmanager
-def claim(out, kind: str = "run", inputs: Iterable = ()) -> Iterator[Path]:
+def claim(
+    out, kind: str = "run", inputs: Iterable = (), writes: Iterable[str] = ()
+) -> Iterator[Path]:
     """:func:`check_out` then :func:`locked`, re-checked under the lock: what a
-    command wraps around its whole job so that a refusal comes before any work."""
-    out = check_out(out, kind, inputs)
+    command wraps around its whole job so that a refusal comes before any work.
+    A folder inside one another process is writing is refused too (a ``run
+    --out OUT/x`` while a batch writes ``OUT``)."""
+    writes = list(writes)
+    out = check_out(out, kind, inputs, writes)
+    _check_parents_free(out)
     with locked(out):
-        yield check_out(out, kind, inputs)
+        yield check_out(out, kind, inputs, writes)
 
 
 def install_folder(out_dir, fill, kind: str = "run") -> Path:
@@ -261,7 +545,7 @@ def install_folder(out_dir, fill, kind: str = "run") -> Path:
     OSError
         A write failed (full or read-only disk); ``filename`` is ``out_dir``.
     """
-    out_dir = Path(out_dir).expanduser().absolute()
+    out_dir = _real_out(Path(out_dir).expanduser().absolute())
     with locked(out_dir):
         check_out(out_dir, kind)
         tmp: Path | None = None
@@ -292,20 +576,134 @@ def install_folder(out_dir, fill, kind: str = "run") -> Path:
     return out_dir
 
 
+def install_figures(out_dir, draw, kind: str) -> list[Path]:
+    """:func:`install_folder` for a command whose ``draw(tmp)`` writes figures and
+    returns their paths; returns them under ``out_dir``."""
+    drawn: list = []
+
+    def fill(tmp: Path) -> None:
+        drawn.extend(Path(f).name for f in draw(tmp) or ())
+
+    out_dir = install_folder(out_dir, fill, kind=kind)
+    return [out_dir / name for name in drawn]
+
+
 def is_complete(folder) -> bool:
     """Whether ``folder`` holds a complete result (the one check ``--resume`` uses).
 
-    Complete: the :data:`RESULT_MARKER` of a run, a non-empty
-    ``timeseries.csv``, a ``metrics.json`` that reads with status ``ok`` or
-    ``diverged``, and no ``PARTIAL`` file. Anything else is not.
+    Complete: the :data:`RESULT_MARKER` of a run listing ``metrics.json`` and a
+    non-empty ``timeseries.csv``, every file it lists present and every file in
+    the folder as simpro-sim wrote it (:func:`foreign` finds none), a
+    ``metrics.json`` that reads with status ``ok`` or ``diverged`` and the
+    blocks a summary row is built from (``scenario`` with its hash, ``axes``),
+    and no ``PARTIAL`` file. Anything
+    else is not.
     """
     folder = Path(folder)
-    if (folder / PARTIAL_MARKER).exists() or result_kind(folder) != "run":
+    if os.path.lexists(folder / PARTIAL_MARKER) or result_kind(folder) != "run":
         return False
+    files = _manifest(_marker(folder)) or {}
+    listed = files.get("timeseries.csv")
+    if not isinstance(listed, dict) or not listed.get("size") or "metrics.json" not in files:
+        return False
+    if foreign(folder) or not all(os.path.isfile(folder / rel) for rel in files):
+        return False  # a stranger's file, or one of ours gone
     try:
-        if (folder / "timeseries.csv").stat().st_size == 0:
-            return False
-        doc = json.loads((folder / "metrics.json").read_text(encoding="utf-8"))
+        doc = json.loads(read_text(folder / "metrics.json", MAX_METRICS_BYTES, "metrics"))
     except (OSError, ValueError):
         return False
-    return isinstance(doc, dict) and doc.get("status") in ("ok", "diverged")
+    return (
+        isinstance(doc, dict)
+        and doc.get("status") in ("ok", "diverged")
+        and isinstance(doc.get("scenario"), dict)
+        and isinstance(doc["scenario"].get("hash"), str)
+        and isinstance(doc.get("axes"), dict)
+    )
+
+
+def check_file(path, overwrite: bool = False, option: str = "--out") -> Path:
+    """Refuse a file path that is not simpro-sim's to write; return it absolute.
+
+    A single output file (a calibrated preset, a video, a telemetry CSV) is
+    written only if it does not exist, or the marker of its folder lists it as
+    written by simpro-sim and it is unchanged (:func:`foreign`), or with
+    ``overwrite`` (the user's explicit ``--overwrite``). A folder, a device, a
+    dangling link, or a parent that is a file are refused whatever
+    ``overwrite`` says. A link to a file is followed (the link is kept).
+
+    Raises
+    ------
+    UserInputError
+        Any of the above (nothing is touched).
+    """
+    path = Path(path).expanduser().absolute()
+    if path.is_symlink():
+        if not path.exists():
+            raise UserInputError(
+                f"refused {option} at {_short(path)}: a symbolic link to a file that does not "
+                "exist; nothing was touched; allowed: a new file path"
+            )
+        path = path.resolve()
+    for parent in path.parents:
+        if parent.exists():
+            if not parent.is_dir():
+                raise UserInputError(
+                    f"cannot write at {option}: {_short(path)}: a parent is a file, not a "
+                    "folder; allowed: a path in a folder"
+                )
+            if not os.access(parent, os.W_OK | os.X_OK):
+                raise UserInputError(
+                    f"cannot write at {option}: {_short(path)}: permission denied in "
+                    f"{_short(parent)}; allowed: a writable path"
+                )
+            break
+    if not os.path.lexists(path):
+        return path
+    if path.is_dir():
+        raise UserInputError(
+            f"refused {option} at {_short(path)}: it is a folder; allowed: a file path"
+        )
+    if not path.is_file():
+        raise UserInputError(
+            f"refused {option} at {_short(path)}: not a regular file; allowed: a new file path"
+        )
+    if overwrite or not foreign(path.parent, only=[path.name]):
+        return path
+    raise UserInputError(
+        f"refused {option} at {_short(path)}: the file exists and simpro-sim did not write "
+        f"it (or it changed since); nothing was touched; allowed: a new file, or "
+        f"{option} with --overwrite to replace it"
+    )
+
+
+def record_file(path, created: bool = False) -> None:
+    """List a file just written in its folder's marker (the marker's kind kept),
+    so that the next run may replace it; a folder without a marker gets one
+    (kind ``files``) only if simpro-sim ``created`` it: a user's folder is never
+    given a marker."""
+    path = Path(path).absolute()
+    kind = result_kind(path.parent)
+    if kind is None and not created:
+        return
+    with locked(path.parent):
+        record(path.parent, [path.name], kind or "files")
+
+
+def write_file(path, data: str | bytes, overwrite: bool = False, option: str = "--out") -> Path:
+    """Write one output file by the rule of :func:`check_file`: under a temporary
+    name in its folder, renamed into place, then listed (:func:`record_file`)."""
+    path = check_file(path, overwrite, option)
+    created = not path.parent.exists()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.tmp-", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data.encode("utf-8") if isinstance(data, str) else data)
+        os.chmod(tmp, 0o666 & ~_umask())
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
+    record_file(path, created)
+    return path

@@ -13,6 +13,7 @@ import sys
 from pathlib import Path
 
 from simpro_mj.core.errors import UserInputError
+from simpro_mj.report.folders import check_file, record_file
 from simpro_mj.report.recording import find_runs
 from simpro_mj.report.render import render_video, require_video
 from simpro_mj.report.scene import CAMERAS
@@ -49,6 +50,10 @@ def add_video_options(parser, out: bool) -> None:
         parser.add_argument(
             "--out", default=None, help="the MP4 to write (default RESULT_DIR/replay.mp4)"
         )
+        parser.add_argument(
+            "--overwrite", action="store_true",
+            help="replace --out even if simpro-sim did not write it (default: refuse)",
+        )  # fmt: skip
     parser.add_argument("--no-strip", action="store_true", help="no plot strip under the 3D view")
     parser.add_argument("--no-ghost", action="store_true", help="no set-point ghost")
     parser.add_argument(
@@ -99,8 +104,9 @@ def _size(value) -> tuple[int, int]:
     return w, h
 
 
-def _out_path(value, default: Path) -> Path:
-    """The video path, checked writable before any rendering."""
+def _out_path(value, default: Path, overwrite: bool = False) -> Path:
+    """The video path, checked writable and ours to write (:func:`check_file`)
+    before any rendering."""
     out = Path(value).expanduser() if value else default
     if out.suffix.lower() != ".mp4":
         raise UserInputError(
@@ -127,7 +133,7 @@ def _out_path(value, default: Path) -> Path:
         raise UserInputError(
             f"cannot write at --out: {out}: permission denied; allowed: a writable .mp4 path"
         )
-    return out
+    return check_file(out, overwrite)
 
 
 def video_options(args, default_out: Path) -> dict:
@@ -149,7 +155,11 @@ def video_options(args, default_out: Path) -> dict:
             raise UserInputError(
                 f"invalid value at --jobs: {args.jobs!r}; allowed: an integer 1..256"
             )
-    out = _out_path(getattr(args, "out_video", None) or getattr(args, "out", None), default_out)
+    out = _out_path(
+        getattr(args, "out_video", None) or getattr(args, "out", None),
+        default_out,
+        bool(getattr(args, "overwrite", False)),
+    )
     require_video()  # before anything is rendered: the one-line install hint
     return {
         "out": out,
@@ -169,9 +179,9 @@ def video_options(args, default_out: Path) -> dict:
 def video_after_run(folder, quiet: bool) -> dict:
     """Render a finished run or compare folder to ``folder/replay.mp4``."""
     folder = Path(folder)
-    info = render_video(
-        find_runs(folder), folder / "replay.mp4", progress=not quiet and sys.stderr.isatty()
-    )
+    out = check_file(folder / "replay.mp4")
+    info = render_video(find_runs(folder), out, progress=not quiet and sys.stderr.isatty())
+    record_file(out)
     if not quiet:
         print(said(info))
     return info
