@@ -100,7 +100,8 @@ from simpro_mj.batch.tables import monte_carlo_table, stability_table
 from simpro_mj.batch.worker import install, run_variant
 from simpro_mj.config.scenario import scenario_hash
 from simpro_mj.core.errors import UserInputError
-from simpro_mj.report.folders import check_out, claim, is_complete, record
+from simpro_mj.core.safe_files import read_text
+from simpro_mj.report.folders import MAX_METRICS_BYTES, check_out, claim, is_complete, record
 from simpro_mj.sim import executors as _executors
 from simpro_mj.sim.executors import MAX_JOBS, NoWorkers, Progress, dask_module, run_tasks
 
@@ -246,7 +247,7 @@ def _complete(folder: Path, scenario: Mapping) -> dict | None:
     if not is_complete(folder):
         return None
     try:
-        doc = json.loads((folder / "metrics.json").read_text(encoding="utf-8"))
+        doc = json.loads(read_text(folder / "metrics.json", MAX_METRICS_BYTES, "metrics"))
     except (OSError, ValueError):
         return None
     if (doc.get("scenario") or {}).get("hash") != scenario_hash(scenario):

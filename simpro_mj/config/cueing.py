@@ -237,6 +237,11 @@ def resolve_paths(scenario: dict, base: Path | None) -> None:
         if p.is_file():
             cue["telemetry"] = str(p.resolve())
             return
+        if p.exists() and not p.is_dir():  # a FIFO, a device: refused, never opened
+            raise UserInputError(
+                f"invalid value at setpoint.cueing.telemetry: {str(p)!r} is not a regular "
+                "file (a FIFO, a device or a socket); allowed: a CSV file"
+            )
     shipped = sorted(q.name for q in TELEMETRY_DIR.glob("*.csv"))
     raise UserInputError(
         f"invalid value at setpoint.cueing.telemetry: {str(name)!r} not found beside the "

@@ -173,6 +173,10 @@ def _find(name_or_path: str) -> Path:
     path = Path(name_or_path).expanduser()
     if path.is_file():
         return path
+    if path.exists() and not path.is_dir():  # a FIFO, a device, a socket: never opened
+        from simpro_mj.core.safe_files import read_bytes
+
+        read_bytes(path, 0, "scenario")  # refuses it in one line, without blocking
     text = str(name_or_path)
     stem = re.sub(r"\.ya?ml$", "", text)
     if "/" not in text and os.sep not in text:

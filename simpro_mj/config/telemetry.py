@@ -50,6 +50,7 @@ from __future__ import annotations
 
 import csv
 import math
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -135,98 +136,182 @@ def read_telemetry(path, *, label: str | None = None, columns: dict | None = Non
     ``columns``: a mapping (:func:`check_mapping`) from the required columns to
     the file's, with their scale and offset to SI.
 
+    The file is opened without blocking and only if it is a regular file of at
+    most :data:`MAX_BYTES` (:func:`simpro_mj.core.safe_files.open_regular`: a FIFO
+    or a device is refused at once), then streamed in blocks of
+    :data:`BLOCK_BYTES`, each parsed by NumPy and checked before the next is
+    read: a bad value is refused where it is, and the file is never held whole
+    as text. A line longer than :data:`MAX_LINE_CHARS` is refused.
+
     Raises
     ------
     TelemetryError
-        Missing or unreadable file, missing column, a non-number or non-finite
-        value, unsorted or repeated times, a gap over :data:`MAX_GAP_S`, fewer
-        than 2 rows.
+        Missing or unreadable file, missing column, a non-number, non-finite
+        or implausible value (:data:`PLAUSIBLE`), unsorted or repeated times,
+        a gap over :data:`MAX_GAP_S`, fewer than 2 rows.
     """
+    from simpro_mj.core.safe_files import open_regular
+
     path = Path(path)
     name = label or str(path)
     try:
-        size = path.stat().st_size
-    except OSError as exc:
+        fh = open_regular(path, MAX_BYTES, "telemetry", binary=True)
+    except UserInputError as exc:
         raise TelemetryError(
-            f"telemetry file {name}: cannot read ({exc.strerror or exc}); "
-            "allowed: a CSV file in the format of docs (simpro_mj/config/telemetry.py)"
+            f"telemetry file {name}: {str(exc).split(': ', 1)[-1]}; see "
+            "simpro_mj/config/telemetry.py for the format"
         ) from None
-    if not path.is_file():
-        raise TelemetryError(f"telemetry file {name}: not a file; allowed: a CSV file")
-    if size > MAX_BYTES:
-        raise TelemetryError(f"telemetry file {name}: {size} bytes; allowed: <= {MAX_BYTES}")
-    try:
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise TelemetryError(f"telemetry file {name}: cannot read as UTF-8 text ({exc})") from None
-    rows = []
-    lines = []
-    for lineno, row in _rows(text):
-        rows.append(row)
-        lines.append(lineno)
-    if not rows:
+    with fh:
+        header, lineno = None, 0
+        while header is None:  # comments, then the header line
+            raw = fh.readline(MAX_LINE_CHARS + 2)
+            if not raw:
+                raise TelemetryError(
+                    f"telemetry file {name}: empty; allowed: a header {','.join(TELEMETRY_COLUMNS)}"
+                )
+            lineno += 1
+            line = _text(raw, lineno, name)
+            if line and not line.startswith("#"):
+                header = [h.strip() for h in next(csv.reader([line]))]
+        mapping = check_mapping(columns or {})
+        names = [mapping.get(c, {}).get("column", c) for c in TELEMETRY_COLUMNS]
+        for col, given in zip(TELEMETRY_COLUMNS, names, strict=True):
+            if given not in header:
+                via = f" (mapped to {col} by setpoint.cueing.columns)" if col in mapping else ""
+                raise TelemetryError(
+                    f"telemetry file {name}: missing column {given}{via} (header, row "
+                    f"{lineno}); the header has: {', '.join(header)}; required: "
+                    f"{', '.join(TELEMETRY_COLUMNS)}"
+                    + ("" if via else " or a mapping in setpoint.cueing.columns")
+                )
+        pos = [header.index(c) for c in names]
+        blocks, last, carry = [], None, b""
+        while True:
+            chunk = fh.read(BLOCK_BYTES)
+            body = carry + chunk
+            cut = body.rfind(b"\n") + 1 if chunk else len(body)
+            body, carry = body[:cut], body[cut:]
+            if len(carry) > MAX_LINE_CHARS:
+                raise TelemetryError(
+                    f"telemetry file {name}: row {lineno + 1}: a line of more than "
+                    f"{MAX_LINE_CHARS:,} characters; allowed: at most {MAX_LINE_CHARS:,}"
+                )
+            if body:
+                data, lines = _parse(body, lineno, header, pos, name)
+                lineno += body.count(b"\n") + (not body.endswith(b"\n"))
+                for j, c in enumerate(TELEMETRY_COLUMNS):  # the file's units to SI
+                    if c in mapping:
+                        data[:, j] = mapping[c]["scale"] * data[:, j] + mapping[c]["offset"]
+                if len(data):
+                    _check(data, lines, last, name)
+                    blocks.append(data)
+                    last = (data[-1, 0], lines[-1])
+            if not chunk:
+                break
+    data = np.concatenate(blocks) if blocks else np.empty((0, len(TELEMETRY_COLUMNS)))
+    if len(data) < 2:
+        raise TelemetryError(f"telemetry file {name}: {len(data)} data rows; allowed: >= 2")
+    t = data[:, 0]
+    return Telemetry(t=t - t[0], f=data[:, 1:4].copy(), w=data[:, 4:7].copy(), source=name)
+
+
+#: Bytes parsed at once while streaming a telemetry file.
+BLOCK_BYTES = 4_000_000
+#: Longest line of a telemetry file (characters): 7 numbers need about 200.
+MAX_LINE_CHARS = 10_000
+#: Largest magnitude of each quantity (why): beyond it the file is not a vehicle's motion.
+PLAUSIBLE = {
+    "time_s": (1e9, "about 30 years of log"),
+    "fx_mps2": (100.0, "about 10 g: more than any road vehicle short of a crash"),
+    "fy_mps2": (100.0, "about 10 g: more than any road vehicle short of a crash"),
+    "fz_mps2": (100.0, "about 10 g: more than any road vehicle short of a crash"),
+    "wx_rad_s": (20.0, "about 1150 deg/s: more than a rolling-over car"),
+    "wy_rad_s": (20.0, "about 1150 deg/s: more than a rolling-over car"),
+    "wz_rad_s": (20.0, "about 1150 deg/s: more than a spinning car"),
+}
+
+
+def _text(raw: bytes, lineno: int, name: str) -> str:
+    if len(raw) > MAX_LINE_CHARS + 1:
         raise TelemetryError(
-            f"telemetry file {name}: empty; allowed: a header {','.join(TELEMETRY_COLUMNS)}"
+            f"telemetry file {name}: row {lineno}: a line of more than {MAX_LINE_CHARS:,} "
+            f"characters; allowed: at most {MAX_LINE_CHARS:,}"
         )
-    header = [h.strip() for h in rows[0]]
-    mapping = check_mapping(columns or {})
-    names = [mapping.get(c, {}).get("column", c) for c in TELEMETRY_COLUMNS]
-    for col, given in zip(TELEMETRY_COLUMNS, names, strict=True):
-        if given not in header:
-            via = f" (mapped to {col} by setpoint.cueing.columns)" if col in mapping else ""
-            raise TelemetryError(
-                f"telemetry file {name}: missing column {given}{via} (header, row {lines[0]}); "
-                f"the header has: {', '.join(header)}; required: {', '.join(TELEMETRY_COLUMNS)}"
-                + ("" if via else " or a mapping in setpoint.cueing.columns")
-            )
-    pos = [header.index(c) for c in names]
-    body = rows[1:]
-    if len(body) < 2:
-        raise TelemetryError(f"telemetry file {name}: {len(body)} data rows; allowed: >= 2")
-    data = np.empty((len(body), len(pos)))
-    for i, row in enumerate(body):
-        for j, (c, k) in enumerate(zip(TELEMETRY_COLUMNS, pos, strict=True)):
-            cell = row[k].strip() if k < len(row) else ""
+    try:
+        return raw.decode("utf-8").strip()
+    except UnicodeDecodeError:
+        raise TelemetryError(
+            f"telemetry file {name}: row {lineno}: not UTF-8 text; allowed: a CSV file"
+        ) from None
+
+
+def _parse(body: bytes, lineno: int, header, pos, name) -> tuple[np.ndarray, np.ndarray]:
+    """The required columns of the whole lines in ``body`` (the first is line
+    ``lineno + 1``) and each row's line number. Plain numeric rows are parsed by
+    NumPy in one call; anything else (comments, blank lines, quotes, a bad
+    cell) line by line, to name the cell."""
+    width = len(header)
+    n = body.count(b"\n") + (not body.endswith(b"\n"))
+    plain = not any(x in body for x in (b"#", b'"', b"\r", b"\n\n")) and not body.startswith(b"\n")
+    if plain and body.count(b",") == n * (width - 1):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
             try:
-                v = float(cell)
+                flat = np.fromstring(body.replace(b"\n", b",").decode("ascii"), sep=",")
+            except (ValueError, UnicodeDecodeError):
+                flat = None
+        if flat is not None and flat.size == n * width:
+            return flat.reshape(n, width)[:, pos], np.arange(lineno + 1, lineno + n + 1)
+    rows, lines = [], []
+    for k, raw in enumerate(body.split(b"\n")):
+        line = _text(raw, lineno + 1 + k, name)
+        if not line or line.startswith("#"):
+            continue
+        row = next(csv.reader([line]))
+        vals = []
+        for c, j in zip(TELEMETRY_COLUMNS, pos, strict=True):
+            cell = row[j].strip() if j < len(row) else ""
+            try:
+                vals.append(float(cell))
             except ValueError:
                 raise TelemetryError(
-                    f"telemetry file {name}: column {c} row {lines[i + 1]}: {cell!r} is not a "
-                    "number; allowed: a finite number"
+                    f"telemetry file {name}: column {c} row {lineno + 1 + k}: {cell[:40]!r} "
+                    "is not a number; allowed: a finite number"
                 ) from None
-            if not math.isfinite(v):
-                raise TelemetryError(
-                    f"telemetry file {name}: column {c} row {lines[i + 1]}: {cell}; "
-                    "allowed: a finite number"
-                )
-            data[i, j] = v
+        rows.append(vals)
+        lines.append(lineno + 1 + k)
+    return np.array(rows, dtype=float).reshape(-1, len(pos)), np.array(lines, dtype=int)
+
+
+def _check(data: np.ndarray, lines, last, name: str) -> None:
+    """Values finite and plausible, times increasing without gaps (``last``: the
+    previous block's last time and line)."""
     for j, c in enumerate(TELEMETRY_COLUMNS):
-        if c in mapping:
-            data[:, j] = mapping[c]["scale"] * data[:, j] + mapping[c]["offset"]
-    t = data[:, 0]
+        limit, why = PLAUSIBLE[c]
+        col = data[:, j]
+        bad = ~(np.abs(col) <= limit)  # NaN too
+        if bad.any():
+            i = int(np.argmax(bad))
+            bound = f", |value| <= {limit:g} ({why})" if math.isfinite(col[i]) else ""
+            raise TelemetryError(
+                f"telemetry file {name}: column {c} row {lines[i]}: {col[i]:g}; "
+                f"allowed: a finite number{bound}"
+            )
+    t = data[:, 0] if last is None else np.concatenate([[last[0]], data[:, 0]])
+    rows = list(lines) if last is None else [last[1], *lines]
     dt = np.diff(t)
     if np.any(dt <= 0):
         i = int(np.argmax(dt <= 0)) + 1
         raise TelemetryError(
-            f"telemetry file {name}: column time_s row {lines[i + 1]}: {t[i]:g} s after "
+            f"telemetry file {name}: column time_s row {rows[i]}: {t[i]:g} s after "
             f"{t[i - 1]:g} s; allowed: strictly increasing times"
         )
     if np.any(dt > MAX_GAP_S):
         i = int(np.argmax(dt > MAX_GAP_S)) + 1
         raise TelemetryError(
-            f"telemetry file {name}: column time_s row {lines[i + 1]}: gap of {dt[i - 1]:g} s "
+            f"telemetry file {name}: column time_s row {rows[i]}: gap of {dt[i - 1]:g} s "
             f"after {t[i - 1]:g} s; allowed: <= {MAX_GAP_S} s between samples"
         )
-    return Telemetry(t=t - t[0], f=data[:, 1:4].copy(), w=data[:, 4:7].copy(), source=name)
-
-
-def _rows(text: str):
-    """(line number, cells) of the non-comment, non-blank lines."""
-    for lineno, line in enumerate(text.splitlines(), start=1):
-        s = line.strip()
-        if not s or s.startswith("#"):
-            continue
-        yield lineno, next(csv.reader([line]))
 
 
 def write_telemetry(path, tel: Telemetry, comment: str = "") -> Path:

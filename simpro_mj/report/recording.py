@@ -16,7 +16,6 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-import yaml
 
 from controllers.kinematics import platform_position
 from simpro_mj.core.errors import UserInputError
@@ -31,6 +30,7 @@ __all__ = [
     "frame_times",
     "ghost_poses",
     "load_recording",
+    "read_npz",
     "nearest_rows",
     "recording_of",
 ]
@@ -89,23 +89,116 @@ def find_runs(folder) -> list[Path]:
     return subs
 
 
+#: Largest ``qpos.npz`` read, and largest array in it once inflated (bytes).
+MAX_RECORDING_BYTES = 2_000_000_000
+#: What ``qpos.npz`` holds: name -> (dtype kinds allowed, number of dimensions).
+RECORDING_ARRAYS = {"time_s": ("f", 1), "qpos": ("f", 2), "qpos_names": ("U", 1)}
+#: Columns of ``timeseries.csv`` a replay draws (the set-point ghost and the plot strip).
+REPLAY_COLUMNS = (
+    "roll_ref_rad", "pitch_ref_rad", "heave_ref_m", "roll_rad", "pitch_rad", "heave_m",
+    "u1_v", "u2_v", "u3_v",
+)  # fmt: skip
+
+
+def read_npz(path, spec: dict = RECORDING_ARRAYS, max_bytes: int = MAX_RECORDING_BYTES) -> dict:
+    """The arrays of an ``.npz`` file, each header checked before anything is allocated.
+
+    The file must be a regular file of at most ``max_bytes``
+    (:mod:`simpro_mj.core.safe_files`); each array named in ``spec`` must be
+    present, declare (in the zip directory) an inflated size of at most
+    ``max_bytes`` (a zip bomb is refused unread), carry an ``.npy`` header of an
+    allowed dtype kind and number of dimensions, and a shape whose bytes are
+    exactly the declared size (a header claiming 10^12 rows in a small member
+    is refused before NumPy allocates them). No pickles.
+
+    Raises
+    ------
+    UserInputError
+        One line naming the file and the array.
+    """
+    import zipfile
+
+    from simpro_mj.core.safe_files import open_regular
+
+    path = Path(path)
+    allowed = "allowed: a qpos.npz written by simpro-sim run"
+    out = {}
+    with open_regular(path, max_bytes, "recording", binary=True) as fh:
+        try:
+            with zipfile.ZipFile(fh) as zf:
+                for name, (kinds, ndim) in spec.items():
+                    try:
+                        info = zf.getinfo(f"{name}.npy")
+                    except KeyError:
+                        raise UserInputError(
+                            f"unreadable recording at {path}: no array {name!r}; {allowed}"
+                        ) from None
+                    if info.file_size > max_bytes:
+                        raise UserInputError(
+                            f"unreadable recording at {path}: array {name} inflates to "
+                            f"{info.file_size:,} bytes; allowed: at most {max_bytes:,}"
+                        )
+                    with zf.open(info) as member:
+                        version = np.lib.format.read_magic(member)
+                        if version == (1, 0):
+                            shape, fortran, dtype = np.lib.format.read_array_header_1_0(member)
+                        else:
+                            shape, fortran, dtype = np.lib.format.read_array_header_2_0(member)
+                        header = member.tell()
+                        need = int(np.prod(shape, dtype=object)) * dtype.itemsize
+                        if dtype.kind not in kinds or len(shape) != ndim:
+                            raise UserInputError(
+                                f"unreadable recording at {path}: array {name} of dtype "
+                                f"{dtype.str} and shape {shape}; {allowed}"
+                            )
+                        if header + need != info.file_size:
+                            raise UserInputError(
+                                f"unreadable recording at {path}: array {name} claims shape "
+                                f"{shape} ({need:,} bytes) in {info.file_size:,} bytes; {allowed}"
+                            )
+                    with zf.open(info) as member:  # read_array reads the header again
+                        out[name] = np.lib.format.read_array(member, allow_pickle=False)
+        except (zipfile.BadZipFile, ValueError, EOFError, OSError, NotImplementedError) as exc:
+            if isinstance(exc, UserInputError):
+                raise
+            raise UserInputError(
+                f"unreadable recording at {path}: {one_line(exc)}; {allowed}"
+            ) from None
+    return out
+
+
 def load_recording(folder) -> Recording:
-    """Read ``qpos.npz``, ``timeseries.csv`` and ``scenario.yaml`` of a run folder."""
+    """Read ``qpos.npz``, ``timeseries.csv`` and ``scenario.yaml`` of a run folder,
+    each validated as an input (:func:`read_npz`,
+    :func:`simpro_mj.report.results.read_timeseries` with :data:`REPLAY_COLUMNS`,
+    the bounded YAML reader); a one-line :class:`UserInputError` naming the file."""
+    from simpro_mj.core.keys import read_yaml
+
     folder = Path(folder)
-    try:
-        with np.load(folder / RECORDING_FILE, allow_pickle=False) as z:
-            t, q, names = z["time_s"], z["qpos"], tuple(str(n) for n in z["qpos_names"])
-        columns = read_timeseries(folder / "timeseries.csv")
-        scenario = yaml.safe_load((folder / "scenario.yaml").read_text(encoding="utf-8"))
-    except (OSError, KeyError, ValueError, yaml.YAMLError) as exc:
+    z = read_npz(folder / RECORDING_FILE)
+    t, q, names = z["time_s"], z["qpos"], tuple(str(n) for n in z["qpos_names"])
+    columns = read_timeseries(folder / "timeseries.csv", required=REPLAY_COLUMNS)
+    scenario = read_yaml(folder / "scenario.yaml", "result scenario")
+    where = folder / RECORDING_FILE
+    if len(t) == 0 or len(t) != len(q) or q.shape[1] != len(names):
         raise UserInputError(
-            f"unreadable recording at {folder}: {one_line(exc)}; allowed: a "
-            "complete folder written by simpro-sim run (qpos.npz, timeseries.csv, scenario.yaml)"
-        ) from None
-    if q.ndim != 2 or len(t) != len(q) or len(t) == 0 or not isinstance(scenario, dict):
+            f"no recorded motion at {where}: {len(t)} times, qpos {q.shape}, {len(names)} "
+            "joint names; allowed: a folder written by simpro-sim run"
+        )
+    if not (np.all(np.isfinite(t)) and np.all(np.diff(t) > 0) and np.all(np.isfinite(q))):
         raise UserInputError(
-            f"no recorded motion at {folder / RECORDING_FILE}: {len(t)} times, qpos "
-            f"{q.shape}; allowed: a folder written by simpro-sim run"
+            f"unreadable recording at {where}: times not increasing or values not finite; "
+            "allowed: a folder written by simpro-sim run"
+        )
+    if not isinstance(scenario, dict):
+        raise UserInputError(
+            f"unreadable recording at {folder / 'scenario.yaml'}: not a mapping; allowed: a "
+            "folder written by simpro-sim run"
+        )
+    if len(columns["time_s"]) == 0:
+        raise UserInputError(
+            f"unreadable recording at {folder / 'timeseries.csv'}: no rows; allowed: a "
+            "folder written by simpro-sim run"
         )
     return Recording(folder.name, folder, t, q, names, columns, scenario)
 

@@ -61,6 +61,29 @@ def require_video():
     return iio
 
 
+def check_joints(rec) -> None:
+    """The recording's joints are those of its plant (what the replay poses), else a
+    one-line :class:`UserInputError` naming ``qpos.npz``."""
+    from simpro_mj.report.scene import replay_model
+    from simpro_mj.sim.result import qpos_names
+
+    where = rec.folder / "qpos.npz"
+    try:
+        model, _ = replay_model(rec.scenario)
+    except Exception as exc:  # noqa: BLE001 - a result folder's scenario is an input
+        raise UserInputError(
+            f"unreadable recording at {rec.folder / 'scenario.yaml'}: its plant does not "
+            f"build ({one_line(exc)}); allowed: a folder written by simpro-sim run"
+        ) from None
+    names = qpos_names(model)
+    if tuple(rec.qpos_names) != names:
+        raise UserInputError(
+            f"unreadable recording at {where}: {len(rec.qpos_names)} joints "
+            f"({', '.join(rec.qpos_names[:3])}...), the plant has {len(names)}; allowed: a "
+            "folder written by simpro-sim run"
+        )
+
+
 # ---------------------------------------------------------------- workers
 
 _WORKER: dict = {}
@@ -192,6 +215,8 @@ def render_video(
 
     width, height = size
     recs = [load_recording(f) for f in folders]
+    for rec in recs:
+        check_joints(rec)
     t_end = min(r.duration_s for r in recs)
     end = t_end if end is None else end
     if not 0.0 <= start < end <= t_end + 1e-9:

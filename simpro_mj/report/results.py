@@ -27,6 +27,7 @@ import json
 import math
 import platform
 import sys
+import warnings
 from collections.abc import Mapping
 from importlib import metadata
 from pathlib import Path
@@ -138,14 +139,51 @@ def write_timeseries(path, columns: Mapping[str, np.ndarray]) -> Path:
     return path
 
 
-def read_timeseries(path) -> dict[str, np.ndarray]:
-    """Read a ``timeseries.csv`` back into columns."""
+#: Largest ``timeseries.csv`` read back (bytes): an hour at 1 kHz is about 1 GB.
+MAX_TIMESERIES_BYTES = 2_000_000_000
+#: Longest header line of a ``timeseries.csv`` (characters).
+MAX_HEADER_CHARS = 100_000
+
+
+def read_timeseries(path, required=()) -> dict[str, np.ndarray]:
+    """Read a ``timeseries.csv`` back into columns, validated as an input.
+
+    Opened without blocking, a regular file of at most
+    :data:`MAX_TIMESERIES_BYTES` (:mod:`simpro_mj.core.safe_files`); the header
+    must name distinct columns, among them ``time_s`` and every name in
+    ``required``; every row must hold one finite-or-NaN number per column.
+
+    Raises
+    ------
+    UserInputError
+        One line naming the file and what is wrong.
+    """
+    from simpro_mj.core.errors import UserInputError
+    from simpro_mj.core.safe_files import open_regular
+
     path = Path(path)
-    with path.open(encoding="utf-8") as fh:
-        names = fh.readline().strip().split(",")
-    data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+    allowed = "allowed: a timeseries.csv written by simpro-sim run"
+    with open_regular(path, MAX_TIMESERIES_BYTES, "timeseries", binary=True) as fh:
+        head = fh.readline(MAX_HEADER_CHARS + 1)
+        names = head.decode("utf-8", "replace").strip().split(",")
+        missing = [n for n in ("time_s", *required) if n not in names]
+        if len(head) > MAX_HEADER_CHARS or len(set(names)) != len(names) or missing:
+            what = f"missing columns {missing}" if missing else "a malformed header"
+            raise UserInputError(f"unreadable result at {path}: {what}; {allowed}")
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")  # an empty body: handled below
+                data = np.loadtxt(fh, delimiter=",", ndmin=2, dtype=float)
+        except ValueError as exc:
+            text = " ".join(str(exc).split())[:160]
+            raise UserInputError(f"unreadable result at {path}: {text}; {allowed}") from None
     if data.size == 0:
         return {n: np.empty(0) for n in names}
+    if data.shape[1] != len(names):
+        raise UserInputError(
+            f"unreadable result at {path}: {data.shape[1]} values per row for {len(names)} "
+            f"columns; {allowed}"
+        )
     return {n: data[:, i] for i, n in enumerate(names)}
 
 
