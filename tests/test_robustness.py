@@ -200,7 +200,7 @@ BAD_INPUTS = [
         "pneumatics.cylinder.bore_mm",
         ["wrong type"],
     ),
-    (["analyze", "--set", "inner.dt_s=0", "--no-plots"], "inner.dt_s", ["> 0"]),
+    (["analyze", "--set", "inner.dt_s=0", "--no-plots"], "inner.dt_s", [">= 1e-05"]),
     (["analyze", "--set", "outer.period_s=0.0605", "--no-plots"], "outer.period_s", ["multiple"]),
     (["analyze", "--set", "outer.gain=-1", "--no-plots"], "outer.gain", [">= 0"]),
     (["analyze", "--set", "inner.zeta=-1", "--no-plots"], "inner.zeta", ["> 0"]),

@@ -144,7 +144,7 @@ BAD_SETS = [
     (["controller.outer.gains=[1, 2]"], "controller.outer.gains", ["list of 3"]),
     (["controller.outer.gains=[1, -2, 3]"], "controller.outer.gains", [">= 0"]),
     (["seed=1.5"], "seed", ["integer"]),
-    (["plant.payload.mass_kg=-1"], "plant.payload.mass_kg", [">= 0"]),
+    (["plant.payload.mass_kg=-1"], "plant.payload.mass_kg", ["0 .. 5000 kg"]),
     (["plant.anchor_offsets_mm.A4=[0,0,0]"], "plant.anchor_offsets_mm.A4", ["A1"]),
     (["sensors.potentiometer.bits=0"], "sensors.potentiometer.bits", ["4..24"]),
     (["actuator.pneumatics.valv={}"], "actuator.pneumatics.valv", ["did you mean 'valve'"]),

@@ -103,9 +103,10 @@ def _pairs(z) -> list:
 
 def _check(p: dict) -> None:
     o, i = p["outer"], p["inner"]
-    check_number(p, "inner.dt_s", 0.0, 1.0, lo_open=True, unit=" s")
+    # sampling periods: normal numbers, so that their ratios stay finite (1e-320 overflowed)
+    check_number(p, "inner.dt_s", 1e-5, 1.0, unit=" s")
     for key in ("period_s", "alt_period_s"):
-        check_number(p, f"outer.{key}", 0.0, 10.0, lo_open=True, unit=" s")
+        check_number(p, f"outer.{key}", 1e-5, 10.0, unit=" s")
     for key in ("gain", "pi_gain"):
         check_number(p, f"outer.{key}", 0.0, 1e4)
     check_number(p, "outer.pi_zero", -1.0, 1.0, lo_open=True, hi_open=True)

@@ -141,10 +141,12 @@ def _check_amplitude(value, kind: str) -> float:
     where = "--amplitude-mps2" if kind == "f" else "--amplitude-deg-s"
     unit = "m/s^2" if kind == "f" else "deg/s"
     top = MAX_AMPLITUDES[kind]
+    low = 1e-3 if kind == "f" else 1e-2  # below the head's perception thresholds a hundredfold
     ok = isinstance(value, (int, float)) and not isinstance(value, bool)
-    if not (ok and math.isfinite(value) and 0 < value <= top):
+    if not (ok and math.isfinite(value) and low <= value <= top):
         raise UserInputError(
-            f"invalid value at {where}: {value!r}; allowed: 0 < amplitude <= {top:g} {unit}"
+            f"invalid value at {where}: {value!r}; allowed: {low:g} <= amplitude <= {top:g} "
+            f"{unit} (the smallest: a hundredth of the vestibular thresholds)"
         )
     return float(value)
 

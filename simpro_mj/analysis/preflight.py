@@ -42,6 +42,7 @@ from simpro_mj.plant.payload import holding_force_model, max_payload
 from simpro_mj.plant.pneumatics.params import PneumaticParams
 
 __all__ = [
+    "GAIN_REFUSE_FACTOR",
     "check_payload",
     "cueing_mode_warnings",
     "gain_warnings",
@@ -52,6 +53,11 @@ __all__ = [
 
 #: Warn above this fraction of a cylinder's force spent on holding the payload.
 UTILISATION_WARN = 0.9
+#: Outer gains above this many times the analysed stability limit are refused: the
+#: loop then saturates every step (a gain of 1e6 ran to the end 'ok' with the platform
+#: at rest and a 3.4 deg error); up to it a user may study instability (the shipped
+#: gain sweep reaches 2.5 times).
+GAIN_REFUSE_FACTOR = 10.0
 _MAX_POSES = 60  # static solves per check (0.5 ms each)
 
 
@@ -207,6 +213,16 @@ def gain_warnings(scenario: Mapping) -> tuple[list[str], dict]:
     info = stability_limit(scenario)
     lim = info["limit"]
     label = f"{outer['type']}, T = {outer['period_ms']:g} ms, {info['basis']}"
+    top = max(outer["gains"])
+    if math.isfinite(lim) and top > GAIN_REFUSE_FACTOR * lim:
+        raise UserInputError(
+            f"invalid value at controller.outer.gains: {top:g} is {top / lim:,.0f} times the "
+            f"analysed stability limit {lim:.3g} ({outer['type']}, T = {outer['period_ms']:g} "
+            f"ms); allowed: <= {GAIN_REFUSE_FACTOR * lim:.3g} ({GAIN_REFUSE_FACTOR:g} times "
+            "the limit: far beyond it each outer step asks more than the joints can do, the "
+            "anti-windup rejects it and the platform never moves; gains up to that are "
+            "allowed to study instability)"
+        )
     out = []
     over = [i for i, g in enumerate(outer["gains"]) if g > lim]
     if len(over) == len(outer["gains"]) and len(set(outer["gains"])) == 1:

@@ -100,10 +100,10 @@ def check_periods(freq_hz: Sequence[float], where: str = "--freq-hz") -> list[in
         )
         if not (isinstance(f, (int, float)) and math.isfinite(f) and f > 0):
             raise UserInputError(f"invalid value at {where}: {f!r}; {allowed}")
-        period = 1000.0 / f
-        k = round(period)
+        period = 1000.0 / f  # inf for a subnormal f: refused here, before round()
         if not MIN_PERIOD_MS <= period <= MAX_PERIOD_MS:
             raise UserInputError(f"invalid value at {where}: {f:g} Hz; {allowed}")
+        k = round(period)
         if abs(period - k) > 1e-6 * period:
             raise UserInputError(
                 f"invalid value at {where}: {f:g} Hz (period {period:.4f} ms is not on the 1 ms "
@@ -133,6 +133,11 @@ def _max_amplitude(axis: int, geometry) -> float:
     return lo
 
 
+#: Smallest sine amplitude measured (edge units): a few steps of the 14-bit
+#: potentiometers (500 mm / 2^14 = 0.03 mm) on the legs.
+MIN_AMPLITUDES = {"roll": 0.01, "pitch": 0.01, "heave": 0.1}
+
+
 def check_amplitudes(amplitudes: Mapping[str, float]) -> dict:
     """Amplitudes (edge units) -> SI per axis; beyond the workspace is a one-line error."""
     geometry = nominal_geometry()
@@ -142,10 +147,12 @@ def check_amplitudes(amplitudes: Mapping[str, float]) -> dict:
         where = "--amplitude-mm" if axis == "heave" else "--amplitude-deg"
         a = amplitudes[axis]
         limit = _max_amplitude(j, geometry) / scale
-        if not (isinstance(a, (int, float)) and math.isfinite(a) and 0 < a <= limit):
+        low = MIN_AMPLITUDES[axis]
+        if not (isinstance(a, (int, float)) and math.isfinite(a) and low <= a <= limit):
             raise UserInputError(
-                f"invalid value at {where}: {a!r}; allowed: 0 < amplitude <= {limit:.3g} {unit} "
-                f"on {axis} (a sine about home inside the workspace, see simpro-sim workspace)"
+                f"invalid value at {where}: {a!r}; allowed: {low:g} <= amplitude <= {limit:.3g} "
+                f"{unit} on {axis} (a sine about home inside the workspace, see simpro-sim "
+                "workspace; a smaller one is lost in the potentiometers' 14-bit steps of 0.03 mm)"
             )
         out[axis] = a * scale
     return out

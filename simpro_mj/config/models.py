@@ -94,6 +94,9 @@ __all__ = [
     "ACTUATOR_MODELS",
 ]
 
+#: Largest K K_I times the outer period: ten times the delay-free integrator's limit 2.
+MAX_GAIN_PERIOD = 20.0
+
 Gains = Annotated[list[float], rule(lambda v: v >= 0, "3 numbers >= 0 (K K_I, 1/s)")]
 
 
@@ -107,6 +110,23 @@ class Outer(Block):
     integrator: Annotated[str, one_of(INTEGRATORS)]
     period_ms: int
     delay_samples: Annotated[int, one_of(DELAY_SAMPLES)]
+
+    @model_validator(mode="after")
+    def _gain_bound(self):
+        # a discrete integrator of period T is unstable beyond K T = 2 even around
+        # perfect joints; far beyond it the loop only saturates (checked here, at load,
+        # before the preflight's analysis of the real limit)
+        top = max(self.gains, default=0.0)
+        if top * self.period_ms * 1e-3 > MAX_GAIN_PERIOD:
+            raise Problem.invalid(
+                self.gains,
+                f"K K_I * T <= {MAX_GAIN_PERIOD:g} (here T = {self.period_ms} ms: K K_I <= "
+                f"{MAX_GAIN_PERIOD / (self.period_ms * 1e-3):.4g} 1/s); an integrator of period "
+                "T is unstable beyond K T = 2 around perfect joints, and ten times that only "
+                "saturates the joints",
+                ".gains",
+            )
+        return self
 
 
 class JointModel(Block):
@@ -236,26 +256,69 @@ class Actuator(Block):
     pneumatics: Annotated[dict, BeforeValidator(check_pneumatics)]
 
 
+#: Heaviest payload (kg): three DNC-125 cylinders make at most 3 x 12.3 kN at their
+#: rated 10 bar (about 3,750 kg); the preflight gives the limit at the scenario's supply.
+MAX_PAYLOAD_KG = 5000.0
+#: Farthest payload centre of mass from the platform frame's origin (mm, per axis): a
+#: cabin on a platform about 1 m across, its seat 0.4 m above.
+MAX_COM_MM = 2000.0
+#: Largest as-built attachment or guide error (mm, per axis): the defaults are <= 4 mm;
+#: beyond a few centimetres the closed chain no longer assembles at home.
+MAX_OFFSET_MM = 50.0
+#: Loop-constraint time constant (s): at least two physics steps (MuJoCo's own floor
+#: for a stable constraint), at most 1 s (a loop that soft opens by centimetres).
+LOOP_TIMECONST_RANGE_S = (0.002, 1.0)
+
+_OFFSET = rule(
+    lambda v: abs(v) <= MAX_OFFSET_MM,
+    f"|offset| <= {MAX_OFFSET_MM:g} mm per axis (as-built errors: the defaults are <= 4 mm; "
+    "beyond a few centimetres the closed chain does not assemble)",
+)
+
+
+def _in_plane(value: list) -> list:
+    if len(value) == 3 and value[1] != 0:
+        raise Problem.invalid(
+            value,
+            "[x, 0, z]: leg 1 (R-P-S-U) moves in the x-z plane, so its anchors A1 and C1 take "
+            "x and z errors only (one across the plane cannot be assembled)",
+        )
+    return value
+
+
 class Payload(Block):
     _path = "plant.payload"
-    mass_kg: Annotated[float, rule(lambda v: v >= 0, ">= 0 kg")]
-    com_mm: list[float]
+    mass_kg: Annotated[
+        float,
+        rule(
+            lambda v: 0 <= v <= MAX_PAYLOAD_KG,
+            f"0 .. {MAX_PAYLOAD_KG:g} kg (three DNC-125 cylinders lift at most about 3,750 kg "
+            "at 10 bar; the preflight gives the limit at the supply pressure)",
+        ),
+    ]
+    com_mm: Annotated[
+        list[float],
+        rule(
+            lambda v: abs(v) <= MAX_COM_MM,
+            f"|x|, |y|, |z| <= {MAX_COM_MM:g} mm (a cabin on a platform about 1 m across)",
+        ),
+    ]
 
 
 class AnchorOffsets(Block):
     _path = "plant.anchor_offsets_mm"
-    A1: list[float]
-    A2: list[float]
-    A3: list[float]
-    C1: list[float]
-    B2: list[float]
-    B3: list[float]
+    A1: Annotated[list[float], _OFFSET, AfterValidator(_in_plane)]
+    A2: Annotated[list[float], _OFFSET]
+    A3: Annotated[list[float], _OFFSET]
+    C1: Annotated[list[float], _OFFSET, AfterValidator(_in_plane)]
+    B2: Annotated[list[float], _OFFSET]
+    B3: Annotated[list[float], _OFFSET]
 
 
 class Guide(Block):
     _path = "plant.guide"
-    radius_offset_mm: Annotated[float, rule(lambda v: v > -1000, "> -1000 mm")]
-    centre_offset_mm: list[float]
+    radius_offset_mm: Annotated[float, _OFFSET]
+    centre_offset_mm: Annotated[list[float], _OFFSET]
 
 
 class PlantBlock(Block):
@@ -263,10 +326,20 @@ class PlantBlock(Block):
 
     _path = "plant"
     payload: Payload
-    platform_mass_kg: Annotated[float, rule(lambda v: v > 0, "> 0 kg")]
+    platform_mass_kg: Annotated[
+        float,
+        rule(lambda v: 1 <= v <= 2000, "1 .. 2000 kg (the moving frame: 120 kg as built)"),
+    ]
     anchor_offsets_mm: AnchorOffsets
     guide: Guide
-    loop_timeconst_s: Annotated[float, rule(lambda v: v > 0, "> 0 s")]
+    loop_timeconst_s: Annotated[
+        float,
+        rule(
+            lambda v: LOOP_TIMECONST_RANGE_S[0] <= v <= LOOP_TIMECONST_RANGE_S[1],
+            f"{LOOP_TIMECONST_RANGE_S[0]:g} .. {LOOP_TIMECONST_RANGE_S[1]:g} s (at least two "
+            "physics steps, MuJoCo's floor for a stable constraint; at most 1 s)",
+        ),
+    ]
     preset: str
 
 

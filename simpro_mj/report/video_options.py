@@ -139,9 +139,11 @@ def _out_path(value, default: Path, overwrite: bool = False) -> Path:
 def video_options(args, default_out: Path) -> dict:
     """Checked keyword arguments of :func:`simpro_mj.report.render.render_video`
     (one-line errors)."""
-    fps = number(args.fps, "--fps", 0.0, 240.0)
+    # lower bounds so that a frame count stays finite: one frame a second, a hundredfold
+    # slow motion (1e-320 made the count infinite)
+    fps = number(args.fps, "--fps", 1.0, 240.0, lo_open=False)
     size = _size(args.size)
-    speed = number(args.speed, "--speed", 0.0, 100.0)
+    speed = number(args.speed, "--speed", 0.01, 100.0, lo_open=False)
     if args.camera not in CAMERAS:
         raise UserInputError(
             f"unknown camera at --camera: {args.camera!r}; allowed: {', '.join(CAMERAS)}"

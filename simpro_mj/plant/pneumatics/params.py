@@ -116,7 +116,16 @@ def pneumatic_params(overrides=None, base: dict | None = None) -> dict:
     return apply_overrides(DEFAULT_PNEUMATIC_PARAMS if base is None else base, overrides or [])
 
 
-def _per_leg(tree: Mapping, path: str, lo: float = 0.0, hi: float = math.inf, open_lo=False):
+def _range_text(lo: float, hi: float, open_lo: bool, why: str) -> str:
+    rng = f"{'>' if open_lo else '>='} {lo:g}" + (f" and <= {hi:g}" if hi < math.inf else "")
+    return rng + (f" ({why})" if why else "")
+
+
+def _per_leg(
+    tree: Mapping, path: str, lo: float = 0.0, hi: float = math.inf, open_lo=False, why: str = ""
+):
+    if not why:
+        lo, hi, open_lo, why = _PLAUSIBLE.get(path, (lo, hi, open_lo, why))
     node = tree
     for part in path.split("."):
         node = node[part]
@@ -126,10 +135,9 @@ def _per_leg(tree: Mapping, path: str, lo: float = 0.0, hi: float = math.inf, op
     ok = arr.shape == (3,) and np.all(np.isfinite(arr))
     ok = ok and np.all(arr > lo if open_lo else arr >= lo) and np.all(arr <= hi)
     if not ok:
-        rng = f"{'>' if open_lo else '>='} {lo}" + (f" and <= {hi}" if hi < math.inf else "")
         raise UserInputError(
-            f"invalid value at pneumatics.{path}: {node!r}; expected a number or a list of 3 "
-            f"numbers {rng}"
+            f"invalid value at pneumatics.{path}: {node!r}; allowed: a number or a list of 3 "
+            f"numbers {_range_text(lo, hi, open_lo, why)}"
         )
     return arr
 
@@ -141,7 +149,11 @@ def _per_leg_or_none(tree: Mapping, path: str, lo: float = 0.0, open_lo=False):
     return None if node is None else _per_leg(tree, path, lo, open_lo=open_lo)
 
 
-def _scalar(tree: Mapping, path: str, lo: float, hi: float = math.inf, open_lo=True) -> float:
+def _scalar(
+    tree: Mapping, path: str, lo: float, hi: float = math.inf, open_lo=True, why: str = ""
+) -> float:
+    if not why:
+        lo, hi, open_lo, why = _PLAUSIBLE.get(path, (lo, hi, open_lo, why))
     node = tree
     for part in path.split("."):
         node = node[part]
@@ -151,10 +163,52 @@ def _scalar(tree: Mapping, path: str, lo: float, hi: float = math.inf, open_lo=T
         x = math.nan
     if not (math.isfinite(x) and (x > lo if open_lo else x >= lo) and x <= hi):
         raise UserInputError(
-            f"invalid value at pneumatics.{path}: {node!r}; allowed {'>' if open_lo else '>='} "
-            f"{lo}" + (f" and <= {hi}" if hi < math.inf else "")
+            f"invalid value at pneumatics.{path}: {node!r}; allowed: "
+            f"{_range_text(lo, hi, open_lo, why)}"
         )
     return x
+
+
+#: Physically plausible range of each parameter: path -> (low, high, low open, why).
+#: A value outside is refused before the simulation, the reason in the message.
+_PLAUSIBLE = {
+    "atmospheric_pressure_kpa": (
+        30.0, 110.0, False, "kPa: from the top of Mount Everest (33) to below sea level (107)"
+    ),
+    "supply_pressure_bar_gauge": (
+        0.0, 12.0, True, "bar: the MPYE valve and DNC cylinders are rated to 10-12 bar"
+    ),
+    "temperature_c": (-40.0, 100.0, False, "deg C: beyond the seals' and the valve's rating"),
+    "gas_constant_j_per_kg_k": (
+        200.0, 500.0, False, "J/(kg K): air 287, nitrogen 297; the model is for such gases"
+    ),
+    "polytropic_index": (1.0, 1.67, False, "isothermal 1 .. adiabatic monatomic 1.67"),
+    "cylinder.bore_mm": (8.0, 320.0, False, "mm: ISO 15552 and catalogue bores, 8..320"),
+    "cylinder.stroke_mm": (10.0, 3000.0, False, "mm: catalogue strokes; the model has 500"),
+    "cylinder.dead_volume_cap_l": (
+        1e-4, 10.0, False, "l: the port and hose volume, 0.1 l here; 10 l is a tank"
+    ),
+    "cylinder.dead_volume_rod_l": (
+        1e-4, 10.0, False, "l: the port and hose volume, 0.1 l here; 10 l is a tank"
+    ),
+    "cylinder.viscous_friction_n_s_per_m": (
+        0.0, 1e5, False,
+        "N s/m: seal friction of a DNC-125 is hundreds to about 10,000; at 1e5 N s/m "
+        "0.1 m/s takes 10 kN, nearly all the cylinder makes",
+    ),
+    "cylinder.coulomb_friction_n": (
+        0.0, 5000.0, False, "N: tens to a few hundred for a DNC-125; 5 kN is 40 % of its force"
+    ),
+    "cylinder.coulomb_smoothing_mm_per_s": (
+        1e-3, 1000.0, False, "mm/s: the speed over which the friction changes sign"
+    ),
+    "valve.sonic_conductance_dm3_per_s_bar": (
+        0.01, 100.0, False, "dm^3/(s bar): the MPYE-5-3/8 has 7.87; 100 is a valve far "
+        "beyond the cylinder's ports",
+    ),
+    "valve.spool_bandwidth_hz": (1.0, 1000.0, False, "Hz: the MPYE's spool, about 60-100"),
+    "valve.spool_damping_ratio": (0.01, 10.0, False, "a second-order spool's damping"),
+}  # fmt: skip
 
 
 @dataclass(frozen=True)
