@@ -103,7 +103,14 @@ from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.safe_files import read_text
 from simpro_mj.report.folders import MAX_METRICS_BYTES, check_out, claim, is_complete, record
 from simpro_mj.sim import executors as _executors
-from simpro_mj.sim.executors import MAX_JOBS, NoWorkers, Progress, dask_module, run_tasks
+from simpro_mj.sim.executors import (
+    MAX_JOBS,
+    NoWorkers,
+    Progress,
+    dask_module,
+    probe_scheduler,
+    run_tasks,
+)
 
 __all__ = ["MAX_JOBS", "NO_WORKERS_S", "SUMMARY_FILES", "run_batch"]
 
@@ -159,6 +166,8 @@ def _run_batch(
                 raise UserInputError(f"invalid scenario at {job.file}{which}: {job.error}")
     if scheduler is not None:
         dask_module()  # say so before anything runs
+        if scheduler != "local":
+            probe_scheduler(scheduler)  # a closed, silent or foreign server: refused now
     rows: list[dict | None] = [None] * len(p.jobs)
     tasks: list[tuple[int, dict]] = []
     skipped = 0
@@ -210,8 +219,10 @@ def _run_batch(
         stopped = str(exc)
     finally:
         bar.close()
-        # what finished is recorded, the rest is 'cancelled'; also on an error
-        final = [r if r is not None else summary_row(p.jobs[i], None) for i, r in enumerate(rows)]
+        # what finished is recorded, the rest is 'cancelled'; also on an error. A variant
+        # whose complete folder is on disk finished, even if its worker was stopped before
+        # its result came back
+        final = [r if r is not None else _finished_row(p.jobs[i], out) for i, r in enumerate(rows)]
         report = Report(out=out, rows=final, paths=p.paths, files=p.files, skipped=skipped)
         report.stability = stability_table(report.rows, p.jobs)
         report.monte_carlo = monte_carlo_table(report.rows, p.jobs)
@@ -235,6 +246,24 @@ def _run_batch(
     write_summary(report)
     record(out, SUMMARY_FILES, "batch")
     return report
+
+
+def _finished_row(job, out: Path) -> dict:
+    """The row of a variant with no result back: from its folder if that is complete
+    for this variant (as ``--resume`` would skip it), else ``cancelled``."""
+    try:
+        doc = _complete(out / job.folder, job.scenario) if job.scenario is not None else None
+        if doc is None:
+            return summary_row(job, None)
+        result = {
+            "status": doc["status"],
+            "reason": doc.get("reason"),
+            "metrics": doc,
+            "stability": stability_of_folder(out / job.folder, doc["status"]),
+        }
+    except (OSError, ValueError):  # unreadable after all: not counted as finished
+        return summary_row(job, None)
+    return summary_row(job, result)
 
 
 def _complete(folder: Path, scenario: Mapping) -> dict | None:

@@ -89,10 +89,16 @@ def check_joints(rec) -> None:
 _WORKER: dict = {}
 
 
-def _worker_init(jobs_file: str, width: int, height: int, camera: str, ghost, shadows, gl: str):
+def _worker_init(
+    jobs_file: str, width: int, height: int, camera: str, ghost, shadows, gl: str, parent: int
+):
     # Ctrl-C reaches the whole process group: the parent stops the pool and removes
     # the partial video; a worker must not die with a traceback of its own
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    # a parent killed outright (kill -9) ends its workers within a poll (0.5 s)
+    from simpro_mj.sim.workers import watch_parent
+
+    watch_parent(parent)
     os.environ["MUJOCO_GL"] = gl  # before MuJoCo is imported in this (spawned) process
     warnings.simplefilter("ignore")  # GLFW/OpenGL warnings: a failure is reported in one line
     _WORKER["error"] = None
@@ -149,7 +155,7 @@ def _start_pool(jobs_file: str, width, height, camera, ghost, shadows, workers: 
             max_workers=workers,
             mp_context=ctx,
             initializer=_worker_init,
-            initargs=(jobs_file, width, height, camera, ghost, shadows, gl),
+            initargs=(jobs_file, width, height, camera, ghost, shadows, gl, os.getpid()),
         )
         try:
             errors = list(pool.map(_probe, range(workers)))

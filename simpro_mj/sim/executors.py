@@ -11,6 +11,7 @@ readiness is signalled once the tasks are submitted
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import multiprocessing
 import os
@@ -131,6 +132,8 @@ def run_pool(tasks: list[tuple[int, dict]], jobs: int, done: Callback, fn: Worke
         initializer=init_worker,  # SIGTERM stops a variant; no worker outlives the batch
         initargs=(os.getpid(),),
     )
+    futures: dict = {}
+    reported: set = set()
     try:
         futures = {pool.submit(run_task, fn, task): key for key, task in tasks}
         signal_ready("batch")
@@ -143,9 +146,17 @@ def run_pool(tasks: list[tuple[int, dict]], jobs: int, done: Callback, fn: Worke
                     "reason": one_line(exc, with_type=True),
                     "metrics": None,
                 }
+            reported.add(fut)
             done(futures[fut], result)
     except BaseException:
         stop_pool(pool)  # the workers are gone when this returns
+        # what finished meanwhile (before or while the pool stopped) is reported, not
+        # counted as cancelled
+        for fut, key in futures.items():
+            if fut in reported or not fut.done() or fut.cancelled():
+                continue
+            with contextlib.suppress(Exception):
+                done(key, fut.result(timeout=0))
         raise
     pool.shutdown(wait=True)
 
@@ -160,6 +171,75 @@ def dask_module():
             "pip install 'simpro-sim[cluster]'"
         ) from exc
     return distributed
+
+
+#: Seconds allowed to connect to a ``--scheduler`` and for its first bytes (a Dask
+#: scheduler sends its handshake at once; Dask's own default waits 30 s, and for a
+#: server that accepts and never answers, forever).
+CONNECT_S = 5.0
+#: Largest first message accepted from a scheduler (bytes): its handshake is ~60.
+MAX_HANDSHAKE_BYTES = 1_000_000
+
+
+def probe_scheduler(address: str, timeout: float | None = None) -> None:
+    """Check that ``tcp://HOST:PORT`` answers like a Dask scheduler, within bounds.
+
+    Connects with a timeout of :data:`CONNECT_S` and reads the first 8 bytes of
+    the handshake a Dask scheduler sends on accepting (the little-endian length
+    of its first message) within the same time; refuses a closed port, a
+    server that accepts and stays silent, and one whose first bytes are not a
+    plausible Dask message (an HTTP server's reply read as a length asked Dask
+    for exabytes). Other schemes (``tls://``, ``ucx://``...) are left to Dask,
+    with its connection timeout bounded.
+
+    Raises
+    ------
+    UserInputError
+        One line naming ``--scheduler`` and what was found.
+    """
+    import socket
+    import struct
+
+    timeout = CONNECT_S if timeout is None else timeout
+    scheme, _, rest = address.rpartition("://")
+    if scheme not in ("", "tcp"):
+        return
+    host, sep, port_text = rest.rpartition(":")
+    host = host.strip("[]")
+    allowed = "allowed: a running Dask scheduler address (tcp://host:8786) or 'local'"
+    if not sep or not host or not port_text.isdigit() or not 0 < int(port_text) < 65536:
+        raise UserInputError(f"invalid value at --scheduler: {address!r}; {allowed}")
+    try:
+        sock = socket.create_connection((host, int(port_text)), timeout=timeout)
+    except OSError as exc:
+        why = "no answer" if isinstance(exc, TimeoutError) else (exc.strerror or str(exc))
+        raise UserInputError(
+            f"no scheduler at --scheduler {address}: {why} (within {timeout:g} s); {allowed}"
+        ) from None
+    data = b""
+    try:
+        sock.settimeout(timeout)
+        deadline = time.monotonic() + timeout
+        while len(data) < 8 and time.monotonic() < deadline:
+            chunk = sock.recv(8 - len(data))
+            if not chunk:
+                break
+            data += chunk
+    except OSError:
+        pass  # timed out or reset: judged below
+    finally:
+        sock.close()
+    if len(data) < 8:
+        said = f" after {data!r}" if data else ""
+        raise UserInputError(
+            f"not a Dask scheduler at --scheduler {address}: it accepted the connection but "
+            f"sent no handshake within {timeout:g} s{said}; {allowed}"
+        )
+    (length,) = struct.unpack("<Q", data)
+    if not 0 < length <= MAX_HANDSHAKE_BYTES:
+        raise UserInputError(
+            f"not a Dask scheduler at --scheduler {address}: it answered {data!r}; {allowed}"
+        )
 
 
 class NoWorkers(RuntimeError):
@@ -189,7 +269,10 @@ def run_dask(
             )
             client = distributed.Client(cluster)
         else:
-            client = distributed.Client(scheduler)
+            probe_scheduler(scheduler)  # bounded: refused, silent, or not Dask
+            client = distributed.Client(scheduler, timeout=2 * CONNECT_S)
+    except UserInputError:
+        raise
     except (OSError, TimeoutError, ValueError) as exc:
         if cluster is not None:
             cluster.close()
