@@ -98,3 +98,20 @@ def test_a_subnormal_rate_or_period_is_one_line(tmp_path, capsys, argv, field):
     assert time.monotonic() - t0 < 2.0
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and field in err[0] and "internal error" not in err[0], err
+
+
+@pytest.mark.parametrize("key", ["duration_s\n", "dura\x1b[2Jtion_s", "seed\r", "a.\x00b"])
+def test_a_set_key_with_a_control_character_is_refused(key):
+    with pytest.raises(UserInputError, match="control character U\\+00") as info:
+        load_scenario("step_pitch", [f"{key}=3"])
+    assert "\n" not in str(info.value)
+
+
+def test_names_never_hold_a_path_separator(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    for argv in (["calibrate", "--name", "../cal_trav"], ["calibrate", "--name", "a/b"]):
+        assert main(argv) == 2
+        assert "no path separator" in capsys.readouterr().err
+    with pytest.raises(UserInputError, match="file-name-safe"):
+        load_scenario("step_pitch", ["name=../x"])
+    assert list(tmp_path.iterdir()) == []

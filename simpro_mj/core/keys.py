@@ -143,6 +143,12 @@ def parse_set(expr: str) -> tuple[str, Any]:
             "controller.mode=task_space"
         )
     key, _, raw = expr.partition("=")
+    bad = next((c for c in key if ord(c) < 32 or 127 <= ord(c) < 160), None)
+    if bad is not None:  # a newline or an escape sequence: never part of a key
+        raise UserInputError(
+            f"malformed --set at {value_text(key)}: the key holds the control character "
+            f"U+{ord(bad):04X}; allowed: a dotted path of printable characters like a.b.c"
+        )
     key = key.strip()
     if not key or any(not part for part in key.split(".")):
         raise UserInputError(
