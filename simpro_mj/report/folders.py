@@ -1,14 +1,23 @@
 """Result folders on disk: whose they are, the write lock, the atomic install, complete or not.
 
-Whose folder it is
-------------------
-A folder is replaced only if it is new, empty or carries the marker of the
-same kind (:func:`check_out`): any other existing folder is refused (a user's
-mistake, exit 2) and nothing in it is touched, as is an ``--out`` that is the
-working folder (or one above it) or holds the scenario file. A writer holds
-an exclusive lock (:func:`locked`: ``flock`` on a hidden ``.<name>.lock``
-beside the folder) from its first check to the end of the write, so a second
-writer of the same folder is refused, not raced.
+Whose folder it is: the write rule
+----------------------------------
+A path is written only if it does not exist, or everything in it was written
+by simpro-sim: the marker (:data:`RESULT_MARKER`) of a folder lists each file
+simpro-sim wrote there with its size and SHA-256 (:func:`write_marker`,
+:func:`record`), and :func:`foreign` finds every other file, and every listed
+file that changed. A folder replaced whole (:func:`check_out`, kind ``run``,
+``response``, ...) must hold nothing foreign; a folder filled in place
+(:data:`IN_PLACE`: ``batch``, ``compare``) only the paths it writes must be
+ours; a single file (:func:`check_file`, :func:`write_file`) must be listed
+in its folder's marker, or the user says ``--overwrite``. Anything else is
+refused (a user's mistake, exit 2, naming what would be lost) and nothing is
+touched, as is an ``--out`` that is the working folder (or one above it),
+holds the scenario file, or is a dangling link. A writer holds an exclusive
+lock (:func:`locked`: ``flock`` on a hidden ``.<name>.lock`` beside the
+folder) from its first check to the end of the write, so a second writer of
+the same folder is refused, not raced; :func:`claim` also refuses a folder
+inside one another process is writing.
 
 Atomic install
 --------------
@@ -26,8 +35,9 @@ run never replaces a complete result: its partial result goes beside it, to
 ``OSError`` (read-only or full disk) names ``out_dir``, not a temporary name.
 
 A folder is *complete* (:func:`is_complete`, what ``batch --resume`` may
-trust) when it carries the marker, its ``metrics.json`` reads and has status
-``ok`` or ``diverged``, its ``timeseries.csv`` is not empty and there is no
+trust) when its marker lists its files and they are all there and ours, its
+``metrics.json`` reads with status ``ok`` or ``diverged`` and the blocks a
+summary row needs, its ``timeseries.csv`` is not empty and there is no
 ``PARTIAL`` file.
 """
 

@@ -15,7 +15,9 @@ A results folder holds:
 * ``PARTIAL`` (only for status ``interrupted``): one line saying the run was
   stopped before its end and how far it got;
 * ``.simpro-result`` (:data:`RESULT_MARKER`): one JSON line ``{"kind": "run",
-  "simpro-sim": version}`` saying the folder is simpro-sim's to replace.
+  "simpro-sim": version, "files": {name: {size, sha256}}}`` listing what
+  simpro-sim wrote, so that it replaces the folder only while nothing else is
+  in it (the write rule of :mod:`simpro_mj.report.folders`).
 
 Where and how the folder is written (whose it is, the lock, the atomic install,
 what *complete* means): :mod:`simpro_mj.report.folders`.
