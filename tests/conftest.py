@@ -1,5 +1,7 @@
 import os
 
+import pytest
+
 os.environ.setdefault("MPLBACKEND", "Agg")
 # headless MuJoCo rendering (tests/test_render.py): MuJoCo reads this when first imported
 os.environ.setdefault("MUJOCO_GL", "egl")
@@ -19,3 +21,31 @@ else:
     settings.register_profile("ci", derandomize=True)
     settings.register_profile("explore", derandomize=False)
     settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
+
+
+def _recorded_run(folder, rows: int = 50):
+    """A result folder as ``run`` writes it, without simulating: the plant's 13
+    joints at rest in ``qpos.npz`` and the columns a replay draws."""
+    import numpy as np
+
+    from simpro_mj.config.scenario import load_scenario
+    from simpro_mj.report.results import write_results
+    from simpro_mj.report.scene import replay_model
+    from simpro_mj.sim.result import qpos_names
+
+    sc = load_scenario("step_pitch", ["duration_s=0.2"])
+    names = qpos_names(replay_model(sc)[0])
+    t = np.arange(rows) * 1e-3
+    cols = {"time_s": t}
+    for c in ("roll_ref_rad", "pitch_ref_rad", "heave_ref_m", "roll_rad", "pitch_rad", "heave_m",
+              "u1_v", "u2_v", "u3_v"):  # fmt: skip
+        cols[c] = np.zeros_like(t)
+    rec = {"time_s": t, "qpos": np.zeros((rows, len(names))), "qpos_names": np.array(names)}
+    write_results(folder, cols, {}, sc, {"plots": False}, arrays={"qpos.npz": rec})
+    return folder
+
+
+@pytest.fixture
+def recorded_run():
+    """``recorded_run(folder, rows=50)``: a replayable result folder (no simulation)."""
+    return _recorded_run

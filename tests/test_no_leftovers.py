@@ -17,7 +17,6 @@ import threading
 import time
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 from simpro_mj.core.errors import UserInputError
@@ -162,23 +161,9 @@ def _alive(pid: int) -> bool:
 
 
 @pytest.mark.skipif(not Path("/proc").is_dir(), reason="needs /proc")
-def test_render_workers_end_with_a_parent_killed_outright(tmp_path):
+def test_render_workers_end_with_a_parent_killed_outright(tmp_path, recorded_run):
     pytest.importorskip("imageio_ffmpeg")
-    from simpro_mj.config.scenario import load_scenario
-    from simpro_mj.report.results import write_results
-    from simpro_mj.report.scene import replay_model
-    from simpro_mj.sim.result import qpos_names
-
-    sc = load_scenario("step_pitch", ["duration_s=0.2"])
-    names = qpos_names(replay_model(sc)[0])
-    t = np.arange(200) * 1e-3
-    cols = {"time_s": t}
-    for c in ("roll_ref_rad", "pitch_ref_rad", "heave_ref_m", "roll_rad", "pitch_rad", "heave_m",
-              "u1_v", "u2_v", "u3_v"):  # fmt: skip
-        cols[c] = np.zeros_like(t)
-    rec = {"qpos.npz": {"time_s": t, "qpos": np.zeros((200, len(names))),
-                        "qpos_names": np.array(names)}}  # fmt: skip
-    write_results(tmp_path / "r", cols, {}, sc, {"plots": False}, arrays=rec)
+    recorded_run(tmp_path / "r", rows=200)
     env = dict(os.environ, PYTHONPATH=str(ROOT), MPLBACKEND="Agg")
     cmd = [sys.executable, "-m", "simpro_mj.commands.main", "render", str(tmp_path / "r"),
            "--jobs", "2", "--size", "32x32", "--fps", "240", "--speed", "0.01",

@@ -134,6 +134,12 @@ def test_a_second_writer_is_refused_while_the_first_holds_the_folder(tmp_path, c
         line = _one_error_line(capsys.readouterr().err)
         assert f"busy at {out}" in line and f"pid {holder.pid}" in line
         assert not out.exists()
+        # a folder inside it (run --out OUT/x while a batch writes OUT): busy too
+        inner = out / "swh" / "gains=2"
+        assert main(["run", "step_pitch", "--out", str(inner), *SHORT]) == 2
+        line = _one_error_line(capsys.readouterr().err)
+        assert f"busy at {inner}" in line and f"is writing {out}, which holds it" in line
+        assert not out.exists()
     finally:
         holder.communicate(b"\n", timeout=30)
     assert holder.returncode == 0

@@ -82,16 +82,9 @@ def test_an_impossible_calibration_target_is_refused(tmp_path, node, words):
         (["render", "{run}", "--fps", "1e-320"], "--fps"),
     ],
 )
-def test_a_subnormal_rate_or_period_is_one_line(tmp_path, capsys, argv, field):
+def test_a_subnormal_rate_or_period_is_one_line(tmp_path, capsys, recorded_run, argv, field):
     if "{run}" in argv:  # a result folder with a recording (no simulation)
-        import numpy as np
-
-        from simpro_mj.report.results import write_results
-
-        t = np.arange(3) * 1e-3
-        rec = {"qpos.npz": {"time_s": t, "qpos": np.zeros((3, 13)), "qpos_names": np.array(["a"])}}
-        sc = load_scenario("step_pitch", ["duration_s=0.2"])
-        write_results(tmp_path / "r", {"time_s": t}, {}, sc, {"plots": False}, arrays=rec)
+        recorded_run(tmp_path / "r")
         argv = [a.replace("{run}", str(tmp_path / "r")) for a in argv]
     t0 = time.monotonic()
     assert main(argv) == 2

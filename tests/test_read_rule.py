@@ -22,9 +22,7 @@ import numpy as np
 import pytest
 
 from simpro_mj.commands.main import main
-from simpro_mj.config.scenario import load_scenario
 from simpro_mj.config.telemetry import TelemetryError, read_telemetry
-from simpro_mj.report import results
 from simpro_mj.report.recording import load_recording
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -46,29 +44,10 @@ def _one_line(err: str) -> str:
     return lines[0]
 
 
-def _run_folder(folder: Path) -> Path:
-    """A result folder as ``run`` writes it, without simulating: 13 joints, the columns
-    a replay draws."""
-    sc = load_scenario("step_pitch", ["duration_s=0.2"])
-    from simpro_mj.report.scene import replay_model
-    from simpro_mj.sim.result import qpos_names
-
-    names = qpos_names(replay_model(sc)[0])
-    t = np.arange(50) * 4e-3
-    cols = {"time_s": t}
-    for c in ("roll_ref_rad", "pitch_ref_rad", "heave_ref_m", "roll_rad", "pitch_rad", "heave_m",
-              "u1_v", "u2_v", "u3_v"):  # fmt: skip
-        cols[c] = np.zeros_like(t)
-    arrays = {"qpos.npz": {"time_s": t, "qpos": np.zeros((50, len(names))),
-                           "qpos_names": np.array(names)}}  # fmt: skip
-    results.write_results(folder, cols, {}, sc, {"plots": False}, arrays=arrays)
-    return folder
-
-
-def test_fifos_and_devices_are_refused_at_once(tmp_path):
+def test_fifos_and_devices_are_refused_at_once(tmp_path, recorded_run):
     fifo = tmp_path / "pipe.yaml"
     os.mkfifo(fifo)
-    run = _run_folder(tmp_path / "r")
+    run = recorded_run(tmp_path / "r")
     (run / "timeseries.csv").unlink()
     os.mkfifo(run / "timeseries.csv")
     marker = tmp_path / "m"
@@ -115,8 +94,8 @@ def _header_only(shape) -> bytes:
     return b.getvalue() + b"\0" * 800
 
 
-def test_a_corrupted_result_is_refused_naming_the_file(tmp_path):
-    good = _run_folder(tmp_path / "good")
+def test_a_corrupted_result_is_refused_naming_the_file(tmp_path, recorded_run):
+    good = recorded_run(tmp_path / "good")
     rec = load_recording(good)
     t, q, names = rec.time_s, rec.qpos, np.array(rec.qpos_names)
 
@@ -180,8 +159,8 @@ def test_a_corrupted_result_is_refused_naming_the_file(tmp_path):
         load_recording(folder)
 
 
-def test_render_of_a_corrupted_result_exits_2(tmp_path, capsys):
-    folder = _run_folder(tmp_path / "r")
+def test_render_of_a_corrupted_result_exits_2(tmp_path, capsys, recorded_run):
+    folder = recorded_run(tmp_path / "r")
     (folder / "qpos.npz").write_bytes(b"PK\x03\x04 truncated")
     assert main(["render", str(folder), "--jobs", "1"]) == 2
     assert "qpos.npz" in _one_line(capsys.readouterr().err)

@@ -11,8 +11,6 @@ from __future__ import annotations
 
 import hashlib
 import os
-import subprocess
-import sys
 import time
 from pathlib import Path
 
@@ -23,7 +21,6 @@ from simpro_mj.commands.main import main
 from simpro_mj.config.scenario import load_scenario
 from simpro_mj.report import folders, results
 
-ROOT = Path(__file__).resolve().parents[1]
 SHORT = ["--set", "duration_s=1.1", "--no-plots"]
 
 
@@ -207,30 +204,3 @@ def test_out_links(tmp_path, capsys):
     _result(link, "step_roll")
     assert link.is_symlink() and folders.is_complete(target)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["dangling", "link", "target"]
-
-
-def test_a_run_inside_a_folder_another_process_writes_is_refused(tmp_path, capsys):
-    """``run --out OUT/x`` while a batch holds ``OUT`` (its lock, held here by a
-    helper process that signals readiness through a file)."""
-    out, ready = tmp_path / "OUT", tmp_path / "ready"
-    code = (
-        "import sys; from pathlib import Path; from simpro_mj.report import folders\n"
-        f"with folders.locked({str(out)!r}):\n"
-        f"    Path({str(ready)!r}).touch()\n"
-        "    sys.stdin.readline()\n"
-    )
-    env = dict(os.environ, PYTHONPATH=str(ROOT))
-    holder = subprocess.Popen([sys.executable, "-c", code], stdin=subprocess.PIPE, env=env)
-    try:
-        deadline = time.monotonic() + 60  # a guard against a broken build, not a timing
-        while not ready.exists():
-            assert holder.poll() is None and time.monotonic() < deadline
-            time.sleep(0.01)
-        target = out / "swh" / "gains=2"
-        assert main(["run", "step_pitch", "--out", str(target), *SHORT]) == 2
-        line = _one_line(capsys.readouterr().err)
-        assert "busy" in line and str(out) in line
-        assert not target.exists()
-    finally:
-        holder.stdin.close()
-        holder.wait(timeout=60)
