@@ -10,7 +10,9 @@ import pytest
 from controllers.geometry import H0
 from simpro_mj.analysis.metrics import SETTLING_FLOOR, compute_metrics
 from simpro_mj.config.scenario import load_scenario, reference, scenario_hash
+from simpro_mj.core.errors import UserInputError
 from simpro_mj.report import results as results_mod
+from simpro_mj.report.folders import record
 from simpro_mj.report.results import print_summary, read_timeseries, write_results
 
 DT = 0.001
@@ -195,9 +197,13 @@ def test_write_results_is_atomic(tmp_path, step_all, monkeypatch):
     # the failed write left the old results as they were, and no temporary folder
     assert json.loads((out / "metrics.json").read_text())["sim"]["tag"] == "first"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["run"]
-    # a successful write replaces the folder as a whole
+    # a successful write replaces the folder as a whole (a file simpro-sim wrote there
+    # and listed in its marker goes with it; one it did not write is refused instead)
     monkeypatch.undo()
     (out / "stale.txt").write_text("from an older run")
+    with pytest.raises(UserInputError, match="did not write stale.txt"):
+        write_results(out, cols, metrics, step_all, {"plots": False, "sim": {"tag": "third"}})
+    record(out, ["stale.txt"], "run")
     write_results(out, cols, metrics, step_all, {"plots": False, "sim": {"tag": "third"}})
     assert json.loads((out / "metrics.json").read_text())["sim"]["tag"] == "third"
     assert not (out / "stale.txt").exists()
