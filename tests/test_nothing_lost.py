@@ -14,6 +14,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import json
 import os
@@ -114,10 +115,10 @@ def test_a_result_folder_is_replaced_and_an_empty_one_used(tmp_path, capsys):
     _one_error_line(capsys.readouterr().err)
 
 
-def test_a_second_writer_is_refused_while_the_first_holds_the_folder(tmp_path, capsys):
-    """Another process holds the folder's lock (as a running ``run`` does from its
-    first check to its last write); it says so by creating a readiness file."""
-    out, ready = tmp_path / "r", tmp_path / "ready"
+@contextlib.contextmanager
+def _lock_held(out: Path, ready: Path):
+    """Another process holding ``out``'s write lock (as a running ``run`` does from its
+    first check to its last write); it says so by creating ``ready``."""
     code = (
         "import sys; from pathlib import Path; from simpro_mj.report import folders\n"
         f"with folders.locked({str(out)!r}):\n"
@@ -130,6 +131,15 @@ def test_a_second_writer_is_refused_while_the_first_holds_the_folder(tmp_path, c
         while not ready.exists():  # readiness signal, no fixed sleep
             assert holder.poll() is None, "lock holder died"
             time.sleep(0.01)  # poll interval only: the wait ends on the signal
+        yield holder
+    finally:
+        holder.communicate(b"\n", timeout=30)
+    assert holder.returncode == 0
+
+
+def test_a_second_writer_is_refused_while_the_first_holds_the_folder(tmp_path, capsys):
+    out = tmp_path / "r"
+    with _lock_held(out, tmp_path / "ready") as holder:
         assert main(["run", "step_pitch", "--out", str(out), *SHORT]) == 2
         line = _one_error_line(capsys.readouterr().err)
         assert f"busy at {out}" in line and f"pid {holder.pid}" in line
@@ -140,11 +150,23 @@ def test_a_second_writer_is_refused_while_the_first_holds_the_folder(tmp_path, c
         line = _one_error_line(capsys.readouterr().err)
         assert f"busy at {inner}" in line and f"is writing {out}, which holds it" in line
         assert not out.exists()
-    finally:
-        holder.communicate(b"\n", timeout=30)
-    assert holder.returncode == 0
     assert main(["run", "step_pitch", "--out", str(out), *SHORT]) == 0  # released
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["r", "ready"]  # lock file removed
+
+
+def test_a_batch_does_not_run_a_variant_another_process_writes(tmp_path):
+    """``batch --resume OUT`` while ``run --out OUT/step_pitch/base`` writes: the
+    variant is reported busy before it runs, never replaced silently."""
+    from simpro_mj.batch.runner import run_batch
+
+    out = tmp_path / "b"
+    out.mkdir()
+    folders.record(out, [], "batch")  # an earlier batch's folder
+    variant = out / "step_pitch" / "base"
+    with _lock_held(variant, tmp_path / "ready") as holder:
+        rows = run_batch(["step_pitch"], out, sets=["duration_s=1.1"], jobs=1, resume=True,
+                         plots=False, summary_plots=False).rows  # fmt: skip
+        assert rows[0]["status"] == "invalid" and f"pid {holder.pid}" in rows[0]["reason"]
+        assert not variant.exists()
 
 
 def test_an_interrupted_rerun_keeps_the_complete_result(tmp_path):

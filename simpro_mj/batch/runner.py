@@ -101,7 +101,14 @@ from simpro_mj.batch.worker import install, run_variant
 from simpro_mj.config.scenario import scenario_hash
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.safe_files import read_text
-from simpro_mj.report.folders import MAX_METRICS_BYTES, check_out, claim, is_complete, record
+from simpro_mj.report.folders import (
+    MAX_METRICS_BYTES,
+    check_free,
+    check_out,
+    claim,
+    is_complete,
+    record,
+)
 from simpro_mj.sim import executors as _executors
 from simpro_mj.sim.executors import (
     MAX_JOBS,
@@ -187,8 +194,9 @@ def _run_batch(
             rows[job.index] = summary_row(job, result, skipped=True)
             skipped += 1
             continue
-        try:  # a variant folder not ours to replace: refused before it runs
+        try:  # a variant folder not ours to replace, or being written: refused before it runs
             check_out(folder, "run")
+            check_free(folder)
         except UserInputError as exc:
             rows[job.index] = summary_row(
                 job, {"status": "invalid", "reason": str(exc), "metrics": None}

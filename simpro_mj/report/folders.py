@@ -62,6 +62,7 @@ __all__ = [
     "PARTIAL_MARKER",
     "RESULT_MARKER",
     "check_file",
+    "check_free",
     "check_out",
     "claim",
     "foreign",
@@ -400,20 +401,37 @@ def check_out(out, kind: str = "run", inputs: Iterable = (), writes: Iterable[st
     return out
 
 
+def check_free(out) -> None:
+    """Refuse ``out`` while another process holds its write lock (:func:`locked`):
+    what a batch checks of each variant before running it."""
+    out = Path(out).expanduser().absolute()
+    pid = _writer(out)
+    if pid is not None:
+        raise UserInputError(
+            f"busy at {_short(out)}: another simpro-sim process (pid {pid}) is writing this "
+            "folder; allowed: wait for it to end or choose another --out"
+        )
+
+
 def _check_parents_free(out: Path) -> None:
     """Refuse ``out`` inside a folder another process is writing (a ``run --out
     OUT/x`` while a batch writes ``OUT``): two writers never share a folder."""
     for parent in out.parents:
-        lock = parent.parent / f".{parent.name}.lock"
-        if str(parent) in _HELD or not os.path.lexists(lock):
-            continue
-        pid = _lock_holder(lock)
+        pid = _writer(parent)
         if pid is not None:
             raise UserInputError(
                 f"busy at {_short(out)}: another simpro-sim process (pid {pid}) is writing "
                 f"{_short(parent)}, which holds it; allowed: wait for it to end or choose "
                 "another --out"
             )
+
+
+def _writer(folder: Path) -> str | None:
+    """The pid of another process holding ``folder``'s write lock, else None."""
+    lock = folder.parent / f".{folder.name}.lock"
+    if str(folder) in _HELD or not os.path.lexists(lock):
+        return None
+    return _lock_holder(lock)
 
 
 def _lock_holder(lock: Path) -> str | None:
