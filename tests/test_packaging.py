@@ -49,9 +49,18 @@ def wheel(tmp_path_factory) -> Path:
 def test_the_wheel_holds_the_model_and_every_shipped_scenario(wheel):
     names = set(zipfile.ZipFile(wheel).namelist())
     assert "simpro_mj/models/simpro_platform.xml" in names
-    shipped = sorted(p.name for p in (ROOT / "simpro_mj" / "scenarios").glob("*.yaml"))
-    assert "step_pitch.yaml" in shipped
-    missing = [s for s in shipped if f"simpro_mj/scenarios/{s}" not in names]
+    assert "simpro_mj/models/README.md" in names
+    # the top-level data folders, mapped into the package by setup.py
+    shipped = [
+        p.relative_to(ROOT).as_posix()
+        for folder in ("scenarios", "scenarios/telemetry", "scenarios/presets")
+        for p in (ROOT / folder).iterdir()
+        if p.suffix in (".yaml", ".csv")
+    ]
+    assert "scenarios/step_pitch.yaml" in shipped
+    assert "scenarios/presets/paper.yaml" in shipped
+    assert "scenarios/telemetry/braking_100kmh.csv" in shipped
+    missing = [s for s in shipped if f"simpro_mj/{s}" not in names]
     assert not missing, missing
     assert not [n for n in names if n.startswith("tests/")]
 
@@ -102,3 +111,22 @@ def test_the_installed_wheel_runs_the_main_job_from_an_empty_folder(wheel, tmp_p
     first, second = proc.stdout.splitlines()[:2]
     assert first.startswith(str(site)) and second.startswith(str(site)), proc.stdout
     assert (work / "results" / "step_pitch" / "metrics.json").is_file()
+
+
+def test_the_data_folders_are_tracked_once_at_the_top_level():
+    """The design card's layout: ``models/`` and ``scenarios/`` at the top, one copy
+    in git (the wheel's copy is made by the build), and no symlink in the tree."""
+    tracked = subprocess.run(
+        ["git", "ls-files", "-s"], cwd=ROOT, capture_output=True, text=True
+    ).stdout.splitlines()
+    if not tracked:
+        pytest.skip("not a git checkout")
+    paths = {line.split("\t", 1)[1]: line.split()[0] for line in tracked}
+    assert "models/simpro_platform.xml" in paths
+    assert "scenarios/step_pitch.yaml" in paths
+    names = [Path(p).name for p in paths if p.endswith((".xml", ".yaml", ".csv"))]
+    twice = sorted({n for n in names if n.startswith(("simpro_platform", "step_pitch"))})
+    assert [n for n in names if n in twice] == twice, "a second copy of the model or a scenario"
+    assert not [p for p in paths if p.startswith(("simpro_mj/models/", "simpro_mj/scenarios/"))]
+    links = [p for p, mode in paths.items() if mode == "120000"]
+    assert not links, links

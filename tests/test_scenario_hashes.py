@@ -11,7 +11,7 @@ hand-written checks.
 
 One normalisation: ``setpoint.cueing.telemetry`` resolves to an absolute path
 (the file beside the scenario or shipped), which differs between checkouts;
-the test writes a path inside the package relative to ``simpro_mj/`` before
+the test writes a path inside the package relative to the folder holding ``scenarios/`` before
 hashing, so the pins hold on any machine. Everything else is hashed as is.
 
 Regenerate only on purpose (a scenario or a default changed):
@@ -34,9 +34,11 @@ from simpro_mj.config.scenario import (
     shipped_scenarios,
 )
 from simpro_mj.config.variants import load_sweep
+from simpro_mj.core.shipped import SCENARIOS_DIR
 
 DATA = Path(__file__).resolve().parent / "data" / "scenario_hashes.json"
-PACKAGE = Path(__file__).resolve().parents[1] / "simpro_mj"
+#: what a shipped telemetry path is written relative to (the checkout or the package)
+PACKAGE = SCENARIOS_DIR.parent
 _EMPTY = {"scenarios": {}, "extra": {}, "variants": {}}
 _PINNED = json.loads(DATA.read_text()) if DATA.is_file() else _EMPTY
 
@@ -84,7 +86,7 @@ EXTRA = {
 
 
 def _portable(resolved: dict) -> dict:
-    """The resolved scenario with a shipped telemetry path relative to ``simpro_mj/``."""
+    """The resolved scenario with a shipped telemetry path relative to ``PACKAGE``."""
     out = copy.deepcopy(resolved)
     cue = (out.get("setpoint") or {}).get("cueing")
     if cue and cue.get("telemetry"):

@@ -1,7 +1,7 @@
 """The scenario document, validated once at the edge.
 
 - :mod:`.defaults`: every key with its default (``DEFAULT_SCENARIO``).
-- :mod:`.presets`: named plants (``simpro_mj/presets/*.yaml``).
+- :mod:`.presets`: named plants (``scenarios/presets/*.yaml``).
 - :mod:`.scenario`: loading, ``--set``, the hash ``--resume`` compares.
 - :mod:`.models`, :mod:`.entries`, :mod:`.rules`: the typed scenario (pydantic v2):
   one model per block (``Scenario``), the tagged set-point components and faults,

@@ -22,7 +22,7 @@ components::
 The block is validated by :class:`simpro_mj.config.models.Cueing` (with the
 rest of the scenario; :func:`simpro_mj.config.models.check_cueing` for a block
 alone). A relative ``telemetry`` path is found beside the scenario file, then
-among the shipped files (``simpro_mj/scenarios/telemetry/``). The resolved
+among the shipped files (``scenarios/telemetry/``). The resolved
 scenario spells out every parameter. The vehicle input is resampled to the 1 ms
 physics grid (linear), the washout runs at its own period on every
 ``period``-th sample and its set-point is held in between (what the rig's
@@ -47,6 +47,7 @@ from controllers.washout import ClassicalWashout, WashoutParams
 from simpro_mj.config.telemetry import read_telemetry, resample
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.rates import PHYSICS_DT_S, steps_per_period
+from simpro_mj.core.shipped import TELEMETRY_DIR
 
 __all__ = [
     "PARAMETER_KEYS",
@@ -73,7 +74,6 @@ SINE_CHANNELS = {
     "wx_rad_s": math.pi / 2,
     "wy_rad_s": math.pi / 2,
 }
-TELEMETRY_DIR = Path(__file__).resolve().parents[1] / "scenarios" / "telemetry"
 
 #: YAML key -> (WashoutParams field, factor from the YAML unit to SI).
 PARAMETER_KEYS = {

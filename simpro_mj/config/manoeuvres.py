@@ -5,7 +5,7 @@ The vehicle is the CommonRoad multi-body model (Althoff & Würsching,
 sprung mass with roll and pitch, unsprung masses, Pacejka tyres) with one of
 its published parameter sets (:data:`VEHICLES`). It is an optional extra:
 ``pip install "simpro-sim[vehicle]"``. The shipped scenarios read telemetry
-files made with it (``simpro_mj/scenarios/telemetry/``), so running them does
+files made with it (``scenarios/telemetry/``), so running them does
 not need it; ``simpro-sim manoeuvre`` makes more.
 
 A driver model closes the loop: speed held by a proportional acceleration

@@ -3,7 +3,7 @@
 A preset holds what the paper does not print and a calibration fits (Table 1
 is lost): the moving masses, leg friction, valve flow. Scenarios name one in
 ``plant.preset``; ``simpro-sim identify --preset`` and ``simpro-sim
-calibrate`` use the same files. Shipped presets (``simpro_mj/presets/``):
+calibrate`` use the same files. Shipped presets (``scenarios/presets/``):
 
 * ``paper`` (default): calibrated so that ``simpro-sim identify`` reproduces
   eqs. (34)-(35) under the potentiometer-volts reading
@@ -32,6 +32,7 @@ from pathlib import Path
 
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.keys import closest, read_yaml
+from simpro_mj.core.shipped import PRESETS_DIR
 
 __all__ = [
     "DEFAULT_PRESET",
@@ -48,8 +49,8 @@ _ACTS = ("actuator1", "actuator2", "actuator3")
 
 
 def presets_dir() -> Path:
-    """The folder of the shipped presets (package data)."""
-    return Path(__file__).resolve().parents[1] / "presets"
+    """The folder of the shipped presets (:data:`simpro_mj.core.shipped.PRESETS_DIR`)."""
+    return PRESETS_DIR
 
 
 def shipped_presets() -> list[str]:

@@ -114,6 +114,7 @@ from simpro_mj.config.rules import (
 from simpro_mj.config.sweep import count_variants
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.keys import closest, key_text, parse_set, read_yaml
+from simpro_mj.core.shipped import SCENARIOS_DIR
 
 __all__ = [
     "Scenario",
@@ -158,7 +159,7 @@ def scenarios_dir() -> Path:
     env = os.environ.get("SIMPRO_SCENARIOS")
     if env:
         return Path(env).expanduser()
-    return Path(__file__).resolve().parents[1] / "scenarios"
+    return SCENARIOS_DIR
 
 
 def shipped_scenarios() -> list[str]:

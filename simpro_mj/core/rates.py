@@ -1,7 +1,7 @@
 """Every rate an integer multiple of the physics timestep: the one check.
 
 The co-simulation steps MuJoCo at :data:`PHYSICS_DT_S` (the ``timestep`` of
-``simpro_mj/models/simpro_platform.xml``; ``tests/test_model.py`` checks they
+``models/simpro_platform.xml``; ``tests/test_model.py`` checks they
 agree). Sensors, the outer loop, the washout and the set-point filter run every
 k-th step, so each of their periods must be a whole number of steps: a
 period of 2.5 ms would be silently rounded to 2 or 3 steps and change the

@@ -1,7 +1,7 @@
 """The plant: what the rig is made of. No controller, no scenario.
 
 - :mod:`.model_params`, :mod:`.model`: the closed-chain MJCF (package data
-  ``simpro_mj/models``), its parameters, loading, assembling, the state reader and
+  ``models/``), its parameters, loading, assembling, the state reader and
   ``PhysicsError`` from ``data.warning``.
 - :mod:`.pneumatics` (a package: params, flow law, nonlinear and linear
   actuators, statics, factory, kernel): valves and cylinders (eqs. 15-19).

@@ -1,6 +1,6 @@
 """Loading, perturbing and inspecting the MuJoCo model of the platform.
 
-One entry point, :func:`load_model`, reads ``simpro_mj/models/simpro_platform.xml``
+One entry point, :func:`load_model`, reads ``models/simpro_platform.xml``
 (package data) and applies parameter overrides with :class:`mujoco.MjSpec` (payload, as-built
 attachment-point errors, guide dimensions), so that a scenario's plant can
 differ from the controller's nominal model. :func:`assemble` then finds the
@@ -22,6 +22,7 @@ import numpy as np
 
 from simpro_mj.core.errors import PhysicsError, UserInputError
 from simpro_mj.core.keys import apply_overrides, closest
+from simpro_mj.core.shipped import MODEL_DIR
 
 __all__ = [
     "MODEL_PATH",
@@ -42,11 +43,7 @@ __all__ = [
 ]
 
 #: The shipped model; ``SIMPRO_MODEL`` in the environment points elsewhere.
-MODEL_PATH = Path(
-    os.environ.get(
-        "SIMPRO_MODEL", Path(__file__).resolve().parents[1] / "models" / "simpro_platform.xml"
-    )
-)
+MODEL_PATH = Path(os.environ.get("SIMPRO_MODEL", MODEL_DIR / "simpro_platform.xml"))
 
 # the parameters are plain data in simpro_mj.plant.model_params (scenarios read them
 # without importing MuJoCo); re-exported here

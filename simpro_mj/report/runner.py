@@ -58,7 +58,7 @@ def _end_stop_warnings(columns, scenario) -> tuple[list[str], list[dict]]:
     if t is None or not len(t):
         return [], []
     quiet = flag_series(scenario, t) == 0
-    stroke = 0.5  # slide range of simpro_mj/models/simpro_platform.xml (DNC-125-500)
+    stroke = 0.5  # slide range of models/simpro_platform.xml (DNC-125-500)
     hits = []
     for i in (1, 2, 3):
         q = columns.get(f"q{i}_m")

@@ -79,7 +79,7 @@ def play(handle, model, data, rec, *, speed=1.0, start=0.0, ghost=True, clock=ti
     t_end = rec.duration_s
     if not ghost:
         with handle.lock():
-            handle.opt.geomgroup[1] = 0  # the ghost's group (simpro_mj/models/simpro_platform.xml)
+            handle.opt.geomgroup[1] = 0  # the ghost's group (models/simpro_platform.xml)
     t0 = clock()
     frames = 0
     row = -1

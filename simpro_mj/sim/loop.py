@@ -191,7 +191,7 @@ class CoSimulation:
             if "head_accel" not in self.idx.sensor or "head_gyro" not in self.idx.sensor:
                 raise UserInputError(
                     "invalid value at setpoint.cueing: the model has no head_accel/head_gyro "
-                    "sensors (simpro_mj/models/simpro_platform.xml)"
+                    "sensors (models/simpro_platform.xml)"
                 )
         # leg velocity feed-forward (feedforward mode): (a0/b) J dy_d/dt per leg
         self.u_ff = None  # (n + 1, 3) volts

@@ -39,7 +39,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[2]
 OUT = Path(__file__).resolve().parent / "reference_metrics.json"
 
-#: The shipped co-simulation scenarios of ``simpro_mj/scenarios/`` that are locked.
+#: The shipped co-simulation scenarios of ``scenarios/`` that are locked.
 SCENARIOS = ("step_all", "step_heave", "step_pitch", "step_roll", "track_cues", "track_sines")
 
 #: Period of the stored samples (s). The comparison is pointwise at these
