@@ -203,6 +203,7 @@ ROOMS = (
     "identification",
     "sim",
     "analysis",
+    "job",
     "report",
     "batch",
     "commands",

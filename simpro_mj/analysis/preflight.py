@@ -61,11 +61,20 @@ GAIN_REFUSE_FACTOR = 10.0
 _MAX_POSES = 60  # static solves per check (0.5 ms each)
 
 
-def _poses(scenario: Mapping) -> tuple[np.ndarray, np.ndarray]:
-    """Set-point poses to check: the start, each axis' extremes, and a spread."""
+def _poses(scenario: Mapping, setpoints=None) -> tuple[np.ndarray, np.ndarray]:
+    """Set-point poses to check: the start, each axis' extremes, and a spread.
+
+    ``setpoints``: ``(t, pose)`` on the run's 1 ms grid, read at the checked
+    times (nearest sample) instead of evaluating the profile again.
+    """
     duration = float(scenario["duration_s"])
     t = np.linspace(0.0, duration, int(min(2001, duration / 0.05 + 1)))
-    pose = reference(scenario, t)
+    if setpoints is None:
+        pose = reference(scenario, t)
+    else:
+        grid, ref = setpoints
+        dt = float(grid[1] - grid[0]) if grid.size > 1 else 1.0
+        pose = ref[np.clip(np.rint(t / dt).astype(int), 0, ref.shape[0] - 1)]
     _, first = np.unique(np.round(pose, 7), axis=0, return_index=True)
     first = np.sort(first)
     if first.size > _MAX_POSES:
@@ -75,7 +84,7 @@ def _poses(scenario: Mapping) -> tuple[np.ndarray, np.ndarray]:
     return t[first], pose[first]
 
 
-def check_payload(scenario: Mapping, model=None) -> dict:
+def check_payload(scenario: Mapping, model=None, setpoints=None) -> dict:
     """Refuse a payload the cylinders cannot hold at the supply pressure.
 
     Parameters
@@ -85,6 +94,9 @@ def check_payload(scenario: Mapping, model=None) -> dict:
     model : mujoco.MjModel, optional
         The compiled plant (built from ``scenario["plant"]`` when omitted; its
         payload mass is changed and restored).
+    setpoints : (ndarray, ndarray), optional
+        ``(t, pose)``: the set-points on the run's 1 ms grid (evaluated here
+        when omitted).
 
     Returns
     -------
@@ -129,7 +141,7 @@ def check_payload(scenario: Mapping, model=None) -> dict:
     d = mujoco.MjData(m)
     idx = PlantIndex.of(m)
     probe = mass if mass > 0 else 1.0
-    times, poses = _poses(scenario)
+    times, poses = _poses(scenario, setpoints)
     q_all = inverse_kinematics(poses, nominal_geometry(), check=False)
 
     worst = None  # (utilisation, leg, t, force)
@@ -282,14 +294,16 @@ def cueing_mode_warnings(scenario: Mapping) -> list[str]:
     ]
 
 
-def preflight(scenario: Mapping, model=None) -> tuple[list[str], dict]:
+def preflight(scenario: Mapping, model=None, *, setpoints=None) -> tuple[list[str], dict]:
     """Payload check (raises), gain warnings and set-point components that start
-    after the run ends (warned: they never act); returns ``(warnings, figures)``."""
-    # the identification runs the plant (MuJoCo): loaded when a preflight runs
-    from simpro_mj.identification.auto import with_identified
+    after the run ends (warned: they never act); returns ``(warnings, figures)``.
 
-    scenario = with_identified(scenario)[0]  # design_plant identified: its own plant's
-    payload = check_payload(scenario, model)
+    ``scenario`` carries its design plants (``design_plant: identified``: the
+    scenario's own plant's models, :func:`~simpro_mj.identification.auto.with_identified`);
+    ``model`` and ``setpoints`` are the run's compiled plant and set-points
+    (:class:`simpro_mj.job.run.Run` passes both; built here when omitted).
+    """
+    payload = check_payload(scenario, model, setpoints)
     warnings, stability = gain_warnings(scenario)
     warnings += late_setpoints(scenario)
     warnings += cueing_mode_warnings(scenario)

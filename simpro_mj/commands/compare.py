@@ -12,7 +12,6 @@ from simpro_mj.config.scenario import load_scenario
 from simpro_mj.core.jsonout import emit_json
 from simpro_mj.report.compare import compare, table
 from simpro_mj.report.folders import claim, record
-from simpro_mj.report.render import require_video
 from simpro_mj.report.runner import EXIT_INTERRUPTED, interrupted_message
 from simpro_mj.report.video_options import add_video_flag, video_after_run
 
@@ -37,6 +36,8 @@ def add_arguments(parser) -> None:
 def run(args) -> int:
     scenario = load_scenario(args.scenario, args.sets)
     if args.video:
+        from simpro_mj.report.render import require_video  # the renderer only for a video
+
         require_video()  # the install hint before the run, not after it
     out = Path(args.out) if args.out else Path("results") / f"{scenario['name']}-compare"
     with claim(out, "compare", inputs=[args.scenario], writes=COMPARE_FILES):

@@ -21,7 +21,6 @@ from pathlib import Path
 from simpro_mj.config.scenario import load_scenario
 from simpro_mj.core.jsonout import emit_json
 from simpro_mj.report.folders import claim
-from simpro_mj.report.render import require_video
 from simpro_mj.report.results import print_summary
 from simpro_mj.report.runner import (
     EXIT_INTERRUPTED,
@@ -43,6 +42,8 @@ def add_arguments(parser) -> None:
 def run(args) -> int:
     scenario = load_scenario(args.scenario, args.sets)
     if args.video:
+        from simpro_mj.report.render import require_video  # the renderer only for a video
+
         require_video()  # the install hint before the run, not after it
     out = Path(args.out) if args.out else Path("results") / scenario["name"]
     # refused (exit 2) before anything runs: not ours to replace, or busy

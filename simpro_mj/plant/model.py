@@ -47,7 +47,12 @@ MODEL_PATH = Path(os.environ.get("SIMPRO_MODEL", MODEL_DIR / "simpro_platform.xm
 
 # the parameters are plain data in simpro_mj.plant.model_params (scenarios read them
 # without importing MuJoCo); re-exported here
-from simpro_mj.plant.model_params import BASE_POINTS, DEFAULT_MODEL_PARAMS, LEG_POINTS  # noqa: E402
+from simpro_mj.plant.model_params import (  # noqa: E402
+    BASE_POINTS,
+    DEFAULT_MODEL_PARAMS,
+    LEG_POINTS,
+    MAX_MODEL_PAYLOAD_KG,
+)
 
 WARNING_NAMES = {int(v): k for k, v in mujoco.mjtWarning.__members__.items() if k != "mjNWARNING"}
 
@@ -103,7 +108,7 @@ def _check_params(params: dict) -> None:
             allowed = f"{'>' if lo_open else '>='} {lo:g}{unit}, finite"
             raise UserInputError(f"invalid value at model.{path}: {node!r}; allowed: {allowed}")
     # a heavy payload is refused with its limit by simpro_mj.analysis.preflight before a run
-    if params["payload"]["mass_kg"] > 1e5:
+    if params["payload"]["mass_kg"] > MAX_MODEL_PAYLOAD_KG:
         raise UserInputError(
             f"invalid value at model.payload.mass_kg: {params['payload']['mass_kg']!r}; "
             "allowed: <= 1e5 kg"

@@ -8,7 +8,12 @@ refusing) a scenario does not pay for importing MuJoCo;
 
 from __future__ import annotations
 
-__all__ = ["LEG_POINTS", "BASE_POINTS", "DEFAULT_MODEL_PARAMS"]
+__all__ = ["LEG_POINTS", "BASE_POINTS", "DEFAULT_MODEL_PARAMS", "MAX_MODEL_PAYLOAD_KG"]
+
+#: Largest payload the MJCF builder accepts (kg): far above what the cylinders hold
+#: (the preflight refuses a payload with its limit first), below what makes the
+#: compiled masses meaningless.
+MAX_MODEL_PAYLOAD_KG = 1e5
 
 LEG_POINTS = ("C1", "B2", "B3")  # moving attachment of legs 1..3
 BASE_POINTS = ("A1", "A2", "A3")

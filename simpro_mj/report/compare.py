@@ -10,8 +10,8 @@ import copy
 import math
 from pathlib import Path
 
-from simpro_mj.analysis.preflight import preflight
-from simpro_mj.report.runner import execute, warn
+from simpro_mj.job.run import Run, warn
+from simpro_mj.report.runner import execute
 
 __all__ = ["MODES", "compare", "table"]
 
@@ -22,21 +22,23 @@ MODES = ("joint_only", "task_space")
 def compare(scenario: dict, out: Path, plots: bool = True, *, quiet: bool = False) -> dict:
     """Run both modes into ``out/joint_only`` and ``out/task_space``; returns both metrics.
 
-    The preflight checks (:mod:`simpro_mj.analysis.preflight`) run once, before either
+    The preflight checks (:mod:`simpro_mj.analysis.preflight`) run first, before either
     run, on the task-space variant (the one with an outer loop); their
     warnings are printed once unless ``quiet`` and recorded in both folders.
+    The plant is compiled once for the three (the modes differ only in control).
     An interrupted run stops the comparison (``results`` then holds fewer
     than two modes).
     """
     task = copy.deepcopy(scenario)
     task["controller"]["mode"] = "task_space"
-    warnings, _ = preflight(task)  # raises for a payload the cylinders cannot hold
+    first = Run(task)
+    warnings, _ = first.preflight()  # raises for a payload the cylinders cannot hold
     warn(warnings, quiet)
     results, metrics = {}, {}
     for mode in MODES:
         sc = copy.deepcopy(scenario)
         sc["controller"]["mode"] = mode
-        res, met = execute(sc, out / mode, plots=plots, quiet=True)
+        res, met = execute(sc, out / mode, plots=plots, quiet=True, model=first.model)
         results[mode], metrics[mode] = res, met
         if res.status == "interrupted":
             return {"metrics": metrics, "results": results}

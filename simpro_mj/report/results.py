@@ -43,7 +43,6 @@ from simpro_mj.config.scenario import scenario_hash
 from simpro_mj.plant import kernels
 from simpro_mj.report.folders import (
     PARTIAL_MARKER,
-    check_out,
     install_folder,
     is_complete,
     locked,
@@ -53,6 +52,7 @@ from simpro_mj.report.machine import fingerprint_id
 
 __all__ = [
     "write_results",
+    "write_run",
     "write_timeseries",
     "read_timeseries",
     "versions",
@@ -247,9 +247,41 @@ def write_results(
     ValueError
         Unknown status, or unequal column lengths.
     """
+    return _write(out_dir, columns, metrics, scenario, extra, arrays)[0]
+
+
+def write_run(out_dir, outcome, scenario: Mapping, *, plots: bool = True, arrays=None):
+    """Write a run's result folder (:func:`write_results`) from what
+    :meth:`simpro_mj.job.run.Run.execute` returned.
+
+    Parameters
+    ----------
+    out_dir : path
+        The folder.
+    outcome : simpro_mj.job.run.RunOutcome
+        The run, measured.
+    scenario : mapping
+        The resolved scenario as the user gave it (``scenario.yaml`` and the
+        hash ``--resume`` compares).
+    plots : bool
+        Write the PNG figures.
+    arrays : mapping, optional
+        As :func:`write_results` (``qpos.npz``).
+
+    Returns
+    -------
+    (Path, dict)
+        Where the folder went and the ``metrics.json`` document as written
+        (JSON types), so that nothing reads the file back.
+    """
+    extra = dict(outcome.extra(), plots=plots)
+    return _write(out_dir, outcome.result.columns, outcome.metrics, scenario, extra, arrays)
+
+
+def _write(out_dir, columns, metrics, scenario, extra, arrays) -> tuple[Path, dict]:
+    """:func:`write_results`; returns the folder and the ``metrics.json`` document."""
     extra = dict(extra or {})
     out_dir = Path(out_dir).expanduser().absolute()
-    check_out(out_dir)
     status = extra.pop("status", metrics.get("status", "ok"))
     if status not in STATUSES:
         raise ValueError(f"status must be one of {STATUSES}, got {status!r}")
@@ -267,6 +299,7 @@ def write_results(
     }
     for key, value in extra.items():
         doc[key if key not in _RESERVED else f"extra_{key}"] = value
+    doc = jsonable(doc)
 
     def fill(tmp: Path) -> None:
         if status == "interrupted":
@@ -283,7 +316,7 @@ def write_results(
             write_timeseries(tmp / "perceived.csv", perceived_columns(columns))
         for name, named in (arrays or {}).items():
             np.savez_compressed(tmp / name, **named)
-        text = json.dumps(jsonable(doc), indent=2, allow_nan=False)
+        text = json.dumps(doc, indent=2, allow_nan=False)
         (tmp / "metrics.json").write_text(text + "\n", encoding="utf-8")
         with (tmp / "scenario.yaml").open("w", encoding="utf-8") as fh:
             fh.write(f"# resolved scenario, sha256 {doc['scenario']['hash']}\n")
@@ -299,7 +332,7 @@ def write_results(
         if status == "interrupted" and is_complete(out_dir):
             # never replace a complete result with a partial one: write it beside
             target = partial_sibling(out_dir)
-        return install_folder(target, fill)
+        return install_folder(target, fill), doc
 
 
 def _fmt(value, scale: float = 1.0, digits: int = 3) -> str:

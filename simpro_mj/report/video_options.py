@@ -15,8 +15,9 @@ from pathlib import Path
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.report.folders import check_file, record_file
 from simpro_mj.report.recording import find_runs
-from simpro_mj.report.render import render_video, require_video
-from simpro_mj.report.scene import CAMERAS
+
+# the renderer (report.render, report.scene: MuJoCo's GL context, imageio) is imported
+# by the functions that render, so that a run without --video never loads it
 
 __all__ = [
     "MAX_SIDE",
@@ -34,6 +35,8 @@ MAX_SIDE = 4096
 
 def add_video_options(parser, out: bool) -> None:
     """The options shared by ``render`` and ``run/compare --video``."""
+    from simpro_mj.report.scene import CAMERAS
+
     parser.add_argument("--fps", default="25", help="frames per second of the video (default 25)")
     parser.add_argument(
         "--size", default="640x480", help="WIDTHxHEIGHT of each 3D view, even numbers (640x480)"
@@ -139,6 +142,9 @@ def _out_path(value, default: Path, overwrite: bool = False) -> Path:
 def video_options(args, default_out: Path) -> dict:
     """Checked keyword arguments of :func:`simpro_mj.report.render.render_video`
     (one-line errors)."""
+    from simpro_mj.report.render import require_video
+    from simpro_mj.report.scene import CAMERAS
+
     # lower bounds so that a frame count stays finite: one frame a second, a hundredfold
     # slow motion (1e-320 made the count infinite)
     fps = number(args.fps, "--fps", 1.0, 240.0, lo_open=False)
@@ -180,6 +186,8 @@ def video_options(args, default_out: Path) -> dict:
 
 def video_after_run(folder, quiet: bool) -> dict:
     """Render a finished run or compare folder to ``folder/replay.mp4``."""
+    from simpro_mj.report.render import render_video
+
     folder = Path(folder)
     out = check_file(folder / "replay.mp4")
     info = render_video(find_runs(folder), out, progress=not quiet and sys.stderr.isatty())

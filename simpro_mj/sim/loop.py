@@ -94,15 +94,26 @@ class CoSimulation:
         computed from the scenario for the whole run. ``external``: every row
         starts at the neutral pose and the vehicle at rest, to be written
         while the run goes (:meth:`write_setpoints`, ``run(pace=...)``).
+    poses : ndarray, (n + 1, 3), optional
+        With ``setpoints="scenario"``: the set-point poses on this run's 1 ms
+        grid (:func:`reference`), when the caller has them; evaluated here when
+        omitted.
+    identified_source : str, optional
+        Given when ``scenario`` already carries its design plants
+        (:func:`~simpro_mj.identification.auto.with_identified` ran, as
+        :class:`simpro_mj.job.run.Run` does); resolved here when omitted.
     """
 
     def __init__(self, scenario: dict, model: mujoco.MjModel | None = None, *,
-                 setpoints: str = "scenario"):  # fmt: skip
+                 setpoints: str = "scenario", poses: np.ndarray | None = None,
+                 identified_source: str | None = None):  # fmt: skip
         if setpoints not in ("scenario", "external"):
             raise ValueError(f"setpoints={setpoints!r}; allowed: 'scenario' or 'external'")
         external = setpoints == "external"
-        # design_plant identified: the scenario's own plant's models (cached)
-        scenario, self.identified_source = with_identified(scenario, _say)
+        if identified_source is None:
+            # design_plant identified: the scenario's own plant's models (cached)
+            scenario, identified_source = with_identified(scenario, _say)
+        self.identified_source = identified_source
         self.scenario = scenario
         m = load_model(scenario["plant"]) if model is None else model
         self.model, self.idx = m, PlantIndex.of(m)
@@ -175,7 +186,9 @@ class CoSimulation:
         if external:  # the neutral pose until write_setpoints says otherwise
             self.ref = np.tile(np.asarray(self.geometry.home, float), (self.n_steps + 1, 1))
         else:
-            self.ref = np.ascontiguousarray(reference(scenario, self.t))
+            if poses is None:
+                poses = reference(scenario, self.t)
+            self.ref = np.ascontiguousarray(poses)
         # motion cueing (issue 16): the vehicle side, and the head sensors to log
         self.cueing = bool(scenario["setpoint"].get("cueing"))
         if self.cueing and external:  # the vehicle at rest: f = (0, 0, g), w = 0

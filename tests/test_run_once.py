@@ -1,0 +1,108 @@
+"""A run does each piece of work once (simpro_mj.job.run.Run).
+
+A plain ``simpro-sim run SCENARIO --no-plots`` compiles the MJCF once (the
+preflight's static solves and the loop share the model), evaluates the
+set-points once on the 1 ms grid (preflight and loop share them), places the
+design plants once, and imports no renderer. Counted in a fresh interpreter
+by wrapping MuJoCo's compilers and the set-point evaluation before the
+command runs.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+
+import pytest
+
+from simpro_mj.config.scenario import load_scenario
+
+#: Run in a fresh interpreter: the counters wrap MuJoCo's compilers, the set-points and
+#: the design plants, then ``simpro-sim run`` runs as from the shell.
+_PROBE = r"""
+import json, sys
+import mujoco
+counts = {"compile": 0, "from_xml": 0, "setpoints": 0, "with_identified": 0}
+
+def counted(fn, key, static=False):
+    def wrapper(*args, **kwargs):
+        counts[key] += 1
+        return fn(*args, **kwargs)
+    return staticmethod(wrapper) if static else wrapper
+
+mujoco.MjSpec.compile = counted(mujoco.MjSpec.compile, "compile")
+for name in ("from_xml_path", "from_xml_string", "from_binary_path"):
+    setattr(mujoco.MjModel, name, counted(getattr(mujoco.MjModel, name), "from_xml", True))
+import simpro_mj.config.reference as ref
+import simpro_mj.identification.auto as auto
+import simpro_mj.job.run as job
+import simpro_mj.sim.loop as loop
+ref_fn = ref.reference
+job.reference = counted(ref_fn, "setpoints")
+loop.reference = job.reference
+auto_fn = auto.with_identified
+auto.with_identified = counted(auto_fn, "with_identified")
+from simpro_mj.commands.main import main
+code = main()
+counts["renderer"] = sorted(
+    m for m in sys.modules if m in ("simpro_mj.report.render", "simpro_mj.report.scene",
+                                    "simpro_mj.report.viewer", "imageio", "matplotlib.pyplot")
+)
+print("COUNTS " + json.dumps(counts))
+sys.exit(code)
+"""
+
+
+def _probe(tmp_path, *argv) -> dict:
+    env = dict(os.environ, MPLBACKEND="Agg")
+    proc = subprocess.run(
+        [sys.executable, "-c", _PROBE, *argv, "--out", str(tmp_path / "out"), "--no-plots"],
+        capture_output=True, text=True, env=env, cwd=tmp_path, timeout=300,
+    )  # fmt: skip
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    (line,) = [x for x in proc.stdout.splitlines() if x.startswith("COUNTS ")]
+    return json.loads(line[len("COUNTS ") :])
+
+
+def test_a_plain_run_compiles_once_and_imports_no_renderer(tmp_path):
+    counts = _probe(tmp_path, "run", "step_pitch.yaml", "--set", "duration_s=0.3")
+    assert counts["compile"] + counts["from_xml"] == 1, counts
+    assert counts["setpoints"] == 1, counts
+    assert counts["with_identified"] == 1, counts
+    assert counts["renderer"] == [], counts
+    doc = json.loads((tmp_path / "out" / "metrics.json").read_text())
+    assert doc["status"] == "ok" and doc["preflight"]["payload"]["poses_checked"] >= 1
+
+
+def test_a_run_with_its_own_identified_plant_compiles_the_run_once(tmp_path, monkeypatch):
+    """``design_plant: identified`` on a changed plant: Fig. 12's experiment compiles
+    its own plant (the identification's, cached afterwards); the run still one."""
+    monkeypatch.setenv("SIMPRO_CACHE_DIR", str(tmp_path / "cache"))
+    sets = ["--set", "duration_s=0.2", "--set", "controller.inner.design_plant=identified",
+            "--set", "plant.payload.mass_kg=120"]  # fmt: skip
+    first = _probe(tmp_path, "run", "step_pitch.yaml", *sets)
+    again = _probe(tmp_path, "run", "step_pitch.yaml", *sets)  # from the cache
+    assert again["compile"] + again["from_xml"] == 1, again
+    assert first["compile"] + first["from_xml"] >= again["compile"] + again["from_xml"]
+    assert again["with_identified"] == 1, again
+
+
+def test_the_run_shares_its_plant_and_set_points_with_the_preflight():
+    """The preflight's poses are read from the run's set-point grid: the same
+    figures as evaluating the profile at the checked times."""
+    from simpro_mj.analysis.preflight import check_payload
+    from simpro_mj.job.run import Run
+
+    sc = load_scenario("step_all", ["duration_s=2"])
+    run = Run(sc)
+    shared = check_payload(run.scenario, run.model, (run.t, run.ref))
+    alone = check_payload(run.scenario)
+    assert shared["poses_checked"] == alone["poses_checked"]
+    assert shared["max_payload_kg"] == pytest.approx(alone["max_payload_kg"], rel=1e-9)
+    assert shared["utilisation"] == pytest.approx(alone["utilisation"], rel=1e-9)
+    # the model's payload mass is restored after the static solves
+    body = run.model.body("payload").id
+    assert run.model.body_mass[body] == pytest.approx(sc["plant"]["payload"]["mass_kg"])
+    assert run.stroke() == [(0.0, 0.5)] * 3  # the DNC-125-500 stroke, from the MJCF
