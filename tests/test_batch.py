@@ -222,14 +222,14 @@ def test_shipped_sweeps_expand_and_validate(capsys):
 def test_failing_variant_and_invalid_file_reported_others_complete(tmp_path, monkeypatch, capsys):
     import simpro_mj.sim.loop as sim_mod
 
-    real = sim_mod.simulate
+    real = sim_mod.CoSimulation.run
 
-    def flaky(scenario, progress=None):
-        if scenario["controller"]["outer"]["gains"][0] == 4.0:
+    def flaky(self, progress=None, **kwargs):
+        if self.scenario["controller"]["outer"]["gains"][0] == 4.0:
             raise RuntimeError("injected\nfailure")
-        return real(scenario, progress)
+        return real(self, progress, **kwargs)
 
-    monkeypatch.setattr(sim_mod, "simulate", flaky)
+    monkeypatch.setattr(sim_mod.CoSimulation, "run", flaky)
     good = _grid_file(tmp_path, **{"controller.outer.gains": [2, 4]})
     bad = _write(tmp_path / "bad.yaml", dict(BASE, controller={"mode": "task-space"}))
     out = tmp_path / "out"
@@ -261,13 +261,13 @@ def test_resume_skips_complete_and_recomputes_incomplete(tmp_path, monkeypatch):
     import simpro_mj.sim.loop as sim_mod
     from simpro_mj.report.folders import record
 
-    real, calls = sim_mod.simulate, []
+    real, calls = sim_mod.CoSimulation.run, []
 
-    def counting(scenario, progress=None):
-        calls.append(scenario["controller"]["outer"]["gains"][0])
-        return real(scenario, progress)
+    def counting(self, progress=None, **kwargs):
+        calls.append(self.scenario["controller"]["outer"]["gains"][0])
+        return real(self, progress, **kwargs)
 
-    monkeypatch.setattr(sim_mod, "simulate", counting)
+    monkeypatch.setattr(sim_mod.CoSimulation, "run", counting)
     path = _grid_file(tmp_path, **{"controller.outer.gains": [1, 2, 3]})
     out = tmp_path / "out"
     argv = ["batch", str(path), "--out", str(out), "--jobs", "1", "--no-plots"]
@@ -301,6 +301,7 @@ def _drop_wall_clock(text: str) -> list[dict]:
     return rows
 
 
+@pytest.mark.slow  # a process pool and a local Dask cluster over 8 runs each
 def test_process_pool_and_dask_agree_and_plots_written(tmp_path):
     pytest.importorskip("distributed")
     grid = {"controller.outer.type": ["I", "PI"], "controller.outer.gains": [2, 30]}

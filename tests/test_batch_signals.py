@@ -147,6 +147,7 @@ def test_a_signal_stops_a_batch_in_this_process(tmp_path):
 
 
 @linux
+@pytest.mark.slow  # process plumbing: 15 s of the suite
 @pytest.mark.parametrize("command", ["batch", "bench", "dask"])
 def test_workers_end_themselves_when_the_parent_is_killed(tmp_path, command):
     """``kill -9`` of the parent: no handler runs there; each worker sees that its
@@ -194,6 +195,7 @@ def _children_running_spawn(pid: int) -> list[int]:
 
 
 @linux
+@pytest.mark.slow  # Dask plumbing: a local cluster started and stopped
 def test_a_signal_stops_a_local_dask_batch(tmp_path):
     pytest.importorskip("distributed")
     out = tmp_path / "out"
