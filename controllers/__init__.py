@@ -27,7 +27,7 @@ _EXPORTS = {
     "leg_lengths": "kinematics",
     "paper_inverse_kinematics": "kinematics",
     "reachable": "kinematics",
-    # joint and task-space loops (issue 4)
+    # joint and task-space loops
     "JointDesign": "design",
     "Plant": "design",
     "place_poles": "design",
@@ -36,7 +36,7 @@ _EXPORTS = {
     "TaskSpaceController": "task_space",
     "leg_velocity_feedforward": "velocity_feedforward",
     "velocity_gains": "velocity_feedforward",
-    # motion cueing and perception (issue 16)
+    # motion cueing and perception
     "CanalModel": "vestibular",
     "OtolithModel": "vestibular",
     "VestibularModel": "vestibular",

@@ -354,7 +354,7 @@ def predict(model: LoopModel, omega) -> dict:
     return {"omega_rad_s": omega, "true": out_true, "measured": out_meas}
 
 
-# ------------------------------------------------ the whole cueing chain (issue 16)
+# ------------------------------------------------ the whole cueing chain
 
 
 def head_response(omega, jac=None, g: float = 9.80665) -> np.ndarray:

@@ -336,7 +336,7 @@ class TaskSpaceController:
     ) -> list:
         """:meth:`update` on lists of 3 floats; returns ``q_d`` as a new list.
 
-        The co-simulation's path (issue 7). Bit-identical to the array
+        The co-simulation's path. Bit-identical to the array
         formulation ``e = y_d - y``, ``x_c + T K_I e``, ``IK(x_c)`` because each
         of those is one IEEE operation per axis, and the IK is
         :class:`~controllers.kinematics.PoseKinematics`. The IK of the new

@@ -1,4 +1,4 @@
-"""Leg velocity feed-forward from the set-point trajectory (issue 15, beyond the paper).
+"""Leg velocity feed-forward from the set-point trajectory (beyond the paper).
 
 The joint loops (eqs. 36-37) produce the valve voltage that moves a leg from
 the position error alone; a leg that has to move at ``q̇`` needs, in steady

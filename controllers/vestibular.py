@@ -1,4 +1,4 @@
-"""Vestibular perception: otoliths and semicircular canals as transfer functions (issue 16).
+"""Vestibular perception: otoliths and semicircular canals as transfer functions.
 
 Both sides of a cueing comparison, the vehicle and the simulator, go through
 the same model, so the cue that matters is compared: what the driver would
@@ -29,7 +29,7 @@ Mid-band gain 1; after a step in angular velocity the sensation decays with
 Thresholds 3.0 (roll), 3.6 (pitch), 2.6 (yaw) deg/s (Reid & Nahon 1986 after
 Zacharias 1978). ``tau_l`` may be given per axis (roll, pitch, yaw).
 
-Sources checked (issue 16, with the session's public-text search)
+Sources checked (public texts)
 -----------------------------------------------------------------
 Telban & Cardullo 2005 (NASA CR-2005-213747, "Motion cueing algorithm
 development: human-centered linear and nonlinear approaches") itself could

@@ -1,4 +1,4 @@
-"""Classical washout motion cueing for the roll-pitch-heave platform (issue 16).
+"""Classical washout motion cueing for the roll-pitch-heave platform.
 
 The classical algorithm of Conrad & Schmidt (1970) and Reid & Nahon (1985,
 UTIAS Report 296, "Flight simulation motion-base drive algorithms: Part 1"),

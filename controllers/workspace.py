@@ -88,7 +88,7 @@ def combined_ranges(
     return rows
 
 
-# ---------------------------------------------------------------- motion cueing (issue 16)
+# ---------------------------------------------------------------- motion cueing
 
 
 def inscribed_box(

@@ -274,7 +274,7 @@ SWEEP_ROW_METRICS = ("overshoot_pct", "settling_time_s", "iae", "steady_state_er
 def _measured(task: dict) -> dict:
     """One resolved scenario measured without writing anything (:func:`run`, and each
     variant of :func:`sweep` here or in a pool worker: top level, it pickles by name)."""
-    # MuJoCo is loaded when a plant is built (issue 14), not by ``import simpro_mj``
+    # MuJoCo is loaded when a plant is built, not by ``import simpro_mj``
     from simpro_mj.report.results import jsonable
     from simpro_mj.report.runner import measure
 

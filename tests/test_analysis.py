@@ -26,7 +26,7 @@ T = 0.06
 
 
 def _jury_table(coeffs) -> bool:
-    """The hand-written Jury (Schur-Cohn) test that ``schur_stable`` replaced (issue 14):
+    """A Jury (Schur-Cohn) test written out by hand, an independent check of ``schur_stable``:
     ``|a_0| < |a_n|`` and the reduced ``(a_n P - a_0 P*) / z`` Schur, recursively."""
     a = np.trim_zeros(np.asarray(coeffs, dtype=float), "f")[::-1]
     while a.size > 1:
@@ -108,7 +108,7 @@ def test_companion_is_control_tf2ss():
 
 
 def _step_metrics_by_hand(t, y, yf, settle=0.02):
-    """The hand-written step metrics that control.step_info replaced (issue 14)."""
+    """Step metrics written out by hand, an independent check of control.step_info."""
     out = {"final": yf}
     try:
         t10 = t[np.nonzero(y >= 0.1 * yf)[0][0]]

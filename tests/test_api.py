@@ -45,7 +45,7 @@ def test_importing_the_package_the_controllers_or_the_actuator_params_skips_mujo
     assert proc.stdout.strip() == "False True"
 
 
-def test_the_issue_example_runs_from_any_folder(tmp_path):
+def test_the_readme_example_runs_from_any_folder(tmp_path):
     proc = _python(
         "import simpro_mj as s; print(s.run('step_pitch', {'duration_s': 2}).metrics)",
         tmp_path,

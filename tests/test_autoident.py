@@ -1,4 +1,4 @@
-"""design_plant: identified on the scenario's own plant (issue 18).
+"""design_plant: identified on the scenario's own plant.
 
 See :mod:`simpro_mj.identification.auto`.
 """

@@ -1,4 +1,4 @@
-"""``simpro-sim batch`` and sweeps (issue 6).
+"""``simpro-sim batch`` and sweeps.
 
 * expansion: grid and Monte Carlo counts, names, uniqueness, reproducible
   draws and seeds; malformed sweep blocks give one-line errors naming the path;

@@ -1,4 +1,4 @@
-"""Issue 13, batches end cleanly: signals, a killed parent, a cluster without workers.
+"""Batches end cleanly: signals, a killed parent, a cluster without workers.
 
 Every test that signals a subprocess waits for its readiness file
 (``SIMPRO_READY_FILE``, :mod:`simpro_mj.sim.readiness`): the batch writes it once

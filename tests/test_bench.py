@@ -1,4 +1,4 @@
-"""``simpro-sim bench``: structure and internal consistency (issue 7).
+"""``simpro-sim bench``: structure and internal consistency.
 
 No speed thresholds here: speed is what the command measures, on the machine
 it runs on (docs/performance.md). These tests use short runs.

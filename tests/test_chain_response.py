@@ -1,4 +1,4 @@
-"""``simpro-sim response --chain``: the whole cueing chain, vehicle -> driver's head (issue 16).
+"""``simpro-sim response --chain``: the whole cueing chain, vehicle -> driver's head.
 
 The fit and the washout's linear prediction against a known linear case (the
 washout on an ideal platform, computed here without MuJoCo), one co-simulated

@@ -1,4 +1,4 @@
-"""The cueing chain in scenarios: telemetry files, the cueing block, the head sensors (issue 16)."""
+"""The cueing chain in scenarios: telemetry files, the cueing block, the head sensors."""
 
 from __future__ import annotations
 
@@ -288,7 +288,7 @@ def test_cue_metrics_known_answers(braking_run):
 
 def test_sweep_variants_get_the_preset_like_a_run():
     # a sweep's variants resolve as `simpro-sim run` does: plant preset between the
-    # defaults and the file (it used to be pinned to the bare defaults: 250 kg)
+    # defaults and the file (not the bare defaults' 250 kg cabin)
     from simpro_mj.config.variants import load_sweep
 
     # the sweep runs 11.5 s, the length of the shortest recording it plays
@@ -328,7 +328,7 @@ def test_shift_correlations_are_pearson_over_the_overlap():
 
 
 def test_mean_lag_beyond_the_first_window():
-    """The mean lag no longer saturates at its 2 s window (it returned 2.0 for any
+    """The mean lag does not saturate at a 2 s window (which would give 2.0 for any
     longer lag): a pulse delayed by 3.5 s in a 20 s record gives 3.5 s; a lag longer
     than half the record gives the half as a lower bound, flagged."""
     dt = 0.001

@@ -1,4 +1,4 @@
-"""Faults acting in the co-simulation, end to end (issue 8).
+"""Faults acting in the co-simulation, end to end.
 
 ``simpro_mj.sim.loop`` calls the hooks of :class:`simpro_mj.plant.faults.FaultSchedule`
 as the module docstring of ``simpro_mj/plant/faults.py`` describes and logs the
@@ -45,7 +45,7 @@ def test_supply_drop_settles_on_the_lower_end_stops():
     for i in (1, 2, 3):
         for side in ("a", "b"):
             p = c[f"p{i}{side}_pa"]
-            # no clipping at the supply any more (issue 18): a chamber above the
+            # no clipping at the supply: a chamber above the
             # fallen supply flows back through its supply edge; physical bounds:
             # positive, never above the initial supply (the load cannot pump)
             assert np.all(p > 0.5 * PA) and np.all(p <= 6e5 + PA + 1e3), (i, side)

@@ -1,4 +1,4 @@
-"""The feed-forward task-space scheme (``controller.mode: feedforward``, issue 15)."""
+"""The feed-forward task-space scheme (``controller.mode: feedforward``)."""
 
 from __future__ import annotations
 
@@ -145,7 +145,7 @@ def ff_step():
 
 
 def test_step_on_the_default_plant_meets_the_floors(ff_step):
-    """Issue 15's floors on a short step (final window 6.4-8 s, 5.4 s after the step):
+    """The feed-forward floors on a short step (final window 6.4-8 s, 5.4 s after the step):
     overshoot <= 10 %; the steady-state error of the true pose below the sensor floor
     the plant's sensors define (:meth:`simpro_mj.plant.sensors.Sensors.resolution_floor`:
     the IMU's noise averaged over 1 s, the height encoder's resolution)."""

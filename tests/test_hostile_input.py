@@ -1,8 +1,8 @@
-"""Issue 13, hostile input is refused fast: the catalogue beside test_robustness's.
+"""Hostile input is refused fast: the catalogue beside test_robustness's.
 
-Every row is a class of hostile input with the case the issue saw (and one
-more of the same class): through ``simpro_mj.commands.main.main`` it exits 2 with one
-line ``error: ... at <field>: ...; allowed: <bound>`` of readable length,
+Every row is a class of hostile input with a case that hangs or crashes a naive
+loader (and one more of the same class): through ``simpro_mj.commands.main.main``
+it exits 2 with one line ``error: ... at <field>: ...; allowed: <bound>`` of readable length,
 naming the field the user typed. A case that would hang fails through a 300 s
 alarm instead of hanging the suite (a guard, not a timing assertion: the
 refusals take milliseconds; docs/robustness.md states the figures).
@@ -323,7 +323,7 @@ _leaf = st.one_of(
 @st.composite
 def yaml_structures(draw):
     """YAML text with anchors, aliases (to finished anchors, to unfinished ones),
-    nesting of random depth and repeated blocks: the shapes of the issue's bugs."""
+    nesting of random depth and repeated blocks: the shapes that break naive loaders."""
     anchors: list[str] = []
 
     def node(depth: int) -> str:

@@ -1,4 +1,4 @@
-"""The float fast paths of the 1 ms loop equal their array APIs bit for bit (issue 7).
+"""The float fast paths of the 1 ms loop equal their array APIs bit for bit.
 
 ``tests/test_reference_metrics.py`` checks whole runs; these check each
 component on its own, including the paths the shipped scenarios do not take.

@@ -79,7 +79,7 @@ def test_identification_of_the_linear_option_returns_the_paper_models():
 
 
 def test_default_preset_identifies_the_papers_models():
-    """Issue 18's floor: on the default (``paper``) preset, identify gives eqs. (34)-(35)
+    """The identification floor: on the default (``paper``) preset, identify gives eqs. (34)-(35)
     under the potentiometer-volts reading within wn ±15 %, zeta ±0.1, b/a0 ±15 %."""
     res = identify(_tree(), legs=(1, 2))
     paper = paper_models("volts")

@@ -1,4 +1,4 @@
-"""Imports run one way (issue 14): no cycle among the project's own modules.
+"""Imports run one way: no cycle among the project's own modules.
 
 The graph is read from the source with :mod:`ast`, not by importing: every
 ``import`` and ``from ... import`` of ``simpro_mj`` and ``controllers``,

@@ -1,4 +1,4 @@
-"""Manoeuvres from the CommonRoad multi-body vehicle: signs and magnitudes (issue 16)."""
+"""Manoeuvres from the CommonRoad multi-body vehicle: signs and magnitudes."""
 
 from __future__ import annotations
 

@@ -86,7 +86,7 @@ def test_loop_closure_at_rest_under_full_payload():
         mujoco.mj_step(heavy, data)
     assert np.all(data.warning.number == 0)
     err = loop_closure_error(heavy, data, idx)
-    assert err.max() < 1e-4  # 0.1 mm, issue bound
+    assert err.max() < 1e-4  # 0.1 mm, the assembly bound
     assert np.abs(data.qvel).max() < 1e-4  # really at rest
     # the loops carry the load: the held slides push with about the weight
     g = 9.81 * (heavy.body_subtreemass[0])
@@ -113,7 +113,7 @@ def test_random_leg_forces_raise_no_warning(model):
     assert np.all(np.isfinite(data.qpos)) and np.all(np.isfinite(data.qvel))
     q = data.qpos[idx.slide_qpos]
     assert np.all(q > -0.01) and np.all(q < 0.51)  # end stops hold
-    assert worst < 5e-4  # 0.5 mm, the issue's bound during motion
+    assert worst < 5e-4  # 0.5 mm, the loop-closure bound during motion
 
 
 def test_loader_overrides_change_the_plant():

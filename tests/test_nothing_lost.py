@@ -1,4 +1,4 @@
-"""Issue 13, nothing lost: ``--out`` never deletes a user's files.
+"""Nothing lost: ``--out`` never deletes a user's files.
 
 * a folder is replaced only if it carries simpro-sim's result marker of the
   same kind; any other non-empty folder, the working folder (or one above

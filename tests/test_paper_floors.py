@@ -1,6 +1,6 @@
-"""Issue 18's floors: the paper's closed loop (K K_I = 3, T = 60 ms, eqs. 36-37
+"""The paper's floors: its closed loop (K K_I = 3, T = 60 ms, eqs. 36-37
 corrected under the volts reading, I law) on the default plant behaves as Figs.
-14-16 show: smooth steps. The numbers are the issue's floors; the measured values
+14-16 show: smooth steps. The numbers are acceptance floors; the measured values
 are in docs/paper-notes.md (closed loop)."""
 
 from __future__ import annotations

@@ -193,7 +193,7 @@ def test_full_scale_steps_into_both_end_stops_keep_pressures_physical(plant):
 
 
 def test_closed_chamber_is_compressed_adiabatically_above_the_supply():
-    """Issue 18: with both metering edges closed, pushing the piston in compresses
+    """With both metering edges closed, pushing the piston in compresses
     the cap chamber as p V^n = const (n = 1.4), far above the supply: 4.45 times
     smaller volume from 5.6 bar gives ~45 bar, not the 7 bar of a supply clip."""
     act = make_actuators(

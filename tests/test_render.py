@@ -1,4 +1,4 @@
-"""Replay videos (issue 17): recorded motion, the ghost, the MP4, bad input.
+"""Replay videos: recorded motion, the ghost, the MP4, bad input.
 
 Rendering runs headless through ``MUJOCO_GL=egl`` (set in conftest.py); the
 tests that draw skip only when no OpenGL backend works on the machine.
@@ -29,7 +29,7 @@ PITCH_STEP_S = 1.0  # step_pitch.yaml: 3 deg at t = 1 s
 def pitch_run(tmp_path_factory) -> Path:
     """A 3 s pitch step (the 3 deg set-point is reached after about 1.5 s)."""
     out = tmp_path_factory.mktemp("render") / "step_pitch"
-    # K K_I = 1, no set-point filter: the response these checks were written for (issue 18)
+    # K K_I = 1, no set-point filter: the response these checks were written for
     scenario = load_scenario(
         "step_pitch.yaml",
         [
@@ -76,7 +76,7 @@ def test_qpos_recorded_is_the_simulated_state(pitch_run):
 
 def test_ghost_changes_nothing_in_the_dynamics():
     """The mocap ghost is visual only: every logged column and qpos bit-identical without it."""
-    # K K_I = 1, no set-point filter: the response these checks were written for (issue 18)
+    # K K_I = 1, no set-point filter: the response these checks were written for
     scenario = load_scenario(
         "step_pitch.yaml",
         [

@@ -1,5 +1,5 @@
 """``simpro-sim response``: the sine fit, the linear prediction against the co-simulation,
-and the one-line errors (issue 15)."""
+and the one-line errors."""
 
 from __future__ import annotations
 

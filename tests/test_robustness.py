@@ -1,4 +1,4 @@
-"""Issue 8: a user's mistake or an unstable design gives a clear answer.
+"""A user's mistake or an unstable design gives a clear answer.
 
 * a table of bad inputs through ``simpro_mj.commands.main.main`` for every subcommand:
   exit 2, one stderr line ``error: <what> at <field>: <allowed>``, no traceback;
@@ -481,7 +481,7 @@ def test_gain_above_the_analysed_limit_is_warned_and_recorded(tmp_path, capsys):
 
 def test_divergence_through_the_cli_exits_1_and_stops_early(tmp_path, capsys):
     """Loop-closure constraints 250x softer than shipped on the heavy cabin (with the
-    metres reading of eqs. 34-37, the pre-issue-18 loop): leg 1's loop opens past
+    metres reading of eqs. 34-37): leg 1's loop opens past
     the 5 mm bound about 1 s in; the run stops there, writes what it had."""
     out = tmp_path / "div"
     rc = main(
@@ -632,7 +632,7 @@ def test_same_scenario_twice_gives_identical_files(tmp_path):
     def deterministic(doc):
         doc = json.loads(json.dumps(doc))
         doc["sim"].pop("wall_clock")
-        doc["sim"].pop("realtime_factor", None)  # wall-clock too (issue 5's name)
+        doc["sim"].pop("realtime_factor", None)  # wall-clock too (metrics.json's first name for it)
         return doc
 
     assert a["sim"]["wall_clock"]  # the wall-clock figures are there, kept apart

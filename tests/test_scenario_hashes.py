@@ -1,13 +1,12 @@
-"""Golden hashes of every shipped scenario and sweep variant (issue 14).
+"""Golden hashes of every shipped scenario and sweep variant.
 
 ``scenario_hash`` of the resolved scenario is what ``simpro-sim batch
 --resume`` compares to decide that a finished variant need not run again
 (:mod:`simpro_mj.batch.batch`). Reorganising the scenario's validation (typed
-models, issue 14) must not change a single resolved value, default, type or
+models) must not change a single resolved value, default, type or
 key order that reaches the hash: this test pins the hash of every shipped
 scenario (``load_scenario``) and of every variant of every shipped sweep file
-(``load_sweep``), recorded from main before the models replaced the
-hand-written checks.
+(``load_sweep``).
 
 One normalisation: ``setpoint.cueing.telemetry`` resolves to an absolute path
 (the file beside the scenario or shipped), which differs between checkouts;

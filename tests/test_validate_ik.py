@@ -10,7 +10,7 @@ from simpro_mj.commands.main import main
 from simpro_mj.core.keys import apply_overrides
 
 
-def test_dynamic_drive_matches_ik_within_issue_bounds():
+def test_dynamic_drive_matches_ik_within_bounds():
     res = validate(apply_overrides(DEFAULTS, ["trajectory.duration_s=20"]))
     assert res["max_position_error_m"] < 1e-4  # 0.1 mm
     assert res["max_angle_error_rad"] < np.radians(0.01)  # 0.01 deg

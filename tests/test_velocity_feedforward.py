@@ -1,4 +1,4 @@
-"""Leg velocity feed-forward (``controller.feedforward.leg_velocity``, issue 15)."""
+"""Leg velocity feed-forward (``controller.feedforward.leg_velocity``)."""
 
 from __future__ import annotations
 
@@ -102,7 +102,7 @@ def pitch_1hz():
 def test_velocity_feedforward_removes_most_of_the_lag_at_1_hz(pitch_1hz):
     """The joint loops lag about 40 deg at 1 Hz: the voltage that the leg speed needs,
     supplied in advance, takes most of it away (measured: -40 -> -10 deg), and the
-    prediction with the same term agrees within the issue's 15 deg and 2 dB."""
+    prediction with the same term agrees within 15 deg and 2 dB."""
     off, on = pitch_1hz["false"], pitch_1hz["true"]
     assert off["phase_deg"] < -30.0
     assert on["phase_deg"] > off["phase_deg"] + 20.0

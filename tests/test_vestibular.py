@@ -1,4 +1,4 @@
-"""Vestibular models reproduce their published step responses and thresholds (issue 16).
+"""Vestibular models reproduce their published step responses and thresholds.
 
 Reference: the closed-form step responses of the published transfer
 functions (partial fractions worked out here, not from the implementation),

@@ -1,4 +1,4 @@
-"""Classical washout: frames, signs, known answers, workspace (issue 16)."""
+"""Classical washout: frames, signs, known answers, workspace."""
 
 from __future__ import annotations
 

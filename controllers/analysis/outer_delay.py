@@ -15,8 +15,8 @@ import numpy as np
 def schur_stable(coeffs, tol: float = 0.0) -> bool:
     """All roots of ``coeffs`` (highest power first) inside the unit circle, ``|z| < 1 - tol``.
 
-    The poles of ``1 / P(z)``; they replace the hand-written Jury (Schur-Cohn)
-    table of the first version (issue 14): same verdict on every polynomial
+    The poles of ``1 / P(z)``; a Jury (Schur-Cohn) table written out by hand
+    gives the same verdict on every polynomial
     whose largest root is not within 1e-9 of the circle
     (``tests/test_analysis.py``).
     """

@@ -66,7 +66,7 @@ __all__ = [
     "calibrate_preset",
 ]
 
-#: Acceptance band of the fit (issue 18): relative on wn and b/a0, absolute on zeta.
+#: Acceptance band of the fit: relative on wn and b/a0, absolute on zeta.
 TOLERANCES = {"wn_rad_s": 0.15, "zeta": 0.1, "velocity_gain_m_s_per_v": 0.15}
 
 #: Fitted parameters: name, tree path (``[i]`` selects legs), start, bounds.

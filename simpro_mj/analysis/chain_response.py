@@ -1,4 +1,4 @@
-"""Whole-chain frequency response of the motion cueing (issue 16): vehicle -> driver's head.
+"""Whole-chain frequency response of the motion cueing: vehicle -> driver's head.
 
 ``simpro-sim response --chain``. For each vehicle channel (specific force
 ``fx, fy, fz`` and roll and pitch rates ``wx, wy``, vehicle frame V, ISO

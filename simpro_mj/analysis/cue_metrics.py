@@ -3,7 +3,7 @@
 The simulator side is measured at the driver's head by MuJoCo's ``head_accel`` and
 ``head_gyro`` (ISO axes, :mod:`controllers.frames`); the vehicle side is the cueing
 scenario's input (:func:`simpro_mj.config.cueing.vehicle_input`). Both go through
-the same :class:`~controllers.vestibular.VestibularModel` (issue 16). The result is
+the same :class:`~controllers.vestibular.VestibularModel`. The result is
 the ``cueing`` block of ``metrics.json`` and the cueing columns of a batch summary.
 """
 

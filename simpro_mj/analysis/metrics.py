@@ -36,7 +36,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from simpro_mj.analysis.cue_metrics import cue_metrics  # issue 16: vehicle vs simulator, perceived
+from simpro_mj.analysis.cue_metrics import cue_metrics  # vehicle vs simulator, perceived
 
 __all__ = [
     "AXES",

@@ -53,7 +53,7 @@ def loop_model(scenario: Mapping) -> LoopModel:
     cfg = cs.sensor_cfg
     filt = None
     sf = ctl.get("setpoint_filter")
-    if sf:  # Fig. 13's filter between q_d and the joint loops (issue 18)
+    if sf:  # Fig. 13's filter between q_d and the joint loops
         times = leg_times(np.asarray(sf["time_ms"], float) * 1e-3)
         filt = [filter_state_space(sf["type"], cs.dt, t) for t in times]
     return LoopModel(

@@ -1,4 +1,4 @@
-"""``simpro-sim bench [SCENARIO]``: the cost of one co-simulation step (issue 7).
+"""``simpro-sim bench [SCENARIO]``: the cost of one co-simulation step.
 
 Measured in one process and one invocation, on the shipped model and a
 scenario (default ``step_pitch.yaml``), ``--repeats`` times; every figure is
@@ -273,7 +273,7 @@ def table(r: dict) -> str:
 
 # ------------------------------------------------------------------ video
 
-#: Issue 17's target for the video benchmark (s, on a 2-core machine).
+#: The target for the video benchmark (s, on a 2-core machine).
 BENCH_TARGET_S = 90.0
 
 

@@ -365,7 +365,7 @@ def _main(r: Mapping, what: str) -> float:
 
 
 def plot_cue_tradeoff(rows: list[dict], info: Mapping, out: Path):
-    """Cueing sweeps (issue 16): perceived longitudinal correlation against the
+    """Cueing sweeps: perceived longitudinal correlation against the
     pitch workspace used, one point per variant labelled with its values;
     marker size: valve saturation. None when the rows have no cueing columns."""
     pts = [r for r in rows if r.get("cue_long_corr") is not None and r["status"] == "ok"]

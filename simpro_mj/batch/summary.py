@@ -116,7 +116,7 @@ def summary_row(job: Job, result: Mapping | None, skipped: bool = False) -> dict
                 )
         row["realtime_factor"] = _sim_rt(doc)
         cue = doc.get("cueing") or (doc.get("metrics") or {}).get("cueing")
-        if cue:  # issue 16
+        if cue:
             row.update(summary_columns(cue))
     stab = result.get("stability")
     if stab:
@@ -194,7 +194,7 @@ def csv_columns(report: Report) -> list[str]:
     cols += ["seed", "status", "reason", *metric_columns(), "stable", "growth_rate_1_s"]
     if any("analytic_limit" in r for r in report.rows):
         cols += ["analytic_limit", "analytic_limit_delay_model", "analytic_growth_rate_1_s"]
-    if any("cue_long_corr" in r for r in report.rows):  # cueing runs (issue 16)
+    if any("cue_long_corr" in r for r in report.rows):  # cueing runs
         cols += list(SUMMARY_COLUMNS)
     cols.append("realtime_factor")
     return cols

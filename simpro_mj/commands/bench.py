@@ -1,4 +1,4 @@
-"""``simpro-sim bench [SCENARIO]``: the cost of one co-simulation step (issue 7).
+"""``simpro-sim bench [SCENARIO]``: the cost of one co-simulation step.
 
 The measurements are :mod:`simpro_mj.batch.bench` (``--video``:
 :func:`simpro_mj.batch.bench.measure_video`); ``docs/performance.md`` holds the figures.

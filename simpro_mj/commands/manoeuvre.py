@@ -1,4 +1,4 @@
-"""``simpro-sim manoeuvre TYPE``: a vehicle manoeuvre as a telemetry CSV (issue 16).
+"""``simpro-sim manoeuvre TYPE``: a vehicle manoeuvre as a telemetry CSV.
 
 Runs the CommonRoad multi-body vehicle (:mod:`simpro_mj.config.manoeuvres`, extra
 ``[vehicle]``) and writes the driver's head motion in the telemetry format

@@ -1,4 +1,4 @@
-"""``simpro-sim render RESULT_DIR``: an MP4 replay of recorded runs (issue 17).
+"""``simpro-sim render RESULT_DIR``: an MP4 replay of recorded runs.
 
 The motion comes from the folder's ``qpos.npz`` (no re-simulation); a
 ``compare`` folder's runs are drawn side by side. See :mod:`simpro_mj.report.render`;

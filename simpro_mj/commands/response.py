@@ -8,8 +8,8 @@ frequency), ``response.json`` (what ``--json`` prints), ``bode.png`` (each
 axis: measured true and measured pose, predicted, their difference) and
 ``cross_axis.png`` into ``--out`` (default ``results/<name>-response``).
 
-``--chain``: the whole motion-cueing chain instead (issue 16,
-:mod:`simpro_mj.analysis.chain_response`): a sine on one vehicle channel (specific
+``--chain``: the whole motion-cueing chain instead
+(:mod:`simpro_mj.analysis.chain_response`): a sine on one vehicle channel (specific
 force ``fx, fy, fz``, roll and pitch rates ``wx, wy``; ISO 8855) through the
 scenario's washout (its ``setpoint.cueing`` parameters, or the defaults when
 it has none), the loops, the pneumatics and the multibody, to the specific

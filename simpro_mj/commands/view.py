@@ -1,4 +1,4 @@
-"""``simpro-sim view SCENARIO|RESULT_DIR``: MuJoCo's interactive viewer (issue 17).
+"""``simpro-sim view SCENARIO|RESULT_DIR``: MuJoCo's interactive viewer.
 
 A result folder is replayed from its ``qpos.npz``; a scenario is simulated
 first, in memory, then played the same way (:mod:`simpro_mj.report.viewer`).

@@ -1,4 +1,4 @@
-"""Motion cueing in a scenario: vehicle input -> washout -> set-points (issue 16).
+"""Motion cueing in a scenario: vehicle input -> washout -> set-points.
 
 A scenario's ``setpoint`` may hold a ``cueing`` block instead of pose
 components::

@@ -1,4 +1,4 @@
-"""Every key of a scenario with its default (issue 14: the first room of the scenario).
+"""Every key of a scenario with its default (the first room of the scenario).
 
 :data:`DEFAULT_SCENARIO` is the tree a scenario file is merged over
 (:func:`simpro_mj.config.scenario.load_scenario`); what each key means is said

@@ -1,4 +1,4 @@
-"""Vehicle manoeuvres for the cueing chain, from commonroad-vehicle-models (issue 16).
+"""Vehicle manoeuvres for the cueing chain, from commonroad-vehicle-models.
 
 The vehicle is the CommonRoad multi-body model (Althoff & Würsching,
 "CommonRoad: Vehicle Models", 2020; ``vehiclemodels.vehicle_dynamics_mb``:

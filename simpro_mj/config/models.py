@@ -386,10 +386,10 @@ class Logging(Block):
 
 
 # ------------------------------------------------------------------ setpoint.cueing
-# (issue 16, simpro_mj.config.cueing). Its keys are not in DEFAULT_SCENARIO (a
+# (simpro_mj.config.cueing). Its keys are not in DEFAULT_SCENARIO (a
 # scenario has the block or not), so these models list their own; their messages
-# are those of the hand-written check they replaced, word for word
-# (tests/data/scenario_messages.json, the cue_braking cases).
+# keep the contract of docs/robustness.md (tests/data/scenario_messages.json, the
+# cue_braking cases).
 
 #: A cueing ``sine``'s period (s): 20 physics steps .. 10 minutes, on the 1 ms grid.
 CUE_SINE_PERIOD_S = (0.02, 600.0)
@@ -431,7 +431,7 @@ class CueBlock(BaseModel):
 
 
 def _finite(value: Any) -> float:
-    # not rules.number: a string such as '5e-3' stays refused here, as it always was
+    # not rules.number: a washout parameter is a YAML number; a string such as '5e-3' is refused
     if not _is_number(value) or not math.isfinite(value):
         raise Problem.invalid(value, "a finite number")
     return float(value)
@@ -705,7 +705,7 @@ class Setpoint(Block):
     roll_deg: Components
     pitch_deg: Components
     heave_mm: Components
-    # issue 16 (simpro_mj.config.cueing); only in the resolved scenario when given, so
+    # (simpro_mj.config.cueing); only in the resolved scenario when given, so
     # that the scenarios without it keep their hash
     cueing: Cueing | None = None
 

@@ -1,4 +1,4 @@
-"""Set-points of a scenario: the reference pose over time, its reachability (issue 14).
+"""Set-points of a scenario: the reference pose over time, its reachability.
 
 The set-point profile of a resolved scenario (:func:`simpro_mj.config.scenario.load_scenario`):
 per axis the sum of its components (:mod:`simpro_mj.config.entries`; what each
@@ -41,7 +41,7 @@ def late_setpoints(s: Mapping) -> list[str]:
     """
     duration = s["duration_s"]
     out = []
-    for axis in SETPOINT_AXES:  # not setpoint.cueing (issue 16), which has no components
+    for axis in SETPOINT_AXES:  # not setpoint.cueing, which has no components
         for i, c in enumerate(s["setpoint"].get(axis) or ()):
             key = {"step": "time_s", "ramp": "start_s", "sine": "start_s"}.get(c["type"])
             if key is not None and c[key] > duration:
@@ -115,7 +115,7 @@ def reference(scenario: Mapping, t, *, clamp: bool | None = None) -> np.ndarray:
     t = np.atleast_1d(np.asarray(t, dtype=float))
     geometry = nominal_geometry()
     sp = scenario["setpoint"]
-    if sp.get("cueing"):  # issue 16: the washout's set-points, inside its workspace box
+    if sp.get("cueing"):  # the washout's set-points, inside its workspace box
         return cue_poses(scenario, t)
     out = np.empty((t.size, 3))
     for j, (axis, scale) in enumerate(

@@ -263,7 +263,7 @@ def resolve_scenario(
     """Resolve a scenario document given as a dict (same rules as :func:`load_scenario`).
 
     ``base``: the scenario file's folder, where a relative
-    ``setpoint.cueing.telemetry`` is looked for first (issue 16).
+    ``setpoint.cueing.telemetry`` is looked for first.
     """
     sets = list(sets or ())
     tree = _overlay(DEFAULT_SCENARIO, doc, sets)

@@ -174,7 +174,7 @@ def _defaults_at(path: str, where: str) -> Any:
     for part in parts:
         if done == ["actuator", "pneumatics"]:
             node = DEFAULT_PNEUMATIC_PARAMS
-        if done == ["setpoint"] and part == "cueing":  # issue 16: the washout parameters
+        if done == ["setpoint"] and part == "cueing":  # the washout parameters
             node = {"cueing": sweep_defaults()}
         if not isinstance(node, Mapping):
             raise UserInputError(

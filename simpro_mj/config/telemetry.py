@@ -1,4 +1,4 @@
-"""Vehicle telemetry files: the input of the motion-cueing chain (issue 16).
+"""Vehicle telemetry files: the input of the motion-cueing chain.
 
 Format
 ------

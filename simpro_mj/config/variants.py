@@ -1,4 +1,4 @@
-"""A sweep file's variants, resolved (``simpro-sim batch``; issue 14).
+"""A sweep file's variants, resolved (``simpro-sim batch``).
 
 :func:`load_sweep` reads a scenario file, expands its ``sweep:`` block
 (:mod:`simpro_mj.config.sweep`: the block's rules, counting, names) and resolves

@@ -1,4 +1,4 @@
-"""The identified models of a scenario's own plant (issue 18: ``design_plant: identified``).
+"""The identified models of a scenario's own plant (``design_plant: identified``).
 
 A plant preset (:mod:`simpro_mj.config.presets`) carries the models ``simpro-sim
 identify`` measures on *its* plant (``controller.inner.identified``). A

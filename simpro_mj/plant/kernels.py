@@ -1,4 +1,4 @@
-"""Which compiled kernels run: the ``SIMPRO_KERNEL`` switch (issue 7).
+"""Which compiled kernels run: the ``SIMPRO_KERNEL`` switch.
 
 ``SIMPRO_KERNEL`` = ``auto`` (default: numba if it is importable), ``python``
 or ``numba`` (an error if numba is missing), read when an actuator

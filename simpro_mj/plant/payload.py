@@ -1,4 +1,4 @@
-"""How much payload the cylinders can hold: the plant's statics (issue 14).
+"""How much payload the cylinders can hold: the plant's statics.
 
 Holding forces are affine in the payload mass at a fixed pose (gravity is
 linear in the masses, the constraint geometry does not depend on them), so

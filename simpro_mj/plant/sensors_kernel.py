@@ -1,4 +1,4 @@
-"""Optional compiled kernels (numba) for the sensors and the state read (issue 7, round 4).
+"""Optional compiled kernels (numba) for the sensors and the state read.
 
 The pure-Python :meth:`Sensors.sample_floats <simpro_mj.plant.sensors.Sensors.sample_floats>`
 and :meth:`StateReader.read <simpro_mj.plant.model.StateReader.read>` /

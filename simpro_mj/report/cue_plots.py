@@ -1,4 +1,4 @@
-"""Figures of a cueing run (issue 16), in the style of the motion-cueing literature.
+"""Figures of a cueing run, in the style of the motion-cueing literature.
 
 ``cueing.png``: per channel (longitudinal, lateral, vertical specific force;
 roll and pitch rate) the vehicle's stimulus (grey), the vehicle's perceived

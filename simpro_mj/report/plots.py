@@ -214,7 +214,7 @@ def plot_run(columns: Mapping[str, np.ndarray], scenario: Mapping, out_dir) -> l
     out_dir = Path(out_dir)
     figures = run_figures(columns, scenario)
     paths = [_save(fig, out_dir / f"{name}.png") for name, fig in figures.items()]
-    if _has(columns, "head_fx_mps2", "veh_fx_mps2"):  # a cueing run (issue 16)
+    if _has(columns, "head_fx_mps2", "veh_fx_mps2"):  # a cueing run
         paths += plot_cueing(columns, scenario, out_dir, DPI)
     return paths
 

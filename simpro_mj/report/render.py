@@ -1,4 +1,4 @@
-"""Replaying recorded runs with MuJoCo's offscreen renderer (issue 17).
+"""Replaying recorded runs with MuJoCo's offscreen renderer.
 
 A result folder's recorded motion (:mod:`.recording`) is posed and drawn
 (:mod:`.scene`: the 3D view and the plot strip) by worker processes and

@@ -196,7 +196,7 @@ def _sim_block(sim: Mapping | None) -> dict:
         if key in WALL_CLOCK_KEYS:
             wall[key] = sim.pop(key)
     sim["wall_clock"] = wall
-    # issue 5's layout names sim.realtime_factor; it is a wall-clock figure, so it
+    # metrics.json's first layout named sim.realtime_factor; it is a wall-clock figure, so it
     # is also kept under sim.wall_clock with the others (compare runs without both)
     if "realtime_factor" in wall:
         sim["realtime_factor"] = wall["realtime_factor"]

@@ -1,4 +1,4 @@
-"""What ``simpro-sim view`` shows in MuJoCo's interactive viewer (issue 17).
+"""What ``simpro-sim view`` shows in MuJoCo's interactive viewer.
 
 A result folder is replayed from its ``qpos.npz``; a scenario is simulated
 first, in memory (a 20 s run takes about a second, far faster than real

@@ -189,7 +189,7 @@ class CoSimulation:
             if poses is None:
                 poses = reference(scenario, self.t)
             self.ref = np.ascontiguousarray(poses)
-        # motion cueing (issue 16): the vehicle side, and the head sensors to log
+        # motion cueing: the vehicle side, and the head sensors to log
         self.cueing = bool(scenario["setpoint"].get("cueing"))
         if self.cueing and external:  # the vehicle at rest: f = (0, 0, g), w = 0
             self.veh_f = np.zeros((self.n_steps + 1, 3))
@@ -298,7 +298,7 @@ class CoSimulation:
 
         Notes
         -----
-        The loop is the hot path of every run (issue 7, ``docs/performance.md``).
+        The loop is the hot path of every run (``docs/performance.md``).
         What it moves between the stages are short lists of Python floats:
         for three legs numpy's per-call overhead (0.2-0.7 us) exceeds the
         arithmetic, so the components expose float fast paths

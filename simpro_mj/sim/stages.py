@@ -171,7 +171,7 @@ class Recorder:
 
 
 class FaultStages:
-    """Scheduled faults (issue 8) as stage swaps at their event steps.
+    """Scheduled faults as stage swaps at their event steps.
 
     Between events the loop runs the plain stages (a run without faults pays
     one int compare per step, ``k == next_event``); at an event :meth:`at`

@@ -1,4 +1,4 @@
-"""Optional compiled kernel (numba) for :meth:`NonlinearActuators.step` (issue 7).
+"""Optional compiled kernel (numba) for :meth:`NonlinearActuators.step`.
 
 The pure-Python step in :mod:`simpro_mj.plant.pneumatics.nonlinear` is the reference; this
 module repeats its float arithmetic operation for operation (same grouping,

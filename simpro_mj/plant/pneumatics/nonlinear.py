@@ -37,7 +37,7 @@ stiff flow terms and has the exact static equilibrium as fixed point. It is
 not bounded: a chamber compressed above the supply pressure flows back to
 the supply through its supply edge (ISO 6358 with the chamber upstream, ratio
 p_s/p), one expanded below the atmosphere draws air through its exhaust
-edge (ratio p/p_a); the MPYE has no relief valve (issue 18). ``integration.substeps``
+edge (ratio p/p_a); the MPYE has no relief valve. ``integration.substeps``
 splits the step further (default 1; tests compare with a fine reference).
 
 The per-step arithmetic runs on Python floats, or in the optional compiled
@@ -318,7 +318,7 @@ class NonlinearActuators:
 
         Notes
         -----
-        The hot path of the co-simulation (issue 7). Three legs of two
+        The hot path of the co-simulation. Three legs of two
         chambers are too few for numpy: a ufunc on a 3-vector costs about as
         much as 20 float operations in the interpreter. The per-chamber
         arithmetic therefore runs on Python floats, operation for operation
