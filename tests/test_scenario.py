@@ -1,5 +1,6 @@
 """Scenarios: loading, overrides, validation messages, reachability, reference()."""
 
+import json
 import math
 
 import numpy as np
@@ -318,3 +319,28 @@ def test_reference_is_vectorised_and_fast():
     assert time.perf_counter() - t0 < 0.5
     assert x.shape == (t.size, 3)
     np.testing.assert_allclose(x[0], [0.0, 0.0, H0])
+
+
+def test_the_typed_scenario_holds_every_default():
+    """Every block's field has its default (the model is the one source of them);
+    the plain tree a file is merged over is the model's, and it validates to itself."""
+    from pydantic import BaseModel
+
+    from simpro_mj.config.models import Scenario
+    from simpro_mj.config.rules import Block
+
+    def blocks(model):
+        yield model
+        for f in model.model_fields.values():
+            if isinstance(f.annotation, type) and issubclass(f.annotation, BaseModel):
+                yield from blocks(f.annotation)
+
+    seen = list(blocks(Scenario))
+    assert len(seen) >= 15
+    missing = [f"{m.__name__}.{k}" for m in seen if issubclass(m, Block)
+               for k, f in m.model_fields.items() if f.is_required()]  # fmt: skip
+    assert not missing, missing
+    assert Scenario.defaults() == DEFAULT_SCENARIO
+    named = dict(DEFAULT_SCENARIO, name="defaults")  # the loader names a run (file stem)
+    again = Scenario.model_validate(named).model_dump()
+    assert json.dumps(again) == json.dumps(named)

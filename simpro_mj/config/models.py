@@ -1,16 +1,22 @@
 """Typed scenario models (pydantic v2): one model per block, validated once at the edge.
 
+The models hold the scenario: every key is a field with its default (the one
+source of every default and of every leaf's type, :class:`~simpro_mj.config.rules.Block`;
+the plant's blocks, :mod:`simpro_mj.config.plant_blocks`, take theirs from the
+plant), its range or enumeration (one tuple each, imported from the module
+that uses it: ``controllers``, ``simpro_mj.plant.pneumatics``), the tagged
+unions (:mod:`simpro_mj.config.entries`) and the cross-field rules.
 :func:`simpro_mj.config.scenario.load_scenario` merges a file and its ``--set``
-overrides over :data:`~simpro_mj.config.defaults.DEFAULT_SCENARIO` (the one
-source of every default and of every leaf's type, :class:`~simpro_mj.config.rules.Block`),
-then validates the merged tree with :class:`Scenario`. The models add what
-the defaults cannot say: ranges, enumerations (one tuple each, imported from
-the module that uses it: ``controllers``, ``simpro_mj.plant.pneumatics``),
-the tagged unions (:mod:`simpro_mj.config.entries`) and cross-field rules.
-The ``setpoint.cueing`` block (:class:`Cueing`), which the defaults do not
-have, lists its own keys and defaults.
+overrides over the defaults as a plain tree
+(:data:`~simpro_mj.config.defaults.DEFAULT_SCENARIO`, ``Scenario.defaults()``)
+and validates the result with :class:`Scenario`; the ``setpoint.cueing``
+block (:class:`Cueing`), present or not, lists its own keys and defaults.
 ``Scenario.model_validate(tree).model_dump()`` is the resolved scenario, the
 plain dict the other rooms read and ``scenario_hash`` hashes.
+
+About 600 lines, over the project's ~500: the scenario's schema in one place
+(controller blocks, the cueing block's models, the cross-field rules); the
+cueing models are the piece to move out next if it grows.
 """
 
 from __future__ import annotations
@@ -24,6 +30,7 @@ from pydantic import (
     BaseModel,
     BeforeValidator,
     ConfigDict,
+    Field,
     SerializeAsAny,
     SkipValidation,
     ValidationError,
@@ -52,6 +59,13 @@ from simpro_mj.config.cueing import (
     washout_params,
 )
 from simpro_mj.config.entries import Components, Faults
+from simpro_mj.config.plant_blocks import (
+    ACTUATOR_MODELS,
+    Actuator,
+    PlantBlock,
+    SensorsBlock,
+    check_pneumatics,
+)
 from simpro_mj.config.rules import (
     DELAY_SAMPLES,
     DESIGN_PLANTS,
@@ -66,19 +80,15 @@ from simpro_mj.config.rules import (
     SETPOINT_AXES,
     Block,
     Problem,
-    below,
     listed,
-    number,
     one_of,
     rule,
     user_error,
 )
 from simpro_mj.core.errors import UserInputError
-from simpro_mj.core.keys import check_keys, key_text, value_text
+from simpro_mj.core.keys import key_text, value_text
 from simpro_mj.core.rates import whole_steps
-from simpro_mj.plant.pneumatics.params import ACTUATOR_KINDS as ACTUATOR_MODELS
-from simpro_mj.plant.pneumatics.params import DEFAULT_PNEUMATIC_PARAMS, PneumaticParams
-from simpro_mj.plant.sensors import POT_BITS, POT_BITS_TEXT
+from simpro_mj.plant.pneumatics.params import DEFAULT_PNEUMATIC_PARAMS
 
 __all__ = [
     "Scenario",
@@ -104,12 +114,21 @@ class Outer(Block):
     """The task-space loop (eqs. 21-27, Fig. 7)."""
 
     _path = "controller.outer"
-    type: Annotated[str, one_of(OUTER_TYPES)]
-    gains: Gains
-    pi_zero: Annotated[float, rule(lambda v: -1 < v < 1, "-1 < c < 1")]
-    integrator: Annotated[str, one_of(INTEGRATORS)]
-    period_ms: int
-    delay_samples: Annotated[int, one_of(DELAY_SAMPLES)]
+    type: Annotated[str, one_of(OUTER_TYPES)] = "I"  # I (eq. 22) | PI (section 4)
+    # K * K_I per axis (roll, pitch, heave), 1/s: section 5.2.3's 3 (the analysed
+    # limit on the default plant is 11.8; docs/paper-notes.md)
+    gains: Gains = [3.0, 3.0, 3.0]
+    # c of the PI law T (z + c)/(z - 1), section 4; used with type PI only
+    pi_zero: Annotated[float, rule(lambda v: -1 < v < 1, "-1 < c < 1")] = 0.2
+    # discretisation of eq. (22)'s integral (I law): backward T z/(z - 1), the newest
+    # error reaches q_d at once and Fig. 13's ramp filter spreads it over T | forward
+    # T/(z - 1), Fig. 7 as printed (one more period of delay: 23.8 % vs 8 % pitch
+    # overshoot at K K_I = 3; docs/paper-notes.md)
+    integrator: Annotated[str, one_of(INTEGRATORS)] = "backward"
+    # outer sampling period T, an integer multiple of the 1 ms physics step
+    period_ms: int = 60
+    # inner loop as a delay in the analysis: 1 sample (60 ms, eq. 21) or 2
+    delay_samples: Annotated[int, one_of(DELAY_SAMPLES)] = 1
 
     @model_validator(mode="after")
     def _gain_bound(self):
@@ -133,41 +152,73 @@ class JointModel(Block):
     """``b / (s (s^2 + a1 s + a0))``, SI (m/V): one identified actuator."""
 
     _path = "controller.inner.identified.actuator1"  # the three have the same keys
-    b: Annotated[float, rule(lambda v: v > 0, "> 0 m/V")]
-    a1: Annotated[float, rule(lambda v: v >= 0, ">= 0 1/s")]
-    a0: Annotated[float, rule(lambda v: v > 0, "> 0 1/s^2")]
+    b: Annotated[float, rule(lambda v: v > 0, "> 0 m/V")] = 12.51
+    a1: Annotated[float, rule(lambda v: v >= 0, ">= 0 1/s")] = 15.78
+    a0: Annotated[float, rule(lambda v: v > 0, "> 0 1/s^2")] = 78.92
+
+
+def _legs_2_3() -> JointModel:
+    return JointModel(b=95.66, a1=17.37, a0=467.7)
 
 
 class Identified(Block):
+    """b / (s (s^2 + a1 s + a0)) per actuator, SI (m/V); set by the plant preset
+    (plant.preset: what ``simpro-sim identify`` measures on it); the numbers here
+    are the schema's only."""
+
     _path = "controller.inner.identified"
-    actuator1: JointModel
-    actuator2: JointModel
-    actuator3: JointModel
+    actuator1: JointModel = Field(default_factory=JointModel)
+    actuator2: JointModel = Field(default_factory=_legs_2_3)
+    actuator3: JointModel = Field(default_factory=_legs_2_3)
 
 
 class Inner(Block):
     """The joint controllers (eqs. 28-29, 36-37)."""
 
     _path = "controller.inner"
-    variant: Annotated[str, one_of(INNER_VARIANTS)]
-    discretisation: Annotated[str, one_of(DISCRETISATIONS)]
-    design_plant: Annotated[str, one_of(DESIGN_PLANTS)]
-    identify: Annotated[str, one_of(IDENTIFY_CHOICES)]
-    identified: Identified
-    zeta: Annotated[float, rule(lambda v: 0 < v < 2, "0 < zeta < 2")]
-    wn_rad_s: Annotated[float, rule(lambda v: v > 0, "> 0 rad/s")]
+    # joint controllers: eqs. (36)-(37) printed | corrected | redesigned
+    variant: Annotated[str, one_of(INNER_VARIANTS)] = "corrected"
+    discretisation: Annotated[str, one_of(DISCRETISATIONS)] = "tustin"  # tustin | zoh
+    # plant the joint controllers are designed on: "paper" (eqs. 34-35) or
+    # "identified" (the model this simulation identifies, `simpro-sim identify`,
+    # which is what the paper's procedure - identify, then place poles - gives)
+    design_plant: Annotated[str, one_of(DESIGN_PLANTS)] = "paper"
+    # with design_plant identified: "auto" identifies the scenario's own plant when
+    # it is not its preset's (Fig. 12's experiment, cached by the plant's hash:
+    # simpro_mj.identification.auto) | "preset": the identified models as given
+    identify: Annotated[str, one_of(IDENTIFY_CHOICES)] = "auto"
+    identified: Identified = Field(default_factory=Identified)
+    # dominant pair of the "redesigned" pole placement (section 5.2.2)
+    zeta: Annotated[float, rule(lambda v: 0 < v < 2, "0 < zeta < 2")] = 0.7
+    wn_rad_s: Annotated[float, rule(lambda v: v > 0, "> 0 rad/s")] = 10.0
 
 
 class Feedforward(Block):
-    """Mode ``feedforward`` (docs/feedforward.md)."""
+    """Mode ``feedforward`` (docs/feedforward.md).
+
+    The correction, with its own K K_I per axis (it only removes what the joint
+    loops leave: slower than the paper's I law), integrates y_d - y less the
+    joint loops' lag (``lag``), with ``lag: model``: M y_d - y, M a first-order
+    lag of ``model_tau_ms`` (0: y_d - y), and skips an outer step after which a
+    valve was at its rail (``hold_on_saturation``).
+    """
 
     _path = "controller.feedforward"
-    gains: Gains
-    model_tau_ms: Annotated[float, rule(lambda v: 0 <= v <= 10_000, "0..10000 ms")]
-    hold_on_saturation: bool
-    lag: Annotated[str, one_of(FEEDFORWARD_LAGS)]
-    average: bool
-    leg_velocity: bool
+    gains: Gains = [1.0, 1.0, 1.0]
+    model_tau_ms: Annotated[float, rule(lambda v: 0 <= v <= 10_000, "0..10000 ms")] = 200.0
+    hold_on_saturation: bool = True
+    # the joint loops' lag taken out of the error: joints (measured: J^-1 (q_d -
+    # q_meas)) | model (M y_d, above); average: the correction uses the means over the
+    # outer period instead of one sample. Chosen by measurement (docs/feedforward.md):
+    # the steady-state error after a step below the sensor floor, overshoot 0.4 %
+    lag: Annotated[str, one_of(FEEDFORWARD_LAGS)] = "joints"
+    average: bool = True
+    # leg velocity feed-forward (controllers.velocity_feedforward): a valve voltage
+    # (a0/b) J dy_d/dt per leg from the set-point's rate and the identified plants
+    # (controller.inner.identified), through the set-point filter when there is one;
+    # clipped to the valve's 5 V span. Chosen by measurement (docs/feedforward.md):
+    # phase at 1 Hz -40 -> -10 deg, track_cues RMS error halved, steps unchanged
+    leg_velocity: bool = True
 
 
 def _per_leg_steps(times: list[float]) -> list[float]:
@@ -182,212 +233,48 @@ def _per_leg_steps(times: list[float]) -> list[float]:
 
 
 class SetpointFilter(Block):
-    """Fig. 13's filter between the outer loop and the joint loops."""
+    """Fig. 13's "Filter" between the outer loop (or the joint-only IK) and the joint
+    loops (controllers.setpoint_filter).
+
+    ``type``: ramp (the mean of q_d over ``time_ms``; with ``time_ms`` = T the
+    60 ms steps of q_d become ramps: no valve kick) | first_order (time constant
+    ``time_ms``) | zero_cancel (k_i/(s + k_i), eq. 29's zero) | none. Chosen by
+    analysis: docs/paper-notes.md. ``time_ms`` per leg: T for leg 1; T/2 for legs
+    2-3, whose k_p (640 V/m) is 8.3 times leg 1's, so a 60 ms step of their q_d
+    kicks their valves 8 times less while their ramp's delay halves (step_roll
+    overshoot 11.4 % -> 7.9 %).
+    """
 
     _path = "controller.setpoint_filter"
-    type: Annotated[str, one_of(SETPOINT_FILTERS)]
+    type: Annotated[str, one_of(SETPOINT_FILTERS)] = "ramp"
     time_ms: Annotated[
         list[float], rule(lambda v: 0 < v <= 1e4, "0 < ms <= 1e4"), AfterValidator(_per_leg_steps)
-    ]
+    ] = [60.0, 30.0, 30.0]
 
 
 class Controller(Block):
     _path = "controller"
-    mode: Annotated[str, one_of(MODES)]
-    outer: Outer
-    inner: Inner
-    feedforward: Feedforward
-    setpoint_filter: SetpointFilter
-    clamp_setpoints: bool
-
-
-def check_pneumatics(value: Any, path: str = "actuator.pneumatics") -> dict:
-    """``actuator.pneumatics``: keys against the plant's tree, leaf types, then the
-    plant's own range checks (run here so that a bad value is a load-time error)."""
-    if not isinstance(value, Mapping):
-        raise UserInputError(
-            f"wrong type at {path}: got {type(value).__name__} {value_text(value)}; "
-            "allowed: a mapping"
-        )
-    check_keys(value, DEFAULT_PNEUMATIC_PARAMS, path)
-    try:
-        out = _pneumatic_leaves(value, DEFAULT_PNEUMATIC_PARAMS)
-    except Problem as p:
-        raise UserInputError(f"{p.head} at {path}{p.suffix}{p.rest}") from None
-    try:
-        PneumaticParams.from_tree(out)
-    except UserInputError as exc:
-        # the plant names its own tree "pneumatics"; here it hangs under "actuator"
-        raise UserInputError(str(exc).replace(" at pneumatics.", f" at {path}.")) from exc
-    except (ValueError, TypeError, ArithmeticError) as exc:
-        raise UserInputError(
-            f"invalid value at {path}: {exc}; allowed: see simpro_mj.plant.pneumatics"
-        ) from exc
-    return out
-
-
-def _pneumatic_leaves(value: Mapping, ref: Mapping) -> dict:
-    """Leaf types of a pneumatics subtree; per-leg keys take a number or 3 numbers."""
-    out: dict = {}
-    for key, sub in value.items():
-        default, here = ref[key], f".{key}"
-        if isinstance(default, Mapping):
-            out[key] = below(lambda v, d=default: _pneumatic_leaves(v, d), sub, here)
-        elif isinstance(default, bool):
-            if not isinstance(sub, bool):
-                raise Problem.wrong_type(sub, "true or false", here)
-            out[key] = sub
-        elif (default is None or isinstance(default, list)) and isinstance(sub, (list, tuple)):
-            if len(sub) != 3:
-                raise Problem.wrong_type(sub, "a number or a list of 3 numbers (one per leg)", here)
-            out[key] = [below(number, v, f"{here}[{i}]") for i, v in enumerate(sub)]
-        elif default is None and sub is None:
-            out[key] = None
-        else:
-            out[key] = below(number, sub, here)
-    return out
-
-
-class Actuator(Block):
-    _path = "actuator"
-    _own = frozenset({"pneumatics"})
-    model: Annotated[str, one_of(ACTUATOR_MODELS)]
-    #: overrides of simpro_mj.plant.pneumatics.DEFAULT_PNEUMATIC_PARAMS (only the keys given)
-    pneumatics: Annotated[dict, BeforeValidator(check_pneumatics)]
-
-
-#: Heaviest payload (kg): three DNC-125 cylinders make at most 3 x 12.3 kN at their
-#: rated 10 bar (about 3,750 kg); the preflight gives the limit at the scenario's supply.
-MAX_PAYLOAD_KG = 5000.0
-#: Farthest payload centre of mass from the platform frame's origin (mm, per axis): a
-#: cabin on a platform about 1 m across, its seat 0.4 m above.
-MAX_COM_MM = 2000.0
-#: Largest as-built attachment or guide error (mm, per axis): the defaults are <= 4 mm;
-#: beyond a few centimetres the closed chain no longer assembles at home.
-MAX_OFFSET_MM = 50.0
-#: Loop-constraint time constant (s): at least two physics steps (MuJoCo's own floor
-#: for a stable constraint), at most 1 s (a loop that soft opens by centimetres).
-LOOP_TIMECONST_RANGE_S = (0.002, 1.0)
-
-_OFFSET = rule(
-    lambda v: abs(v) <= MAX_OFFSET_MM,
-    f"|offset| <= {MAX_OFFSET_MM:g} mm per axis (as-built errors: the defaults are <= 4 mm; "
-    "beyond a few centimetres the closed chain does not assemble)",
-)
-
-
-def _in_plane(value: list) -> list:
-    if len(value) == 3 and value[1] != 0:
-        raise Problem.invalid(
-            value,
-            "[x, 0, z]: leg 1 (R-P-S-U) moves in the x-z plane, so its anchors A1 and C1 take "
-            "x and z errors only (one across the plane cannot be assembled)",
-        )
-    return value
-
-
-class Payload(Block):
-    _path = "plant.payload"
-    mass_kg: Annotated[
-        float,
-        rule(
-            lambda v: 0 <= v <= MAX_PAYLOAD_KG,
-            f"0 .. {MAX_PAYLOAD_KG:g} kg (three DNC-125 cylinders lift at most about 3,750 kg "
-            "at 10 bar; the preflight gives the limit at the supply pressure)",
-        ),
-    ]
-    com_mm: Annotated[
-        list[float],
-        rule(
-            lambda v: abs(v) <= MAX_COM_MM,
-            f"|x|, |y|, |z| <= {MAX_COM_MM:g} mm (a cabin on a platform about 1 m across)",
-        ),
-    ]
-
-
-class AnchorOffsets(Block):
-    _path = "plant.anchor_offsets_mm"
-    A1: Annotated[list[float], _OFFSET, AfterValidator(_in_plane)]
-    A2: Annotated[list[float], _OFFSET]
-    A3: Annotated[list[float], _OFFSET]
-    C1: Annotated[list[float], _OFFSET, AfterValidator(_in_plane)]
-    B2: Annotated[list[float], _OFFSET]
-    B3: Annotated[list[float], _OFFSET]
-
-
-class Guide(Block):
-    _path = "plant.guide"
-    radius_offset_mm: Annotated[float, _OFFSET]
-    centre_offset_mm: Annotated[list[float], _OFFSET]
-
-
-class PlantBlock(Block):
-    """The as-built plant (simpro_mj.plant.model_params) and its preset."""
-
-    _path = "plant"
-    payload: Payload
-    platform_mass_kg: Annotated[
-        float,
-        rule(lambda v: 1 <= v <= 2000, "1 .. 2000 kg (the moving frame: 120 kg as built)"),
-    ]
-    anchor_offsets_mm: AnchorOffsets
-    guide: Guide
-    loop_timeconst_s: Annotated[
-        float,
-        rule(
-            lambda v: LOOP_TIMECONST_RANGE_S[0] <= v <= LOOP_TIMECONST_RANGE_S[1],
-            f"{LOOP_TIMECONST_RANGE_S[0]:g} .. {LOOP_TIMECONST_RANGE_S[1]:g} s (at least two "
-            "physics steps, MuJoCo's floor for a stable constraint; at most 1 s)",
-        ),
-    ]
-    preset: str
-
-
-class Potentiometer(Block):
-    _path = "sensors.potentiometer"
-    bits: Annotated[int, rule(lambda v: POT_BITS[0] <= v <= POT_BITS[1], POT_BITS_TEXT)]
-    range_v: Annotated[float, rule(lambda v: v > 0, "> 0 V")]
-    volts_per_mm: Annotated[float, rule(lambda v: v > 0, "> 0 V/mm")]
-    noise_lsb: Annotated[float, rule(lambda v: v >= 0, ">= 0 LSB")]
-    offset_mm: list[float]
-    gain_error_pct: Annotated[list[float], rule(lambda v: v > -100, "3 numbers > -100 %")]
-    rate_ms: int
-
-
-class HeightEncoder(Block):
-    _path = "sensors.height_encoder"
-    resolution_mm: Annotated[float, rule(lambda v: v >= 0, ">= 0 mm (0: no quantisation)")]
-    noise_mm: Annotated[float, rule(lambda v: v >= 0, ">= 0 mm")]
-    rate_ms: int
-
-
-class Imu(Block):
-    _path = "sensors.imu"
-    noise_deg: Annotated[float, rule(lambda v: v >= 0, ">= 0 deg")]
-    bias_deg: list[float]
-    bandwidth_hz: Annotated[float, rule(lambda v: v > 0, "> 0 Hz")]
-    rate_ms: int
-
-
-class SensorsBlock(Block):
-    """simpro_mj.plant.sensors.DEFAULT_SENSORS with the as-built calibration errors."""
-
-    _path = "sensors"
-    potentiometer: Potentiometer
-    height_encoder: HeightEncoder
-    imu: Imu
+    # joint_only (Fig. 15a) | task_space (Fig. 15b) | feedforward (the set-point
+    # through the IK every 1 ms, the outer law adding a correction: docs/feedforward.md)
+    mode: Annotated[str, one_of(MODES)] = "task_space"
+    outer: Outer = Field(default_factory=Outer)
+    inner: Inner = Field(default_factory=Inner)
+    feedforward: Feedforward = Field(default_factory=Feedforward)
+    setpoint_filter: SetpointFilter = Field(default_factory=SetpointFilter)
+    # unreachable set-points: reject at load time (false) or clamp (true)
+    clamp_setpoints: bool = False
 
 
 class Logging(Block):
     _path = "logging"
     decimation: Annotated[
         int, rule(lambda v: 1 <= v <= MAX_DECIMATION, f"an integer 1..{MAX_DECIMATION}")
-    ]
+    ] = 1
 
 
 # ------------------------------------------------------------------ setpoint.cueing
-# (simpro_mj.config.cueing). Its keys are not in DEFAULT_SCENARIO (a
-# scenario has the block or not), so these models list their own; their messages
+# (simpro_mj.config.cueing). A scenario has the block or not (it is not in the
+# default tree), so these models list their own keys; their messages
 # keep the contract of docs/robustness.md (tests/data/scenario_messages.json, the
 # cue_braking cases).
 
@@ -702,9 +589,9 @@ class Setpoint(Block):
 
     _path = "setpoint"
     _own = frozenset({*SETPOINT_AXES, "cueing"})
-    roll_deg: Components
-    pitch_deg: Components
-    heave_mm: Components
+    roll_deg: Components = []
+    pitch_deg: Components = []
+    heave_mm: Components = []
     # (simpro_mj.config.cueing); only in the resolved scenario when given, so
     # that the scenarios without it keep their hash
     cueing: Cueing | None = None
@@ -735,23 +622,30 @@ class Scenario(Block):
             lambda v: bool(NAME_RE.match(v)) and len(v) <= 100,
             "letters, digits, '_', '-', '.' (a file-name-safe word of at most 100 characters)",
         ),
-    ]
-    paper_units: Annotated[str, one_of(PAPER_UNITS)]
-    description: str
+    ] = ""  # a name for the run (file stem if empty)
+    # Unit of Y in the paper's eqs. (34)-(37) (controllers.design.READINGS): "volts"
+    # (the joint potentiometer's signal, 10 V over the 500 mm stroke = 20 V/m, as the
+    # rig reads it through the MF624, section 5) or "metres". Sets the SI gains of
+    # the printed joint controllers, the paper's design plants and the linear
+    # actuators' default coefficients (docs/paper-notes.md, section 3).
+    paper_units: Annotated[str, one_of(PAPER_UNITS)] = "volts"
+    description: str = ""
     duration_s: Annotated[
         float,
         rule(lambda v: v > 0, "> 0 s"),
         rule(lambda v: v >= MIN_DURATION_S, f">= {MIN_DURATION_S:g} s"),
         rule(lambda v: v <= MAX_DURATION_S, f"<= {MAX_DURATION_S:g} s (one hour)"),
-    ]
-    seed: Annotated[int, rule(lambda v: 0 <= v < 2**63, "an integer >= 0")]
-    controller: Controller
-    actuator: Actuator
-    plant: PlantBlock
-    sensors: SensorsBlock
-    setpoint: Setpoint
-    faults: Faults
-    logging: Logging
+    ] = 15.0
+    # seed of every random draw of the run (sensor noise)
+    seed: Annotated[int, rule(lambda v: 0 <= v < 2**63, "an integer >= 0")] = 1
+    controller: Controller = Field(default_factory=Controller)
+    actuator: Actuator = Field(default_factory=Actuator)
+    plant: PlantBlock = Field(default_factory=PlantBlock)
+    sensors: SensorsBlock = Field(default_factory=SensorsBlock)
+    setpoint: Setpoint = Field(default_factory=Setpoint)
+    # scheduled faults (simpro_mj.plant.faults)
+    faults: Faults = []
+    logging: Logging = Field(default_factory=Logging)
 
     @model_validator(mode="after")
     def _across_blocks(self):

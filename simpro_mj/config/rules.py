@@ -3,11 +3,10 @@
 The scenario's models (:mod:`simpro_mj.config.models`, :mod:`simpro_mj.config.entries`)
 are pydantic v2 models built from these pieces:
 
-* :class:`Block`: a block whose keys and leaf types are those of its defaults in
-  :data:`~simpro_mj.config.defaults.DEFAULT_SCENARIO` (the one source of every
-  default and of every leaf's type: a float default takes any finite number, an
-  int default an integral one, a list default that many numbers), unknown keys
-  refused with the closest valid one;
+* :class:`Block`: a block that holds its keys and their defaults as its fields
+  (the one source of every default and of every leaf's type: a float default
+  takes any finite number, an int default an integral one, a list default that
+  many numbers), unknown keys refused with the closest valid one;
 * :class:`Entry`: a tagged mapping (``{type: step, ...}``) whose fields without
   a default are required, checked by :func:`tagged` before its model sees it;
 * :func:`rule` and :func:`one_of`: ranges and enumerations with the text of
@@ -38,9 +37,8 @@ from pydantic import (
     model_validator,
 )
 
-from simpro_mj.config.defaults import DEFAULT_SCENARIO
 from simpro_mj.core.errors import UserInputError
-from simpro_mj.core.keys import closest, get_path, key_text, value_text
+from simpro_mj.core.keys import closest, key_text, value_text
 from simpro_mj.core.rates import PHYSICS_DT_MS, PHYSICS_DT_S, whole_steps
 
 MODES = ("joint_only", "task_space", "feedforward")
@@ -174,7 +172,7 @@ def multiple_of_step(value: Any) -> Any:
 
 
 def _leaf(value: Any, default: Any, name: str) -> Any:
-    """``value`` checked against the type of its default (:data:`DEFAULT_SCENARIO`), normalised."""
+    """``value`` checked against the type of its default (the block's field), normalised."""
     if isinstance(default, list):
         n = len(default)
         one = name in _ONE_FOR_ALL
@@ -246,13 +244,16 @@ def listed(choices) -> BeforeValidator:
 # ------------------------------------------------------------------ blocks
 
 
-class Block(BaseModel):
-    """A block of the scenario whose keys and leaf types are those of its defaults.
+_DEFAULTS: dict[type, dict] = {}
 
-    ``_path`` is the block's dotted path in :data:`DEFAULT_SCENARIO`; a key the
-    defaults do not have is refused with the closest valid one, every leaf is
-    checked and normalised by :func:`_leaf` (so that ``15`` and ``15.0`` hash
-    alike). Fields in ``_own`` check themselves.
+
+class Block(BaseModel):
+    """A block of the scenario: its fields are its keys, each with its default.
+
+    ``_path`` is where the block sits in a scenario; a key the block does not
+    have is refused with the closest valid one, every leaf is checked against
+    the type of its default and normalised by :func:`_leaf` (so that ``15`` and
+    ``15.0`` hash alike). Fields in ``_own`` check themselves.
     """
 
     model_config = ConfigDict(extra="forbid", protected_namespaces=(), validate_assignment=False)
@@ -261,7 +262,11 @@ class Block(BaseModel):
 
     @classmethod
     def defaults(cls) -> Mapping:
-        return get_path(DEFAULT_SCENARIO, cls._path) if cls._path else DEFAULT_SCENARIO
+        """The block's keys with their defaults, as a plain tree (computed once)."""
+        tree = _DEFAULTS.get(cls)
+        if tree is None:
+            tree = _DEFAULTS[cls] = cls.model_construct().model_dump()
+        return tree
 
     @model_validator(mode="before")
     @classmethod
