@@ -275,12 +275,13 @@ def _measured(task: dict) -> dict:
     """One resolved scenario measured without writing anything (:func:`run`, and each
     variant of :func:`sweep` here or in a pool worker: top level, it pickles by name)."""
     # MuJoCo is loaded when a plant is built, not by ``import simpro_mj``
+    from simpro_mj.job.run import Run
     from simpro_mj.report.results import jsonable
-    from simpro_mj.report.runner import measure
 
-    res, metrics, extra = measure(task["scenario"], quiet=True)
-    metrics.update(extra)
-    return {"status": res.status, "columns": res.columns, "metrics": jsonable(metrics)}
+    outcome = Run(task["scenario"]).execute(quiet=True)
+    metrics = dict(outcome.metrics, **outcome.extra())
+    return {"status": outcome.status, "columns": outcome.result.columns,
+            "metrics": jsonable(metrics)}  # fmt: skip
 
 
 def sweep(

@@ -29,7 +29,6 @@ from simpro_mj.report.results import write_run
 __all__ = [
     "EXIT_INTERRUPTED",
     "execute",
-    "measure",
     "warn",
     "interrupted_message",
 ]
@@ -76,21 +75,6 @@ def execute(scenario: dict, out: Path, plots: bool = True, *, quiet: bool = Fals
             Path(out), outcome, scenario, plots=plots, arrays=recording(res)
         )
     return res, doc
-
-
-def measure(scenario: dict, *, quiet: bool = False):
-    """Preflight, simulate and measure a resolved scenario, writing nothing.
-
-    Returns
-    -------
-    (SimResult, dict, dict)
-        The result, its metrics (with ``status``, ``reason``,
-        ``sensor_floor``) and the rest of ``metrics.json``: ``sim`` (with the
-        end-stop hits), ``warnings`` and ``preflight``. Warnings go to stderr
-        unless ``quiet``.
-    """
-    outcome = Run(scenario).execute(quiet=quiet)
-    return outcome.result, outcome.metrics, outcome.extra()
 
 
 def recording(res) -> dict:
