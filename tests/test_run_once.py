@@ -106,3 +106,22 @@ def test_the_run_shares_its_plant_and_set_points_with_the_preflight():
     body = run.model.body("payload").id
     assert run.model.body_mass[body] == pytest.approx(sc["plant"]["payload"]["mass_kg"])
     assert run.stroke() == [(0.0, 0.5)] * 3  # the DNC-125-500 stroke, from the MJCF
+
+
+@pytest.mark.parametrize(("given", "used"), [(None, "1"), ("3", "3")])
+def test_the_command_runs_blas_on_one_thread_unless_told(tmp_path, given, used):
+    """numpy is not loaded before ``main`` sets ``OPENBLAS_NUM_THREADS``; a user's value wins."""
+    code = (
+        "import os, sys\n"
+        "import simpro_mj.commands.main as m\n"
+        "assert 'numpy' not in sys.modules\n"
+        "m.main(['run', 'nosuch.yaml'])\n"
+        "print(os.environ.get('OPENBLAS_NUM_THREADS'))"
+    )
+    env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_NUM_THREADS"}
+    if given is not None:
+        env["OPENBLAS_NUM_THREADS"] = given
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          cwd=tmp_path, env=env, timeout=120)  # fmt: skip
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.strip().splitlines()[-1] == used, proc.stdout + proc.stderr

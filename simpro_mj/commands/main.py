@@ -126,6 +126,12 @@ def _check_gl_backend() -> str | None:
 
 def main(argv=None) -> int:
     os.environ.setdefault("MPLBACKEND", "Agg")
+    # One BLAS thread: the analyses' matrices are small (the preflight's lifted outer
+    # loop has at most 65 states) and BLAS threads only contend for the cores. step_all's
+    # preflight on a loaded 2-core machine (load average 9): 54.8 s with OpenBLAS's
+    # default threads, 0.64 s with one. Read when numpy loads, which no module imported
+    # so far does; a user's own setting wins.
+    os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
     try:
         # Ctrl-C and SIGTERM raise KeyboardInterrupt, held while a module is being
         # imported so that no extension turns them into ImportError (core.interrupts)
