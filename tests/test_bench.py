@@ -55,6 +55,7 @@ def test_stages_sum_within_the_instrumented_step(short):
     assert total >= 0.5 * instrumented
 
 
+@pytest.mark.slow  # process plumbing: the batch throughput starts worker pools
 def test_cli_json_and_throughput(capsys):
     code = main(["bench", "--json", "--duration", "0.2", "--repeats", "1", "--batch-runs", "2"])
     assert code == 0

@@ -76,17 +76,14 @@ def test_a_plain_run_compiles_once_and_imports_no_renderer(tmp_path):
     assert doc["status"] == "ok" and doc["preflight"]["payload"]["poses_checked"] >= 1
 
 
-def test_a_run_with_its_own_identified_plant_compiles_the_run_once(tmp_path, monkeypatch):
-    """``design_plant: identified`` on a changed plant: Fig. 12's experiment compiles
-    its own plant (the identification's, cached afterwards); the run still one."""
-    monkeypatch.setenv("SIMPRO_CACHE_DIR", str(tmp_path / "cache"))
+def test_a_run_designed_on_identified_models_compiles_once(tmp_path):
+    """``design_plant: identified`` (the preset's identified models as given): the
+    design plants are resolved once and the plant compiled once."""
     sets = ["--set", "duration_s=0.2", "--set", "controller.inner.design_plant=identified",
-            "--set", "plant.payload.mass_kg=120"]  # fmt: skip
-    first = _probe(tmp_path, "run", "step_pitch.yaml", *sets)
-    again = _probe(tmp_path, "run", "step_pitch.yaml", *sets)  # from the cache
-    assert again["compile"] + again["from_xml"] == 1, again
-    assert first["compile"] + first["from_xml"] >= again["compile"] + again["from_xml"]
-    assert again["with_identified"] == 1, again
+            "--set", "controller.inner.identify=preset"]  # fmt: skip
+    counts = _probe(tmp_path, "run", "step_pitch.yaml", *sets)
+    assert counts["compile"] + counts["from_xml"] == 1, counts
+    assert counts["with_identified"] == 1 and counts["setpoints"] == 1, counts
 
 
 def test_the_run_shares_its_plant_and_set_points_with_the_preflight():
