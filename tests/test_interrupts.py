@@ -143,8 +143,8 @@ def _long_sweep(tmp_path: Path, duration_s: float) -> Path:
 
 @linux
 def test_ctrl_c_while_a_variant_imports_the_loop_stops_the_batch(tmp_path):
-    """Before the fix the first variant read ``failed: ImportError`` and the
-    second ran to its end; now the batch stops with both cancelled, exit 130."""
+    """Without the hold the first variant would read ``failed: ImportError`` and the
+    second run to its end; the batch stops with both cancelled, exit 130."""
     sweep = _long_sweep(tmp_path, 30.0)
     body = f"""
     from simpro_mj.commands.main import main

@@ -67,8 +67,9 @@ def test_the_wheel_holds_the_model_and_every_shipped_scenario(wheel):
 
 def test_the_wheel_holds_every_package(wheel):
     """Every tracked package (a folder with ``__init__.py``) of simpro_mj and
-    controllers is in the wheel: ``controllers/analysis/`` once was not, and the
-    editable install of the test venv hid it from the run below."""
+    controllers is in the wheel: a subpackage missing from the package list would
+    be supplied from the checkout by the test venv's editable install and go
+    unseen by the run below."""
     names = set(zipfile.ZipFile(wheel).namelist())
     packages = sorted(
         f for f in _tracked_files() if f.endswith("/__init__.py") and not f.startswith("tests/")

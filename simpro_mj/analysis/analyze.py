@@ -184,7 +184,7 @@ def _outer_delay(mode, gain, period, delay, pi_zero, duration) -> dict:
         "gain": gain,
         "stability_limit": lim,
         "stability_limit_closed_form": closed,
-        # key kept (the JSON contract); the poles decide it now
+        # the name of the --json contract; decided by the poles (schur_stable)
         "jury_stable_at_gain": an.schur_stable(np.polyadd(a, gain * b)),
         "poles": _pairs(poles),
         "pole_magnitudes": [float(abs(p)) for p in poles],
