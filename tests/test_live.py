@@ -36,6 +36,7 @@ from simpro_mj.config.datagrams import (
 )
 from simpro_mj.config.telemetry import Telemetry, read_telemetry, resample, write_telemetry
 from simpro_mj.core.errors import UserInputError
+from simpro_mj.core.shipped import TELEMETRY_DIR
 from simpro_mj.plant.faults import NEVER
 from simpro_mj.sim.live import (
     MAX_BEHIND_S,
@@ -47,7 +48,7 @@ from simpro_mj.sim.live import (
 )
 
 ROOT = Path(__file__).resolve().parents[1]
-BRAKING = ROOT / "simpro_mj" / "scenarios" / "telemetry" / "braking_100kmh.csv"
+BRAKING = TELEMETRY_DIR / "braking_100kmh.csv"
 OUTSIM = struct.Struct("<I3f3f3f3f3i")
 #: float32 packing: a relative 6e-8 of a 10 m/s^2 value, with margin
 F32 = 1e-5

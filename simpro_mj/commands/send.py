@@ -24,7 +24,7 @@ HELP = "send a telemetry CSV as paced UDP datagrams (outsim or csv): a game's st
 
 def add_arguments(parser) -> None:
     parser.add_argument("telemetry", metavar="TELEMETRY.csv",
-                        help="a telemetry file (e.g. simpro_mj/scenarios/telemetry/"
+                        help="a telemetry file (e.g. scenarios/telemetry/"
                         "braking_100kmh.csv)")  # fmt: skip
     parser.add_argument("--to", required=True, metavar="HOST:PORT", help="where to send")
     parser.add_argument("--format", dest="fmt", choices=FORMATS, default="outsim",

@@ -82,7 +82,11 @@ def execute_live(scenario: dict, options: LiveOptions, out, plots: bool = True, 
     found: dict = {}
 
     def checks() -> None:  # payload and gains at home; the washout keeps its box
-        found["warnings"], found["figures"] = preflight(home)
+        # the preflight takes the scenario with its design plants (design_plant:
+        # identified: its own plant's models); MuJoCo loads here, when the session starts
+        from simpro_mj.identification.auto import with_identified
+
+        found["warnings"], found["figures"] = preflight(with_identified(home)[0])
         warn(found["warnings"], quiet)
 
     res, realtime, wash = run_session(scenario, options, say=say, checks=checks)
