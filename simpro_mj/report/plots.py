@@ -2,9 +2,11 @@
 
 The figures are built with :class:`matplotlib.figure.Figure` (no pyplot, no
 global state, no display): desired values in blue, the platform's output in
-green as in Figs. 14 and 16, angles in degrees and heights in millimetres.
-Columns that a run did not log are skipped (the figure needing them is not
-written).
+green as in Figs. 14 and 16, each leg in its colour of
+:data:`simpro_mj.report.figures.LEG_COLOURS`, angles in degrees and heights in
+millimetres. Long curves are drawn through :func:`simpro_mj.report.figures.envelope`
+(the same pixels for a tenth of the points). Columns that a run did not log are
+skipped (the figure needing them is not written).
 """
 
 from __future__ import annotations
@@ -13,22 +15,32 @@ import math
 from collections.abc import Mapping
 from pathlib import Path
 
-import matplotlib
+import numpy as np
+from matplotlib.figure import Figure
 
-matplotlib.use("Agg")
+from simpro_mj.plant.faults import fault_intervals
+from simpro_mj.report.cue_plots import plot_cueing
+from simpro_mj.report.figures import (
+    DESIRED,
+    DPI,
+    LEG_COLOURS,
+    MEASURED,
+    OUTPUT,
+    envelope,
+    margins,
+    save,
+)
 
-import numpy as np  # noqa: E402
-from matplotlib.figure import Figure  # noqa: E402
-
-from simpro_mj.plant.faults import fault_intervals  # noqa: E402
-from simpro_mj.report.cue_plots import plot_cueing  # noqa: E402
-
-__all__ = ["plot_run", "plot_compare", "DESIRED", "OUTPUT"]
-
-DESIRED = "tab:blue"  # "in blue the wanted value" (Fig. 14)
-OUTPUT = "tab:green"  # "in green the output"
-MEASURED = "0.55"
-DPI = 120
+__all__ = [
+    "plot_run",
+    "plot_compare",
+    "compare_figure",
+    "run_figures",
+    "DESIRED",
+    "OUTPUT",
+    "DPI",
+    "RUN_FIGURES",
+]
 
 #: (title, ref column, true column, measured column, scale to display unit, unit)
 _TASK = (
@@ -52,8 +64,12 @@ def _title(scenario: Mapping, what: str) -> str:
 
 
 def _save(fig: Figure, path: Path) -> Path:
-    fig.savefig(path, dpi=DPI)
-    return path
+    return save(fig, path, DPI)
+
+
+def _line(ax, t, y, **kwargs):
+    """``ax.plot`` of a time series through :func:`envelope`."""
+    return ax.plot(*envelope(t, y), **kwargs)
 
 
 #: Colours of the fault intervals shaded on every time plot of a run.
@@ -97,10 +113,10 @@ def _task_axes(fig: Figure, columns: Mapping, ncols: int = 1, col: int = 0, axes
             ax.set_visible(False)
             continue
         if meas in columns:
-            ax.plot(t, _col(columns, meas) * scale, color=MEASURED, lw=0.6,
-                    label="measured (sensors)")  # fmt: skip
-        ax.plot(t, _col(columns, ref) * scale, color=DESIRED, lw=1.4, label="desired")
-        ax.plot(t, _col(columns, true) * scale, color=OUTPUT, lw=1.2, label="output")
+            _line(ax, t, _col(columns, meas) * scale, color=MEASURED, lw=0.6,
+                  label="measured (sensors)")  # fmt: skip
+        _line(ax, t, _col(columns, ref) * scale, color=DESIRED, lw=1.4, label="desired")
+        _line(ax, t, _col(columns, true) * scale, color=OUTPUT, lw=1.2, label="output")
         ax.set_ylabel(f"{title.split(') ')[1]} [{unit}]")
         ax.grid(True, alpha=0.3)
         drawn.append(ax)
@@ -126,8 +142,8 @@ def run_figures(
     t = _col(columns, "time_s")
     figs: dict[str, Figure] = {}
     if only in (None, "task_space"):
-        fig = Figure(figsize=(8, 8), layout="constrained")
-        drawn = _task_axes(fig, columns)
+        fig = Figure(figsize=(8, 8))
+        drawn = _task_axes(fig, columns, axes=fig.subplots(3, 1, sharex=True))
         if drawn:
             drawn[0].legend(loc="best", fontsize=8)
             fig.suptitle(_title(scenario, "task space, desired (blue) vs output (green)"))
@@ -136,14 +152,14 @@ def run_figures(
     if only in (None, "joints"):
         legs = [i for i in (1, 2, 3) if _has(columns, f"q{i}_ref_m", f"q{i}_m")]
         if legs:
-            fig = Figure(figsize=(8, 8), layout="constrained")
+            fig = Figure(figsize=(8, 8))
             axes = fig.subplots(len(legs), 1, sharex=True, squeeze=False)[:, 0]
             for ax, i in zip(axes, legs, strict=True):
-                ax.plot(
-                    t, _col(columns, f"q{i}_ref_m") * 1e3, color=DESIRED, lw=1.4, label="set-point"
-                )
-                ax.plot(t, _col(columns, f"q{i}_m") * 1e3, color=OUTPUT, lw=1.2, label="position")
-                ax.set_ylabel(f"q{i} [mm]")
+                _line(ax, t, _col(columns, f"q{i}_ref_m") * 1e3, color=DESIRED, lw=1.4,
+                      label="set-point")  # fmt: skip
+                _line(ax, t, _col(columns, f"q{i}_m") * 1e3, color=OUTPUT, lw=1.2,
+                      label="position")  # fmt: skip
+                ax.set_ylabel(f"leg {i}: q{i} [mm]", color=LEG_COLOURS[i])
                 ax.grid(True, alpha=0.3)
             axes[0].legend(loc="best", fontsize=8)
             axes[-1].set_xlabel("time [s]")
@@ -153,31 +169,36 @@ def run_figures(
     if only in (None, "valves"):
         valves = [i for i in (1, 2, 3) if f"u{i}_v" in columns]
         if valves:
-            fig = Figure(figsize=(8, 4.5), layout="constrained")
-            ax = fig.add_subplot()
-            for i in valves:
-                ax.plot(t, _col(columns, f"u{i}_v"), lw=0.9, label=f"valve {i}")
-            ax.axhline(5.0, color="k", lw=0.6, ls="--", label="closed centre (5 V)")
-            ax.set_ylim(-0.3, 10.3)
-            ax.set_xlabel("time [s]")
-            ax.set_ylabel("voltage [V]")
-            ax.grid(True, alpha=0.3)
-            ax.legend(loc="best", fontsize=8)
-            fig.suptitle(_title(scenario, "valve commands"))
+            # one panel per valve: legs 2 and 3 move alike in pitch, one line would hide the other
+            fig = Figure(figsize=(8, 1.2 + 1.9 * len(valves)))
+            axes = fig.subplots(len(valves), 1, sharex=True, sharey=True, squeeze=False)[:, 0]
+            for ax, i in zip(axes, valves, strict=True):
+                _line(ax, t, _col(columns, f"u{i}_v"), color=LEG_COLOURS[i], lw=0.9,
+                      label=f"valve {i}")  # fmt: skip
+                ax.axhline(5.0, color="k", lw=0.6, ls="--",
+                           label="closed centre (5 V)" if i == valves[0] else None)  # fmt: skip
+                ax.set_ylim(-0.3, 10.3)
+                ax.set_ylabel(f"u{i} [V]")
+                ax.grid(True, alpha=0.3)
+                ax.legend(loc="upper right", fontsize=8)
+            axes[-1].set_xlabel("time [s]")
+            fig.suptitle(_title(scenario, "valve commands (0-10 V, 5 V closed)"))
             figs["valves"] = fig
 
     if only in (None, "pressures"):
         chambers = [i for i in (1, 2, 3) if _has(columns, f"p{i}a_pa", f"p{i}b_pa")]
         if chambers:
-            fig = Figure(figsize=(8, 8), layout="constrained")
+            fig = Figure(figsize=(8, 8))
             axes = fig.subplots(len(chambers), 1, sharex=True, squeeze=False)[:, 0]
             for ax, i in zip(axes, chambers, strict=True):
-                ax.plot(t, _col(columns, f"p{i}a_pa") * 1e-5, lw=1.0, label="cap side (a)")
-                ax.plot(t, _col(columns, f"p{i}b_pa") * 1e-5, lw=1.0, label="rod side (b)")
+                _line(ax, t, _col(columns, f"p{i}a_pa") * 1e-5, color=LEG_COLOURS[i], lw=1.0,
+                      label="cap side (a)")  # fmt: skip
+                _line(ax, t, _col(columns, f"p{i}b_pa") * 1e-5, color=LEG_COLOURS[i], lw=1.0,
+                      ls=":", label="rod side (b)")  # fmt: skip
                 if "supply_pa" in columns:
-                    ax.plot(t, _col(columns, "supply_pa") * 1e-5, color="k", lw=0.8, ls="--",
-                            label="supply")  # fmt: skip
-                ax.set_ylabel(f"leg {i} [bar abs]")
+                    _line(ax, t, _col(columns, "supply_pa") * 1e-5, color="k", lw=0.8, ls="--",
+                          label="supply")  # fmt: skip
+                ax.set_ylabel(f"leg {i} [bar abs]", color=LEG_COLOURS[i])
                 ax.grid(True, alpha=0.3)
             axes[0].legend(loc="best", fontsize=8)
             axes[-1].set_xlabel("time [s]")
@@ -186,6 +207,7 @@ def run_figures(
 
     for fig in figs.values():
         _shade_faults(fig, scenario)
+        margins(fig)
     return figs
 
 
@@ -219,24 +241,17 @@ def plot_run(columns: Mapping[str, np.ndarray], scenario: Mapping, out_dir) -> l
     return paths
 
 
-def plot_compare(
+def compare_figure(
     columns_joint_only: Mapping[str, np.ndarray],
     columns_task_space: Mapping[str, np.ndarray],
     scenario: Mapping,
-    out_dir,
-) -> list[Path]:
+) -> Figure:
     """Fig. 15 a/b in one figure: joint control only (left) vs task-space control (right).
 
     Rows roll, pitch (deg) and height (mm) with shared y limits per row, so
     the steady-state error of a) and its absence in b) read directly.
-
-    Returns
-    -------
-    list of Path
-        ``[out_dir / "compare.png"]``.
     """
-    out_dir = Path(out_dir)
-    fig = Figure(figsize=(12, 8), layout="constrained")
+    fig = Figure(figsize=(12, 8))
     grid = fig.subplots(3, 2, sharex=True, sharey="row")
     _task_axes(fig, columns_joint_only, axes=grid[:, 0])
     _task_axes(fig, columns_task_space, axes=grid[:, 1])
@@ -244,4 +259,21 @@ def plot_compare(
     grid[0, 1].set_title("b) joint control + kinematic task-space control")
     grid[0, 0].legend(loc="best", fontsize=8)
     fig.suptitle(f"{scenario.get('name', 'run')}: Fig. 15 a/b (blue desired, green output)")
-    return [_save(fig, out_dir / "compare.png")]
+    return margins(fig, top=0.75, wspace=0.08)
+
+
+def plot_compare(
+    columns_joint_only: Mapping[str, np.ndarray],
+    columns_task_space: Mapping[str, np.ndarray],
+    scenario: Mapping,
+    out_dir,
+) -> list[Path]:
+    """Write :func:`compare_figure` as ``compare.png``.
+
+    Returns
+    -------
+    list of Path
+        ``[out_dir / "compare.png"]``.
+    """
+    fig = compare_figure(columns_joint_only, columns_task_space, scenario)
+    return [_save(fig, Path(out_dir) / "compare.png")]
