@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 
 from simpro_mj.report import figures
 from simpro_mj.report.figures import envelope, legend_mismatches
@@ -111,3 +112,179 @@ def test_compare_figure_legend():
 
     fig = compare_figure(_run_columns(), _run_columns(seed=1), SCENARIO)
     assert legend_mismatches(fig) == []
+
+
+def _cue_columns() -> dict[str, np.ndarray]:
+    c = _run_columns(n=6001)
+    t = c["time_s"]
+    for side, gain in (("veh", 1.0), ("head", 0.6)):
+        for k, a in enumerate("xyz"):
+            base = 9.80665 if a == "z" else 0.0
+            c[f"{side}_f{a}_mps2"] = base + gain * np.sin(0.5 * t + k)
+            c[f"{side}_w{a}_rad_s"] = 0.02 * gain * np.sin(0.7 * t + k)
+    return c
+
+
+def test_cueing_figures_legends_name_their_series():
+    from simpro_mj.report.cue_plots import cueing_figures
+
+    figs = cueing_figures(_cue_columns(), SCENARIO)
+    assert set(figs) == {"cueing", "cue_pose"}
+    for name, fig in figs.items():
+        assert legend_mismatches(fig) == [], name
+
+
+def _response_doc(with_prediction: bool = True) -> dict:
+    freq = [0.2, 0.5, 1.0, 2.0]
+    rows = []
+    for a in ("pitch", "heave"):
+        for o in ("roll", "pitch", "heave"):
+            for sig in ("true", "measured"):
+                for f in freq:
+                    g = -3.0 * f if o == a else -40.0
+                    rows.append({
+                        "input_axis": a, "output_axis": o, "signal": sig, "frequency_hz": f,
+                        "gain": 10 ** (g / 20), "gain_db": g, "phase_deg": -60.0 * f,
+                        "diff_db": 0.1 if with_prediction else None,
+                        "diff_deg": 2.0 if with_prediction else None,
+                    })  # fmt: skip
+    dense = np.geomspace(0.2, 2.0, 50)
+    curve = {"gain_db": (-3.0 * dense).tolist(), "phase_deg": (-60.0 * dense).tolist()}
+    curves = {
+        a: {"frequency_hz": dense.tolist(), "true": curve, "measured": curve}
+        for a in ("pitch", "heave")
+    }
+    return {
+        "scenario": "synthetic",
+        "mode": "task_space",
+        "loop": "task_space, I law",
+        "axes_excited": ["pitch", "heave"],
+        "rows": rows,
+        "predicted_curves": curves if with_prediction else {},
+    }
+
+
+@pytest.mark.parametrize("with_prediction", [True, False])
+def test_bode_figures_draw_the_prediction_as_a_curve(with_prediction):
+    from simpro_mj.report.response import bode_figures
+
+    figs = bode_figures(_response_doc(with_prediction))
+    for name, fig in figs.items():
+        assert legend_mismatches(fig) == [], name
+    gain = figs["bode"].axes[0]
+    predicted = [ln for ln in gain.lines if ln.get_label() == "predicted, true pose"]
+    assert bool(predicted) == with_prediction
+    if with_prediction:  # the dense curve, not a line through the four measured points
+        assert len(predicted[0].get_xdata()) == 50
+    assert "I law" in figs["bode"]._suptitle.get_text()
+    assert "PI" not in figs["bode"]._suptitle.get_text()
+
+
+def test_log_ticks_label_a_short_axis_without_overlap():
+    from matplotlib.figure import Figure
+
+    from simpro_mj.report.figures import log_ticks
+
+    fig = Figure()
+    ax = fig.add_subplot()
+    ax.semilogx([0.2, 2.0], [0, 1])
+    log_ticks(ax)
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    FigureCanvasAgg(fig).draw()
+    labels = [t.get_text() for t in ax.get_xticklabels(minor=True) + ax.get_xticklabels()]
+    shown = [s for s in labels if s]
+    assert set(shown) >= {"0.2", "0.5", "1", "2"}
+    assert all("10" not in s or s == "10" for s in shown)  # no "3x10^-1"
+
+
+def test_chain_figure_draws_washout_and_linear_chain_as_curves():
+    from simpro_mj.report.response import chain_figure
+
+    omega = [1.0, 2.5, 6.3]
+    rows = [
+        {"test": "pitch", "input": "wy", "output": "wy", "unit": "deg/s per deg/s",
+         "omega_rad_s": w, "gain_db": -1.0, "phase_deg": -10.0 * w}
+        for w in omega
+    ]  # fmt: skip
+    dense = np.geomspace(1.0, 6.3, 40).tolist()
+    curve = {"gain_db": [-1.0] * 40, "phase_deg": [-10.0 * w for w in dense]}
+    doc = {
+        "scenario": "synthetic",
+        "mode": "feedforward",
+        "loop": "feedforward, I correction",
+        "rows": rows,
+        "curves": {"pitch": {"omega_rad_s": dense, "washout": curve, "predicted": curve}},
+    }
+    fig = chain_figure(doc)
+    assert legend_mismatches(fig) == []
+    (washout,) = [ln for ln in fig.axes[0].lines if ln.get_label() == "washout alone"]
+    assert len(washout.get_xdata()) == 40
+
+
+def _sweep_rows(tmp_path, same_setpoint: bool):
+    """Four variants of a gain sweep with their time series on disk."""
+    from simpro_mj.report.results import write_timeseries
+
+    rows = []
+    for k, gain in enumerate((4.0, 8.0, 12.0, 16.0)):
+        c = _run_columns(n=3001, seed=k)
+        if not same_setpoint:
+            c["pitch_ref_rad"] = c["pitch_ref_rad"] * (k + 1)
+        folder = f"sweep/gains={gain:g}"
+        (tmp_path / folder).mkdir(parents=True)
+        write_timeseries(tmp_path / folder / "timeseries.csv", c)
+        unstable = gain > 12
+        rows.append({
+            "variant": f"gains={gain:g}", "folder": folder, "status": "ok",
+            "stable": not unstable, "values": {"controller.outer.gains": gain},
+            "roll_rms_err_deg": 0.01 * gain, "pitch_rms_err_deg": 0.02 * gain,
+            "heave_rms_err_mm": 0.1 * gain, "growth_rate_1_s": gain - 12.0,
+            "analytic_growth_rate_1_s": gain - 11.8,
+            "cue_long_corr": 0.5 + 0.01 * k, "cue_pitch_box_frac": 0.9,
+            "cue_valve_sat_frac": 0.01 * k,
+        })  # fmt: skip
+    info = {"scenario": "sweep", "folder": "sweep", "grid_paths": ["controller.outer.gains"],
+            "monte_carlo": False}  # fmt: skip
+    return rows, info
+
+
+@pytest.mark.parametrize("same_setpoint", [True, False])
+def test_sweep_responses_draw_each_variants_setpoint(tmp_path, same_setpoint):
+    from simpro_mj.batch.plots import responses_figure
+
+    rows, info = _sweep_rows(tmp_path, same_setpoint)
+    fig = responses_figure(rows, info, tmp_path)
+    assert legend_mismatches(fig) == []
+    pitch = fig.axes[1]
+    dashed = [ln for ln in pitch.lines if ln.get_linestyle() == "--"]
+    # the stable variants' set-points (3 differ) or the one they share
+    assert len(dashed) == (1 if same_setpoint else 3)
+    top = max(float(np.max(ln.get_ydata())) for ln in dashed)
+    assert top == pytest.approx(3.0 * (1 if same_setpoint else 3), rel=1e-6)
+
+
+@pytest.mark.parametrize("with_limits", [True, False])
+def test_metric_vs_param_lists_only_what_it_draws(tmp_path, with_limits):
+    from simpro_mj.batch.plots import metric_vs_param_figure
+
+    rows, info = _sweep_rows(tmp_path, True)
+    stability = []
+    if with_limits:
+        stability = [{"group": {}, "analytic_limit": 11.8, "simulated_limit": 12.5}]
+    fig = metric_vs_param_figure(rows, info, stability)
+    assert legend_mismatches(fig) == []
+    labels = {t.get_text() for t in fig.axes[0].get_legend().get_texts()}
+    assert ("analytic limit" in labels) == with_limits
+    assert "unstable or not ok" in labels  # gains 16 is unstable: ringed
+    assert "red ring" not in fig._suptitle.get_text()
+
+
+def test_cue_tradeoff_writes_the_saturation_it_sizes(tmp_path):
+    from simpro_mj.batch.plots import cue_tradeoff_figure
+
+    rows, info = _sweep_rows(tmp_path, True)
+    fig = cue_tradeoff_figure(rows, info)
+    assert legend_mismatches(fig) == []
+    notes = [t.get_text() for t in fig.axes[0].texts]
+    assert any("sat 3.0 %" in n for n in notes)  # the saturation is written, not only sized

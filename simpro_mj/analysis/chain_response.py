@@ -377,7 +377,9 @@ def _unwrapped(h_dense: np.ndarray) -> np.ndarray:
 
 
 def chain_summary(plan: ChainPlan, results: list) -> dict:
-    """Rows (one per OMCT pair and frequency) and the failures, JSON-ready."""
+    """Rows (one per OMCT pair and frequency), the failures, and ``curves``: per OMCT
+    pair the washout alone and the linear chain (None without a loop model) on a
+    dense grid between the lowest and highest measured frequency; JSON-ready."""
     periods = sorted(plan.periods_ms, reverse=True)
     omega = 2 * np.pi * 1000.0 / np.array(periods, float)
     # the predictions on a dense grid from well below, so that their phase unwraps from
@@ -439,9 +441,29 @@ def chain_summary(plan: ChainPlan, results: list) -> dict:
     nonlinear = sorted(
         {r["test"] for r in rows if r["rate_limited_pct"] > 0 or r["softened_pct"] > 0}
     )
+    # the washout alone and the linear chain between the measured frequencies, to draw
+    # as curves (the rows hold them at the measured frequencies only)
+    span = (dense >= omega.min() * (1 - 1e-9)) & (dense <= omega.max() * (1 + 1e-9))
+    curves = {}
+    for (cin, cout), name in PAIRS.items():
+        if cin not in plan.channels:
+            continue
+        i, o = CHANNELS.index(cin), CHANNELS.index(cout)
+        curves[name] = {"omega_rad_s": dense[span].tolist()}
+        for key in ("washout", "predicted"):
+            if pred[key] is None:
+                curves[name][key] = None
+                continue
+            h = pred[key][:, o, i]
+            gain = np.abs(h[span]) * _UNITS[cin][1] / _UNITS[cout][1]
+            curves[name][key] = {
+                "gain_db": (20 * np.log10(np.maximum(gain, 1e-300))).tolist(),
+                "phase_deg": _unwrapped(h)[span].tolist(),
+            }
     return {
         "rows": rows,
         "failed": failed,
         "prediction_note": pred["note"],
         "not_small_signal": nonlinear,
+        "curves": curves,
     }

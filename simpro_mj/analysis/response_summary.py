@@ -106,7 +106,11 @@ def summary(plan: ResponsePlan, results: list, model: LoopModel | None) -> dict:
     ``bandwidth_3db_hz``, ``phase_deg_at_0_5_hz``, ``phase_deg_at_1_hz``,
     ``equivalent_delay_ms``, and the same under ``predicted`` and
     ``measured_pose``), ``agreement`` (largest |measured - predicted| up to
-    1 Hz on the excited axis), ``failed`` (frequencies that did not run).
+    1 Hz on the excited axis), ``failed`` (frequencies that did not run),
+    ``predicted_curves`` (per excited axis, its prediction on a dense grid
+    between the lowest and highest measured frequency: ``frequency_hz`` and,
+    for ``true`` and ``measured``, ``gain_db`` and ``phase_deg``; empty
+    without a prediction).
     """
     periods = sorted(plan.periods_ms, reverse=True)
     freq = np.array([1000.0 / p for p in periods])
@@ -209,7 +213,26 @@ def summary(plan: ResponsePlan, results: list, model: LoopModel | None) -> dict:
                 }
                 for sig in ("true", "measured")
             }
-    return {"rows": rows, "axes": axes, "agreement": agreement, "failed": failed}
+    curves = {}
+    if pred is not None:  # the prediction between the measured frequencies, to draw as curves
+        span = (dense >= omega.min() * (1 - 1e-9)) & (dense <= omega.max() * (1 + 1e-9))
+        for axis_in in plan.axes:
+            j = AXES.index(axis_in)
+            curves[axis_in] = {"frequency_hz": (dense[span] / (2 * np.pi)).tolist()}
+            for sig in ("true", "measured"):
+                h = full[sig][span, j, j]
+                phase = np.degrees(np.unwrap(np.angle(full[sig][:, j, j])))[span]
+                curves[axis_in][sig] = {
+                    "gain_db": (20 * np.log10(np.maximum(np.abs(h), 1e-300))).tolist(),
+                    "phase_deg": phase.tolist(),
+                }
+    return {
+        "rows": rows,
+        "axes": axes,
+        "agreement": agreement,
+        "failed": failed,
+        "predicted_curves": curves,
+    }
 
 
 def figures(freq=(), h=(), phase_deg=()) -> dict:

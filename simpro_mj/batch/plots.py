@@ -8,10 +8,12 @@ Per scenario file (``<folder>`` is its folder name under OUT):
   rms error of roll, pitch (deg) and heave (mm), and the measured envelope
   growth rate (1/s) with the analytic one dashed. Unstable variants are
   ringed in red; the analytic limit is a dashed vertical line, the simulated
-  one dotted. Not drawn for Monte Carlo files or grids without a numeric path.
+  one dotted; each is in the legend only when drawn. Not drawn for Monte
+  Carlo files or grids without a numeric path.
 * ``<folder>_responses.png``: the task-space responses of every variant
-  overlaid (roll, pitch in deg; heave in mm), the first variant's set-point
-  dashed black; one colour per variant (Monte Carlo: per grid combination);
+  overlaid (roll, pitch in deg; heave in mm) with their set-points dashed:
+  one black line when every variant has the same, else each variant's in its
+  colour; one colour per variant (Monte Carlo: per grid combination);
   unstable or failed runs in grey behind, the y range that of the others.
 * ``<folder>_mc_ss_error.png`` (Monte Carlo files): box plots with the
   samples of the absolute steady-state error per axis, one box per grid
@@ -24,17 +26,21 @@ import math
 from collections.abc import Mapping
 from pathlib import Path
 
-import matplotlib
+import numpy as np
+from matplotlib.figure import Figure
 
-matplotlib.use("Agg")
+from simpro_mj.config.sweep import format_value
+from simpro_mj.report.figures import envelope, legend_mismatches, log_ticks, save
+from simpro_mj.report.results import read_timeseries
 
-import numpy as np  # noqa: E402
-from matplotlib.figure import Figure  # noqa: E402
-
-from simpro_mj.config.sweep import format_value  # noqa: E402
-from simpro_mj.report.results import read_timeseries  # noqa: E402
-
-__all__ = ["plot_summary", "plot_metric_vs_param", "plot_responses", "plot_mc"]
+__all__ = [
+    "plot_summary",
+    "plot_metric_vs_param",
+    "plot_responses",
+    "plot_mc",
+    "plot_cue_tradeoff",
+    "legend_mismatches",
+]
 
 DPI = 110
 MAX_OVERLAY = 100
@@ -69,13 +75,19 @@ def _colours(labels: list[str]) -> dict[str, str]:
     return {lab: f"C{i % 10}" for i, lab in enumerate(uniq)}
 
 
-def _save(fig: Figure, path: Path) -> Path:
-    fig.savefig(path, dpi=DPI)
-    return path
+def _save(fig: Figure | None, path: Path) -> Path | None:
+    return None if fig is None else save(fig, path, DPI)
 
 
 def plot_metric_vs_param(rows: list[dict], info: Mapping, stability: list[dict], out: Path):
     """Metrics against the swept parameter (module docstring); None if not applicable."""
+    fig = metric_vs_param_figure(rows, info, stability)
+    label = fig.get_label() if fig is not None else ""
+    return _save(fig, out / f"{info['folder']}_vs_{label}.png")
+
+
+def metric_vs_param_figure(rows: list[dict], info: Mapping, stability: list[dict]):
+    """The figure of :func:`plot_metric_vs_param` (its label: the swept key's last part)."""
     grid = info["grid_paths"]
     if info["monte_carlo"] or not grid:
         return None
@@ -96,7 +108,9 @@ def plot_metric_vs_param(rows: list[dict], info: Mapping, stability: list[dict],
     has_growth = any(r.get("growth_rate_1_s") is not None for r in rows)
     n = 3 + int(has_growth)
     fig = Figure(figsize=(8, 2.6 * n), layout="constrained")
+    fig.set_label(label)
     axes = fig.subplots(n, 1, sharex=True)
+    ringed = False
     for name, members in groups.items():
         members = sorted(members, key=lambda r: _x(r["values"][xpath]))
         xs = np.array([_x(r["values"][xpath]) for r in members])
@@ -106,7 +120,10 @@ def plot_metric_vs_param(rows: list[dict], info: Mapping, stability: list[dict],
             ys = np.array([r.get(f"{axis}_rms_err_{unit}") or np.nan for r in members], float)
             ax.plot(xs, ys, "o-", color=col, lw=1.2, ms=4, label=name)
             if bad.any():
-                ax.plot(xs[bad], ys[bad], "o", mfc="none", mec="red", ms=9, mew=1.5)
+                first = not ringed
+                ringed = True
+                ax.plot(xs[bad], ys[bad], "o", mfc="none", mec="red", ms=9, mew=1.5,
+                        label="unstable or not ok" if first else None)  # fmt: skip
         if has_growth:
             ax = axes[3]
             gs = np.array([r.get("growth_rate_1_s") for r in members], float)
@@ -116,17 +133,22 @@ def plot_metric_vs_param(rows: list[dict], info: Mapping, stability: list[dict],
             ana = np.array([r.get("analytic_growth_rate_1_s") for r in members], float)
             if np.isfinite(ana).any():
                 ax.plot(xs, ana, "--", color=col, lw=1.0, label=f"{name} (analysis)")
+    limits = set()  # which kinds of limit line are drawn (each in the legend once)
     for s in stability:
         name = ", ".join(f"{k.split('.')[-1]}={v}" for k, v in s["group"].items()) or "all"
         col = colours.get(name, "k")
-        for ax in axes:
-            if s.get("analytic_limit") is not None and math.isfinite(s["analytic_limit"]):
-                ax.axvline(s["analytic_limit"], color=col, ls="--", lw=0.9)
-            if s.get("simulated_limit") is not None:
-                ax.axvline(s["simulated_limit"], color=col, ls=":", lw=1.2)
+        ana, sim = s.get("analytic_limit"), s.get("simulated_limit")
+        for kind, x, ls, lw in (("analytic", ana, "--", 0.9), ("simulated", sim, ":", 1.2)):
+            if x is None or not math.isfinite(x):
+                continue
+            for k, ax in enumerate(axes):
+                first = k == 0 and kind not in limits
+                ax.axvline(x, color=col, ls=ls, lw=lw, label=f"{kind} limit" if first else None)
+            limits.add(kind)
     for ax, (axis, unit, _) in zip(axes[:3], _AXES, strict=True):
         ax.set_ylabel(f"{axis} rms error [{unit}]")
         ax.set_yscale("log")
+        log_ticks(ax, "y")
         ax.grid(True, which="both", alpha=0.3)
     if has_growth:
         axes[3].axhline(0.0, color="k", lw=0.6)
@@ -135,31 +157,44 @@ def plot_metric_vs_param(rows: list[dict], info: Mapping, stability: list[dict],
         axes[3].legend(loc="best", fontsize=7)
     axes[0].legend(loc="best", fontsize=8)
     axes[-1].set_xlabel(f"{xpath}" + (" (K K_I, 1/s)" if xpath == _GAIN else ""))
-    fig.suptitle(
-        f"{info['scenario']}: metrics vs {label} (red ring: unstable or not ok; "
-        "dashed: analytic limit, dotted: simulated)",
-        fontsize=9,
-    )
-    return _save(fig, out / f"{info['folder']}_vs_{label}.png")
+    fig.suptitle(f"{info['scenario']}: metrics vs {label}", fontsize=9)
+    return fig
+
+
+_RESPONSE_COLUMNS = ("time_s", "roll_rad", "pitch_rad", "heave_m", "roll_ref_rad",
+                     "pitch_ref_rad", "heave_ref_m")  # fmt: skip
 
 
 def plot_responses(rows: list[dict], info: Mapping, batch_out: Path, out: Path):
     """Task-space responses of the variants overlaid; None if none has a time series."""
+    fig = responses_figure(rows, info, batch_out)
+    return _save(fig, out / f"{info['folder']}_responses.png")
+
+
+def responses_figure(rows: list[dict], info: Mapping, batch_out: Path):
+    """The figure of :func:`plot_responses` (module docstring), or None."""
     grid = info["grid_paths"]
     runs = [r for r in rows if r["status"] in ("ok", "diverged") and r["folder"]][:MAX_OVERLAY]
-    if not runs:
+    series = []
+    for r in runs:
+        path = Path(batch_out) / r["folder"] / "timeseries.csv"
+        if path.is_file():
+            series.append((r, read_timeseries(path, _RESPONSE_COLUMNS)))
+    if not series:
         return None
-    labels = [_combo(r, grid) if info["monte_carlo"] else r["variant"] for r in runs]
+    labels = [_combo(r, grid) if info["monte_carlo"] else r["variant"] for r, _ in series]
     colours = _colours(labels)
+    # one dashed set-point when every variant has the same, else each its own
+    refs = [
+        np.column_stack([c[f"{a}_ref_{'m' if a == 'heave' else 'rad'}"] for a, _u, _s in _AXES])
+        for _, c in series
+    ]
+    same_ref = all(x.shape == refs[0].shape and np.allclose(x, refs[0]) for x in refs)
     fig = Figure(figsize=(9, 8), layout="constrained")
     axes = fig.subplots(3, 1, sharex=True)
-    seen, ref_drawn, n_bad = set(), False, 0
-    span = [[np.inf, -np.inf] for _ in _AXES]  # y range of the stable runs
-    for r, lab in zip(runs, labels, strict=True):
-        path = batch_out / r["folder"] / "timeseries.csv"
-        if not path.is_file():
-            continue
-        c = read_timeseries(path)
+    seen, n_bad = set(), 0
+    span = [[np.inf, -np.inf] for _ in _AXES]  # y range of the stable runs and set-points
+    for n, ((r, c), lab) in enumerate(zip(series, labels, strict=True)):
         t = c["time_s"]
         # unstable runs in grey behind: they would hide the others' scale
         bad = r.get("stable") is False or r["status"] != "ok"
@@ -169,32 +204,27 @@ def plot_responses(rows: list[dict], info: Mapping, batch_out: Path, out: Path):
             ref = "heave_ref_m" if axis == "heave" else f"{axis}_ref_rad"
             home = c[ref][0] if axis == "heave" else 0.0  # heave relative to the start
             y = (c[true] - home) * scale
+            yr = (c[ref] - home) * scale
             if bad:
-                ax.plot(
-                    t,
-                    y,
-                    color="0.6",
-                    lw=0.5,
-                    alpha=0.35,
-                    zorder=1,
-                    label="unstable or not ok" if n_bad == 1 else None,
-                )
+                label = "unstable or not ok" if n_bad == 1 and k == 0 else None
+                ax.plot(*envelope(t, y), color="0.6", lw=0.5, alpha=0.35, zorder=1, label=label)
             else:
-                ax.plot(
-                    t,
-                    y,
-                    color=colours[lab],
-                    lw=0.8,
-                    alpha=0.85,
-                    zorder=2,
-                    label=lab if lab not in seen else None,
-                )
-                fin = y[np.isfinite(y)]
+                label = lab if lab not in seen and k == 0 else None
+                ax.plot(*envelope(t, y), color=colours[lab], lw=0.8, alpha=0.85, zorder=2,
+                        label=label)  # fmt: skip
+                fin = np.concatenate([y[np.isfinite(y)], yr[np.isfinite(yr)]])
                 if fin.size:
                     span[k] = [min(span[k][0], fin.min()), max(span[k][1], fin.max())]
-            if not ref_drawn:
-                ax.plot(t, (c[ref] - home) * scale, "k--", lw=1.0, zorder=3, label="set-point")
-        ref_drawn = True
+            if same_ref and n == 0:
+                ax.plot(*envelope(t, yr), "k--", lw=1.0, zorder=3,
+                        label="set-point (all variants)" if k == 0 else None)  # fmt: skip
+            elif not same_ref and not bad:
+                first = k == 0 and not any(
+                    ln.get_label().startswith("set-point") for ln in axes[0].lines
+                )
+                label = "set-point (dashed, the variant's colour)" if first else None
+                ax.plot(*envelope(t, yr), color=colours[lab], ls="--", lw=0.9, zorder=3,
+                        label=label)  # fmt: skip
         if not bad:
             seen.add(lab)
     for k, (ax, (axis, unit, _)) in enumerate(zip(axes, _AXES, strict=True)):
@@ -207,8 +237,18 @@ def plot_responses(rows: list[dict], info: Mapping, batch_out: Path, out: Path):
     axes[-1].set_xlabel("time [s]")
     if len(seen) <= 12:
         axes[0].legend(loc="best", fontsize=7)
-    fig.suptitle(f"{info['scenario']}: task-space responses of {len(runs)} variants", fontsize=10)
-    return _save(fig, out / f"{info['folder']}_responses.png")
+    else:  # too many variants to name: the legend keeps the set-point and the grey runs
+        for line in axes[0].lines:
+            if line.get_label() in seen:
+                line.set_label("_" + line.get_label())
+        axes[0].legend(loc="best", fontsize=7)
+    what = "set-point" if same_ref else "set-points"
+    fig.suptitle(
+        f"{info['scenario']}: task-space responses of {len(series)} variants and their "
+        f"{what} (dashed)",
+        fontsize=10,
+    )
+    return fig
 
 
 def plot_mc(rows: list[dict], info: Mapping, out: Path):
@@ -365,23 +405,34 @@ def _main(r: Mapping, what: str) -> float:
 
 
 def plot_cue_tradeoff(rows: list[dict], info: Mapping, out: Path):
-    """Cueing sweeps: perceived longitudinal correlation against the
-    pitch workspace used, one point per variant labelled with its values;
-    marker size: valve saturation. None when the rows have no cueing columns."""
+    """Cueing sweeps: :func:`cue_tradeoff_figure` as ``<scenario>_cue_tradeoff.png``."""
+    return _save(cue_tradeoff_figure(rows, info), out / f"{info['scenario']}_cue_tradeoff.png")
+
+
+def cue_tradeoff_figure(rows: list[dict], info: Mapping):
+    """Perceived longitudinal correlation against the pitch workspace used, one
+    point per variant labelled with its values and its valve saturation (the
+    marker's area grows with it). None when the rows have no cueing columns."""
     pts = [r for r in rows if r.get("cue_long_corr") is not None and r["status"] == "ok"]
     if not pts:
         return None
     fig = Figure(figsize=(7.5, 5), layout="constrained")
     ax = fig.add_subplot()
-    for r in pts:
+    for n, r in enumerate(pts):
         x = float(r["cue_pitch_box_frac"])
         y = float(r["cue_long_corr"])
-        size = 30 + 3000 * float(r.get("cue_valve_sat_frac") or 0.0)
-        ax.scatter([x], [y], s=size, color="tab:red", alpha=0.7)
+        sat = float(r.get("cue_valve_sat_frac") or 0.0)
+        ax.scatter([x], [y], s=30 + 3000 * sat, color="tab:red", alpha=0.7,
+                   label="variant (area: valve at a rail)" if n == 0 else None)  # fmt: skip
         label = ", ".join(f"{k.split('.')[-1]}={format_value(v)}" for k, v in r["values"].items())
-        ax.annotate(label, (x, y), fontsize=6, xytext=(4, 3), textcoords="offset points")
+        ax.annotate(f"{label}; sat {100 * sat:.1f} %", (x, y), fontsize=6, xytext=(4, 3),
+                    textcoords="offset points")  # fmt: skip
     ax.set_xlabel("pitch workspace used (fraction of the cueing box)")
     ax.set_ylabel("perceived longitudinal correlation")
     ax.grid(True, alpha=0.3)
-    fig.suptitle(f"{info['scenario']}: cue correlation vs workspace (marker: valve saturation)")
-    return _save(fig, out / f"{info['scenario']}_cue_tradeoff.png")
+    ax.legend(loc="best", fontsize=8)
+    fig.suptitle(
+        f"{info['scenario']}: cue correlation vs workspace "
+        "(marker area and 'sat': time with a valve at a rail)"
+    )
+    return fig

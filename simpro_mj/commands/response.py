@@ -31,6 +31,7 @@ from pathlib import Path
 from simpro_mj.config.scenario import load_scenario
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.jsonout import emit_json
+from simpro_mj.report.figures import loop_label
 from simpro_mj.report.folders import claim
 from simpro_mj.report.response import (
     CHAIN_CSV_COLUMNS,
@@ -178,7 +179,10 @@ def run(args) -> int:
         doc = summary(plan, results, model)
         doc = {
             "scenario": scenario["name"],
-            "mode": model.mode,
+            "mode": scenario["controller"]["mode"],
+            "loop": loop_label(scenario),
+            # the law as analysed: an I law by backward Euler is the PI form with c = 0
+            "analysed_law": model.mode,
             "axes_excited": list(plan.axes),
             "amplitude": {
                 "roll_deg": args.amplitude_deg,
@@ -254,6 +258,7 @@ def run_chain(args, jobs: int) -> int:
             "scenario": scenario["name"],
             "kind": "chain",
             "mode": scenario["controller"]["mode"],
+            "loop": loop_label(scenario),
             "channels_excited": list(plan.channels),
             "amplitude": {
                 "f_mps2": plan.amplitudes["fx"],

@@ -19,8 +19,9 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from simpro_mj.analysis.cue_metrics import CHANNELS, perceived
+from simpro_mj.report.figures import DESIRED, LEG_COLOURS, OUTPUT, envelope, save
 
-__all__ = ["plot_cueing"]
+__all__ = ["cueing_figures", "plot_cueing"]
 
 VEHICLE = "0.6"
 VEHICLE_PERCEIVED = "k"
@@ -37,6 +38,14 @@ _LABELS = {
 def plot_cueing(columns: Mapping, scenario: Mapping, out_dir, dpi: int = 120) -> list[Path]:
     """Write ``cueing.png`` and ``cue_pose.png``; returns their paths."""
     out_dir = Path(out_dir)
+    return [
+        _save(fig, out_dir / f"{name}.png", dpi)
+        for name, fig in cueing_figures(columns, scenario).items()
+    ]
+
+
+def cueing_figures(columns: Mapping, scenario: Mapping) -> dict[str, Figure]:
+    """``cueing`` and ``cue_pose`` (module docstring) as figures."""
     t, veh, sim = perceived(columns)
     name = scenario.get("name", "run")
     fig = Figure(figsize=(9, 10), layout="constrained")
@@ -48,16 +57,18 @@ def plot_cueing(columns: Mapping, scenario: Mapping, out_dir, dpi: int = 120) ->
         ps = (sim.f if kind == "f" else sim.w)[:, k]
         thr = (veh.f_threshold if kind == "f" else veh.w_threshold)[k]
         ax.axhspan(-thr * scale, thr * scale, color="0.9", lw=0, label="threshold")
-        ax.plot(t, raw * scale, color=VEHICLE, lw=0.8, label="vehicle")
-        ax.plot(t, pv * scale, color=VEHICLE_PERCEIVED, lw=1.4, label="vehicle, perceived")
-        ax.plot(t, ps * scale, color=SIMULATOR_PERCEIVED, lw=1.2, label="simulator, perceived")
+        ax.plot(*envelope(t, raw * scale), color=VEHICLE, lw=0.8, label="vehicle")
+        ax.plot(*envelope(t, pv * scale), color=VEHICLE_PERCEIVED, lw=1.4,
+                label="vehicle, perceived")  # fmt: skip
+        ax.plot(*envelope(t, ps * scale), color=SIMULATOR_PERCEIVED, lw=1.2,
+                label="simulator, perceived")  # fmt: skip
         ax.set_ylabel(unit)
         ax.set_title(title, fontsize=9, loc="left")
         ax.grid(True, alpha=0.3)
     axes[0].legend(loc="best", fontsize=7, ncol=2)
     axes[-1].set_xlabel("time [s]")
     fig.suptitle(f"{name}: vehicle vs simulator, perceived (otoliths, canals)")
-    paths = [_save(fig, out_dir / "cueing.png", dpi)]
+    figs = {"cueing": fig}
 
     fig = Figure(figsize=(9, 8), layout="constrained")
     axes = fig.subplots(4, 1, sharex=True)
@@ -69,27 +80,30 @@ def plot_cueing(columns: Mapping, scenario: Mapping, out_dir, dpi: int = 120) ->
         strict=True,
     ):  # fmt: skip
         off = 1.265 if axis == "heave" else 0.0
-        ax.plot(t, (np.asarray(columns[f"{axis}_ref_{unit}"], float) - off) * scale,
-                color="tab:blue", lw=1.3, label="washout set-point")  # fmt: skip
-        ax.plot(t, (np.asarray(columns[f"{axis}_{unit}"], float) - off) * scale,
-                color="tab:green", lw=1.1, label="platform")  # fmt: skip
+        ax.plot(*envelope(t, (np.asarray(columns[f"{axis}_ref_{unit}"], float) - off) * scale),
+                color=DESIRED, lw=1.3, label="washout set-point")  # fmt: skip
+        ax.plot(*envelope(t, (np.asarray(columns[f"{axis}_{unit}"], float) - off) * scale),
+                color=OUTPUT, lw=1.1, label="platform")  # fmt: skip
         if box is not None:
-            for v in box[axis]:
-                ax.axhline((v - off) * scale, color="k", ls="--", lw=0.7)
+            for k, v in enumerate(box[axis]):
+                label = "workspace box" if axis == "roll" and k == 0 else None
+                ax.axhline((v - off) * scale, color="k", ls="--", lw=0.7, label=label)
         ax.set_ylabel(f"{axis} [{disp}]")
         ax.grid(True, alpha=0.3)
     for i in (1, 2, 3):
-        axes[3].plot(t, np.asarray(columns[f"q{i}_m"], float) * 1e3, lw=1.0, label=f"leg {i}")
-    axes[3].axhline(0.0, color="k", lw=0.8)
+        axes[3].plot(*envelope(t, np.asarray(columns[f"q{i}_m"], float) * 1e3),
+                     color=LEG_COLOURS[i], lw=1.0, label=f"leg {i}")  # fmt: skip
+    axes[3].axhline(0.0, color="k", lw=0.8, label="end stops")
     axes[3].axhline(500.0, color="k", lw=0.8)
     axes[3].set_ylabel("stroke [mm]")
     axes[3].set_xlabel("time [s]")
     axes[3].grid(True, alpha=0.3)
     axes[0].legend(loc="best", fontsize=7)
-    axes[3].legend(loc="best", fontsize=7, ncol=3)
-    fig.suptitle(f"{name}: platform pose vs washout set-points; workspace box dashed")
-    paths.append(_save(fig, out_dir / "cue_pose.png", dpi))
-    return paths
+    axes[3].legend(loc="best", fontsize=7, ncol=4)
+    boxed = "; workspace box dashed" if box is not None else ""
+    fig.suptitle(f"{name}: platform pose vs washout set-points{boxed}")
+    figs["cue_pose"] = fig
+    return figs
 
 
 def scenario_box(scenario: Mapping):
@@ -102,5 +116,4 @@ def scenario_box(scenario: Mapping):
 
 
 def _save(fig: Figure, path: Path, dpi: int) -> Path:
-    fig.savefig(path, dpi=dpi)
-    return path
+    return save(fig, path, dpi)

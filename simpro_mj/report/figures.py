@@ -1,7 +1,9 @@
 """What every figure of simpro-sim shares: colours, the curve decimation, saving,
 and the check that a legend names what is drawn.
 
-matplotlib's Agg backend only (no pyplot in the run figures, no display). The
+Figures are :class:`matplotlib.figure.Figure` objects written by ``savefig``
+(Agg, no pyplot, no display); importing this module does not load matplotlib,
+so a command that only refuses a mistake stays fast. The
 colours are those of the paper's Figs. 14-16 for set-point and output; each
 leg has one colour in every figure and in the video's plot strip
 (:data:`LEG_COLOURS`), none of them the set-point's blue or the output's
@@ -11,13 +13,12 @@ green.
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-import matplotlib
+import numpy as np
 
-matplotlib.use("Agg")
-
-import numpy as np  # noqa: E402
-from matplotlib.figure import Figure  # noqa: E402
+if TYPE_CHECKING:  # matplotlib is loaded by whoever draws, not by importing this module
+    from matplotlib.figure import Figure
 
 __all__ = [
     "DESIRED",
@@ -27,6 +28,8 @@ __all__ = [
     "OUTPUT",
     "envelope",
     "legend_mismatches",
+    "log_ticks",
+    "loop_label",
     "margins",
     "save",
 ]
@@ -97,6 +100,40 @@ def margins(
     fig.subplots_adjust(left=left / w, right=1.0 - right / w, top=1.0 - top / h,
                         bottom=bottom / h, hspace=hspace, wspace=wspace)  # fmt: skip
     return fig
+
+
+def log_ticks(ax, axis: str = "x") -> None:
+    """Plain decimal labels on a log axis (0.1, 1, 10) and, when it spans at most
+    two decades, at 2 and 5 of each decade too; no other minor labels.
+
+    matplotlib's default labels the minor ticks of a short log axis in
+    scientific notation ("3x10^-1"), which overlap.
+    """
+    from matplotlib.ticker import FuncFormatter
+
+    target = ax.xaxis if axis == "x" else ax.yaxis
+    target.set_major_formatter(FuncFormatter(lambda v, _pos: f"{v:g}"))
+
+    def minor(v, _pos):
+        lo, hi = sorted(ax.get_xlim() if axis == "x" else ax.get_ylim())
+        if lo <= 0 or hi / lo > 100.0:
+            return ""
+        lead = round(v / 10.0 ** np.floor(np.log10(v) + 1e-9), 6)
+        return f"{v:g}" if lead in (2.0, 5.0) else ""
+
+    target.set_minor_formatter(FuncFormatter(minor))
+
+
+def loop_label(scenario) -> str:
+    """The control scheme of a scenario as a title says it: ``task_space, I law``,
+    ``joint_only``, ``feedforward, PI correction``."""
+    ctl = scenario.get("controller", {}) if hasattr(scenario, "get") else {}
+    mode = ctl.get("mode", "?")
+    if mode == "task_space":
+        return f"task_space, {ctl.get('outer', {}).get('type', '?')} law"
+    if mode == "feedforward":
+        return f"feedforward, {ctl.get('outer', {}).get('type', '?')} correction"
+    return str(mode)
 
 
 def save(fig: Figure, path, dpi: int = DPI) -> Path:

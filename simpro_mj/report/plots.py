@@ -27,6 +27,7 @@ from simpro_mj.report.figures import (
     MEASURED,
     OUTPUT,
     envelope,
+    loop_label,
     margins,
     save,
 )
@@ -59,8 +60,7 @@ def _col(columns: Mapping, name: str) -> np.ndarray:
 
 
 def _title(scenario: Mapping, what: str) -> str:
-    mode = scenario.get("controller", {}).get("mode", "?")
-    return f"{scenario.get('name', 'run')}: {what} ({mode})"
+    return f"{scenario.get('name', 'run')}: {what} ({loop_label(scenario)})"
 
 
 def _save(fig: Figure, path: Path) -> Path:

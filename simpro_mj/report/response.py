@@ -15,12 +15,15 @@ import math
 import sys
 from pathlib import Path
 
+from simpro_mj.report.figures import log_ticks, margins, save
 from simpro_mj.report.folders import install_folder
 from simpro_mj.report.results import jsonable
 
 __all__ = [
     "CHAIN_CSV_COLUMNS",
     "CSV_COLUMNS",
+    "bode_figures",
+    "chain_figure",
     "csv_text",
     "plot",
     "plot_chain",
@@ -65,34 +68,59 @@ def csv_text(rows: list[dict], columns=CSV_COLUMNS) -> str:
     return buf.getvalue()
 
 
+def _title(doc: dict) -> str:
+    return f"{doc['scenario']} ({doc.get('loop', doc['mode'])})"
+
+
 def plot(doc: dict, folder: Path) -> list[str]:
     """``bode.png`` (excited axes) and ``cross_axis.png`` into ``folder``."""
-    # matplotlib when a figure is drawn, not when the response command starts
-    import matplotlib
+    return [save(fig, folder / f"{name}.png", 110).name for name, fig in bode_figures(doc).items()]
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+
+#: measured points per signal: marker, and the prediction's line style
+_SIGNALS = (("true", "o", "-"), ("measured", "x", "--"))
+
+
+def bode_figures(doc: dict) -> dict:
+    """``bode`` and ``cross_axis`` figures of a pose response document.
+
+    The measured points are markers; the linearised loop's prediction is a
+    curve through its dense grid (``predicted_curves``), and the bottom row
+    the difference at the measured frequencies.
+    """
+    from matplotlib.figure import Figure
 
     rows = doc["rows"]
     axes_in = doc["axes_excited"]
-    files = []
-    fig, ax = plt.subplots(3, len(axes_in), figsize=(4.2 * len(axes_in), 8), squeeze=False)
+    curves = doc.get("predicted_curves") or {}
+    figs = {}
+    fig = Figure(figsize=(4.2 * len(axes_in), 8.5))
+    ax = fig.subplots(3, len(axes_in), squeeze=False, sharex=True)
     for c, a in enumerate(axes_in):
-        for sig, style in (("true", "o"), ("measured", "x")):
+        for k, (sig, marker, ls) in enumerate(_SIGNALS):
             rs = [r for r in rows if r["input_axis"] == a and r["output_axis"] == a]
             rs = [r for r in rs if r["signal"] == sig]
             f = [r["frequency_hz"] for r in rs]
-            ax[0, c].semilogx(f, [r["gain_db"] for r in rs], style, label=f"measured, {sig} pose")
-            ax[1, c].semilogx(f, [r["phase_deg"] for r in rs], style)
-            if rs and rs[0]["predicted_gain_db"] is not None:
-                ls = "-" if sig == "true" else ":"
-                ax[0, c].semilogx(f, [r["predicted_gain_db"] for r in rs], "k" + ls, lw=1,
-                                  label=f"predicted, {sig}")  # fmt: skip
-                ax[1, c].semilogx(f, [r["predicted_phase_deg"] for r in rs], "k" + ls, lw=1)
-                ax[2, c].semilogx(f, [r["diff_db"] for r in rs], style + "-", label=f"dB, {sig}")
-                ax[2, c].semilogx(f, [r["diff_deg"] / 10 for r in rs], style + "--",
-                                  label=f"deg/10, {sig}")  # fmt: skip
-        ax[0, c].axhline(-3, color="r", lw=0.6, ls="--")
+            colour = f"C{k}"
+            ax[0, c].semilogx(f, [r["gain_db"] for r in rs], marker, color=colour, ls="none",
+                              label=f"measured, {sig} pose")  # fmt: skip
+            ax[1, c].semilogx(f, [r["phase_deg"] for r in rs], marker, color=colour, ls="none")
+            curve = curves.get(a)
+            if curve:
+                fc = curve["frequency_hz"]
+                ax[0, c].semilogx(fc, curve[sig]["gain_db"], color="k", ls=ls, lw=1,
+                                  label=f"predicted, {sig} pose")  # fmt: skip
+                ax[1, c].semilogx(fc, curve[sig]["phase_deg"], color="k", ls=ls, lw=1)
+            with_pred = [r for r in rs if r["diff_db"] is not None]
+            if with_pred:
+                fp = [r["frequency_hz"] for r in with_pred]
+                ax[2, c].semilogx(fp, [r["diff_db"] for r in with_pred], marker, color=colour,
+                                  ls="none", label=f"gain (dB), {sig}")  # fmt: skip
+                ax[2, c].semilogx(fp, [r["diff_deg"] / 10 for r in with_pred], marker,
+                                  color=colour, ls="none", mfc="none", alpha=0.6,
+                                  label=f"phase (deg/10), {sig}")  # fmt: skip
+        ax[0, c].axhline(-3, color="r", lw=0.6, ls=":", label="-3 dB")
+        ax[2, c].axhline(0, color="k", lw=0.6)
         ax[0, c].set_title(f"{a}: set-point -> pose", fontsize=9)
         ax[0, c].set_ylabel("gain (dB)")
         ax[1, c].set_ylabel("phase (deg)")
@@ -100,16 +128,16 @@ def plot(doc: dict, folder: Path) -> list[str]:
         ax[2, c].set_xlabel("frequency (Hz)")
         for k in range(3):
             ax[k, c].grid(alpha=0.3, which="both")
+            log_ticks(ax[k, c])
         ax[0, c].legend(fontsize=7)
-        ax[2, c].legend(fontsize=7)
-    fig.suptitle(f"{doc['scenario']} ({doc['mode']}): closed-loop frequency response", fontsize=10)
-    fig.tight_layout()
-    f = folder / "bode.png"
-    fig.savefig(f, dpi=110)
-    plt.close(fig)
-    files.append(f.name)
+        if ax[2, c].lines[1:]:
+            ax[2, c].legend(fontsize=7)
+    fig.suptitle(f"{_title(doc)}: closed-loop frequency response", fontsize=10)
+    margins(fig, left=0.75, top=0.75, bottom=0.55, wspace=0.35, hspace=0.12)
+    figs["bode"] = fig
 
-    fig, ax = plt.subplots(1, len(axes_in), figsize=(4.2 * len(axes_in), 3.5), squeeze=False)
+    fig = Figure(figsize=(4.2 * len(axes_in), 3.8))
+    ax = fig.subplots(1, len(axes_in), squeeze=False)
     for c, a in enumerate(axes_in):
         for o in ("roll", "pitch", "heave"):
             if o == a:
@@ -120,17 +148,16 @@ def plot(doc: dict, folder: Path) -> list[str]:
             ]  # fmt: skip
             f = [r["frequency_hz"] for r in rs]
             unit = f"{'mm' if o == 'heave' else 'deg'}/{'mm' if a == 'heave' else 'deg'}"
-            ax[0, c].loglog(f, [max(r["gain"], 1e-9) for r in rs], "o-", label=f"{o} ({unit})")
-        ax[0, c].set_title(f"cross-axis: {a} command", fontsize=9)
+            ax[0, c].loglog(f, [max(r["gain"], 1e-9) for r in rs], "o", label=f"{o} ({unit})")
+        ax[0, c].set_title(f"cross-axis: {a} command (measured, true pose)", fontsize=9)
         ax[0, c].set_xlabel("frequency (Hz)")
         ax[0, c].grid(alpha=0.3, which="both")
+        log_ticks(ax[0, c])
         ax[0, c].legend(fontsize=7)
-    fig.tight_layout()
-    f = folder / "cross_axis.png"
-    fig.savefig(f, dpi=110)
-    plt.close(fig)
-    files.append(f.name)
-    return files
+    fig.suptitle(f"{_title(doc)}: cross-axis gains", fontsize=10)
+    margins(fig, left=0.75, top=0.75, bottom=0.55, wspace=0.35)
+    figs["cross_axis"] = fig
+    return figs
 
 
 def _fmt(v, d=1) -> str:
@@ -139,7 +166,7 @@ def _fmt(v, d=1) -> str:
 
 def print_summary(doc: dict, folder, file=None) -> None:
     file = file or sys.stdout
-    print(f"{doc['scenario']} ({doc['mode']}), set-point -> true pose:", file=file)
+    print(f"{_title(doc)}, set-point -> true pose:", file=file)
     print(
         "axis    bandwidth_3db_hz  phase@0.5Hz  phase@1Hz  delay_ms | predicted: bw  "
         "ph@0.5  ph@1  delay",
@@ -214,63 +241,65 @@ CHAIN_CSV_COLUMNS = (
 
 def plot_chain(doc: dict, folder: Path) -> list[str]:
     """``chain_bode.png``: gain and phase per OMCT pair (measured, washout, predicted)."""
-    # matplotlib when a figure is drawn, not when the response command starts
-    import matplotlib
+    fig = chain_figure(doc)
+    if fig is None:
+        return []
+    return [save(fig, folder / "chain_bode.png", 110).name]
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    import matplotlib.ticker
+
+def chain_figure(doc: dict):
+    """Gain and phase per OMCT pair: measured points, the washout alone and the
+    linear chain as curves (``curves``); None when no pair was measured."""
+    from matplotlib.figure import Figure
 
     # the chain's analysis loads python-control and scipy.signal: only when drawn
     from simpro_mj.analysis.chain_response import PAIRS
 
     tests = [n for n in PAIRS.values() if any(r["test"] == n for r in doc["rows"])]
     if not tests:
-        return []
+        return None
+    curves = doc.get("curves") or {}
     ncol = min(len(tests), 5)
     nrow = -(-len(tests) // ncol)
-    fig, ax = plt.subplots(2 * nrow, ncol, figsize=(3.3 * ncol, 5.0 * nrow), squeeze=False)
+    fig = Figure(figsize=(3.3 * ncol, 5.0 * nrow))
+    ax = fig.subplots(2 * nrow, ncol, squeeze=False)
     for k, name in enumerate(tests):
         g, p = ax[2 * (k // ncol), k % ncol], ax[2 * (k // ncol) + 1, k % ncol]
         rs = [r for r in doc["rows"] if r["test"] == name]
         f = [r["omega_rad_s"] for r in rs]
         g.semilogx(f, [r["gain_db"] for r in rs], "o", label="measured (co-simulation)")
         p.semilogx(f, [r["phase_deg"] for r in rs], "o")
-        if rs[0]["washout_gain_db"] is not None:
-            g.semilogx(f, [r["washout_gain_db"] for r in rs], "k--", lw=1, label="washout alone")
-            p.semilogx(f, [r["washout_phase_deg"] for r in rs], "k--", lw=1)
-        if rs[0]["predicted_gain_db"] is not None:
-            g.semilogx(f, [r["predicted_gain_db"] for r in rs], "k-", lw=1, label="linear chain")
-            p.semilogx(f, [r["predicted_phase_deg"] for r in rs], "k-", lw=1)
+        curve = curves.get(name) or {}
+        for key, ls, label in (("washout", "--", "washout alone"), ("predicted", "-",
+                                                                   "linear chain")):  # fmt: skip
+            if curve.get(key):
+                w = curve["omega_rad_s"]
+                g.semilogx(w, curve[key]["gain_db"], color="k", ls=ls, lw=1, label=label)
+                p.semilogx(w, curve[key]["phase_deg"], color="k", ls=ls, lw=1)
         g.set_title(f"{name} ({rs[0]['input']} -> {rs[0]['output']})", fontsize=9)
         g.set_ylabel(f"gain (dB, {rs[0]['unit']})", fontsize=7)
         p.set_ylabel("phase (deg)", fontsize=7)
         p.set_xlabel("frequency (rad/s)", fontsize=8)
         for a in (g, p):
-            a.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
+            log_ticks(a)
             a.grid(alpha=0.3, which="both")
             a.tick_params(labelsize=7)
-        if k == 0:
-            g.legend(fontsize=6)
+        g.legend(fontsize=6)
     for k in range(len(tests), nrow * ncol):
         ax[2 * (k // ncol), k % ncol].axis("off")
         ax[2 * (k // ncol) + 1, k % ncol].axis("off")
     fig.suptitle(
-        f"{doc['scenario']} ({doc['mode']}): whole cueing chain, vehicle -> driver's head "
-        "(OMCT frequencies)",
+        f"{_title(doc)}: whole cueing chain, vehicle -> driver's head (OMCT frequencies)",
         fontsize=10,
     )
-    fig.tight_layout()
-    out = folder / "chain_bode.png"
-    fig.savefig(out, dpi=110)
-    plt.close(fig)
-    return [out.name]
+    margins(fig, left=0.6, right=0.15, top=0.6, bottom=0.5, wspace=0.55, hspace=0.45)
+    return fig
 
 
 def print_chain_summary(doc: dict, folder, file=None) -> None:
     file = file or sys.stdout
     print(
-        f"{doc['scenario']} ({doc['mode']}), vehicle -> driver's head, measured | washout alone"
+        f"{_title(doc)}, vehicle -> driver's head, measured | washout alone"
         " | linear chain (gain dB, phase deg):",
         file=file,
     )
