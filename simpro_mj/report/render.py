@@ -33,7 +33,15 @@ from tqdm import tqdm
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.messages import one_line
 from simpro_mj.report.recording import frame_times, ghost_poses, load_recording, nearest_rows
-from simpro_mj.report.scene import CAMERAS, ReplayScene, draw_cursor, label_image, plot_strip
+from simpro_mj.report.scene import (
+    CAMERAS,
+    ReplayScene,
+    TextStamp,
+    draw_cursor,
+    label_image,
+    plot_strip,
+    text_px,
+)
 
 __all__ = ["GL_BACKENDS", "GL_LIBRARIES", "VIDEO_HINT", "render_video", "require_video"]
 
@@ -112,6 +120,7 @@ def _worker_init(
         _WORKER["error"] = f"{type(exc).__name__}: {one_line(exc)}"
         return
     _WORKER["jobs"] = jobs
+    _WORKER["text"] = TextStamp(text_px(width, height))
 
 
 def _probe(_=None):
@@ -129,6 +138,8 @@ def _render_frames(indices) -> tuple[list[np.ndarray], float]:
             gp, gq = (job["ghost_pos"][i], job["ghost_quat"][i]) if job["ghost"] else (None, None)
             scene.pose(job["qpos"][i], gp, gq)
             view = scene.render()
+            # the simulated time, top right: what the strip's cursor marks
+            _WORKER["text"].stamp(view, f"t = {job['times'][i]:6.2f} s", view.shape[1] - 4, 4)
             label = job.get("label")
             if label is not None:  # runs side by side: which is which
                 lh, lw = min(label.shape[0], view.shape[0]), min(label.shape[1], view.shape[1])
@@ -242,6 +253,7 @@ def render_video(
             "strip": None,
             "boxes": None,
             "frac": (times - start) / (end - start),
+            "times": times,
             "label": label_image(rec.name, height) if len(recs) > 1 else None,
         }
         if ghost:

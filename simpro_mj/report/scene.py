@@ -21,7 +21,10 @@ from simpro_mj.report.recording import Recording
 
 __all__ = [
     "CAMERAS",
+    "GHOST_RGBA",
     "ReplayScene",
+    "TextStamp",
+    "text_px",
     "draw_cursor",
     "label_image",
     "plot_strip",
@@ -31,6 +34,48 @@ __all__ = [
 
 #: Named cameras of the MJCF, the first the default.
 CAMERAS = ("three_quarter", "side", "driver")
+#: The set-point ghost in the set-point's blue (the figures' and the strip's), against the
+#: cabin's orange: in the model's green at 30 % over the 55 % orange cabin the two blended
+#: into one yellow block.
+GHOST_RGBA = (0.12, 0.47, 0.71, 0.45)
+#: The cabin nearly opaque in a replay, so the ghost shows where the two differ.
+CABIN_ALPHA = 0.9
+#: The external cameras moved this fraction of the way to the platform's reference
+#: point (1.265 m above the floor) along their line of sight: the platform fills the
+#: view and a 3 deg pitch moves the cabin's ends by about 10 px at 640x480.
+CAMERA_ZOOM = 0.25
+#: Smallest text of a replay in pixels at 640x480 (tick labels of the strip, the time
+#: overlay); smaller views scale it down (:func:`text_px`).
+TEXT_PX = 12
+
+
+def text_px(width: int, height: int) -> int:
+    """:data:`TEXT_PX` scaled to a view of ``width`` x ``height`` (its 640x480 size)."""
+    return max(4, int(round(TEXT_PX * min(1.0, width / 640.0, height / 480.0))))
+
+
+def _restyle(m) -> None:
+    """The ghost in :data:`GHOST_RGBA`, the cabin at :data:`CABIN_ALPHA`, the external
+    cameras closer (:data:`CAMERA_ZOOM`); drawing only, nothing of the dynamics."""
+    import mujoco
+
+    for name, rgba in (("ghost", GHOST_RGBA), ("cabin", None)):
+        mat = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_MATERIAL, name)
+        if mat < 0:
+            continue
+        if rgba is None:
+            m.mat_rgba[mat, 3] = CABIN_ALPHA
+        else:
+            m.mat_rgba[mat] = rgba
+    target = np.array([0.0, 0.0, 1.265])
+    for name in ("three_quarter", "side"):
+        cam = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_CAMERA, name)
+        if cam < 0:
+            continue
+        forward = -np.asarray(m.cam_mat0[cam]).reshape(3, 3)[:, 2]  # cameras look along -z
+        distance = float(np.dot(target - m.cam_pos[cam], forward))
+        if distance > 0:
+            m.cam_pos[cam] = m.cam_pos[cam] + CAMERA_ZOOM * distance * forward
 
 
 def replay_model(scenario: dict):
@@ -89,6 +134,7 @@ class ReplayScene:
         import mujoco
 
         self.model, self.data = m, _ = replay_model(scenario)
+        _restyle(m)
         m.vis.global_.offwidth = max(int(m.vis.global_.offwidth), width)
         m.vis.global_.offheight = max(int(m.vis.global_.offheight), height)
         self.camera = camera
@@ -128,8 +174,10 @@ class ReplayScene:
 def plot_strip(rec: Recording, width: int, height: int, t0: float, t1: float):
     """The plots under the 3D view, drawn once; the cursor is added per frame.
 
-    Four panels: set-point and pose for roll, pitch (deg) and heave (mm), and
-    the three valve voltages (V), over the replayed window.
+    Four panels: set-point (dashed, the ghost's blue) and pose (the figures'
+    green) for roll, pitch (deg) and heave (mm), and the three valve voltages
+    (V) in the legs' colours, over the replayed window. Text is
+    :data:`TEXT_PX` pixels high at 640 px wide (:func:`text_px`).
 
     Returns
     -------
@@ -140,12 +188,15 @@ def plot_strip(rec: Recording, width: int, height: int, t0: float, t1: float):
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
+    from simpro_mj.report.figures import DESIRED, LEG_COLOURS, OUTPUT, envelope
+
     dpi = 100.0
     fig = Figure(figsize=(width / dpi, height / dpi), dpi=dpi)
     FigureCanvasAgg(fig)
     c, t = rec.columns, rec.columns["time_s"]
     sel = (t >= t0 - 1e-9) & (t <= t1 + 1e-9)
-    small = max(4.0, min(8.0, width / 110.0))
+    px = text_px(width, 2 * height)  # the strip is half a view high
+    pt = px * 72.0 / dpi  # points of a px-pixel font
     panels = [
         ("roll [deg]", "roll_ref_rad", "roll_rad", 180.0 / math.pi),
         ("pitch [deg]", "pitch_ref_rad", "pitch_rad", 180.0 / math.pi),
@@ -153,19 +204,29 @@ def plot_strip(rec: Recording, width: int, height: int, t0: float, t1: float):
     ]
     axes = fig.subplots(1, 4)
     for ax, (label, ref, real, scale) in zip(axes[:3], panels, strict=True):
-        ax.plot(t[sel], c[ref][sel] * scale, color="0.55", lw=0.8, ls="--", label="set-point")
-        ax.plot(t[sel], c[real][sel] * scale, color="tab:blue", lw=1.0, label="pose")
-        ax.set_title(label, fontsize=small, pad=2)
-    for i, color in zip((1, 2, 3), ("tab:orange", "tab:green", "tab:purple"), strict=True):
-        axes[3].plot(t[sel], c[f"u{i}_v"][sel], color=color, lw=0.8, label=f"u{i}")
-    axes[3].set_title(f"valves [V] ({rec.name})", fontsize=small, pad=2)
-    axes[0].legend(fontsize=small * 0.8, loc="best", frameon=False)
+        ax.plot(*envelope(t[sel], c[ref][sel] * scale), color=DESIRED, lw=1.0, ls="--",
+                label="set-point (ghost)")  # fmt: skip
+        ax.plot(*envelope(t[sel], c[real][sel] * scale), color=OUTPUT, lw=1.2, label="pose")
+        ax.set_title(label, fontsize=pt, pad=2)
+    for i in (1, 2, 3):
+        axes[3].plot(*envelope(t[sel], c[f"u{i}_v"][sel]), color=LEG_COLOURS[i], lw=0.8,
+                     label=f"u{i}")  # fmt: skip
+    axes[3].set_title("valves [V]", fontsize=pt, pad=2)
+    # above the panels, where no curve runs
+    handles, labels = axes[0].get_legend_handles_labels()
+    h3, l3 = axes[3].get_legend_handles_labels()
+    fig.legend(handles + h3, labels + l3, loc="upper center", ncol=5, fontsize=pt,
+               frameon=False, handlelength=1.2, columnspacing=1.0, borderaxespad=0.1)  # fmt: skip
     for ax in axes:
         ax.set_xlim(t0, t1)
+        ax.locator_params(nbins=3)
         ax.ticklabel_format(axis="y", useOffset=False)  # 1265.0 mm, not +1.265e3
-        ax.tick_params(labelsize=small * 0.85, length=2, pad=1)
-        ax.set_xlabel("t [s]", fontsize=small * 0.85, labelpad=1)
-    fig.subplots_adjust(left=0.05, right=0.99, bottom=0.22, top=0.86, wspace=0.35)
+        ax.tick_params(labelsize=pt, length=2, pad=1)
+        ax.set_xlabel("t [s]", fontsize=pt, labelpad=1)
+    # room for four-digit tick labels, x labels and the legend (within reach of a tiny strip)
+    fig.subplots_adjust(left=min(3.6 * px / width, 0.2), right=0.99,
+                        bottom=min(3.0 * px / height, 0.3), top=max(1.0 - 3.2 * px / height, 0.7),
+                        wspace=0.55)  # fmt: skip
     fig.canvas.draw()
     img = np.asarray(fig.canvas.buffer_rgba())[..., :3].copy()
     boxes = []
@@ -178,12 +239,49 @@ def plot_strip(rec: Recording, width: int, height: int, t0: float, t1: float):
     return img, boxes
 
 
+class TextStamp:
+    """Short texts (the time overlay) pasted per frame from glyphs drawn once.
+
+    matplotlib draws each character of :attr:`CHARS` once into a cell of
+    ``px`` pixels' font; :meth:`stamp` pastes the cells of a text into a frame
+    at the cost of a few array copies, white on a dark box.
+    """
+
+    CHARS = "0123456789.-+= tsdegpitchrolavmkx/:"
+
+    def __init__(self, px: int = TEXT_PX):
+        from matplotlib.backends.backend_agg import FigureCanvasAgg
+        from matplotlib.figure import Figure
+
+        self.h = int(round(px * 1.5)) // 2 * 2
+        self.w = int(round(px * 0.65))
+        self.cells = {}
+        for ch in dict.fromkeys(self.CHARS):
+            fig = Figure(figsize=(self.w / 100.0, self.h / 100.0), dpi=100.0,
+                         facecolor=(0.1, 0.1, 0.12))  # fmt: skip
+            FigureCanvasAgg(fig)
+            fig.text(0.5, 0.5, ch, color="white", ha="center", va="center",
+                     fontsize=px * 0.72, family="monospace")  # fmt: skip
+            fig.canvas.draw()
+            self.cells[ch] = np.asarray(fig.canvas.buffer_rgba())[..., :3].copy()
+
+    def stamp(self, image: np.ndarray, text: str, right: int, top: int) -> np.ndarray:
+        """Paste ``text`` into ``image`` (in place) ending at column ``right``, row ``top``."""
+        cells = [self.cells.get(ch, self.cells[" "]) for ch in text]
+        if not cells:
+            return image
+        row = np.concatenate(cells, axis=1)
+        h, w = min(row.shape[0], image.shape[0] - top), min(row.shape[1], right)
+        image[top : top + h, right - w : right] = row[:h, row.shape[1] - w :]
+        return image
+
+
 def label_image(text: str, height: int) -> np.ndarray:
     """A small white-on-dark RGB label (drawn once with matplotlib, pasted per frame)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    h = max(10, int(height * 0.06)) // 2 * 2
+    h = max(int(1.6 * TEXT_PX), int(height * 0.06)) // 2 * 2
     w = max(2 * h, int(0.62 * h * (len(text) + 1))) // 2 * 2
     fig = Figure(figsize=(w / 100.0, h / 100.0), dpi=100.0, facecolor=(0.1, 0.1, 0.12))
     FigureCanvasAgg(fig)
