@@ -126,7 +126,7 @@ def test_set_on_supply_pressure_and_payload_changes_the_result():
 
 def test_cli_json_has_the_three_actuators(tmp_path, capsys):
     rc = cli.main(
-        ["identify", "--json", "--duration", "2", "--no-plot", "--out", str(tmp_path / "id")]
+        ["identify", "--json", "--duration", "2", "--no-plots", "--out", str(tmp_path / "id")]
     )
     assert rc == 0
     doc = json.loads(capsys.readouterr().out)
@@ -141,7 +141,7 @@ def test_cli_json_has_the_three_actuators(tmp_path, capsys):
 
 
 def test_cli_rejects_a_bad_key(capsys):
-    rc = cli.main(["identify", "--set", "pneumatics.valve.bogus=1", "--no-plot"])
+    rc = cli.main(["identify", "--set", "pneumatics.valve.bogus=1", "--no-plots"])
     assert rc == 2
     assert "pneumatics.valve.bogus" in capsys.readouterr().err
 

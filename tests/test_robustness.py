@@ -188,7 +188,7 @@ BAD_INPUTS = [
             "model.payload.mass_kg=1500",
             "--duration",
             "0.5",
-            "--no-plot",
+            "--no-plots",
             "--out",
             "{tmp}/id",
         ],

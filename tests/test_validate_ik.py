@@ -58,7 +58,7 @@ def test_cli_json_contract(capsys, tmp_path):
     ],
 )
 def test_cli_user_errors_exit_2_with_one_line(capsys, sets, field):
-    argv = ["validate-ik", "--no-plot"]
+    argv = ["validate-ik", "--no-plots"]
     for s in sets:
         argv += ["--set", s]
     assert main(argv) == 2

@@ -35,6 +35,7 @@ import numpy as np
 
 from controllers.geometry import nominal_geometry
 from controllers.kinematics import inverse_kinematics
+from simpro_mj.analysis.sanity import unit_warnings
 from simpro_mj.analysis.stability import outer_loop
 from simpro_mj.config.scenario import late_setpoints, reference
 from simpro_mj.core.errors import PhysicsError, UserInputError
@@ -307,6 +308,7 @@ def preflight(scenario: Mapping, model=None, *, setpoints=None) -> tuple[list[st
     warnings, stability = gain_warnings(scenario)
     warnings += late_setpoints(scenario)
     warnings += cueing_mode_warnings(scenario)
+    warnings += unit_warnings(scenario)  # radians in a _deg key, telemetry without gravity
     for i, u in enumerate(payload.get("utilisation", [])):
         if u > UTILISATION_WARN:
             warnings.append(

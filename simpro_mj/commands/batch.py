@@ -10,8 +10,10 @@ import os
 import sys
 from pathlib import Path
 
+from simpro_mj.batch.plan import scenario_files
 from simpro_mj.batch.runner import run_batch
 from simpro_mj.batch.tables import print_report
+from simpro_mj.config.scenario import read_document, resolve_scenario
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.jsonout import emit_json
 from simpro_mj.core.keys import short_text
@@ -55,12 +57,31 @@ def add_arguments(parser) -> None:
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
+def check_sets(paths, sets) -> None:
+    """A ``--set`` that a file's base scenario refuses is the command line's mistake: one
+    line, exit 2, before anything runs (not one ``invalid`` row per variant)."""
+    if not sets:
+        return
+    for path, error in scenario_files(paths):
+        if error is not None:
+            continue
+        try:
+            where, doc = read_document(path)
+            doc = {k: v for k, v in doc.items() if k != "sweep"}  # the base of its variants
+            resolve_scenario(doc, (), default_name=where.stem, base=where.parent)
+        except UserInputError:
+            continue  # the file's own mistake: its row says so
+        # raises UserInputError naming the field
+        resolve_scenario(doc, sets, default_name=where.stem, base=where.parent)
+
+
 def run(args) -> int:
     jobs = args.jobs if args.jobs is not None else (os.cpu_count() or 1)
     if not 1 <= jobs <= MAX_JOBS:
         raise UserInputError(
             f"invalid value at --jobs: {short_text(str(jobs))}; allowed: an integer 1..{MAX_JOBS}"
         )
+    check_sets(args.paths, args.sets)
     report = run_batch(
         args.paths,
         Path(args.out),

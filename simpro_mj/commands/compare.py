@@ -12,7 +12,7 @@ from simpro_mj.config.scenario import load_scenario
 from simpro_mj.core.jsonout import emit_json
 from simpro_mj.report.compare import compare, table
 from simpro_mj.report.folders import claim, record
-from simpro_mj.report.runner import EXIT_INTERRUPTED, interrupted_message
+from simpro_mj.report.runner import EXIT_INTERRUPTED, interrupted_message, show_progress
 from simpro_mj.report.video_options import add_video_flag, video_after_run
 
 HELP = "run a scenario with joint-only and with task-space control on the same plant and seed"
@@ -43,7 +43,9 @@ def run(args) -> int:
     with claim(out, "compare", inputs=[args.scenario], writes=COMPARE_FILES):
         out.mkdir(parents=True, exist_ok=True)
         record(out, COMPARE_FILES, "compare", pending=True)
-        both = compare(scenario, out, plots=not args.no_plots)
+        both = compare(
+            scenario, out, plots=not args.no_plots, quiet=args.quiet, progress=show_progress(args)
+        )
     metrics = both["metrics"]
     for mode, res in both["results"].items():
         if res.status == "interrupted":

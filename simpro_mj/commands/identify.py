@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+from simpro_mj.analysis.sanity import fit_warnings
 from simpro_mj.core.jsonout import emit_json
 from simpro_mj.core.keys import apply_overrides
 from simpro_mj.report.folders import claim, install_figures
@@ -29,7 +30,7 @@ def add_arguments(parser) -> None:
         default=[1, 2, 3],
         help="which actuators (default 1 2 3)",
     )
-    parser.add_argument("--no-plot", action="store_true", help="do not write the figure")
+    parser.add_argument("--no-plots", action="store_true", help="do not write the figure")
     parser.add_argument(
         "--preset",
         default=None,
@@ -41,6 +42,7 @@ def run(args) -> int:
     # the experiment loads MuJoCo and scipy: after argparse has checked the options
     from simpro_mj.identification.identify import default_tree, document, identify
     from simpro_mj.report.identify import plot, summary
+    from simpro_mj.report.runner import warn
 
     tree = apply_overrides(default_tree(args.preset), args.sets)
     if args.duration is not None:
@@ -51,19 +53,22 @@ def run(args) -> int:
     with claim(Path(args.out), "identify") as out:
         results = identify(tree, legs=legs, records=records)
         doc = document(results, tree)
+        doc["warnings"] = fit_warnings(results)
 
         def fill(tmp: Path) -> list:
             (tmp / "identify.json").write_text(json.dumps(doc, indent=2))
-            if not args.no_plot:
+            if not args.no_plots:
                 plot(results, records, tmp / "identify.png", tree["paper_units"])
             return []
 
         install_figures(out, fill, "identify")
+    warn(doc["warnings"], args.quiet or args.json)
     if args.json:
         emit_json(doc)
     else:
         print(summary(results, tree["paper_units"], str(tree["preset"])))
         print(
-            f"wrote {out / 'identify.json'}" + ("" if args.no_plot else f", {out / 'identify.png'}")
+            f"wrote {out / 'identify.json'}"
+            + ("" if args.no_plots else f", {out / 'identify.png'}")
         )
     return 0

@@ -58,6 +58,7 @@ COMMANDS = {
     "response": "simpro_mj.commands.response",
     "live": "simpro_mj.commands.live",
     "send": "simpro_mj.commands.send",
+    "list": "simpro_mj.commands.listing",
 }
 
 
@@ -91,6 +92,7 @@ def build_parser(only: str | None = None) -> tuple[argparse.ArgumentParser, dict
         prog="simpro-sim",
         description="Co-simulation of the SIMPRO 3-DOF pneumatic motion platform (MuJoCo).",
     )
+    parser.add_argument("--version", action="version", version=_version())
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     sub.required = True
     for name, mod in mods.items():
@@ -105,8 +107,18 @@ def build_parser(only: str | None = None) -> tuple[argparse.ArgumentParser, dict
         )
         p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
         mod.add_arguments(p)
+        if "--quiet" not in p._option_string_actions:
+            p.add_argument(
+                "--quiet", action="store_true", help="no progress bar and no warnings on stderr"
+            )
         p.set_defaults(_run=mod.run)
     return parser, mods
+
+
+def _version() -> str:
+    from simpro_mj import __version__
+
+    return f"simpro-sim {__version__}"
 
 
 def _check_gl_backend() -> str | None:
@@ -156,6 +168,9 @@ def _main(argv) -> int:
         sys.stderr.write(f"error: {problem}\n")
         return 2
     words = sys.argv[1:] if argv is None else list(argv)
+    if words == ["--version"]:  # without importing the commands
+        print(_version())
+        return 0
     # the command's own module only (the first word, when it names one); --help
     # and mistakes in the command name see them all
     only = words[0] if words and words[0] in COMMANDS else None

@@ -26,6 +26,7 @@ from simpro_mj.report.runner import (
     EXIT_INTERRUPTED,
     execute,
     interrupted_message,
+    show_progress,
 )
 from simpro_mj.report.video_options import add_video_flag, video_after_run
 
@@ -48,7 +49,9 @@ def run(args) -> int:
     out = Path(args.out) if args.out else Path("results") / scenario["name"]
     # refused (exit 2) before anything runs: not ours to replace, or busy
     with claim(out, "run", inputs=[args.scenario]):
-        res, metrics = execute(scenario, out, plots=not args.no_plots)
+        res, metrics = execute(
+            scenario, out, plots=not args.no_plots, quiet=args.quiet, progress=show_progress(args)
+        )
     if args.json:
         emit_json(metrics)
     else:

@@ -15,7 +15,7 @@ HELP = "validate the vector-loop IK against the MuJoCo closed chain (paper Fig. 
 
 def add_arguments(parser) -> None:
     parser.add_argument("--out", default="results/validate-ik", help="folder for the plot")
-    parser.add_argument("--no-plot", action="store_true", help="skip the plot")
+    parser.add_argument("--no-plots", action="store_true", help="skip the plot")
 
 
 def run(args) -> int:
@@ -23,7 +23,7 @@ def run(args) -> int:
     from simpro_mj.analysis.validate_ik import DEFAULTS, SUMMARY_KEYS, plot, summary, validate
 
     params = apply_overrides(DEFAULTS, args.sets)
-    if args.no_plot:
+    if args.no_plots:
         res, plot_path = validate(params), None
     else:  # --out checked before the validation; the figure installed as one folder
         with claim(Path(args.out), "validate-ik") as out:

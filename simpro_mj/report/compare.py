@@ -19,7 +19,9 @@ __all__ = ["MODES", "compare", "table"]
 MODES = ("joint_only", "task_space")
 
 
-def compare(scenario: dict, out: Path, plots: bool = True, *, quiet: bool = False) -> dict:
+def compare(
+    scenario: dict, out: Path, plots: bool = True, *, quiet: bool = False, progress: bool = False
+) -> dict:
     """Run both modes into ``out/joint_only`` and ``out/task_space``; returns both metrics.
 
     The preflight checks (:mod:`simpro_mj.analysis.preflight`) run first, before either
@@ -38,7 +40,8 @@ def compare(scenario: dict, out: Path, plots: bool = True, *, quiet: bool = Fals
     for mode in MODES:
         sc = copy.deepcopy(scenario)
         sc["controller"]["mode"] = mode
-        res, met = execute(sc, out / mode, plots=plots, quiet=True, model=first.model)
+        res, met = execute(sc, out / mode, plots=plots, quiet=True, model=first.model,
+                           progress=progress, label=mode)  # fmt: skip
         results[mode], metrics[mode] = res, met
         if res.status == "interrupted":
             return {"metrics": metrics, "results": results}

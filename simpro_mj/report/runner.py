@@ -23,12 +23,16 @@ from pathlib import Path
 import numpy as np
 
 from simpro_mj.core.interrupts import held_signals
+from simpro_mj.core.progress import show_progress
+from simpro_mj.core.rates import PHYSICS_DT_S
 from simpro_mj.job.run import Run, warn
 from simpro_mj.report.results import write_run
+from simpro_mj.sim.readiness import signal_ready
 
 __all__ = [
     "EXIT_INTERRUPTED",
     "execute",
+    "show_progress",
     "warn",
     "interrupted_message",
 ]
@@ -37,7 +41,16 @@ __all__ = [
 EXIT_INTERRUPTED = 130
 
 
-def execute(scenario: dict, out: Path, plots: bool = True, *, quiet: bool = False, model=None):
+def execute(
+    scenario: dict,
+    out: Path,
+    plots: bool = True,
+    *,
+    quiet: bool = False,
+    model=None,
+    progress: bool = False,
+    label: str | None = None,
+):
     """Run a resolved scenario and write its result folder.
 
     Parameters
@@ -52,6 +65,8 @@ def execute(scenario: dict, out: Path, plots: bool = True, *, quiet: bool = Fals
         Do not print warnings on stderr (they are still in ``metrics.json``).
     model : mujoco.MjModel, optional
         The scenario's compiled plant, when the caller has it (a comparison).
+    progress : bool
+        A tqdm bar of the simulated seconds on stderr (``label`` before it).
 
     Returns
     -------
@@ -68,13 +83,47 @@ def execute(scenario: dict, out: Path, plots: bool = True, *, quiet: bool = Fals
     KeyboardInterrupt
         If the simulation does not hand back a partial result on Ctrl-C.
     """
-    outcome = Run(scenario, model=model).execute(quiet=quiet)
+    bar = _Bar(scenario, label) if progress else None
+    try:
+        if bar is None:
+            outcome = Run(scenario, model=model).execute(quiet=quiet)
+        else:
+            outcome = Run(scenario, model=model).execute(quiet=quiet, progress=bar.step)
+    finally:
+        if bar is not None:
+            bar.close()
     res = outcome.result
     with held_signals():  # a folder is always written whole
         res.folder, doc = write_run(
             Path(out), outcome, scenario, plots=plots, arrays=recording(res)
         )
     return res, doc
+
+
+class _Bar:
+    """The simulated seconds as a tqdm bar (stderr), updated every 1000 steps; the
+    readiness file once the run has steps to keep, as without a bar."""
+
+    def __init__(self, scenario: dict, label: str | None):
+        from tqdm import tqdm
+
+        self.tqdm = tqdm(
+            total=float(scenario["duration_s"]),
+            unit="sim s",
+            desc=label or scenario.get("name", "run"),
+            leave=False,
+            bar_format="{desc}: {percentage:3.0f}%|{bar}| {n:.1f}/{total:.1f} sim s "
+            "[{elapsed}<{remaining}]",
+        )
+
+    def step(self, k: int) -> None:
+        if k > 0:
+            signal_ready("stepping")
+        self.tqdm.n = min(k * PHYSICS_DT_S, self.tqdm.total)
+        self.tqdm.refresh()
+
+    def close(self) -> None:
+        self.tqdm.close()
 
 
 def recording(res) -> dict:
