@@ -27,6 +27,7 @@ __all__ = [
     "SweepResult",
     "shipped_scenarios",
     "UserInputError",
+    "SweepError",
 ]
 
 _API = {
@@ -39,6 +40,7 @@ _API = {
     "SweepResult": "api",
     "shipped_scenarios": "config.scenario",
     "UserInputError": "core.errors",
+    "SweepError": "core.errors",
 }
 
 

@@ -32,10 +32,19 @@ from pathlib import Path
 from typing import Any
 
 from simpro_mj.config.variants import load_sweep
-from simpro_mj.core.errors import UserInputError
+from simpro_mj.core.errors import SweepError, UserInputError
 from simpro_mj.core.keys import closest
 
-__all__ = ["Result", "SweepResult", "load", "load_scenario", "run", "compare", "sweep"]
+__all__ = [
+    "Result",
+    "SweepError",
+    "SweepResult",
+    "load",
+    "load_scenario",
+    "run",
+    "compare",
+    "sweep",
+]
 
 
 @dataclass(frozen=True)
@@ -305,6 +314,15 @@ def sweep(
     Returns
     -------
     SweepResult
+
+    Raises
+    ------
+    UserInputError
+        A mistake in the file, ``overrides`` or ``jobs``.
+    SweepError
+        No variant could run (a worker pool that broke: with ``jobs > 1`` the
+        workers are spawned processes that import the calling script, which must
+        keep its work under ``if __name__ == "__main__":``).
     """
     from simpro_mj.sim.executors import MAX_JOBS, run_tasks  # no MuJoCo until a plant is built
 
@@ -326,4 +344,13 @@ def sweep(
             results[v.name] = Result(v.scenario, out["columns"], out["metrics"], None)
         else:  # a worker that died fails its variant only
             errors[v.name] = out.get("reason") or "the worker ended without a result"
+    if valid and not results:
+        reason = next(iter(errors[v.name] for v in valid))
+        hint = ""
+        if jobs > 1 and ("BrokenProcessPool" in reason or "bootstrapping" in reason):
+            hint = (
+                "; with jobs > 1 the workers import the calling script: put its work under "
+                "if __name__ == '__main__':"
+            )
+        raise SweepError(f"sweep {sw.path}: every variant failed: {reason}{hint}")
     return SweepResult(sw.path, results, values, errors)

@@ -18,3 +18,10 @@ class UserInputError(SimproError, ValueError):
 class PhysicsError(SimproError, RuntimeError):
     """The simulation diverged: a MuJoCo warning, a non-finite state, or an
     opened kinematic loop. Raised by :func:`simpro_mj.plant.model.check_physics`."""
+
+
+class SweepError(SimproError, RuntimeError):
+    """Every variant of a sweep that could run failed (a worker pool that broke, a
+    worker that could not start): the sweep has no result to return.
+    :func:`simpro_mj.api.sweep` raises it rather than returning rows that are all
+    failures."""
