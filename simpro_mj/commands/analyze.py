@@ -11,6 +11,7 @@ from pathlib import Path
 from simpro_mj.analysis.analyze import DEFAULTS, compute, document
 from simpro_mj.core.jsonout import emit_json
 from simpro_mj.core.keys import apply_overrides
+from simpro_mj.core.progress import Phases, show_progress
 from simpro_mj.report.analyze import plot, summary
 from simpro_mj.report.folders import claim, install_figures
 
@@ -28,12 +29,16 @@ def add_arguments(parser) -> None:
 
 def run(args) -> int:
     p = apply_overrides(DEFAULTS, args.sets)
-    if args.no_plots:
-        res, files = compute(p), []
-    else:  # --out checked before the analysis; its figures installed as one folder
-        with claim(Path(args.out), "analyze") as out:
-            res = compute(p)
-            files = [str(f) for f in install_figures(out, lambda tmp: plot(res, p, tmp), "analyze")]
+    with Phases("analyze", ["loops and limits", "plots"], show_progress(args)) as phase:
+        phase.start("loops and limits")
+        if args.no_plots:
+            res, files = compute(p), []
+        else:  # --out checked before the analysis; its figures installed as one folder
+            with claim(Path(args.out), "analyze") as out:
+                res = compute(p)
+                phase.start("plots")
+                figures = install_figures(out, lambda tmp: plot(res, p, tmp), "analyze")
+                files = [str(f) for f in figures]
     if args.json:
         emit_json(document(res, p, files))
     else:

@@ -14,6 +14,7 @@ from tqdm import tqdm
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.jsonout import emit_json
 from simpro_mj.core.keys import apply_overrides
+from simpro_mj.core.progress import show_progress
 from simpro_mj.report.folders import check_file, write_file
 
 HELP = "fit masses, friction and valve flow so that identify reproduces target models"
@@ -84,7 +85,8 @@ def run(args) -> int:
     tree = apply_overrides(default_tree(args.start), args.sets)
     check_tree(tree)
     targets = paper_targets(tree["paper_units"]) if user_targets is None else user_targets
-    bar = tqdm(total=args.evaluations, desc="calibrate", unit="eval", file=sys.stderr)
+    bar = tqdm(total=args.evaluations, desc="calibrate", unit="eval", file=sys.stderr,
+               disable=not show_progress(args))  # fmt: skip
 
     def progress(i, cost):
         bar.set_postfix(cost=f"{cost:.3g}")

@@ -10,6 +10,7 @@ from pathlib import Path
 from simpro_mj.analysis.sanity import fit_warnings
 from simpro_mj.core.jsonout import emit_json
 from simpro_mj.core.keys import apply_overrides
+from simpro_mj.core.progress import Phases, show_progress
 from simpro_mj.report.folders import claim, install_figures
 
 HELP = "identify eq. (19) per actuator in simulation (Fig. 12: P loop + PRBS, least squares)"
@@ -50,7 +51,11 @@ def run(args) -> int:
     records: dict = {}
     legs = sorted(set(args.actuators))
     # --out checked before the experiment; its files installed as one folder
-    with claim(Path(args.out), "identify") as out:
+    with (
+        Phases("identify", ["PRBS experiment and fit", "plot"], show_progress(args)) as phase,
+        claim(Path(args.out), "identify") as out,
+    ):
+        phase.start("PRBS experiment and fit")
         results = identify(tree, legs=legs, records=records)
         doc = document(results, tree)
         doc["warnings"] = fit_warnings(results)
@@ -58,6 +63,7 @@ def run(args) -> int:
         def fill(tmp: Path) -> list:
             (tmp / "identify.json").write_text(json.dumps(doc, indent=2))
             if not args.no_plots:
+                phase.start("plot")
                 plot(results, records, tmp / "identify.png", tree["paper_units"])
             return []
 

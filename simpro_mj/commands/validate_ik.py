@@ -8,6 +8,7 @@ from pathlib import Path
 
 from simpro_mj.core.jsonout import emit_json
 from simpro_mj.core.keys import apply_overrides
+from simpro_mj.core.progress import Phases, show_progress
 from simpro_mj.report.folders import claim, install_figures
 
 HELP = "validate the vector-loop IK against the MuJoCo closed chain (paper Fig. 11)"
@@ -23,12 +24,15 @@ def run(args) -> int:
     from simpro_mj.analysis.validate_ik import DEFAULTS, SUMMARY_KEYS, plot, summary, validate
 
     params = apply_overrides(DEFAULTS, args.sets)
-    if args.no_plots:
-        res, plot_path = validate(params), None
-    else:  # --out checked before the validation; the figure installed as one folder
-        with claim(Path(args.out), "validate-ik") as out:
-            res = validate(params)
-            (plot_path,) = install_figures(out, lambda tmp: [plot(res, tmp)], "validate-ik")
+    with Phases("validate-ik", ["IK against MuJoCo", "plot"], show_progress(args)) as phase:
+        phase.start("IK against MuJoCo")
+        if args.no_plots:
+            res, plot_path = validate(params), None
+        else:  # --out checked before the validation; the figure installed as one folder
+            with claim(Path(args.out), "validate-ik") as out:
+                res = validate(params)
+                phase.start("plot")
+                (plot_path,) = install_figures(out, lambda tmp: [plot(res, tmp)], "validate-ik")
     doc = {k: res[k] for k in SUMMARY_KEYS}
     doc["plot"] = str(plot_path) if plot_path else None
     if args.json:
