@@ -320,9 +320,11 @@ def sweep(
     UserInputError
         A mistake in the file, ``overrides`` or ``jobs``.
     SweepError
-        No variant could run (a worker pool that broke: with ``jobs > 1`` the
-        workers are spawned processes that import the calling script, which must
-        keep its work under ``if __name__ == "__main__":``).
+        No variant could run (a worker pool that broke). With ``jobs > 1`` the
+        workers are spawned processes; they do not import a calling script
+        (:func:`simpro_mj.sim.workers.main_not_imported`), but a program started
+        with ``python -m`` is imported by them and keeps its work under
+        ``if __name__ == "__main__":``.
     """
     from simpro_mj.sim.executors import MAX_JOBS, run_tasks  # no MuJoCo until a plant is built
 
@@ -349,8 +351,8 @@ def sweep(
         hint = ""
         if jobs > 1 and ("BrokenProcessPool" in reason or "bootstrapping" in reason):
             hint = (
-                "; with jobs > 1 the workers import the calling script: put its work under "
-                "if __name__ == '__main__':"
+                "; with jobs > 1 the workers are spawned processes: a program run with "
+                "python -m keeps its work under if __name__ == '__main__':"
             )
         raise SweepError(f"sweep {sw.path}: every variant failed: {reason}{hint}")
     return SweepResult(sw.path, results, values, errors)

@@ -11,6 +11,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 ROOT = Path(__file__).resolve().parents[1]
 README = (ROOT / "README.md").read_text(encoding="utf-8")
 
@@ -92,16 +94,31 @@ def test_python_example_runs_as_a_script(tmp_path):
     assert (tmp_path / "step_pitch.png").stat().st_size > 10_000
 
 
-def test_unguarded_parallel_sweep_fails_loudly(tmp_path):
-    """Without the guard the spawned workers re-run the script: an error, not exit 0."""
+def test_unguarded_parallel_sweep_runs_the_script_once(tmp_path):
+    """The spawned workers do not import the calling script (sim.workers.main_not_imported):
+    an unguarded script's body runs once, not once more per worker."""
     script = tmp_path / "unguarded.py"
     script.write_text(
         "import simpro_mj as s\n"
+        "print('body')\n"
         "sw = s.sweep('track_cues', {'duration_s': 0.5}, jobs=2)\n"
-        "print('rows', len(sw.rows()))\n",
+        "print(*[r['status'] for r in sw.rows()])\n",
         encoding="utf-8",
     )
     proc = subprocess.run([sys.executable, str(script)], cwd=tmp_path, capture_output=True,
                           text=True, timeout=600)  # fmt: skip
-    assert proc.returncode != 0
-    assert "SweepError" in proc.stderr and "__main__" in proc.stderr
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert proc.stdout.splitlines() == ["body", "ok ok ok"]
+
+
+def test_a_sweep_with_no_variant_run_raises(monkeypatch):
+    """Every variant failed (a broken pool): SweepError naming why, not rows of failures."""
+    import simpro_mj as s
+    from simpro_mj import api
+
+    def broken(task):
+        return {"status": "failed", "reason": "BrokenProcessPool: a worker died", "metrics": None}
+
+    monkeypatch.setattr(api, "_measured", broken)
+    with pytest.raises(s.SweepError, match="every variant failed: BrokenProcessPool"):
+        s.sweep("track_cues", {"duration_s": 0.5})

@@ -25,7 +25,7 @@ from tqdm import tqdm
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.messages import one_line
 from simpro_mj.sim.readiness import signal_ready
-from simpro_mj.sim.workers import init_worker, run_task, stop_pool
+from simpro_mj.sim.workers import init_worker, main_not_imported, run_task, stop_pool
 
 __all__ = [
     "MAX_JOBS",
@@ -135,7 +135,8 @@ def run_pool(tasks: list[tuple[int, dict]], jobs: int, done: Callback, fn: Worke
     futures: dict = {}
     reported: set = set()
     try:
-        futures = {pool.submit(run_task, fn, task): key for key, task in tasks}
+        with main_not_imported():  # the workers start while the tasks are submitted
+            futures = {pool.submit(run_task, fn, task): key for key, task in tasks}
         signal_ready("batch")
         for fut in as_completed(futures):
             try:

@@ -23,15 +23,25 @@
 from __future__ import annotations
 
 import contextlib
+import importlib.machinery
 import os
 import signal
+import sys
 import threading
 import time
 
 from simpro_mj.core.interrupts import guarded_imports, hold_aware, raise_or_hold
 from simpro_mj.sim.readiness import ENV
 
-__all__ = ["POLL_S", "GRACE_S", "init_worker", "run_task", "stop_pool", "watch_parent"]
+__all__ = [
+    "POLL_S",
+    "GRACE_S",
+    "init_worker",
+    "main_not_imported",
+    "run_task",
+    "stop_pool",
+    "watch_parent",
+]
 
 #: How often a worker checks that its parent is alive (s).
 POLL_S = 0.5
@@ -40,6 +50,31 @@ GRACE_S = 30.0
 
 _busy = False
 _ending = False  # SIGTERM received or parent gone: no further task
+
+
+@contextlib.contextmanager
+def main_not_imported():
+    """Workers started in this block do not import the caller's main script.
+
+    A spawned process imports the parent's ``__main__`` script (as ``__mp_main__``) so
+    that functions defined there can be unpickled. The workers' functions live in
+    ``simpro_mj``; a script that calls ``simpro_mj.sweep(..., jobs=2)`` at its top level,
+    unguarded, would run again in every worker (each trying to start a pool of its
+    own, which breaks the pool). ``multiprocessing`` skips that import when
+    ``__main__.__spec__.name`` is ``"__main__"``: a script's module has no spec, one
+    is set while the workers start and removed after. A program run with
+    ``python -m`` (a spec of its own) and an interactive session (no file) are left
+    as they are.
+    """
+    main = sys.modules.get("__main__")
+    if main is None or getattr(main, "__spec__", None) is not None:
+        yield
+        return
+    main.__spec__ = importlib.machinery.ModuleSpec("__main__", None)
+    try:
+        yield
+    finally:
+        main.__spec__ = None
 
 
 @hold_aware
