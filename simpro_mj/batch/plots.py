@@ -147,8 +147,11 @@ def metric_vs_param_figure(rows: list[dict], info: Mapping, stability: list[dict
             limits.add(kind)
     for ax, (axis, unit, _) in zip(axes[:3], _AXES, strict=True):
         ax.set_ylabel(f"{axis} rms error [{unit}]")
-        ax.set_yscale("log")
-        log_ticks(ax, "y")
+        ys = np.concatenate([np.asarray(ln.get_ydata(), float) for ln in ax.lines] or [[]])
+        ys = ys[np.isfinite(ys) & (ys > 0)]
+        if ys.size and ys.max() > 10 * ys.min():  # a log axis only where it spans a decade
+            ax.set_yscale("log")
+            log_ticks(ax, "y")
         ax.grid(True, which="both", alpha=0.3)
     if has_growth:
         axes[3].axhline(0.0, color="k", lw=0.6)
@@ -422,8 +425,8 @@ def cue_tradeoff_figure(rows: list[dict], info: Mapping):
         x = float(r["cue_pitch_box_frac"])
         y = float(r["cue_long_corr"])
         sat = float(r.get("cue_valve_sat_frac") or 0.0)
-        ax.scatter([x], [y], s=30 + 3000 * sat, color="tab:red", alpha=0.7,
-                   label="variant (area: valve at a rail)" if n == 0 else None)  # fmt: skip
+        label = "variant (area, 'sat': time with a valve at a rail)" if n == 0 else None
+        ax.scatter([x], [y], s=30 + 3000 * sat, color="tab:red", alpha=0.7, label=label)
         label = ", ".join(f"{k.split('.')[-1]}={format_value(v)}" for k, v in r["values"].items())
         ax.annotate(f"{label}; sat {100 * sat:.1f} %", (x, y), fontsize=6, xytext=(4, 3),
                     textcoords="offset points")  # fmt: skip
@@ -431,8 +434,5 @@ def cue_tradeoff_figure(rows: list[dict], info: Mapping):
     ax.set_ylabel("perceived longitudinal correlation")
     ax.grid(True, alpha=0.3)
     ax.legend(loc="best", fontsize=8)
-    fig.suptitle(
-        f"{info['scenario']}: cue correlation vs workspace "
-        "(marker area and 'sat': time with a valve at a rail)"
-    )
+    fig.suptitle(f"{info['scenario']}: cue correlation vs pitch workspace used")
     return fig
