@@ -30,6 +30,7 @@ def test_list_names_every_shipped_file_on_one_line(capsys):
     for name in shipped_scenarios() + shipped_presets() + ["braking_100kmh.csv"]:
         (line,) = [ln for ln in lines if ln.split()[:1] == [name]]
         assert len(line.split()) > 2, line  # a description follows the name
+    assert "issue" not in out  # what the files are, not how they came to be
     assert main(["list", "presets", "--json"]) == 0
     import json
 
