@@ -288,3 +288,55 @@ def test_cue_tradeoff_writes_the_saturation_it_sizes(tmp_path):
     assert legend_mismatches(fig) == []
     notes = [t.get_text() for t in fig.axes[0].texts]
     assert any("sat 3.0 %" in n for n in notes)  # the saturation is written, not only sized
+
+
+def _captured(monkeypatch) -> list:
+    """Every figure saved while the test runs (the commands' pyplot figures)."""
+    from matplotlib.figure import Figure
+
+    saved = []
+    original = Figure.savefig
+
+    def savefig(self, *args, **kwargs):
+        saved.append(self)
+        return original(self, *args, **kwargs)
+
+    monkeypatch.setattr(Figure, "savefig", savefig)
+    return saved
+
+
+def test_analyze_figures_legends_name_their_series(tmp_path, monkeypatch):
+    from simpro_mj.analysis.analyze import DEFAULTS, compute
+    from simpro_mj.core.keys import apply_overrides
+    from simpro_mj.report.analyze import plot
+
+    p = apply_overrides(DEFAULTS, [])
+    saved = _captured(monkeypatch)
+    files = plot(compute(p), p, tmp_path)
+    assert len(saved) == len(files) >= 3
+    for fig in saved:
+        assert legend_mismatches(fig) == [], fig.axes[0].get_title()
+
+
+def test_validate_ik_figure_legend_names_its_series(tmp_path, monkeypatch):
+    from simpro_mj.analysis.validate_ik import DEFAULTS, plot, validate
+    from simpro_mj.core.keys import apply_overrides
+
+    saved = _captured(monkeypatch)
+    plot(validate(apply_overrides(DEFAULTS, [])), tmp_path)
+    assert len(saved) == 1
+    assert legend_mismatches(saved[0]) == []
+
+
+def test_identify_figure_legends_name_their_series(tmp_path, monkeypatch):
+    from simpro_mj.identification.identify import default_tree, identify
+    from simpro_mj.report.identify import plot
+
+    tree = default_tree(None)
+    tree["identify"]["duration_s"] = 2.0
+    records: dict = {}
+    results = identify(tree, legs=[1], records=records)
+    saved = _captured(monkeypatch)
+    plot(results, records, tmp_path / "identify.png", tree["paper_units"])
+    assert len(saved) == 1
+    assert legend_mismatches(saved[0]) == []
