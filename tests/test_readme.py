@@ -63,6 +63,8 @@ def test_printed_run_summary_is_what_run_prints():
     buf = io.StringIO()
     print_summary({**r.metrics, "status": r.status}, file=buf)
     assert buf.getvalue().strip() == shown.strip()
+    floor = math.degrees(r.metrics["sensor_floor"]["pitch"])
+    assert f"pitch sensor's floor is {floor:.4f}°" in " ".join(README.split())
 
 
 def test_compare_table_is_what_compare_prints():
