@@ -20,23 +20,15 @@ docs/robustness.md lists the messages.
 
 from __future__ import annotations
 
+import argparse
+import functools
 import os
+import sys
 
-# One BLAS thread per process unless the user chose otherwise, set before numpy is
-# first imported: the analyses factor small matrices (the preflight's 65-state lifted
-# loop: 207 eigenvalue problems), where OpenBLAS's spinning threads, fighting for a
-# loaded 2-core machine, took 3.7-15.9 s against 0.5 s with one thread (run
-# step_pitch.yaml: 8.8-22.9 s wall against 4.9 s). Batch and render workers inherit it.
-os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
-
-import argparse  # noqa: E402
-import functools  # noqa: E402
-import sys  # noqa: E402
-
-from controllers.errors import DesignError, KinematicsError  # noqa: E402
-from simpro_mj.core.errors import PhysicsError, UserInputError  # noqa: E402
-from simpro_mj.core.interrupts import import_module, interruptible  # noqa: E402
-from simpro_mj.core.messages import MAX_MESSAGE_CHARS, one_line  # noqa: E402
+from controllers.errors import DesignError, KinematicsError
+from simpro_mj.core.errors import PhysicsError, UserInputError
+from simpro_mj.core.interrupts import import_module, interruptible
+from simpro_mj.core.messages import MAX_MESSAGE_CHARS, one_line
 
 #: an error line of this command line: one line, at most MAX_MESSAGE_CHARS
 _one_line = functools.partial(one_line, max_chars=MAX_MESSAGE_CHARS)
