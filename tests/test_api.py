@@ -196,3 +196,29 @@ def test_no_command_loads_mujoco_before_it_runs(tmp_path):
     proc = _python(code, tmp_path)
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.strip() == "False"
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["calibrate", "--start", "nosuch"],
+        ["calibrate", "--set", "pneumatics.nosuch=1"],
+        ["identify", "--set", "identify.duration_s=-1"],
+    ],
+)
+def test_identify_and_calibrate_refuse_their_settings_before_loading_mujoco(argv, tmp_path):
+    """The identification tree is built and checked without MuJoCo or SciPy's optimiser,
+    so a mistyped preset or key is refused (exit 2) before the experiment's imports."""
+    code = (
+        "import sys; from simpro_mj.commands.main import main; "
+        f"rc = main({argv!r}); "
+        "print(rc, 'mujoco' in sys.modules, 'scipy.optimize' in sys.modules)"
+    )
+    # without MUJOCO_GL: with it set, main() loads MuJoCo first to check the GL backend
+    env = {k: v for k, v in os.environ.items() if k != "MUJOCO_GL"}
+    env.update(PYTHONPATH=str(ROOT), MPLBACKEND="Agg")
+    proc = subprocess.run(
+        [sys.executable, "-c", code], cwd=tmp_path, env=env, capture_output=True, text=True
+    )
+    assert proc.stdout.split() == ["2", "False", "False"], proc.stdout + proc.stderr
+    assert len(proc.stderr.strip().splitlines()) == 1

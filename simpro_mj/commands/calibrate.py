@@ -77,13 +77,14 @@ def run(args) -> int:
     # before MuJoCo is imported, so that a mistake is refused within a second
     check_file(out, args.overwrite)
     from simpro_mj.analysis.targets import load_targets
+    from simpro_mj.identification.settings import check_tree, default_tree
 
     user_targets = None if args.targets is None else load_targets(args.targets)
-    from simpro_mj.analysis.calibrate import calibrate_preset, paper_targets
-    from simpro_mj.identification.identify import check_tree, default_tree
-
     tree = apply_overrides(default_tree(args.start), args.sets)
     check_tree(tree)
+    # the fit loads MuJoCo and SciPy: after every input has been checked
+    from simpro_mj.analysis.calibrate import calibrate_preset, paper_targets
+
     targets = paper_targets(tree["paper_units"]) if user_targets is None else user_targets
     bar = tqdm(total=args.evaluations, desc="calibrate", unit="eval", file=sys.stderr,
                disable=not show_progress(args))  # fmt: skip

@@ -40,14 +40,17 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
-    # the experiment loads MuJoCo and scipy: after argparse has checked the options
-    from simpro_mj.identification.identify import default_tree, document, identify
-    from simpro_mj.report.identify import plot, summary
-    from simpro_mj.report.runner import warn
+    from simpro_mj.identification.settings import check_tree, default_tree
 
     tree = apply_overrides(default_tree(args.preset), args.sets)
     if args.duration is not None:
         tree["identify"]["duration_s"] = float(args.duration)
+    check_tree(tree)
+    # the experiment loads MuJoCo and SciPy: after every input has been checked
+    from simpro_mj.identification.identify import document, identify
+    from simpro_mj.report.identify import plot, summary
+    from simpro_mj.report.runner import warn
+
     records: dict = {}
     legs = sorted(set(args.actuators))
     # --out checked before the experiment; its files installed as one folder

@@ -1,0 +1,112 @@
+"""The settings of ``simpro-sim identify`` and their checks, without MuJoCo or SciPy.
+
+The experiment itself (:mod:`simpro_mj.identification.identify`) loads MuJoCo
+and SciPy; the tree it runs on is built and checked here, so that a command
+refuses a mistyped ``--start``, ``--preset`` or ``--set`` within a second,
+before either is imported.
+"""
+
+from __future__ import annotations
+
+import copy
+
+import numpy as np
+
+from controllers.design import READINGS
+from simpro_mj.config.presets import DEFAULT_PRESET, identify_overlay
+from simpro_mj.config.scenario import _check_pneumatics, _merge
+from simpro_mj.core.errors import UserInputError
+from simpro_mj.core.keys import check_number
+from simpro_mj.plant.model_params import DEFAULT_MODEL_PARAMS
+from simpro_mj.plant.pneumatics.params import DEFAULT_PNEUMATIC_PARAMS
+
+__all__ = ["DEFAULT_IDENTIFY_PARAMS", "default_tree", "check_tree", "leg_values"]
+
+#: Experiment settings (the paper does not print them: our choices).
+DEFAULT_IDENTIFY_PARAMS: dict = {
+    "duration_s": 20.0,  # excitation time per actuator
+    "settle_s": 1.0,  # P loops alone before the PRBS starts
+    "position_mm": 250.0,  # operating point: mid-stroke
+    # P gains (V/m). Low enough for the loop to stay stable with the paper's
+    # plants too (eq. 35 needs K_p b < a1 a0: K_p < 4.9 V/m).
+    "kp_v_per_m": [15.0, 3.0, 3.0],
+    # PRBS: ±amplitude on the excited valve, one bit per clock; a 20 ms clock
+    # gives a flat spectrum up to ~ 0.44/20 ms = 22 Hz (> the 2.5-6 Hz of ω_n)
+    "prbs_amplitude_v": [0.3, 0.3, 0.3],
+    "prbs_clock_ms": 20.0,
+    "prbs_bits": 10,  # sequence period 1023 bits = 20.5 s
+    "seed": 1,  # shift of the sequence
+    "actuator_kind": "nonlinear",
+    # discard the first part of the record in the fit (initial transient), s
+    "fit_skip_s": 0.2,
+    # loop-closure bound checked during the run, mm
+    "loop_bound_mm": 1.0,
+}
+
+
+def default_tree(preset: str | None = None) -> dict:
+    """The full parameter tree of ``identify``: paper_units, preset, model, pneumatics,
+    identify; the model and pneumatics are the defaults with ``preset``'s values
+    (default :data:`simpro_mj.config.presets.DEFAULT_PRESET`) over them."""
+
+    preset = DEFAULT_PRESET if preset is None else preset
+    over = identify_overlay(preset)
+    return {
+        # unit of Y in eqs. (34)-(35) for the comparison (controllers.design.READINGS)
+        "paper_units": "volts",
+        "preset": preset,
+        "model": _merge(DEFAULT_MODEL_PARAMS, over["model"]),
+        "pneumatics": _merge(DEFAULT_PNEUMATIC_PARAMS, over["pneumatics"]),
+        "identify": copy.deepcopy(DEFAULT_IDENTIFY_PARAMS),
+    }
+
+
+def leg_values(x, name: str) -> np.ndarray:
+    arr = np.broadcast_to(np.asarray(x, float), (3,)).copy() if np.ndim(x) == 0 else None
+    if arr is None:
+        arr = np.asarray(x, float)
+    if arr.shape != (3,) or not np.all(np.isfinite(arr)) or np.any(arr < 0):
+        raise UserInputError(
+            f"invalid value at identify.{name}: {x!r}; expected a number or 3 numbers >= 0"
+        )
+    return arr
+
+
+def check_tree(tree: dict) -> dict:
+    """Validate the ``identify`` settings and the pneumatics tree (the model's
+    values are checked by :func:`simpro_mj.plant.model.load_model`); returns ``tree``
+    with the pneumatics normalised.
+
+    Raises
+    ------
+    UserInputError
+        Naming the dotted path and what is allowed.
+    """
+    if tree.get("paper_units") not in READINGS:
+        raise UserInputError(
+            f"invalid value at paper_units: {tree.get('paper_units')!r}; allowed: {list(READINGS)}"
+        )
+    tree["model"].pop("preset", None)
+    tree["pneumatics"] = _check_pneumatics(tree["pneumatics"], "pneumatics")
+    i = "identify"
+    check_number(tree, f"{i}.duration_s", 0.5, 3600.0, unit=" s")
+    check_number(tree, f"{i}.settle_s", 0.0, 3600.0, unit=" s")
+    check_number(tree, f"{i}.position_mm", 50.0, 450.0, unit=" mm")
+    ms = check_number(tree, f"{i}.prbs_clock_ms", 1.0, 10**6, unit=" ms")
+    if ms != round(ms):
+        raise UserInputError(
+            f"invalid value at {i}.prbs_clock_ms: {ms:g}; allowed: a positive integer "
+            "multiple of the 1 ms physics step"
+        )
+    check_number(tree, f"{i}.prbs_bits", 2, 24, integer=True)
+    check_number(tree, f"{i}.seed", 0, 2**31, integer=True)
+    check_number(tree, f"{i}.fit_skip_s", 0.0, tree[i]["duration_s"], hi_open=True, unit=" s")
+    check_number(tree, f"{i}.loop_bound_mm", 0.0, lo_open=True, unit=" mm")
+    amp = leg_values(tree[i]["prbs_amplitude_v"], "prbs_amplitude_v")
+    if np.any(amp > 5.0):
+        raise UserInputError(
+            f"invalid value at {i}.prbs_amplitude_v: {tree[i]['prbs_amplitude_v']!r}; "
+            "allowed: <= 5 V (the valve's half range)"
+        )
+    leg_values(tree[i]["kp_v_per_m"], "kp_v_per_m")
+    return tree
