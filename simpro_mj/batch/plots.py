@@ -29,6 +29,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
+from simpro_mj.batch.summary import RUN_STATUSES
 from simpro_mj.config.sweep import format_value
 from simpro_mj.report.figures import envelope, legend_mismatches, log_ticks, save
 from simpro_mj.report.results import read_timeseries
@@ -177,7 +178,7 @@ def plot_responses(rows: list[dict], info: Mapping, batch_out: Path, out: Path):
 def responses_figure(rows: list[dict], info: Mapping, batch_out: Path):
     """The figure of :func:`plot_responses` (module docstring), or None."""
     grid = info["grid_paths"]
-    runs = [r for r in rows if r["status"] in ("ok", "diverged") and r["folder"]][:MAX_OVERLAY]
+    runs = [r for r in rows if r["status"] in RUN_STATUSES and r["folder"]][:MAX_OVERLAY]
     series = []
     for r in runs:
         path = Path(batch_out) / r["folder"] / "timeseries.csv"

@@ -25,6 +25,7 @@ from pathlib import Path
 from typing import Any
 
 from simpro_mj.analysis.cue_metrics import SUMMARY_COLUMNS, summary_columns
+from simpro_mj.analysis.verdict import FINISHED_STATUSES
 from simpro_mj.batch.plan import Job
 from simpro_mj.batch.stability import analytic
 from simpro_mj.config.sweep import format_value
@@ -43,8 +44,17 @@ __all__ = [
 ]
 
 #: Variant statuses, and those a finished run can have.
-STATUSES = ("ok", "diverged", "interrupted", "failed", "invalid", "cancelled")
-RUN_STATUSES = ("ok", "diverged")
+STATUSES = (
+    "ok",
+    "limit_cycle",
+    "not_settled",
+    "diverged",
+    "interrupted",
+    "failed",
+    "invalid",
+    "cancelled",
+)
+RUN_STATUSES = FINISHED_STATUSES
 
 #: (axis, unit of its columns, SI to that unit)
 AXES = (("roll", "deg", 180.0 / math.pi), ("pitch", "deg", 180.0 / math.pi), ("heave", "mm", 1e3))

@@ -140,7 +140,7 @@ def print_report(report: Report, file=None) -> None:
     """The human summary: a line per variant, the stability table, counts, paths."""
     file = sys.stdout if file is None else file
     header = (
-        f"{'variant':<34} {'status':<9} {'stable':<6} {'roll ss':>9} {'pitch ss':>9} "
+        f"{'variant':<34} {'status':<11} {'stable':<6} {'roll ss':>9} {'pitch ss':>9} "
         f"{'heave ss':>9} {'growth':>7} {'rt x':>6}"
     )
     last = None
@@ -151,13 +151,13 @@ def print_report(report: Report, file=None) -> None:
             last = r["scenario"]
         stable = "-" if r["stable"] is None else ("yes" if r["stable"] else "NO")
         print(
-            f"{r['variant']:<34} {r['status']:<9} {stable:<6} "
+            f"{r['variant']:<34} {r['status']:<11} {stable:<6} "
             f"{_num(r['roll_ss_err_deg'], 3):>9} {_num(r['pitch_ss_err_deg'], 3):>9} "
             f"{_num(r['heave_ss_err_mm'], 3):>9} {_num(r['growth_rate_1_s'], 2):>7} "
             f"{_num(r['realtime_factor'], 3):>6}",
             file=file,
         )
-        if r["status"] not in ("ok", "diverged") or (r["status"] == "diverged" and r["reason"]):
+        if r["status"] != "ok" and r["reason"]:
             print(f"    {r['status']}: {r['reason']}", file=file)
     print(
         "(ss: steady-state error, deg, deg, mm; growth: error envelope, 1/s; "

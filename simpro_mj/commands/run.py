@@ -5,9 +5,11 @@ cylinders cannot hold (exit 2) and warns about outer gains above the analysed
 stability limit. Warnings go to stderr as ``warning: ...`` lines and into
 ``metrics.json`` (``warnings``, figures under ``preflight``).
 
-Exit codes: 0 ok, 1 diverged, 2 a user's mistake, 130 interrupted (Ctrl-C or
-SIGTERM: the partial result is written with status ``interrupted`` and a
-``PARTIAL`` file when the simulation hands it back, see docs/robustness.md).
+Exit codes: 0 ok, 1 diverged, limit_cycle or not_settled (the pose still
+oscillates or drifts at the end, :mod:`simpro_mj.analysis.verdict`), 2 a
+user's mistake, 130 interrupted (Ctrl-C or SIGTERM: the partial result is
+written with status ``interrupted`` and a ``PARTIAL`` file when the
+simulation hands it back, see docs/robustness.md).
 With ``SIMPRO_READY_FILE`` set, the file is written once the simulation has
 taken its first step under the signal handlers (:mod:`simpro_mj.sim.readiness`).
 The job itself is :func:`simpro_mj.report.runner.execute`.
@@ -56,8 +58,8 @@ def run(args) -> int:
         emit_json(metrics)
     else:
         print_summary(metrics, res.folder)
-        if res.status == "diverged":
-            print(f"DIVERGED: {res.reason}")
+        if res.status in ("diverged", "limit_cycle", "not_settled"):
+            print(f"{res.status.upper().replace('_', ' ')}: {res.reason}")
     if res.status == "interrupted":
         sys.stderr.write(f"error: {interrupted_message(res, out)}\n")
         return EXIT_INTERRUPTED

@@ -29,6 +29,7 @@ import numpy as np
 
 from simpro_mj.analysis.metrics import compute_metrics
 from simpro_mj.analysis.preflight import preflight
+from simpro_mj.analysis.verdict import verdict
 from simpro_mj.config.reference import reference
 from simpro_mj.plant.faults import flag_series
 from simpro_mj.plant.model_params import MAX_MODEL_PAYLOAD_KG
@@ -221,6 +222,10 @@ class Run:
         warn(warnings, quiet)
         res = self.simulation().run(progress)
         metrics = compute_metrics(res.columns, res.scenario)
+        if res.status == "ok":  # ran to its end: does the pose settle? (analysis.verdict)
+            judged = verdict(res.columns, res.sensor_floor)
+            res.status, res.reason = judged["status"], judged["reason"]
+            metrics["verdict"] = judged
         metrics["status"] = res.status
         metrics["reason"] = res.reason
         metrics["sensor_floor"] = res.sensor_floor

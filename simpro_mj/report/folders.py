@@ -55,6 +55,7 @@ from collections.abc import Iterable, Iterator
 from pathlib import Path
 
 from simpro_mj import __version__
+from simpro_mj.analysis.verdict import FINISHED_STATUSES
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.safe_files import open_regular, read_text
 
@@ -622,7 +623,8 @@ def is_complete(folder) -> bool:
     Complete: the :data:`RESULT_MARKER` of a run listing ``metrics.json`` and a
     non-empty ``timeseries.csv``, every file it lists present and every file in
     the folder as simpro-sim wrote it (:func:`foreign` finds none), a
-    ``metrics.json`` that reads with status ``ok`` or ``diverged`` and the
+    ``metrics.json`` that reads with the status of a finished run (``ok``,
+    ``limit_cycle``, ``not_settled``, ``diverged``) and the
     blocks a summary row is built from (``scenario`` with its hash, ``axes``),
     and no ``PARTIAL`` file. Anything
     else is not.
@@ -642,7 +644,7 @@ def is_complete(folder) -> bool:
         return False
     return (
         isinstance(doc, dict)
-        and doc.get("status") in ("ok", "diverged")
+        and doc.get("status") in FINISHED_STATUSES
         and isinstance(doc.get("scenario"), dict)
         and isinstance(doc["scenario"].get("hash"), str)
         and isinstance(doc.get("axes"), dict)

@@ -5,7 +5,8 @@ A results folder holds:
 * ``timeseries.csv``: one row per logged sample, a header of column names
   with their units (``time_s``, ``roll_rad``, ``p1a_pa``, ...), SI values with
   12 significant digits;
-* ``metrics.json``: ``status`` (ok | diverged | interrupted), ``reason``, the scenario's
+* ``metrics.json``: ``status`` (ok | limit_cycle | not_settled | diverged |
+  interrupted), ``reason``, the scenario's
   name and hash, ``axes`` and ``joints`` (:func:`simpro_mj.analysis.metrics.compute_metrics`),
   the metric ``definitions``, a ``sim`` block (deterministic figures, with the
   wall-clock ones such as ``realtime_factor`` apart under ``sim.wall_clock``)
@@ -62,10 +63,12 @@ __all__ = [
     "jsonable",
 ]
 
-#: ``ok``: ran to the end; ``diverged``: stopped by the divergence checks (the
-#: folder holds everything up to that point); ``interrupted``: stopped by the
-#: user (Ctrl-C, SIGTERM), marked with a ``PARTIAL`` file.
-STATUSES = ("ok", "diverged", "interrupted")
+#: ``ok``: ran to the end and settled; ``limit_cycle`` / ``not_settled``: ran to
+#: the end, but the pose still oscillates or drifts there
+#: (:mod:`simpro_mj.analysis.verdict`); ``diverged``: stopped by the divergence
+#: checks (the folder holds everything up to that point); ``interrupted``:
+#: stopped by the user (Ctrl-C, SIGTERM), marked with a ``PARTIAL`` file.
+STATUSES = ("ok", "limit_cycle", "not_settled", "diverged", "interrupted")
 #: ``extra["sim"]`` keys that depend on the machine, not on the scenario.
 WALL_CLOCK_KEYS = ("realtime_factor", "wall_time_s", "wall_s", "elapsed_s", "steps_per_s", "host")
 _RESERVED = {"status", "reason", "scenario", "axes", "joints", "metrics", "sim", "versions"}

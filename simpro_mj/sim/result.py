@@ -35,7 +35,7 @@ class SimResult:
     """What one run produced. ``columns`` holds copies, never MuJoCo views."""
 
     columns: dict
-    status: str  # "ok" | "diverged" | "interrupted"
+    status: str  # "ok" | "diverged" | "interrupted"; the runner judges an ok run's end
     reason: str | None
     sim: dict
     scenario: dict

@@ -196,13 +196,17 @@ def run_scenario(name: str):
     """Run one shipped scenario: ``(scenario, SimResult, metrics as stored)``."""
     sys.path.insert(0, str(ROOT))
     from simpro_mj.analysis.metrics import compute_metrics
+    from simpro_mj.analysis.verdict import verdict
     from simpro_mj.config.scenario import load_scenario
     from simpro_mj.sim.loop import simulate
 
     scenario = load_scenario(name)
     res = simulate(scenario)
     metrics = compute_metrics(res.columns, scenario)
-    metrics["status"] = res.status
+    # the run's status as simpro-sim run reports it: a run to its end judged by its end
+    metrics["status"] = (
+        verdict(res.columns, res.sensor_floor)["status"] if res.status == "ok" else res.status
+    )
     return scenario, res, json.loads(json.dumps(metrics))  # the stored float/None forms
 
 
