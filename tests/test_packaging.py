@@ -7,6 +7,7 @@ into an empty folder on its own, runs the main job from another empty folder.
 
 from __future__ import annotations
 
+import json
 import os
 import shutil
 import subprocess
@@ -108,10 +109,12 @@ def test_the_installed_wheel_runs_the_main_job_from_an_empty_folder(wheel, tmp_p
          "--set", "duration_s=0.3"],
         cwd=work, env=env, capture_output=True, text=True,
     )  # fmt: skip
-    assert proc.returncode == 0, proc.stderr[-2000:]
+    # 0.3 s ends before the pose has settled from its start: the verdict may say so (exit 1)
+    status = json.loads((work / "results" / "step_pitch" / "metrics.json").read_text())["status"]
+    assert status in ("ok", "not_settled"), proc.stderr[-2000:]
+    assert proc.returncode == (0 if status == "ok" else 1), proc.stderr[-2000:]
     first, second = proc.stdout.splitlines()[:2]
     assert first.startswith(str(site)) and second.startswith(str(site)), proc.stdout
-    assert (work / "results" / "step_pitch" / "metrics.json").is_file()
 
 
 def test_the_data_folders_are_tracked_once_at_the_top_level():

@@ -110,7 +110,11 @@ def test_unguarded_parallel_sweep_runs_the_script_once(tmp_path):
     proc = subprocess.run([sys.executable, str(script)], cwd=tmp_path, capture_output=True,
                           text=True, timeout=600)  # fmt: skip
     assert proc.returncode == 0, proc.stderr[-2000:]
-    assert proc.stdout.splitlines() == ["body", "ok ok ok"]
+    body, statuses = proc.stdout.splitlines()
+    assert body == "body"
+    # every variant ran (0.5 s: the verdict may find a sine not yet tracked to its floor)
+    assert len(statuses.split()) == 3
+    assert set(statuses.split()) <= {"ok", "not_settled"}, statuses
 
 
 def test_a_sweep_with_no_variant_run_raises(monkeypatch):

