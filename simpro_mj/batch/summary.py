@@ -44,16 +44,7 @@ __all__ = [
 ]
 
 #: Variant statuses, and those a finished run can have.
-STATUSES = (
-    "ok",
-    "limit_cycle",
-    "not_settled",
-    "diverged",
-    "interrupted",
-    "failed",
-    "invalid",
-    "cancelled",
-)
+STATUSES = (*FINISHED_STATUSES, "interrupted", "failed", "invalid", "cancelled")
 RUN_STATUSES = FINISHED_STATUSES
 
 #: (axis, unit of its columns, SI to that unit)

@@ -20,6 +20,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+from simpro_mj.analysis.verdict import FINISHED_STATUSES
 from simpro_mj.config.scenario import load_scenario
 from simpro_mj.core.jsonout import emit_json
 from simpro_mj.report.folders import claim
@@ -58,7 +59,7 @@ def run(args) -> int:
         emit_json(metrics)
     else:
         print_summary(metrics, res.folder)
-        if res.status in ("diverged", "limit_cycle", "not_settled"):
+        if res.status != "ok" and res.status in FINISHED_STATUSES:
             print(f"{res.status.upper().replace('_', ' ')}: {res.reason}")
     if res.status == "interrupted":
         sys.stderr.write(f"error: {interrupted_message(res, out)}\n")

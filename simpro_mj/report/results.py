@@ -40,6 +40,7 @@ import numpy as np
 import yaml
 
 from simpro_mj import __version__
+from simpro_mj.analysis.verdict import FINISHED_STATUSES
 from simpro_mj.config.scenario import scenario_hash
 from simpro_mj.plant import kernels
 from simpro_mj.report.folders import (
@@ -68,7 +69,7 @@ __all__ = [
 #: (:mod:`simpro_mj.analysis.verdict`); ``diverged``: stopped by the divergence
 #: checks (the folder holds everything up to that point); ``interrupted``:
 #: stopped by the user (Ctrl-C, SIGTERM), marked with a ``PARTIAL`` file.
-STATUSES = ("ok", "limit_cycle", "not_settled", "diverged", "interrupted")
+STATUSES = (*FINISHED_STATUSES, "interrupted")
 #: ``extra["sim"]`` keys that depend on the machine, not on the scenario.
 WALL_CLOCK_KEYS = ("realtime_factor", "wall_time_s", "wall_s", "elapsed_s", "steps_per_s", "host")
 _RESERVED = {"status", "reason", "scenario", "axes", "joints", "metrics", "sim", "versions"}
