@@ -7,13 +7,13 @@ no ``fastmath``, so LLVM does not contract ``a * b + c`` into FMA) in one
 nonlinear model (spool order 1 and 2, any number of pressure sub-steps, a
 supply pressure changed at run time).
 
-Two steps are *not* in the kernel and stay in numpy in the dispatcher
+The seal friction is :func:`simpro_mj.plant.friction.seal_friction`, the
+one function both paths call (libm's ``exp`` and ``tanh`` in either). One
+step is *not* in the kernel and stays in numpy in the dispatcher
 (:meth:`NonlinearActuators.step`), because a compiled version rounds
-differently: ``np.tanh`` of the Coulomb term (numpy's SIMD kernel; libm's
-``tanh``, which numba calls, differs in the last bit on many inputs) and
-the force product ``Mf @ z`` (BLAS, FMA accumulation). With them in numpy
-the kernel's results are bit-identical to the Python path (measured, see
-``docs/performance.md``, round 3, and ``tests/test_pneumatics_kernel.py``).
+differently: the force product ``Mf @ z`` (BLAS, FMA accumulation). With it
+in numpy the kernel's results are bit-identical to the Python path
+(``tests/test_pneumatics_kernel.py``).
 
 Selection: ``SIMPRO_KERNEL`` (:mod:`simpro_mj.plant.kernels`), read when an
 actuator object is built. The JIT cache (``cache=True``) lives
@@ -24,12 +24,15 @@ silently falls back to a user cache directory, or compiles in every process).
 
 from __future__ import annotations
 
+from simpro_mj.plant.friction import seal_friction
+
 # Layout of the kernel's one float64 buffer (a single array argument: numba's
 # call overhead grows by ~70 ns per array argument). The actuator object owns it;
 # its z, spool and spool_rate arrays are views of the first ST_LEN entries.
 ST_SPOOL, ST_RATE, ST_LEN = 16, 19, 22  # z (16), spool (3), spool rate (3)
-KP_PS, KP_PA, KP_HN, KP_RTK, KP_EPS, KP_ALPHA, KP_IVS = range(ST_LEN, ST_LEN + 7)
-KP_AD = ST_LEN + 7  # ad00, ad01, ad10, ad11, bd0, bd1 (second-order spool)
+KP_PS, KP_PA, KP_HN, KP_RTK, KP_EPS, KP_ALPHA = range(ST_LEN, ST_LEN + 6)
+KP_FRIC = ST_LEN + 6  # per leg: breakaway, Coulomb, Stribeck velocity, viscous, v_reg (5 x 3)
+KP_AD = KP_FRIC + 15  # ad00, ad01, ad10, ad11, bd0, bd1 (second-order spool)
 KP_DELTA = KP_AD + 6  # underlap of legs 1-3
 KP_ORDER, KP_NSUB, KP_NTAB = KP_DELTA + 3, KP_DELTA + 4, KP_DELTA + 5  # integers as floats
 KP_CH = KP_DELTA + 6  # per chamber: V0, dV/dq, V_min (6 x 3)
@@ -74,8 +77,8 @@ def _psi(r, e, b, n):
 def _step(u0, u1, u2, q0, q1, q2, qd0, qd1, qd2, b):
     """One step of the nonlinear actuators on the buffer ``b`` (in place).
 
-    Leaves p1, p2 (b[0:6]), qdot (b[6:9]) and qdot / v_s (b[9:12], tanh
-    still to be taken) for the dispatcher's ``np.tanh`` and ``Mf @ z``.
+    Leaves p1, p2 (b[0:6]), qdot (b[6:9]) and the seal friction (b[9:12])
+    for the dispatcher's ``Mf @ z``.
     """
     u = (float(u0), float(u1), float(u2))  # ints (tests) as the Python path's u * 0.2
     q = (float(q0), float(q1), float(q2))
@@ -152,10 +155,10 @@ def _step(u0, u1, u2, q0, q1, q2, qd0, qd1, qd2, b):
                 den = 0.5
             pc = ((g_s * ps + g_e * pa) * hc + pc) / den
         b[c] = pc
-    ivs = b[KP_IVS]
     for i in range(3):
         b[6 + i] = qd[i]
-        b[9 + i] = qd[i] * ivs
+        f = KP_FRIC + 5 * i
+        b[9 + i] = seal_friction(qd[i], b[f], b[f + 1], b[f + 2], b[f + 3], b[f + 4])
 
 
 def step_kernel():
@@ -167,10 +170,14 @@ def step_kernel():
 
         try:
             psi = numba.njit(cache=True, inline="always")(_psi)
+            fric = numba.njit(cache=True, inline="always")(seal_friction)
             kernel = numba.njit(cache=True)(_step)
         except RuntimeError:  # no writable cache location: compile in each process
             psi = numba.njit(inline="always")(_psi)
+            fric = numba.njit(inline="always")(seal_friction)
             kernel = numba.njit(_step)
-        globals()["_psi"] = psi  # the global _step's compiled body resolves and calls
+        # the globals the compiled body of _step resolves and calls
+        globals()["_psi"] = psi
+        globals()["seal_friction"] = fric
         _kernel = kernel
     return _kernel

@@ -25,7 +25,9 @@ eq. for the pressures with one index for charging, discharging and volume
 change; n = 1 isothermal, 1.4 adiabatic).
 
 *Force on the slide:*
-:math:`F = p_1 A_1 - p_2 A_2 - p_a (A_1 - A_2) - β \\dot q - F_c \\tanh(\\dot q / v_s)`.
+:math:`F = p_1 A_1 - p_2 A_2 - p_a (A_1 - A_2) - F_f(\\dot q)`, with the seal
+friction :math:`F_f` (breakaway, Stribeck, Coulomb, viscous) of
+:func:`simpro_mj.plant.friction.seal_friction`.
 
 *Integration.* Each chamber pressure obeys a scalar ODE (the chambers only
 talk to each other through the piston). Near the end stops the chamber is
@@ -51,6 +53,7 @@ from bisect import bisect_right
 
 import numpy as np
 
+from simpro_mj.plant.friction import seal_friction
 from simpro_mj.plant.kernels import kernel_choice
 from simpro_mj.plant.pneumatics import kernel as _pk
 from simpro_mj.plant.pneumatics.flow import RHO_REF, T_REF, psi_table
@@ -115,7 +118,7 @@ class NonlinearActuators:
         self._sg = np.array([[1.0], [-1.0], [-1.0], [1.0]]) * np.ones((1, 3))
         self._delta = np.broadcast_to(P.underlap, (4, 3)).copy()
         self._eps = P.leakage
-        # One work vector z: [p1 (3), p2 (3), qdot (3), tanh(qdot/vs) (3), 1, 3 spare],
+        # One work vector z: [p1 (3), p2 (3), qdot (3), seal friction (3), 1, 3 spare],
         # followed by the spool positions and rates: the head of the compiled
         # kernel's buffer (kernel.py), whose views they are
         self._kb = np.zeros(_pk.buffer_len(len(self._xp)))
@@ -124,17 +127,21 @@ class NonlinearActuators:
         self._z = z
         self._p = z[:6]
         self.p1, self.p2 = z[:3], z[3:6]
-        self._zqd, self._zth, self._z13 = z[6:9], z[9:12], z[:13]
-        # force F = A1 p1 - A2 p2 - pa Ar - beta qdot - Fc tanh(qdot/vs) = Mf @ z[:13]
+        self._zqd, self._zfr, self._z13 = z[6:9], z[9:12], z[:13]
+        # force F = A1 p1 - A2 p2 - pa Ar - F_f(qdot) = Mf @ z[:13]
         mf = np.zeros((3, 13))
         i3 = np.arange(3)
         mf[i3, i3] = self._A1
         mf[i3, 3 + i3] = -self._A2
-        mf[i3, 6 + i3] = -P.viscous
-        mf[i3, 9 + i3] = -P.coulomb
+        mf[i3, 9 + i3] = -1.0
         mf[:, 12] = -pa * self._Ar
         self._mf = mf
-        self._inv_vs = 1.0 / P.v_smooth if P.v_smooth > 0 else 1e12
+        # seal friction per leg: (breakaway, Coulomb, Stribeck velocity, viscous, v_reg)
+        self._fric = tuple(
+            (float(P.breakaway[i]), float(P.coulomb[i]), P.v_stribeck, float(P.viscous[i]),
+             P.v_smooth)
+            for i in range(3)
+        )  # fmt: skip
         # volumes V = Mv @ [1, q]: V1 = V01 + A1 q, V2 = V02 + A2 (L - q) (_chambers below)
         mv = np.zeros((6, 4))
         mv[:3, 0], mv[3:, 0] = P.dead_cap, P.dead_rod + self._A2 * self._L
@@ -194,7 +201,9 @@ class NonlinearActuators:
         """Constants of the compiled kernel in its buffer (:mod:`.kernel`)."""
         pk, kb = _pk, self._kb
         kb[pk.KP_PS], kb[pk.KP_PA], kb[pk.KP_RTK] = self._ps, self._pa, self._RTk
-        kb[pk.KP_EPS], kb[pk.KP_IVS] = self._eps, self._inv_vs
+        kb[pk.KP_EPS] = self._eps
+        for i, fr in enumerate(self._fric):
+            kb[pk.KP_FRIC + 5 * i : pk.KP_FRIC + 5 * i + 5] = fr
         kb[pk.KP_DELTA : pk.KP_DELTA + 3] = self._delta_l
         kb[pk.KP_ORDER], kb[pk.KP_NSUB] = self.params.spool_order, self._n_sub
         for c, _, v0, dv, vmin in self._chambers:
@@ -302,9 +311,10 @@ class NonlinearActuators:
 
     def force_now(self, qdot) -> np.ndarray:
         """Net slide force (N) of the present pressures at speed ``qdot``."""
-        self._zqd[:] = qdot
-        np.multiply(self._zqd, self._inv_vs, out=self._zth)
-        np.tanh(self._zth, out=self._zth)
+        qd = _as3(qdot)
+        self._zqd[:] = qd
+        for i, fr in enumerate(self._fric):
+            self._zfr[i] = seal_friction(qd[i], *fr)
         return np.dot(self._mf, self._z13)
 
     # -- step ----------------------------------------------------------------
@@ -322,11 +332,9 @@ class NonlinearActuators:
         chambers are too few for numpy: a ufunc on a 3-vector costs about as
         much as 20 float operations in the interpreter. The per-chamber
         arithmetic therefore runs on Python floats, operation for operation
-        the same IEEE expressions as the stacked-array version it replaced
-        (same grouping, so bit-identical results; ``tests/test_reference_metrics.py``).
-        Two steps stay in numpy because a scalar rewrite would round
-        differently: ``tanh`` (numpy's SIMD kernel is not libm's) and the
-        force product ``Mf @ z`` (BLAS accumulates with FMA).
+        the same IEEE expressions as the compiled kernel (:mod:`.kernel`), so
+        both give the same bits. The force product ``Mf @ z`` stays in numpy
+        (BLAS accumulates with FMA; a scalar rewrite would round differently).
         """
         if dt != self._dt:
             if not dt > 0:
@@ -341,7 +349,6 @@ class NonlinearActuators:
             q0, q1, q2 = q
             v0, v1, v2 = qd
             self._kernel(u0, u1, u2, q0, q1, q2, v0, v1, v2, self._kb)
-            np.tanh(self._zth, out=self._zth)
             return np.dot(self._mf, self._z13)
         # valve command: saturate 0..10 V, normalise around the 5 V centre;
         # then the spool lag (exact for the held command)
@@ -377,7 +384,7 @@ class NonlinearActuators:
         # the six chambers, cap sides of legs 1-3 then rod sides (the order of
         # p1, p2): supply edges P->1, P->2 and exhaust edges 1->R, 2->R
         a_supply, a_exhaust = a_plus + a_minus, a_minus + a_plus
-        z = self._z  # [p1 (3), p2 (3), qdot (3), tanh(qdot/vs) (3), 1, spare (3)]
+        z = self._z  # [p1 (3), p2 (3), qdot (3), seal friction (3), 1, spare (3)]
         p = z.tolist()
         ps, pa, hn, rtk = self._ps, self._pa, self._hn, self._RTk
         ips = 1.0 / ps  # read each step: the supply may change at run time (faults)
@@ -425,11 +432,12 @@ class NonlinearActuators:
                 # Vdot >= 0; compression can lift p above p_s, which then flows back)
                 pc = ((g_s * ps + g_e * pa) * hc + pc) / den
             z[c] = pc
-        # force on the slide with friction (viscous + tanh Coulomb): Mf @ z
-        ivs = self._inv_vs
+        # force on the slide less the seal friction: Mf @ z
         z[6], z[7], z[8] = qd
-        z[9], z[10], z[11] = qd[0] * ivs, qd[1] * ivs, qd[2] * ivs
-        np.tanh(self._zth, out=self._zth)
+        fr = self._fric
+        z[9] = seal_friction(qd[0], *fr[0])
+        z[10] = seal_friction(qd[1], *fr[1])
+        z[11] = seal_friction(qd[2], *fr[2])
         return np.dot(self._mf, self._z13)
 
     def _spool2(self, cmd_volts) -> list:

@@ -65,7 +65,14 @@ DEFAULT_PNEUMATIC_PARAMS: dict = {
         # its describing-function damping at PRBS speeds would dominate the
         # paper's small damping of legs 2-3, see docs/paper-notes.md (pneumatics))
         "coulomb_friction_n": [20.0, 20.0, 20.0],
-        # tanh smoothing velocity of the Coulomb law, mm/s (assumption)
+        # Static (breakaway) friction, N, >= the Coulomb force; null: equal to it
+        # (no Stribeck peak). The seal law is simpro_mj.plant.friction.seal_friction.
+        "breakaway_friction_n": None,
+        # Stribeck velocity, mm/s: where the breakaway peak has fallen to 1/e
+        # (lubricated elastomer seals: a few to tens of mm/s, Tran & Yanada 2013)
+        "stribeck_velocity_mm_per_s": 10.0,
+        # regularising velocity of the dry friction (tanh), mm/s: below it the
+        # seal acts as a damper of slope breakaway / velocity (assumption)
         "coulomb_smoothing_mm_per_s": 5.0,
     },
     "valve": {
@@ -199,6 +206,12 @@ _PLAUSIBLE = {
     "cylinder.coulomb_friction_n": (
         0.0, 5000.0, False, "N: tens to a few hundred for a DNC-125; 5 kN is 40 % of its force"
     ),
+    "cylinder.breakaway_friction_n": (
+        0.0, 5000.0, False, "N: at least the Coulomb force; 5 kN is 40 % of the cylinder's force"
+    ),
+    "cylinder.stribeck_velocity_mm_per_s": (
+        1e-3, 1000.0, True, "mm/s: where the breakaway peak decays, a few to tens of mm/s"
+    ),
     "cylinder.coulomb_smoothing_mm_per_s": (
         1e-3, 1000.0, False, "mm/s: the speed over which the friction changes sign"
     ),
@@ -230,7 +243,9 @@ class PneumaticParams:
     dead_rod: np.ndarray  # m^3
     viscous: np.ndarray  # N s/m
     coulomb: np.ndarray  # N
-    v_smooth: float  # m/s
+    breakaway: np.ndarray  # N, >= coulomb
+    v_stribeck: float  # m/s
+    v_smooth: float  # m/s, the regularising velocity of the seal friction
     conductance: float  # m^3/(s Pa)
     b_crit: float
     r_laminar: float
@@ -277,6 +292,17 @@ class PneumaticParams:
         sub = _scalar(t, "integration.substeps", 0.0, 1000.0)
         if sub != int(sub):
             raise UserInputError("invalid value at pneumatics.integration.substeps: an integer")
+        coulomb = _per_leg(t, "cylinder.coulomb_friction_n")
+        if t["cylinder"]["breakaway_friction_n"] is None:
+            breakaway = coulomb.copy()
+        else:
+            breakaway = _per_leg(t, "cylinder.breakaway_friction_n")
+            if np.any(breakaway < coulomb):
+                raise UserInputError(
+                    "invalid value at pneumatics.cylinder.breakaway_friction_n: "
+                    f"{t['cylinder']['breakaway_friction_n']!r}; allowed: null or, per leg, at "
+                    f"least pneumatics.cylinder.coulomb_friction_n ({coulomb.tolist()})"
+                )
         lin_m = t["linear"]["effective_mass_kg"]
         sat = t["linear"]["saturate_force"]
         if not isinstance(sat, bool):
@@ -293,7 +319,9 @@ class PneumaticParams:
             dead_cap=_per_leg(t, "cylinder.dead_volume_cap_l", 0.0, open_lo=True) * 1e-3,
             dead_rod=_per_leg(t, "cylinder.dead_volume_rod_l", 0.0, open_lo=True) * 1e-3,
             viscous=_per_leg(t, "cylinder.viscous_friction_n_s_per_m"),
-            coulomb=_per_leg(t, "cylinder.coulomb_friction_n"),
+            coulomb=coulomb,
+            breakaway=breakaway,
+            v_stribeck=_scalar(t, "cylinder.stribeck_velocity_mm_per_s", 0.0) * 1e-3,
             v_smooth=_scalar(t, "cylinder.coulomb_smoothing_mm_per_s", 0.0) * 1e-3,
             conductance=_scalar(t, "valve.sonic_conductance_dm3_per_s_bar", 0.0) * 1e-3 / 1e5,
             b_crit=_scalar(t, "valve.critical_pressure_ratio", 0.0, 0.528, open_lo=False),

@@ -1,0 +1,112 @@
+"""The heavy cabin's plant: seal friction (breakaway, Stribeck, Coulomb, viscous).
+
+Numbers are those of the ``heavy_cabin`` preset's DNC-125 seals: breakaway
+250 N, Coulomb 150 N, Stribeck velocity 10 mm/s, viscous 300 N s/m,
+regularising velocity 3 mm/s (``docs/paper-notes.md``, seal friction).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from simpro_mj.core.errors import UserInputError
+from simpro_mj.plant.friction import seal_friction
+from simpro_mj.plant.pneumatics.nonlinear import NonlinearActuators
+from simpro_mj.plant.pneumatics.params import PneumaticParams
+
+FS, FC, VS, BETA, VR = 250.0, 150.0, 0.010, 300.0, 0.003
+DT = 1e-3
+
+
+def test_friction_is_zero_at_rest_and_odd():
+    assert seal_friction(0.0, FS, FC, VS, BETA, VR) == 0.0
+    for v in (1e-4, 2e-3, 0.01, 0.3):
+        assert seal_friction(-v, FS, FC, VS, BETA, VR) == -seal_friction(v, FS, FC, VS, BETA, VR)
+
+
+def test_stribeck_curve():
+    """With a vanishing regularisation the law is the Stribeck curve itself:
+    F_S just above rest, F_C + (F_S - F_C)/e + β v_S at v_S, F_C + β v far above."""
+    vr = 1e-9
+    assert seal_friction(1e-6, FS, FC, VS, BETA, vr) == pytest.approx(FS, abs=1e-3)
+    assert seal_friction(VS, FS, FC, VS, BETA, vr) == pytest.approx(
+        150.0 + 100.0 / math.e + 3.0, rel=1e-12
+    )
+    # 10 v_S: the peak has decayed to e^-100
+    assert seal_friction(0.1, FS, FC, VS, BETA, vr) == pytest.approx(150.0 + 30.0, rel=1e-12)
+    # between the peak and the Coulomb level the curve falls (negative damping) ...
+    f = [seal_friction(v, FS, FC, VS, BETA, vr) for v in (0.001, 0.005, 0.01, 0.02)]
+    assert f[0] > f[1] > f[2] > f[3]
+    # ... and with the regularisation it rises from 0 through the peak below ~2 v_r
+    assert seal_friction(VR, FS, FC, VS, BETA, VR) == pytest.approx(
+        (FC + (FS - FC) * math.exp(-0.09)) * math.tanh(1.0) + BETA * VR, rel=1e-12
+    )
+
+
+def test_without_breakaway_the_law_is_the_smoothed_coulomb_and_viscous_one():
+    for v in (-0.2, -0.004, 0.0007, 0.05):
+        want = FC * math.tanh(v / 0.005) + BETA * v
+        assert seal_friction(v, FC, FC, VS, BETA, 0.005) == pytest.approx(want, rel=1e-15)
+
+
+def _slide(force, mass=150.0, seconds=3.0):
+    """A mass pushed by ``force`` against the seals, stepped as the co-simulation
+    steps a slide: the friction of the present velocity applied over the next 1 ms."""
+    x = v = 0.0
+    for _ in range(int(round(seconds / DT))):
+        v += (force - seal_friction(v, FS, FC, VS, BETA, VR)) / mass * DT
+        x += v * DT
+    return x, v
+
+
+def test_below_breakaway_the_seals_hold_the_leg():
+    """200 N (0.8 F_S) from rest: the leg creeps at the speed where the seals
+    carry 200 N, about v_r artanh(0.8) = 3.3 mm/s (3.6 with the peak's decay
+    at that speed), not the 1.33 m/s^2 of a free 150 kg; 300 N (1.2 F_S) breaks
+    it away towards (F - F_C)/β = 0.5 m/s."""
+    lo, hi = 0.0, 0.006  # creep speed: F_f(v) = 200 N (the law rises to 214 N at 6 mm/s)
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if seal_friction(mid, FS, FC, VS, BETA, VR) < 200.0 else (lo, mid)
+    assert VR * math.atanh(0.8) < lo < 4e-3
+    x, v = _slide(200.0)
+    assert v == pytest.approx(lo, rel=1e-3)
+    assert x < 3.0 * 4e-3  # under 12 mm in 3 s (free: 6 m)
+    x, v = _slide(300.0)
+    # v(t) = 0.5 (1 - exp(-β t / m)) past the peak: 0.5 (1 - e^-6) at 3 s
+    assert v == pytest.approx(0.5 * (1 - math.exp(-6.0)), rel=0.02)
+
+
+def test_the_actuators_subtract_the_seal_friction():
+    tree = {
+        "cylinder": {
+            "coulomb_friction_n": FC,
+            "breakaway_friction_n": [FS, FS + 10.0, FS + 20.0],
+            "stribeck_velocity_mm_per_s": 10.0,
+            "viscous_friction_n_s_per_m": BETA,
+            "coulomb_smoothing_mm_per_s": 3.0,
+        }
+    }
+    act = NonlinearActuators(tree)
+    f0 = act.force_now(np.zeros(3)).copy()
+    v = np.array([0.004, -0.01, 0.2])
+    got = f0 - act.force_now(v)
+    want = [seal_friction(v[i], FS + 10.0 * i, FC, VS, BETA, VR) for i in range(3)]
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-9)
+    # one step at rest: the pressures' force only (friction 0 at rest)
+    act.reset(np.full(3, 0.25), np.zeros(3))
+    np.testing.assert_array_equal(
+        act.step([5.0] * 3, [0.25] * 3, [0.0] * 3, DT), act.force_now(np.zeros(3))
+    )
+
+
+def test_breakaway_below_coulomb_is_refused():
+    with pytest.raises(UserInputError, match=r"breakaway_friction_n.*coulomb_friction_n"):
+        PneumaticParams.from_tree(
+            {"cylinder": {"coulomb_friction_n": 150, "breakaway_friction_n": [250, 100, 250]}}
+        )
+    P = PneumaticParams.from_tree({"cylinder": {"coulomb_friction_n": [1, 2, 3]}})
+    np.testing.assert_array_equal(P.breakaway, [1.0, 2.0, 3.0])  # null: no Stribeck peak
