@@ -92,11 +92,7 @@ class BoundedLoader(yaml.SafeLoader):
         self._depth += 1
         try:
             if self._depth > MAX_DEPTH:
-                raise YAMLLimitError(
-                    f"nesting deeper than {MAX_DEPTH} levels",
-                    f"at most {MAX_DEPTH} levels of mappings and lists",
-                    self.peek_event().start_mark,
-                )
+                raise _too_deep(self.peek_event().start_mark)
             return super().compose_node(parent, index)
         finally:
             self._depth -= 1
@@ -171,17 +167,29 @@ def _check_depth_events(text: str) -> None:
     """Nesting depth from libyaml's event stream (iterative), before its
     composer (which recurses) sees the document."""
     depth = 0
-    for event in yaml.parse(text, Loader=yaml.CSafeLoader):
-        if isinstance(event, _OPEN):
-            depth += 1
-            if depth > MAX_DEPTH:
-                raise YAMLLimitError(
-                    f"nesting deeper than {MAX_DEPTH} levels",
-                    f"at most {MAX_DEPTH} levels of mappings and lists",
-                    event.start_mark,
-                )
-        elif isinstance(event, _CLOSE):
-            depth -= 1
+    try:
+        for event in yaml.parse(text, Loader=yaml.CSafeLoader):
+            if isinstance(event, _OPEN):
+                depth += 1
+                if depth > MAX_DEPTH:
+                    raise _too_deep(event.start_mark)
+            elif isinstance(event, _CLOSE):
+                depth -= 1
+    except yaml.MarkedYAMLError as exc:
+        # libyaml 0.2.5 and later stop at 1000 levels in the scanner, which reads
+        # a flow collection's brackets ahead of the events counted here: the
+        # same limit, reported in this module's words.
+        if "maximum nesting depth" not in str(exc.problem):
+            raise
+        raise _too_deep(exc.problem_mark) from None
+
+
+def _too_deep(mark) -> YAMLLimitError:
+    return YAMLLimitError(
+        f"nesting deeper than {MAX_DEPTH} levels",
+        f"at most {MAX_DEPTH} levels of mappings and lists",
+        mark,
+    )
 
 
 def _unique_mapping(loader, node, deep=False):
