@@ -89,7 +89,7 @@ def test_the_simulation_designs_on_the_scenarios_own_plant(cache, monkeypatch):
     are placed on what was identified (k_p b kept: corrected_design)."""
     sc = load_scenario(
         "step_pitch",
-        ["plant.preset=heavy_cabin", IDENT, "plant.payload.mass_kg=120", "duration_s=0.2"],
+        ["plant.preset=heavy_cabin", IDENT, "plant.payload.mass_kg=60", "duration_s=0.2"],
     )
     import simpro_mj.identification.identify as ident
     from simpro_mj.sim.loop import CoSimulation

@@ -110,3 +110,46 @@ def test_breakaway_below_coulomb_is_refused():
         )
     P = PneumaticParams.from_tree({"cylinder": {"coulomb_friction_n": [1, 2, 3]}})
     np.testing.assert_array_equal(P.breakaway, [1.0, 2.0, 3.0])  # null: no Stribeck peak
+
+
+# ---------------------------------------------------------------- the heavy cabin preset
+
+
+def test_heavy_cabin_resolves_to_a_cabin_with_its_driver_and_real_seals():
+    """As a run writes it (scenario.yaml is the resolved tree): a payload of at
+    least 150 kg, at least 50 N of Coulomb friction on every leg, a breakaway
+    above it, the catalogue valve; MuJoCo's payload body carries that mass and
+    the principal moments of the given inertia tensor."""
+    from simpro_mj.config.scenario import load_scenario
+    from simpro_mj.plant.model import load_model
+
+    sc = load_scenario("step_pitch", ["plant.preset=heavy_cabin"])
+    payload = sc["plant"]["payload"]
+    assert payload["mass_kg"] >= 150.0
+    cyl = sc["actuator"]["pneumatics"]["cylinder"]
+    assert min(cyl["coulomb_friction_n"]) >= 50.0
+    fs, fc = cyl["breakaway_friction_n"], cyl["coulomb_friction_n"]
+    assert all(b > c for b, c in zip(fs, fc, strict=True))
+    assert sc["actuator"]["pneumatics"]["valve"]["sonic_conductance_dm3_per_s_bar"] == 7.87
+    m = load_model({k: v for k, v in sc["plant"].items() if k != "preset"})
+    body = m.body("payload").id
+    assert m.body_mass[body] == pytest.approx(payload["mass_kg"])
+    ixx, iyy, izz, ixy, ixz, iyz = payload["inertia_kg_m2"]
+    tensor = np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])
+    np.testing.assert_allclose(np.sort(m.body_inertia[body]), np.linalg.eigvalsh(tensor), rtol=1e-9)
+    # the centre of mass where the preset puts it (the body's frame origin)
+    np.testing.assert_allclose(m.body_pos[body], np.asarray(payload["com_mm"]) * 1e-3)
+    np.testing.assert_allclose(m.body_ipos[body], 0.0)
+
+
+@pytest.mark.parametrize(
+    "value",
+    [[1, 1, 5, 0, 0, 0], [10, 10, 10, 20, 0, 0], [1, 2, 3], "heavy"],
+    ids=["triangle inequality", "not positive definite", "3 numbers", "text"],
+)
+def test_an_impossible_inertia_is_one_line_naming_the_key(value):
+    from simpro_mj.config.scenario import load_scenario
+
+    with pytest.raises(UserInputError, match=r"plant\.payload\.inertia_kg_m2") as e:
+        load_scenario("step_pitch", [f"plant.payload.inertia_kg_m2={value}"])
+    assert "\n" not in str(e.value)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import copy
 import json
 import math
 
@@ -12,8 +13,9 @@ import pytest
 from simpro_mj.commands import main as cli
 from simpro_mj.core.keys import apply_overrides
 from simpro_mj.identification.identify import default_tree, fit_eq19, identify, paper_models
-from simpro_mj.plant.model import assemble, load_model
+from simpro_mj.plant.model import DEFAULT_MODEL_PARAMS, assemble, load_model
 from simpro_mj.plant.pneumatics.nonlinear import NonlinearActuators
+from simpro_mj.plant.pneumatics.params import DEFAULT_PNEUMATIC_PARAMS
 from simpro_mj.plant.pneumatics.statics import holding_forces, slide_mass_matrix
 
 
@@ -93,9 +95,12 @@ def test_default_preset_identifies_the_papers_models():
 
 
 def test_identification_of_the_nonlinear_model_meets_calibration_and_physics():
-    """On the heavy cabin: actuator 1's damping ratio is calibrated to the paper (±0.1);
-    ω_n and the velocity gain follow the physics of the chamber stiffness and valve flow."""
-    tree = apply_overrides(default_tree("heavy_cabin"), ["identify.duration_s=6"])
+    """On the model's own defaults (250 kg, catalogue valve, [11000, 600, 600] N s/m):
+    actuator 1's damping ratio is calibrated to the paper (±0.1); ω_n and the velocity
+    gain follow the physics of the chamber stiffness and valve flow."""
+    tree = apply_overrides(default_tree(), ["identify.duration_s=6"])
+    tree["model"] = copy.deepcopy(DEFAULT_MODEL_PARAMS)
+    tree["pneumatics"] = copy.deepcopy(DEFAULT_PNEUMATIC_PARAMS)
     res = identify(tree, legs=(1, 2))
     wn_pred, vg_pred = _physics_prediction(tree)
     a1, a2 = res["actuator1"], res["actuator2"]

@@ -26,9 +26,9 @@ def test_shipped_presets_and_the_default():
     # the preset's identified models are what design_plant: identified uses
     assert sc["controller"]["inner"]["identified"] == load_preset("paper")["identified"]
     heavy = load_scenario("step_pitch", ["plant.preset=heavy_cabin"])
-    assert heavy["plant"]["payload"]["mass_kg"] == pytest.approx(250.0)
-    assert heavy["actuator"]["pneumatics"] == {}
-    assert heavy["controller"]["inner"]["identified"]["actuator1"]["b"] == pytest.approx(12.51)
+    assert heavy["plant"]["payload"]["mass_kg"] == pytest.approx(230.0)
+    assert heavy["actuator"]["pneumatics"]["valve"]["sonic_conductance_dm3_per_s_bar"] == 7.87
+    assert heavy["controller"]["inner"]["identified"]["actuator1"]["b"] == pytest.approx(8.558)
 
 
 def test_scenario_values_override_the_preset():

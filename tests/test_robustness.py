@@ -111,7 +111,7 @@ BAD_INPUTS = [
             *SHORT,
         ],
         "plant.payload.mass_kg",
-        ["1 bar", "allowed: <= 22 kg"],
+        ["1 bar", "allowed: <= 13 kg"],
     ),
     # pneumatic values are checked at load time with their scenario path
     (

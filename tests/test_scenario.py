@@ -100,7 +100,11 @@ def test_sets_apply_after_file_and_before_validation():
     assert s["controller"]["mode"] == "joint_only"
     assert s["duration_s"] == 4.0 and isinstance(s["duration_s"], float)
     assert s["controller"]["outer"]["gains"] == [1.0, 2.0, 3.0]
-    assert s["plant"]["payload"] == {"mass_kg": 100.0, "com_mm": [60.0, 0.0, 400.0]}
+    assert s["plant"]["payload"] == {
+        "mass_kg": 100.0,
+        "com_mm": [60.0, 0.0, 400.0],
+        "inertia_kg_m2": None,
+    }
     assert s["setpoint"]["heave_mm"][0]["type"] == "ramp"
     # validation runs after the overrides: an override can make a file valid
     with pytest.raises(UserInputError, match="duration_s"):

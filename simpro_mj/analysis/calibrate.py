@@ -53,7 +53,8 @@ from scipy.optimize import least_squares
 from controllers.design import ACTUATORS, paper_plant
 from simpro_mj.analysis.targets import load_targets
 from simpro_mj.core.errors import PhysicsError, UserInputError
-from simpro_mj.identification.identify import default_tree, identify
+from simpro_mj.identification.identify import identify
+from simpro_mj.plant.model_params import DEFAULT_MODEL_PARAMS
 from simpro_mj.plant.pneumatics.params import DEFAULT_PNEUMATIC_PARAMS
 
 __all__ = [
@@ -327,7 +328,8 @@ def calibrate_preset(
     final = identify(fitted)
     result["identified"] = final
     result["residuals"] = residuals(final, targets)
-    base = default_tree("heavy_cabin")
+    # a preset lies over the model's own defaults: it records what differs from them
+    base = {"model": DEFAULT_MODEL_PARAMS, "pneumatics": DEFAULT_PNEUMATIC_PARAMS}
     doc = preset_document(name, fitted, base, result, targets)
     doc["calibration"]["paper_units"] = tree["paper_units"]
     doc["calibration"]["amplitudes_v"] = [float(a) for a in amplitudes_v]

@@ -19,7 +19,7 @@ from simpro_mj.config.presets import DEFAULT_PRESET
 from simpro_mj.config.rules import Block, Problem, below, number, one_of, rule
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.keys import check_keys, value_text
-from simpro_mj.plant.model_params import DEFAULT_MODEL_PARAMS
+from simpro_mj.plant.model_params import DEFAULT_MODEL_PARAMS, inertia_tensor
 from simpro_mj.plant.pneumatics.params import ACTUATOR_KINDS as ACTUATOR_MODELS
 from simpro_mj.plant.pneumatics.params import DEFAULT_PNEUMATIC_PARAMS, PneumaticParams
 from simpro_mj.plant.sensors import DEFAULT_SENSORS, POT_BITS, POT_BITS_TEXT
@@ -121,6 +121,23 @@ def _in_plane(value: list) -> list:
     return value
 
 
+def _inertia_leaf(value: Any) -> list | None:
+    """``plant.payload.inertia_kg_m2``: null or 6 numbers of a physical inertia tensor
+    (the model's own check, :func:`simpro_mj.plant.model_params.inertia_tensor`)."""
+    if value is None:
+        return None
+    if not isinstance(value, list | tuple) or len(value) != 6:
+        raise Problem.wrong_type(
+            value, "null or a list of 6 numbers [Ixx, Iyy, Izz, Ixy, Ixz, Iyz]"
+        )
+    out = [below(number, v, f"[{i}]") for i, v in enumerate(value)]
+    try:
+        inertia_tensor(out)
+    except UserInputError as exc:
+        raise Problem.invalid(value, str(exc).split("; allowed: ", 1)[1]) from None
+    return out
+
+
 class Payload(Block):
     _path = "plant.payload"
     mass_kg: Annotated[
@@ -139,6 +156,11 @@ class Payload(Block):
             f"|x|, |y|, |z| <= {MAX_COM_MM:g} mm (a cabin on a platform about 1 m across)",
         ),
     ] = [60.0, 0.0, 400.0]
+    # [Ixx, Iyy, Izz, Ixy, Ixz, Iyz] about the centre of mass, kg m^2; null: the
+    # MJCF's uniform box of the payload's mass (simpro_mj.plant.model_params)
+    inertia_kg_m2: Annotated[list[float] | None, BeforeValidator(_inertia_leaf)] = _MODEL[
+        "payload"
+    ]["inertia_kg_m2"]
 
 
 class AnchorOffsets(Block):
@@ -178,7 +200,7 @@ class PlantBlock(Block):
             "physics steps, MuJoCo's floor for a stable constraint; at most 1 s)",
         ),
     ] = _MODEL["loop_timeconst_s"]
-    # a shipped preset ("paper", calibrated to eqs. 34-35; "heavy_cabin", 250 kg) or a
+    # a shipped preset ("paper", calibrated to eqs. 34-35; "heavy_cabin", 230 kg) or a
     # preset YAML path (`simpro-sim calibrate`); its plant, actuator.pneumatics and
     # controller.inner.identified values lie under the scenario's own
     # (simpro_mj.config.presets)

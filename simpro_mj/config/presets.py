@@ -8,8 +8,10 @@ calibrate`` use the same files. Shipped presets (``scenarios/presets/``):
 * ``paper`` (default): calibrated so that ``simpro-sim identify`` reproduces
   eqs. (34)-(35) under the potentiometer-volts reading
   (``docs/paper-notes.md`` section 3);
-* ``heavy_cabin``: the earlier default, 250 kg cabin + 120 kg platform and the
-  catalogue valve (its identified models are far from eqs. 34-35).
+* ``heavy_cabin``: a driving-simulator cabin with its driver (230 kg), the
+  catalogue valve and spool, the seals' breakaway and Stribeck friction, each
+  value physically argued (``docs/paper-notes.md`` section 3.8); its identified
+  models are far from eqs. 34-35.
 
 A preset file is a mapping::
 

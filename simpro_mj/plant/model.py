@@ -52,6 +52,7 @@ from simpro_mj.plant.model_params import (  # noqa: E402
     DEFAULT_MODEL_PARAMS,
     LEG_POINTS,
     MAX_MODEL_PAYLOAD_KG,
+    inertia_tensor,
 )
 
 WARNING_NAMES = {int(v): k for k, v in mujoco.mjtWarning.__members__.items() if k != "mjNWARNING"}
@@ -125,6 +126,15 @@ def load_spec(params: dict | None = None, path: Path | str | None = None) -> muj
     payload.pos = _vec(p, "payload.com_mm", 3) * 1e-3
     # mass 0 would make the payload body massless: MuJoCo needs a tiny mass there
     spec.geom("payload").mass = max(float(p["payload"]["mass_kg"]), 1e-6)
+    inertia = p["payload"].get("inertia_kg_m2")
+    if inertia is not None:
+        # the given inertia instead of the box geom's: the payload body's own inertial
+        # (inertiafromgeom "auto" reads geoms only for bodies without one, as the others)
+        spec.compiler.inertiafromgeom = mujoco.mjtInertiaFromGeom.mjINERTIAFROMGEOM_AUTO
+        payload.explicitinertial = True
+        payload.mass = max(float(p["payload"]["mass_kg"]), 1e-6)
+        payload.ipos = [0.0, 0.0, 0.0]
+        payload.fullinertia = inertia_tensor(inertia)
     spec.geom("platform_frame").mass = float(p["platform_mass_kg"])
 
     for name in BASE_POINTS:

@@ -8,7 +8,15 @@ refusing) a scenario does not pay for importing MuJoCo;
 
 from __future__ import annotations
 
-__all__ = ["LEG_POINTS", "BASE_POINTS", "DEFAULT_MODEL_PARAMS", "MAX_MODEL_PAYLOAD_KG"]
+import math
+
+__all__ = [
+    "LEG_POINTS",
+    "BASE_POINTS",
+    "DEFAULT_MODEL_PARAMS",
+    "MAX_MODEL_PAYLOAD_KG",
+    "inertia_tensor",
+]
 
 #: Largest payload the MJCF builder accepts (kg): far above what the cylinders hold
 #: (the preflight refuses a payload with its limit first), below what makes the
@@ -25,6 +33,10 @@ DEFAULT_MODEL_PARAMS: dict = {
         "mass_kg": 250.0,
         # centre of mass in the platform frame (origin P), mm
         "com_mm": [0.0, 0.0, 400.0],
+        # inertia about the centre of mass in the platform frame's axes, kg m^2:
+        # [Ixx, Iyy, Izz, Ixy, Ixz, Iyz] (MuJoCo's fullinertia order). null: a
+        # uniform 1.4 m x 0.9 m x 0.8 m box of the payload's mass (the MJCF's geom)
+        "inertia_kg_m2": None,
     },
     "platform_mass_kg": 120.0,
     # as-built errors of the attachment points, mm, added to the nominal ones
@@ -38,3 +50,29 @@ DEFAULT_MODEL_PARAMS: dict = {
     # loop-closure constraint time constant (MuJoCo solref[0]); >= 2 timesteps
     "loop_timeconst_s": 0.002,
 }
+
+
+def inertia_tensor(value) -> list[float]:
+    """``payload.inertia_kg_m2`` checked: 6 finite numbers [Ixx, Iyy, Izz, Ixy, Ixz, Iyz]
+    (kg m^2) of a physical inertia tensor: positive definite, its principal moments
+    obeying the triangle inequality. Raises ``UserInputError`` naming the key."""
+    from simpro_mj.core.errors import UserInputError
+
+    ok = isinstance(value, list | tuple) and len(value) == 6
+    ok = ok and all(
+        isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v) for v in value
+    )
+    if ok:
+        import numpy as np
+
+        ixx, iyy, izz, ixy, ixz, iyz = (float(v) for v in value)
+        m = np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])
+        e = np.linalg.eigvalsh(m)
+        ok = bool(e[0] > 0 and e[0] + e[1] >= e[2] * (1 - 1e-9))
+    if not ok:
+        raise UserInputError(
+            f"invalid value at model.payload.inertia_kg_m2: {value!r}; allowed: null or "
+            "[Ixx, Iyy, Izz, Ixy, Ixz, Iyz] kg m^2 about the centre of mass, positive "
+            "definite, its principal moments obeying the triangle inequality"
+        )
+    return [float(v) for v in value]
