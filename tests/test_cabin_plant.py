@@ -153,3 +153,127 @@ def test_an_impossible_inertia_is_one_line_naming_the_key(value):
     with pytest.raises(UserInputError, match=r"plant\.payload\.inertia_kg_m2") as e:
         load_scenario("step_pitch", [f"plant.payload.inertia_kg_m2={value}"])
     assert "\n" not in str(e.value)
+
+
+# ---------------------------------------------------------------- sensor errors
+
+
+def test_accelerometer_tilt_reads_the_platforms_own_acceleration():
+    """At rest the accelerometer's tilt is the true one; accelerating level at a
+    it reads pitch -atan(a_x/g) and roll atan(a_y/g) (the specific force leans)."""
+    from simpro_mj.plant.sensor_errors import G, accel_tilt
+
+    for roll, pitch in ((0.0, 0.0), (0.05, -0.1), (-0.3, 0.2)):
+        r, p = accel_tilt(0.0, 0.0, 0.0, roll, pitch)
+        assert r == pytest.approx(roll, abs=1e-15) and p == pytest.approx(pitch, abs=1e-15)
+    r, p = accel_tilt(1.0, 0.0, 0.0, 0.0, 0.0)
+    assert r == 0.0 and p == pytest.approx(-math.atan(1.0 / G), rel=1e-14)  # -5.82 deg
+    r, p = accel_tilt(0.0, -0.5, 0.0, 0.0, 0.0)
+    assert p == pytest.approx(0.0, abs=1e-15) and r == pytest.approx(math.atan(-0.5 / G))
+    # vertical acceleration only scales the specific force: no tilt error
+    r, p = accel_tilt(0.0, 0.0, 3.0, 0.02, -0.04)
+    assert r == pytest.approx(0.02, abs=1e-15) and p == pytest.approx(-0.04, abs=1e-15)
+
+
+def test_potentiometer_bow_has_the_datasheet_linearity():
+    """0.1 % of a 500 mm track: +0.5 mm at mid-stroke, -0.5 mm at both ends, no
+    more anywhere (the independent linearity)."""
+    from simpro_mj.plant.sensor_errors import pot_nonlinearity
+
+    fs, nu = 0.5, 1e-3
+    assert pot_nonlinearity(0.25, fs, nu) == pytest.approx(5e-4, rel=1e-12)
+    assert pot_nonlinearity(0.0, fs, nu) == pytest.approx(-5e-4, rel=1e-12)
+    assert pot_nonlinearity(0.5, fs, nu) == pytest.approx(-5e-4, rel=1e-12)
+    e = [pot_nonlinearity(q, fs, nu) for q in np.linspace(0, fs, 1001)]
+    assert max(abs(x) for x in e) == pytest.approx(5e-4, rel=1e-12)
+
+
+def test_noise_density_and_bias_walk_per_sample():
+    from simpro_mj.plant.sensor_errors import bias_walk_sigma, noise_sigma
+
+    # 200 Hz samples: the Nyquist band is 100 Hz, so sigma = density x 10
+    assert noise_sigma(0.01, 0.005) == pytest.approx(0.1, rel=1e-14)
+    # a walk of w per sqrt(s), sampled every 5 ms: w sqrt(0.005) per sample
+    assert bias_walk_sigma(0.01, 0.005) == pytest.approx(0.01 * math.sqrt(0.005), rel=1e-14)
+
+
+def _sensors(tree_changes, seed, kernel, monkeypatch):
+    from simpro_mj.plant.sensors import DEFAULT_SENSORS, SensorConfig, Sensors
+
+    monkeypatch.setenv("SIMPRO_KERNEL", kernel)
+    tree = {k: dict(v) for k, v in DEFAULT_SENSORS.items()}
+    for key, value in tree_changes.items():
+        group, name = key.split(".")
+        tree[group][name] = value
+    return Sensors(SensorConfig.from_tree(tree, DT), np.random.default_rng(seed), block=53)
+
+
+def test_bias_walk_grows_as_its_density_says(monkeypatch):
+    """0.02 deg/sqrt(s) over 4 s: the bias's spread across 60 seeds (two axes) is
+    0.02 sqrt(4) = 0.04 deg (within the 1/sqrt(120) sampling error); the other
+    noise draws are those of a run without the walk."""
+    ends = []
+    for seed in range(60):
+        s = _sensors(
+            {"imu.bias_walk_deg_per_sqrt_s": 0.02, "imu.noise_deg": 0.0}, seed, "python",
+            monkeypatch,
+        )  # fmt: skip
+        s.reset([0.25] * 3, [0.0, 0.0, 1.2])
+        for k in range(1, 4001):
+            _, pose = s.sample_floats(k, [0.25] * 3, [0.0, 0.0, 1.2])
+        ends += [math.degrees(pose[0]), math.degrees(pose[1])]
+    assert float(np.std(ends)) == pytest.approx(0.04, rel=0.2)
+    a = _sensors({"imu.bias_walk_deg_per_sqrt_s": 0.02}, 5, "python", monkeypatch)
+    b = _sensors({}, 5, "python", monkeypatch)
+    for s in (a, b):
+        s.reset([0.25] * 3, [0.0, 0.0, 1.2])
+        s.sample_floats(3, [0.25] * 3, [0.0, 0.0, 1.2])
+    assert a.rng.bit_generator.state == b.rng.bit_generator.state
+
+
+def test_sensor_errors_compiled_equal_interpreted(monkeypatch):
+    """Every error on (walk redrawn every 53 samples, the accelerometer from the
+    site's positions, the bow, the density): the kernel's readings are the
+    interpreted path's, bit for bit."""
+    pytest.importorskip("numba")
+    errors = {
+        "imu.bias_walk_deg_per_sqrt_s": 0.01,
+        "imu.accel_tilt_weight": 0.3,
+        "imu.noise_density_deg_per_sqrt_hz": 0.002,
+        "imu.bias_deg": [0.1, -0.2],
+        "potentiometer.nonlinearity_pct_fs": 0.1,
+    }
+    a = _sensors(errors, 7, "python", monkeypatch)
+    b = _sensors(errors, 7, "numba", monkeypatch)
+    assert a._kb is None and b._kb is not None
+    rng = np.random.default_rng(2)
+    for s in (a, b):
+        s.reset([0.25] * 3, [0.01, -0.02, 1.2])
+    for k in range(1, 3000):
+        t = k * DT
+        q = (0.25 + 0.05 * np.sin([t, 2 * t, 3 * t])).tolist()
+        pose = [0.05 * math.sin(2 * t), 0.04 * math.cos(3 * t), 1.2 + 0.01 * math.sin(t)]
+        site = [0.84 + 0.01 * math.sin(5 * t), 0.0, pose[2] + 1e-4 * rng.normal()]
+        force = k % 101 == 0
+        qa, pa = a.sample_floats(k, q, pose, force, site)
+        qb, pb = b.sample_floats(k, q, pose, force, site)
+        assert np.array_equal(qa, qb) and np.array_equal(pa, pb), k
+    assert a._walk == b._kb[69:71].tolist()
+
+
+def _pitch_error_deg(sets):
+    import simpro_mj as s
+
+    r = s.run("step_pitch", {"duration_s": 12.0, **sets})
+    c = r.columns
+    w = c["time_s"] >= 9.0
+    return float(np.mean(c["pitch_ref_rad"][w] - c["pitch_rad"][w])) * 180 / math.pi
+
+
+def test_an_imu_bias_shifts_the_converged_pitch_by_itself():
+    """The task-space loop drives the measured pitch to the set-point: with the IMU
+    reading 0.3 deg high the true pitch settles 0.3 deg low (within the
+    0.0011 deg sensor floor and the shipped run's 0.0006 deg)."""
+    base = _pitch_error_deg({})
+    biased = _pitch_error_deg({"sensors.imu.bias_deg": [0.0, 0.3]})
+    assert biased - base == pytest.approx(0.3, abs=0.003)

@@ -227,6 +227,9 @@ class Potentiometer(Block):
         -0.6,
         0.5,
     ]
+    nonlinearity_pct_fs: Annotated[
+        float, rule(lambda v: 0 <= v <= 5, "0 .. 5 % of full scale (conductive plastic: 0.05-0.1)")
+    ] = _SENSORS["potentiometer"]["nonlinearity_pct_fs"]
     rate_ms: int = _SENSORS["potentiometer"]["rate_ms"]
 
 
@@ -248,7 +251,16 @@ class Imu(Block):
 
     _path = "sensors.imu"
     noise_deg: Annotated[float, rule(lambda v: v >= 0, ">= 0 deg")] = _SENSORS["imu"]["noise_deg"]
+    noise_density_deg_per_sqrt_hz: Annotated[float, rule(lambda v: v >= 0, ">= 0 deg/sqrt(Hz)")] = (
+        _SENSORS["imu"]["noise_density_deg_per_sqrt_hz"]
+    )
     bias_deg: list[float] = list(_SENSORS["imu"]["bias_deg"])
+    bias_walk_deg_per_sqrt_s: Annotated[float, rule(lambda v: v >= 0, ">= 0 deg/sqrt(s)")] = (
+        _SENSORS["imu"]["bias_walk_deg_per_sqrt_s"]
+    )
+    accel_tilt_weight: Annotated[
+        float, rule(lambda v: 0 <= v <= 1, "0 (gyro only) .. 1 (accelerometer only)")
+    ] = _SENSORS["imu"]["accel_tilt_weight"]
     bandwidth_hz: Annotated[float, rule(lambda v: v > 0, "> 0 Hz")] = _SENSORS["imu"][
         "bandwidth_hz"
     ]

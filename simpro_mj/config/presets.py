@@ -19,11 +19,12 @@ A preset file is a mapping::
     description: ...
     plant: {payload: {mass_kg: ...}, ...}         # over simpro_mj.plant.model.DEFAULT_MODEL_PARAMS
     pneumatics: {cylinder: {...}, valve: {...}}   # over DEFAULT_PNEUMATIC_PARAMS
+    sensors: {imu: {...}, potentiometer: {...}}   # the rig's sensor errors, over the scenario's
     identified: {actuator1: {b, a1, a0}, ...}     # what identify measures on it (SI)
     calibration: {...}                            # free-form record (targets, residuals)
 
-Values in a scenario's own ``plant`` and ``actuator.pneumatics`` override the
-preset's.
+Values in a scenario's own ``plant``, ``actuator.pneumatics`` and ``sensors``
+override the preset's.
 """
 
 from __future__ import annotations
@@ -46,7 +47,9 @@ __all__ = [
 ]
 
 DEFAULT_PRESET = "paper"
-PRESET_KEYS = ("name", "description", "plant", "pneumatics", "identified", "calibration")
+PRESET_KEYS = (
+    "name", "description", "plant", "pneumatics", "sensors", "identified", "calibration"
+)  # fmt: skip
 _ACTS = ("actuator1", "actuator2", "actuator3")
 
 
@@ -96,7 +99,7 @@ def load_preset(name_or_path: str) -> dict:
             raise UserInputError(
                 f"unknown key at {path.name}: {k!r}; allowed keys are {list(PRESET_KEYS)}"
             )
-    for k in ("plant", "pneumatics"):
+    for k in ("plant", "pneumatics", "sensors"):
         if not isinstance(doc.get(k) or {}, Mapping):
             raise UserInputError(f"wrong type at {path.name}: {k}; allowed: a mapping")
     ident = doc.get("identified")
@@ -126,6 +129,8 @@ def scenario_overlay(name_or_path: str) -> dict:
     out["plant"]["preset"] = str(name_or_path)
     if p.get("pneumatics"):
         out["actuator"] = {"pneumatics": copy.deepcopy(dict(p["pneumatics"]))}
+    if p.get("sensors"):  # the rig's sensor errors (simpro_mj.plant.sensor_errors)
+        out["sensors"] = copy.deepcopy(dict(p["sensors"]))
     if p.get("identified"):
         ident = {a: {k: float(v) for k, v in p["identified"][a].items()} for a in _ACTS}
         out["controller"] = {"inner": {"identified": ident}}

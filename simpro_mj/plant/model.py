@@ -383,6 +383,8 @@ class StateReader:
         lo, hi = min(sites), max(sites)
         self._xpos_flat = data.site_xpos[lo : hi + 1].reshape(-1)  # view, sites lo..hi
         self._h_at = 3 * (int(idx.site_p) - lo) + 2
+        #: where the platform frame's origin P (the IMU site) starts in read()'s xpos list
+        self.p_at = self._h_at - 2
         self._pairs = [(3 * (int(a) - lo), 3 * (int(b) - lo)) for a, b in idx.connect_sites]
         # arctan2((R21, -R20), (R22, R00)) in one call on pre-allocated buffers
         self._nd = np.empty(4)
