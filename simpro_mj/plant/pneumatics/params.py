@@ -69,7 +69,7 @@ DEFAULT_PNEUMATIC_PARAMS: dict = {
         # (no Stribeck peak). The seal law is simpro_mj.plant.friction.seal_friction.
         "breakaway_friction_n": None,
         # Stribeck velocity, mm/s: where the breakaway peak has fallen to 1/e
-        # (lubricated elastomer seals: a few to tens of mm/s, Tran & Yanada 2013)
+        # (assumption; only a breakaway_friction_n above the Coulomb force uses it)
         "stribeck_velocity_mm_per_s": 10.0,
         # regularising velocity of the dry friction (tanh), mm/s: below it the
         # seal acts as a damper of slope breakaway / velocity (assumption)
