@@ -27,9 +27,10 @@ integrator state only:
   and the error would drive it further into saturation;
 * ``"none"``.
 
-All three legs are stacked into one 12 x 12 matrix ``M`` so that one step is
-``[x[k+1]; u[k]] = M [x[k]; e[k]]`` plus the saturation: a handful of numpy
-calls on preallocated buffers.
+Per leg one step is ``[x[k+1]; u[k]] = [[A, B], [C, D]] [x[k]; e[k]]`` plus
+the saturation and the anti-windup: :func:`controllers.step_functions.joint_step`,
+the co-simulation's step (this class designs the matrices and runs the same
+function for its :meth:`JointControllers.update`).
 """
 
 from __future__ import annotations
@@ -50,6 +51,7 @@ from .design import (
     printed_design,
     redesigned_design,
 )
+from .step_functions import joint_step
 
 __all__ = [
     "JointControllers",
@@ -257,11 +259,17 @@ class JointControllers:
         self._int_idx = np.arange(_NX - 1, n, _NX)  # integrator states
         self._int_gain = r0 * self.dt  # increment of x_I per unit error
         self._aw = self.dt / self.tracking_time
-        self._int_list = self._int_idx.tolist()
-        self._int_gain_list = self._int_gain.tolist()
-        self._z = np.zeros(n + 3)  # [x; e]
-        self._w = np.zeros(n + 3)  # [x_next; u]
-        self._zx, self._wx = self._z[:n], self._w[:n]  # views: the states
+        # the per-step function's arrays (controllers.step_functions.joint_step): per leg
+        # [[A, B], [C, D]], the limits, the states
+        self.step_matrices = np.zeros((3, _NX + 1, _NX + 1))
+        for i in range(3):
+            rows = [_NX * i + j for j in range(_NX)] + [n + i]
+            self.step_matrices[i] = m[np.ix_(rows, rows)]
+        self.step_limits = np.array(
+            [self.u_offset, self.u_min, self.u_max, ANTI_WINDUP.index(anti_windup), self._aw]
+        )
+        self._x = np.zeros(n)
+        self._v = np.zeros(3)
 
     # ------------------------------------------------------------------
     @property
@@ -272,22 +280,16 @@ class JointControllers:
     @property
     def state(self) -> np.ndarray:
         """Controller states (3 legs x 3), integrator last (copy)."""
-        return self._z[: self._n].reshape(3, _NX).copy()
+        return self._x.reshape(3, _NX).copy()
 
     @property
     def integrator(self) -> np.ndarray:
         """The integrator state of each leg, volts (copy)."""
-        return self._z[self._int_idx].copy()
-
-    @property
-    def last_unsaturated(self) -> np.ndarray:
-        """``u_offset + u`` before saturation at the last update (V, copy)."""
-        return self._w[self._n :] + self.u_offset
+        return self._x[self._int_idx].copy()
 
     def reset(self) -> None:
         """Zero every state: the next command is ``u_offset`` for zero error."""
-        self._z[:] = 0.0
-        self._w[:] = 0.0
+        self._x[:] = 0.0
 
     def update(self, q_ref, q_meas) -> np.ndarray:
         """One 1 ms step: joint references and measurements (m) -> valve volts (3,).
@@ -310,38 +312,24 @@ class JointControllers:
         ``u_ff`` (3 floats, V, optional) is added to the controllers' outputs before
         the saturation (the leg velocity feed-forward,
         :mod:`controllers.velocity_feedforward`); the anti-windup sees the total.
-
-        The co-simulation's hot path. The stacked product ``M [x; e]`` stays
-        one BLAS call (a scalar rewrite would round differently: BLAS
-        accumulates with FMA); the few operations around it run on Python
-        floats, which for three legs is cheaper than numpy's per-call cost,
-        and are the same IEEE operations as the array version.
+        The arithmetic is :func:`controllers.step_functions.joint_step`, the
+        co-simulation's step.
         """
-        z, n = self._z, self._n
-        z[n], z[n + 1], z[n + 2] = q_ref[0] - q_meas[0], q_ref[1] - q_meas[1], q_ref[2] - q_meas[2]
-        np.dot(self._m, z, out=self._w)  # [x_next; u]
-        self._zx[...] = self._wx  # x <- x_next (an array copy; anti-windup corrects below)
-        w = self._w.tolist()
-        off, lo, hi = self.u_offset, self.u_min, self.u_max
-        v = [w[n] + off, w[n + 1] + off, w[n + 2] + off]
-        if u_ff is not None:
-            v = [v[0] + u_ff[0], v[1] + u_ff[1], v[2] + u_ff[2]]
-        vs = v.copy()
-        for i in range(3):  # saturation; comparisons let a NaN through, as np.clip
-            if vs[i] < lo:
-                vs[i] = lo
-            if vs[i] > hi:
-                vs[i] = hi
-        if self.anti_windup == "back_calculation":
-            aw = self._aw
-            for i, k in enumerate(self._int_list):
-                z[k] = w[k] + (vs[i] - v[i]) * aw
-        elif self.anti_windup == "conditional":
-            for i, k in enumerate(self._int_list):
-                push = self._int_gain_list[i] * z[n + i]
-                if (v[i] > hi and push > 0) or (v[i] < lo and push < 0):
-                    z[k] = w[k] - push
-        return vs
+        f = (0.0, 0.0, 0.0) if u_ff is None else u_ff
+        joint_step(
+            self._x,
+            self.step_matrices,
+            q_ref[0] - q_meas[0],
+            q_ref[1] - q_meas[1],
+            q_ref[2] - q_meas[2],
+            f[0],
+            f[1],
+            f[2],
+            self.step_limits,
+            self._int_gain,
+            self._v,
+        )
+        return self._v.tolist()
 
 
 def _floats3(x) -> list:

@@ -21,8 +21,6 @@ and ``q_i = |AiXi| - L0_i`` (eq. 15, lost in our copy).
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from .errors import ConvergenceError, KinematicsError, WorkspaceError
@@ -39,7 +37,6 @@ __all__ = [
     "forward_kinematics",
     "check_reachable",
     "reachable",
-    "PoseKinematics",
     "paper_leg_lengths",
     "paper_inverse_kinematics",
 ]
@@ -172,123 +169,6 @@ def reachable(pose, geometry: PlatformGeometry | None = None, margin: float = 0.
     q = leg_lengths(safe, g) - g.retracted_length
     ok &= np.all((q >= margin) & (q <= g.stroke - margin), axis=-1)
     return ok
-
-
-class PoseKinematics:
-    """Inverse kinematics and reachability of *one* pose, bit-identical to the batched functions.
-
-    The task-space loop evaluates one pose at a time, where the vectorised
-    functions above spend ~100 us per call in numpy's per-call overhead
-    (``np.stack`` of nine 0-d arrays, broadcasting, ``where``). This class
-    does the same IEEE operations, in the same grouping, on Python floats,
-    and calls numpy only where the rounding is numpy's own:
-
-    * ``cos``/``sin`` of roll and pitch (one call each on a 2-vector; the
-      kernel is the one the batched :func:`rotation` uses),
-    * ``R @ PB_1`` (``matmul``, i.e. BLAS ``gemv``) and ``R PB_k`` for the
-      three points (``einsum``): both may accumulate with FMA, which a Python
-      sum cannot reproduce, so they are the very calls of
-      :func:`platform_position` / :func:`attachment_points` on an identical
-      C-contiguous ``(3, 3)`` ``R``.
-
-    The rest, for ``pose = (roll, pitch, h)`` (eqs. 8, 11-14):
-
-    * ``B1z = h + (R PB_1)_z``; the guide reaches it iff ``|B1z - z_c| < r``
-      (:func:`reachable`);
-    * eq. (14) with the line's slope ``m = 0`` (:func:`line_circle_intersection`):
-      ``qb = 2 (0 (B1z - z_c) - x_c)``, ``k1 = x_c^2 + (B1z - z_c)^2 - r^2``,
-      ``disc = qb^2 - 4 k1``, ``B1x = (-qb + side sqrt(disc)) / 2``. The
-      squares are ``x ** 2``: numpy computes them on scalars with libm's
-      ``pow``, which is not always ``x * x`` (it differs in ~1 of 1000 cases);
-      Python's ``float ** 2`` is the same ``pow``;
-    * ``P = (B1x - (R PB_1)_x, 0, h)``, ``X_k = R PB_k + P``, plus the bracket
-      offset for leg 1 (eq. 11);
-    * ``q_i = sqrt((dx^2 + dy^2) + dz^2) - L0_i`` with ``d = X_i - A_i``
-      (the order of ``np.linalg.norm(axis=-1)``: products, then a left-to-right sum).
-
-    ``tests/test_hot_path.py`` checks every bit against :func:`inverse_kinematics`
-    and :func:`reachable`, also for a geometry without the nominal zeros.
-
-    Parameters
-    ----------
-    geometry : PlatformGeometry, optional
-        Defaults to :func:`nominal_geometry`. Its arrays are read once here.
-    """
-
-    def __init__(self, geometry: PlatformGeometry | None = None):
-        g = _geom(geometry)
-        self.geometry = g
-        self._pp = g.platform_points  # einsum operand, as attachment_points passes it
-        self._pp0 = g.platform_points[0]  # matmul operand, as platform_position passes it
-        self._xc, self._zc = g.guide_centre.tolist()
-        self._r, self._side = g.guide_radius, g.guide_side
-        self._c1 = g.bracket_c1.tolist()
-        self._base = g.base_points.tolist()
-        self._l0 = g.retracted_length.tolist()
-        self._stroke = g.stroke
-        self._ang = np.empty(2)  # (roll, pitch)
-        self._cos, self._sin = np.empty(2), np.empty(2)
-        self._rot = np.empty((3, 3))  # C-contiguous, like rotation()'s np.stack
-        self._rot9 = self._rot.reshape(9)
-
-    def solve(self, pose, margin: float = 0.0, arc_check: bool = True):
-        """``(q, ok)`` for one pose: ``q`` = ``inverse_kinematics(pose, check=False)``
-        as a list of 3 floats, ``ok`` = ``bool(reachable(pose, margin=margin))``.
-
-        With ``arc_check`` (default, the :func:`reachable` semantics) a pose
-        outside the guide arc gives ``(None, False)``; without it the guide is
-        not tested first and such a pose raises, as :func:`inverse_kinematics`
-        does.
-
-        Raises
-        ------
-        WorkspaceError
-            The guide circle misses B1 (``disc < 0``), as :func:`line_circle_intersection`.
-        """
-        if type(pose) is np.ndarray:
-            pose = pose.tolist()
-        roll, pitch, h = pose
-        ang = self._ang
-        ang[0], ang[1] = roll, pitch
-        ct, cp = np.cos(ang, out=self._cos).tolist()
-        st, sp = np.sin(ang, out=self._sin).tolist()
-        # rotation(): R = Ry(pitch) Rx(roll), entries built with "+ 0" as there
-        self._rot9[:] = (
-            cp + 0.0, sp * st, sp * ct,
-            0.0, ct + 0.0, -st + 0.0,
-            -sp + 0.0, cp * st, cp * ct,
-        )  # fmt: skip
-        rot = self._rot
-        b1_off = (rot @ self._pp0).tolist()
-        xc, zc, r = self._xc, self._zc, self._r
-        b1z = h + b1_off[2]
-        if arc_check and not abs(b1z - zc) < r:
-            return None, False  # reachable(): outside the guide arc (or NaN)
-        # line_circle_intersection(0.0, b1z, xc, zc, r, side): qa = 1 + 0^2 = 1
-        qb = 2.0 * (0.0 * (b1z - zc) - xc)
-        k1 = xc**2 + (b1z - zc) ** 2 - r**2
-        disc = qb**2 - 4.0 * 1.0 * k1
-        if disc < 0:
-            raise WorkspaceError(
-                "pose unreachable: the guide arc (radius "
-                f"{r:.4f} m about z = {zc:.4f} m) does not reach that height; "
-                f"allowed heave keeps |z_B1 - z_c| <= r"
-            )
-        b1x = (-qb + self._side * math.sqrt(disc)) / (2.0 * 1.0)
-        px = b1x - b1_off[0]
-        e = np.einsum("...ij,kj->...ki", rot, self._pp).tolist()  # R PB_k, k = 1..3
-        c1 = self._c1
-        q = []
-        for k in range(3):
-            ek, ak = e[k], self._base[k]
-            x, y, z = ek[0] + px, ek[1] + 0.0, ek[2] + h  # R PB_k + P
-            if k == 0:  # eq. (11): the bracket translates with B1
-                x, y, z = x + c1[0], y + c1[1], z + c1[2]
-            dx, dy, dz = x - ak[0], y - ak[1], z - ak[2]
-            q.append(math.sqrt(dx * dx + dy * dy + dz * dz) - self._l0[k])
-        hi = self._stroke - margin
-        ok = all(margin <= qi <= hi for qi in q)  # False for NaN, as the array test
-        return q, ok
 
 
 def inverse_kinematics(

@@ -32,9 +32,10 @@ Only numpy (and scipy for the ZOH) are imported here.
 from __future__ import annotations
 
 import math
-from collections import deque
 
 import numpy as np
+
+from .step_functions import filter_step
 
 __all__ = ["KINDS", "SetpointFilter", "filter_state_space", "leg_times"]
 
@@ -109,31 +110,51 @@ class SetpointFilter:
         self.dt = float(dt)
         self.n = [max(1, int(round(t / dt))) for t in times]
         self._ab = [_first_order(t if kind == "first_order" else 1.0 / PAPER_KI, dt) for t in times]
-        self._y: list | None = None
-        self._window: list | None = None
-        self._sum = [0.0, 0.0, 0.0]
+        # the per-step function's arrays (controllers.step_functions.filter_step)
+        self.step_kind = {"none": 0.0, "first_order": 1.0, "zero_cancel": 1.0, "ramp": 2.0}[kind]
+        self.step_n = np.array(self.n, dtype=float)
+        self.step_a = np.array([a for a, _ in self._ab])
+        self.step_b = np.array([b for _, b in self._ab])
+        self._y = np.zeros(3)
+        self._sum = np.zeros(3)
+        self._head = np.zeros(3)
+        self._ring = np.zeros((3, max(self.n)))
+        self._out = np.zeros(3)
+        self._ready = False
 
     def reset(self, q) -> None:
         """At rest at ``q`` (3 floats): the filter's output and memory are ``q``."""
         q = [float(x) for x in q]
-        self._y = list(q)
-        self._window = [deque([q[i]] * n, maxlen=n) for i, n in enumerate(self.n)]
-        self._sum = [x * n for x, n in zip(q, self.n, strict=True)]
+        self._y[:] = q
+        self._sum[:] = [x * n for x, n in zip(q, self.n, strict=True)]
+        self._head[:] = 0.0
+        for i, n in enumerate(self.n):
+            self._ring[i, :n] = q[i]
+        self._ready = True
+
+    def state(self):
+        """``(y, running sums, ring heads, ring)``: the arrays the step works on (views)."""
+        return self._y, self._sum, self._head, self._ring
 
     def update(self, q_d) -> list:
-        """One joint-loop step: the set-points q_d (3 floats) -> filtered q_ref."""
-        if self._y is None:
+        """One joint-loop step: the set-points q_d (3 floats) -> filtered q_ref.
+
+        The arithmetic is :func:`controllers.step_functions.filter_step`.
+        """
+        if not self._ready:
             self.reset(q_d)
-        kind = self.kind
-        if kind == "none":
-            return list(q_d)
-        if kind == "ramp":
-            s, w, n = self._sum, self._window, self.n
-            for i in range(3):
-                s[i] += q_d[i] - w[i][0]
-                w[i].append(q_d[i])
-            return [s[0] / n[0], s[1] / n[1], s[2] / n[2]]
-        y = self._y
-        for i, (a, b) in enumerate(self._ab):
-            y[i] = a * y[i] + b * q_d[i]
-        return [y[0], y[1], y[2]]
+        filter_step(
+            self.step_kind,
+            float(q_d[0]),
+            float(q_d[1]),
+            float(q_d[2]),
+            self.step_n,
+            self.step_a,
+            self.step_b,
+            self._y,
+            self._sum,
+            self._head,
+            self._ring,
+            self._out,
+        )
+        return self._out.tolist()

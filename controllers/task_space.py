@@ -78,9 +78,10 @@ import math
 
 import numpy as np
 
+from . import step_functions as sf
 from .errors import WorkspaceError
 from .geometry import PlatformGeometry, nominal_geometry
-from .kinematics import PoseKinematics, check_reachable, jacobian, reachable
+from .kinematics import check_reachable
 
 __all__ = ["TaskSpaceController", "SamplingError", "MODES", "LAGS", "INTEGRATORS", "outer_law"]
 
@@ -121,26 +122,6 @@ LAGS = ("model", "joints")
 
 class SamplingError(ValueError):
     """A sampling period that is not an integer multiple of the inner step."""
-
-
-def _segment_limit(start, stop, geometry, margin, n: int = 33, rounds: int = 2) -> float:
-    """Largest ``s`` in [0, 1] with ``start + s' (stop - start)`` reachable for all s' <= s.
-
-    Vectorised search: ``n`` points per round, ``rounds`` rounds (resolution
-    ``1 / (n - 1)^rounds``). ``start`` must be reachable.
-    """
-    lo, hi = 0.0, 1.0
-    d = stop - start
-    for _ in range(rounds):
-        s = np.linspace(lo, hi, n)
-        ok = reachable(start + s[:, None] * d, geometry, margin)
-        if ok.all():
-            return hi
-        first_bad = int(np.argmin(ok))
-        if first_bad == 0:
-            return lo
-        lo, hi = s[first_bad - 1], s[first_bad]
-    return float(lo)
 
 
 class TaskSpaceController:
@@ -238,40 +219,43 @@ class TaskSpaceController:
         self.margin = float(margin)
         self.lag = lag
         self.average = bool(average)
-        # feedforward: sums over the current outer period of y_d, y_meas, q_d, q_meas
-        # (12 floats) and their count, for average=True
-        self._acc = [0.0] * 12
-        self._n_acc = 0
-        self._ref_cmd = self.geometry.home.tolist()
-        # The state is kept in Python floats: one pose per update is too small
-        # for numpy (see update_floats); every operation below is the same
-        # IEEE operation, element by element, as the array expressions it mirrors.
-        self._kin = PoseKinematics(self.geometry)  # single-pose IK, bit-identical
-        self._tg = (self.period * self.gains).tolist()  # T K K_I per axis
-        self._xc = self.geometry.home.tolist()
-        self._e_prev = [0.0, 0.0, 0.0]
-        self._last_ref = None
-        self._qd = check_reachable(self._xc, self.geometry).tolist()  # raises if home is not
-        self._q_xc = None  # IK(x_c) when already known (computed by _integrate), else None
-        self._corr = [0.0, 0.0, 0.0]  # feedforward: the integrated pose correction c
-        self._pending = None  # feedforward, I law: c[k+1], applied at the next outer step
-        self._model = list(self._xc)  # feedforward: the reference model's output M y_d
+        # the per-step functions' arrays (controllers.step_functions): the geometry,
+        # the constants and the state of the outer loop
+        self.step_geometry = sf.geometry_constants(self.geometry)
+        tc = np.zeros(sf.TC_LEN)
+        tc[sf.TC_MODE] = {
+            "joint_only": sf.MODE_JOINT,
+            "I": sf.MODE_I,
+            "PI": sf.MODE_PI,
+            "feedforward": sf.MODE_FF,
+        }[mode]
+        tc[sf.TC_LAW] = 2.0 if outer_law == "PI" else 1.0
+        tc[sf.TC_CLAMP] = 1.0 if self.clamp else 0.0
+        tc[sf.TC_LAGJ] = 1.0 if lag == "joints" else 0.0
+        tc[sf.TC_AVG] = 1.0 if self.average else 0.0
+        tc[sf.TC_TAU], tc[sf.TC_BETA], tc[sf.TC_PIZ] = self.model_tau, self._beta, self.pi_zero
+        tc[sf.TC_TG : sf.TC_TG + 3] = self.period * self.gains  # T K K_I per axis
+        tc[sf.TC_MARGIN] = self.margin
+        tc[sf.TC_HOME : sf.TC_HOME + 3] = self.geometry.home
+        self.step_constants = tc
+        self.step_state = np.zeros(sf.T_LEN)
+        self.reset()  # raises if home is not reachable
 
     # ------------------------------------------------------------------
     @property
     def pose_command(self) -> np.ndarray:
         """The integrated pose ``x_c`` (roll rad, pitch rad, h m) whose IK is ``q_d`` (copy)."""
-        return np.array(self._xc)
+        return self.step_state[sf.T_XC : sf.T_XC + 3].copy()
 
     @property
     def correction(self) -> np.ndarray:
         """The integrated pose correction ``c`` of ``mode="feedforward"`` (copy)."""
-        return np.array(self._corr)
+        return self.step_state[sf.T_CORR : sf.T_CORR + 3].copy()
 
     @property
     def q_desired(self) -> np.ndarray:
         """The last joint reference (m, copy)."""
-        return np.array(self._qd)
+        return self.step_state[sf.T_QD : sf.T_QD + 3].copy()
 
     def is_due(self, inner_step: int) -> bool:
         """True on the inner steps at which the outer loop runs (every ``ratio`` steps)."""
@@ -285,41 +269,13 @@ class TaskSpaceController:
         pose0 = self.geometry.home if pose0 is None else pose0
         pose0 = np.asarray(pose0, dtype=float).reshape(3)
         q = check_reachable(pose0, self.geometry, self.margin)
-        self._qd = q.tolist()
-        self._xc = pose0.tolist()
-        self._q_xc = None
-        self._e_prev = [0.0, 0.0, 0.0]
-        self._corr = [0.0, 0.0, 0.0]
-        self._pending = None
-        self._model = pose0.tolist()
-        self._acc = [0.0] * 12
-        self._n_acc = 0
-        self._ref_cmd = pose0.tolist()
+        ts = self.step_state
+        ts[:] = 0.0
+        ts[sf.T_XC : sf.T_XC + 3] = pose0
+        ts[sf.T_QD : sf.T_QD + 3] = q
+        ts[sf.T_MODEL : sf.T_MODEL + 3] = pose0
+        ts[sf.T_REFCMD : sf.T_REFCMD + 3] = pose0
         return q
-
-    def _setpoint(self, ref: list) -> list:
-        last = self._last_ref
-        if last is not None and ref == last[0]:  # == per item: NaN never equal, -0.0 == 0.0
-            return last[1]  # same set-point as last time: already checked
-        ref = list(ref)  # a copy: the cache must not see the caller's later changes
-        out = self._check_setpoint(ref)
-        self._last_ref = (ref, out)
-        return out
-
-    def _check_setpoint(self, ref: list) -> list:
-        if not all(map(math.isfinite, ref)):
-            raise WorkspaceError(f"set-point not finite: {np.array(ref)}")
-        if self._kin.solve(ref, self.margin)[1]:  # reachable(ref, geometry, margin)
-            return ref
-        ref = np.array(ref)
-        if not self.clamp:
-            check_reachable(ref, self.geometry, self.margin)  # raises, naming the limit
-            raise WorkspaceError(  # the guide arc (check_reachable covers strokes)
-                "set-point unreachable: outside the guide arc or stroke limits"
-            )
-        home = np.asarray(self.geometry.home, dtype=float)
-        s = _segment_limit(home, ref, self.geometry, self.margin)
-        return (home + s * (ref - home)).tolist()
 
     def update(self, pose_ref, pose_meas) -> np.ndarray:
         """One outer step: set-point and measured pose -> joint reference ``q_d`` (3,), m.
@@ -334,75 +290,29 @@ class TaskSpaceController:
     def update_floats(
         self, pose_ref: list, pose_meas: list, hold: bool = False, q_meas: list | None = None
     ) -> list:
-        """:meth:`update` on lists of 3 floats; returns ``q_d`` as a new list.
+        """:meth:`update` on sequences of 3 floats; returns ``q_d`` as a new list.
 
-        The co-simulation's path. Bit-identical to the array
-        formulation ``e = y_d - y``, ``x_c + T K_I e``, ``IK(x_c)`` because each
-        of those is one IEEE operation per axis, and the IK is
-        :class:`~controllers.kinematics.PoseKinematics`. The IK of the new
-        ``x_c`` is a by-product of its reachability test in :meth:`_integrate`
-        and is kept for the next update (mode ``"I"`` outputs ``IK(x_c[k])``
-        before integrating; mode ``"PI"`` right after), so an update costs
-        one IK instead of three.
-
-        ``hold`` and ``q_meas`` (the measured joints, needed with ``lag="joints"``)
-        are used by ``mode="feedforward"`` only.
+        The arithmetic is :func:`controllers.step_functions.outer_update`, the
+        co-simulation's step. ``hold`` and ``q_meas`` (the measured joints,
+        needed with ``lag="joints"``) are used by ``mode="feedforward"`` only.
         """
-        ref = self._setpoint(pose_ref)
+        ts, tc, g = self.step_state, self.step_constants, self.step_geometry
         if self.mode == "joint_only":
-            self._xc = list(ref)
-            self._q_xc = None
-            self._qd = self._kin.solve(ref, arc_check=False)[0]  # IK(check=False)
-            return list(self._qd)
-        if not all(map(math.isfinite, pose_meas)):
-            raise ValueError(f"measured pose not finite: {np.array(pose_meas)}")
-        e = [ref[0] - pose_meas[0], ref[1] - pose_meas[1], ref[2] - pose_meas[2]]
-        tg = self._tg
-        if self.mode == "feedforward":
-            if self.average or self.lag == "joints":
-                e = self._ff_error(pose_meas, q_meas)
-            elif self.model_tau > 0:
-                m = self._model
-                e = [m[0] - pose_meas[0], m[1] - pose_meas[1], m[2] - pose_meas[2]]
-            self._correct(ref, e, hold)
-            return self._ff_step(ref)
-        if self.mode == "I":
-            # eq. (22) / Fig. 7: output x_c[k], then integrate e[k]
-            self._qd = self._ik_xc()
-            self._integrate([tg[0] * e[0], tg[1] * e[1], tg[2] * e[2]])
-        else:
-            # section 4 PI: x_c[k] = x_c[k-1] + T K_I (e[k] + c e[k-1])
-            c, ep = self.pi_zero, self._e_prev
-            self._integrate([tg[i] * (e[i] + c * ep[i]) for i in range(3)])
-            self._e_prev = e
-            self._qd = self._ik_xc()
-        return list(self._qd)
-
-    def _correct(self, ref: list, e: list, hold: bool = False) -> None:
-        """One outer step of the feed-forward scheme's correction ``c`` (module docstring).
-
-        The I law applies ``c[k]`` over the coming period and integrates
-        ``e[k]`` for the next one; the PI law integrates first. An increment
-        that would take ``y_d + c`` out of the workspace is not taken
-        (conditional integration: the correction's anti-windup).
-        """
-        if self._pending is not None:  # I law: c[k] = c[k-1] + T K_I e[k-1]
-            self._corr, self._pending = self._pending, None
-        if hold:
-            return
-        tg, c = self._tg, self._corr
-        if self.outer_law == "PI":
-            ep, z = self._e_prev, self.pi_zero
-            step = [tg[i] * (e[i] + z * ep[i]) for i in range(3)]
-            self._e_prev = e
-        else:
-            step = [tg[0] * e[0], tg[1] * e[1], tg[2] * e[2]]
-        new = [c[0] + step[0], c[1] + step[1], c[2] + step[2]]
-        if self._kin.solve([ref[0] + new[0], ref[1] + new[1], ref[2] + new[2]], self.margin)[1]:
-            if self.outer_law == "PI":
-                self._corr = new
-            else:
-                self._pending = new
+            ref = ts[sf.T_SCR : sf.T_SCR + 3]
+            err = sf.outer_setpoint(*map(float, pose_ref), tc, g, ts[sf.T_SCR + 3 :], ref)
+            raise_step_error(err, pose_ref, pose_meas, self.geometry, self.margin)
+            ts[sf.T_XC : sf.T_XC + 3] = ref
+            ts[sf.T_QXC_OK] = 0.0
+            q = ts[sf.T_QD : sf.T_QD + 3]
+            if sf.ik_pose(ref[0], ref[1], ref[2], g, 0.0, False, q) == sf.IK_MISS:
+                raise_step_error(sf.ERR_GUIDE, pose_ref, pose_meas, self.geometry, self.margin)
+            return q.tolist()
+        if self.mode == "feedforward" and self.lag == "joints" and q_meas is None:
+            raise ValueError("lag='joints' needs the measured joints q_meas")
+        qm = (0.0, 0.0, 0.0) if q_meas is None else q_meas
+        err = sf.outer_update(*_floats9(pose_ref, pose_meas, qm), bool(hold), ts, tc, g)
+        raise_step_error(err, pose_ref, pose_meas, self.geometry, self.margin)
+        return ts[sf.T_QD : sf.T_QD + 3].tolist()
 
     def feedforward_floats(
         self, pose_ref: list, pose_meas: list | None = None, q_meas: list | None = None
@@ -412,89 +322,48 @@ class TaskSpaceController:
         ``pose_ref`` is the set-point of this step (checked or clamped as in
         :meth:`update_floats`). The I law's pending increment, integrated at
         the last outer step, is applied from the next outer step on. With
-        ``average=True`` the measured pose (and joints, ``lag="joints"``) of
-        this step are added to the outer period's means.
+        ``average=True`` the measured pose (and joints) of this step are added
+        to the outer period's means. The arithmetic is
+        :func:`controllers.step_functions.ff_inner`.
         """
-        ref = self._setpoint(pose_ref)
-        if self.average and pose_meas is not None:
-            self._accumulate(pose_meas, q_meas)
-        return self._ff_step(ref)
+        acc = 0 if pose_meas is None else (1 if q_meas is None else 2)
+        y = (0.0, 0.0, 0.0) if pose_meas is None else pose_meas
+        qm = (0.0, 0.0, 0.0) if q_meas is None else q_meas
+        ts, tc, g = self.step_state, self.step_constants, self.step_geometry
+        err = sf.ff_inner(*_floats9(pose_ref, y, qm), acc, ts, tc, g)
+        raise_step_error(err, pose_ref, pose_meas, self.geometry, self.margin)
+        return self.step_state[sf.T_QD : sf.T_QD + 3].tolist()
 
-    def _accumulate(self, pose_meas: list, q_meas: list | None) -> None:
-        """Add this step's measurements and the last step's command to the period's sums."""
-        a, r, q = self._acc, self._ref_cmd, self._qd
-        for i in range(3):
-            a[i] += r[i]
-            a[3 + i] += pose_meas[i]
-        if q_meas is not None:
-            for i in range(3):
-                a[6 + i] += q[i]
-                a[9 + i] += q_meas[i]
-        self._n_acc += 1
 
-    def _ff_error(self, pose_meas: list, q_meas: list | None) -> list:
-        """The error the correction integrates at this outer step (module docstring).
+def raise_step_error(err: int, pose_ref, pose_meas, geometry, margin: float = 0.0) -> None:
+    """The exception of an outer-loop error code (:mod:`controllers.step_functions`); 0: none.
 
-        ``r - y`` with ``r`` the reference model's output (``lag="model"``) or the
-        set-point (``lag="joints"``), minus ``J^-1 (q_d - q_meas)`` for
-        ``lag="joints"``; over the outer period's means with ``average=True``,
-        else at the last step's command and this step's measurements.
-        """
-        joints = self.lag == "joints"
-        if joints and q_meas is None:
-            raise ValueError("lag='joints' needs the measured joints q_meas")
-        if self.average:
-            self._accumulate(pose_meas, q_meas if joints else None)
-            a, k = self._acc, 1.0 / self._n_acc
-            r, y = [a[0] * k, a[1] * k, a[2] * k], [a[3] * k, a[4] * k, a[5] * k]
-            qd, qm = [a[6] * k, a[7] * k, a[8] * k], [a[9] * k, a[10] * k, a[11] * k]
-            self._acc, self._n_acc = [0.0] * 12, 0
-        else:
-            r, y, qd, qm = self._ref_cmd, pose_meas, self._qd, q_meas
-        e = [r[0] - y[0], r[1] - y[1], r[2] - y[2]]
-        if joints:  # the joint loops' lag, in task coordinates at the commanded pose
-            lag = np.linalg.solve(
-                jacobian(np.array(self._xc), self.geometry),
-                np.array([qd[0] - qm[0], qd[1] - qm[1], qd[2] - qm[2]]),
-            ).tolist()
-            e = [e[0] - lag[0], e[1] - lag[1], e[2] - lag[2]]
-        return e
+    Raises
+    ------
+    WorkspaceError
+        The set-point is not finite or unreachable (naming the limit), or the
+        guide circle misses the commanded pose.
+    ValueError
+        The measured pose is not finite.
+    """
+    if not err:
+        return
+    if err == sf.ERR_SETPOINT_NONFINITE:
+        raise WorkspaceError(f"set-point not finite: {np.array(pose_ref, dtype=float)}")
+    if err == sf.ERR_SETPOINT_UNREACHABLE:
+        check_reachable(np.asarray(pose_ref, dtype=float), geometry, margin)  # names the limit
+        raise WorkspaceError("set-point unreachable: outside the guide arc or stroke limits")
+    if err == sf.ERR_MEAS_NONFINITE:
+        raise ValueError(f"measured pose not finite: {np.array(pose_meas, dtype=float)}")
+    raise WorkspaceError(
+        f"pose unreachable: the guide arc (radius {geometry.guide_radius:.4f} m) does not "
+        "reach that height; allowed heave keeps |z_B1 - z_c| <= r"
+    )
 
-    def _ff_step(self, ref: list) -> list:
-        """This inner step's ``q_d = IK(ref + c)``, the reference model advanced."""
-        c, m, b = self._corr, self._model, self._beta
-        if b < 1.0:  # the reference model sees this step's set-point
-            self._model = [m[0] + b * (ref[0] - m[0]), m[1] + b * (ref[1] - m[1]),
-                           m[2] + b * (ref[2] - m[2])]  # fmt: skip
-        pose = [ref[0] + c[0], ref[1] + c[1], ref[2] + c[2]]
-        q, ok = self._kin.solve(pose, self.margin)
-        if not ok:  # the correction pushes past the workspace: the set-point alone
-            q = self._kin.solve(ref, arc_check=False)[0]
-            pose = list(ref)
-        self._xc = pose
-        self._qd = q
-        # the reference this step's command stands for: the set-point (lag "joints")
-        # or the reference model's output (lag "model")
-        self._ref_cmd = ref if self.lag == "joints" else list(self._model)
-        return list(q)
 
-    def _ik_xc(self) -> list:
-        """``inverse_kinematics(x_c, check=False)``, reusing the one :meth:`_integrate` found."""
-        q = self._q_xc
-        if q is None:
-            q = self._kin.solve(self._xc, arc_check=False)[0]
-        return q
-
-    def _integrate(self, step: list) -> None:
-        xc = self._xc
-        new = [xc[0] + step[0], xc[1] + step[1], xc[2] + step[2]]
-        q, ok = self._kin.solve(new, self.margin)  # reachable(new) and IK(new)
-        if ok:
-            self._xc, self._q_xc = new, q
-            return
-        s = float(_segment_limit(np.array(xc), np.array(new), self.geometry, self.margin))
-        self._xc = [xc[0] + s * step[0], xc[1] + s * step[1], xc[2] + s * step[2]]
-        self._q_xc = None
+def _floats9(a, b, c) -> list:
+    """Three triples as nine Python floats (the per-step functions' scalar arguments)."""
+    return [float(v) for v in (a[0], a[1], a[2], b[0], b[1], b[2], c[0], c[1], c[2])]
 
 
 def _floats3(x) -> list:

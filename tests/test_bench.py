@@ -25,7 +25,7 @@ def short():
 def test_keys_and_consistency(short):
     r = short
     for key in ("bare_step_us", "full_step_us", "ratio", "realtime_factor", "stages_us",
-                "throughput", "repeats", "machine"):  # fmt: skip
+                "throughput", "repeats", "machine", "interpreted_step_us"):  # fmt: skip
         assert key in r
     assert set(r["stages_us"]) == set(STAGES)
     assert r["timeseries_write_s"] > 0
@@ -36,6 +36,8 @@ def test_keys_and_consistency(short):
     assert r["full_step_us"] > 0 and r["bare_step_us"] > 0
     assert math.isclose(r["ratio"], r["full_step_us"] / r["bare_step_us"], rel_tol=1e-12)
     assert math.isclose(r["realtime_factor"], 1e3 / r["full_step_us"], rel_tol=1e-12)
+    ratio = r["interpreted_step_us"] / r["bare_step_us"]
+    assert math.isclose(r["interpreted_ratio"], ratio, rel_tol=1e-12)
     # medians of the per-repeat samples
     assert r["full_step_us"] == pytest.approx(sum(r["samples"]["full_step_us"]) / 2)
 
@@ -55,13 +57,14 @@ def test_stages_sum_within_the_instrumented_step(short):
     assert total >= 0.5 * instrumented
 
 
-@pytest.mark.slow  # process plumbing: the batch throughput starts worker pools
+@pytest.mark.slow  # the batch throughput runs the scenario 2 x 2 more times on threads
 def test_cli_json_and_throughput(capsys):
     code = main(["bench", "--json", "--duration", "0.2", "--repeats", "1", "--batch-runs", "2"])
     assert code == 0
     r = json.loads(capsys.readouterr().out)
     tp = r["throughput"]
     assert set(tp) >= {"workers_1", "workers_2", "speedup"}
+    assert tp["identical"] is True  # threaded runs equal a serial one bit for bit
     assert tp["workers_1"] > 0 and tp["workers_2"] > 0
     assert math.isclose(tp["speedup"], tp["workers_2"] / tp["workers_1"], rel_tol=1e-12)
 

@@ -197,45 +197,61 @@ def test_noise_density_and_bias_walk_per_sample():
     assert bias_walk_sigma(0.01, 0.005) == pytest.approx(0.01 * math.sqrt(0.005), rel=1e-14)
 
 
-def _sensors(tree_changes, seed, kernel, monkeypatch):
-    from simpro_mj.plant.sensors import DEFAULT_SENSORS, SensorConfig, Sensors
+def _sensor_arrays(tree_changes):
+    """The step's sensor constants for the default sensors with ``tree_changes``."""
+    from simpro_mj.plant import step_functions as ps
+    from simpro_mj.plant.sensors import DEFAULT_SENSORS, SensorConfig
+    from simpro_mj.sim.step_buffers import sensor_constants
 
-    monkeypatch.setenv("SIMPRO_KERNEL", kernel)
     tree = {k: dict(v) for k, v in DEFAULT_SENSORS.items()}
     for key, value in tree_changes.items():
         group, name = key.split(".")
         tree[group][name] = value
-    return Sensors(SensorConfig.from_tree(tree, DT), np.random.default_rng(seed), block=53)
+    return sensor_constants(SensorConfig.from_tree(tree, DT)), np.zeros(ps.SS_LEN)
 
 
-def test_bias_walk_grows_as_its_density_says(monkeypatch):
+def _walk_end_deg(seed):
+    """The IMU's reading after 4 s of a bias walk of 0.02 deg/sqrt(s), no noise, at rest."""
+    from simpro_mj.plant import step_functions as ps
+
+    sc, ss = _sensor_arrays({"imu.bias_walk_deg_per_sqrt_s": 0.02, "imu.noise_deg": 0.0})
+    walk = np.random.default_rng(seed).spawn(1)[0].standard_normal((4001, 2))
+    noise, qm, pm, m = np.zeros(6), np.zeros(3), np.zeros(3), 0
+    q, pose = np.full(3, 0.25), np.array([0.0, 0.0, 1.2])
+    for k in range(4001):
+        m += ps.sample_sensors(k, k == 0, q, pose, None, noise, walk[m], sc, ss, qm, pm)
+    return [math.degrees(pm[0]), math.degrees(pm[1])]
+
+
+def test_bias_walk_grows_as_its_density_says():
     """0.02 deg/sqrt(s) over 4 s: the bias's spread across 60 seeds (two axes) is
     0.02 sqrt(4) = 0.04 deg (within the 1/sqrt(120) sampling error); the other
-    noise draws are those of a run without the walk."""
-    ends = []
-    for seed in range(60):
-        s = _sensors(
-            {"imu.bias_walk_deg_per_sqrt_s": 0.02, "imu.noise_deg": 0.0}, seed, "python",
-            monkeypatch,
-        )  # fmt: skip
-        s.reset([0.25] * 3, [0.0, 0.0, 1.2])
-        for k in range(1, 4001):
-            _, pose = s.sample_floats(k, [0.25] * 3, [0.0, 0.0, 1.2])
-        ends += [math.degrees(pose[0]), math.degrees(pose[1])]
+    noise draws are those of a run without the walk (the walk's generator is
+    spawned from the scenario's)."""
+    ends = [v for seed in range(60) for v in _walk_end_deg(seed)]
     assert float(np.std(ends)) == pytest.approx(0.04, rel=0.2)
-    a = _sensors({"imu.bias_walk_deg_per_sqrt_s": 0.02}, 5, "python", monkeypatch)
-    b = _sensors({}, 5, "python", monkeypatch)
-    for s in (a, b):
-        s.reset([0.25] * 3, [0.0, 0.0, 1.2])
-        s.sample_floats(3, [0.25] * 3, [0.0, 0.0, 1.2])
-    assert a.rng.bit_generator.state == b.rng.bit_generator.state
+    from simpro_mj.config.scenario import load_scenario
+    from simpro_mj.sim.loop import CoSimulation
+
+    sims = [
+        CoSimulation(load_scenario("step_pitch", ["duration_s=0.1", *sets]))
+        for sets in (["sensors.imu.bias_walk_deg_per_sqrt_s=0.02"], [])
+    ]
+    for sim in sims:
+        sim._initial_state()
+    assert sims[0].walk_rng is not None and sims[1].walk_rng is None
+    assert np.array_equal(sims[0].noise.rows, sims[1].noise.rows)
+    assert sims[0].rng.bit_generator.state == sims[1].rng.bit_generator.state
 
 
-def test_sensor_errors_compiled_equal_interpreted(monkeypatch):
-    """Every error on (walk redrawn every 53 samples, the accelerometer from the
-    site's positions, the bow, the density): the kernel's readings are the
-    interpreted path's, bit for bit."""
+def test_sensor_errors_compiled_equal_interpreted():
+    """Every error on (the walk, the accelerometer from the site's positions, the
+    bow, the density): the compiled sensor step's readings are the interpreted
+    one's, bit for bit."""
     pytest.importorskip("numba")
+    from simpro_mj.plant import step_functions as ps
+    from simpro_mj.sim import step
+
     errors = {
         "imu.bias_walk_deg_per_sqrt_s": 0.01,
         "imu.accel_tilt_weight": 0.3,
@@ -243,22 +259,25 @@ def test_sensor_errors_compiled_equal_interpreted(monkeypatch):
         "imu.bias_deg": [0.1, -0.2],
         "potentiometer.nonlinearity_pct_fs": 0.1,
     }
-    a = _sensors(errors, 7, "python", monkeypatch)
-    b = _sensors(errors, 7, "numba", monkeypatch)
-    assert a._kb is None and b._kb is not None
+    sc, ss_a = _sensor_arrays(errors)
+    ss_b = ss_a.copy()
+    compiled = step.compiled().sample_sensors
     rng = np.random.default_rng(2)
-    for s in (a, b):
-        s.reset([0.25] * 3, [0.01, -0.02, 1.2])
-    for k in range(1, 3000):
+    noise, walk = rng.standard_normal((3000, 6)), rng.standard_normal((3000, 2))
+    out = [np.zeros(3) for _ in range(4)]
+    ma = mb = 0
+    for k in range(3000):
         t = k * DT
-        q = (0.25 + 0.05 * np.sin([t, 2 * t, 3 * t])).tolist()
-        pose = [0.05 * math.sin(2 * t), 0.04 * math.cos(3 * t), 1.2 + 0.01 * math.sin(t)]
-        site = [0.84 + 0.01 * math.sin(5 * t), 0.0, pose[2] + 1e-4 * rng.normal()]
+        q = 0.25 + 0.05 * np.sin([t, 2 * t, 3 * t])
+        pose = np.array([0.05 * math.sin(2 * t), 0.04 * math.cos(3 * t), 1.2 + 0.01 * math.sin(t)])
+        site = np.array([0.84 + 0.01 * math.sin(5 * t), 0.0, pose[2] + 1e-4 * rng.normal()])
         force = k % 101 == 0
-        qa, pa = a.sample_floats(k, q, pose, force, site)
-        qb, pb = b.sample_floats(k, q, pose, force, site)
-        assert np.array_equal(qa, qb) and np.array_equal(pa, pb), k
-    assert a._walk == b._kb[69:71].tolist()
+        ma += ps.sample_sensors(k, force, q, pose, site, noise[k], walk[ma], sc, ss_a, *out[:2])
+        mb += compiled(k, force, q, pose, site, noise[k], walk[mb], sc, ss_b, *out[2:])
+        assert np.array_equal(out[0], out[2]) and np.array_equal(out[1], out[3]), k
+    samples = sum(1 for k in range(3000) if k % 5 == 0 or k % 101 == 0)  # 200 Hz + forced
+    assert ma == mb == samples and np.array_equal(ss_a, ss_b)
+    assert ss_a[ps.SS_WALK] != 0.0 and ss_a[ps.SS_HN] == 2.0  # the walk and the history ran
 
 
 def _pitch_error_deg(sets):

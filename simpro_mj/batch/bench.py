@@ -5,9 +5,13 @@ scenario (default ``step_pitch.yaml``), ``--repeats`` times; every figure is
 the median over the repeats:
 
 * ``full_step_us``: wall time of :meth:`simpro_mj.sim.loop.CoSimulation.run`
-  (sensors, joint loops, task loop amortised, pneumatics, logging,
-  ``mj_step1``/``mj_step2``) per 1 ms step; ``realtime_factor`` = simulated
+  (sensors, joint loops, task loop amortised, pneumatics, logging, physics)
+  per 1 ms step, as a run runs it (``SIMPRO_KERNEL``: with numba the step
+  compiled into MuJoCo's control callback); ``realtime_factor`` = simulated
   seconds per wall second of that loop = ``timestep / full_step_us``.
+* ``interpreted_step_us``: the same run with ``SIMPRO_KERNEL=python``, the
+  same functions interpreted (the reference path), and its ratio to the
+  bare step.
 * ``bare_step_us``: ``mj_step`` alone on the same model along the *same*
   state trajectory: the run's initial state and its recorded actuator
   forces are replayed by :func:`mujoco.rollout.rollout`, a loop in C that
@@ -18,18 +22,20 @@ the median over the repeats:
   in exactly the run's final state (MuJoCo is deterministic, so they should).
 * ``ratio`` = ``full_step_us / bare_step_us``.
 * ``stages_us``: per-stage wall time per step from an instrumented run
-  (``CoSimulation.run(profile=...)``; ``time.perf_counter_ns`` around each
-  stage). The clock calls themselves cost about 0.05 us each (ten per step),
-  so the stages sum to a little more than ``full_step_us``
-  (``instrumented_step_us`` is that run's own time per step).
+  (``CoSimulation.run(profile=...)``: the compiled stages called one by one
+  from Python, ``time.perf_counter_ns`` around each, ``mj_step1``/``mj_step2``
+  as ``physics``). The calls from Python and the clocks cost more than the
+  stages inside ``mj_step`` do (``instrumented_step_us`` is that run's own time
+  per step): the split shows where the work is, ``full_step_us`` what it costs.
 * ``timeseries_write_s``: wall time to write the plain run's columns as
   ``timeseries.csv`` (:func:`simpro_mj.report.results.write_timeseries`, one
   ``numpy.savetxt`` call); a speed figure, so here and not in a timed test.
-* ``throughput``: ``--batch-runs`` copies of the scenario in a
-  :class:`concurrent.futures.ProcessPoolExecutor` (``spawn``; each worker
-  builds its own model) with 1 and with 2 workers, in simulated seconds per
-  wall second; worker start-up (imports, model compilation) is done before
-  the clock starts.
+* ``throughput``: ``--batch-runs`` copies of the scenario stepped by 1 and
+  by 2 threads of one process (:class:`concurrent.futures.ThreadPoolExecutor`;
+  ``mj_step`` releases the GIL and the compiled step runs inside it), in
+  simulated seconds per wall second; the runs are built before the clock
+  starts. ``identical`` says whether every threaded run's log and ``qpos``
+  equal a serial run's bit for bit.
 
 ``docs/performance.md`` holds the figures of this machine and how they scale.
 """
@@ -42,8 +48,7 @@ import shutil
 import statistics
 import tempfile
 import time
-from concurrent.futures import ProcessPoolExecutor
-from multiprocessing import get_context
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import mujoco
@@ -56,9 +61,8 @@ from simpro_mj.report.machine import describe_machine
 from simpro_mj.report.render import render_video, require_video
 from simpro_mj.report.results import write_timeseries
 from simpro_mj.report.runner import execute
-from simpro_mj.sim.loop import CoSimulation, simulate
+from simpro_mj.sim.loop import CoSimulation
 from simpro_mj.sim.readiness import signal_ready
-from simpro_mj.sim.workers import init_worker, stop_pool
 
 STAGES = ("sensors", "controllers", "pneumatics", "physics", "logging")
 
@@ -118,28 +122,34 @@ def _bare_python(model, state0, warm0, ctrl, final_qpos) -> tuple[float, bool]:
     return wall / len(rows) * 1e6, bool(np.array_equal(data.qpos, final_qpos))
 
 
-def _batch_job(scenario: dict) -> float:
-    """Worker: run one scenario (model built in this process); simulated seconds."""
-    res = simulate(scenario)
-    return res.sim["simulated_s"]
-
-
-def _warm_up(_=None) -> bool:
-    """Worker start-up outside the clock: imports and one model compilation.
-
-    Sleeps a little so that, with as many tasks in flight as workers, each
-    worker takes one.
-    """
-    load_model()
-    time.sleep(0.2)
-    return True
-
-
-def _throughput(pool, workers: int, scenario: dict, runs: int) -> float:
-    """Simulated seconds per wall second of ``runs`` copies on ``workers`` processes."""
+def _threaded(scenario: dict, model, workers: int, runs: int, serial) -> tuple[float, bool]:
+    """Simulated seconds per wall second of ``runs`` copies stepped by ``workers`` threads;
+    and whether each equals ``serial`` (a :class:`SimResult`) bit for bit."""
+    sims = [CoSimulation(scenario, model=model) for _ in range(runs)]
     t0 = time.perf_counter()
-    simulated = sum(pool.map(_batch_job, [scenario] * runs))
-    return simulated / (time.perf_counter() - t0)
+    with ThreadPoolExecutor(max_workers=workers) as pool:
+        results = list(pool.map(lambda s: s.run(), sims))
+    wall = time.perf_counter() - t0
+    same = all(
+        np.array_equal(r.qpos, serial.qpos)
+        and all(np.array_equal(v, serial.columns[k], equal_nan=True) for k, v in r.columns.items())
+        for r in results
+    )
+    return sum(r.sim["simulated_s"] for r in results) / wall, same
+
+
+def _interpreted(scenario: dict, model) -> float:
+    """us per step of the run with ``SIMPRO_KERNEL=python`` (the reference path)."""
+    before = os.environ.get("SIMPRO_KERNEL")
+    os.environ["SIMPRO_KERNEL"] = "python"
+    try:
+        res = CoSimulation(scenario, model=model).run()
+    finally:
+        if before is None:
+            del os.environ["SIMPRO_KERNEL"]
+        else:
+            os.environ["SIMPRO_KERNEL"] = before
+    return res.sim["wall_s"] / res.sim["steps"] * 1e6
 
 
 def measure(
@@ -160,7 +170,7 @@ def measure(
     dt = float(model.opt.timestep)
     say("recording the trajectory")
     state0, warm0, ctrl, final_qpos = _record(scenario, model)
-    full, bare, bare_py, instr, write = [], [], [], [], []
+    full, bare, bare_py, instr, write, interp = [], [], [], [], [], []
     stages = {s: [] for s in STAGES}
     same = True
     for r in range(repeats):
@@ -176,6 +186,7 @@ def measure(
         us, ok2 = _bare_python(model, state0, warm0, ctrl, final_qpos)
         bare_py.append(us)
         same = same and ok1 and ok2
+        interp.append(_interpreted(scenario, model))
         prof: dict = {}
         res = CoSimulation(scenario, model=model).run(profile=prof)
         instr.append(res.sim["wall_s"] / res.sim["steps"] * 1e6)
@@ -192,6 +203,8 @@ def measure(
         "bare_same_trajectory": same,
         "full_step_us": full_us,
         "ratio": full_us / bare_us,
+        "interpreted_step_us": statistics.median(interp),
+        "interpreted_ratio": statistics.median(interp) / bare_us,
         "realtime_factor": dt * 1e6 / full_us,
         "stages_us": {s: statistics.median(v) for s, v in stages.items()},
         "instrumented_step_us": statistics.median(instr),
@@ -199,36 +212,31 @@ def measure(
         "timeseries_rows": int(len(res.columns["time_s"])),
         "throughput": None,
         "repeats": repeats,
-        "samples": {"full_step_us": full, "bare_step_us": bare, "bare_python_loop_us": bare_py},
+        "samples": {
+            "full_step_us": full,
+            "bare_step_us": bare,
+            "bare_python_loop_us": bare_py,
+            "interpreted_step_us": interp,
+        },
         "machine": describe_machine(),
     }
     if batch:
-        tput = {1: [], 2: []}
-        ctx = get_context("spawn")
-        for workers in (1, 2):
-            # workers stop with the benchmark and never outlive it (simpro_mj.sim.workers)
-            pool = ProcessPoolExecutor(
-                max_workers=workers,
-                mp_context=ctx,
-                initializer=init_worker,
-                initargs=(os.getpid(),),
-            )
-            try:
-                list(pool.map(_warm_up, range(workers)))
-                signal_ready("throughput")
-                for r in range(repeats):
-                    say(f"throughput, {workers} worker(s), {r + 1}/{repeats}")
-                    tput[workers].append(_throughput(pool, workers, scenario, batch_runs))
-            except BaseException:
-                stop_pool(pool)
-                raise
-            pool.shutdown(wait=True)
+        serial = CoSimulation(scenario, model=model).run()
+        signal_ready("throughput")
+        tput, same = {1: [], 2: []}, True
+        for r in range(repeats):
+            for workers in (1, 2):
+                say(f"throughput, {workers} thread(s), {r + 1}/{repeats}")
+                rate, ok = _threaded(scenario, model, workers, batch_runs, serial)
+                tput[workers].append(rate)
+                same = same and ok
         w1, w2 = statistics.median(tput[1]), statistics.median(tput[2])
         out["throughput"] = {
             "workers_1": w1,
             "workers_2": w2,
             "speedup": w2 / w1,
             "runs": batch_runs,
+            "identical": same,
             "samples": {"workers_1": tput[1], "workers_2": tput[2]},
         }
     return out
@@ -252,6 +260,8 @@ def table(r: dict) -> str:
         + ("" if r["bare_same_trajectory"] else "   (replay left the trajectory!)"),
         f"  bare (Python loop)   {r['bare_python_loop_us']:8.2f} us",
         f"  ratio full/bare      {r['ratio']:8.2f}",
+        f"  interpreted step     {r['interpreted_step_us']:8.2f} us  (ratio "
+        f"{r['interpreted_ratio']:.2f}, SIMPRO_KERNEL=python)",
         f"  realtime factor      {r['realtime_factor']:8.1f} x",
         f"  timeseries.csv write {r['timeseries_write_s']:8.3f} s  ({r['timeseries_rows']} rows)",
         "",
@@ -265,8 +275,10 @@ def table(r: dict) -> str:
         lines += [
             "",
             f"  batch of {tp['runs']} runs      simulated s / wall s",
-            f"    1 worker           {tp['workers_1']:8.1f}",
-            f"    2 workers          {tp['workers_2']:8.1f}   (x{tp['speedup']:.2f})",
+            f"    1 thread           {tp['workers_1']:8.1f}",
+            f"    2 threads          {tp['workers_2']:8.1f}   (x{tp['speedup']:.2f})",
+            "    results            "
+            + ("identical to a serial run" if tp["identical"] else "DIFFER from a serial run"),
         ]
     return "\n".join(lines)
 

@@ -47,21 +47,17 @@ How the co-simulation loop uses it (``simpro_mj.sim.loop``)
 ------------------------------------------------------
 :meth:`CoSimulation.run <simpro_mj.sim.loop.CoSimulation.run>` builds the schedule
 (:meth:`FaultSchedule.from_scenario`) only if ``scenario["faults"]`` is not
-empty; otherwise the next event stays :data:`NEVER` and the loop pays one int
-compare per step. Faults act by swapping the loop's stage functions
-(:class:`simpro_mj.sim.stages.FaultStages`):
+empty; such a run steps from Python (the compiled stages when numba is
+there) and :class:`simpro_mj.sim.stages.FaultHooks` acts between the stages:
 
 * ``k == next_event``: :meth:`FaultSchedule.at_event` brings the state to step
-  k; a changed ``supply_pa`` goes to ``set_supply_pressure`` of the actuators;
-  ``flags`` and ``supply_pa`` go to the log; the sensing and control stages
-  are chosen for ``sensor_active`` and ``valve_active``;
-* while ``sensor_active``: the sensing stage hands the controllers
-  :meth:`FaultSchedule.apply_sensors` of the readings (new lists; the
-  sensors' own state is untouched);
-* while ``valve_active``: the control stage returns
-  :meth:`FaultSchedule.apply_valves` of the joint loops' command: the stuck
-  legs' voltages go to the pneumatics (the controllers' own state keeps their
-  own command).
+  k; a changed ``supply_pa`` goes to the actuators' state; ``flags`` and
+  ``supply_pa`` go to the log;
+* while ``sensor_active``: the controllers see :meth:`FaultSchedule.apply_sensors`
+  of the readings (the sensors' own state is untouched);
+* while ``valve_active``: the valves get :meth:`FaultSchedule.apply_valves`
+  of the joint loops' command (the controllers' own state keeps their own
+  command).
 
 A fault at ``time_s`` thus acts from the step ``round(time_s / dt)`` on
 (t >= time_s). The log holds the applied voltages (``u*_v``), what the
@@ -391,8 +387,8 @@ class FaultSchedule:
     def apply_sensors(self, k: int, q_meas, pose_meas):
         """The readings the controller receives at step ``k``.
 
-        Returns new objects of the kind given (lists of floats for lists, as the
-        loop's float fast path uses, ndarrays otherwise); the inputs are left alone.
+        Returns new objects of the kind given (lists of floats for lists, ndarrays
+        otherwise); the inputs are left alone.
 
         Parameters
         ----------

@@ -1,9 +1,10 @@
-"""Which compiled kernels run: the ``SIMPRO_KERNEL`` switch.
+"""How the 1 ms step runs: the ``SIMPRO_KERNEL`` switch.
 
 ``SIMPRO_KERNEL`` = ``auto`` (default: numba if it is importable), ``python``
-or ``numba`` (an error if numba is missing), read when an actuator
-(:mod:`simpro_mj.plant.pneumatics.kernel`) or a sensor object
-(:mod:`simpro_mj.plant.sensors_kernel`) is built. numba is an optional extra
+or ``numba`` (an error if numba is missing), read when a run starts
+(:meth:`simpro_mj.sim.loop.CoSimulation.run`): ``numba`` compiles the step
+(:mod:`simpro_mj.sim.step`) into MuJoCo's control callback, ``python`` runs
+the same functions interpreted. numba is an optional extra
 (``simpro-sim[fast]``): this module only asks whether it is installed, it
 never imports it (its import costs ~0.2 s).
 """
@@ -57,7 +58,7 @@ def kernel_choice() -> str:
 
 
 def kernel_label() -> str:
-    """``"numba 0.68.1"`` or ``"python"``: the kernel new actuators will use."""
+    """``"numba 0.68.1"`` or ``"python"``: how the next run's step will run."""
     try:
         choice = kernel_choice()
     except UserInputError:

@@ -11,8 +11,6 @@ perturbed model do not close at ``qpos0``).
 from __future__ import annotations
 
 import copy
-import ctypes
-import math
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -37,7 +35,6 @@ __all__ = [
     "mobility",
     "assemble",
     "measured_pose",
-    "StateReader",
     "check_physics",
     "WARNING_NAMES",
 ]
@@ -342,141 +339,12 @@ def measured_pose(data, site_p: int) -> np.ndarray:
     """(roll, pitch, h) of the platform frame from MuJoCo, eq. (8) inverted.
 
     ``R = Ry(pitch) Rx(roll)``: pitch = atan2(-R20, R00), roll = atan2(R21, R22).
-    (:meth:`StateReader.pose` is the same computation on pre-bound views.)
     """
     r = data.site_xmat[site_p].tolist()
     # one arctan2 call for both angles: numpy's kernel gives the same bits for
     # a 2-vector as for two scalars (it is not libm's atan2, so no math.atan2)
     roll, pitch = np.arctan2((r[7], -r[6]), (r[8], r[0])).tolist()
     return np.array([roll, pitch, data.site_xpos[site_p, 2]])
-
-
-class StateReader:
-    """What the 1 ms loop reads from MuJoCo, as Python floats, on pre-bound views.
-
-    ``MjData`` arrays never move, so the views into ``qpos``, ``qvel``,
-    ``site_xpos`` and ``site_xmat`` are taken once. Three slides, one pose and
-    four loops are too few for numpy's per-call cost (about 0.5 us); reading a
-    whole small array with ``tolist()`` and indexing Python lists is cheaper.
-    The results equal, bit for bit, ``data.qpos[index.slide_qpos]``,
-    :func:`measured_pose` and ``loop_closure_error(...).max()``.
-
-    Parameters
-    ----------
-    model, data : mujoco.MjModel, mujoco.MjData
-    index : PlantIndex, optional
-    """
-
-    def __init__(self, model: mujoco.MjModel, data: mujoco.MjData, index=None):
-        idx = index or PlantIndex.of(model)
-        self._data = data  # keeps the buffer of buffer_view() alive
-        # Each read converts only the span of entries it needs: every element
-        # of a tolist() is a new Python float (~15 ns each), and the model has
-        # more joints and sites than the loop looks at.
-        qa, dof = idx.slide_qpos.tolist(), idx.slide_dof.tolist()
-        self._qpos = data.qpos[min(qa) : max(qa) + 1]  # views
-        self._qvel = data.qvel[min(dof) : max(dof) + 1]
-        self._slide_qpos = [a - min(qa) for a in qa]
-        self._slide_dof = [a - min(dof) for a in dof]
-        self._xmat = data.site_xmat[idx.site_p]  # (9,) view, row-major R
-        sites = [int(idx.site_p)] + idx.connect_sites.ravel().tolist()
-        lo, hi = min(sites), max(sites)
-        self._xpos_flat = data.site_xpos[lo : hi + 1].reshape(-1)  # view, sites lo..hi
-        self._h_at = 3 * (int(idx.site_p) - lo) + 2
-        #: where the platform frame's origin P (the IMU site) starts in read()'s xpos list
-        self.p_at = self._h_at - 2
-        self._pairs = [(3 * (int(a) - lo), 3 * (int(b) - lo)) for a, b in idx.connect_sites]
-        # arctan2((R21, -R20), (R22, R00)) in one call on pre-allocated buffers
-        self._nd = np.empty(4)
-        self._num, self._den, self._ang = self._nd[:2], self._nd[2:], np.empty(2)
-
-    def buffer_view(self):
-        """The state's offsets in one flat view of MuJoCo's data buffer, or None.
-
-        MuJoCo allocates ``qpos``, ``qvel``, ``site_xpos`` and ``site_xmat``
-        in one block (``mjData.buffer``), so a single float64 view covering
-        them lets a compiled kernel read the whole state through one array
-        argument (:func:`simpro_mj.plant.sensors_kernel._gather`). Returns ``(view,
-        qpos (3), qvel (3), xmat, h, pairs)`` as element offsets into the
-        read-only ``view``, or None when the four arrays do not lie within
-        one span of ``data.nbuffer`` bytes (then the caller reads as
-        :meth:`read` does).
-        """
-        arrays = (self._qpos, self._qvel, self._xpos_flat, self._xmat)
-        starts = [a.__array_interface__["data"][0] for a in arrays]
-        lo = min(starts)
-        hi = max(s + a.nbytes for s, a in zip(starts, arrays, strict=True))
-        if hi - lo > self._data.nbuffer or any((s - lo) % 8 for s in starts):
-            return None
-        if not all(a.dtype == np.float64 and a.strides == (8,) for a in arrays):
-            return None
-        raw = (ctypes.c_double * ((hi - lo) // 8)).from_address(lo)
-        view = np.frombuffer(raw, dtype=np.float64)
-        view.flags.writeable = False
-        qp, qv, xp, xm = ((s - lo) // 8 for s in starts)
-        return (
-            view,
-            [qp + a for a in self._slide_qpos],
-            [qv + a for a in self._slide_dof],
-            xm,
-            xp + self._h_at,
-            [(xp + a, xp + b) for a, b in self._pairs],
-        )
-
-    def slides(self) -> tuple[list, list]:
-        """Slide positions q (m) and velocities q_dot (m/s), three each."""
-        qp, qv = self._qpos.tolist(), self._qvel.tolist()
-        a, b, c = self._slide_qpos
-        i, j, k = self._slide_dof
-        return [qp[a], qp[b], qp[c]], [qv[i], qv[j], qv[k]]
-
-    def pose(self) -> list:
-        """[roll, pitch, h] of the platform frame: :func:`measured_pose` as floats."""
-        return self._pose(self._xpos_flat.tolist())
-
-    def _pose(self, x: list) -> list:
-        """:meth:`pose` with ``site_xpos`` already read (flat list ``x``)."""
-        r = self._xmat.tolist()
-        nd = self._nd
-        nd[0], nd[1], nd[2], nd[3] = r[7], -r[6], r[8], r[0]
-        roll, pitch = np.arctan2(self._num, self._den, out=self._ang).tolist()
-        return [roll, pitch, x[self._h_at]]
-
-    def read(self) -> tuple[list, list, list, list]:
-        """Everything the loop reads after ``mj_step1``, in one call.
-
-        Returns ``(q, q_dot, pose, xpos)``: :meth:`slides`, :meth:`pose` and
-        the flat ``site_xpos`` list they were read from, which
-        :meth:`loop_closure_max` takes to avoid reading it again (the state
-        does not change until ``mj_step2``).
-        """
-        qp, qv, x = self._qpos.tolist(), self._qvel.tolist(), self._xpos_flat.tolist()
-        a, b, c = self._slide_qpos
-        i, j, k = self._slide_dof
-        return [qp[a], qp[b], qp[c]], [qv[i], qv[j], qv[k]], self._pose(x), x
-
-    def loop_closure_max(self, xpos: list | None = None) -> float:
-        """Worst loop-closure distance (m): ``loop_closure_error(...).max()``.
-
-        Same arithmetic as ``np.linalg.norm(axis=1)`` on three components,
-        ``sqrt((dx^2 + dy^2) + dz^2)``, except that the square root is taken
-        once, of the largest sum: IEEE ``sqrt`` is correctly rounded, hence
-        monotone, so ``sqrt(max s_i) == max sqrt(s_i)`` bit for bit. A NaN
-        is returned as NaN, as by ``ndarray.max``.
-
-        ``xpos``: ``site_xpos`` as a flat list read at the current state
-        (from :meth:`read`); read now when omitted.
-        """
-        x = self._xpos_flat.tolist() if xpos is None else xpos
-        worst = 0.0
-        for a, b in self._pairs:
-            dx, dy, dz = x[a] - x[b], x[a + 1] - x[b + 1], x[a + 2] - x[b + 2]
-            e = dx * dx + dy * dy + dz * dz
-            if e > worst:
-                worst = e
-            elif e != e:
-                return e  # NaN, as ndarray.max
-        return math.sqrt(worst)
 
 
 def check_physics(model, data, warnings_before=None, loop_bound: float | None = None, index=None):

@@ -1,8 +1,8 @@
 """Errors a rig's sensors have beyond noise and quantisation: plain scalar functions.
 
-Each function works on floats with :mod:`math` only, so the interpreted sensor
-step (:meth:`simpro_mj.plant.sensors.Sensors.sample_floats`) and the compiled
-one (:mod:`simpro_mj.plant.sensors_kernel`) call the same source. All are off
+Each function works on floats with :mod:`math` only, so the sensor step
+(:func:`simpro_mj.plant.step_functions.sample_sensors`) calls them
+interpreted and compiled alike. All are off
 (zero) on the ``paper`` preset; ``heavy_cabin`` sets a MEMS unit's values
 (``docs/paper-notes.md``, sensor errors, has them and the pose each leaves).
 

@@ -11,8 +11,6 @@ report: as-built errors (potentiometer offset and gain), noise, quantisation,
 bandwidth (IMU), and a sampling rate with zero-order hold. Every noise source
 draws from one :class:`numpy.random.Generator` seeded by the scenario, in a
 fixed order, so the same scenario and seed give identical readings.
-
-Noise is pre-drawn in blocks (no per-step generator calls in the 1 ms loop).
 """
 
 from __future__ import annotations
@@ -24,14 +22,7 @@ import numpy as np
 
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.rates import steps_per_period
-from simpro_mj.plant import sensors_kernel as _sk
-from simpro_mj.plant.kernels import kernel_choice
-from simpro_mj.plant.sensor_errors import (
-    accel_tilt,
-    bias_walk_sigma,
-    noise_sigma,
-    pot_nonlinearity,
-)
+from simpro_mj.plant.sensor_errors import bias_walk_sigma, noise_sigma
 
 __all__ = ["DEFAULT_SENSORS", "POT_BITS", "POT_BITS_TEXT", "SensorConfig", "Sensors"]
 
@@ -166,13 +157,13 @@ class SensorConfig:
 class Sensors:
     """The rig's sensors, sampled every physics step (zero-order hold between samples).
 
+    The per-step models are :func:`simpro_mj.plant.step_functions.sample_sensors`
+    (run by the co-simulation's step, :mod:`simpro_mj.sim.step`); this object
+    holds their configuration.
+
     Parameters
     ----------
     config : SensorConfig
-    rng : numpy.random.Generator
-        Seeded by the scenario; the only source of randomness.
-    block : int
-        Steps of noise drawn at a time.
 
     Notes
     -----
@@ -182,298 +173,15 @@ class Sensors:
     ``o_i`` and gain ``g_i`` appear as joint-space errors. The encoder reports
     ``round(h / res) res``. The IMU low-pass filters roll and pitch at its
     bandwidth, adds bias and white noise, and updates every ``rate_ms``.
+    The rig's further errors (:mod:`simpro_mj.plant.sensor_errors`): the
+    track's non-linearity, the IMU bias's random walk, the accelerometer's
+    share of the attitude. Every noise source draws from the scenario's
+    seeded generator in a fixed order (:class:`simpro_mj.sim.stages.NoiseBlock`;
+    the bias walk from a generator spawned from it).
     """
 
-    def __init__(self, config: SensorConfig, rng: np.random.Generator, block: int = 4096):
+    def __init__(self, config: SensorConfig):
         self.cfg = config
-        self.rng = rng
-        self.block = int(block)
-        self.q = np.zeros(3)
-        self.pose = np.zeros(3)  # roll, pitch, h as measured
-        # The state lives in Python floats (three legs are too few for numpy's
-        # per-call cost); sample() mirrors it into the arrays above.
-        self._q = [0.0] * 3
-        self._pose = [0.0] * 3
-        self._imu_state = [0.0] * 2
-        self._noise_rows: list = []  # the pre-drawn noise block, as lists of 6 floats
-        self._k0 = 0
-        self._pot = (
-            config.pot_gain.tolist(),
-            config.pot_offset_m.tolist(),
-            config.pot_noise_m,
-            config.pot_lsb_m,
-            *config.pot_range_m,
-        )
-        self._imu_bias = config.imu_bias_rad.tolist()
-        # the config's scalars as plain attributes (read every step)
-        self._every = (config.pot_every, config.enc_every, config.imu_every)
-        self._enc = (config.enc_noise_m, config.enc_res_m)
-        self._imu = (config.imu_alpha, config.imu_noise_rad)
-        # sensor errors (simpro_mj.plant.sensor_errors): the track's bow, the bias's
-        # random walk (its own generator, spawned from the scenario's, so the other
-        # noise draws stay as they are), the accelerometer's view of the motion
-        self._nl = (config.pot_full_scale_m, config.pot_nonlinearity)
-        self._walk_sigma = config.imu_walk_rad
-        self._walk_rng = rng.spawn(1)[0] if config.imu_walk_rad > 0 else None
-        self._walk = [0.0, 0.0]
-        self._walk_rows: list = []
-        self._walk_j = 0  # next row of the walk block
-        self._accel_w = config.imu_accel_weight
-        self._hist: list = []  # the IMU site's last two positions (accelerometer)
-        self._kb = None
-        if kernel_choice() == "numba":  # SIMPRO_KERNEL (simpro_mj.plant.kernels)
-            self._init_kernel()
-
-    # -- compiled kernel (sensors_kernel.py) ---------------------------------
-    def _init_kernel(self) -> None:
-        """The kernel's buffer: configuration, state and the noise block."""
-        sk = _sk
-        kb = np.zeros(sk.buffer_len(self.block))
-        kb[sk.C_GAIN : sk.C_GAIN + 3] = self._pot[0]
-        kb[sk.C_OFF : sk.C_OFF + 3] = self._pot[1]
-        kb[sk.C_SIGMA], kb[sk.C_LSB], kb[sk.C_LO], kb[sk.C_HI] = self._pot[2:]
-        kb[sk.C_POT_EVERY], kb[sk.C_ENC_EVERY], kb[sk.C_IMU_EVERY] = self._every
-        kb[sk.C_ENC_NOISE], kb[sk.C_RES] = self._enc
-        kb[sk.C_ALPHA], kb[sk.C_SIGMA_IMU] = self._imu
-        kb[sk.C_BIAS : sk.C_BIAS + 2] = self._imu_bias
-        kb[sk.C_FS], kb[sk.C_NL] = self._nl
-        kb[sk.C_WALK], kb[sk.C_ACCW] = self._walk_sigma, self._accel_w
-        kb[sk.C_WALK_ON] = 1.0 if self._walk_rng is not None else 0.0
-        kb[sk.C_IDT2] = 1.0 / (self.cfg.dt * self.cfg.dt)
-        kb[sk.C_WALK_AT] = sk.NOISE + 6 * self.block
-        kb[sk.S_WJ] = self.block
-        self._kb = kb
-        self._k_walk = kb[sk.NOISE + 6 * self.block :].reshape(self.block, 2)  # view
-        self._k_noise = kb[sk.NOISE : sk.NOISE + 6 * self.block].reshape(self.block, 6)  # view
-        self._k_imu = kb[sk.S_IMU : sk.S_IMU + 2]
-        self._k_meas = kb[sk.O_QM : sk.O_PM + 3]  # q_meas, pose_meas
-        self._k_rows = 0  # rows of the noise block drawn since the last reset
-        self._k_gather, self._k_sample, self._k_sample_in = sk.kernels()
-
-    def _walk_kernel(self, k: int, force: bool) -> None:
-        """A new block of the bias walk in the kernel's buffer when step k's IMU
-        sample would pass the end of the present one (:meth:`_walk_block`)."""
-        kb, sk = self._kb, _sk
-        if kb[sk.S_WJ] >= self.block and (force or k % self._every[2] == 0):
-            self._k_walk[...] = self._walk_block()
-            kb[sk.S_WJ] = 0.0
-
-    def _draw_kernel(self, k: int) -> int:
-        """:meth:`_draw` into the kernel's buffer; returns the row of step k."""
-        self._k_noise[...] = self.rng.standard_normal((self.block, 6))
-        self._k_rows = self.block
-        self._k0 = k
-        return 0
-
-    def front(self, reader):
-        """The loop's state read and sensor step: ``front(k) -> (q, q_dot, pose,
-        q_meas, pose_meas, loop_max)``.
-
-        ``reader`` is the run's :class:`~simpro_mj.plant.model.StateReader`.
-        One contract, two paths with the same bits: ``reader.read()``,
-        :meth:`sample_floats` and ``reader.loop_closure_max()`` of the state
-        at step ``k`` (the Python path), or one compiled call
-        (``SIMPRO_KERNEL``, :mod:`simpro_mj.plant.sensors_kernel`) when
-        MuJoCo's state can be viewed as one buffer. ``q_meas`` and
-        ``pose_meas`` may be the sensor's own lists: copy them to keep them.
-        """
-        fused = self._fused_front(reader)
-        if fused is not None:
-            return fused
-        read, sample, loop_max = reader.read, self.sample_floats, reader.loop_closure_max
-        if self._accel_w > 0:  # the accelerometer needs the IMU site's position
-            at = reader.p_at
-
-            def front_site(k: int):
-                q, qd, pose, xpos = read()
-                q_meas, pose_meas = sample(k, q, pose, False, xpos[at : at + 3])
-                return q, qd, pose, q_meas, pose_meas, loop_max(xpos)
-
-            return front_site
-
-        def front(k: int):
-            q, qd, pose, xpos = read()
-            q_meas, pose_meas = sample(k, q, pose)
-            return q, qd, pose, q_meas, pose_meas, loop_max(xpos)
-
-        return front
-
-    def _fused_front(self, reader):
-        """:meth:`front` as one compiled call, or None (Python path, or no one buffer)."""
-        if self._kb is None:
-            return None
-        bound = reader.buffer_view()
-        if bound is None:
-            return None
-        sk, kb = _sk, self._kb
-        view, qpos, qvel, xmat, h, pairs = bound
-        if len(pairs) > sk.MAX_PAIRS:
-            return None
-        kb[sk.R_QPOS : sk.R_QPOS + 3] = qpos
-        kb[sk.R_QVEL : sk.R_QVEL + 3] = qvel
-        kb[sk.R_XMAT], kb[sk.R_H], kb[sk.R_NPAIR] = xmat, h, len(pairs)
-        kb[sk.R_PAIRS : sk.R_PAIRS + 2 * len(pairs)] = [i for p in pairs for i in p]
-        gather, sample, atan2 = self._k_gather, self._k_sample, np.arctan2
-        num, den = kb[sk.S_ND : sk.S_ND + 2], kb[sk.S_ND + 2 : sk.S_ND + 4]
-        ang = kb[sk.O_POSE : sk.O_POSE + 2]  # roll, pitch: numpy's arctan2 (as the reader)
-        out = kb[: sk.OUT_LEN]
-
-        walk = self._walk_kernel if self._walk_rng is not None else None
-
-        def front(k: int):
-            i = k - self._k0
-            if not 0 <= i < self._k_rows:
-                i = self._draw_kernel(k)
-            if walk is not None:
-                walk(k, False)
-            gather(view, kb)
-            atan2(num, den, out=ang)
-            sample(k, i, False, True, kb)
-            v = out.tolist()
-            return v[0:3], v[3:6], v[6:9], v[9:12], v[12:15], v[15]
-
-        front.reader = reader  # keeps MuJoCo's data (the view's memory) alive
-        return front
-
-    def _walk_block(self) -> list:
-        """The next ``block`` steps of the bias walk (2 per IMU sample), standard normal."""
-        if self._walk_rng is None:
-            return [[0.0, 0.0]] * self.block
-        return self._walk_rng.standard_normal((self.block, 2)).tolist()
-
-    def _draw(self, k: int) -> list:
-        """Noise row for step k: 3 pots, encoder, 2 IMU axes (standard normal floats)."""
-        i = k - self._k0
-        if i >= len(self._noise_rows) or i < 0:
-            self._noise_rows = self.rng.standard_normal((self.block, 6)).tolist()
-            self._k0 = k
-            i = 0
-        return self._noise_rows[i]
-
-    def reset(self, q_true, pose_true) -> None:
-        """Initialise the filters at the true state and take a first reading."""
-        self._imu_state[:] = [float(pose_true[0]), float(pose_true[1])]
-        self._noise_rows = []
-        self._k0 = 0
-        self._walk[:] = [0.0, 0.0]
-        self._walk_rows, self._walk_j = [], 0
-        self._hist = []
-        if self._kb is not None:
-            self._k_imu[:] = self._imu_state
-            self._k_rows = 0
-            sk = _sk
-            self._kb[sk.S_WALK : sk.S_WALK + 2] = 0.0
-            self._kb[sk.S_WJ], self._kb[sk.S_HN] = self.block, 0.0
-        self.sample(0, q_true, pose_true, force=True)
-
-    def sample(self, k: int, q_true, pose_true, force: bool = False):
-        """Update the readings at physics step k; returns (q_meas, pose_meas) views.
-
-        The returned arrays are the sensor's own buffers (copy them to log).
-        """
-        q, pose = self.sample_floats(k, _floats(q_true), _floats(pose_true), force)
-        self.q[:] = q
-        self.pose[:] = pose
-        return self.q, self.pose
-
-    def sample_floats(self, k: int, q_true, pose_true, force: bool = False, site=None):
-        """:meth:`sample` on sequences of 3 floats; returns (q_meas, pose_meas) lists.
-
-        ``site``: the IMU site's world position (3 floats) at this step, whose
-        second difference is the acceleration the accelerometer sees
-        (``imu.accel_tilt_weight``); None: no acceleration.
-
-        The co-simulation's hot path. The lists are the sensor's own state
-        (copy them to keep them). The arithmetic is the array version's,
-        operation for operation (``round`` is numpy's round-half-even).
-        With the compiled kernel (``SIMPRO_KERNEL``, :mod:`simpro_mj.plant.sensors_kernel`)
-        the same arithmetic runs there and the lists are fresh copies.
-        """
-        if self._kb is not None:
-            i = k - self._k0
-            if not 0 <= i < self._k_rows:
-                i = self._draw_kernel(k)
-            if self._walk_rng is not None:
-                self._walk_kernel(k, force)
-            sx, sy, sz = (0.0, 0.0, 0.0) if site is None else site
-            self._k_sample_in(
-                k, i, bool(force), q_true[0], q_true[1], q_true[2],
-                pose_true[0], pose_true[1], pose_true[2], site is not None, sx, sy, sz,
-                self._kb,
-            )  # fmt: skip
-            v = self._k_meas.tolist()
-            return v[:3], v[3:]
-        i = k - self._k0
-        rows = self._noise_rows
-        n = rows[i] if 0 <= i < len(rows) else self._draw(k)  # _draw(k), inline when in the block
-        pot_every, enc_every, imu_every = self._every
-        # IMU's output filter runs at the physics rate
-        imu = self._imu_state
-        alpha, sigma_imu = self._imu
-        r_in, p_in = pose_true[0], pose_true[1]
-        w = self._accel_w
-        if w > 0 and site is not None:
-            r_in, p_in = self._accel_input(site, r_in, p_in, w)
-        imu[0] = imu[0] + alpha * (r_in - imu[0])
-        imu[1] = imu[1] + alpha * (p_in - imu[1])
-        if force or k % pot_every == 0:
-            gain, off, sigma, lsb, lo, hi = self._pot
-            fs, nl = self._nl
-            q = self._q
-            for i in range(3):
-                if nl > 0:
-                    e = pot_nonlinearity(q_true[i], fs, nl)
-                    v = gain[i] * q_true[i] + off[i] + e + sigma * n[i]
-                else:
-                    v = gain[i] * q_true[i] + off[i] + sigma * n[i]
-                try:
-                    v = round(v / lsb) * lsb
-                except (ValueError, OverflowError):  # NaN or inf: numpy's rint keeps it
-                    v = float(np.round(v / lsb) * lsb)
-                if v < lo:
-                    v = lo
-                if v > hi:
-                    v = hi
-                q[i] = v
-        pose = self._pose
-        if force or k % enc_every == 0:
-            noise, res = self._enc
-            h = pose_true[2] + noise * n[3]
-            if res > 0:
-                try:
-                    h = round(h / res) * res
-                except (ValueError, OverflowError):
-                    h = float(np.round(h / res) * res)
-            pose[2] = h
-        if force or k % imu_every == 0:
-            bias, walk = self._imu_bias, self._walk
-            if self._walk_rng is not None:
-                if self._walk_j >= len(self._walk_rows):
-                    self._walk_rows, self._walk_j = self._walk_block(), 0
-                wn = self._walk_rows[self._walk_j]
-                self._walk_j += 1
-                walk[0] = walk[0] + self._walk_sigma * wn[0]
-                walk[1] = walk[1] + self._walk_sigma * wn[1]
-            pose[0] = imu[0] + (bias[0] + walk[0]) + sigma_imu * n[4]
-            pose[1] = imu[1] + (bias[1] + walk[1]) + sigma_imu * n[5]
-        return self._q, pose
-
-    def _accel_input(self, site, roll, pitch, w):
-        """The IMU filter's input: the true angles moved by ``w`` times what the
-        accelerometer reads from the site's acceleration (second difference)."""
-        h = self._hist
-        x, y, z = float(site[0]), float(site[1]), float(site[2])
-        if len(h) < 2:  # the first two positions of a run: no acceleration yet
-            h.insert(0, (x, y, z))
-            return roll, pitch
-        (x1, y1, z1), (x2, y2, z2) = h
-        idt2 = 1.0 / (self.cfg.dt * self.cfg.dt)
-        ax = ((x - x2) - 2.0 * (x1 - x2)) * idt2
-        ay = ((y - y2) - 2.0 * (y1 - y2)) * idt2
-        az = ((z - z2) - 2.0 * (z1 - z2)) * idt2
-        h[0], h[1] = (x, y, z), (x1, y1, z1)
-        ra, pa = accel_tilt(ax, ay, az, roll, pitch)
-        return roll + w * (ra - roll), pitch + w * (pa - pitch)
 
     def resolution_floor(self) -> dict:
         """Smallest steady-state error the task loop can be asked to remove, SI.
@@ -490,10 +198,3 @@ class Sensors:
             "pitch": c.imu_noise_rad * 3 / math.sqrt(n_imu) + float(np.abs(c.imu_bias_rad[1])),
             "heave": c.enc_res_m + 3 * c.enc_noise_m,
         }
-
-
-def _floats(x) -> list:
-    """A (3,) array or sequence as a list of 3 numbers."""
-    if type(x) is np.ndarray:
-        return x.tolist()
-    return list(x)

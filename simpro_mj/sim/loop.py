@@ -49,11 +49,13 @@ import time
 import mujoco
 import numpy as np
 
+from controllers import step_functions as cs
 from controllers.design import Plant, paper_coefficients
+from controllers.errors import WorkspaceError
 from controllers.frames import GRAVITY
 from controllers.geometry import nominal_geometry
 from controllers.joint import JointControllers
-from controllers.kinematics import inverse_kinematics
+from controllers.kinematics import check_reachable, inverse_kinematics
 from controllers.setpoint_filter import SetpointFilter
 from controllers.task_space import TaskSpaceController, outer_law
 from controllers.velocity_feedforward import leg_velocity_feedforward
@@ -62,12 +64,16 @@ from simpro_mj.core.errors import PhysicsError, UserInputError
 from simpro_mj.core.rates import steps_per_period
 from simpro_mj.identification.auto import with_identified
 from simpro_mj.plant.faults import NEVER, FaultSchedule
-from simpro_mj.plant.model import PlantIndex, load_model
+from simpro_mj.plant.kernels import kernel_choice
+from simpro_mj.plant.model import PlantIndex, check_physics, load_model
 from simpro_mj.plant.platform import Platform
 from simpro_mj.plant.pneumatics.factory import make_actuators
 from simpro_mj.plant.sensors import SensorConfig, Sensors
+from simpro_mj.sim import step
+from simpro_mj.sim.registration import Registration
 from simpro_mj.sim.result import COLUMNS, SimResult, qpos_names
-from simpro_mj.sim.stages import FaultStages, Profile, Recorder, control_stage
+from simpro_mj.sim.stages import CHUNK, FaultHooks, Log, NoiseBlock, Profile
+from simpro_mj.sim.step_buffers import build, initial_state
 
 __all__ = ["LOOP_OPEN_BOUND", "CoSimulation", "simulate"]
 
@@ -104,9 +110,15 @@ class CoSimulation:
         :class:`simpro_mj.job.run.Run` does); resolved here when omitted.
     """
 
-    def __init__(self, scenario: dict, model: mujoco.MjModel | None = None, *,
-                 setpoints: str = "scenario", poses: np.ndarray | None = None,
-                 identified_source: str | None = None):  # fmt: skip
+    def __init__(
+        self,
+        scenario: dict,
+        model: mujoco.MjModel | None = None,
+        *,
+        setpoints: str = "scenario",
+        poses: np.ndarray | None = None,
+        identified_source: str | None = None,
+    ):
         if setpoints not in ("scenario", "external"):
             raise ValueError(f"setpoints={setpoints!r}; allowed: 'scenario' or 'external'")
         external = setpoints == "external"
@@ -177,9 +189,11 @@ class CoSimulation:
         )
         self.rng = np.random.default_rng(int(scenario["seed"]))
         self.sensor_cfg = SensorConfig.from_tree(scenario["sensors"], dt)
-        self.sensors = Sensors(self.sensor_cfg, self.rng)
-        # the plant as the loop sees it (dm_control's Physics): step1 / front / step2
-        self.platform = Platform(m, self.actuators, self.sensors, self.idx)
+        # the IMU bias's random walk draws from a generator of its own
+        self.walk_rng = self.rng.spawn(1)[0] if self.sensor_cfg.imu_walk_rad > 0 else None
+        self.sensors = Sensors(self.sensor_cfg)
+        # the plant as the loop sees it (dm_control's Physics)
+        self.platform = Platform(m, self.actuators, self.idx)
         self.data = self.platform.data
 
         self.t = np.arange(self.n_steps + 1) * dt
@@ -266,7 +280,9 @@ class CoSimulation:
 
         The slides are placed where the potentiometers read IK(y_d(0)) (sensor
         offset and gain inverted), the closed chain is assembled, the
-        pneumatics start at the static pressures that hold it.
+        pneumatics start at the static pressures that hold it; the step's
+        buffers (:mod:`simpro_mj.sim.step`) are filled and the sensors take a
+        first reading.
         """
         q_d0 = inverse_kinematics(self.ref[0], self.geometry)
         c = self.sensor_cfg
@@ -274,6 +290,10 @@ class CoSimulation:
         self.joint.reset()
         self.task.reset(self.ref[0])
         self.setpoint_filter.reset(q_d0.tolist())
+        self.noise = NoiseBlock(self.rng)
+        self.walk = NoiseBlock(self.walk_rng, width=2)
+        self.S, self.C = build(self, LOOP_OPEN_BOUND)
+        initial_state(self.S, self.C, self, self.noise.rows[0], self.walk.rows[0])
 
     # ------------------------------------------------------------------ run
     def run(self, progress=None, *, profile: dict | None = None, pace=None) -> SimResult:
@@ -284,99 +304,211 @@ class CoSimulation:
         progress : callable(int), optional
             Called with the number of steps done, every 1000 steps.
         profile : dict, optional
-            If given, every stage is wrapped in ``time.perf_counter_ns``
-            (:class:`~simpro_mj.sim.stages.Profile`, which slows it down) and
-            the wall time per stage is written into it, ns summed over the
-            run: ``physics`` (``mj_step1``, ``mj_step2``, the warning check),
-            ``sensors`` (reading the MuJoCo state and the sensor models, the
-            sensor faults), ``controllers`` (task and joint loops, stuck
-            valves), ``pneumatics``, ``logging`` (the log row); plus
-            ``steps``. ``simpro-sim bench`` reports it.
+            If given, the step runs stage by stage from Python with
+            ``time.perf_counter_ns`` around each (:class:`~simpro_mj.sim.stages.Profile`,
+            which slows it down) and the wall time per stage is written into
+            it, ns summed over the run: ``physics`` (``mj_step1``,
+            ``mj_step2``), ``sensors``, ``controllers`` (with the faults' hooks),
+            ``pneumatics``, ``logging``; plus ``steps``.
         pace : callable(int, ndarray) -> int, optional
             The live interface (module docstring): called before step ``k``,
             first at 0, then at each step it returns, with the rows logged so far.
 
         Notes
         -----
-        The loop is the hot path of every run (``docs/performance.md``).
-        What it moves between the stages are short lists of Python floats:
-        for three legs numpy's per-call overhead (0.2-0.7 us) exceeds the
-        arithmetic, so the components expose float fast paths
-        (``Sensors.front``, ``JointControllers.update_floats``,
-        ``TaskSpaceController.update_floats`` with its single-pose IK
-        :class:`~controllers.kinematics.PoseKinematics`) that do the same
-        IEEE operations as their array versions. The body below only calls
-        the stages (:mod:`simpro_mj.sim.stages`): what differs between runs
-        (controller mode, faults, profiling) is which stage functions it
-        holds, not tests in the body.
+        The step is :mod:`simpro_mj.sim.step`, one source run two ways
+        (``SIMPRO_KERNEL``): compiled, inside ``mj_step`` as MuJoCo's control
+        callback, Python stepping chunks of at most :data:`CHUNK` steps and
+        checking between them (the default with numba; faults and profiling
+        run the compiled stages from Python instead); interpreted, the same
+        functions called from Python every step (the reference).
         """
         self._initial_state()
-        plat, dt, n, dec = self.platform, self.dt, self.n_steps, self.decimation
-        rec = Recorder(n // dec + 1, len(COLUMNS), self.model.nq, self.cueing,
-                       self.actuators.params.p_supply)  # fmt: skip
-        head = None
-        if self.cueing:
-            head = self.idx.sensor["head_accel"], self.idx.sensor["head_gyro"]
-        timer = Profile() if profile is not None else None
-        wrap = timer.wrap if timer is not None else (lambda fn, stage: fn)
-        sense, control = plat.front, self._control_stage()
+        n, dec = self.n_steps, self.decimation
+        rows = n // dec + 1
+        log = self._log = Log(rows, self.model.nq, self.cueing)
         faults = None
-        if self.scenario.get("faults"):  # event driven: without faults one int compare a step
-            sched = FaultSchedule.from_scenario(self.scenario, dt)
-            faults = FaultStages(sched, self.actuators, rec, sense, control, wrap)
-        next_ev = faults.next_event if faults is not None else NEVER
-        next_pace = 0 if pace is not None else NEVER
-        step1, step2 = wrap(plat.step1, "physics"), wrap(plat.step2, "physics")
-        sense, control = wrap(sense, "sensors"), wrap(control, "controllers")
-        actuate = wrap(self.actuators.step, "pneumatics")
-        record = wrap(rec.writer(self.ref, dt, plat, LOOP_OPEN_BOUND, head), "logging")
+        if self.scenario.get("faults"):
+            faults = FaultSchedule.from_scenario(self.scenario, self.dt)
+        kernel = kernel_choice()
+        stages = step.compiled() if kernel == "numba" else step
         status, reason = "ok", None
         wall0 = time.perf_counter()
         k = 0
         try:
-            for k in range(n + 1):
-                if k == next_ev:  # a fault starts or ends: it swaps the stages it acts on
-                    sense, control, next_ev = faults.at(k)
-                if k == next_pace:  # the live driver: set-points in, wall clock, pose out
-                    next_pace = pace(k, rec.log[: rec.rows])
-                step1()
-                q, qd, pose, q_meas, pose_meas, loop = sense(k)
-                q_r, u, pose_cmd = control(k, pose_meas, q_meas)
-                f = actuate(u, q, qd, dt).tolist()
-                if k % dec == 0:
-                    record(k, pose, pose_meas, pose_cmd, q_r, q, q_meas, u, f, loop)
-                if k == n:
-                    break
-                step2(f)
-                if progress is not None and k % 1000 == 0:
-                    progress(k)
+            if kernel == "numba" and faults is None and profile is None:
+                k = self._run_callback(log, pace, progress)
+            else:
+                k = self._run_python(stages, log, faults, profile, pace, progress)
         except PhysicsError as exc:
             status, reason = "diverged", str(exc)
+            k = self._k
         except KeyboardInterrupt:
             # SIGINT, or SIGTERM turned into KeyboardInterrupt by the CLI: keep
-            # what was computed so the caller can still write it
+            # what was computed so the caller can still write it (a compiled chunk
+            # may have run past the step Python last saw: S[K] is the next step)
+            k = max(self._k, int(self.S[step.K]) - 1)
             status = "interrupted"
-            reason = f"interrupted by signal (SIGINT/SIGTERM) at t = {k * dt:.3f} s"
+            reason = f"interrupted by signal (SIGINT/SIGTERM) at t = {k * self.dt:.3f} s"
         wall = time.perf_counter() - wall0
-        if timer is not None:
-            profile.update(timer.ns, steps=k + 1)
-        return self._result(rec, k, status, reason, wall)
+        log.rows, log.worst_loop = int(self.S[step.ROWS]), float(self.S[step.WORST])
+        return self._result(log, k, status, reason, wall)
 
-    def _control_stage(self):
-        """The controllers' stage for this scenario's mode (:func:`~.stages.control_stage`)."""
-        return control_stage(
-            self.mode,
-            task=self.task,
-            joint=self.joint,
-            setpoint_filter=self.setpoint_filter,
-            ref=self.ref,
-            outer_every=self.outer_every,
-            q_joint=self.q_joint_only,
-            u_ff=None if self.u_ff is None else self.u_ff.tolist(),
-            hold_on_saturation=self.mode == "feedforward" and self.hold_on_saturation,
+    def _arrays(self, log):
+        """The arrays the stages read and write (MuJoCo's are views)."""
+        d = self.data
+        empty = np.zeros_like(self.ref)
+        qj = self.q_joint_only if self.q_joint_only is not None else empty
+        uff = self.u_ff if self.u_ff is not None else empty
+        mj = (
+            d.qpos,
+            d.qvel,
+            d.site_xpos.reshape(-1),
+            d.site_xmat.reshape(-1),
+            d.sensordata,
+            d.ctrl,
         )
+        return mj, (self.ref, np.ascontiguousarray(qj), np.ascontiguousarray(uff))
 
-    def _result(self, rec: Recorder, steps: int, status: str, reason, wall: float) -> SimResult:
+    def _run_python(self, stages, log, faults, profile, pace, progress) -> int:
+        """Step by step from Python: ``mj_step1``, the stages, ``mj_step2``."""
+        m, d, S, C, n = self.model, self.data, self.S, self.C, self.n_steps
+        (qpos, qvel, xpos, xmat, sd, ctrl), (ref, qj, uff) = self._arrays(log)
+        noise, walk = self.noise, self.walk
+        timer = Profile() if profile is not None else None
+        wrap = timer.wrap if timer is not None else (lambda fn, stage: fn)
+        step1 = wrap(mujoco.mj_step1, "physics")
+        step2 = wrap(mujoco.mj_step2, "physics")
+        sense, control = wrap(stages.sense, "sensors"), wrap(stages.control, "controllers")
+        actuate, apply_forces = wrap(stages.actuate, "pneumatics"), stages.apply_forces
+        record = wrap(stages.record, "logging")
+        hooks = FaultHooks(faults, S, self.actuators) if faults is not None else None
+        next_ev = faults.next_event if faults is not None else NEVER
+        next_pace = 0 if pace is not None else NEVER
+        warnings = d.warning.number
+        k = 0
+        try:
+            for k in range(n + 1):
+                self._k = k
+                if k == next_ev:
+                    next_ev = hooks.at(k)
+                if k == next_pace:
+                    next_pace = pace(k, log.log[: int(S[step.ROWS])])
+                self._draws(k, k + 1)
+                step1(m, d)
+                sense(k, S, C, qpos, qvel, xpos, xmat, noise.rows, walk.rows)
+                if hooks is not None and hooks.sensors:
+                    hooks.apply_sensors(k)
+                err = control(k, S, C, ref, qj, uff)
+                if err:
+                    self._raise(err, k)
+                if hooks is not None and hooks.valves:
+                    hooks.apply_valves()
+                err = actuate(S, C)
+                if err:
+                    self._raise(err, k)
+                apply_forces(S, C, ctrl)
+                err = record(k, S, C, ref, qpos, sd, log.log, log.qlog, log.hlog)
+                if err:
+                    self._raise(err, k)
+                if k == n:
+                    break
+                step2(m, d)
+                if any(warnings.tolist()):
+                    self._raise(step.ERR_WARNING, k)
+                if progress is not None and k % 1000 == 0:
+                    progress(k)
+        finally:
+            if timer is not None:
+                profile.update(timer.ns, steps=k + 1)
+        return k
+
+    def _run_callback(self, log, pace, progress) -> int:
+        """Compiled, inside ``mj_step``: chunks of steps, the checks between them."""
+        m, d, S, C, n = self.model, self.data, self.S, self.C, self.n_steps
+        _, (ref, qj, uff) = self._arrays(log)
+        next_pace = 0 if pace is not None else NEVER
+        reg = Registration(m, d, S, C, ref, qj, uff, self.noise.rows, self.walk.rows, log.log,
+                           log.qlog, log.hlog)  # fmt: skip
+        k = 0
+        self._k = 0
+        with reg:
+            while True:
+                if k == next_pace:
+                    next_pace = pace(k, log.log[: int(S[step.ROWS])])
+                stop = min(n, (k // CHUNK + 1) * CHUNK)
+                if k < next_pace < stop:
+                    stop = next_pace
+                self._draws(k, stop + 1)
+                S[step.K], S[step.STATUS] = k, step.RUNNING
+                if stop > k:
+                    mujoco.mj_step(m, d, stop - k)
+                else:  # the last step: its stages without integrating (mj_step1's work)
+                    mujoco.mj_forward(m, d)
+                if S[step.STATUS] == step.STOPPED:
+                    self._k = int(S[step.ERR_K])
+                    self._raise(int(S[step.ERR]), self._k)
+                S[step.STATUS] = step.IDLE
+                if int(S[step.K]) != max(stop, k + 1):
+                    raise RuntimeError(
+                        f"the control callback ran {int(S[step.K]) - k} of "
+                        f"{max(stop - k, 1)} steps: another callback replaced it"
+                    )
+                if k == n:
+                    break
+                if progress is not None and stop // 1000 > k // 1000:
+                    progress(stop // 1000 * 1000)
+                k = stop
+                self._k = k
+                if any(d.warning.number.tolist()):
+                    self._raise(step.ERR_WARNING, k - 1)
+        return n
+
+    def _draws(self, k0: int, k1: int) -> None:
+        """The sensors' and the bias walk's draws for steps ``k0 .. k1 - 1`` in their blocks."""
+        S = self.S
+        S[step.NOISE_K0] = self.noise.ensure(k0, k1)
+        m = int(S[step.WALK_M])  # an IMU sample at most every step
+        S[step.WALK_M0] = self.walk.ensure(m, m + (k1 - k0))
+
+    def _raise(self, err: int, k: int):
+        """The exception of a step's error code (:mod:`simpro_mj.sim.step`)."""
+        self._k = k
+        S, t = self.S, k * self.dt
+        if err == step.ERR_WARNING:
+            check_physics(
+                self.model, self.data, np.zeros_like(self.data.warning.number), index=self.idx
+            )
+            raise PhysicsError(f"MuJoCo warning at t = {t:.3f} s")
+        if err == step.ERR_FORCE:
+            f = S[step.F : step.F + 3]
+            p = S[step.AST : step.AST + 6]
+            raise PhysicsError(
+                f"non-finite actuator force {f} at t = {t:.3f} s (pressures {p[:3]}, {p[3:]})"
+            )
+        if err == step.ERR_LOOP:
+            row = int(S[step.ROWS]) - 1
+            scratch = mujoco.MjData(self.model)
+            scratch.qpos[:] = self._log.qlog[row]
+            scratch.time = t
+            mujoco.mj_kinematics(self.model, scratch)
+            check_physics(self.model, scratch, loop_bound=LOOP_OPEN_BOUND, index=self.idx)
+            raise PhysicsError(f"kinematic loop opened at t = {t:.3f} s")
+        ref = self.ref[k]
+        if err == cs.ERR_SETPOINT_NONFINITE:
+            raise WorkspaceError(f"set-point not finite: {ref}")
+        if err == cs.ERR_SETPOINT_UNREACHABLE:
+            check_reachable(ref, self.geometry, self.task.margin)  # raises, naming the limit
+            raise WorkspaceError("set-point unreachable: outside the guide arc or stroke limits")
+        if err == cs.ERR_MEAS_NONFINITE:
+            raise ValueError(f"measured pose not finite: {S[step.YP : step.YP + 3]}")
+        if err == cs.ERR_GUIDE:
+            inverse_kinematics(
+                S[step.TS + cs.T_XC : step.TS + cs.T_XC + 3], self.geometry, check=False
+            )
+        raise RuntimeError(f"step error {err} at t = {t:.3f} s")
+
+    def _result(self, rec: Log, steps: int, status: str, reason, wall: float) -> SimResult:
         """The log as columns (copies), the cueing columns, the run's figures."""
         row, dt = rec.rows, self.dt
         log = rec.log[:row]

@@ -1,232 +1,134 @@
-"""The stages of one 1 ms step, as functions the loop's body calls in turn.
+"""What the loop keeps around the step (:mod:`simpro_mj.sim.step`): the log, the noise, faults.
 
-:meth:`CoSimulation.run <simpro_mj.sim.loop.CoSimulation.run>` is a short
-body over six stage functions::
-
-    step1()                                              physics (mj_step1)
-    q, q_dot, pose, q_meas, pose_meas, loop = sense(k)   sensors
-    q_r, u, pose_cmd = control(k, pose_meas, q_meas)     controllers
-    f = actuate(u, q, q_dot, dt).tolist()                pneumatics
-    record(k, ...)                                       logging (every decimation)
-    step2(f)                                             physics (mj_step2)
-
-The stages are chosen before the run, not tested in the body: the
-controller mode picks one :func:`control_stage`; a fault swaps the sensing
-and control stages at its events (:class:`FaultStages`); profiling wraps
-every stage in a clock (:class:`Profile`). Each is a closure over local
-names (the body runs 10^4 - 10^6 times: a closure's cell read costs less
-than an attribute look-up) doing the same IEEE operations, in the same order,
-as the loop it replaced, so results stay bit-identical
-(``tests/test_reference_metrics.py``).
+* :class:`Log`: the run's preallocated log, filled by the step's ``record``
+  stage (one row of :data:`~simpro_mj.sim.result.COLUMNS` every
+  ``logging.decimation`` steps, with ``qpos`` and, for cueing runs, the head
+  sensors);
+* :class:`NoiseBlock`: the sensors' standard normal draws, one row of six
+  per step, drawn from the scenario's generator in blocks ahead of the step;
+* :class:`FaultHooks`: scheduled faults acting between the stages of a step
+  run from Python;
+* :class:`Profile`: wall time per stage.
 """
 
 from __future__ import annotations
 
-import struct
 import time
 
 import numpy as np
 
+from simpro_mj.plant import step_functions as ps
 from simpro_mj.plant.faults import FaultSchedule
+from simpro_mj.sim import step
+from simpro_mj.sim.result import COLUMNS
 
-__all__ = ["control_stage", "Recorder", "FaultStages", "Profile"]
+__all__ = ["CHUNK", "Log", "NoiseBlock", "FaultHooks", "Profile"]
 
+#: Steps MuJoCo takes between two looks from Python in a compiled run (50 ms at
+#: 1 ms): the interrupt, divergence, the live driver and progress are checked there.
+CHUNK = 50
 
-def control_stage(mode, *, task, joint, setpoint_filter, ref, outer_every, q_joint=None,
-                  u_ff=None, hold_on_saturation=False):  # fmt: skip
-    """The controllers of one step: ``control(k, pose_meas, q_meas) -> (q_r, u, pose_cmd)``.
-
-    Parameters
-    ----------
-    mode : {"task_space", "feedforward", "joint_only"}
-        ``task_space``: the outer loop every ``outer_every`` steps (eqs. 21-27),
-        its IK held in between. ``feedforward``: ``IK(y_d + c)`` every step,
-        the correction ``c`` integrated at the outer steps; a valve at its
-        rail during the last outer period holds it (``hold_on_saturation``).
-        ``joint_only`` (the baseline): ``q_joint[k] = IK(y_d(t_k))`` of the
-        nominal model, precomputed.
-    task : TaskSpaceController
-    joint : JointControllers
-        Its float path ``update_floats(q_r, q_meas[, u_ff])``.
-    setpoint_filter : SetpointFilter
-        Fig. 13's filter between q_d and the joint loops.
-    ref : ndarray (n + 1, 3)
-        The set-points y_d(t_k).
-    outer_every : int
-        The outer period in physics steps.
-    q_joint : ndarray (n + 1, 3), optional
-        ``joint_only``: the joint set-points.
-    u_ff : list of (3,) lists, optional
-        ``feedforward``: the leg velocity feed-forward voltage of each step.
-    """
-    filt, update = setpoint_filter.update, joint.update_floats
-    if mode == "joint_only":
-
-        def control(k, pose_meas, q_meas):
-            q_r = filt(q_joint[k].tolist())
-            return q_r, update(q_r, q_meas), ref[k].tolist()
-
-        return control
-
-    if mode == "task_space":
-        q_d = task.q_desired.tolist()
-        pose_cmd = ref[0].tolist()
-
-        def control(k, pose_meas, q_meas):
-            nonlocal q_d, pose_cmd
-            if k % outer_every == 0:
-                q_d = task.update_floats(ref[k].tolist(), pose_meas)
-                pose_cmd = task.pose_command.tolist()
-            q_r = filt(q_d)
-            return q_r, update(q_r, q_meas), pose_cmd
-
-        return control
-
-    u_lo, u_hi = joint.u_min, joint.u_max
-    sat_seen = False  # a valve at its rail since the last outer step
-
-    def control(k, pose_meas, q_meas):
-        nonlocal sat_seen
-        if k % outer_every == 0:
-            q_d = task.update_floats(ref[k].tolist(), pose_meas, sat_seen, q_meas)
-            sat_seen = False
-        else:
-            q_d = task.feedforward_floats(ref[k].tolist(), pose_meas, q_meas)
-        q_r = filt(q_d)
-        u = update(q_r, q_meas) if u_ff is None else update(q_r, q_meas, u_ff[k])
-        if hold_on_saturation and not sat_seen:
-            u0, u1, u2 = u
-            sat_seen = not (u_lo < u0 < u_hi and u_lo < u1 < u_hi and u_lo < u2 < u_hi)
-        return q_r, u, task.pose_command.tolist()
-
-    return control
+if step.N_COLS != len(COLUMNS):  # pragma: no cover - the layouts are edited together
+    raise ImportError("simpro_mj.sim.step.record writes a row other than result.COLUMNS")
 
 
-class Recorder:
-    """The run's log: one row of :data:`~simpro_mj.sim.result.COLUMNS` per logged step.
+class Log:
+    """The run's log buffers: ``log`` (rows x columns), ``qlog`` (rows x nq), ``hlog`` (rows x 6).
 
-    Preallocated (``rows`` x columns); :meth:`writer` gives the ``record``
-    stage, which packs each row straight into the buffer
-    (``struct.pack_into``, no per-step objects), copies ``qpos`` and, for
-    cueing runs, the head sensors.
-
-    Attributes
-    ----------
-    rows : int
-        Rows written.
-    worst_loop : float
-        Largest loop-closure error logged (m).
-    flags, supply_pa : int, float
-        The fault columns of the next rows (set by :class:`FaultStages`).
+    ``rows`` (written) and ``worst_loop`` (largest loop-closure error logged,
+    m) are set from the step's state at the end of the run.
     """
 
-    def __init__(self, n_rows: int, n_cols: int, nq: int, head: bool, supply_pa: float):
-        self.log = np.full((n_rows, n_cols), np.nan)
-        self.qlog = np.empty((n_rows, nq))  # copies of qpos at the logged rows
-        self.hlog = np.full((n_rows, 6), np.nan) if head else None
+    def __init__(self, n_rows: int, nq: int, head: bool):
+        self.log = np.full((n_rows, len(COLUMNS)), np.nan)
+        self.qlog = np.zeros((n_rows, nq))
+        self.hlog = np.full((n_rows if head else 1, 6), np.nan)
+        self.head = head
         self.rows = 0
         self.worst_loop = 0.0
-        self.flags = 0
-        self.supply_pa = float(supply_pa)
-
-    def writer(self, ref, dt: float, platform, loop_bound: float, head_sensors=None):
-        """``record(k, pose, pose_meas, pose_cmd, q_r, q, q_meas, u, f, loop)``.
-
-        ``head_sensors``: the ``sensordata`` slices of ``head_accel`` and
-        ``head_gyro`` (cueing runs). The accelerometer's value after
-        ``mj_step1`` is the one ``mj_step2`` computed for the previous step
-        (1 ms old); the gyro's is current. A loop-closure error above
-        ``loop_bound`` (m) stops the run (:meth:`Platform.check_loops`,
-        raising :class:`PhysicsError`) after its row is written.
-        """
-        log, qlog, hlog, rec = self.log, self.qlog, self.hlog, self
-        # one row = n_col native doubles packed into the (C-contiguous) log buffer
-        put_row, row_bytes = struct.Struct(f"{log.shape[1]}d").pack_into, 8 * log.shape[1]
-        d, act = platform.data, platform.actuators
-        qpos, sd = d.qpos, d.sensordata
-        act_p1, act_p2 = act.p1, act.p2  # views of the chamber pressures, updated in place
-        ha, hg = head_sensors if head_sensors is not None else (None, None)
-        check_loops = platform.check_loops
-
-        def record(k, pose, pose_meas, pose_cmd, q_r, q, q_meas, u, f, loop):
-            row = rec.rows
-            if loop > rec.worst_loop:  # max() without the call
-                rec.worst_loop = loop
-            p1, p2 = act_p1.tolist(), act_p2.tolist()
-            put_row(
-                log, row * row_bytes,
-                k * dt, *ref[k].tolist(), *pose, *pose_meas, *pose_cmd, *q_r,
-                *q, *q_meas, *u, *f,
-                p1[0], p2[0], p1[1], p2[1], p1[2], p2[2], loop, rec.flags, rec.supply_pa,
-            )  # fmt: skip
-            qlog[row] = qpos
-            if ha is not None:
-                hlog[row, :3] = sd[ha]
-                hlog[row, 3:] = sd[hg]
-            rec.rows = row + 1
-            if loop > loop_bound:
-                check_loops(loop_bound)  # raises, naming the loop
-
-        return record
 
 
-class FaultStages:
-    """Scheduled faults as stage swaps at their event steps.
+class NoiseBlock:
+    """Standard normal draws, ``width`` per row, row ``i - i0`` for draw number ``i``.
 
-    Between events the loop runs the plain stages (a run without faults pays
-    one int compare per step, ``k == next_event``); at an event :meth:`at`
-    brings the schedule to step ``k``, applies a supply change to the
-    actuators, sets the fault columns of the log and returns the stages for
-    the new fault state: while a sensor fault acts, ``sense`` hands the
-    controllers :meth:`FaultSchedule.apply_sensors` of the readings (the
-    sensors' own state is untouched); while a valve is stuck, ``control``
-    returns :meth:`FaultSchedule.apply_valves` of the joint loops' command
-    (their own state keeps their own command). The log holds what the
-    controllers saw and the voltages applied.
+    The sensors use one row of six per step (3 potentiometers, the encoder,
+    2 IMU axes; ``i`` is the step), the IMU bias walk one row of two per IMU
+    sample from a generator of its own (spawned from the scenario's, so the
+    sensor noise is the same with and without it). Rows are drawn from
+    ``rng`` in order, ``block`` at a time; when a range reaches past the
+    block, the rows not yet used move to the front and the rest is drawn
+    anew, so draw ``i`` is always the stream's row ``i`` (numpy's generators
+    give the same numbers drawn in pieces or at once). Without a generator
+    the block is one row of zeros.
     """
 
-    def __init__(self, schedule: FaultSchedule, actuators, recorder: Recorder, sense, control,
-                 wrap=None):  # fmt: skip
-        self.schedule, self.actuators, self.recorder = schedule, actuators, recorder
-        self._wrap = wrap if wrap is not None else (lambda fn, stage: fn)
-        self._sense, self._control = sense, control
-        apply_sensors, apply_valves = schedule.apply_sensors, schedule.apply_valves
+    def __init__(self, rng: np.random.Generator | None, width: int = 6, block: int = 4096):
+        self.rng, self.width = rng, int(width)
+        if rng is None:
+            self.rows = np.zeros((1, self.width))
+        else:
+            self.rows = rng.standard_normal((int(block), self.width))
+        self.i0 = 0
 
-        def sense_faulty(k):
-            q, qd, pose, q_meas, pose_meas, loop = sense(k)
-            q_meas, pose_meas = apply_sensors(k, q_meas, pose_meas)
-            return q, qd, pose, q_meas, pose_meas, loop
+    def ensure(self, i0: int, i1: int) -> int:
+        """Rows for draws ``i0 .. i1 - 1`` in the block; returns the block's first draw."""
+        n = self.rows.shape[0]
+        if self.rng is not None and i1 - self.i0 > n:
+            if i1 - i0 > n:
+                raise ValueError(f"{i1 - i0} draws at once; the noise block holds {n}")
+            keep = self.rows[i0 - self.i0 :].copy()
+            self.rows[: keep.shape[0]] = keep
+            self.rows[keep.shape[0] :] = self.rng.standard_normal((n - keep.shape[0], self.width))
+            self.i0 = i0
+        return self.i0
 
-        def control_stuck(k, pose_meas, q_meas):
-            q_r, u, pose_cmd = control(k, pose_meas, q_meas)
-            return q_r, apply_valves(u), pose_cmd
 
-        self._sense_faulty, self._control_stuck = sense_faulty, control_stuck
+class FaultHooks:
+    """Scheduled faults (:class:`~simpro_mj.plant.faults.FaultSchedule`) on the step's state.
 
-    @property
-    def next_event(self) -> int:
-        return self.schedule.next_event
+    At an event step :meth:`at` brings the schedule to it: a supply change
+    goes to the actuators' state (and the log's ``supply_pa``), the flags to
+    the log. While a sensor fault acts, :meth:`apply_sensors` replaces what
+    the controllers see (``S[YQ]``, ``S[YP]``; the sensors' own readings are
+    untouched); while a valve is stuck, :meth:`apply_valves` replaces the
+    applied volts (``S[UA]``; the controllers keep their own command).
+    """
 
-    def at(self, k: int):
-        """Event at step ``k``: ``(sense, control, next_event)`` from this step on."""
-        s = self.schedule
+    def __init__(self, schedule: FaultSchedule, S: np.ndarray, actuators):
+        self.schedule, self.S, self.actuators = schedule, S, actuators
+        self.sensors = self.valves = False
+
+    def at(self, k: int) -> int:
+        """Event at step ``k``; returns the next event step."""
+        s, S = self.schedule, self.S
         ch = s.at_event(k)
         if ch.supply_pa is not None:
-            self.actuators.set_supply_pressure(ch.supply_pa)
-            self.recorder.supply_pa = ch.supply_pa
-        self.recorder.flags = s.flags
-        sense = self._sense_faulty if s.sensor_active else self._sense
-        control = self._control_stuck if s.valve_active else self._control
-        wrap = self._wrap
-        return wrap(sense, "sensors"), wrap(control, "controllers"), s.next_event
+            S[step.AST + ps.A_PS] = ch.supply_pa
+            S[step.SUPPLY_LOG] = ch.supply_pa
+            if self.actuators.kind == "linear":
+                lo, hi = self.actuators.params.force_range_at(ch.supply_pa)
+                S[step.AST + ps.A_FMIN], S[step.AST + ps.A_FMAX] = lo, hi
+        S[step.FLAGS] = s.flags
+        self.sensors, self.valves = s.sensor_active, s.valve_active
+        return s.next_event
+
+    def apply_sensors(self, k: int) -> None:
+        S = self.S
+        q, p = self.schedule.apply_sensors(k, S[step.QM : step.QM + 3], S[step.PM : step.PM + 3])
+        S[step.YQ : step.YQ + 3] = q
+        S[step.YP : step.YP + 3] = p
+
+    def apply_valves(self) -> None:
+        S = self.S
+        S[step.UA : step.UA + 3] = self.schedule.apply_valves(S[step.U : step.U + 3])
 
 
 class Profile:
     """Wall time per stage, by wrapping the stage functions (``CoSimulation.run(profile=)``).
 
     :meth:`wrap` returns the stage with ``time.perf_counter_ns`` around it,
-    adding to the stage's total; a plain run never sees the wrappers. The
-    clock calls slow the step down (about 0.06 us each, two per stage).
+    adding to the stage's total. The clock calls slow the step down (about
+    0.06 us each, two per stage).
     """
 
     STAGES = ("physics", "sensors", "controllers", "pneumatics", "logging")

@@ -19,8 +19,9 @@ from __future__ import annotations
 import numpy as np
 
 from simpro_mj.core.errors import UserInputError
-from simpro_mj.plant.pneumatics.nonlinear import NonlinearActuators
-from simpro_mj.plant.pneumatics.params import U_CENTRE, U_MAX, PneumaticParams, fill_linear
+from simpro_mj.plant import step_functions as sf
+from simpro_mj.plant.pneumatics.nonlinear import NonlinearActuators, _as3
+from simpro_mj.plant.pneumatics.params import U_CENTRE, PneumaticParams, fill_linear
 
 __all__ = ["LinearActuators"]
 
@@ -90,16 +91,31 @@ class LinearActuators:
         self.stiffness_matrix = (
             np.zeros((3, 3)) if stiffness_matrix is None else np.asarray(stiffness_matrix, float)
         )
-        self.q_ref = np.zeros(3)
-        self._b, self._a0, self._a1 = P.lin_b, P.lin_a0, P.lin_a1
-        self._fmin, self._fmax = P.force_range
+        self._a1 = np.asarray(P.lin_a1, float)
         self._nl = NonlinearActuators(P)  # static pressures for display
-        self.phi = np.zeros(3)
-        self.force_hold = np.zeros(3)
-        self.u_hold = np.full(3, U_CENTRE)
-        self.spool = np.zeros(3)
-        self.p1, self.p2 = np.zeros(3), np.zeros(3)
-        self._p10, self._p20 = np.zeros(3), np.zeros(3)
+        # the per-step function's arrays (simpro_mj.plant.step_functions.linear_step): the
+        # state (phi, spool and the display pressures are views of it) and the constants
+        self.step_state = np.zeros(sf.A_LEN)
+        ast = self.step_state
+        self.phi = ast[sf.A_PHI : sf.A_PHI + 3]
+        self.spool = ast[sf.A_SPOOL : sf.A_SPOOL + 3]
+        self.p1, self.p2 = ast[sf.A_P : sf.A_P + 3], ast[sf.A_P + 3 : sf.A_P + 6]
+        ast[sf.A_PS] = P.p_supply
+        ast[sf.A_FMIN], ast[sf.A_FMAX] = P.force_range
+        ac = np.zeros(sf.AC_LIN_LEN)
+        ac[sf.AC_KIND], ac[sf.AC_PA] = 1.0, P.p_atm
+        ac[sf.AC_A1], ac[sf.AC_A2], ac[sf.AC_AR] = P.area_cap, P.area_rod_side, P.area_rod
+        ac[sf.AC_LB : sf.AC_LB + 3] = P.lin_b
+        ac[sf.AC_LA0 : sf.AC_LA0 + 3] = P.lin_a0
+        ac[sf.AC_MQ : sf.AC_MQ + 9] = self.mass_matrix.reshape(9)
+        ac[sf.AC_DQ : sf.AC_DQ + 9] = self.damping_matrix.reshape(9)
+        ac[sf.AC_KQ : sf.AC_KQ + 9] = self.stiffness_matrix.reshape(9)
+        ac[sf.AC_SAT] = 1.0 if P.lin_saturate else 0.0
+        self.step_constants = ac
+        self.u_hold = ac[sf.AC_UHOLD : sf.AC_UHOLD + 3]  # views of the constants
+        self.force_hold = ac[sf.AC_FHOLD : sf.AC_FHOLD + 3]
+        self.q_ref = ac[sf.AC_Q0 : sf.AC_Q0 + 3]
+        self._f = np.zeros(3)
         self._dt = None
 
     def reset(self, q, qdot, force=None) -> None:
@@ -112,15 +128,11 @@ class LinearActuators:
             self.force_hold[:] = np.broadcast_to(np.asarray(force, float), (3,))
         self.u_hold[:] = self._nl.u_hold
         self.q_ref[:] = q
-        self._p10[:], self._p20[:] = self._nl.p1, self._nl.p2
+        ac = self.step_constants
+        ac[sf.AC_P10 : sf.AC_P10 + 3], ac[sf.AC_P20 : sf.AC_P20 + 3] = self._nl.p1, self._nl.p2
         self.phi[:] = 0.0
         self.spool[:] = (self.u_hold - U_CENTRE) / 5.0
-        self._update_pressures(np.zeros(3))
-
-    def _update_pressures(self, df):
-        A1, A2 = self.params.area_cap, self.params.area_rod_side
-        self.p1[:] = self._p10 + 0.5 * df / A1
-        self.p2[:] = self._p20 - 0.5 * df / A2
+        self.p1[:], self.p2[:] = self._nl.p1, self._nl.p2
 
     def set_supply_pressure(self, p_pa: float) -> None:
         """Change the supply pressure (Pa absolute) at run time (supply-drop fault).
@@ -131,31 +143,29 @@ class LinearActuators:
         """
         p = float(p_pa)
         self._nl.set_supply_pressure(p)
-        self._fmin, self._fmax = self.params.force_range_at(p)
+        ast = self.step_state
+        ast[sf.A_PS] = p
+        ast[sf.A_FMIN], ast[sf.A_FMAX] = self.params.force_range_at(p)
+
+    def set_timestep(self, dt: float) -> None:
+        """The step's constants that depend on ``dt`` (s): ``e^(-a1 dt)`` and its integral."""
+        if not dt > 0:
+            raise ValueError(f"dt must be > 0, got {dt}")
+        self._dt = dt
+        a1, ac = self._a1, self.step_constants
+        ac[sf.AC_EA : sf.AC_EA + 3] = np.exp(-a1 * dt)
+        safe = np.where(a1 > 0, a1, 1.0)
+        ac[sf.AC_IA : sf.AC_IA + 3] = np.where(a1 > 0, -np.expm1(-a1 * dt) / safe, dt)
 
     def step(self, u_volts, q, qdot, dt: float) -> np.ndarray:
-        """Advance the states by ``dt`` and return the slide forces (N)."""
+        """Advance the states by ``dt`` and return the slide forces (N).
+
+        The arithmetic is :func:`simpro_mj.plant.step_functions.linear_step`,
+        the co-simulation's step.
+        """
         if dt != self._dt:
-            if not dt > 0:
-                raise ValueError(f"dt must be > 0, got {dt}")
-            self._dt = dt
-            a1 = self._a1
-            self._ea = np.exp(-a1 * dt)
-            safe = np.where(a1 > 0, a1, 1.0)
-            self._ia = np.where(a1 > 0, -np.expm1(-a1 * dt) / safe, dt)
-        u = np.clip(np.asarray(u_volts, float), 0.0, U_MAX)
-        qd = np.asarray(qdot, float)
-        self.spool[:] = (u - U_CENTRE) / 5.0
-        drive = self._b * (u - self.u_hold) - self._a0 * qd
-        self.phi *= self._ea
-        self.phi += self._ia * drive
-        df = (
-            self.mass_matrix @ self.phi
-            + self.damping_matrix @ qd
-            + self.stiffness_matrix @ (np.asarray(q, float) - self.q_ref)
+            self.set_timestep(dt)
+        sf.linear_step(
+            _as3(u_volts), _as3(q), _as3(qdot), self.step_state, self.step_constants, self._f
         )
-        force = self.force_hold + df
-        if self.params.lin_saturate:
-            np.clip(force, self._fmin, self._fmax, out=force)
-        self._update_pressures(force - self.force_hold)
-        return force
+        return self._f.copy()

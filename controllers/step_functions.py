@@ -1,0 +1,473 @@
+"""The controllers' part of one 1 ms step, as plain functions on flat float64 arrays.
+
+These functions are the one implementation of the per-step controller
+arithmetic (the classes of this package configure them and keep their
+array APIs on top of them). They use only scalar ``math``, loops and
+indexing into float64 arrays, the subset numba compiles: run interpreted
+they are the readable reference (``SIMPRO_KERNEL=python``); compiled by
+:mod:`simpro_mj.sim.step` they run inside MuJoCo's control callback. No
+MuJoCo here.
+
+Geometry constants (:func:`geometry_constants`), one flat array ``g``::
+
+    g[0:9]    platform points PB_1..PB_3 (row-major, platform frame)
+    g[9:12]   guide centre x_c, z_c, radius r
+    g[12]     guide side (-1 or +1)
+    g[13:16]  bracket offset C1 (eq. 11)
+    g[16:25]  base points A_1..A_3 (row-major)
+    g[25:28]  retracted lengths L0_i
+    g[28]     stroke
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+__all__ = [
+    "GEOM_LEN",
+    "geometry_constants",
+    "ik_pose",
+    "ik_lag",
+    "segment_limit",
+    "filter_step",
+    "joint_step",
+]
+
+GEOM_LEN = 29
+
+#: ik_pose's results: reachable, outside the workspace, guide circle missed (disc < 0)
+IK_OK, IK_OUT, IK_MISS = 1, 0, -1
+
+
+def geometry_constants(geometry) -> np.ndarray:
+    """The flat constants array ``g`` of a :class:`~controllers.geometry.PlatformGeometry`."""
+    g = np.zeros(GEOM_LEN)
+    g[0:9] = np.asarray(geometry.platform_points, float).reshape(9)
+    g[9:11] = geometry.guide_centre
+    g[11] = geometry.guide_radius
+    g[12] = geometry.guide_side
+    g[13:16] = geometry.bracket_c1
+    g[16:25] = np.asarray(geometry.base_points, float).reshape(9)
+    g[25:28] = geometry.retracted_length
+    g[28] = geometry.stroke
+    return g
+
+
+def ik_pose(roll, pitch, h, g, margin, arc_check, q):
+    """Inverse kinematics of one pose (eqs. 8, 11-14) into ``q`` (3,); returns a code.
+
+    ``R = Ry(pitch) Rx(roll)``; ``B1 = P + R PB_1`` on the guide circle
+    (eq. 14 with the horizontal line ``z = B1z``) fixes ``P_x``; leg 1's
+    attachment is ``B1 + C1`` (the bracket translates), legs 2-3 ``P + R PB_k``;
+    ``q_i = |X_i - A_i| - L0_i``.
+
+    Returns :data:`IK_OK` when every ``q_i`` lies in ``[margin, stroke - margin]``
+    (and, with ``arc_check``, B1 lies within the guide arc), :data:`IK_OUT`
+    otherwise (``q`` untouched when the arc test fails first), :data:`IK_MISS`
+    when the guide circle does not reach B1's height (``q`` untouched).
+    """
+    ct, st = math.cos(roll), math.sin(roll)
+    cp, sp = math.cos(pitch), math.sin(pitch)
+    r00, r01, r02 = cp, sp * st, sp * ct
+    r10, r11, r12 = 0.0, ct, -st
+    r20, r21, r22 = -sp, cp * st, cp * ct
+    xc, zc, r = g[9], g[10], g[11]
+    b1x_off = r00 * g[0] + r01 * g[1] + r02 * g[2]
+    b1z = h + (r20 * g[0] + r21 * g[1] + r22 * g[2])
+    dz = b1z - zc
+    if arc_check and not abs(dz) < r:
+        return IK_OUT
+    qb = -2.0 * xc
+    disc = qb * qb - 4.0 * (xc * xc + dz * dz - r * r)
+    if disc < 0.0:
+        return IK_MISS
+    b1x = (-qb + g[12] * math.sqrt(disc)) * 0.5
+    px = b1x - b1x_off
+    ok = IK_OK
+    lo, hi = margin, g[28] - margin
+    for k in range(3):
+        a, b, c = g[3 * k], g[3 * k + 1], g[3 * k + 2]
+        x = r00 * a + r01 * b + r02 * c + px
+        y = r10 * a + r11 * b + r12 * c
+        z = r20 * a + r21 * b + r22 * c + h
+        if k == 0:  # eq. (11): the bracket translates with B1
+            x, y, z = x + g[13], y + g[14], z + g[15]
+        dx, dy, dz2 = x - g[16 + 3 * k], y - g[17 + 3 * k], z - g[18 + 3 * k]
+        qk = math.sqrt(dx * dx + dy * dy + dz2 * dz2) - g[25 + k]
+        q[k] = qk
+        if not (lo <= qk <= hi):  # False for NaN too
+            ok = IK_OUT
+    return ok
+
+
+def ik_lag(roll, pitch, h, g, dq0, dq1, dq2, out):
+    """``J(x)^-1 dq`` into ``out`` (3,): joint deviations as a pose deviation.
+
+    ``J = dq/dx`` is the analytic IK Jacobian at ``x = (roll, pitch, h)``
+    (rows legs, columns roll, pitch, h; :func:`controllers.kinematics.jacobian`),
+    solved by Gaussian elimination with partial pivoting.
+    """
+    ct, st = math.cos(roll), math.sin(roll)
+    cp, sp = math.cos(pitch), math.sin(pitch)
+    rot = np.empty((3, 3))
+    rot[0, 0], rot[0, 1], rot[0, 2] = cp, sp * st, sp * ct
+    rot[1, 0], rot[1, 1], rot[1, 2] = 0.0, ct, -st
+    rot[2, 0], rot[2, 1], rot[2, 2] = -sp, cp * st, cp * ct
+    d_r = np.empty((3, 3))  # dR/droll
+    d_r[0, 0], d_r[0, 1], d_r[0, 2] = 0.0, sp * ct, -sp * st
+    d_r[1, 0], d_r[1, 1], d_r[1, 2] = 0.0, -st, -ct
+    d_r[2, 0], d_r[2, 1], d_r[2, 2] = 0.0, cp * ct, -cp * st
+    d_p = np.empty((3, 3))  # dR/dpitch
+    d_p[0, 0], d_p[0, 1], d_p[0, 2] = -sp, cp * st, cp * ct
+    d_p[1, 0], d_p[1, 1], d_p[1, 2] = 0.0, 0.0, 0.0
+    d_p[2, 0], d_p[2, 1], d_p[2, 2] = -cp, -sp * st, -sp * ct
+    xc, zc, r, side = g[9], g[10], g[11], g[12]
+    # B1's offset R PB_1 and its derivatives (columns roll, pitch, h)
+    off = np.zeros(3)
+    d_off = np.zeros((3, 3))
+    for i in range(3):
+        for j in range(3):
+            off[i] += rot[i, j] * g[j]
+            d_off[i, 0] += d_r[i, j] * g[j]
+            d_off[i, 1] += d_p[i, j] * g[j]
+    b1z = h + off[2]
+    dz = b1z - zc
+    s = math.sqrt(r * r - dz * dz)
+    b1x = xc + side * s
+    px = b1x - off[0]
+    d_b1z = np.array([d_off[2, 0], d_off[2, 1], 1.0])
+    d_b1x = np.empty(3)
+    d_px = np.empty(3)
+    for c in range(3):
+        d_b1x[c] = side * (-dz / s) * d_b1z[c]
+        d_px[c] = d_b1x[c] - d_off[0, c]
+    jac = np.empty((3, 4))  # [J | dq]
+    dx = np.empty((3, 3))  # d X_k / d pose (rows x, y, z)
+    x = np.empty(3)
+    for k in range(3):
+        if k == 0:  # X1 = B1 + C1
+            x[0], x[1], x[2] = b1x + g[13], g[14], b1z + g[15]
+            for c in range(3):
+                dx[0, c], dx[1, c], dx[2, c] = d_b1x[c], 0.0, d_b1z[c]
+        else:  # X_k = P + R PB_k
+            for i in range(3):
+                x[i] = rot[i, 0] * g[3 * k] + rot[i, 1] * g[3 * k + 1] + rot[i, 2] * g[3 * k + 2]
+                dx[i, 0] = (
+                    d_r[i, 0] * g[3 * k] + d_r[i, 1] * g[3 * k + 1] + d_r[i, 2] * g[3 * k + 2]
+                )
+                dx[i, 1] = (
+                    d_p[i, 0] * g[3 * k] + d_p[i, 1] * g[3 * k + 1] + d_p[i, 2] * g[3 * k + 2]
+                )
+                dx[i, 2] = 0.0
+            x[0] += px
+            x[2] += h
+            for c in range(3):
+                dx[0, c] += d_px[c]
+            dx[2, 2] += 1.0
+        u0, u1, u2 = x[0] - g[16 + 3 * k], x[1] - g[17 + 3 * k], x[2] - g[18 + 3 * k]
+        n = math.sqrt(u0 * u0 + u1 * u1 + u2 * u2)
+        for c in range(3):
+            jac[k, c] = (u0 * dx[0, c] + u1 * dx[1, c] + u2 * dx[2, c]) / n
+    jac[0, 3], jac[1, 3], jac[2, 3] = dq0, dq1, dq2
+    for col in range(3):  # Gaussian elimination, partial pivoting
+        piv = col
+        for i in range(col + 1, 3):
+            if abs(jac[i, col]) > abs(jac[piv, col]):
+                piv = i
+        if piv != col:
+            for j in range(4):
+                jac[col, j], jac[piv, j] = jac[piv, j], jac[col, j]
+        for i in range(col + 1, 3):
+            f = jac[i, col] / jac[col, col]
+            for j in range(col, 4):
+                jac[i, j] -= f * jac[col, j]
+    for i in range(2, -1, -1):
+        v = jac[i, 3]
+        for j in range(i + 1, 3):
+            v -= jac[i, j] * out[j]
+        out[i] = v / jac[i, i]
+
+
+def segment_limit(x0, x1, x2, d0, d1, d2, g, margin, q):
+    """Largest ``s`` in [0, 1] with ``x + s' d`` reachable for every ``s' <= s``.
+
+    33 points per round, two rounds (resolution 1/32^2); ``x`` must be
+    reachable. ``q`` (3,) is scratch.
+    """
+    lo, hi = 0.0, 1.0
+    for _ in range(2):
+        first_bad = -1
+        for i in range(33):
+            s = lo + (hi - lo) * (i / 32.0)
+            if ik_pose(x0 + s * d0, x1 + s * d1, x2 + s * d2, g, margin, True, q) != IK_OK:
+                first_bad = i
+                break
+        if first_bad < 0:
+            return hi
+        if first_bad == 0:
+            return lo
+        step = (hi - lo) / 32.0
+        lo, hi = lo + step * (first_bad - 1), lo + step * first_bad
+    return lo
+
+
+def filter_step(kind, q0, q1, q2, n, a, b, y, s, head, ring, out):
+    """Fig. 13's set-point filter for one joint-loop step: q_d -> q_ref in ``out`` (3,).
+
+    ``kind`` 0: none; 1: first order ``y = a y + b q_d`` per leg (``a``, ``b``,
+    ``y`` (3,)); 2: the ramp, the mean of the last ``n[i]`` samples, kept as
+    a running sum ``s`` (3,) over a ring of ``ring`` (3, n_max) whose oldest
+    entry of leg i is at ``head[i]``.
+    """
+    if kind == 0:
+        out[0], out[1], out[2] = q0, q1, q2
+        return
+    for i in range(3):
+        qi = q0 if i == 0 else (q1 if i == 1 else q2)
+        if kind == 1:
+            y[i] = a[i] * y[i] + b[i] * qi
+            out[i] = y[i]
+        else:
+            ni = int(n[i])
+            j = int(head[i])
+            s[i] += qi - ring[i, j]
+            ring[i, j] = qi
+            head[i] = (j + 1) % ni
+            out[i] = s[i] / ni
+
+
+def joint_step(x, jm, e0, e1, e2, f0, f1, f2, lim, gains, v_out):
+    """The three joint controllers (eq. 28) for one step; valve volts into ``v_out``.
+
+    ``x`` (9,): states of legs 1-3 (two of the remainder, the integrator
+    last), updated in place. ``jm`` (3, 4, 4): per leg ``[[A, B], [C, D]]``.
+    ``lim`` = (u_offset, u_min, u_max, anti-windup kind (0 back-calculation,
+    1 conditional, 2 none), T / T_t). ``gains`` (3,): r0 T of each
+    integrator. ``f`` is the velocity feed-forward added before saturation.
+    """
+    off, lo, hi, kind, aw = lim[0], lim[1], lim[2], lim[3], lim[4]
+    for i in range(3):
+        e = e0 if i == 0 else (e1 if i == 1 else e2)
+        f = f0 if i == 0 else (f1 if i == 1 else f2)
+        a, b, c = x[3 * i], x[3 * i + 1], x[3 * i + 2]
+        m = jm[i]
+        n0 = m[0, 0] * a + m[0, 1] * b + m[0, 2] * c + m[0, 3] * e
+        n1 = m[1, 0] * a + m[1, 1] * b + m[1, 2] * c + m[1, 3] * e
+        n2 = m[2, 0] * a + m[2, 1] * b + m[2, 2] * c + m[2, 3] * e
+        u = m[3, 0] * a + m[3, 1] * b + m[3, 2] * c + m[3, 3] * e
+        v = u + off + f
+        vs = v
+        if vs < lo:  # comparisons: a NaN passes through
+            vs = lo
+        if vs > hi:
+            vs = hi
+        if kind == 0.0:
+            n2 = n2 + (vs - v) * aw
+        elif kind == 1.0:
+            push = gains[i] * e
+            if (v > hi and push > 0.0) or (v < lo and push < 0.0):
+                n2 = n2 - push
+        x[3 * i], x[3 * i + 1], x[3 * i + 2] = n0, n1, n2
+        v_out[i] = vs
+
+
+# ---------------------------------------------------------------- the outer loop
+# State of the outer loop, a flat array ``ts`` (TaskSpaceController's state):
+T_XC, T_QXC, T_QXC_OK, T_QD, T_EPREV, T_CORR = 0, 3, 6, 7, 10, 13
+T_PEND, T_PEND_OK, T_MODEL, T_ACC, T_NACC, T_REFCMD, T_SAT = 16, 19, 20, 23, 35, 36, 39
+T_SCR, T_LEN = 40, 49  # scratch: the checked set-point, an IK result, the error
+# Its constants ``tc``: mode (0 joint-only, 1 I, 2 PI, 3 feed-forward), the
+# feed-forward correction's law (1 I, 2 PI), clamp, lag "joints", average,
+# model_tau (s), the model's beta, the PI zero c, T K K_I (3), margin, home (3)
+TC_MODE, TC_LAW, TC_CLAMP, TC_LAGJ, TC_AVG, TC_TAU, TC_BETA, TC_PIZ = 0, 1, 2, 3, 4, 5, 6, 7
+TC_TG, TC_MARGIN, TC_HOME, TC_LEN = 8, 11, 12, 15
+MODE_JOINT, MODE_I, MODE_PI, MODE_FF = 0, 1, 2, 3
+
+#: Error codes of the step (0: none); :mod:`simpro_mj.sim.step` turns them into exceptions.
+ERR_SETPOINT_NONFINITE, ERR_SETPOINT_UNREACHABLE, ERR_MEAS_NONFINITE, ERR_GUIDE = 1, 2, 3, 4
+
+
+def outer_setpoint(r0, r1, r2, tc, g, q, out):
+    """The set-point checked (or clamped along the segment from home) into ``out`` (3,)."""
+    if not (math.isfinite(r0) and math.isfinite(r1) and math.isfinite(r2)):
+        return ERR_SETPOINT_NONFINITE
+    margin = tc[TC_MARGIN]
+    out[0], out[1], out[2] = r0, r1, r2
+    if ik_pose(r0, r1, r2, g, margin, True, q) == IK_OK:
+        return 0
+    if tc[TC_CLAMP] == 0.0:
+        return ERR_SETPOINT_UNREACHABLE
+    h0, h1, h2 = tc[TC_HOME], tc[TC_HOME + 1], tc[TC_HOME + 2]
+    d0, d1, d2 = r0 - h0, r1 - h1, r2 - h2
+    s = segment_limit(h0, h1, h2, d0, d1, d2, g, margin, q)
+    out[0], out[1], out[2] = h0 + s * d0, h1 + s * d1, h2 + s * d2
+    return 0
+
+
+def _ik_xc(ts, g):
+    """``IK(x_c)`` into ``ts[T_QD]``, the one the integration found when it is known."""
+    if ts[T_QXC_OK] == 1.0:
+        for i in range(3):
+            ts[T_QD + i] = ts[T_QXC + i]
+        return 0
+    q = ts[T_QD : T_QD + 3]
+    if ik_pose(ts[T_XC], ts[T_XC + 1], ts[T_XC + 2], g, 0.0, False, q) == IK_MISS:
+        return ERR_GUIDE
+    return 0
+
+
+def _integrate(s0, s1, s2, ts, tc, g):
+    """``x_c += step``, shortened to the farthest reachable point (conditional integration)."""
+    x0, x1, x2 = ts[T_XC], ts[T_XC + 1], ts[T_XC + 2]
+    q = ts[T_QXC : T_QXC + 3]
+    margin = tc[TC_MARGIN]
+    if ik_pose(x0 + s0, x1 + s1, x2 + s2, g, margin, True, q) == IK_OK:
+        ts[T_XC], ts[T_XC + 1], ts[T_XC + 2] = x0 + s0, x1 + s1, x2 + s2
+        ts[T_QXC_OK] = 1.0
+        return
+    s = segment_limit(x0, x1, x2, s0, s1, s2, g, margin, q)
+    ts[T_XC], ts[T_XC + 1], ts[T_XC + 2] = x0 + s * s0, x1 + s * s1, x2 + s * s2
+    ts[T_QXC_OK] = 0.0
+
+
+def _accumulate(y0, y1, y2, with_q, qm0, qm1, qm2, ts):
+    """Add this step's measurements and the last step's command to the period's sums."""
+    a = T_ACC
+    for i in range(3):
+        ts[a + i] += ts[T_REFCMD + i]
+    ts[a + 3] += y0
+    ts[a + 4] += y1
+    ts[a + 5] += y2
+    if with_q:
+        for i in range(3):
+            ts[a + 6 + i] += ts[T_QD + i]
+        ts[a + 9] += qm0
+        ts[a + 10] += qm1
+        ts[a + 11] += qm2
+    ts[T_NACC] += 1.0
+
+
+def _ff_error(y0, y1, y2, qm0, qm1, qm2, ts, tc, g, e):
+    """The error the feed-forward correction integrates (controllers.task_space)."""
+    joints = tc[TC_LAGJ] != 0.0
+    if tc[TC_AVG] != 0.0:
+        _accumulate(y0, y1, y2, joints, qm0, qm1, qm2, ts)
+        k = 1.0 / ts[T_NACC]
+        a = T_ACC
+        r0, r1, r2 = ts[a] * k, ts[a + 1] * k, ts[a + 2] * k
+        y0, y1, y2 = ts[a + 3] * k, ts[a + 4] * k, ts[a + 5] * k
+        d0, d1, d2 = ts[a + 6] * k, ts[a + 7] * k, ts[a + 8] * k
+        qm0, qm1, qm2 = ts[a + 9] * k, ts[a + 10] * k, ts[a + 11] * k
+        for i in range(12):
+            ts[a + i] = 0.0
+        ts[T_NACC] = 0.0
+    else:
+        r0, r1, r2 = ts[T_REFCMD], ts[T_REFCMD + 1], ts[T_REFCMD + 2]
+        d0, d1, d2 = ts[T_QD], ts[T_QD + 1], ts[T_QD + 2]
+    e[0], e[1], e[2] = r0 - y0, r1 - y1, r2 - y2
+    if joints:  # the joint loops' lag, in task coordinates at the commanded pose
+        lag = np.empty(3)
+        ik_lag(ts[T_XC], ts[T_XC + 1], ts[T_XC + 2], g, d0 - qm0, d1 - qm1, d2 - qm2, lag)
+        e[0], e[1], e[2] = e[0] - lag[0], e[1] - lag[1], e[2] - lag[2]
+
+
+def _correct(ref, e, hold, ts, tc, g, q):
+    """One outer step of the feed-forward correction ``c`` (I law: applied one period late)."""
+    if ts[T_PEND_OK] == 1.0:
+        for i in range(3):
+            ts[T_CORR + i] = ts[T_PEND + i]
+        ts[T_PEND_OK] = 0.0
+    if hold:
+        return
+    pi = tc[TC_LAW] == 2.0
+    new = np.empty(3)
+    for i in range(3):
+        if pi:
+            step = tc[TC_TG + i] * (e[i] + tc[TC_PIZ] * ts[T_EPREV + i])
+            ts[T_EPREV + i] = e[i]
+        else:
+            step = tc[TC_TG + i] * e[i]
+        new[i] = ts[T_CORR + i] + step
+    p0, p1, p2 = ref[0] + new[0], ref[1] + new[1], ref[2] + new[2]
+    if ik_pose(p0, p1, p2, g, tc[TC_MARGIN], True, q) == IK_OK:
+        if pi:
+            for i in range(3):
+                ts[T_CORR + i] = new[i]
+        else:
+            for i in range(3):
+                ts[T_PEND + i] = new[i]
+            ts[T_PEND_OK] = 1.0
+
+
+def ff_step(ref, ts, tc, g):
+    """This inner step's ``q_d = IK(y_d + c)`` into ``ts[T_QD]``, the reference model advanced."""
+    b = tc[TC_BETA]
+    if b < 1.0:  # the reference model sees this step's set-point
+        for i in range(3):
+            m = ts[T_MODEL + i]
+            ts[T_MODEL + i] = m + b * (ref[i] - m)
+    p0, p1, p2 = ref[0] + ts[T_CORR], ref[1] + ts[T_CORR + 1], ref[2] + ts[T_CORR + 2]
+    q = ts[T_QD : T_QD + 3]
+    if ik_pose(p0, p1, p2, g, tc[TC_MARGIN], True, q) != IK_OK:
+        # the correction pushes past the workspace: the set-point alone
+        if ik_pose(ref[0], ref[1], ref[2], g, 0.0, False, q) == IK_MISS:
+            return ERR_GUIDE
+        p0, p1, p2 = ref[0], ref[1], ref[2]
+    ts[T_XC], ts[T_XC + 1], ts[T_XC + 2] = p0, p1, p2
+    src = T_MODEL if tc[TC_LAGJ] == 0.0 else -1
+    for i in range(3):
+        ts[T_REFCMD + i] = ref[i] if src < 0 else ts[T_MODEL + i]
+    return 0
+
+
+def outer_update(r0, r1, r2, y0, y1, y2, qm0, qm1, qm2, hold, ts, tc, g):
+    """One outer step (eqs. 21-27): set-point and measured pose -> ``q_d`` in ``ts[T_QD]``.
+
+    Mode I (eq. 22, Fig. 7): output ``IK(x_c[k])``, then integrate ``T K K_I e[k]``;
+    PI (section 4): integrate ``T K K_I (e[k] + c e[k-1])`` first; feed-forward:
+    integrate the correction (held while ``hold``) and output ``IK(y_d + c)``.
+    Returns an error code (0: none).
+    """
+    ref, q, e = ts[T_SCR : T_SCR + 3], ts[T_SCR + 3 : T_SCR + 6], ts[T_SCR + 6 : T_SCR + 9]
+    err = outer_setpoint(r0, r1, r2, tc, g, q, ref)
+    if err:
+        return err
+    if not (math.isfinite(y0) and math.isfinite(y1) and math.isfinite(y2)):
+        return ERR_MEAS_NONFINITE
+    e[0], e[1], e[2] = ref[0] - y0, ref[1] - y1, ref[2] - y2
+    mode = tc[TC_MODE]
+    if mode == MODE_FF:
+        if tc[TC_AVG] != 0.0 or tc[TC_LAGJ] != 0.0:
+            _ff_error(y0, y1, y2, qm0, qm1, qm2, ts, tc, g, e)
+        elif tc[TC_TAU] > 0.0:
+            e[0], e[1], e[2] = ts[T_MODEL] - y0, ts[T_MODEL + 1] - y1, ts[T_MODEL + 2] - y2
+        _correct(ref, e, hold, ts, tc, g, q)
+        return ff_step(ref, ts, tc, g)
+    if mode == MODE_I:
+        err = _ik_xc(ts, g)
+        _integrate(tc[TC_TG] * e[0], tc[TC_TG + 1] * e[1], tc[TC_TG + 2] * e[2], ts, tc, g)
+        return err
+    c = tc[TC_PIZ]
+    s0 = tc[TC_TG] * (e[0] + c * ts[T_EPREV])
+    s1 = tc[TC_TG + 1] * (e[1] + c * ts[T_EPREV + 1])
+    s2 = tc[TC_TG + 2] * (e[2] + c * ts[T_EPREV + 2])
+    _integrate(s0, s1, s2, ts, tc, g)
+    ts[T_EPREV], ts[T_EPREV + 1], ts[T_EPREV + 2] = e[0], e[1], e[2]
+    return _ik_xc(ts, g)
+
+
+def ff_inner(r0, r1, r2, y0, y1, y2, qm0, qm1, qm2, acc, ts, tc, g):
+    """A feed-forward inner step between outer steps: ``q_d = IK(y_d + c)``.
+
+    With ``average`` the step's measurements go into the outer period's sums:
+    ``acc`` 1 the pose, 2 the pose and the joints, 0 none.
+    """
+    ref, q = ts[T_SCR : T_SCR + 3], ts[T_SCR + 3 : T_SCR + 6]
+    err = outer_setpoint(r0, r1, r2, tc, g, q, ref)
+    if err:
+        return err
+    if tc[TC_AVG] != 0.0 and acc > 0:
+        _accumulate(y0, y1, y2, acc == 2, qm0, qm1, qm2, ts)
+    return ff_step(ref, ts, tc, g)

@@ -1,0 +1,356 @@
+"""The plant's part of one 1 ms step, as plain functions on flat float64 arrays.
+
+The one implementation of the state read, the sensor models and the
+actuator models per step (the classes of :mod:`simpro_mj.plant` configure
+them: :class:`~simpro_mj.plant.sensors.SensorConfig`,
+:class:`~simpro_mj.plant.pneumatics.nonlinear.NonlinearActuators`,
+:class:`~simpro_mj.plant.pneumatics.linear.LinearActuators`). Scalar ``math``,
+loops and indexing only: interpreted they are the reference
+(``SIMPRO_KERNEL=python``), compiled by :mod:`simpro_mj.sim.step` they run in
+MuJoCo's control callback. Each stage is a small named function so that a
+plant change (a friction law, a sensor error) is made in one place; the
+seal friction is :func:`simpro_mj.plant.friction.seal_friction`.
+
+Layouts (offsets into the arrays the functions take):
+
+* sensor constants ``sc``: :data:`SC_GAIN` ... (:func:`sensor_constants`);
+* actuator state ``ast``: chamber pressures p1 (3), p2 (3), spool (3),
+  spool rate (3), each ψ-table edge's last cell (12), the supply pressure,
+  the linear model's state φ (3) and force bounds (2);
+* actuator constants ``ac``: :data:`AC_KIND` ... (built by
+  :func:`simpro_mj.sim.step.actuator_constants`).
+"""
+
+from __future__ import annotations
+
+import math
+
+from simpro_mj.plant.friction import seal_friction
+from simpro_mj.plant.sensor_errors import accel_tilt, pot_nonlinearity
+
+__all__ = [
+    "slide_states",
+    "platform_pose",
+    "loop_closure",
+    "quantise",
+    "imu_input",
+    "sample_sensors",
+    "nonlinear_step",
+    "slide_forces",
+    "linear_step",
+]
+
+# sensor constants sc
+SC_GAIN, SC_OFF, SC_SIGMA, SC_LSB, SC_LO, SC_HI, SC_POT_EVERY = 0, 3, 6, 7, 8, 9, 10
+SC_ENC_NOISE, SC_RES, SC_ENC_EVERY, SC_ALPHA, SC_SIGMA_IMU, SC_BIAS, SC_IMU_EVERY = (
+    11,
+    12,
+    13,
+    14,
+    15,
+    16,
+    18,
+)
+# sensor errors (simpro_mj.plant.sensor_errors): the track's full scale and linearity,
+# the bias walk's step per IMU sample (0: off), the accelerometer's weight, 1 / dt^2
+SC_FS, SC_NL, SC_WALK, SC_ACCW, SC_IDT2, SC_LEN = 19, 20, 21, 22, 23, 24
+# the sensors' own state (an array ``ss``): the IMU filter (2), the bias walk (2), the
+# IMU site's last two positions (6) and how many are known
+SS_IMU, SS_WALK, SS_HIST, SS_HN, SS_LEN = 0, 2, 4, 10, 11
+
+# actuator state ast
+A_P, A_SPOOL, A_RATE, A_CELL, A_PS, A_PHI, A_FMIN, A_FMAX, A_LEN = 0, 6, 9, 12, 24, 25, 28, 29, 30
+# actuator constants ac (both kinds), then the kind's own
+AC_KIND, AC_PA, AC_A1, AC_A2, AC_AR = 0, 1, 2, 3, 4
+# nonlinear
+AC_RTK, AC_EPS, AC_HN, AC_ALPHA, AC_ORDER, AC_NSUB, AC_NTAB = 5, 6, 7, 8, 9, 10, 11
+# per leg the seal friction (breakaway, Coulomb, Stribeck velocity, viscous, v_reg: 5 x 3),
+# the second-order spool (6), the underlaps (3), per chamber V0, dV/dq, V_min (6 x 3),
+# the ψ table (grid, values, slopes)
+AC_FRIC, AC_AD, AC_DELTA, AC_CH, AC_TAB = 12, 27, 33, 36, 54
+# linear (eq. 19): b, a0, exp(-a1 dt), its integral, u_hold, F_hold, q_0, M_q, D_q, K_q,
+# saturate, the display pressures at rest p10, p20
+AC_LB, AC_LA0, AC_EA, AC_IA, AC_UHOLD, AC_FHOLD, AC_Q0 = 5, 8, 11, 14, 17, 20, 23
+AC_MQ, AC_DQ, AC_KQ, AC_SAT, AC_P10, AC_P20, AC_LIN_LEN = 26, 35, 44, 53, 54, 57, 60
+
+
+def slide_states(qpos, qvel, iq, iv, q, qd):
+    """The three slides' positions and speeds from MuJoCo's state into ``q``, ``qd``."""
+    for i in range(3):
+        q[i] = qpos[int(iq[i])]
+        qd[i] = qvel[int(iv[i])]
+
+
+def platform_pose(xmat, xpos, i_mat, i_h, pose):
+    """Roll, pitch (``R = Ry(pitch) Rx(roll)``) and height of the platform site into ``pose``."""
+    r = int(i_mat)
+    pose[0] = math.atan2(xmat[r + 7], xmat[r + 8])
+    pose[1] = math.atan2(-xmat[r + 6], xmat[r])
+    pose[2] = xpos[int(i_h)]
+
+
+def loop_closure(xpos, pairs, npair):
+    """Largest distance between the two sites of each closed loop (m); NaN passed on."""
+    worst = 0.0
+    for p in range(int(npair)):
+        a = int(pairs[2 * p])
+        c = int(pairs[2 * p + 1])
+        dx, dy, dz = xpos[a] - xpos[c], xpos[a + 1] - xpos[c + 1], xpos[a + 2] - xpos[c + 2]
+        e = dx * dx + dy * dy + dz * dz
+        if e > worst:
+            worst = e
+        elif e != e:
+            return e
+    return math.sqrt(worst)
+
+
+def quantise(v, step):
+    """``v`` rounded to a multiple of ``step``, half to even (an ADC's code); NaN, inf kept."""
+    x = v / step
+    if not math.isfinite(x):
+        return x * step
+    r = float(math.floor(x))
+    d = x - r
+    if d > 0.5 or (d == 0.5 and r % 2.0 != 0.0):
+        r += 1.0
+    return r * step
+
+
+def imu_input(roll, pitch, site, sc, ss):
+    """The IMU filter's input: the true angles, moved by the accelerometer's weight
+    times what it reads from the IMU site's acceleration (the second difference of
+    its last three positions, :func:`simpro_mj.plant.sensor_errors.accel_tilt`)."""
+    w = sc[SC_ACCW]
+    if not w > 0.0:
+        return roll, pitch
+    x, y, z = site[0], site[1], site[2]
+    h = SS_HIST
+    if ss[SS_HN] < 2.0:  # the first two positions of a run: no acceleration yet
+        ss[h + 3], ss[h + 4], ss[h + 5] = ss[h], ss[h + 1], ss[h + 2]
+        ss[h], ss[h + 1], ss[h + 2] = x, y, z
+        ss[SS_HN] += 1.0
+        return roll, pitch
+    x1, y1, z1 = ss[h], ss[h + 1], ss[h + 2]
+    x2, y2, z2 = ss[h + 3], ss[h + 4], ss[h + 5]
+    idt2 = sc[SC_IDT2]
+    ax = ((x - x2) - 2.0 * (x1 - x2)) * idt2
+    ay = ((y - y2) - 2.0 * (y1 - y2)) * idt2
+    az = ((z - z2) - 2.0 * (z1 - z2)) * idt2
+    ss[h + 3], ss[h + 4], ss[h + 5] = x1, y1, z1
+    ss[h], ss[h + 1], ss[h + 2] = x, y, z
+    ra, pa = accel_tilt(ax, ay, az, roll, pitch)
+    return roll + w * (ra - roll), pitch + w * (pa - pitch)
+
+
+def sample_sensors(k, force, q, pose, site, noise, walk, sc, ss, qm, pm):
+    """The sensors at step ``k`` (section 5): potentiometers, height encoder, IMU.
+
+    ``noise`` (6,): this step's standard normal draws (3 potentiometers, the
+    encoder, 2 IMU axes); ``walk`` (2,): the bias walk's draws for this step's
+    IMU sample. The IMU's first-order output filter (``ss``) runs every step
+    on :func:`imu_input` (``site``: the IMU site's position, or None); each
+    sensor updates its reading (``qm``, ``pm``) at its own rate (zero-order
+    hold between), all of them when ``force``. Potentiometer i:
+    ``Q(g_i q_i + o_i [+ bow(q_i)] + n)`` clipped to the ADC's range; the
+    IMU: filter + (bias + walk) + noise. Returns 1 when the IMU sampled (a
+    walk row used), else 0.
+    """
+    alpha = sc[SC_ALPHA]
+    r_in, p_in = pose[0], pose[1]
+    if site is not None:
+        r_in, p_in = imu_input(r_in, p_in, site, sc, ss)
+    ss[SS_IMU] = ss[SS_IMU] + alpha * (r_in - ss[SS_IMU])
+    ss[SS_IMU + 1] = ss[SS_IMU + 1] + alpha * (p_in - ss[SS_IMU + 1])
+    if force or k % int(sc[SC_POT_EVERY]) == 0:
+        sigma, lsb, lo, hi = sc[SC_SIGMA], sc[SC_LSB], sc[SC_LO], sc[SC_HI]
+        fs, nl = sc[SC_FS], sc[SC_NL]
+        for j in range(3):
+            if nl > 0.0:
+                e = pot_nonlinearity(q[j], fs, nl)
+                v = sc[SC_GAIN + j] * q[j] + sc[SC_OFF + j] + e + sigma * noise[j]
+            else:
+                v = sc[SC_GAIN + j] * q[j] + sc[SC_OFF + j] + sigma * noise[j]
+            v = quantise(v, lsb)
+            if v < lo:
+                v = lo
+            if v > hi:
+                v = hi
+            qm[j] = v
+    if force or k % int(sc[SC_ENC_EVERY]) == 0:
+        h = pose[2] + sc[SC_ENC_NOISE] * noise[3]
+        if sc[SC_RES] > 0.0:
+            h = quantise(h, sc[SC_RES])
+        pm[2] = h
+    if force or k % int(sc[SC_IMU_EVERY]) == 0:
+        s = sc[SC_SIGMA_IMU]
+        used = 0
+        if sc[SC_WALK] > 0.0:
+            ss[SS_WALK] = ss[SS_WALK] + sc[SC_WALK] * walk[0]
+            ss[SS_WALK + 1] = ss[SS_WALK + 1] + sc[SC_WALK] * walk[1]
+            used = 1
+        pm[0] = ss[SS_IMU] + (sc[SC_BIAS] + ss[SS_WALK]) + s * noise[4]
+        pm[1] = ss[SS_IMU + 1] + (sc[SC_BIAS + 1] + ss[SS_WALK + 1]) + s * noise[5]
+        return used
+    return 0
+
+
+def _psi(r, e, ast, ac, n):
+    """ψ(r) of edge ``e`` by linear interpolation in the table, the edge's last cell first."""
+    xp = AC_TAB
+    fp = xp + n
+    sl = fp + n
+    j = int(ast[A_CELL + e])
+    if ac[xp + j] <= r < ac[xp + j + 1]:
+        return ac[sl + j] * (r - ac[xp + j]) + ac[fp + j]
+    if r != r:
+        return r
+    if r < ac[xp]:
+        return ac[fp]
+    if r >= ac[xp + n - 1]:
+        return ac[fp + n - 1]
+    lo, hi = 0, n  # the cell holding r: bisection
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if r < ac[xp + mid]:
+            hi = mid
+        else:
+            lo = mid + 1
+    j = lo - 1
+    ast[A_CELL + e] = j
+    return ac[sl + j] * (r - ac[xp + j]) + ac[fp + j]
+
+
+def valve_spool(u, ast, ac):
+    """The spool of each valve over the step for the held commands ``u`` (3,) V.
+
+    Command ``c = clip((u - 5 V) / 5 V, -1, 1)``; a first-order lag (exact,
+    ``alpha = 1 - e^(-w dt)``) or the exact ZOH of a second-order one.
+    """
+    for i in range(3):
+        c = u[i] * 0.2 - 1.0
+        if c < -1.0:
+            c = -1.0
+        if c > 1.0:
+            c = 1.0
+        sp = ast[A_SPOOL + i]
+        if ac[AC_ORDER] == 1.0:
+            ast[A_SPOOL + i] = sp + (c - sp) * ac[AC_ALPHA]
+        else:
+            a = AC_AD
+            sr = ast[A_RATE + i]
+            rate = ac[a + 2] * sp + ac[a + 3] * sr + ac[a + 5] * c
+            ast[A_SPOOL + i] = sp * ac[a] + (ac[a + 1] * sr + ac[a + 4] * c)
+            ast[A_RATE + i] = rate
+
+
+def chamber_pressures(q, qd, ast, ac):
+    """The six chamber pressures over the step (linearly implicit Euler, frozen conductances).
+
+    Metering edges (Rubio 2009): ``a_P1 = a_2R = clip(δ + s, ε, 1)``,
+    ``a_1R = a_P2 = clip(δ - s, ε, 1)``; per chamber with ``G = a ψ(r)``,
+    ``c = n R T k / V``:
+    ``p+ = (p + h c (G_P p_s + G_R p_a)) / (1 + h c (G_P + G_R) + h n V̇ / V)``
+    (denominator kept >= 0.5); ψ of the ratio downstream/upstream of each edge
+    (a chamber above the supply flows back to it, one below the atmosphere
+    draws air in).
+    """
+    eps = ac[AC_EPS]
+    ps, pa, hn, rtk = ast[A_PS], ac[AC_PA], ac[AC_HN], ac[AC_RTK]
+    ips = 1.0 / ps
+    nsub = int(ac[AC_NSUB])
+    n = int(ac[AC_NTAB])
+    for c in range(6):
+        i = c % 3
+        sp = ast[A_SPOOL + i]
+        d = ac[AC_DELTA + i]
+        ap = sp + d
+        am = d - sp
+        if ap < eps:
+            ap = eps
+        if ap > 1.0:
+            ap = 1.0
+        if am < eps:
+            am = eps
+        if am > 1.0:
+            am = 1.0
+        if c < 3:  # cap side: supply edge P->1, exhaust edge 1->R
+            a_s, a_e = ap, am
+        else:  # rod side: P->2, 2->R
+            a_s, a_e = am, ap
+        v0 = ac[AC_CH + 3 * c]
+        dv = ac[AC_CH + 3 * c + 1]
+        V = v0 + dv * q[i]
+        if V < ac[AC_CH + 3 * c + 2]:  # overtravel must not empty a chamber
+            V = ac[AC_CH + 3 * c + 2]
+        hnV = hn / V
+        den0 = (dv * qd[i]) * hnV + 1.0
+        hc = hnV * rtk
+        pc = ast[A_P + c]
+        for _ in range(nsub):
+            psi_s = _psi(pc * ips if pc <= ps else ps / pc, c, ast, ac, n)
+            psi_e = _psi(pa / pc if pc >= pa else pc / pa, c + 6, ast, ac, n)
+            g_s = a_s * psi_s
+            g_e = a_e * psi_e
+            den = (g_s + g_e) * hc + den0
+            if den < 0.5:
+                den = 0.5
+            pc = ((g_s * ps + g_e * pa) * hc + pc) / den
+        ast[A_P + c] = pc
+
+
+def nonlinear_step(u, q, qd, ast, ac, f):
+    """Valves, chambers and the net slide forces ``f`` (3,) N for one step.
+
+    ``F = p1 A1 - p2 A2 - p_a A_r - F_f(q̇)``, the seal friction ``F_f`` of
+    :func:`simpro_mj.plant.friction.seal_friction`.
+    """
+    valve_spool(u, ast, ac)
+    chamber_pressures(q, qd, ast, ac)
+    slide_forces(qd, ast, ac, f)
+
+
+def slide_forces(qd, ast, ac, f):
+    """Net force on each slide ``f`` (3,) N of the present pressures at speeds ``qd``."""
+    a1, a2, par = ac[AC_A1], ac[AC_A2], ac[AC_PA] * ac[AC_AR]
+    for i in range(3):
+        c = AC_FRIC + 5 * i
+        fr = seal_friction(qd[i], ac[c], ac[c + 1], ac[c + 2], ac[c + 3], ac[c + 4])
+        f[i] = a1 * ast[A_P + i] - a2 * ast[A_P + 3 + i] - par - fr
+
+
+def linear_step(u, q, qd, ast, ac, f):
+    """The paper's eq. (19) on every slide for one step; forces into ``f`` (3,) N.
+
+    ``φ' = b (u - u_h) - a0 q̇ - a1 φ`` (exact for the held input),
+    ``F = F_h + M_q φ + D_q q̇ + K_q (q - q_0)``, optionally clipped to the
+    force range; display pressures share the force deviation equally.
+    """
+    for i in range(3):
+        ui = u[i]
+        if ui < 0.0:
+            ui = 0.0
+        if ui > 10.0:
+            ui = 10.0
+        ast[A_SPOOL + i] = (ui - 5.0) / 5.0
+        drive = ac[AC_LB + i] * (ui - ac[AC_UHOLD + i]) - ac[AC_LA0 + i] * qd[i]
+        ast[A_PHI + i] = ast[A_PHI + i] * ac[AC_EA + i] + ac[AC_IA + i] * drive
+    for i in range(3):
+        df = 0.0
+        for j in range(3):
+            df += ac[AC_MQ + 3 * i + j] * ast[A_PHI + j]
+        dd = 0.0
+        for j in range(3):
+            dd += ac[AC_DQ + 3 * i + j] * qd[j]
+        dk = 0.0
+        for j in range(3):
+            dk += ac[AC_KQ + 3 * i + j] * (q[j] - ac[AC_Q0 + j])
+        fi = ac[AC_FHOLD + i] + (df + dd + dk)
+        if ac[AC_SAT] != 0.0:
+            if fi < ast[A_FMIN]:
+                fi = ast[A_FMIN]
+            if fi > ast[A_FMAX]:
+                fi = ast[A_FMAX]
+        f[i] = fi
+        dfi = fi - ac[AC_FHOLD + i]
+        ast[A_P + i] = ac[AC_P10 + i] + 0.5 * dfi / ac[AC_A1]
+        ast[A_P + 3 + i] = ac[AC_P20 + i] - 0.5 * dfi / ac[AC_A2]

@@ -1,0 +1,488 @@
+"""The 1 ms step, written once: sensors, controllers, actuators and the log row.
+
+One physics step of the co-simulation is, at the state of ``t_k``::
+
+    sense      the slides, the platform pose and the loop closures from MuJoCo;
+               potentiometers, height encoder, IMU (own rates, zero-order hold)
+    control    the outer loop every ``outer`` steps (or IK(y_d + c) every step,
+               feed-forward), Fig. 13's set-point filter, the joint loops -> volts
+    actuate    valves and chambers -> the three slide forces (MuJoCo's ctrl)
+    record     one log row every ``decimation`` steps
+
+then MuJoCo integrates to ``t_k+1`` with those forces held. The stages are
+plain functions on two flat float64 arrays, the state ``S`` (every discrete
+state, counter and the set-point filter's ring: saving ``S`` with MuJoCo's
+state resumes a run exactly) and the constants ``C``, calling the
+controllers' (:mod:`controllers.step_functions`) and the plant's
+(:mod:`simpro_mj.plant.step_functions`) per-step functions. Two ways to run
+them, the same source:
+
+* interpreted (``SIMPRO_KERNEL=python``, the readable reference):
+  :class:`~simpro_mj.sim.loop.CoSimulation` calls ``mj_step1``, the stages,
+  ``mj_step2`` from Python every step;
+* compiled (numba, the default when it is installed): :func:`compiled` turns
+  every function into machine code and :func:`callback` into one C function
+  installed as MuJoCo's control callback (``mjcb_control``), which MuJoCo
+  calls inside ``mj_step`` exactly where the split step runs the stages
+  (after the position and velocity stages, before actuation). Python then
+  only calls ``mj_step(model, data, nstep)`` for chunks of steps and checks
+  the run between chunks.
+
+The callback is process-wide in MuJoCo: it acts only on the ``mjData`` of a
+run registered in :data:`REGISTRY` (its address is the key; any other model
+or data, a viewer's or a renderer's, is left alone), and the last run to
+leave uninstalls it.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import math
+import threading
+import types as pytypes
+
+import numpy as np
+
+from controllers import step_functions as cs
+from simpro_mj.plant import step_functions as ps
+from simpro_mj.plant.friction import seal_friction
+from simpro_mj.plant.sensor_errors import accel_tilt, pot_nonlinearity
+
+__all__ = [
+    "Layout",
+    "sense",
+    "control",
+    "actuate",
+    "record",
+    "step_once",
+    "compiled",
+    "mjdata_offsets",
+]
+
+# ---------------------------------------------------------------- state S
+K, STATUS, ERR, ERR_K, ROWS, WORST, FLAGS, SUPPLY_LOG, NOISE_K0 = range(9)
+# the bias walk: its draws used so far, the stream index of its block's first row
+WALK_M, WALK_M0 = 9, 10
+Q, QD, POSE, QM, PM, LOOP = 11, 14, 17, 20, 23, 26
+YQ, YP = 27, 30  # what the controllers see (faults act here)
+QDES, QR, U, UA, F, PCMD = 33, 36, 39, 42, 45, 48  # q_d, q_ref, volts (own, applied), N, x_c
+SAT = 51  # feed-forward: a valve at its rail since the last outer step
+SS = 52  # the sensors' own state (plant.step_functions.SS_*)
+TS = SS + ps.SS_LEN  # the outer loop's state (controllers.step_functions.T_*)
+JX = TS + cs.T_LEN  # the joint controllers' 9 states
+FY, FSUM, FHEAD = JX + 9, JX + 12, JX + 15  # the set-point filter
+AST = JX + 18  # the actuators' state (plant.step_functions.A_*)
+RING = AST + ps.A_LEN  # the ramp filter's ring (3 x n_max)
+
+#: STATUS values: registered but not stepping, stepping, stopped on an error
+IDLE, RUNNING, STOPPED = 0.0, 1.0, 2.0
+#: errors of the plant and the run, after the controllers' (cs.ERR_*)
+ERR_FORCE, ERR_LOOP, ERR_WARNING = 5, 6, 7
+
+# ------------------------------------------------------------ constants C
+DT, NSTEPS, DEC, OUTER, HOLD_SAT, HAS_UFF, HEAD, LOOP_BOUND = range(8)
+FKIND, FN, FA, FB = 8, 9, 12, 15
+LIM, IGAIN, JM = 18, 23, 26  # joint loops: (offset, lo, hi, anti-windup, T/T_t), r0 T, 3x4x4
+IQ, IV, IMAT, IH, NPAIR, PAIRS = 74, 77, 80, 81, 82, 83  # state read (8 loops at most)
+IHA, IHG, ICTRL = 99, 100, 101
+SC = 104
+TC = SC + ps.SC_LEN
+GEOM = TC + cs.TC_LEN
+AC = GEOM + cs.GEOM_LEN  # the actuators' constants (plant.step_functions.AC_*)
+MAX_PAIRS = 8
+
+#: the log's columns (simpro_mj.sim.result.COLUMNS), in order
+N_COLS = 1 + 3 * 9 + 6 + 1 + 2
+
+
+class Layout:
+    """Sizes of one run's buffers: ``S`` (state) and ``C`` (constants)."""
+
+    def __init__(self, n_ring: int, n_ac: int):
+        self.n_ring = int(n_ring)
+        self.s_len = RING + 3 * self.n_ring
+        self.c_len = AC + int(n_ac)
+
+
+# ---------------------------------------------------------------- the stages
+def sense(k, S, C, qpos, qvel, xpos, xmat, noise, walk):
+    """The state and the sensors' readings at step ``k`` into ``S``.
+
+    ``noise``: the block of the sensors' draws (row ``k - S[NOISE_K0]``);
+    ``walk``: the block of the IMU bias walk's draws (row ``S[WALK_M] - S[WALK_M0]``).
+    """
+    ps.slide_states(qpos, qvel, C[IQ : IQ + 3], C[IV : IV + 3], S[Q : Q + 3], S[QD : QD + 3])
+    ps.platform_pose(xmat, xpos, C[IMAT], C[IH], S[POSE : POSE + 3])
+    S[LOOP] = ps.loop_closure(xpos, C[PAIRS : PAIRS + 2 * MAX_PAIRS], C[NPAIR])
+    site = int(C[IH]) - 2  # the platform frame's origin: the IMU site
+    S[WALK_M] += ps.sample_sensors(
+        k,
+        False,
+        S[Q : Q + 3],
+        S[POSE : POSE + 3],
+        xpos[site : site + 3],
+        noise[k - int(S[NOISE_K0])],
+        walk[int(S[WALK_M]) - int(S[WALK_M0])],
+        C[SC : SC + ps.SC_LEN],
+        S[SS : SS + ps.SS_LEN],
+        S[QM : QM + 3],
+        S[PM : PM + 3],
+    )
+    for i in range(3):
+        S[YQ + i] = S[QM + i]
+        S[YP + i] = S[PM + i]
+
+
+def control(k, S, C, ref, qj, uff):
+    """The controllers at step ``k``: q_d, the filter, the joint loops; returns an error code.
+
+    Writes q_d (``S[QDES]``), q_ref, the volts (the controllers' own ``U``
+    and the applied ``UA``, equal unless a fault overrides them) and the
+    commanded pose.
+    """
+    ts, tc, g = S[TS : TS + cs.T_LEN], C[TC : TC + cs.TC_LEN], C[GEOM : GEOM + cs.GEOM_LEN]
+    mode = tc[cs.TC_MODE]
+    y0, y1, y2 = S[YP], S[YP + 1], S[YP + 2]
+    m0, m1, m2 = S[YQ], S[YQ + 1], S[YQ + 2]
+    err = 0
+    if mode == cs.MODE_JOINT:  # q_d = IK(y_d), precomputed
+        for i in range(3):
+            S[QDES + i] = qj[k, i]
+            S[PCMD + i] = ref[k, i]
+    else:
+        if k % int(C[OUTER]) == 0:
+            hold = S[SAT] != 0.0
+            err = cs.outer_update(
+                ref[k, 0], ref[k, 1], ref[k, 2], y0, y1, y2, m0, m1, m2, hold, ts, tc, g
+            )
+            S[SAT] = 0.0
+        elif mode == cs.MODE_FF:
+            err = cs.ff_inner(ref[k, 0], ref[k, 1], ref[k, 2], y0, y1, y2, m0, m1, m2, 2, ts, tc, g)
+        for i in range(3):
+            S[QDES + i] = ts[cs.T_QD + i]
+            S[PCMD + i] = ts[cs.T_XC + i]
+    if err:
+        return err
+    qr = S[QR : QR + 3]
+    cs.filter_step(
+        C[FKIND],
+        S[QDES],
+        S[QDES + 1],
+        S[QDES + 2],
+        C[FN : FN + 3],
+        C[FA : FA + 3],
+        C[FB : FB + 3],
+        S[FY : FY + 3],
+        S[FSUM : FSUM + 3],
+        S[FHEAD : FHEAD + 3],
+        S[RING:].reshape(3, -1),
+        qr,
+    )
+    f0 = f1 = f2 = 0.0
+    if C[HAS_UFF] != 0.0:
+        f0, f1, f2 = uff[k, 0], uff[k, 1], uff[k, 2]
+    cs.joint_step(
+        S[JX : JX + 9],
+        C[JM : JM + 48].reshape(3, 4, 4),
+        qr[0] - m0,
+        qr[1] - m1,
+        qr[2] - m2,
+        f0,
+        f1,
+        f2,
+        C[LIM : LIM + 5],
+        C[IGAIN : IGAIN + 3],
+        S[U : U + 3],
+    )
+    lo, hi = C[LIM + 1], C[LIM + 2]
+    for i in range(3):
+        S[UA + i] = S[U + i]
+    if C[HOLD_SAT] != 0.0 and S[SAT] == 0.0:
+        for i in range(3):
+            if not (lo < S[U + i] < hi):
+                S[SAT] = 1.0
+    return 0
+
+
+def actuate(S, C):
+    """The actuators over the step for the applied volts: forces into ``S[F]``; error code."""
+    ast, ac = S[AST : AST + ps.A_LEN], C[AC:]
+    u, q, qd, f = S[UA : UA + 3], S[Q : Q + 3], S[QD : QD + 3], S[F : F + 3]
+    if ac[ps.AC_KIND] == 0.0:
+        ps.nonlinear_step(u, q, qd, ast, ac, f)
+    else:
+        ps.linear_step(u, q, qd, ast, ac, f)
+    if not math.isfinite(f[0] + f[1] + f[2]):
+        return ERR_FORCE
+    return 0
+
+
+def record(k, S, C, ref, qpos, sd, log, qlog, hlog):
+    """The log row of step ``k`` (every ``decimation`` steps); error code (loop opened)."""
+    if k % int(C[DEC]) != 0:
+        return 0
+    row = int(S[ROWS])
+    out = log[row]
+    out[0] = k * C[DT]
+    for i in range(3):
+        out[1 + i] = ref[k, i]
+        out[4 + i] = S[POSE + i]
+        out[7 + i] = S[YP + i]
+        out[10 + i] = S[PCMD + i]
+        out[13 + i] = S[QR + i]
+        out[16 + i] = S[Q + i]
+        out[19 + i] = S[YQ + i]
+        out[22 + i] = S[UA + i]
+        out[25 + i] = S[F + i]
+        out[28 + 2 * i] = S[AST + ps.A_P + i]
+        out[29 + 2 * i] = S[AST + ps.A_P + 3 + i]
+    loop = S[LOOP]
+    out[34], out[35], out[36] = loop, S[FLAGS], S[SUPPLY_LOG]
+    for j in range(qpos.shape[0]):
+        qlog[row, j] = qpos[j]
+    if C[HEAD] != 0.0:
+        a, g = int(C[IHA]), int(C[IHG])
+        for i in range(3):
+            hlog[row, i] = sd[a + i]
+            hlog[row, 3 + i] = sd[g + i]
+    S[ROWS] = row + 1
+    if loop > S[WORST]:
+        S[WORST] = loop
+    if loop > C[LOOP_BOUND]:
+        return ERR_LOOP
+    return 0
+
+
+def apply_forces(S, C, ctrl):
+    """The slide forces into MuJoCo's ``ctrl`` (the slides' motors)."""
+    for i in range(3):
+        ctrl[int(C[ICTRL + i])] = S[F + i]
+
+
+def step_once(S, C, qpos, qvel, xpos, xmat, sd, ctrl, ref, qj, uff, noise, walk, log, qlog, hlog):
+    """Step ``S[K]`` whole: sense, control, actuate, apply, record; then ``K + 1``.
+
+    Returns an error code (0: none); on an error ``S`` records it and the step.
+    """
+    k = int(S[K])
+    sense(k, S, C, qpos, qvel, xpos, xmat, noise, walk)
+    err = control(k, S, C, ref, qj, uff)
+    if err == 0:
+        err = actuate(S, C)
+    if err == 0:
+        apply_forces(S, C, ctrl)
+        err = record(k, S, C, ref, qpos, sd, log, qlog, hlog)
+    if err:
+        S[ERR], S[ERR_K], S[STATUS] = err, k, STOPPED
+    S[K] = k + 1
+    return err
+
+
+def callback_step(
+    S, C, qpos, qvel, xpos, xmat, sd, ctrl, warn, ref, qj, uff, noise, walk, log, qlog, hlog
+):
+    """The body of MuJoCo's control callback for one registered run.
+
+    Does nothing unless the run is stepping; stops it (before the step) when
+    a MuJoCo warning counter is set (``warn``: the ``number`` of each
+    ``mjWarningStat``) or the step is past the run's end or the noise rows
+    Python drew.
+    """
+    if S[STATUS] != RUNNING:
+        return
+    k = int(S[K])
+    for i in range(warn.shape[0] // 2):
+        if warn[2 * i + 1] != 0:
+            S[ERR], S[ERR_K], S[STATUS] = ERR_WARNING, k - 1, STOPPED
+            return
+    if (
+        k > int(C[NSTEPS])
+        or k - int(S[NOISE_K0]) >= noise.shape[0]
+        or int(S[WALK_M]) - int(S[WALK_M0]) >= walk.shape[0]
+    ):
+        S[STATUS] = IDLE
+        return
+    step_once(S, C, qpos, qvel, xpos, xmat, sd, ctrl, ref, qj, uff, noise, walk, log, qlog, hlog)
+
+
+# ------------------------------------------------------------ compiled form
+_PLAIN = [
+    cs.ik_pose, cs.ik_lag, cs.segment_limit, cs.filter_step, cs.joint_step, cs.outer_setpoint,
+    cs._ik_xc, cs._integrate, cs._accumulate, cs._ff_error, cs._correct, cs.ff_step,
+    cs.outer_update, cs.ff_inner,
+    ps.slide_states, ps.platform_pose, ps.loop_closure, ps.quantise, accel_tilt,
+    pot_nonlinearity, ps.imu_input, ps.sample_sensors,
+    seal_friction, ps._psi, ps.valve_spool, ps.chamber_pressures, ps.slide_forces,
+    ps.nonlinear_step, ps.linear_step,
+    sense, control, actuate, record, apply_forces, step_once, callback_step,
+]  # fmt: skip
+
+_compiled = None
+_compile_lock = threading.Lock()
+
+
+def compiled():
+    """The stages compiled by numba (``njit(cache=True)``), as a namespace of functions.
+
+    Each plain function is compiled with the names it calls bound to their
+    compiled forms (callees first), so the source above is the only copy.
+    Loaded from numba's on-disk cache after the first run (:func:`_cache_dir`).
+    """
+    global _compiled
+    with _compile_lock:
+        if _compiled is None:
+            import numba  # the optional extra: imported on first use
+
+            numba.config.CACHE_DIR = _cache_dir()
+            env: dict = {}
+            for f in _PLAIN:
+                glob = dict(f.__globals__)
+                glob.update(
+                    {k: _module_view(v, env) for k, v in glob.items() if v is cs or v is ps}
+                )
+                glob.update(env)
+                clone = pytypes.FunctionType(f.__code__, glob, f.__name__, f.__defaults__)
+                clone.__qualname__, clone.__module__ = f.__qualname__, f.__module__
+                env[f.__name__] = numba.njit(cache=True)(clone)
+            _compiled = pytypes.SimpleNamespace(**env)
+        return _compiled
+
+
+def _cache_dir() -> str:
+    """numba's cache directory for the compiled step, named by a hash of its sources.
+
+    numba invalidates a cached function when its own file changes, not when
+    a function it calls does (the callee's code is linked into the caller's
+    cache entry): a cache keyed by all the step's source files is never
+    stale. Under ``NUMBA_CACHE_DIR`` if set, else next to this package (or
+    the user's cache directory when that is not writable).
+    """
+    import hashlib
+    import os
+    import sys
+    import tempfile
+
+    from simpro_mj.plant import friction
+
+    files = [m.__file__ for m in (cs, ps, friction, sys.modules[__name__])]
+    files.append(os.path.join(os.path.dirname(__file__), "callback.py"))
+    h = hashlib.sha256()
+    for path in files:
+        with open(path, "rb") as fh:
+            h.update(fh.read())
+    base = os.environ.get("NUMBA_CACHE_DIR")
+    if not base:
+        here = os.path.join(os.path.dirname(__file__), "__pycache__")
+        if os.access(os.path.dirname(here), os.W_OK):
+            base = here
+        else:
+            user = os.environ.get("XDG_CACHE_HOME") or os.path.expanduser("~/.cache")
+            base = user if os.access(user, os.W_OK) else tempfile.gettempdir()
+    return os.path.join(base, "simpro-step-" + h.hexdigest()[:16])
+
+
+def _module_view(module, env):
+    """``module`` as the compiled functions see it: its functions compiled so far swapped in."""
+    view = pytypes.ModuleType(module.__name__)
+    view.__dict__.update(module.__dict__)
+    view.__dict__.update({k: v for k, v in env.items() if k in module.__dict__})
+    return view
+
+
+# ------------------------------------------------------------ the callback
+def mjdata_offsets(data) -> dict:
+    """Where ``mjData`` keeps the arrays the callback reads: word offsets in the struct.
+
+    Each array's own address (``data.qpos.ctypes.data``, ...) is located
+    among the 8-byte words of the ``mjData`` struct (``data._address``),
+    word by word from the start, stopping at the last one found (so nothing
+    past the struct is read); the first match is the field (zero-sized
+    arrays share their neighbour's address and come later). The layout is
+    the same for every ``mjData`` of this MuJoCo: found once, then only
+    checked. The warning counters are inline in the struct.
+
+    Raises
+    ------
+    RuntimeError
+        A field not found: this MuJoCo version lays ``mjData`` out differently.
+    """
+    base = int(data._address)
+    names = ("qpos", "qvel", "site_xpos", "site_xmat", "ctrl", "sensordata")
+    want = {}
+    for name in names:
+        arr = getattr(data, name)
+        if not arr.size:
+            raise RuntimeError(f"mjData.{name} is empty: the model has none")
+        want[name] = arr.ctypes.data
+
+    def word(i: int) -> int:
+        return ctypes.c_int64.from_address(base + 8 * i).value
+
+    out = _OFFSETS.get("fields")
+    if out is None or any(word(out[n]) != want[n] for n in names):
+        out, todo = {}, dict(want)
+        for i in range(MJDATA_WORDS):
+            w = word(i)
+            for n, addr in list(todo.items()):
+                if w == addr:
+                    out[n] = i
+                    del todo[n]
+            if not todo:
+                break
+        if todo:
+            raise RuntimeError(
+                f"mjData.{sorted(todo)[0]} not found in the struct at {base:#x}: this MuJoCo "
+                "version lays mjData out differently; run with SIMPRO_KERNEL=python"
+            )
+        _OFFSETS["fields"] = dict(out)
+    out = dict(out)
+    warn = data.warning.number
+    off = warn.ctypes.data - base
+    if warn.dtype != np.int32 or warn.strides != (8,) or not 0 < off < MJDATA_WORDS * 8:
+        raise RuntimeError("mjData.warning not laid out as expected; run with SIMPRO_KERNEL=python")
+    out["warning"] = off - 4  # mjWarningStat {int lastinfo; int number}
+    out["n_warning"] = 2 * warn.shape[0]
+    return out
+
+
+_OFFSETS: dict = {}
+
+#: most 8-byte words of the mjData struct searched for the arrays' addresses
+MJDATA_WORDS = 65536
+
+# one slot per registered run: addresses and sizes of its arrays
+SLOT = 32
+N_SLOTS = 64
+(
+    R_DATA,
+    R_S,
+    R_SN,
+    R_C,
+    R_CN,
+    R_REF,
+    R_NREF,
+    R_QJ,
+    R_UFF,
+    R_NOISE,
+    R_NNOISE,
+    R_LOG,
+    R_NLOG,
+    R_QLOG,
+    R_NQ,
+    R_HLOG,
+    R_QPOS,
+    R_QVEL,
+    R_XPOS,
+    R_NXPOS,
+    R_XMAT,
+    R_CTRL,
+    R_NU,
+    R_SD,
+    R_NSD,
+    R_WARN,
+    R_NWARN,
+    R_NHLOG,
+    R_WALK,
+    R_NWALK,
+) = range(30)
+REGISTRY = np.zeros(N_SLOTS * SLOT, dtype=np.int64)
