@@ -91,30 +91,44 @@ class MpcParams:
         tilt in units of its limit, the jerk in units of ``accel_max / period``).
     tilt_rate_max, tilt_accel_max : float
         The platform's tilt rate (rad/s) and acceleration (rad/s^2) limits: 15 deg/s
-        and 30 deg/s^2. The feed-forward loop follows a set-point up to about 2.9 Hz
-        (docs/feedforward.md) but overshoots a roll-rate reversal of 40 deg/s^2 by
-        about 1 deg (cue_lane_change: felt false roll 1.65 s at 60 deg/s^2, 0.78 s at
-        30 deg/s^2), so the plan is kept at 30.
+        and 30 deg/s^2, inside what the feed-forward loop follows (about 2.9 Hz,
+        docs/feedforward.md).
     heave_rate_max, heave_accel_max : float
         Heave rate (m/s) and acceleration (m/s^2) limits.
-    head_height : float
-        Head above the tilt pivot (m), 0.75 (the MJCF ``head`` site).
+    head_height, head_height_pitch : float
+        The head above the roll axis (m), 0.75 (the MJCF ``head`` site), and above
+        the pitch motion's axis, 1.21: the RPSU moves the cabin along x as it
+        pitches, and a fit of the head's measured specific force on a braking run
+        gives ``f_x + g sin(theta) = 1.21 theta''`` (docs/cueing.md).
     preview : float
         Look-ahead into the vehicle input (s), 0: none (the vehicle input is held).
     heave_fraction, stroke_margin : float
         As :class:`controllers.washout.WashoutParams`: the workspace box.
     box_fraction : float
         Share of the box's half-range the tilt and heave may use, 0.95.
-    rotation_limit : float
-        The head's felt rotation (canal model) may exceed the vehicle's by at most
-        this many canal thresholds, 0.7 (a constraint; 0 turns it off): the tilt
-        that makes a specific force is not felt as a rotation.
+    rotation_limit, rotation_limit_pitch : float
+        The head's felt roll (pitch) (canal model) may exceed the vehicle's by at
+        most this many canal thresholds, 0.7 (0.8) (a constraint; 0 turns it off):
+        the tilt that makes a specific force is not felt as a rotation.
     lead : float
-        Phase lead of the set-point (s), 0: the set-point at ``t`` is the latest plan
-        evaluated at ``t + lead``, to make up for the platform loop's lag (about
-        0.1-0.15 s in roll and pitch, docs/cueing.md). The plan itself is made from what is
-        known at ``t`` (and ``preview``): no look-ahead of its own; must be shorter
-        than the horizon.
+        The specific-force cue is planned ``lead`` (s) ahead of the recording, as far
+        as ``preview`` reaches (0 without preview); the car's rotation stays on time.
+        It makes up for the otoliths' lag behind a scaled cue.
+    loop_omega, loop_zeta, loop_zero, loop_delay : float
+        The platform loop from set-point to pose, ``(T_z s + 1) w^2 / (s^2 + 2 zeta
+        w s + w^2) e^(-s T_d)``: 5.0 rad/s, 0.72, 0.31 s, 0.03 s, fitted on the
+        shipped feed-forward loop's runs (docs/cueing.md); the set-point is the plan
+        through its inverse (:meth:`ModelPredictiveCueing._loop_inverse`).
+        ``loop_omega`` 0: the plan itself.
+    loop_filter : float
+        A lag (s), 0.05, bounding the inverse's gain above the loop's bandwidth.
+    knee : float
+        Surge and sway scaled by ``gain f + (1 - gain) knee tanh(f / knee)``
+        (m/s^2): a weak cue at full size. 0 (the default): ``gain f``.
+    jolt_limit : float
+        Where the car's surge or sway specific force is past the otoliths'
+        threshold, the planned head's may not point the other way by more than this
+        (m/s^2), 0.01 (a constraint; 0 turns it off).
     """
 
     period: float = 0.06
@@ -133,12 +147,21 @@ class MpcParams:
     heave_rate_max: float = 0.2
     heave_accel_max: float = 3.0
     head_height: float = 0.75
+    head_height_pitch: float = 1.21
     preview: float = 0.0
     heave_fraction: float = 0.25
     stroke_margin: float = 0.01
     box_fraction: float = 0.95
     rotation_limit: float = 0.7
+    rotation_limit_pitch: float = 0.8
     lead: float = 0.0
+    loop_omega: float = 5.0
+    loop_zeta: float = 0.72
+    loop_zero: float = 0.31
+    loop_delay: float = 0.03
+    loop_filter: float = 0.05
+    knee: float = 0.0
+    jolt_limit: float = 0.01
 
     def __post_init__(self):
         checks = {
@@ -158,12 +181,21 @@ class MpcParams:
             "heave_rate_max": (lambda v: v > 0, "> 0 m/s"),
             "heave_accel_max": (lambda v: v > 0, "> 0 m/s^2"),
             "head_height": (lambda v: 0 <= v <= 2, "0..2 m"),
+            "head_height_pitch": (lambda v: 0 <= v <= 2, "0..2 m"),
             "preview": (lambda v: 0 <= v <= 10, "0..10 s"),
             "heave_fraction": (lambda v: 0 < v <= 1, "in (0, 1]"),
             "stroke_margin": (lambda v: 0 <= v < 0.2, "0..0.2 m"),
             "box_fraction": (lambda v: 0 < v <= 1, "in (0, 1]"),
             "rotation_limit": (lambda v: v >= 0, ">= 0 (0: off)"),
+            "rotation_limit_pitch": (lambda v: v >= 0, ">= 0 (0: off)"),
             "lead": (lambda v: 0 <= v <= 0.5, "0..0.5 s"),
+            "loop_omega": (lambda v: v == 0 or 0.5 <= v <= 500, "0 (off) or 0.5..500 rad/s"),
+            "loop_zeta": (lambda v: 0.05 <= v <= 5, "0.05..5"),
+            "loop_zero": (lambda v: 0 <= v <= 5, "0..5 s"),
+            "loop_delay": (lambda v: 0 <= v <= 0.5, "0..0.5 s"),
+            "loop_filter": (lambda v: 0 <= v <= 0.5, "0..0.5 s"),
+            "knee": (lambda v: 0 <= v <= 5, "0 (linear) or up to 5 m/s^2"),
+            "jolt_limit": (lambda v: 0 <= v <= 5, "0 (off) or up to 5 m/s^2"),
         }
         for name, (ok, allowed) in checks.items():
             v = getattr(self, name)
@@ -222,10 +254,10 @@ def _discretise(a: np.ndarray, b: np.ndarray, dt: float) -> tuple[np.ndarray, np
 
 
 def _plan(x0: np.ndarray, jerks: np.ndarray, period: float, t: np.ndarray) -> np.ndarray:
-    """The planned position at times ``t`` (from now) of a triple integrator from
-    ``x0`` = (position, rate, acceleration) under the jerks held one period each
-    (the last one held beyond the horizon)."""
-    out = np.empty(t.size)
+    """The planned position, rate and acceleration (3, len(t)) at times ``t`` (from now)
+    of a triple integrator from ``x0`` = (position, rate, acceleration) under the jerks
+    held one period each (the last one held beyond the horizon)."""
+    out = np.empty((3, t.size))
     seg = np.minimum((t // period).astype(int), jerks.size - 1)
     x = np.asarray(x0, float).copy()
     for k in range(int(seg.max()) + 1):
@@ -233,7 +265,9 @@ def _plan(x0: np.ndarray, jerks: np.ndarray, period: float, t: np.ndarray) -> np
         if sel.any():
             r = t[sel] - k * period
             j = jerks[k]
-            out[sel] = x[0] + x[1] * r + 0.5 * x[2] * r**2 + j * r**3 / 6.0
+            out[0, sel] = x[0] + x[1] * r + 0.5 * x[2] * r**2 + j * r**3 / 6.0
+            out[1, sel] = x[1] + x[2] * r + 0.5 * j * r**2
+            out[2, sel] = x[2] + j * r
         j, T = jerks[k], period
         x = np.array(
             [
@@ -278,7 +312,7 @@ class MpcStream:
             self._held = (f.copy(), w.copy())
             self._u = law.solve(np.tile(f, (N, 1)), np.tile(w, (N, 1)))
         self._k += 1
-        return law._pose(self._u, np.array([j * self.dt]))[0]
+        return law._pose(self._u, np.array([j * self.dt]), self.dt)[0]
 
 
 class _Axis:
@@ -286,7 +320,7 @@ class _Axis:
     cost and constraint outputs, continuous and discretised at the period."""
 
     def __init__(self, kind: str, p: MpcParams, oto: OtolithModel, scc: CanalModel, amax):
-        h = p.head_height
+        h = p.head_height_pitch if kind == "pitch" else p.head_height
         g = GRAVITY
         oa, ob, oc, od = companion(*oto.tf())
         self.kind = kind
@@ -479,16 +513,17 @@ class ModelPredictiveCueing:
             # constraints: a, a', a'' of x_1..x_N within limits (scaled to +-1)
             # and, with rotation_limit, the head's felt rotation (canal model) within
             # rotation_limit thresholds of the vehicle's (in units of the threshold)
-            felt = p.rotation_limit > 0 and "w_head" in ax.rows
-            sel = np.zeros((4 if felt else 3, n))
-            sel[0, 0] = 1.0 / ax.amax
-            sel[1, 1] = 1.0 / ax.rate_max
-            sel[2, 2] = 1.0 / ax.accel_max
+            felt = self._rotation_limit(ax.kind) > 0 and "w_head" in ax.rows
+            jolt = p.jolt_limit > 0 and ax.kind != "heave"
+            rows = [np.eye(n)[0] / ax.amax, np.eye(n)[1] / ax.rate_max, np.eye(n)[2] / ax.accel_max]
             veh = None
             if felt:
-                sel[3] = ax.rows["w_head"][0] / ax.thr_w
+                rows.append(ax.rows["w_head"][0] / ax.thr_w)
                 vrow, vd = ax.rows["w_vehicle"]
                 veh = (np.kron(np.eye(N), vrow / ax.thr_w), np.kron(shift, vd[1:] / ax.thr_w))
+            if jolt:  # the head's specific force, in units of jolt_limit
+                rows.append(ax.rows["raw"][0] / p.jolt_limit)
+            sel = np.array(rows)
             S = np.kron(np.eye(N), sel)
             blocks_a.append(S @ gam)
             self._pred.append(
@@ -502,6 +537,9 @@ class ModelPredictiveCueing:
                     "S": S,
                     "rows": sel.shape[0],
                     "veh": veh,
+                    "felt": 3 if felt else None,
+                    "jolt": sel.shape[0] - 1 if jolt else None,
+                    "shift": shift,
                 }
             )
         from scipy.linalg import block_diag
@@ -511,8 +549,9 @@ class ModelPredictiveCueing:
         felt = []
         for pr in self._pred:
             rows = np.zeros((N, pr["rows"]), bool)
-            if pr["veh"] is not None:
-                rows[:, 3] = True
+            for r in (pr["felt"], pr["jolt"]):
+                if r is not None:
+                    rows[:, r] = True
             felt.append(rows.ravel())
         self._felt_rows = np.concatenate(felt)
 
@@ -520,6 +559,7 @@ class ModelPredictiveCueing:
         """Back to rest: the platform at home, the perception errors at zero."""
         self._x = [np.zeros(ax.n) for ax in self.axes]
         self._u = np.zeros(3 * self.N)
+        self._lag = np.zeros((3, 2))  # the loop inverse's lags, per axis (:meth:`_loop_inverse`)
         self.solve_times: list[float] = []
         self.status: list[str] = []
         self.iterations: list[int] = []
@@ -534,7 +574,23 @@ class ModelPredictiveCueing:
             f, w = f_future[:, 1], w_future[:, 0]
         else:
             f, w = f_future[:, 2] - GRAVITY, np.zeros(len(f_future))
-        return np.column_stack([ax.kf * f, ax.kw * w]).ravel()
+            return np.column_stack([ax.kf * f, ax.kw * w]).ravel()
+        return np.column_stack([self._scaled(f, ax.kf), ax.kw * w]).ravel()
+
+    def _scaled(self, f: np.ndarray, gain: float) -> np.ndarray:
+        """The vehicle's surge or sway specific force scaled for the platform:
+        ``gain f + (1 - gain) f_k tanh(f / f_k)`` with ``f_k`` = :attr:`MpcParams.knee`
+        (0: ``gain f``). Slope 1 at rest, ``gain`` beyond the knee: a weak cue is played
+        at full size, so that it crosses the otoliths' threshold when the car's does,
+        and a strong one is scaled into the workspace."""
+        fk = self.params.knee
+        if fk <= 0:
+            return gain * f
+        return gain * f + (1.0 - gain) * fk * np.tanh(f / fk)
+
+    def _rotation_limit(self, kind: str) -> float:
+        p = self.params
+        return p.rotation_limit_pitch if kind == "pitch" else p.rotation_limit
 
     def solve(self, f_future: np.ndarray, w_future: np.ndarray) -> np.ndarray:
         """One QP: the vehicle input over the horizon (N, 3) each -> the N jerks per axis
@@ -555,9 +611,17 @@ class ModelPredictiveCueing:
                 wv = d[1::2]
                 lead = self.axes[k].tau_n * np.gradient(wv) / self.params.period
                 cveh = cveh + lead / self.axes[k].thr_w
-                r = self.params.rotation_limit
+                r = self._rotation_limit(self.axes[k].kind)
                 low[3 :: pr["rows"]] = np.minimum(cveh, 0.0) - r
                 high[3 :: pr["rows"]] = np.maximum(cveh, 0.0) + r
+            if pr["jolt"] is not None:
+                # where the car's specific force is past the otoliths' threshold, the
+                # head's may not go the other way by more than jolt_limit (in its units)
+                target = pr["shift"] @ d[0::2]
+                thr = self.axes[k].thr_f * self.axes[k].kf  # the car's past its threshold
+                j = pr["jolt"]
+                low[j :: pr["rows"]] = np.where(target > thr, -1.0, -np.inf)
+                high[j :: pr["rows"]] = np.where(target < -thr, 1.0, np.inf)
             lo.append(low - sfree)
             hi.append(high - sfree)
         q = np.concatenate(q)
@@ -572,11 +636,11 @@ class ModelPredictiveCueing:
         res = self._solver.solve(raise_error=False)
         status = str(res.info.status)
         if "infeasible" in status and self._felt_rows.any():
-            # the felt-rotation limit cannot be met from here: solved again without it
+            # the felt-rotation or jolt limit cannot be met from here: solved again without
             lo[self._felt_rows], hi[self._felt_rows] = -np.inf, np.inf
             self._solver.update(l=lo, u=hi)
             res = self._solver.solve(raise_error=False)
-            status = str(res.info.status) + " without the rotation limit"
+            status = str(res.info.status) + " without the rotation and jolt limits"
         self.solve_times.append(time.perf_counter() - t0)
         self.status.append(status)
         self.iterations.append(int(res.info.iter))
@@ -600,12 +664,15 @@ class ModelPredictiveCueing:
             d = self._d(f_now[None, :], w_now[None, :], k)[:2]
             self._x[k] = ax.ad @ self._x[k] + ax.bd @ np.r_[u[k, 0], d]
 
-    def _pose(self, u: np.ndarray, t: np.ndarray) -> np.ndarray:
-        """Base-frame set-points (len(t), 3) of the current plan ``t`` after the solve
-        (plus ``lead``)."""
+    def _pose(self, u: np.ndarray, t: np.ndarray, dt: float) -> np.ndarray:
+        """Base-frame set-points (len(t), 3) of the current plan ``t`` after the solve,
+        consecutive samples ``dt`` apart, through the inverse of the platform loop
+        (:meth:`_loop_inverse`)."""
+        p = self.params
         out = np.empty((t.size, 3))
         for k, ax in enumerate(self.axes):
-            a = _plan(self._x[k][:3], u[k], self.params.period, t + self.params.lead)
+            a = _plan(self._x[k][:3], u[k], p.period, t + p.loop_delay + p.loop_filter)
+            a = self._loop_inverse(k, a, dt)
             if ax.kind == "pitch":
                 out[:, 1] = -a  # ISO pitch a -> B pitch -a
             elif ax.kind == "roll":
@@ -613,6 +680,39 @@ class ModelPredictiveCueing:
             else:
                 out[:, 2] = self._home[2] + a
         return out
+
+    def _loop_inverse(self, k: int, a: np.ndarray, dt: float) -> np.ndarray:
+        """The set-point that makes the platform loop follow the plan of axis ``k``.
+
+        The loop from set-point ``r`` to pose ``y`` is modelled as
+        ``G(s) = (T_z s + 1) w^2 / (s^2 + 2 zeta w s + w^2) e^(-s T_d)``
+        (:class:`MpcParams` ``loop_*``). With the plan's position, rate and
+        acceleration ``a`` (3, n) evaluated ``T_d + T_f`` ahead::
+
+            r = (a + (2 zeta / w) a' + a'' / w^2) / ((T_z s + 1) (T_f s + 1))
+
+        the two first-order lags run sample by sample (their states kept between
+        calls; the poles at ``-1/T_z`` and ``-1/T_f`` are stable). ``T_f``
+        (``loop_filter``) bounds the inverse's gain above the loop's bandwidth, where the
+        fitted model no longer holds (3.5 times at 4.4 Hz without it, 2.1 with 50 ms),
+        and its lag is made up by the look-ahead. ``loop_omega`` 0: ``r = a``.
+        """
+        p = self.params
+        if p.loop_omega <= 0:
+            return a[0]
+        v = a[0] + (2.0 * p.loop_zeta / p.loop_omega) * a[1] + a[2] / p.loop_omega**2
+        for j, tau in enumerate((p.loop_zero, p.loop_filter)):
+            if tau <= 0:
+                continue
+            e = math.exp(-dt / tau)
+            r = np.empty(v.size)
+            state = self._lag[k, j]
+            for i, vi in enumerate(v):
+                state = e * state + (1.0 - e) * vi
+                r[i] = state
+            self._lag[k, j] = state
+            v = r
+        return v
 
     def run(self, f, w, dt: float) -> MpcResult:
         """Run over a vehicle input sampled at ``dt`` (which divides the period).
@@ -633,14 +733,18 @@ class ModelPredictiveCueing:
         N = self.N
         pose = np.empty((n, 3))
         ahead = int(round(p.preview / dt))
+        # the cue planned ``lead`` ahead of the recording, as far as the preview reaches
+        adv = min(int(round(p.lead / dt)), ahead)
         tau = dt * np.arange(every)
         for s in range(0, n, every):
             # known up to t + preview, held after
+            # (the specific force only: the car's rotation is matched in time)
             idx = np.minimum(s + np.minimum(np.arange(N) * every, ahead), n - 1)
-            u = self.solve(f[idx], w[idx])
+            fdx = np.minimum(s + np.minimum(np.arange(N) * every + adv, ahead), n - 1)
+            u = self.solve(f[fdx], w[idx])
             m = min(every, n - s)
-            pose[s : s + m] = self._pose(u, tau[:m])
-            self._advance(u, f[s], w[s])
+            pose[s : s + m] = self._pose(u, tau[:m], dt)
+            self._advance(u, f[fdx[0]], w[s])
         st = self.solve_times
         return MpcResult(
             t=dt * np.arange(n),

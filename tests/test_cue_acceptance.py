@@ -13,6 +13,7 @@ from controllers.frames import GRAVITY
 from controllers.washout import ClassicalWashout
 from simpro_mj.analysis.cue_metrics import (
     _onset_block,
+    cue_floors,
     false_rotation,
     onsets,
     print_cue_summary,
@@ -130,6 +131,66 @@ def test_cue_summary_and_summary_columns():
     row = summary_columns(cue)
     assert row["cue_main_channel"] == "long" and row["cue_long_onset_s"] == 0.25
     assert row["cue_pitch_false_rot_s"] == 0.3 and row["cue_solve_p99_ms"] == 20.0
+    # every floor met on the main channel (no onset counted: the onset floors not asked)
+    assert row["cue_floors_met"] is True and row["cue_floors_missed"] == ""
+    assert "floors (longitudinal_f): met" in text
+
+
+def test_cue_floors_name_each_floor_missed():
+    """A run is judged by the floors a driver would accept, each miss named with its
+    value: the sway channel's 0.85 correlation, the 0.3 s onset, a missed onset, the
+    0.5 s of felt false roll, the box and the 5 % of valve saturation."""
+    cue = {
+        "channels": {
+            "longitudinal_f": {"correlation": 0.99, "vehicle_peak": 0.5},
+            "lateral_f": {
+                "correlation": 0.84,
+                "mean_lag_s": 0.1,
+                "onsets": 3,
+                "onset_delay_s": 0.31,
+                "onsets_missed": 1,
+                "onset_raw_wrong_sign_peak": 0.05,
+                "vehicle_peak": -2.5,
+            },
+            "roll_rate": {"false_rotation_s": 0.51},
+            "pitch_rate": {"false_rotation_s": 0.0},
+        },
+        "workspace": {"box_fraction_max": {"roll": 1.01, "pitch": 0.2}, "end_stop_margin_m": 0.1},
+        "valves": {"saturated_fraction": 0.06},
+    }
+    floors = cue_floors(cue)
+    assert floors["channel"] == "lateral_f" and not floors["met"]
+    assert floors["missed"] == [
+        "lateral_f correlation 0.84 < 0.85",
+        "lateral_f onset delay 0.31 s > 0.3 s",
+        "lateral_f onsets missed 1",
+        "felt false roll 0.51 s > 0.5 s",
+        "roll box 1.01 > 1",
+        "valve saturation 0.06 > 0.05",
+    ]
+
+
+def test_batch_judges_a_cueing_run_by_its_floors_not_step_growth():
+    """The batch summary row of a cueing run carries the cue floors and no step-response
+    stability verdict (a moving set-point's error is no step's growing envelope)."""
+    from simpro_mj.batch.plan import Job
+    from simpro_mj.batch.summary import summary_row
+
+    cue = {
+        "algorithm": "mpc",
+        "channels": {
+            "longitudinal_f": {"correlation": 0.9, "mean_lag_s": 0.2, "vehicle_peak": -4.0}
+        },
+    }
+    result = {
+        "status": "ok",
+        "metrics": {"axes": {}, "metrics": {"cueing": cue}},
+        "stability": {"stable": False, "growth_rate_1_s": 0.3, "why": "grows"},
+    }
+    job = Job(0, "x.yaml", "x", "v", "v", {}, None, 1, None)
+    row = summary_row(job, result)
+    assert row["stable"] is None and row["growth_rate_1_s"] is None
+    assert row["cue_floors_met"] is True
 
 
 def _user_csv(path):

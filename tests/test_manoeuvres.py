@@ -45,6 +45,24 @@ def test_lane_change_turns_left_first_and_presses_the_driver_right():
     assert tel.extra["y_m"][-1] > 0.5  # moving into the offset lane
 
 
+def test_braking_in_a_turn_presses_forward_and_right():
+    """The left turn from 1 s (3 m/s^2 at 60 km/h), braking at 6 m/s^2 from 2.5 s:
+    the seat pushes the driver left while the belt holds them, the speed falls by
+    about the 6 m/s^2 over the braking."""
+    tel = generate(
+        ManoeuvreSpec("braking_turn", 60.0, deceleration_mps2=6.0, duration_s=5.0, rate_hz=100.0)
+    )
+    t, v = tel.t, tel.extra["speed_mps"]
+    turning = (t > 1.8) & (t < 2.4)  # in the turn, before the braking
+    assert tel.f[turning, 1].mean() == pytest.approx(3.0, abs=0.6)
+    assert tel.w[turning, 2].mean() > 0  # yaw to the left
+    braking = (t > 3.0) & (t < 4.4)
+    assert tel.f[braking, 0].mean() == pytest.approx(-6.0, abs=0.7)
+    assert abs(tel.f[t < 0.9, 0]).max() < 0.1  # straight at constant speed before
+    drop = v[np.searchsorted(t, 2.5)] - v[np.searchsorted(t, 4.5)]
+    assert drop == pytest.approx(6.0 * 1.8, abs=1.5)  # 2 s less the ramps' 0.2 s
+
+
 def test_bump_lifts_then_drops_the_head():
     tel = generate(ManoeuvreSpec("bump", 40.0, bump_height_m=0.05))
     fz = tel.f[:, 2] - 9.81

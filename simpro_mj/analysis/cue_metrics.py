@@ -19,7 +19,9 @@ from simpro_mj.config.telemetry import Telemetry
 
 __all__ = [
     "CHANNELS",
+    "FLOORS",
     "SUMMARY_COLUMNS",
+    "cue_floors",
     "cue_metrics",
     "false_rotation",
     "onsets",
@@ -369,6 +371,12 @@ def print_cue_summary(cue: Mapping, file=None) -> None:
             f"max {st['max_ms']:.2f} ms over {st['solves']} solves",
             file=file,
         )
+    floors = cue_floors(cue)
+    print(
+        f"floors ({floors['channel']}): "
+        + ("met" if floors["met"] else "missed: " + "; ".join(floors["missed"])),
+        file=file,
+    )
     print(
         "(raw wrong: the head's specific force against the vehicle's onset, m/s^2, "
         "threshold 0.17; lag, onset: seconds)",
@@ -398,6 +406,67 @@ def telemetry_of(columns: Mapping) -> Telemetry:
     return Telemetry(t=t, f=f, w=w)
 
 
+#: What a driver would accept (docs/cueing.md), on the channel the vehicle drives most
+#: (the larger perceived vehicle peak of surge and sway): perceived correlation (0.8 on
+#: surge, 0.85 on sway), mean lag (s), worst onset delay (s) with no onset missed, the
+#: raw head signal's wrong-sign peak at the onsets (m/s^2, the otoliths' threshold);
+#: felt false roll and pitch (s); the cueing box and the end stops; valve saturation.
+FLOORS = {
+    "correlation": {"longitudinal_f": 0.8, "lateral_f": 0.85},
+    "mean_lag_s": 0.5,
+    "onset_delay_s": 0.3,
+    "onset_raw_wrong_sign_peak": 0.17,
+    "false_rotation_s": 0.5,
+    "box_fraction": 1.0,
+    "valve_saturated_fraction": 0.05,
+}
+
+
+def cue_floors(cue: Mapping) -> dict:
+    """The :data:`FLOORS` on one run's ``cueing`` block: ``channel`` (the main one),
+    ``met`` (bool) and ``missed`` (one short phrase per floor missed, with its value)."""
+    ch = cue.get("channels") or {}
+    peak = {c: abs((ch.get(c) or {}).get("vehicle_peak") or 0.0) for c in FLOORS["correlation"]}
+    main = max(peak, key=peak.get)
+    m = ch.get(main) or {}
+    missed = []
+
+    def above(name, value, limit, unit=""):
+        if value is None or value > limit:
+            shown = "none" if value is None else f"{value:.2f}{unit}"
+            missed.append(f"{name} {shown} > {limit:g}{unit}")
+
+    corr = m.get("correlation")
+    if corr is None or corr < FLOORS["correlation"][main]:
+        shown = "none" if corr is None else f"{corr:.2f}"
+        missed.append(f"{main} correlation {shown} < {FLOORS['correlation'][main]:g}")
+    above(f"{main} mean lag", m.get("mean_lag_s"), FLOORS["mean_lag_s"], " s")
+    if m.get("onsets"):
+        above(f"{main} onset delay", m.get("onset_delay_s"), FLOORS["onset_delay_s"], " s")
+        if m.get("onsets_missed"):
+            missed.append(f"{main} onsets missed {m['onsets_missed']}")
+        above(
+            f"{main} raw wrong-sign peak",
+            m.get("onset_raw_wrong_sign_peak"),
+            FLOORS["onset_raw_wrong_sign_peak"],
+            " m/s^2",
+        )
+    for rot in ("roll_rate", "pitch_rate"):
+        v = (ch.get(rot) or {}).get("false_rotation_s")
+        if v is not None:
+            above(f"felt false {rot.split('_')[0]}", v, FLOORS["false_rotation_s"], " s")
+    ws = cue.get("workspace") or {}
+    for axis, v in (ws.get("box_fraction_max") or {}).items():
+        above(f"{axis} box", v, FLOORS["box_fraction"])
+    margin = ws.get("end_stop_margin_m")
+    if margin is not None and margin <= 0:
+        missed.append(f"end stops reached ({margin * 1e3:.0f} mm)")
+    sat = (cue.get("valves") or {}).get("saturated_fraction")
+    if sat is not None:
+        above("valve saturation", sat, FLOORS["valve_saturated_fraction"])
+    return {"channel": main, "met": not missed, "missed": missed}
+
+
 #: Cueing columns of ``simpro-sim batch``'s summary.csv (perceived correlations,
 #: false-cue times, workspace and valve usage; lags, onset delays, the raw wrong-sign
 #: peak at the onsets, felt false rotation, the MPC's p99 solve time).
@@ -424,6 +493,8 @@ SUMMARY_COLUMNS = (
     "cue_roll_false_rot_s",
     "cue_pitch_false_rot_s",
     "cue_solve_p99_ms",
+    "cue_floors_met",
+    "cue_floors_missed",
 )
 
 
@@ -437,6 +508,7 @@ def summary_columns(cue: Mapping) -> dict:
         return (ch.get(name) or {}).get(key)
 
     margin = ws.get("end_stop_margin_m")
+    floors = cue_floors(cue)
     lat = abs(g("lateral_f", "vehicle_peak") or 0.0)
     long = abs(g("longitudinal_f", "vehicle_peak") or 0.0)
     return {
@@ -463,4 +535,6 @@ def summary_columns(cue: Mapping) -> dict:
         "cue_roll_false_rot_s": g("roll_rate", "false_rotation_s"),
         "cue_pitch_false_rot_s": g("pitch_rate", "false_rotation_s"),
         "cue_solve_p99_ms": (cue.get("solve_time") or {}).get("p99_ms"),
+        "cue_floors_met": floors["met"],
+        "cue_floors_missed": "; ".join(floors["missed"]),
     }

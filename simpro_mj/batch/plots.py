@@ -29,6 +29,8 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
+from simpro_mj.analysis.cue_metrics import FLOORS
+from simpro_mj.analysis.verdict import VERDICTS
 from simpro_mj.batch.summary import RUN_STATUSES
 from simpro_mj.config.sweep import format_value
 from simpro_mj.report.figures import envelope, legend_mismatches, log_ticks, save
@@ -328,16 +330,25 @@ def plot_summary(report, jobs) -> list[Path]:
     return paths
 
 
-#: The acceptance floors drawn on :func:`plot_cue_comparison` (docs/cueing.md).
-CUE_FLOORS = {"correlation": 0.8, "lag_s": 0.5, "onset_s": 0.3, "false_rot_s": 0.5}
+#: The acceptance floors drawn on :func:`plot_cue_comparison` (docs/cueing.md;
+#: :data:`simpro_mj.analysis.cue_metrics.FLOORS`): the correlation's per main channel.
+CUE_FLOORS = {
+    "correlation": {"long": FLOORS["correlation"]["longitudinal_f"],
+                    "lat": FLOORS["correlation"]["lateral_f"]},
+    "lag_s": FLOORS["mean_lag_s"],
+    "onset_s": FLOORS["onset_delay_s"],
+    "false_rot_s": FLOORS["false_rotation_s"],
+}  # fmt: skip
 
 
 def plot_cue_comparison(rows: list[dict], info: Mapping, out: Path):
     """Cueing laws side by side: per vehicle input (the grid's telemetry) and law, the
     perceived correlation, mean lag and worst onset delay of the channel the vehicle
     drives (``cue_main_channel``) and the felt false rotation, the floors dashed.
-    None unless the rows hold two laws or more."""
-    pts = [r for r in rows if r.get("cue_algorithm") is not None and r["status"] == "ok"]
+    Every run that ran to its end is drawn (a cue run's verdict on its final window,
+    ``limit_cycle`` or ``not_settled``, leaves its cue figures whole). None unless the
+    rows hold two laws or more."""
+    pts = [r for r in rows if r.get("cue_algorithm") is not None and r["status"] in VERDICTS]
     laws = []
     for r in pts:
         law = _law_label(r)
@@ -367,12 +378,20 @@ def plot_cue_comparison(rows: list[dict], info: Mapping, out: Path):
                 vals.append(np.nan if r is None else _main(r, what))
             x = np.arange(len(inputs)) + (j - (len(laws) - 1) / 2) * width
             ax.bar(x, vals, width, label=law)
-        ax.axhline(CUE_FLOORS[floor], color="k", ls="--", lw=1)
-        ax.set_xticks(np.arange(len(inputs)), inputs, fontsize=7, rotation=15)
+        if floor == "correlation":  # the floor of each input's main channel
+            for i, key in enumerate(inputs):
+                r = next(x for x in pts if _input_label(x) == key)
+                level = CUE_FLOORS[floor][r.get("cue_main_channel") or "long"]
+                ax.plot([i - 0.45, i + 0.45], [level, level], color="k", ls="--", lw=1)
+            ax.set_ylim(0.0, 1.6)  # room for the legend above the bars
+            ax.set_yticks(np.linspace(0.0, 1.0, 6))
+        else:
+            ax.axhline(CUE_FLOORS[floor], color="k", ls="--", lw=1)
+        ax.set_xticks(np.arange(len(inputs)), inputs, fontsize=7, rotation=20, ha="right")
         ax.set_title(label + (" (floor: at most)" if below else " (floor: at least)"), fontsize=8)
         ax.grid(True, axis="y", alpha=0.3)
         ax.tick_params(labelsize=7)
-    axes[0].legend(fontsize=7, loc="lower left", framealpha=0.9)
+    axes[0].legend(fontsize=7, loc="upper center", framealpha=0.9)
     fig.suptitle(f"{info['scenario']}: cueing laws side by side (dashed: the floors)", fontsize=10)
     return _save(fig, out / f"{info['scenario']}_cue_laws.png")
 

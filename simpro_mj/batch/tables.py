@@ -159,9 +159,12 @@ def print_report(report: Report, file=None) -> None:
         )
         if r["status"] != "ok" and r["reason"]:
             print(f"    {r['status']}: {r['reason']}", file=file)
+        if r.get("cue_floors_met") is not None:
+            floors = "met" if r["cue_floors_met"] else "missed: " + r["cue_floors_missed"]
+            print(f"    cue floors {floors}", file=file)
     print(
         "(ss: steady-state error, deg, deg, mm; growth: error envelope, 1/s; "
-        "rt x: realtime factor)",
+        "rt x: realtime factor; a cueing run's stability is judged by the cue floors)",
         file=file,
     )
     for m in report.monte_carlo:

@@ -22,9 +22,18 @@ from simpro_mj.core.jsonout import emit_json
 from simpro_mj.core.keys import apply_overrides
 from simpro_mj.report.folders import check_file, record_file
 
-HELP = "generate a vehicle manoeuvre (braking, lane_change, slalom, bump) as telemetry CSV"
+HELP = (
+    "generate a vehicle manoeuvre (braking, lane_change, slalom, bump, braking_turn) as "
+    "telemetry CSV"
+)
 
-DEFAULT_SPEED_KMH = {"braking": 100.0, "lane_change": 80.0, "slalom": 60.0, "bump": 40.0}
+DEFAULT_SPEED_KMH = {
+    "braking": 100.0,
+    "lane_change": 80.0,
+    "slalom": 60.0,
+    "bump": 40.0,
+    "braking_turn": 60.0,
+}
 DEFAULTS = {
     "speed_kmh": 0.0,  # 0: the manoeuvre's default (DEFAULT_SPEED_KMH)
     "vehicle": "bmw_320i",

@@ -119,12 +119,21 @@ MPC_PARAMETER_KEYS = {
     "heave_rate_max_mm_s": ("heave_rate_max", 1e-3),
     "heave_accel_max_mps2": ("heave_accel_max", 1.0),
     "head_height_m": ("head_height", 1.0),
+    "head_height_pitch_m": ("head_height_pitch", 1.0),
     "preview_s": ("preview", 1.0),
     "heave_fraction": ("heave_fraction", 1.0),
     "stroke_margin_mm": ("stroke_margin", 1e-3),
     "box_fraction": ("box_fraction", 1.0),
     "rotation_limit": ("rotation_limit", 1.0),
+    "rotation_limit_pitch": ("rotation_limit_pitch", 1.0),
     "lead_s": ("lead", 1.0),
+    "loop_omega_rad_s": ("loop_omega", 1.0),
+    "loop_zeta": ("loop_zeta", 1.0),
+    "loop_zero_s": ("loop_zero", 1.0),
+    "loop_delay_s": ("loop_delay", 1.0),
+    "loop_filter_s": ("loop_filter", 1.0),
+    "knee_mps2": ("knee", 1.0),
+    "jolt_limit_mps2": ("jolt_limit", 1.0),
 }
 #: Whole-number parameters (an int in the resolved scenario).
 _INTEGERS = ("rot_order", "horizon")

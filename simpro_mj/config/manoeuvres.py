@@ -23,6 +23,11 @@ Manoeuvres (:data:`MANOEUVRES`)
     lane centres is ``1.1 w / 2 + 0.125 + 1 + (w + 1) / 2`` (3.32 m for the
     1.61 m BMW 320i); centre line joined by cosine half-waves.
     ``slalom``: cones every 18 m, the path a sine of amplitude 1 m through them.
+    ``braking_turn``: a left turn of constant curvature (:data:`TURN_LATERAL_MPS2`
+    at the entry speed, steered by the kinematic angle ``atan(L k)`` through the
+    servo) from ``lead_s`` for :data:`TURN_S`, braking at ``deceleration_mps2`` (ramps
+    of 0.4 s) from :data:`BRAKE_AFTER_S` into the turn for :data:`BRAKE_S`, then
+    rolling on at the speed reached, straight.
     ``bump``: a cosine road bump (default 60 mm high, 0.5 m long) crossed by
     both axles. The multi-body model has no road input, so this one uses a
     half-car (bounce and pitch of the sprung mass, one unsprung mass per axle)
@@ -54,7 +59,11 @@ from simpro_mj.core.errors import UserInputError
 
 __all__ = ["MANOEUVRES", "VEHICLES", "HEAD_OFFSET", "ManoeuvreSpec", "generate", "available"]
 
-MANOEUVRES = ("braking", "lane_change", "slalom", "bump")
+MANOEUVRES = ("braking", "lane_change", "slalom", "bump", "braking_turn")
+#: ``braking_turn``: the turn starts at ``lead_s`` and lasts TURN_S; the braking starts
+#: BRAKE_AFTER_S into the turn and lasts BRAKE_S; the turn's curvature gives
+#: TURN_LATERAL_MPS2 at the entry speed (a brisk country-road bend).
+TURN_S, BRAKE_AFTER_S, BRAKE_S, TURN_LATERAL_MPS2 = 3.0, 1.5, 2.0, 3.0
 #: CommonRoad parameter sets (``vehiclemodels.parameters_vehicleN``); 4 is a trailer truck.
 VEHICLES = {"ford_escort": 1, "bmw_320i": 2, "vw_vanagon": 3}
 #: Driver's head from the sprung mass' centre of gravity, V frame (m): 0.3 m behind
@@ -169,12 +178,16 @@ def slalom_path(spacing: float = 18.0, amplitude: float = 1.0, cones: int = 6):
 # ---------------------------------------------------------------- multi-body runs
 
 
-def _run_mb(p, v0: float, t_end: float, steer_fn, acc_fn, rate_hz: float, v_stop=None):
+def _run_mb(
+    p, v0: float, t_end: float, steer_fn, acc_fn, rate_hz: float, v_stop=None, method="RK45"
+):
     """Integrate the multi-body model on a ``rate_hz`` grid to ``t_end``.
 
     ``v_stop``: end the integration when the speed falls to it (the model
     turns stiff as its wheels stop below 0.1 m/s); the rest of the grid is
     then filled with the vehicle at rest (states held, derivatives zero).
+    ``method``: :func:`scipy.integrate.solve_ivp`'s; LSODA where the tyres turn stiff
+    (braking in a turn: an explicit method takes microsecond steps there).
     """
     # commonroad-vehicle-models is an optional extra ([vehicle]): imported when used
     from vehiclemodels.init_mb import init_mb
@@ -210,7 +223,7 @@ def _run_mb(p, v0: float, t_end: float, steer_fn, acc_fn, rate_hz: float, v_stop
     t_eval = np.arange(0.0, t_end + 0.5 / rate_hz, 1.0 / rate_hz)
     sol = solve_ivp(
         rhs, (0.0, t_eval[-1]), x0, t_eval=t_eval, max_step=0.005, rtol=1e-6, atol=1e-8,
-        events=events,
+        events=events, method=method,
     )  # fmt: skip
     if sol.status < 0:
         raise ManoeuvreError(f"the vehicle model did not integrate: {sol.message}")
@@ -295,12 +308,36 @@ def generate(spec: ManoeuvreSpec) -> Telemetry:
         t, x, dx = _run_mb(
             p, v0, t_end, _pure_pursuit(path, p, lead_x), _hold_speed(v0), spec.rate_hz
         )
+    elif spec.manoeuvre == "braking_turn":
+        t, x, dx = _braking_turn(spec, p, v0)
     else:
         return _bump(spec, p, v0)
     tel = _head_signals(t, x, dx)
     tel.source = f"{spec.manoeuvre} {spec.speed_kmh:g} km/h, {spec.vehicle} (commonroad MB)"
     tel.extra = {"speed_mps": x[:, 3].copy(), "x_m": x[:, 0].copy(), "y_m": x[:, 1].copy()}
     return tel
+
+
+def _braking_turn(spec: ManoeuvreSpec, p, v0: float):
+    """States of :data:`MANOEUVRES`' ``braking_turn`` (module docstring)."""
+    lead, a_b = spec.lead_s, spec.deceleration_mps2
+    turn = (lead, lead + TURN_S)
+    brake = (lead + BRAKE_AFTER_S, lead + BRAKE_AFTER_S + BRAKE_S)
+    delta = math.atan((p.a + p.b) * TURN_LATERAL_MPS2 / v0**2)
+
+    def window(t, start, end):
+        return min(max((t - start) / 0.4, 0.0), 1.0) - min(max((t - end) / 0.4, 0.0), 1.0)
+
+    def steer(t, x):
+        return 20.0 * (delta * window(t, *turn) - x[2])  # the servo of _pure_pursuit
+
+    def acc(t, x):
+        if t < brake[0]:
+            return 2.0 * (v0 - x[3])  # speed held, then braking, then rolling on
+        return -a_b * window(t, *brake) * min(1.0, x[3] / 3.0)
+
+    t_end = spec.duration_s or (brake[1] + 4.0)
+    return _run_mb(p, v0, t_end, steer, acc, spec.rate_hz, v_stop=0.2, method="LSODA")
 
 
 def _bump(spec: ManoeuvreSpec, p, v0: float) -> Telemetry:
