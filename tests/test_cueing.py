@@ -308,7 +308,7 @@ def test_sweep_variants_get_the_preset_like_a_run():
     ]
     diff = {k for k in run if run[k] != v.scenario[k]}
     assert diff == {"name", "description"}
-    assert len(sw.variants) == 9 and all(x.error is None for x in sw.variants)
+    assert len(sw.variants) == 12 and all(x.error is None for x in sw.variants)
 
 
 def _direct_r(a, b, k):

@@ -11,6 +11,8 @@ from controllers.frames import GRAVITY
 from controllers.mpc_cueing import ModelPredictiveCueing, MpcParamError, MpcParams
 
 DT = 0.01
+#: The plan itself as the set-point (no loop inverse, no look-ahead)
+PLAN = {"loop_omega": 0.0, "loop_delay": 0.0, "loop_filter": 0.0}
 
 
 def _braking(n: int, start: float = 1.0, decel: float = 4.0):
@@ -71,7 +73,7 @@ def test_head_offset_in_the_model_reduces_the_wrong_way_jolt():
     t, f, w = _braking(400)
     jolt = {}
     for h in (0.0, 1.21):
-        law = ModelPredictiveCueing(head_height_pitch=h, jolt_limit=0.0, loop_omega=0.0)
+        law = ModelPredictiveCueing(head_height_pitch=h, jolt_limit=0.0, **PLAN)
         jolt[h] = _head_fx(law.run(f, w, DT).pose, 1.21)[90:200].max()
     assert jolt[1.21] < jolt[0.0]
 
@@ -80,7 +82,7 @@ def test_jolt_limit_holds_the_head_against_the_wrong_way():
     """On the shipped braking (100 km/h to rest, played with the recording 1 s ahead and
     the force 0.15 s ahead), where the car's specific force is past the otoliths'
     threshold the planned head's does not point forwards by more than ``jolt_limit``
-    (0.01 m/s^2); without the constraint the plan pushes it forwards by 0.13."""
+    (0.01 m/s^2); without the constraint the plan pushes it forwards by 0.09."""
     from simpro_mj.config.telemetry import read_telemetry, resample
     from simpro_mj.core.shipped import TELEMETRY_DIR
 
@@ -89,10 +91,10 @@ def test_jolt_limit_holds_the_head_against_the_wrong_way():
     past = f[:, 0] < -0.17
     peak = {}
     for jolt in (0.0, 0.01):
-        law = ModelPredictiveCueing(preview=1.0, lead=0.15, jolt_limit=jolt, loop_omega=0.0)
+        law = ModelPredictiveCueing(preview=1.0, lead=0.15, jolt_limit=jolt, **PLAN)
         peak[jolt] = _head_fx(law.run(f, w, DT).pose, 1.21)[past].max()
     assert peak[0.01] <= 0.01 + 0.005  # the 10 ms grid's second difference
-    assert peak[0.0] > 0.1
+    assert peak[0.0] > 0.05
 
 
 def test_loop_inverse_makes_the_modelled_loop_follow_the_plan():
@@ -108,18 +110,21 @@ def test_loop_inverse_makes_the_modelled_loop_follow_the_plan():
     f[:, 1] = 1.0 * np.sin(2 * np.pi * 0.5 * t)  # a sway at 0.5 Hz, the loop's gain peak
     w = np.zeros_like(f)
     # known ahead (preview): the plan 30 ms on is what the next solves keep
-    plain = ModelPredictiveCueing(preview=1.0, loop_omega=0.0, loop_delay=0.0).run(f, w, dt)
+    plain = ModelPredictiveCueing(preview=1.0, **PLAN).run(f, w, dt)
     plain = plain.pose[:, 0]
-    law = ModelPredictiveCueing(preview=1.0)
-    p = law.params
-    ref = law.run(f, w, dt).pose[:, 0]
-    num = [p.loop_zero * p.loop_omega**2, p.loop_omega**2]
-    den = [1.0, 2.0 * p.loop_zeta * p.loop_omega, p.loop_omega**2]
-    _, y, _ = signal.lsim((num, den), ref, t)
-    delay = int(round(p.loop_delay / dt))
-    y = np.r_[np.zeros(delay), y[: y.size - delay]]
     span = np.abs(plain).max()
-    assert np.abs(y - plain).max() < 0.01 * span  # 0.6 %: the replans within 30 ms
+    # the exact inverse: within 0.6 % (the replans within the 30 ms look-ahead); with
+    # the 50 ms lag that bounds its gain above the loop's bandwidth, 4.4 %
+    for lag, within in ((0.0, 0.01), (0.05, 0.05)):
+        law = ModelPredictiveCueing(preview=1.0, loop_filter=lag)
+        p = law.params
+        ref = law.run(f, w, dt).pose[:, 0]
+        num = [p.loop_zero * p.loop_omega**2, p.loop_omega**2]
+        den = [1.0, 2.0 * p.loop_zeta * p.loop_omega, p.loop_omega**2]
+        _, y, _ = signal.lsim((num, den), ref, t)
+        delay = int(round(p.loop_delay / dt))
+        y = np.r_[np.zeros(delay), y[: y.size - delay]]
+        assert np.abs(y - plain).max() < within * span
     # and the set-point is not the plan: the loop's peak and lag are taken out
     assert np.abs(ref - plain).max() > 0.15 * span
 

@@ -23,6 +23,7 @@ from simpro_mj.core.errors import UserInputError
 
 SHIPPED = [
     "cue_braking",
+    "cue_braking_turn",
     "cue_bump",
     "cue_lane_change",
     "cue_ramp_fx",
