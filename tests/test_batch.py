@@ -312,14 +312,14 @@ def _drop_wall_clock(text: str) -> list[dict]:
 
 
 @pytest.mark.slow  # a process pool and a local Dask cluster over 8 runs each
-def test_process_pool_and_dask_agree_and_plots_written(tmp_path):
+def test_threads_and_dask_agree_and_plots_written(tmp_path):
     pytest.importorskip("distributed")
     grid = {"controller.outer.type": ["I", "PI"], "controller.outer.gains": [2, 30]}
     path = _grid_file(tmp_path, **grid)
     mc = _write(tmp_path / "mc.yaml", dict(BASE, name="mc", sweep={
         "grid": {"controller.mode": ["joint_only", "task_space"]},
         "monte_carlo": dict(MC, samples=2)}))  # fmt: skip
-    pool, dask = tmp_path / "pool", tmp_path / "dask"
+    pool, dask = tmp_path / "threads", tmp_path / "dask"  # --jobs 2: threads of this process
     common = [str(path), str(mc), "--jobs", "2", "--set", "duration_s=1.5"]
     # gain 30 is unstable: the runs complete, never ok (the verdict), exit 1, stable false
     assert main(["batch", *common, "--out", str(pool)]) == 1

@@ -112,7 +112,8 @@ linux = pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs /
 def test_a_signal_stops_the_pool_writes_the_summary_and_exits_130(tmp_path):
     """SIGTERM (Ctrl-C takes the same path: both raise KeyboardInterrupt in the batch)."""
     out = tmp_path / "out"
-    argv = ["batch", str(_sweep(tmp_path)), "--jobs", "2", "--out", str(out), "--no-plots"]
+    argv = ["batch", str(_sweep(tmp_path)), "--jobs", "2", "--processes", "--out", str(out),
+            "--no-plots"]  # fmt: skip
     rc, stderr, workers, _ = _signal_when_ready(tmp_path, argv, signal.SIGTERM, _stepping_workers)
     assert rc == 130, stderr
     last = stderr.strip().splitlines()[-1]
@@ -147,6 +148,23 @@ def test_a_signal_stops_a_batch_in_this_process(tmp_path):
 
 
 @linux
+def test_a_signal_stops_a_threaded_batch(tmp_path):
+    """``--jobs 2`` on threads (the default): SIGTERM reaches the main thread, the
+    running simulations are asked to stop at their next chunk and hand back what
+    they computed; the batch writes its summary and exits 130."""
+    out = tmp_path / "out"
+    argv = ["batch", str(_sweep(tmp_path)), "--jobs", "2", "--out", str(out), "--no-plots"]
+    rc, stderr, _, ready = _signal_when_ready(tmp_path, argv, signal.SIGTERM)
+    assert ready.read_text().split()[0] == "batch"
+    assert rc == 130, stderr
+    assert stderr.strip().splitlines()[-1].startswith("error: batch stopped: interrupted")
+    assert "Traceback" not in stderr
+    doc = json.loads((out / "summary.json").read_text())
+    assert {v["status"] for v in doc["variants"]} <= {"cancelled", "interrupted"}
+    assert _no_temp_folders(tmp_path)
+
+
+@linux
 @pytest.mark.slow  # process plumbing: 15 s of the suite
 @pytest.mark.parametrize("command", ["batch", "dask"])
 def test_workers_end_themselves_when_the_parent_is_killed(tmp_path, command):
@@ -158,7 +176,8 @@ def test_workers_end_themselves_when_the_parent_is_killed(tmp_path, command):
         argv = ["batch", str(_sweep(tmp_path, 2)), "--jobs", "2", "--out", "out", "--no-plots",
                 "--scheduler", "local"]  # fmt: skip
     else:
-        argv = ["batch", str(_sweep(tmp_path, 2)), "--jobs", "2", "--out", "out", "--no-plots"]
+        argv = ["batch", str(_sweep(tmp_path, 2)), "--jobs", "2", "--processes", "--out", "out",
+                "--no-plots"]  # fmt: skip
     proc, ready = _start(tmp_path, argv)
     workers: list[int] = []
     try:

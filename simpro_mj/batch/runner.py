@@ -17,9 +17,12 @@ resolved scenario (plain JSON data) and its folder, builds its own MuJoCo
 model, runs, writes a normal result folder (:func:`simpro_mj.report.runner.execute`,
 atomic) and returns a small dict. No model is ever pickled.
 
-* ``--jobs N`` (default ``os.cpu_count()``, at most :data:`MAX_JOBS`): a
-  ``ProcessPoolExecutor`` with ``spawn`` workers, never more than the
-  variants to run; ``--jobs 1`` runs in this process, one after another.
+* ``--jobs N`` (default ``os.cpu_count()``, at most :data:`MAX_JOBS`): N
+  threads of this process, never more than the variants to run (the
+  compiled step runs inside ``mj_step``, which releases the GIL, so the
+  threads share the cores; no process starts, nothing is pickled);
+  ``--processes``: a ``ProcessPoolExecutor`` with ``spawn`` workers instead;
+  ``--jobs 1`` runs in this process, one after another.
 * ``--scheduler ADDRESS``: the same tasks on a running Dask distributed
   scheduler; ``--scheduler local`` starts a ``LocalCluster`` of ``--jobs``
   single-threaded worker processes (no more than the variants to run). The
@@ -140,6 +143,7 @@ def run_batch(
     plots: bool = True,
     progress: bool = False,
     summary_plots: bool = True,
+    processes: bool = False,
 ) -> Report:
     """Plan, run and summarise a batch (see the module docstring).
 
@@ -156,14 +160,14 @@ def run_batch(
     inputs = [f for f, _ in scenario_files(paths)]
 
     with claim(out, "batch", inputs=inputs, writes=SUMMARY_FILES):
-        return _run_batch(
-            paths, out, sets, jobs, resume, strict, scheduler, plots, progress, summary_plots, wall0
-        )
+        args = (paths, out, sets, jobs, resume, strict, scheduler, plots, progress, summary_plots)
+        return _run_batch(*args, wall0, processes)
 
 
 def _run_batch(
-    paths, out, sets, jobs, resume, strict, scheduler, plots, progress, summary_plots, wall0
-) -> Report:
+    paths, out, sets, jobs, resume, strict, scheduler, plots, progress, summary_plots, wall0,
+    processes=False,
+) -> Report:  # fmt: skip
 
     p = plan(paths, sets)
     if strict:
@@ -219,8 +223,9 @@ def _run_batch(
     stopped = None
     try:
         run_tasks(
-            tasks, done, jobs=jobs, scheduler=scheduler, fn=run_variant, no_workers_s=NO_WORKERS_S
-        )
+            tasks, done, jobs=jobs, scheduler=scheduler, fn=run_variant, no_workers_s=NO_WORKERS_S,
+            threads=not processes,
+        )  # fmt: skip
     except KeyboardInterrupt as exc:  # SIGINT, or SIGTERM (commands.main: interruptible)
         stopped = f"interrupted ({exc})" if str(exc) else "interrupted"
     except NoWorkers as exc:

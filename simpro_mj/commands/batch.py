@@ -35,7 +35,13 @@ def add_arguments(parser) -> None:
         type=int,
         default=None,
         metavar="N",
-        help="worker processes (default: the number of CPUs; 1: in this process)",
+        help="variants at once, on threads of this process (default: the number of CPUs; "
+        "1: one after another)",
+    )
+    parser.add_argument(
+        "--processes",
+        action="store_true",
+        help="run the --jobs variants in spawned worker processes instead of threads",
     )
     parser.add_argument(
         "--resume", action="store_true", help="skip variants whose result folder is complete"
@@ -92,6 +98,7 @@ def run(args) -> int:
         scheduler=args.scheduler,
         plots=not args.no_plots,
         progress=not args.quiet and not args.json,
+        processes=args.processes,
     )
     if args.json:
         emit_json(report.document())

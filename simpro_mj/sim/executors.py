@@ -1,4 +1,4 @@
-"""The executors of many simulations: here, a spawn process pool, or Dask.
+"""The executors of many simulations: here, threads of this process, a spawn process pool, or Dask.
 
 ``simpro-sim batch`` (:mod:`simpro_mj.batch.runner`) and ``simpro-sim response``
 (:mod:`simpro_mj.analysis.response`) run their tasks through :func:`run_tasks` with their
@@ -18,7 +18,7 @@ import os
 import sys
 import time
 from collections.abc import Callable, Mapping
-from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor, as_completed
 
 from tqdm import tqdm
 
@@ -37,6 +37,7 @@ __all__ = [
     "run_here",
     "run_pool",
     "run_tasks",
+    "run_threads",
 ]
 
 #: A Dask run whose cluster has had no live worker this long (s) ends with an error.
@@ -90,10 +91,12 @@ def run_tasks(
     jobs: int = 1,
     scheduler: str | None = None,
     no_workers_s: float | None = None,
+    threads: bool = False,
 ) -> None:
     """Run ``fn(task)`` for each ``(key, task)``; ``done(key, result)`` in this process
-    as each finishes (``jobs == 1`` here, a spawn pool, or Dask with ``scheduler``).
-    A worker that dies fails its task only.
+    as each finishes (``jobs == 1`` here; ``jobs`` threads of this process with
+    ``threads``, else a spawn pool; or Dask with ``scheduler``). A worker that
+    dies fails its task only.
 
     Raises
     ------
@@ -109,6 +112,8 @@ def run_tasks(
         run_dask(tasks, scheduler, jobs, done, fn=fn, no_workers_s=no_workers_s)
     elif jobs == 1:
         run_here(tasks, done, fn=fn)
+    elif threads:
+        run_threads(tasks, jobs, done, fn=fn)
     else:
         run_pool(tasks, jobs, done, fn=fn)
 
@@ -121,6 +126,49 @@ def run_here(tasks: list[tuple[int, dict]], done: Callback, fn: Worker) -> None:
         done(key, result)
         if result.get("status") == "interrupted":  # Ctrl-C/SIGTERM stopped this variant
             raise KeyboardInterrupt(result.get("reason") or "interrupted")
+
+
+def run_threads(tasks: list[tuple[int, dict]], jobs: int, done: Callback, fn: Worker) -> None:
+    """The tasks on at most ``jobs`` threads of this process.
+
+    The compiled step runs inside ``mj_step``, which releases the GIL, so
+    threads step several simulations at once without starting processes or
+    pickling results. SIGINT/SIGTERM (in the main thread) ask every running
+    simulation to stop at its next chunk (:func:`simpro_mj.sim.loop.request_stop`);
+    those report ``interrupted``, the ones not started are cancelled.
+    """
+    from simpro_mj.sim.loop import request_stop
+
+    pool = ThreadPoolExecutor(max_workers=min(jobs, len(tasks)), thread_name_prefix="simpro")
+    futures: dict = {}
+    reported: set = set()
+    request_stop(False)
+    try:
+        futures = {pool.submit(fn, task): key for key, task in tasks}
+        signal_ready("batch")
+        for fut in as_completed(futures):
+            try:
+                result = fut.result()
+            except Exception as exc:  # noqa: BLE001 - a failing task fails its variant only
+                result = {"status": "failed", "reason": one_line(exc, with_type=True),
+                          "metrics": None}  # fmt: skip
+            reported.add(fut)
+            done(futures[fut], result)
+            if result.get("status") == "interrupted":
+                raise KeyboardInterrupt(result.get("reason") or "interrupted")
+    except BaseException:
+        request_stop(True)  # the running simulations end at their next chunk
+        for fut in futures:
+            fut.cancel()
+        pool.shutdown(wait=True)
+        for fut, key in futures.items():
+            if fut in reported or fut.cancelled():
+                continue
+            with contextlib.suppress(Exception):
+                done(key, fut.result(timeout=0))
+        request_stop(False)
+        raise
+    pool.shutdown(wait=True)
 
 
 def run_pool(tasks: list[tuple[int, dict]], jobs: int, done: Callback, fn: Worker) -> None:

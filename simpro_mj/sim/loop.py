@@ -1,9 +1,9 @@
 """The multi-rate co-simulation loop (replaces Simulink + ADAMS, paper Fig. 13).
 
-One physics step of ``dt`` = 1 ms, stage by stage (:mod:`simpro_mj.sim.stages`)::
+One physics step of ``dt`` = 1 ms, stage by stage (:mod:`simpro_mj.sim.step`)::
 
     step1             mj_step1: kinematics and sensors at the state of t_k
-    sense             potentiometers, height encoder, IMU (own rates, ZOH)
+    sense             the state; potentiometers, height encoder, IMU (own rates, ZOH)
     control           outer loop every ``period_ms``: task error -> integrated pose
                       -> IK -> q_d (feedforward mode: q_d = IK(y_d + c) every step,
                       the correction c integrated every ``period_ms``); the
@@ -12,11 +12,14 @@ One physics step of ``dt`` = 1 ms, stage by stage (:mod:`simpro_mj.sim.stages`):
     record            one log row every ``logging.decimation`` steps
     step2             mj_step2: integrate to t_{k+1} with those forces held
 
-The plant is one object (:class:`~simpro_mj.plant.platform.Platform`,
-dm_control's ``Physics``): ``step1``, ``front(k)`` (the state and the
-sensors, compiled or Python, one contract), ``step2(forces)`` (raising
-``PhysicsError`` from MuJoCo's warnings). The controllers are built here from
-their public classes; the body of :meth:`CoSimulation.run` only calls stages.
+Compiled (numba, the default), the stages between ``mj_step1`` and
+``mj_step2`` run inside ``mj_step`` as MuJoCo's control callback and Python
+steps chunks of :data:`~simpro_mj.sim.stages.CHUNK` steps; interpreted
+(``SIMPRO_KERNEL=python``), with faults or profiling, :meth:`CoSimulation.run`
+calls them from Python every step. The plant is one object
+(:class:`~simpro_mj.plant.platform.Platform`, dm_control's ``Physics``); the
+controllers are built here from their public classes, whose numbers and
+states the step's arrays take (:mod:`simpro_mj.sim.step_buffers`).
 
 In joint-only mode (the baseline) q_d(t) = IK(y_d(t)) of the nominal model,
 computed for the whole run at once.
@@ -44,6 +47,7 @@ things only (:mod:`simpro_mj.sim.live` is that driver):
 from __future__ import annotations
 
 import sys
+import threading
 import time
 
 import mujoco
@@ -75,11 +79,28 @@ from simpro_mj.sim.result import COLUMNS, SimResult, qpos_names
 from simpro_mj.sim.stages import CHUNK, FaultHooks, Log, NoiseBlock, Profile
 from simpro_mj.sim.step_buffers import build, initial_state
 
-__all__ = ["LOOP_OPEN_BOUND", "CoSimulation", "simulate"]
+__all__ = ["LOOP_OPEN_BOUND", "CoSimulation", "request_stop", "simulate"]
 
 #: Divergence bound on the loop-closure error (m): far above the 0.5 mm of
 #: normal motion, well below anything physical.
 LOOP_OPEN_BOUND = 5e-3
+
+
+_STOP = threading.Event()
+
+
+def request_stop(stop: bool = True) -> None:
+    """Ask every run of this process to stop (``stop=False``: stop asking).
+
+    A run sees it between two chunks of steps and ends as ``interrupted``
+    with what it logged, as a signal would end it: how runs on other threads
+    than the main one (which alone receives signals) are stopped
+    (:func:`simpro_mj.sim.executors.run_threads`).
+    """
+    if stop:
+        _STOP.set()
+    else:
+        _STOP.clear()
 
 
 def _say(message: str) -> None:
@@ -418,6 +439,8 @@ class CoSimulation:
                     self._raise(step.ERR_WARNING, k)
                 if progress is not None and k % 1000 == 0:
                     progress(k)
+                if k % CHUNK == 0 and _STOP.is_set():
+                    raise KeyboardInterrupt("stop requested")
         finally:
             if timer is not None:
                 profile.update(timer.ns, steps=k + 1)
@@ -460,6 +483,8 @@ class CoSimulation:
                     progress(stop // 1000 * 1000)
                 k = stop
                 self._k = k
+                if _STOP.is_set():
+                    raise KeyboardInterrupt("stop requested")
                 if any(d.warning.number.tolist()):
                     self._raise(step.ERR_WARNING, k - 1)
         return n

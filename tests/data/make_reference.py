@@ -82,11 +82,10 @@ SAMPLE_EVERY_S = 0.2
 # * set-points (:data:`SET_POINT_COLUMNS`): functions of time only, 1e-12.
 #
 # The step's arithmetic (simpro_mj.sim.step) calls libm (atan2, tanh, cos,
-# sin) and sums in a fixed order, where an earlier loop used numpy's SIMD
-# kernels and BLAS: a last-bit change of every step. Rewriting it moved the
-# stored series by at most 0.86 of these tolerances (one potentiometer count
-# in q_meas, 4.6 um in q, 78 Pa, 1.5 N), as a last-bit perturbation does, and
-# the figures here were then regenerated from the rewritten step.
+# sin) and sums in a fixed order. Numpy's SIMD kernels and BLAS products in
+# their place, a last-bit change of every step, move the series by at most
+# 0.86 of these tolerances (one potentiometer count in q_meas, 4.6 um in q,
+# 78 Pa, 1.5 N), as the last-bit perturbations above do.
 #
 # The valve voltages are not compared pointwise: one potentiometer count
 # times k_p moves them by 0.015 V in every perturbation above, the same as a
