@@ -302,7 +302,7 @@ def test_sweep_variants_get_the_preset_like_a_run():
             "setpoint.cueing.telemetry": "braking_100kmh.csv",
             "setpoint.cueing": {
                 "algorithm": "mpc",
-                "parameters": {"preview_s": 1.0, "lead_s": 0.15},
+                "parameters": {"preview_s": 1.0, "lead_s": 0.17},
             },
         }
     ]
