@@ -42,6 +42,14 @@ things only (:mod:`simpro_mj.sim.live` is that driver):
   writes the rows its next chunk reads, waits for the wall clock, sends the
   pose. It ends the run early by raising ``KeyboardInterrupt`` (as a signal
   does).
+
+Stop and resume
+---------------
+:meth:`CoSimulation.snapshot` (between two steps: from ``pace`` or after a
+run) copies the run's whole state (:class:`~simpro_mj.sim.snapshot.Snapshot`);
+:meth:`CoSimulation.restore` puts it back, into the same simulation or a
+fresh one of the same model and scenario, and the next :meth:`~CoSimulation.run`
+goes on from that step with the bits of the run never stopped.
 """
 
 from __future__ import annotations
@@ -76,6 +84,7 @@ from simpro_mj.plant.sensors import SensorConfig, Sensors
 from simpro_mj.sim import step
 from simpro_mj.sim.registration import Registration
 from simpro_mj.sim.result import COLUMNS, SimResult, qpos_names
+from simpro_mj.sim.snapshot import NoiseState, Snapshot, model_digest, scenario_digest
 from simpro_mj.sim.stages import CHUNK, FaultHooks, Log, NoiseBlock, Profile
 from simpro_mj.sim.step_buffers import build, initial_state
 
@@ -143,6 +152,8 @@ class CoSimulation:
         if setpoints not in ("scenario", "external"):
             raise ValueError(f"setpoints={setpoints!r}; allowed: 'scenario' or 'external'")
         external = setpoints == "external"
+        self.external = external
+        self._resume = None
         if identified_source is None:
             # design_plant identified: the scenario's own plant's models (cached)
             scenario, identified_source = with_identified(scenario, _say)
@@ -295,6 +306,101 @@ class CoSimulation:
             if w is not None:
                 self.veh_w[rows] = np.atleast_2d(np.asarray(w, float))[:m]
 
+    # ------------------------------------------------------------- snapshot
+    def snapshot(self) -> Snapshot:
+        """The run as it stands before step ``k``, to resume exactly (:meth:`restore`).
+
+        Taken between two steps: from a ``pace`` callback of :meth:`run`
+        (before step ``k``) or after a run returned. Everything in it is a
+        copy (:class:`~simpro_mj.sim.snapshot.Snapshot`): MuJoCo's integration
+        state and sensor values, the step's flat state and constants, the step
+        number, the log rows written so far, the noise blocks and their
+        generators' states.
+
+        Raises
+        ------
+        ValueError
+            No run has started, or the scenario has ``faults`` (their
+            schedule lives outside the step's state).
+        """
+        if self.scenario.get("faults"):
+            raise ValueError("snapshot: invalid value at faults: allowed: none in a snapshot run")
+        if getattr(self, "_log", None) is None:
+            raise ValueError("snapshot: no run has started; take it from run(pace=...)")
+        m, d, S, log = self.model, self.data, self.S, self._log
+        spec = mujoco.mjtState.mjSTATE_INTEGRATION
+        state = np.empty(mujoco.mj_stateSize(m, spec))
+        mujoco.mj_getState(m, d, state, spec)
+        rows = int(S[step.ROWS])
+        setpoints = None
+        if self.external:
+            setpoints = tuple(
+                None if a is None else a.copy()
+                for a in (self.ref, self.q_joint_only, getattr(self, "veh_f", None),
+                          getattr(self, "veh_w", None))
+            )  # fmt: skip
+        return Snapshot(
+            model=self._model_digest(),
+            scenario=scenario_digest(self.scenario),
+            k=int(self._k),
+            mj_state=state,
+            sensordata=d.sensordata.copy(),
+            S=S.copy(),
+            C=self.C.copy(),
+            log=log.log[:rows].copy(),
+            qlog=log.qlog[:rows].copy(),
+            hlog=log.hlog[: rows if log.head else 1].copy(),
+            noise=NoiseState.of(self.noise),
+            walk=NoiseState.of(self.walk),
+            setpoints=setpoints,
+        )
+
+    def restore(self, snap: Snapshot) -> None:
+        """Put the run back where :meth:`snapshot` took it; the next :meth:`run` goes on from there.
+
+        Works on the simulation that took it or on a fresh one of the same
+        model and scenario; the run resumed gives the same bits as the run
+        that was never stopped.
+
+        Raises
+        ------
+        ValueError
+            ``snap`` is not a Snapshot, or comes from another model or
+            scenario (the message names the field).
+        """
+        if not isinstance(snap, Snapshot):
+            raise ValueError(f"restore: {type(snap).__name__} given; allowed: a Snapshot")
+        if snap.model != self._model_digest():
+            raise ValueError("restore: snapshot field 'model' is from another model")
+        if snap.scenario != scenario_digest(self.scenario):
+            raise ValueError("restore: snapshot field 'scenario' is from another scenario")
+        self._initial_state()  # the objects and buffers, then their contents
+        if snap.S.shape != self.S.shape or snap.C.shape != self.C.shape:
+            raise ValueError("restore: snapshot field 'S' has another layout")
+        m, d = self.model, self.data
+        mujoco.mj_setState(m, d, snap.mj_state, mujoco.mjtState.mjSTATE_INTEGRATION)
+        d.sensordata[:] = snap.sensordata
+        self.S[:], self.C[:] = snap.S, snap.C
+        snap.noise.into(self.noise)
+        snap.walk.into(self.walk)
+        log = self._log = Log(self.n_steps // self.decimation + 1, m.nq, self.cueing)
+        rows = snap.log.shape[0]
+        log.log[:rows], log.qlog[:rows] = snap.log, snap.qlog
+        log.hlog[: snap.hlog.shape[0]] = snap.hlog
+        if snap.setpoints is not None:
+            for name, a in zip(
+                ("ref", "q_joint_only", "veh_f", "veh_w"), snap.setpoints, strict=True
+            ):
+                if a is not None:
+                    getattr(self, name)[:] = a
+        self._k = snap.k
+        self._resume = snap.k
+
+    def _model_digest(self) -> str:
+        if getattr(self, "_digest", None) is None:
+            self._digest = model_digest(self.model)
+        return self._digest
+
     # ------------------------------------------------------------------ setup
     def _initial_state(self) -> None:
         """Start at rest at the first set-point, as the controller believes it.
@@ -334,6 +440,8 @@ class CoSimulation:
         pace : callable(int, ndarray) -> int, optional
             The live interface (module docstring): called before step ``k``,
             first at 0, then at each step it returns, with the rows logged so far.
+            After :meth:`restore`, the run goes on from the snapshot's step
+            (``pace`` is first called there).
 
         Notes
         -----
@@ -344,10 +452,14 @@ class CoSimulation:
         run the compiled stages from Python instead); interpreted, the same
         functions called from Python every step (the reference).
         """
-        self._initial_state()
+        resume, self._resume = self._resume, None
         n, dec = self.n_steps, self.decimation
-        rows = n // dec + 1
-        log = self._log = Log(rows, self.model.nq, self.cueing)
+        if resume is None:
+            self._initial_state()
+            log = self._log = Log(n // dec + 1, self.model.nq, self.cueing)
+            k0 = 0
+        else:
+            log, k0 = self._log, resume
         faults = None
         if self.scenario.get("faults"):
             faults = FaultSchedule.from_scenario(self.scenario, self.dt)
@@ -358,9 +470,9 @@ class CoSimulation:
         k = 0
         try:
             if kernel == "numba" and faults is None and profile is None:
-                k = self._run_callback(log, pace, progress)
+                k = self._run_callback(log, pace, progress, k0)
             else:
-                k = self._run_python(stages, log, faults, profile, pace, progress)
+                k = self._run_python(stages, log, faults, profile, pace, progress, k0)
         except PhysicsError as exc:
             status, reason = "diverged", str(exc)
             k = self._k
@@ -391,7 +503,7 @@ class CoSimulation:
         )
         return mj, (self.ref, np.ascontiguousarray(qj), np.ascontiguousarray(uff))
 
-    def _run_python(self, stages, log, faults, profile, pace, progress) -> int:
+    def _run_python(self, stages, log, faults, profile, pace, progress, k0: int = 0) -> int:
         """Step by step from Python: ``mj_step1``, the stages, ``mj_step2``."""
         m, d, S, C, n = self.model, self.data, self.S, self.C, self.n_steps
         (qpos, qvel, xpos, xmat, sd, ctrl), (ref, qj, uff) = self._arrays(log)
@@ -405,11 +517,11 @@ class CoSimulation:
         record = wrap(stages.record, "logging")
         hooks = FaultHooks(faults, S, self.actuators) if faults is not None else None
         next_ev = faults.next_event if faults is not None else NEVER
-        next_pace = 0 if pace is not None else NEVER
+        next_pace = k0 if pace is not None else NEVER
         warnings = d.warning.number
-        k = 0
+        k = k0
         try:
-            for k in range(n + 1):
+            for k in range(k0, n + 1):
                 self._k = k
                 if k == next_ev:
                     next_ev = hooks.at(k)
@@ -446,15 +558,15 @@ class CoSimulation:
                 profile.update(timer.ns, steps=k + 1)
         return k
 
-    def _run_callback(self, log, pace, progress) -> int:
+    def _run_callback(self, log, pace, progress, k0: int = 0) -> int:
         """Compiled, inside ``mj_step``: chunks of steps, the checks between them."""
         m, d, S, C, n = self.model, self.data, self.S, self.C, self.n_steps
         _, (ref, qj, uff) = self._arrays(log)
-        next_pace = 0 if pace is not None else NEVER
+        next_pace = k0 if pace is not None else NEVER
         reg = Registration(m, d, S, C, ref, qj, uff, self.noise.rows, self.walk.rows, log.log,
                            log.qlog, log.hlog)  # fmt: skip
-        k = 0
-        self._k = 0
+        k = k0
+        self._k = k0
         with reg:
             while True:
                 if k == next_pace:
