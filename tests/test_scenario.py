@@ -348,4 +348,11 @@ def test_the_typed_scenario_holds_every_default():
     assert Scenario.defaults() == DEFAULT_SCENARIO
     named = dict(DEFAULT_SCENARIO, name="defaults")  # the loader names a run (file stem)
     again = Scenario.model_validate(named).model_dump()
+    # design_plant "auto" resolves to the plant it means (the paper's on the paper preset)
+    assert DEFAULT_SCENARIO["controller"]["inner"]["design_plant"] == "auto"
+    assert again["controller"]["inner"]["design_plant"] == "paper"
+    again["controller"]["inner"]["design_plant"] = "auto"
     assert json.dumps(again) == json.dumps(named)
+    # and the resolved scenario validates to itself
+    once = Scenario.model_validate(named).model_dump()
+    assert json.dumps(Scenario.model_validate(once).model_dump()) == json.dumps(once)

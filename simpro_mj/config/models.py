@@ -66,6 +66,7 @@ from simpro_mj.config.plant_blocks import (
     SensorsBlock,
     check_pneumatics,
 )
+from simpro_mj.config.presets import DEFAULT_PRESET
 from simpro_mj.config.rules import (
     DELAY_SAMPLES,
     DESIGN_PLANTS,
@@ -110,6 +111,18 @@ MAX_GAIN_PERIOD = 20.0
 Gains = Annotated[list[float], rule(lambda v: v >= 0, "3 numbers >= 0 (K K_I, 1/s)")]
 
 
+Width = Annotated[float, rule(lambda v: 0 <= v <= 10, "0..10")]
+
+
+class OuterDeadBand(Block):
+    """Dead band of the task-space loop per axis (0: none; docs/paper-notes.md, dead bands)."""
+
+    _path = "controller.outer.dead_band"
+    roll_deg: Width = 0.0
+    pitch_deg: Width = 0.0
+    heave_mm: Width = 0.0
+
+
 class Outer(Block):
     """The task-space loop (eqs. 21-27, Fig. 7)."""
 
@@ -129,6 +142,9 @@ class Outer(Block):
     period_ms: int = 60
     # inner loop as a delay in the analysis: 1 sample (60 ms, eq. 21) or 2
     delay_samples: Annotated[int, one_of(DELAY_SAMPLES)] = 1
+    # dead band on the task error the law integrates (controllers.dead_band): within
+    # it the integrated pose holds, so the loop stops hunting against seal friction
+    dead_band: OuterDeadBand = Field(default_factory=OuterDeadBand)
 
     @model_validator(mode="after")
     def _gain_bound(self):
@@ -182,7 +198,9 @@ class Inner(Block):
     # plant the joint controllers are designed on: "paper" (eqs. 34-35) or
     # "identified" (the model this simulation identifies, `simpro-sim identify`,
     # which is what the paper's procedure - identify, then place poles - gives)
-    design_plant: Annotated[str, one_of(DESIGN_PLANTS)] = "paper"
+    # "auto": eqs. 34-35 on the paper preset, the identified models on any other
+    # (resolved at load: scenario.yaml names the one used)
+    design_plant: Annotated[str, one_of(DESIGN_PLANTS)] = "auto"
     # with design_plant identified: "auto" identifies the scenario's own plant when
     # it is not its preset's (Fig. 12's experiment, cached by the plant's hash:
     # simpro_mj.identification.auto) | "preset": the identified models as given
@@ -191,6 +209,12 @@ class Inner(Block):
     # dominant pair of the "redesigned" pole placement (section 5.2.2)
     zeta: Annotated[float, rule(lambda v: 0 < v < 2, "0 < zeta < 2")] = 0.7
     wn_rad_s: Annotated[float, rule(lambda v: v > 0, "> 0 rad/s")] = 10.0
+    # dead band on each leg's error (controllers.dead_band), mm: one for every leg or 3
+    dead_band_mm: Annotated[list[float], rule(lambda v: 0 <= v <= 50, "0..50 mm")] = [
+        0.0,
+        0.0,
+        0.0,
+    ]
 
 
 class Feedforward(Block):
@@ -649,6 +673,7 @@ class Scenario(Block):
 
     @model_validator(mode="after")
     def _across_blocks(self):
+        _resolve_design_plant(self)
         _check_redesign(self)
         _check_fault_values(self)
         return self
@@ -659,6 +684,15 @@ class Scenario(Block):
         if value is None:
             value = DEFAULT_PNEUMATIC_PARAMS["supply_pressure_bar_gauge"]
         return float(value)
+
+
+def _resolve_design_plant(s: Scenario) -> None:
+    """``design_plant: auto``: eqs. (34)-(35) on the preset calibrated to them
+    (``paper``), the plant's own identified models on any other: the paper's
+    procedure, identify then place poles (simpro_mj.identification.auto)."""
+    inner = s.controller.inner
+    if inner.design_plant == "auto":
+        inner.design_plant = "paper" if s.plant.preset == DEFAULT_PRESET else "identified"
 
 
 def _check_redesign(s: Scenario) -> None:

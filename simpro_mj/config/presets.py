@@ -21,10 +21,14 @@ A preset file is a mapping::
     pneumatics: {cylinder: {...}, valve: {...}}   # over DEFAULT_PNEUMATIC_PARAMS
     sensors: {imu: {...}, potentiometer: {...}}   # the rig's sensor errors, over the scenario's
     identified: {actuator1: {b, a1, a0}, ...}     # what identify measures on it (SI)
+    controller: {outer: {dead_band: ...}, ...}    # the controller options this plant needs
     calibration: {...}                            # free-form record (targets, residuals)
 
-Values in a scenario's own ``plant``, ``actuator.pneumatics`` and ``sensors``
-override the preset's.
+Values in a scenario's own ``plant``, ``actuator.pneumatics``, ``sensors`` and
+``controller`` override the preset's. A preset's ``controller`` block holds what
+its plant needs beyond the joint loops placed on its identified models (the
+dead band against its seal friction, the set-point filter that matches its
+legs' lags: docs/paper-notes.md, controllers for the heavy cabin).
 """
 
 from __future__ import annotations
@@ -48,8 +52,15 @@ __all__ = [
 
 DEFAULT_PRESET = "paper"
 PRESET_KEYS = (
-    "name", "description", "plant", "pneumatics", "sensors", "identified", "calibration"
-)  # fmt: skip
+    "name",
+    "description",
+    "plant",
+    "pneumatics",
+    "sensors",
+    "identified",
+    "controller",
+    "calibration",
+)
 _ACTS = ("actuator1", "actuator2", "actuator3")
 
 
@@ -99,7 +110,7 @@ def load_preset(name_or_path: str) -> dict:
             raise UserInputError(
                 f"unknown key at {path.name}: {k!r}; allowed keys are {list(PRESET_KEYS)}"
             )
-    for k in ("plant", "pneumatics", "sensors"):
+    for k in ("plant", "pneumatics", "sensors", "controller"):
         if not isinstance(doc.get(k) or {}, Mapping):
             raise UserInputError(f"wrong type at {path.name}: {k}; allowed: a mapping")
     ident = doc.get("identified")
@@ -123,7 +134,8 @@ def load_preset(name_or_path: str) -> dict:
 
 
 def scenario_overlay(name_or_path: str) -> dict:
-    """The preset as a partial scenario tree (plant, actuator.pneumatics, identified)."""
+    """The preset as a partial scenario tree (plant, actuator.pneumatics, controller
+    with the identified models)."""
     p = load_preset(name_or_path)
     out: dict = {"plant": copy.deepcopy(dict(p.get("plant") or {}))}
     out["plant"]["preset"] = str(name_or_path)
@@ -131,9 +143,12 @@ def scenario_overlay(name_or_path: str) -> dict:
         out["actuator"] = {"pneumatics": copy.deepcopy(dict(p["pneumatics"]))}
     if p.get("sensors"):  # the rig's sensor errors (simpro_mj.plant.sensor_errors)
         out["sensors"] = copy.deepcopy(dict(p["sensors"]))
+    if p.get("controller"):
+        out["controller"] = copy.deepcopy(dict(p["controller"]))
     if p.get("identified"):
         ident = {a: {k: float(v) for k, v in p["identified"][a].items()} for a in _ACTS}
-        out["controller"] = {"inner": {"identified": ident}}
+        ctl = out.setdefault("controller", {})
+        ctl["inner"] = {**dict(ctl.get("inner") or {}), "identified": ident}
     return out
 
 

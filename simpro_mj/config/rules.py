@@ -43,7 +43,9 @@ from simpro_mj.core.rates import PHYSICS_DT_MS, PHYSICS_DT_S, whole_steps
 
 MODES = ("joint_only", "task_space", "feedforward")
 OUTER_TYPES = ("I", "PI")
-DESIGN_PLANTS = ("paper", "identified")
+# controller.inner.design_plant: "auto" is "paper" on the paper preset and
+# "identified" on any other (config.models.Scenario resolves it at load)
+DESIGN_PLANTS = ("auto", "paper", "identified")
 IDENTIFY_CHOICES = ("auto", "preset")  # controller.inner.identify (simpro_mj.identification.auto)
 DELAY_SAMPLES = (1, 2)
 SETPOINT_AXES = ("roll_deg", "pitch_deg", "heave_mm")
@@ -202,7 +204,7 @@ def _leaf(value: Any, default: Any, name: str) -> Any:
 
 
 #: Per-leg lists that also take one number for all legs.
-_ONE_FOR_ALL = frozenset({"time_ms"})
+_ONE_FOR_ALL = frozenset({"time_ms", "dead_band_mm"})
 
 
 def rule(ok: Callable[[Any], bool], allowed: str) -> AfterValidator:

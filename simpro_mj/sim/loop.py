@@ -187,6 +187,12 @@ class CoSimulation:
             model_tau=ctl["feedforward"]["model_tau_ms"] * 1e-3,
             lag=ctl["feedforward"]["lag"],
             average=bool(ctl["feedforward"]["average"]),
+            # controller.outer.dead_band: degrees and millimetres at the edge
+            dead_band=[
+                np.radians(outer["dead_band"]["roll_deg"]),
+                np.radians(outer["dead_band"]["pitch_deg"]),
+                outer["dead_band"]["heave_mm"] * 1e-3,
+            ],
         )
         self.hold_on_saturation = bool(ctl["feedforward"]["hold_on_saturation"])
         inner = ctl["inner"]
@@ -205,6 +211,7 @@ class CoSimulation:
             plants=plants,
             spec=spec,
             reading=scenario["paper_units"],
+            dead_band=[w * 1e-3 for w in inner["dead_band_mm"]],
         )
         sf = ctl["setpoint_filter"]
         # Fig. 13's "Filter": q_d (outer loop every T, or the IK every 1 ms in
