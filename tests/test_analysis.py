@@ -257,3 +257,38 @@ def test_cli_set_and_bad_set(capsys):
     assert "outer.period_s" in capsys.readouterr().err
     assert main(["analyze", "--no-plots", "--set", "inner.varaint=printed"]) == 2
     assert "inner.varaint" in capsys.readouterr().err
+
+
+def test_analyze_reports_the_shipped_loop_first_and_says_which(capsys):
+    """The scenario's own loop (backward Euler, ramps 60/30/30 ms, corrected joint
+    loops on the identified plant of preset paper: limit 11.84; on eqs. 34-35 14.08)
+    comes before Fig. 7 as printed (forward Euler, no filter: 9.46 on eqs. 34-35)."""
+    from simpro_mj.commands.main import main
+
+    assert main(["analyze", "--json", "--no-plots"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert list(d)[0] == "shipped"
+    sh = d["shipped"]
+    assert sh["loop"]["scenario"] == "step_pitch"
+    assert sh["loop"]["law"].startswith("I law by backward Euler")
+    assert sh["loop"]["setpoint_filter"] == "ramp 60/30/30 ms"
+    assert sh["actuator"]["stability_limit"] == pytest.approx(11.84, abs=0.01)
+    assert sh["paper"]["stability_limit"] == pytest.approx(14.08, abs=0.01)
+    assert sh["actuator"]["stable_at_gains"] and sh["actuator"]["spectral_radius_at_gains"] < 1
+    # the printed loop, analysed after it, is another loop with a lower limit
+    assert d["outer"]["real_inner"]["I"]["stability_limit"] == pytest.approx(9.46, abs=0.01)
+    # a scenario key goes to the scenario, an analysis key to the analysis
+    sets = ["controller.outer.integrator=forward", "controller.setpoint_filter.type=none"]
+    rc = main(["analyze", "--no-plots", *(a for s in sets for a in ("--set", s))])
+    text = capsys.readouterr().out
+    assert rc == 0
+    first = text.splitlines()[0]
+    assert "forward Euler" in first and "none set-point filter" in first
+    assert "limit K K_I < 9.46" in text.splitlines()[2]  # on eqs. (34)-(35): Fig. 7's loop
+    from simpro_mj.commands.analyze import _split_sets
+
+    own, scenario = _split_sets(["outer.gain=2", "plant.preset=heavy_cabin", "paper_units=metres"])
+    assert own == ["outer.gain=2", "paper_units=metres"]
+    assert scenario == ["plant.preset=heavy_cabin", "paper_units=metres"]
+    assert main(["analyze", "--no-plots", "--set", "controller.outer.integrater=forward"]) == 2
+    assert "controller.outer.integrater" in capsys.readouterr().err

@@ -2,6 +2,14 @@
 
 Computes (numbers from :mod:`controllers.analysis`, plots here):
 
+* first, the loop the scenario ships (:func:`shipped`, default ``step_pitch``): its
+  outer law and integrator, period, set-point filter and joint controllers on its
+  design plant, closed around its joint loops lifted to the outer period
+  (:func:`simpro_mj.analysis.stability.outer_loop`, the preflight's analysis) on
+  the plant its actuators stand for and on eqs. (34)-(35); the stability limit and
+  the spectral radius at its gains, and which loop that is;
+* then the paper's loops (Fig. 7 as printed: the I law by forward Euler, no
+  set-point filter), in the parameter tree below:
 * inner loops: closed-loop poles, damping, step metrics of the printed
   (eqs. 36-37), corrected and redesigned controllers with the plants of
   eqs. (34)-(35);
@@ -294,8 +302,56 @@ def _feedforward(p: dict, spec: dict, jac, real_i: dict) -> dict:
     }
 
 
-def compute(p: dict) -> dict:
-    """All numbers of the analysis for the parameter tree ``p`` (see :data:`DEFAULTS`)."""
+def _law_text(outer: dict) -> str:
+    """The outer law as the scenario runs it, in words."""
+    if outer["type"] == "PI":
+        return f"PI law T (z + {outer['pi_zero']:g})/(z - 1)"
+    if outer["integrator"] == "backward":
+        return "I law by backward Euler, T z/(z - 1)"
+    return "I law by forward Euler, T/(z - 1) (Fig. 7 as printed)"
+
+
+def shipped(scenario: dict) -> dict:
+    """The loop ``scenario`` ships, analysed as the preflight does (module docstring).
+
+    ``scenario`` is resolved and carries its design plants
+    (:func:`simpro_mj.identification.auto.with_identified`). Returns the loop's
+    description (``loop``), and per plant assumption (``actuator``: the plant its
+    actuator model stands for; ``paper``: eqs. 34-35) the stability limit of the
+    common K K_I, the spectral radius at the scenario's gains and what was analysed.
+    """
+    from simpro_mj.analysis.stability import outer_loop
+
+    c = scenario["controller"]
+    outer, inner, sf = c["outer"], c["inner"], c["setpoint_filter"]
+    times = "/".join(f"{t:g}" for t in sf["time_ms"])
+    loop = {
+        "scenario": scenario["name"],
+        "preset": scenario["plant"]["preset"],
+        "mode": c["mode"],
+        "law": _law_text(outer),
+        "period_ms": outer["period_ms"],
+        "gains": list(outer["gains"]),
+        "setpoint_filter": f"{sf['type']} {times} ms" if sf["type"] != "none" else "none",
+        "joint_controllers": f"{inner['variant']} joint controllers designed on the "
+        f"{inner['design_plant']} plant",
+        "dead_band": dict(outer["dead_band"]),
+    }
+    out = {"loop": loop}
+    for plant in ("actuator", "paper"):
+        r = outer_loop(scenario, plant)
+        out[plant] = {
+            "stability_limit": r["limit"],
+            "spectral_radius_at_gains": r["spectral_radius"],
+            "stable_at_gains": r["spectral_radius"] < 1.0,
+            "basis": r["basis"],
+        }
+    return out
+
+
+def compute(p: dict, scenario: dict | None = None) -> dict:
+    """All numbers of the analysis for the parameter tree ``p`` (see :data:`DEFAULTS`),
+    the loop ``scenario`` ships first (:func:`shipped`) when one is given."""
     _check(p)
     o, i = p["outer"], p["inner"]
     spec = {"zeta": i["zeta"], "wn": i["wn_rad_s"]}
@@ -315,6 +371,8 @@ def compute(p: dict) -> dict:
 
     units = paper_units_info(p["paper_units"])
     res: dict = {"paper": PAPER, "paper_units": units, "inner": {}, "outer": {}}
+    if scenario is not None:
+        res = {"shipped": shipped(scenario), **res}
     for act in ACTUATORS:
         res["inner"][act] = {}
         for var in VARIANTS:

@@ -6,6 +6,7 @@ The numbers and plots are :mod:`simpro_mj.analysis.analyze`; parameters by
 from __future__ import annotations
 
 import os
+import sys
 from pathlib import Path
 
 from simpro_mj.analysis.analyze import DEFAULTS, compute, document
@@ -20,6 +21,14 @@ HELP = "stability analysis of the joint and task-space loops (root loci, Jury li
 
 def add_arguments(parser) -> None:
     parser.add_argument(
+        "scenario",
+        nargs="?",
+        default="step_pitch.yaml",
+        help="the scenario whose shipped loop is analysed first (default step_pitch.yaml); "
+        "--set keys outside the analysis' own (outer, inner, feedforward, sweep) are the "
+        "scenario's",
+    )
+    parser.add_argument(
         "--out",
         default=os.path.join("results", "analyze"),
         help="directory for the plots (default results/analyze)",
@@ -27,15 +36,42 @@ def add_arguments(parser) -> None:
     parser.add_argument("--no-plots", action="store_true", help="compute only, write no files")
 
 
+def _split_sets(sets) -> tuple[list, list]:
+    """``--set`` expressions for the analysis' tree (its top-level keys) and the scenario's;
+    ``paper_units`` is both's."""
+    own, scenario = [], []
+    for expr in sets or ():
+        top = expr.split("=", 1)[0].split(".", 1)[0].strip()
+        if top in DEFAULTS:
+            own.append(expr)
+        if top not in DEFAULTS or top == "paper_units":
+            scenario.append(expr)
+    return own, scenario
+
+
+def _say(line: str) -> None:
+    sys.stderr.write(line + "\n")
+
+
+def _scenario(name: str, sets: list, say) -> dict:
+    """The resolved scenario with its design plants (identified when it asks)."""
+    from simpro_mj.config.scenario import load_scenario
+    from simpro_mj.identification.auto import with_identified
+
+    return with_identified(load_scenario(name, sets), say)[0]
+
+
 def run(args) -> int:
-    p = apply_overrides(DEFAULTS, args.sets)
+    own, scenario_sets = _split_sets(args.sets)
+    p = apply_overrides(DEFAULTS, own)
     with Phases("analyze", ["loops and limits", "plots"], show_progress(args)) as phase:
+        sc = _scenario(args.scenario, scenario_sets, None if args.quiet else _say)
         phase.start("loops and limits")
         if args.no_plots:
-            res, files = compute(p), []
+            res, files = compute(p, sc), []
         else:  # --out checked before the analysis; its figures installed as one folder
             with claim(Path(args.out), "analyze") as out:
-                res = compute(p)
+                res = compute(p, sc)
                 phase.start("plots")
                 figures = install_figures(out, lambda tmp: plot(res, p, tmp), "analyze")
                 files = [str(f) for f in figures]

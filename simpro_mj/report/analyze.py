@@ -139,12 +139,42 @@ def plot(res: dict, p: dict, out: Path) -> list[str]:
     return files
 
 
+def _shipped_lines(sh: dict) -> list[str]:
+    """The scenario's own loop, first: which loop, and its limits."""
+    lo = sh["loop"]
+    db = lo["dead_band"]
+    band = (
+        f"; dead band {db['roll_deg']:g} deg / {db['pitch_deg']:g} deg / {db['heave_mm']:g} mm "
+        "(outside the linear analysis)"
+        if any(db.values())
+        else ""
+    )
+    lines = [
+        f"Shipped loop of {lo['scenario']} (preset {lo['preset']}, mode {lo['mode']}): "
+        f"{lo['law']}, T = {lo['period_ms']:g} ms, {lo['setpoint_filter']} set-point filter, "
+        f"{lo['joint_controllers']}{band}"
+    ]
+    gains = ", ".join(f"{g:g}" for g in lo["gains"])
+    for plant, what in (("actuator", "its plant"), ("paper", "eqs. (34)-(35)")):
+        r = sh[plant]
+        lines.append(
+            f"  on {what}: limit K K_I < {r['stability_limit']:.2f}; at [{gains}] rho = "
+            f"{r['spectral_radius_at_gains']:.4f} "
+            f"{'stable' if r['stable_at_gains'] else 'UNSTABLE'} ({r['basis']})"
+        )
+    lines.append(
+        "The paper's loops (Fig. 7 as printed: I law by forward Euler, no set-point filter):"
+    )
+    return lines
+
+
 def summary(res: dict, files: list[str]) -> str:
     u = res["paper_units"]
-    lines = [
+    lines = _shipped_lines(res["shipped"]) if "shipped" in res else []
+    lines.append(
         f"Inner (joint) loops, continuous, plants eqs. (34)-(35); paper_units = {u['reading']} "
         f"(Y in {u['y_unit']}, {u['y_per_metre']:g} per m): k_p in V/m"
-    ]
+    )
     for act in ACTUATORS:
         for var in VARIANTS:
             r = res["inner"][act][var]
