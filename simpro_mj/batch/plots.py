@@ -18,6 +18,9 @@ Per scenario file (``<folder>`` is its folder name under OUT):
 * ``<folder>_mc_ss_error.png`` (Monte Carlo files): box plots with the
   samples of the absolute steady-state error per axis, one box per grid
   combination (e.g. joint_only vs task_space), log scale.
+* ``<folder>_map.png`` (Monte Carlo files drawing the payload and the Coulomb
+  friction): payload x mean friction per leg, coloured by verdict, overshoot
+  and settling (:mod:`simpro_mj.batch.robustness`).
 """
 
 from __future__ import annotations
@@ -29,8 +32,12 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
+<<<<<<< HEAD
 from simpro_mj.analysis.cue_metrics import FLOORS
 from simpro_mj.analysis.verdict import VERDICTS
+=======
+from simpro_mj.batch.robustness import map_figure
+>>>>>>> 5205eaa (sweep_robustness.yaml: the cabin's pitch step over payload 0-400 kg, Coulomb 0-250 N per leg, IMU bias +-0.5 deg, supply 5-7 bar (200 Monte Carlo plants); batch.robustness: the fraction meeting overshoot <= 15 %, settling <= 4 s, status ok, per payload x friction cell, and the map figure)
 from simpro_mj.batch.summary import RUN_STATUSES
 from simpro_mj.config.sweep import format_value
 from simpro_mj.report.figures import envelope, legend_mismatches, log_ticks, save
@@ -302,6 +309,15 @@ def plot_mc(rows: list[dict], info: Mapping, out: Path):
     return _save(fig, out / f"{info['folder']}_mc_ss_error.png")
 
 
+def plot_robustness_map(rows: list[dict], tables: list[dict], info: Mapping, out: Path):
+    """The payload x friction map of a Monte Carlo file that draws both
+    (:func:`simpro_mj.batch.robustness.map_figure`)."""
+    table = next((t for t in tables if t["scenario"] == info["scenario"]), None)
+    if table is None:
+        return None
+    return _save(map_figure(rows, table), out / f"{info['folder']}_map.png")
+
+
 def plot_summary(report, jobs) -> list[Path]:
     """All summary figures of a batch :class:`~simpro_mj.batch.summary.Report`."""
     out = Path(report.out) / "plots"
@@ -324,6 +340,7 @@ def plot_summary(report, jobs) -> list[Path]:
             plot_mc(rows, info, out),
             plot_cue_tradeoff(rows, info, out),
             plot_cue_comparison(rows, info, out),
+            plot_robustness_map(rows, report.robustness, info, out),
         ):
             if p is not None:
                 paths.append(p)

@@ -97,6 +97,7 @@ from collections.abc import Iterable, Mapping
 from pathlib import Path
 
 from simpro_mj.batch.plan import plan, scenario_files
+from simpro_mj.batch.robustness import robustness_table
 from simpro_mj.batch.stability import stability_of_folder
 from simpro_mj.batch.summary import Report, summary_row, write_summary
 from simpro_mj.batch.tables import monte_carlo_table, stability_table
@@ -239,6 +240,11 @@ def _run_batch(
         report = Report(out=out, rows=final, paths=p.paths, files=p.files, skipped=skipped)
         report.stability = stability_table(report.rows, p.jobs)
         report.monte_carlo = monte_carlo_table(report.rows, p.jobs)
+        report.robustness = [
+            t
+            for t in (robustness_table(report.rows, f["scenario"]) for f in p.files)
+            if t is not None
+        ]
         report.stopped = stopped
         for row in report.rows:
             if stopped and row["status"] == "cancelled" and not row["reason"]:

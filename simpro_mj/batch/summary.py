@@ -141,6 +141,8 @@ class Report:
     files: list[dict]
     stability: list[dict] = field(default_factory=list)
     monte_carlo: list[dict] = field(default_factory=list)
+    #: the floors met over payload x friction (simpro_mj.batch.robustness)
+    robustness: list[dict] = field(default_factory=list)
     plots: list[str] = field(default_factory=list)
     skipped: int = 0
     wall_s: float = 0.0
@@ -172,6 +174,7 @@ class Report:
                 "files": self.files,
                 "stability": self.stability,
                 "monte_carlo": self.monte_carlo,
+                "robustness": self.robustness,
                 "plots": self.plots,
                 "variants": self.rows,
             }

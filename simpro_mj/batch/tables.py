@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from simpro_mj.batch.plan import GAIN_PATH, Job
+from simpro_mj.batch.robustness import table_lines
 from simpro_mj.batch.summary import AXES, Report
 from simpro_mj.config.sweep import format_value
 
@@ -182,6 +183,8 @@ def print_report(report: Report, file=None) -> None:
                     f"{_num(st['max'], 3)} {unit}"
                 )
             print(f"  {g['group']:<24} n={g['n']:<3} " + "; ".join(cells), file=file)
+    for table in report.robustness:
+        print("\n".join(table_lines(table)), file=file)
     if report.stability:
         print("\nstability limit, K K_I (1/s):", file=file)
         print(

@@ -1,0 +1,210 @@
+"""The robustness floors of a Monte Carlo sweep over payload and seal friction.
+
+A variant *meets the floors* when its run is ``ok`` (it settled: no limit
+cycle, :mod:`simpro_mj.analysis.verdict`) and every axis with a step has an
+overshoot of at most :data:`OVERSHOOT_PCT` and a 2 % settling time of at most
+:data:`SETTLING_S` (``scenarios/sweep_robustness.yaml``). For a Monte Carlo file
+that draws the payload mass and the legs' Coulomb friction,
+:func:`robustness_table` gives the fraction meeting the floors, overall and per
+cell of a payload x friction grid, and :func:`map_figure` draws the map:
+payload against the mean Coulomb friction of the three legs, coloured by the
+verdict, the overshoot and the settling time.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import numpy as np
+
+__all__ = [
+    "OVERSHOOT_PCT",
+    "SETTLING_S",
+    "PAYLOAD",
+    "COULOMB",
+    "meets_floors",
+    "worst",
+    "robustness_table",
+    "table_lines",
+    "map_figure",
+]
+
+#: The floors: overshoot (%) and 2 % settling time (s) of every stepped axis.
+OVERSHOOT_PCT = 15.0
+SETTLING_S = 4.0
+#: The swept paths the map is drawn over.
+PAYLOAD = "plant.payload.mass_kg"
+COULOMB = "actuator.pneumatics.cylinder.coulomb_friction_n"
+#: Cell edges of the table: payload (kg) and mean Coulomb friction per leg (N).
+PAYLOAD_EDGES = (0.0, 100.0, 200.0, 300.0, 400.0)
+COULOMB_EDGES = (0.0, 50.0, 100.0, 150.0, 200.0, 250.0)
+_AXES = ("roll", "pitch", "heave")
+
+
+def _stepped(row: Mapping) -> list[str]:
+    """The axes with a step response (an overshoot was measured)."""
+    return [a for a in _AXES if row.get(f"{a}_overshoot_pct") is not None]
+
+
+def worst(row: Mapping) -> tuple[float | None, float | None]:
+    """(largest overshoot %, longest settling s) over the stepped axes; inf: never settled."""
+    axes = _stepped(row)
+    if not axes:
+        return None, None
+    over = max(float(row[f"{a}_overshoot_pct"]) for a in axes)
+    settle = [row.get(f"{a}_settling_s") for a in axes]
+    return over, max(np.inf if s is None else float(s) for s in settle)
+
+
+def meets_floors(row: Mapping) -> bool:
+    """Status ok, and every stepped axis within the overshoot and settling floors."""
+    over, settle = worst(row)
+    return (
+        row.get("status") == "ok"
+        and over is not None
+        and over <= OVERSHOOT_PCT
+        and settle <= SETTLING_S
+    )
+
+
+def _point(row: Mapping) -> tuple[float, float] | None:
+    values = row.get("values") or {}
+    if PAYLOAD not in values or COULOMB not in values:
+        return None
+    return float(values[PAYLOAD]), float(np.mean(values[COULOMB]))
+
+
+def _cell(edges, x: float) -> int:
+    return int(np.clip(np.searchsorted(edges, x, side="right") - 1, 0, len(edges) - 2))
+
+
+def robustness_table(rows: list[dict], name: str) -> dict | None:
+    """The floors over the variants of scenario file ``name`` that drew payload and
+    friction: ``{scenario, n, met, fraction, floors, statuses, cells}``; ``cells`` one
+    per payload x friction cell ``{payload_kg, coulomb_n, n, met, fraction}``. None
+    when no variant drew both."""
+    pts = [(r, _point(r)) for r in rows if r["scenario"] == name]
+    pts = [(r, p) for r, p in pts if p is not None]
+    if not pts:
+        return None
+    met = [meets_floors(r) for r, _ in pts]
+    statuses: dict[str, int] = {}
+    for r, _ in pts:
+        statuses[r["status"]] = statuses.get(r["status"], 0) + 1
+    cells = []
+    for i in range(len(PAYLOAD_EDGES) - 1):
+        for j in range(len(COULOMB_EDGES) - 1):
+            inside = [
+                m
+                for (_, (pay, cou)), m in zip(pts, met, strict=True)
+                if _cell(PAYLOAD_EDGES, pay) == i and _cell(COULOMB_EDGES, cou) == j
+            ]
+            cells.append(
+                {
+                    "payload_kg": [PAYLOAD_EDGES[i], PAYLOAD_EDGES[i + 1]],
+                    "coulomb_n": [COULOMB_EDGES[j], COULOMB_EDGES[j + 1]],
+                    "n": len(inside),
+                    "met": sum(inside),
+                    "fraction": sum(inside) / len(inside) if inside else None,
+                }
+            )
+    return {
+        "scenario": name,
+        "n": len(pts),
+        "met": sum(met),
+        "fraction": sum(met) / len(pts),
+        "floors": {"overshoot_pct": OVERSHOOT_PCT, "settling_s": SETTLING_S, "status": "ok"},
+        "statuses": statuses,
+        "cells": cells,
+    }
+
+
+def table_lines(table: Mapping) -> list[str]:
+    """The table as text: the fraction, then one row per payload band."""
+    f = table["floors"]
+    per_row = len(COULOMB_EDGES) - 1
+    lines = [
+        f"\nRobustness {table['scenario']}: {table['met']} of {table['n']} variants "
+        f"({100 * table['fraction']:.1f} %) meet overshoot <= {f['overshoot_pct']:g} %, "
+        f"settling <= {f['settling_s']:g} s, status ok; statuses "
+        + ", ".join(f"{k} {v}" for k, v in sorted(table["statuses"].items())),
+        "  met / n per cell: payload (kg) rows, mean Coulomb friction per leg (N) columns",
+        "  " + " " * 10 + "".join(f"{_band(COULOMB_EDGES, j):>10}" for j in range(per_row)),
+    ]
+    for i in range(len(PAYLOAD_EDGES) - 1):
+        cells = table["cells"][i * per_row : (i + 1) * per_row]
+        text = "".join(f"{str(c['met']) + '/' + str(c['n']):>10}" for c in cells)
+        lines.append(f"  {_band(PAYLOAD_EDGES, i):<10}{text}")
+    return lines
+
+
+def _band(edges, i: int) -> str:
+    return f"{edges[i]:g}-{edges[i + 1]:g}"
+
+
+_VERDICT_STYLE = {
+    "meets the floors": ("o", "tab:green"),
+    "ok, beyond a floor": ("s", "tab:orange"),
+    "not_settled": ("v", "tab:purple"),
+    "limit_cycle": ("x", "tab:red"),
+    "other": ("D", "0.4"),
+}
+
+
+def _verdict_class(row: Mapping) -> str:
+    if meets_floors(row):
+        return "meets the floors"
+    if row["status"] == "ok":
+        return "ok, beyond a floor"
+    return row["status"] if row["status"] in ("not_settled", "limit_cycle") else "other"
+
+
+def map_figure(rows: list[dict], table: Mapping):
+    """Payload x mean Coulomb friction per leg, coloured by verdict, overshoot, settling
+    (a matplotlib Figure; None without points)."""
+    from matplotlib.figure import Figure  # when drawn: the batch's start does not load it
+
+    pts = [(r, _point(r)) for r in rows if r["scenario"] == table["scenario"]]
+    pts = [(r, p) for r, p in pts if p is not None]
+    if not pts:
+        return None
+    fig = Figure(figsize=(15, 4.8), layout="constrained")
+    axes = fig.subplots(1, 3, sharex=True, sharey=True)
+    ax = axes[0]
+    for cls, (marker, colour) in _VERDICT_STYLE.items():
+        sel = [p for r, p in pts if _verdict_class(r) == cls]
+        if sel:
+            x, y = np.array(sel).T
+            ax.scatter(x, y, marker=marker, color=colour, s=28, label=f"{cls} ({len(sel)})")
+    ax.legend(fontsize=8, loc="upper right")
+    ax.set_title("verdict", fontsize=10)
+    worsts = [worst(r) for r, _ in pts]
+    for ax, k, label, vmax, floor in (
+        (axes[1], 0, "largest overshoot [%]", 3 * OVERSHOOT_PCT, OVERSHOOT_PCT),
+        (axes[2], 1, "longest 2 % settling [s]", 3 * SETTLING_S, SETTLING_S),
+    ):
+        x = np.array([p[0] for _, p in pts])
+        y = np.array([p[1] for _, p in pts])
+        v = np.array([np.nan if w[k] is None else w[k] for w in worsts], float)
+        v = np.where(np.isinf(v), vmax, v)
+        sc = ax.scatter(x, y, c=np.clip(v, 0, vmax), cmap="viridis", vmin=0, vmax=vmax, s=28)
+        beyond = v > floor
+        ax.scatter(x[beyond], y[beyond], facecolors="none", edgecolors="red", s=70, lw=0.8)
+        cb = fig.colorbar(sc, ax=ax)
+        cb.set_label(f"{label}; ringed: beyond {floor:g}", fontsize=8)
+        ax.set_title(label.split(" [")[0] + (" (never settled: top of the scale)" if k else ""),
+                     fontsize=10)  # fmt: skip
+    for ax in axes:
+        ax.set_xlabel("payload [kg]")
+        ax.set_xlim(PAYLOAD_EDGES[0] - 10, PAYLOAD_EDGES[-1] + 10)
+        ax.set_ylim(COULOMB_EDGES[0] - 5, COULOMB_EDGES[-1] + 5)
+        ax.grid(alpha=0.3)
+    axes[0].set_ylabel("mean Coulomb friction per leg [N]")
+    f = table["floors"]
+    fig.suptitle(
+        f"{table['scenario']}: {table['met']} of {table['n']} variants "
+        f"({100 * table['fraction']:.1f} %) meet overshoot <= {f['overshoot_pct']:g} %, "
+        f"settling <= {f['settling_s']:g} s, no limit cycle",
+        fontsize=11,
+    )
+    return fig

@@ -1,0 +1,94 @@
+"""The robustness sweep over payload and seal friction: its floors, table and map
+(simpro_mj/batch/robustness.py, scenarios/sweep_robustness.yaml)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from simpro_mj.batch.robustness import (
+    COULOMB,
+    PAYLOAD,
+    map_figure,
+    meets_floors,
+    robustness_table,
+    table_lines,
+)
+from simpro_mj.config.variants import load_sweep
+from simpro_mj.report.figures import legend_mismatches
+
+
+def _row(status="ok", over=5.0, settle=2.0, payload=250.0, coulomb=(100.0, 120.0, 140.0)):
+    row = {
+        "scenario": "rob",
+        "status": status,
+        "values": {PAYLOAD: payload, COULOMB: list(coulomb)},
+    }
+    for axis in ("roll", "heave"):
+        row[f"{axis}_overshoot_pct"] = None
+        row[f"{axis}_settling_s"] = None
+    row["pitch_overshoot_pct"] = over
+    row["pitch_settling_s"] = settle
+    return row
+
+
+def test_floors_are_overshoot_15_settling_4_and_a_settled_run():
+    assert meets_floors(_row(over=15.0, settle=4.0))
+    assert not meets_floors(_row(over=15.1))
+    assert not meets_floors(_row(settle=4.2))
+    assert not meets_floors(_row(settle=None))  # never settled
+    assert not meets_floors(_row(status="limit_cycle"))
+    assert not meets_floors(_row(status="not_settled"))
+
+
+def test_table_counts_the_floors_per_payload_and_friction_cell():
+    rows = [
+        _row(payload=150.0, coulomb=(100.0, 120.0, 140.0)),  # 100-200 kg x 100-150 N: met
+        _row(payload=160.0, coulomb=(110.0, 120.0, 130.0), status="limit_cycle"),  # same cell
+        _row(payload=20.0, coulomb=(240.0, 230.0, 250.0), over=30.0),  # 0-100 x 200-250
+        {**_row(), "scenario": "other"},  # another file's variant
+    ]
+    t = robustness_table(rows, "rob")
+    assert (t["n"], t["met"]) == (3, 1) and abs(t["fraction"] - 1 / 3) < 1e-12
+    assert t["statuses"] == {"ok": 2, "limit_cycle": 1}
+    cells = {(tuple(c["payload_kg"]), tuple(c["coulomb_n"])): c for c in t["cells"]}
+    assert (
+        cells[(100.0, 200.0), (100.0, 150.0)]["n"],
+        cells[(100.0, 200.0), (100.0, 150.0)]["met"],
+    ) == (2, 1)
+    assert cells[(0.0, 100.0), (200.0, 250.0)]["fraction"] == 0.0
+    assert sum(c["n"] for c in t["cells"]) == 3
+    text = "\n".join(table_lines(t))
+    assert "1 of 3 variants (33.3 %)" in text and "limit_cycle 1" in text
+    assert robustness_table([{**_row(), "values": {}}], "rob") is None
+
+
+def test_map_draws_every_variant_with_a_true_legend():
+    rng = np.random.default_rng(0)
+    rows = [
+        _row(status=s, over=o, settle=st, payload=p, coulomb=[c] * 3)
+        for s, o, st, p, c in zip(
+            rng.choice(["ok", "ok", "limit_cycle", "not_settled"], 40), rng.uniform(0, 40, 40),
+            rng.uniform(1, 6, 40), rng.uniform(0, 400, 40), rng.uniform(0, 250, 40), strict=True,
+        )
+    ]  # fmt: skip
+    fig = map_figure(rows, robustness_table(rows, "rob"))
+    assert legend_mismatches(fig) == []
+    assert len([a for a in fig.axes if a.get_xlabel() == "payload [kg]"]) == 3
+    drawn = sum(len(c.get_offsets()) for c in fig.axes[0].collections)
+    assert drawn == 40
+
+
+def test_the_shipped_sweep_spans_the_cabins_range():
+    sf = load_sweep("sweep_robustness")
+    good = [v.scenario for v in sf.variants if v.scenario is not None]
+    assert len(good) == len(sf.variants) >= 200
+    pay = np.array([s["plant"]["payload"]["mass_kg"] for s in good])
+    cou = np.array([s["actuator"]["pneumatics"]["cylinder"]["coulomb_friction_n"] for s in good])
+    bias = np.array([s["sensors"]["imu"]["bias_deg"] for s in good])
+    sup = np.array([s["actuator"]["pneumatics"]["supply_pressure_bar_gauge"] for s in good])
+    assert 0 <= pay.min() < 20 and 380 < pay.max() <= 400
+    assert cou.shape[1] == 3 and 0 <= cou.min() < 10 and 240 < cou.max() <= 250
+    assert -0.5 <= bias.min() < -0.45 and 0.45 < bias.max() <= 0.5
+    assert 5.0 <= sup.min() < 5.1 and 6.9 < sup.max() <= 7.0
+    assert {s["plant"]["preset"] for s in good} == {"heavy_cabin"}
+    assert {s["controller"]["inner"]["design_plant"] for s in good} == {"identified"}
