@@ -481,14 +481,14 @@ def test_gain_above_the_analysed_limit_is_warned_and_recorded(tmp_path, capsys):
 
 
 def test_divergence_through_the_cli_exits_1_and_stops_early(tmp_path, capsys):
-    """Loop-closure constraints 250x softer than shipped on the heavy cabin (with the
-    metres reading of eqs. 34-37): leg 1's loop opens past
+    """Loop-closure constraints 250x softer than shipped on the heavy cabin (joint loops
+    designed on eqs. 34-37 in the metres reading): leg 1's loop opens past
     the 5 mm bound about 1 s in; the run stops there, writes what it had."""
     out = tmp_path / "div"
     rc = main(
         ["run", "step_pitch", "--out", str(out), "--no-plots", "--set", "duration_s=30",
          "--set", "plant.loop_timeconst_s=0.5", "--set", "plant.preset=heavy_cabin",
-         "--set", "paper_units=metres"]
+         "--set", "paper_units=metres", "--set", "controller.inner.design_plant=paper"]
     )  # fmt: skip
     captured = capsys.readouterr()
     assert rc == 1

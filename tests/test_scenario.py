@@ -37,6 +37,7 @@ SHIPPED = [
     "sweep_cueing",
     "sweep_monte_carlo",
     "sweep_outer_gain",
+    "sweep_robustness",
     "track_cues",
     "track_sines",
 ]

@@ -295,16 +295,20 @@ def cueing_mode_warnings(scenario: Mapping) -> list[str]:
     ]
 
 
-def preflight(scenario: Mapping, model=None, *, setpoints=None) -> tuple[list[str], dict]:
+def preflight(
+    scenario: Mapping, model=None, *, setpoints=None, payload: dict | None = None
+) -> tuple[list[str], dict]:
     """Payload check (raises), gain warnings and set-point components that start
     after the run ends (warned: they never act); returns ``(warnings, figures)``.
 
     ``scenario`` carries its design plants (``design_plant: identified``: the
     scenario's own plant's models, :func:`~simpro_mj.identification.auto.with_identified`);
     ``model`` and ``setpoints`` are the run's compiled plant and set-points
-    (:class:`simpro_mj.job.run.Run` passes both; built here when omitted).
+    (:class:`simpro_mj.job.run.Run` passes both; built here when omitted);
+    ``payload`` is :func:`check_payload`'s result when the caller ran it first.
     """
-    payload = check_payload(scenario, model, setpoints)
+    if payload is None:
+        payload = check_payload(scenario, model, setpoints)
     warnings, stability = gain_warnings(scenario)
     warnings += late_setpoints(scenario)
     warnings += cueing_mode_warnings(scenario)

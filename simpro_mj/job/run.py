@@ -2,15 +2,15 @@
 
 The pieces, in the order :class:`Run` builds them:
 
-1. the design plants: with ``controller.inner.design_plant: identified`` the
-   joint loops are placed (eqs. 36-37) on the scenario's own plant's models,
-   Fig. 12's experiment run once and cached
-   (:func:`~simpro_mj.identification.auto.with_identified`);
-2. the plant: the MJCF compiled once (:func:`~simpro_mj.plant.model.load_model`),
+1. the plant: the MJCF compiled once (:func:`~simpro_mj.plant.model.load_model`),
    shared by the preflight's static solves (which change the payload mass
    and restore it) and the loop;
-3. the set-points on the 1 ms grid (:func:`~simpro_mj.config.reference.reference`),
-   shared by the preflight's pose checks and the loop.
+2. the set-points on the 1 ms grid (:func:`~simpro_mj.config.reference.reference`),
+   shared by the preflight's pose checks and the loop;
+3. the design plants, after the preflight's payload check: with
+   ``controller.inner.design_plant: identified`` the joint loops are placed
+   (eqs. 36-37) on the scenario's own plant's models, Fig. 12's experiment run
+   once and cached (:func:`~simpro_mj.identification.auto.with_identified`).
 
 :meth:`Run.execute` then runs the preflight (:func:`~simpro_mj.analysis.preflight.preflight`:
 a payload the cylinders cannot hold is refused, exit 2; gains above the
@@ -28,7 +28,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from simpro_mj.analysis.metrics import compute_metrics
-from simpro_mj.analysis.preflight import preflight
+from simpro_mj.analysis.preflight import check_payload, preflight
 from simpro_mj.analysis.verdict import verdict
 from simpro_mj.config.reference import reference
 from simpro_mj.plant.faults import flag_series
@@ -171,10 +171,12 @@ class Run:
     def __init__(self, scenario: Mapping, *, model=None, say: Callable[[str], None] = _say):
         # the loop builds from MuJoCo: loaded when a run is built, not when a command
         # that refuses bad input within a second imports this module
-        from simpro_mj.identification.auto import with_identified
         from simpro_mj.plant.model import load_model
 
-        self.scenario, self.identified_source = with_identified(scenario, say)
+        self.scenario = scenario
+        self._say = say
+        #: where the design plants came from, once :meth:`design_plants` ran
+        self.identified_source: str | None = None
         plant = self.scenario["plant"]
         self.payload_too_heavy = float(plant["payload"]["mass_kg"]) > MAX_MODEL_PAYLOAD_KG
         if model is None:
@@ -192,9 +194,20 @@ class Run:
         """Each slide's range (m): the model's joint limits (the DNC-125-500 stroke)."""
         return [tuple(map(float, self.model.joint(f"leg{i}").range)) for i in (1, 2, 3)]
 
+    def design_plants(self) -> None:
+        """The scenario with its design plants (identified once when it asks; step 1)."""
+        if self.identified_source is None:
+            from simpro_mj.identification.auto import with_identified
+
+            self.scenario, self.identified_source = with_identified(self.scenario, self._say)
+
     def preflight(self) -> tuple[list[str], dict]:
-        """The checks before stepping, on this run's plant and set-points."""
-        return preflight(self.scenario, self.model, setpoints=(self.t, self.ref))
+        """The checks before stepping, on this run's plant and set-points: the payload
+        first (a refusal costs no identification), then the design plants and the rest."""
+        setpoints = (self.t, self.ref)
+        payload = check_payload(self.scenario, self.model, setpoints)
+        self.design_plants()
+        return preflight(self.scenario, self.model, setpoints=setpoints, payload=payload)
 
     def simulation(self):
         """The co-simulation of this run (:class:`~simpro_mj.sim.loop.CoSimulation`)."""
@@ -203,6 +216,7 @@ class Run:
 
         if self.payload_too_heavy:  # the preflight refuses it first; never stepped empty
             load_model(self.scenario["plant"])  # raises the builder's own message
+        self.design_plants()
         return CoSimulation(
             self.scenario,
             self.model,
