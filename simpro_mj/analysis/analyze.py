@@ -336,6 +336,7 @@ def shipped(scenario: dict) -> dict:
         "joint_controllers": f"{inner['variant']} joint controllers designed on the "
         f"{inner['design_plant']} plant",
         "dead_band": dict(outer["dead_band"]),
+        "joint_integrator_dead_band_mm": list(inner["dead_band_mm"]),
     }
     out = {"loop": loop}
     for plant in ("actuator", "paper"):

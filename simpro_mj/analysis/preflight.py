@@ -227,6 +227,12 @@ def gain_warnings(scenario: Mapping) -> tuple[list[str], dict]:
     lim = info["limit"]
     label = f"{outer['type']}, T = {outer['period_ms']:g} ms, {info['basis']}"
     top = max(outer["gains"])
+    if lim <= 0.0:  # unstable at every gain: the joint loops, not the outer gains
+        return [
+            f"the task-space loop is unstable at any outer gain in the analysis ({label}): "
+            "its joint loops do not hold the plant (controller.inner: variant, design_plant); "
+            "the run may diverge"
+        ], info
     if math.isfinite(lim) and top > GAIN_REFUSE_FACTOR * lim:
         raise UserInputError(
             f"invalid value at controller.outer.gains: {top:g} is {top / lim:,.0f} times the "

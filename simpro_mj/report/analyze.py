@@ -144,11 +144,15 @@ def _shipped_lines(sh: dict) -> list[str]:
     lo = sh["loop"]
     db = lo["dead_band"]
     band = (
-        f"; dead band {db['roll_deg']:g} deg / {db['pitch_deg']:g} deg / {db['heave_mm']:g} mm "
-        "(outside the linear analysis)"
+        f"; dead band {db['roll_deg']:g} deg / {db['pitch_deg']:g} deg / {db['heave_mm']:g} mm"
         if any(db.values())
         else ""
     )
+    joints = lo["joint_integrator_dead_band_mm"]
+    if any(joints):
+        band += f"; joint integrators hold within {'/'.join(f'{w:g}' for w in joints)} mm"
+    if band:
+        band += " (dead bands: outside the linear analysis)"
     lines = [
         f"Shipped loop of {lo['scenario']} (preset {lo['preset']}, mode {lo['mode']}): "
         f"{lo['law']}, T = {lo['period_ms']:g} ms, {lo['setpoint_filter']} set-point filter, "
