@@ -19,7 +19,7 @@ Per scenario file (``<folder>`` is its folder name under OUT):
   samples of the absolute steady-state error per axis, one box per grid
   combination (e.g. joint_only vs task_space), log scale.
 * ``<folder>_map.png`` (Monte Carlo files drawing the payload and the Coulomb
-  friction): payload x mean friction per leg, coloured by verdict, overshoot
+  friction): payload x the smallest leg's friction, coloured by verdict, overshoot
   and settling (:mod:`simpro_mj.batch.robustness`).
 """
 
