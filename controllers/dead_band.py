@@ -22,7 +22,7 @@ compiled step.
 
 from __future__ import annotations
 
-__all__ = ["dead_band", "dead_band3"]
+__all__ = ["dead_band"]
 
 
 def dead_band(e: float, width: float) -> float:
@@ -41,8 +41,3 @@ def dead_band(e: float, width: float) -> float:
     if e == e:  # inside the band (a NaN passes, as the loop would see it)
         return 0.0
     return e
-
-
-def dead_band3(e0: float, e1: float, e2: float, w0: float, w1: float, w2: float) -> list:
-    """:func:`dead_band` on three errors with their widths; a new list of 3 floats."""
-    return [dead_band(e0, w0), dead_band(e1, w1), dead_band(e2, w2)]

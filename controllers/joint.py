@@ -169,6 +169,11 @@ class JointControllers:
         Units of eqs. (34)-(37) (:data:`controllers.design.READINGS`): Y in
         potentiometer volts (20 V/m, default) or in metres. Sets the SI gain of
         the ``printed`` controllers and the default design plants.
+    dead_band : float or (3,) array_like
+        Width (m) of the dead band of each leg's integrator
+        (:func:`controllers.dead_band.dead_band`): the integrator takes
+        ``e -+ w`` outside the band and holds inside it, while the rest of the
+        controller sees the whole error. Default 0 (none).
 
     Notes
     -----
@@ -196,6 +201,7 @@ class JointControllers:
         designs=None,
         plants=None,
         reading: str = DEFAULT_READING,
+        dead_band=0.0,
     ):
         paper_scale(reading)  # raises DesignError (a ValueError) naming the readings
         if variant not in VARIANTS:
@@ -223,6 +229,11 @@ class JointControllers:
         self.anti_windup = anti_windup
         self.tracking_time = float(tracking_time)
         self.reading = reading
+        db = np.broadcast_to(np.asarray(dead_band, dtype=float), (3,))
+        if not (np.all(np.isfinite(db)) and np.all(db >= 0)):
+            raise ValueError(f"dead_band must be 1 or 3 finite widths >= 0 m, got {dead_band!r}")
+        #: the integrators' dead bands (m), :func:`controllers.step_functions.joint_step`
+        self.step_band = db.copy()
         if plants is None:
             plants = [paper_plant(a, reading) for a in ACTUATORS]
         plants = list(plants)
@@ -327,6 +338,7 @@ class JointControllers:
             f[2],
             self.step_limits,
             self._int_gain,
+            self.step_band,
             self._v,
         )
         return self._v.tolist()

@@ -25,6 +25,8 @@ import math
 
 import numpy as np
 
+from .dead_band import dead_band
+
 __all__ = [
     "GEOM_LEN",
     "geometry_constants",
@@ -238,14 +240,17 @@ def filter_step(kind, q0, q1, q2, n, a, b, y, s, head, ring, out):
             out[i] = s[i] / ni
 
 
-def joint_step(x, jm, e0, e1, e2, f0, f1, f2, lim, gains, v_out):
+def joint_step(x, jm, e0, e1, e2, f0, f1, f2, lim, gains, band, v_out):
     """The three joint controllers (eq. 28) for one step; valve volts into ``v_out``.
 
     ``x`` (9,): states of legs 1-3 (two of the remainder, the integrator
     last), updated in place. ``jm`` (3, 4, 4): per leg ``[[A, B], [C, D]]``.
     ``lim`` = (u_offset, u_min, u_max, anti-windup kind (0 back-calculation,
     1 conditional, 2 none), T / T_t). ``gains`` (3,): r0 T of each
-    integrator. ``f`` is the velocity feed-forward added before saturation.
+    integrator. ``band`` (3,): the integrators' dead bands (m; 0: none): an
+    integrator takes ``e -+ w`` outside ``[-w, w]`` and holds inside
+    (:func:`controllers.dead_band.dead_band`). ``f`` is the velocity
+    feed-forward added before saturation.
     """
     off, lo, hi, kind, aw = lim[0], lim[1], lim[2], lim[3], lim[4]
     for i in range(3):
@@ -257,6 +262,8 @@ def joint_step(x, jm, e0, e1, e2, f0, f1, f2, lim, gains, v_out):
         n1 = m[1, 0] * a + m[1, 1] * b + m[1, 2] * c + m[1, 3] * e
         n2 = m[2, 0] * a + m[2, 1] * b + m[2, 2] * c + m[2, 3] * e
         u = m[3, 0] * a + m[3, 1] * b + m[3, 2] * c + m[3, 3] * e
+        if band[i] > 0.0:  # the integrator takes the error beyond its band only
+            n2 = n2 - gains[i] * (e - dead_band(e, band[i]))
         v = u + off + f
         vs = v
         if vs < lo:  # comparisons: a NaN passes through
@@ -280,9 +287,10 @@ T_PEND, T_PEND_OK, T_MODEL, T_ACC, T_NACC, T_REFCMD, T_SAT = 16, 19, 20, 23, 35,
 T_SCR, T_LEN = 40, 49  # scratch: the checked set-point, an IK result, the error
 # Its constants ``tc``: mode (0 joint-only, 1 I, 2 PI, 3 feed-forward), the
 # feed-forward correction's law (1 I, 2 PI), clamp, lag "joints", average,
-# model_tau (s), the model's beta, the PI zero c, T K K_I (3), margin, home (3)
+# model_tau (s), the model's beta, the PI zero c, T K K_I (3), margin, home (3), the
+# dead band of the integrated task error (3: rad, rad, m; 0: none)
 TC_MODE, TC_LAW, TC_CLAMP, TC_LAGJ, TC_AVG, TC_TAU, TC_BETA, TC_PIZ = 0, 1, 2, 3, 4, 5, 6, 7
-TC_TG, TC_MARGIN, TC_HOME, TC_LEN = 8, 11, 12, 15
+TC_TG, TC_MARGIN, TC_HOME, TC_DB, TC_LEN = 8, 11, 12, 15, 18
 MODE_JOINT, MODE_I, MODE_PI, MODE_FF = 0, 1, 2, 3
 
 #: Error codes of the step (0: none); :mod:`simpro_mj.sim.step` turns them into exceptions.
@@ -443,8 +451,14 @@ def outer_update(r0, r1, r2, y0, y1, y2, qm0, qm1, qm2, hold, ts, tc, g):
             _ff_error(y0, y1, y2, qm0, qm1, qm2, ts, tc, g, e)
         elif tc[TC_TAU] > 0.0:
             e[0], e[1], e[2] = ts[T_MODEL] - y0, ts[T_MODEL + 1] - y1, ts[T_MODEL + 2] - y2
+        for j in range(3):
+            if tc[TC_DB + j] > 0.0:
+                e[j] = dead_band(e[j], tc[TC_DB + j])
         _correct(ref, e, hold, ts, tc, g, q)
         return ff_step(ref, ts, tc, g)
+    for j in range(3):  # the dead band: within it the integrated pose holds
+        if tc[TC_DB + j] > 0.0:
+            e[j] = dead_band(e[j], tc[TC_DB + j])
     if mode == MODE_I:
         err = _ik_xc(ts, g)
         _integrate(tc[TC_TG] * e[0], tc[TC_TG + 1] * e[1], tc[TC_TG + 2] * e[2], ts, tc, g)

@@ -157,6 +157,10 @@ class TaskSpaceController:
         :meth:`feedforward_floats`) instead of the samples at the outer step.
     margin : float
         Stroke margin (m) kept by the integrated pose and by clamping.
+    dead_band : float or (3,) array_like
+        Width per axis (rad, rad, m) of the dead band on the task error the
+        law integrates (:func:`controllers.dead_band.dead_band`): within it the
+        integrated pose holds. Default 0 (none).
 
     Raises
     ------
@@ -181,6 +185,7 @@ class TaskSpaceController:
         margin: float = 0.0,
         lag: str = "model",
         average: bool = False,
+        dead_band=0.0,
     ):
         if mode not in MODES:
             raise ValueError(f"unknown mode {mode!r}; allowed: {list(MODES)}")
@@ -237,6 +242,11 @@ class TaskSpaceController:
         tc[sf.TC_TG : sf.TC_TG + 3] = self.period * self.gains  # T K K_I per axis
         tc[sf.TC_MARGIN] = self.margin
         tc[sf.TC_HOME : sf.TC_HOME + 3] = self.geometry.home
+        db = np.broadcast_to(np.asarray(dead_band, dtype=float), (3,))
+        if not (np.all(np.isfinite(db)) and np.all(db >= 0)):
+            raise ValueError(f"dead_band must be 1 or 3 finite widths >= 0, got {dead_band!r}")
+        self.dead_band = db.copy()
+        tc[sf.TC_DB : sf.TC_DB + 3] = db
         self.step_constants = tc
         self.step_state = np.zeros(sf.T_LEN)
         self.reset()  # raises if home is not reachable

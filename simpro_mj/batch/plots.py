@@ -32,12 +32,9 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
-<<<<<<< HEAD
 from simpro_mj.analysis.cue_metrics import FLOORS
 from simpro_mj.analysis.verdict import VERDICTS
-=======
 from simpro_mj.batch.robustness import map_figure
->>>>>>> 5205eaa (sweep_robustness.yaml: the cabin's pitch step over payload 0-400 kg, Coulomb 0-250 N per leg, IMU bias +-0.5 deg, supply 5-7 bar (200 Monte Carlo plants); batch.robustness: the fraction meeting overshoot <= 15 %, settling <= 4 s, status ok, per payload x friction cell, and the map figure)
 from simpro_mj.batch.summary import RUN_STATUSES
 from simpro_mj.config.sweep import format_value
 from simpro_mj.report.figures import envelope, legend_mismatches, log_ticks, save

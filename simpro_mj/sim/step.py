@@ -44,6 +44,7 @@ import types as pytypes
 import numpy as np
 
 from controllers import step_functions as cs
+from controllers.dead_band import dead_band
 from simpro_mj.plant import step_functions as ps
 from simpro_mj.plant.friction import seal_friction
 from simpro_mj.plant.sensor_errors import accel_tilt, pot_nonlinearity
@@ -85,7 +86,8 @@ FKIND, FN, FA, FB = 8, 9, 12, 15
 LIM, IGAIN, JM = 18, 23, 26  # joint loops: (offset, lo, hi, anti-windup, T/T_t), r0 T, 3x4x4
 IQ, IV, IMAT, IH, NPAIR, PAIRS = 74, 77, 80, 81, 82, 83  # state read (8 loops at most)
 IHA, IHG, ICTRL = 99, 100, 101
-SC = 104
+JDB = 104  # the joint integrators' dead bands (m)
+SC = JDB + 3
 TC = SC + ps.SC_LEN
 GEOM = TC + cs.TC_LEN
 AC = GEOM + cs.GEOM_LEN  # the actuators' constants (plant.step_functions.AC_*)
@@ -192,6 +194,7 @@ def control(k, S, C, ref, qj, uff):
         f2,
         C[LIM : LIM + 5],
         C[IGAIN : IGAIN + 3],
+        C[JDB : JDB + 3],
         S[U : U + 3],
     )
     lo, hi = C[LIM + 1], C[LIM + 2]
@@ -307,6 +310,7 @@ def callback_step(
 
 # ------------------------------------------------------------ compiled form
 _PLAIN = [
+    dead_band,
     cs.ik_pose, cs.ik_lag, cs.segment_limit, cs.filter_step, cs.joint_step, cs.outer_setpoint,
     cs._ik_xc, cs._integrate, cs._accumulate, cs._ff_error, cs._correct, cs.ff_step,
     cs.outer_update, cs.ff_inner,
@@ -362,9 +366,10 @@ def _cache_dir() -> str:
     import sys
     import tempfile
 
+    from controllers import dead_band as band
     from simpro_mj.plant import friction
 
-    files = [m.__file__ for m in (cs, ps, friction, sys.modules[__name__])]
+    files = [m.__file__ for m in (cs, ps, friction, band, sys.modules[__name__])]
     files.append(os.path.join(os.path.dirname(__file__), "callback.py"))
     h = hashlib.sha256()
     for path in files:

@@ -64,6 +64,7 @@ def build(sim, loop_bound: float) -> tuple[np.ndarray, np.ndarray]:
     C[st.FB : st.FB + 3] = filt.step_b
     C[st.LIM : st.LIM + 5] = joint.step_limits
     C[st.IGAIN : st.IGAIN + 3] = joint._int_gain
+    C[st.JDB : st.JDB + 3] = joint.step_band
     C[st.JM : st.JM + 48] = joint.step_matrices.reshape(48)
     C[st.IQ : st.IQ + 3] = idx.slide_qpos
     C[st.IV : st.IV + 3] = idx.slide_dof
