@@ -294,7 +294,11 @@ def _measured(task: dict) -> dict:
 
 
 def sweep(
-    scenario_file: str | Path, overrides: Mapping | None = None, *, jobs: int = 1
+    scenario_file: str | Path,
+    overrides: Mapping | None = None,
+    *,
+    jobs: int = 1,
+    processes: bool = False,
 ) -> SweepResult:
     """Run every variant of a sweep file (a scenario with a ``sweep:`` block).
 
@@ -309,7 +313,13 @@ def sweep(
     overrides : mapping, optional
         Dotted keys to values applied to the base of every variant (``--set``).
     jobs : int
-        Worker processes (1: here, one after the other).
+        Variants at once (1: here, one after the other): on threads of this
+        process, as ``simpro-sim batch --jobs`` runs them (the compiled step
+        releases the GIL inside ``mj_step``; the results are those of the
+        serial run).
+    processes : bool
+        With ``jobs > 1``: spawned worker processes instead of threads
+        (``batch --processes``).
 
     Returns
     -------
@@ -320,7 +330,7 @@ def sweep(
     UserInputError
         A mistake in the file, ``overrides`` or ``jobs``.
     SweepError
-        No variant could run (a worker pool that broke). With ``jobs > 1`` the
+        No variant could run (a worker pool that broke). With ``processes`` the
         workers are spawned processes; they do not import a calling script
         (:func:`simpro_mj.sim.workers.main_not_imported`), but a program started
         with ``python -m`` is imported by them and keeps its work under
@@ -330,6 +340,8 @@ def sweep(
 
     if not isinstance(jobs, int) or isinstance(jobs, bool) or not 1 <= jobs <= MAX_JOBS:
         raise UserInputError(f"invalid jobs: {jobs!r}; allowed: an integer 1..{MAX_JOBS}")
+    if not isinstance(processes, bool):
+        raise UserInputError(f"invalid processes: {processes!r}; allowed: True or False")
     sw = load_sweep(str(scenario_file), _sets(overrides))
     if sw.error:
         raise UserInputError(sw.error)
@@ -338,7 +350,8 @@ def sweep(
     valid = [v for v in sw.variants if v.scenario is not None]
     tasks = [(i, {"scenario": v.scenario}) for i, v in enumerate(valid)]
     done: dict[int, dict] = {}
-    run_tasks(tasks, lambda key, out: done.__setitem__(key, out), fn=_measured, jobs=jobs)
+    run_tasks(tasks, lambda key, out: done.__setitem__(key, out), fn=_measured, jobs=jobs,
+              threads=not processes)  # fmt: skip
     results = {}
     for i, v in enumerate(valid):
         out = done.get(i) or {}
@@ -349,7 +362,7 @@ def sweep(
     if valid and not results:
         reason = next(iter(errors[v.name] for v in valid))
         hint = ""
-        if jobs > 1 and ("BrokenProcessPool" in reason or "bootstrapping" in reason):
+        if processes and jobs > 1 and ("BrokenProcessPool" in reason or "bootstrapping" in reason):
             hint = (
                 "; with jobs > 1 the workers are spawned processes: a program run with "
                 "python -m keeps its work under if __name__ == '__main__':"

@@ -166,6 +166,37 @@ def test_sweep_runs_each_variant_as_run_would(tmp_path):
         s.sweep(f, jobs=0)
 
 
+def test_sweep_on_threads_equals_the_serial_sweep(tmp_path, monkeypatch):
+    """jobs=2 runs the variants on threads of this process (no pool), with the serial bits."""
+    from simpro_mj.sim import executors
+
+    f = tmp_path / "gains.yaml"
+    f.write_text(
+        "name: gains\nduration_s: 0.4\n"
+        "setpoint:\n  pitch_deg:\n    - {type: step, time_s: 0.1, value: 1.0}\n"
+        "sweep:\n  grid:\n    controller.outer.gains: [2, 3, 4]\n"
+    )
+    serial = s.sweep(f)
+
+    def no_pool(*args, **kwargs):
+        raise AssertionError("a process pool started")
+
+    monkeypatch.setattr(executors, "run_pool", no_pool)
+    threaded = s.sweep(f, jobs=2)
+    assert sorted(threaded.results) == sorted(serial.results) and len(serial.results) == 3
+    for name, res in serial.results.items():
+        other = threaded.results[name]
+        assert res.columns.keys() == other.columns.keys()
+        for k, x in res.columns.items():
+            assert np.array_equal(x, other.columns[k], equal_nan=True), (name, k)
+        assert other.metrics["axes"] == res.metrics["axes"]
+    # the gains differ, so do the runs: the comparison sees the variants apart
+    a, b = (serial.results[n].columns["pitch_rad"] for n in sorted(serial.results)[:2])
+    assert not np.array_equal(a, b)
+    with pytest.raises(s.UserInputError, match="invalid processes"):
+        s.sweep(f, jobs=2, processes="yes")
+
+
 def test_the_docs_example_runs(tmp_path):
     """docs/examples/quickstart.py, the API's walk-through, runs from any folder and
     writes only into the folder it is given."""

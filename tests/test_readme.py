@@ -103,7 +103,7 @@ def test_unguarded_parallel_sweep_runs_the_script_once(tmp_path):
     script.write_text(
         "import simpro_mj as s\n"
         "print('body')\n"
-        "sw = s.sweep('track_cues', {'duration_s': 0.5}, jobs=2)\n"
+        "sw = s.sweep('track_cues', {'duration_s': 0.5}, jobs=2, processes=True)\n"
         "print(*[r['status'] for r in sw.rows()])\n",
         encoding="utf-8",
     )

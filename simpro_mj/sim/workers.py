@@ -58,8 +58,8 @@ def main_not_imported():
 
     A spawned process imports the parent's ``__main__`` script (as ``__mp_main__``) so
     that functions defined there can be unpickled. The workers' functions live in
-    ``simpro_mj``; a script that calls ``simpro_mj.sweep(..., jobs=2)`` at its top level,
-    unguarded, would run again in every worker (each trying to start a pool of its
+    ``simpro_mj``; a script that calls ``simpro_mj.sweep(..., jobs=2, processes=True)``
+    at its top level, unguarded, would run again in every worker (each trying to start a pool of its
     own, which breaks the pool). ``multiprocessing`` skips that import when
     ``__main__.__spec__.name`` is ``"__main__"``: a script's module has no spec, one
     is set while the workers start and removed after. A program run with
