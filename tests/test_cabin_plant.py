@@ -112,6 +112,21 @@ def test_breakaway_below_coulomb_is_refused():
     np.testing.assert_array_equal(P.breakaway, [1.0, 2.0, 3.0])  # null: no Stribeck peak
 
 
+def test_breakaway_ratio_scales_each_legs_coulomb_force():
+    """A sweep over the Coulomb force draws whole seals: 5/3 of 150 N is the
+    preset's 250 N breakaway, and a ratio beside an explicit breakaway is refused."""
+    P = PneumaticParams.from_tree(
+        {"cylinder": {"coulomb_friction_n": [150, 60, 0], "breakaway_ratio": 5 / 3}}
+    )
+    np.testing.assert_allclose(P.breakaway, [250.0, 100.0, 0.0], rtol=1e-15)
+    with pytest.raises(UserInputError, match=r"breakaway_ratio.*set one of the two"):
+        PneumaticParams.from_tree(
+            {"cylinder": {"breakaway_friction_n": 250, "breakaway_ratio": 1.5}}
+        )
+    with pytest.raises(UserInputError, match=r"breakaway_ratio"):
+        PneumaticParams.from_tree({"cylinder": {"breakaway_ratio": 0.5}})
+
+
 # ---------------------------------------------------------------- the heavy cabin preset
 
 

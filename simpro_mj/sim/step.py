@@ -366,13 +366,16 @@ def _cache_dir() -> str:
     import sys
     import tempfile
 
-    from controllers import dead_band as band
-    from simpro_mj.plant import friction
-
-    files = [m.__file__ for m in (cs, ps, friction, band, sys.modules[__name__])]
-    files.append(os.path.join(os.path.dirname(__file__), "callback.py"))
+    # the step's modules and every module whose functions they call
+    files = {m.__file__ for m in (cs, ps, sys.modules[__name__])}
+    for module in (cs, ps):
+        for value in vars(module).values():
+            if isinstance(value, pytypes.FunctionType):
+                files.add(getattr(sys.modules.get(value.__module__), "__file__", None))
+    files.discard(None)
+    files.add(os.path.join(os.path.dirname(__file__), "callback.py"))
     h = hashlib.sha256()
-    for path in files:
+    for path in sorted(files):
         with open(path, "rb") as fh:
             h.update(fh.read())
     base = os.environ.get("NUMBA_CACHE_DIR")

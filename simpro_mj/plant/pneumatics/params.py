@@ -68,6 +68,10 @@ DEFAULT_PNEUMATIC_PARAMS: dict = {
         # Static (breakaway) friction, N, >= the Coulomb force; null: equal to it
         # (no Stribeck peak). The seal law is simpro_mj.plant.friction.seal_friction.
         "breakaway_friction_n": None,
+        # breakaway / Coulomb force, used when breakaway_friction_n is null: a
+        # seal's breakaway follows its running friction (a sweep over the Coulomb
+        # force then draws whole seals); 1: no Stribeck peak
+        "breakaway_ratio": 1.0,
         # Stribeck velocity, mm/s: where the breakaway peak has fallen to 1/e
         # (assumption; only a breakaway_friction_n above the Coulomb force uses it)
         "stribeck_velocity_mm_per_s": 10.0,
@@ -209,6 +213,9 @@ _PLAUSIBLE = {
     "cylinder.breakaway_friction_n": (
         0.0, 5000.0, False, "N: at least the Coulomb force; 5 kN is 40 % of the cylinder's force"
     ),
+    "cylinder.breakaway_ratio": (
+        1.0, 10.0, False, "breakaway / Coulomb force: 1 (no peak) to about 2 for lip seals"
+    ),
     "cylinder.stribeck_velocity_mm_per_s": (
         1e-3, 1000.0, True, "mm/s: where the breakaway peak decays, a few to tens of mm/s"
     ),
@@ -293,8 +300,14 @@ class PneumaticParams:
         if sub != int(sub):
             raise UserInputError("invalid value at pneumatics.integration.substeps: an integer")
         coulomb = _per_leg(t, "cylinder.coulomb_friction_n")
+        ratio = _scalar(t, "cylinder.breakaway_ratio", 1.0)
         if t["cylinder"]["breakaway_friction_n"] is None:
-            breakaway = coulomb.copy()
+            breakaway = coulomb * ratio
+        elif ratio != 1.0:
+            raise UserInputError(
+                f"invalid value at pneumatics.cylinder.breakaway_ratio: {ratio}; allowed: 1 "
+                "when pneumatics.cylinder.breakaway_friction_n is set (set one of the two)"
+            )
         else:
             breakaway = _per_leg(t, "cylinder.breakaway_friction_n")
             if np.any(breakaway < coulomb):
