@@ -32,6 +32,17 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+#: The driver's head above the axes the cabin tilts about (m), the ``h`` of the
+#: cueing laws' head model ``f = h a'' - g a`` (the jolt a tilt onset throws the head
+#: with). Roll: the MJCF ``head`` site, 0.75 m above P (the least-squares fit of the
+#: head's measured specific force on ``cue_lane_change`` gives 0.76 m). Pitch: 1.21 m,
+#: measured: the RPSU moves the cabin along x as it pitches and heaves, and the fit
+#: ``f_x + g sin(theta) = h theta'' + c z''`` on a ``cue_braking`` run gives h = 1.21 m,
+#: c = -0.56 (residual 0.005 of 0.115 m/s^2 rms; docs/cueing.md). One source for the
+#: classical washout and the MPC law.
+HEAD_HEIGHT_ROLL = 0.75
+HEAD_HEIGHT_PITCH = 1.21
+
 __all__ = ["PlatformGeometry", "PAPER_POINTS_MM", "H0", "nominal_geometry"]
 
 #: Initial elevation of the platform (paper section 5.2.1), m.

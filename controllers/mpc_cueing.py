@@ -61,7 +61,7 @@ import numpy as np
 
 from .analysis.inner import companion
 from .frames import GRAVITY
-from .geometry import PlatformGeometry, nominal_geometry
+from .geometry import HEAD_HEIGHT_PITCH, HEAD_HEIGHT_ROLL, PlatformGeometry, nominal_geometry
 from .vestibular import CanalModel, OtolithModel
 from .workspace import inscribed_box
 
@@ -97,9 +97,8 @@ class MpcParams:
         Heave rate (m/s) and acceleration (m/s^2) limits.
     head_height, head_height_pitch : float
         The head above the roll axis (m), 0.75 (the MJCF ``head`` site), and above
-        the pitch motion's axis, 1.21: the RPSU moves the cabin along x as it
-        pitches, and a fit of the head's measured specific force on a braking run
-        gives ``f_x + g sin(theta) = 1.21 theta''`` (docs/cueing.md).
+        the pitch motion's axis, 1.21 (measured): :data:`controllers.geometry.HEAD_HEIGHT_ROLL`
+        and ``HEAD_HEIGHT_PITCH``.
     preview : float
         Look-ahead into the vehicle input (s), 0: none (the vehicle input is held).
     heave_fraction, stroke_margin : float
@@ -146,8 +145,8 @@ class MpcParams:
     tilt_accel_max: float = math.radians(30.0)
     heave_rate_max: float = 0.2
     heave_accel_max: float = 3.0
-    head_height: float = 0.75
-    head_height_pitch: float = 1.21
+    head_height: float = HEAD_HEIGHT_ROLL
+    head_height_pitch: float = HEAD_HEIGHT_PITCH
     preview: float = 0.0
     heave_fraction: float = 0.25
     stroke_margin: float = 0.01

@@ -33,11 +33,13 @@ jumping), approaching the target no faster than it can stop at it
 ``pitch_t`` the head feels ``f_x = -g sin(pitch_t) = k_x f_x,vehicle``: a
 sustained acceleration ``a`` settles at ``asin(k a / g)``.
 
-Head offset: the head is ``head_height`` (0.75 m) above the tilt pivot, so an
+Head offset: the head is ``head_height`` (0.75 m) above the roll axis and
+``head_height_pitch`` (1.21 m, measured) above the pitch motion's, so an
 angular acceleration ``a''`` away from neutral throws it along the cue's axis
 the wrong way, ``f = h a'' - g a`` (ISO pitch ``a``; roll alike): a pure tilt
 first pushes the driver against the cue it builds. The outward tilt
-acceleration is therefore also limited to ``(jolt_limit + g |a|) / h``, so the
+acceleration is therefore also limited to ``(jolt_limit + g |a|) / h``, each axis
+with its ``h``, so the
 head's wrong-way specific force stays below ``jolt_limit`` (the otoliths'
 0.17 m/s^2 threshold by default): the onset starts gently and speeds up as the
 tilt's own cue grows.
@@ -68,7 +70,7 @@ import numpy as np
 
 from .filters import DiscreteFilter
 from .frames import GRAVITY
-from .geometry import PlatformGeometry, nominal_geometry
+from .geometry import HEAD_HEIGHT_PITCH, HEAD_HEIGHT_ROLL, PlatformGeometry, nominal_geometry
 from .workspace import inscribed_box, soft_limit
 
 __all__ = ["WashoutParams", "ClassicalWashout", "WashoutResult", "WashoutParamError"]
@@ -107,9 +109,10 @@ class WashoutParams:
         Bles 2004 measured 3 deg/s as the tilt-coordination limit).
     tilt_accel_limit : float
         Tilt acceleration limit (rad/s^2), the second-order rate limit.
-    head_height : float
-        The head above the tilt pivot (m), 0.75 (the MJCF ``head`` site); 0 turns
-        the jolt limit off.
+    head_height, head_height_pitch : float
+        The head above the roll axis (m), 0.75 (the MJCF ``head`` site), and above
+        the pitch motion's axis, 1.21 (measured): :data:`controllers.geometry.HEAD_HEIGHT_ROLL`
+        and ``HEAD_HEIGHT_PITCH``, as the MPC law's; 0 turns the axis' jolt limit off.
     jolt_limit : float
         Largest wrong-way specific force (m/s^2) the outward tilt acceleration may
         throw the head with, 0.17 (the x/y otolith threshold).
@@ -144,7 +147,8 @@ class WashoutParams:
     tilt_rate_limit: float = math.radians(3.0)
     tilt_limit: float = math.radians(10.0)
     tilt_accel_limit: float = math.radians(30.0)
-    head_height: float = 0.75
+    head_height: float = HEAD_HEIGHT_ROLL
+    head_height_pitch: float = HEAD_HEIGHT_PITCH
     jolt_limit: float = 0.17
     heave_omega: float = 2.5
     heave_zeta: float = 1.0
@@ -169,6 +173,7 @@ class WashoutParams:
             "tilt_limit": (lambda v: 0 < v < math.pi / 2, "in (0, pi/2) rad"),
             "tilt_accel_limit": (lambda v: v > 0, "> 0 rad/s^2"),
             "head_height": (lambda v: 0 <= v <= 2, "0..2 m"),
+            "head_height_pitch": (lambda v: 0 <= v <= 2, "0..2 m"),
             "jolt_limit": (lambda v: v > 0, "> 0 m/s^2"),
             "heave_omega": (lambda v: v > 0, "> 0 rad/s"),
             "heave_zeta": (lambda v: v > 0, "> 0"),
@@ -308,9 +313,10 @@ class ClassicalWashout:
         want = max(-p.tilt_rate_limit, min(p.tilt_rate_limit, want))
         acc = (want - v) / dt
         amax = p.tilt_accel_limit
-        if p.head_height > 0 and acc * x >= 0:
+        h = p.head_height_pitch if k == 1 else p.head_height
+        if h > 0 and acc * x >= 0:
             # outward: the head is thrown against the cue by h a''
-            amax = min(amax, (p.jolt_limit + GRAVITY * abs(x)) / p.head_height)
+            amax = min(amax, (p.jolt_limit + GRAVITY * abs(x)) / h)
         if abs(acc) > amax + tol:
             acc = math.copysign(amax, acc)
             limited = True

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from controllers.frames import GRAVITY
+from controllers.geometry import HEAD_HEIGHT_PITCH
 from controllers.washout import ClassicalWashout
 from simpro_mj.analysis.cue_metrics import (
     _onset_block,
@@ -25,7 +26,7 @@ from simpro_mj.config.scenario import load_scenario, resolve_scenario
 from simpro_mj.config.telemetry import TelemetryError, read_telemetry
 from simpro_mj.core.errors import UserInputError
 
-H = 0.75  # the head above the pivot (MJCF head site)
+H = HEAD_HEIGHT_PITCH  # the head above the pitch motion's axis (1.21 m, measured)
 
 
 def _head_fx(pitch_iso: np.ndarray, dt: float) -> np.ndarray:
@@ -47,9 +48,9 @@ def _braking_run(**params):
 
 def test_washout_tilt_acceleration_and_jolt_limits():
     """The second-order limit: rate <= tilt_rate_limit, acceleration <= tilt_accel_limit;
-    with the head 0.75 m up, the head's wrong-way specific force at the onset stays at
-    the jolt limit (0.17 m/s^2), where without it the tilt's acceleration throws the
-    head forwards by h * accel."""
+    with the head 1.21 m above the pitch axis, the head's wrong-way specific force at
+    the onset stays at the jolt limit (0.17 m/s^2), where without it the tilt's
+    acceleration throws the head forwards by h * accel."""
     dt = 0.01
     law, th = _braking_run(tilt_rate_limit=math.radians(8.0))
     p = law.params
@@ -58,9 +59,9 @@ def test_washout_tilt_acceleration_and_jolt_limits():
     assert np.abs(np.diff(rate) / dt).max() <= p.tilt_accel_limit * (1 + 1e-6)
     jolt = _head_fx(th, dt)[95:200].max()
     assert jolt <= p.jolt_limit + 0.02
-    _, th0 = _braking_run(tilt_rate_limit=math.radians(8.0), head_height=0.0)
+    _, th0 = _braking_run(tilt_rate_limit=math.radians(8.0), head_height_pitch=0.0)
     jolt0 = _head_fx(th0, dt)[95:200].max()
-    # without the limit: h times the 30 deg/s^2 acceleration limit, 0.39 m/s^2
+    # without the limit: h times the 30 deg/s^2 acceleration limit, 0.63 m/s^2
     assert jolt0 == pytest.approx(H * math.radians(30.0), rel=0.1)
     # both settle at the same tilt, asin(k a / g)
     assert th[-1] == pytest.approx(th0[-1], abs=1e-6)
@@ -142,7 +143,7 @@ def test_cue_floors_name_each_floor_missed():
     0.5 s of felt false roll, the box and the 5 % of valve saturation."""
     cue = {
         "channels": {
-            "longitudinal_f": {"correlation": 0.99, "vehicle_peak": 0.5},
+            "longitudinal_f": {"correlation": 0.99, "vehicle_peak": 0.1},
             "lateral_f": {
                 "correlation": 0.84,
                 "mean_lag_s": 0.1,
@@ -168,6 +169,31 @@ def test_cue_floors_name_each_floor_missed():
         "roll box 1.01 > 1",
         "valve saturation 0.06 > 0.05",
     ]
+
+
+def test_cue_floors_judge_every_channel_the_vehicle_drives():
+    """Braking in a turn drives surge (4.8 m/s^2) and sway (2.9 m/s^2), both past the
+    otoliths' 0.17 m/s^2: a late sway onset misses the floors though surge, the larger,
+    meets them; a channel the car does not drive past the threshold is not judged."""
+    good = {"correlation": 0.97, "mean_lag_s": 0.2, "onsets": 1, "onset_delay_s": 0.29}
+    good["onset_raw_wrong_sign_peak"] = 0.1
+    cue = {
+        "channels": {
+            "longitudinal_f": {**good, "vehicle_peak": -4.8, "threshold": 0.17},
+            "lateral_f": {**good, "onset_delay_s": 0.57, "vehicle_peak": 2.9, "threshold": 0.17},
+        }
+    }
+    floors = cue_floors(cue)
+    assert floors["channel"] == "longitudinal_f"
+    assert floors["channels"] == ["longitudinal_f", "lateral_f"]
+    assert floors["missed"] == ["lateral_f onset delay 0.57 s > 0.3 s"]
+    cue["channels"]["lateral_f"] = {"correlation": 0.1, "vehicle_peak": 0.16, "threshold": 0.17}
+    assert cue_floors(cue) | {"channel": None} == {
+        "channel": None,
+        "channels": ["longitudinal_f"],
+        "met": True,
+        "missed": [],
+    }
 
 
 def test_batch_judges_a_cueing_run_by_its_floors_not_step_growth():

@@ -373,7 +373,7 @@ def print_cue_summary(cue: Mapping, file=None) -> None:
         )
     floors = cue_floors(cue)
     print(
-        f"floors ({floors['channel']}): "
+        f"floors ({', '.join(floors['channels'])}): "
         + ("met" if floors["met"] else "missed: " + "; ".join(floors["missed"])),
         file=file,
     )
@@ -406,11 +406,12 @@ def telemetry_of(columns: Mapping) -> Telemetry:
     return Telemetry(t=t, f=f, w=w)
 
 
-#: What a driver would accept (docs/cueing.md), on the channel the vehicle drives most
-#: (the larger perceived vehicle peak of surge and sway): perceived correlation (0.8 on
-#: surge, 0.85 on sway), mean lag (s), worst onset delay (s) with no onset missed, the
-#: raw head signal's wrong-sign peak at the onsets (m/s^2, the otoliths' threshold);
-#: felt false roll and pitch (s); the cueing box and the end stops; valve saturation.
+#: What a driver would accept (docs/cueing.md), on every channel the vehicle drives (surge
+#: and sway whose perceived vehicle peak passes the otoliths' threshold; the larger of the
+#: two if neither does): perceived correlation (0.8 on surge, 0.85 on sway), mean lag (s),
+#: worst onset delay (s) with no onset missed, the raw head signal's wrong-sign peak at the
+#: onsets (m/s^2, the otoliths' threshold); felt false roll and pitch (s); the cueing box
+#: and the end stops; valve saturation.
 FLOORS = {
     "correlation": {"longitudinal_f": 0.8, "lateral_f": 0.85},
     "mean_lag_s": 0.5,
@@ -423,12 +424,18 @@ FLOORS = {
 
 
 def cue_floors(cue: Mapping) -> dict:
-    """The :data:`FLOORS` on one run's ``cueing`` block: ``channel`` (the main one),
-    ``met`` (bool) and ``missed`` (one short phrase per floor missed, with its value)."""
+    """The :data:`FLOORS` on one run's ``cueing`` block: ``channel`` (the main one: the
+    larger perceived vehicle peak), ``channels`` (those judged: every surge or sway channel
+    the vehicle drives past the otoliths' threshold, else the main one), ``met`` (bool) and
+    ``missed`` (one short phrase per floor missed, with its value)."""
     ch = cue.get("channels") or {}
     peak = {c: abs((ch.get(c) or {}).get("vehicle_peak") or 0.0) for c in FLOORS["correlation"]}
     main = max(peak, key=peak.get)
-    m = ch.get(main) or {}
+    thr = FLOORS["onset_raw_wrong_sign_peak"]
+    judged = [
+        c for c in FLOORS["correlation"] if peak[c] > ((ch.get(c) or {}).get("threshold") or thr)
+    ]
+    judged = judged or [main]
     missed = []
 
     def above(name, value, limit, unit=""):
@@ -436,21 +443,23 @@ def cue_floors(cue: Mapping) -> dict:
             shown = "none" if value is None else f"{value:.2f}{unit}"
             missed.append(f"{name} {shown} > {limit:g}{unit}")
 
-    corr = m.get("correlation")
-    if corr is None or corr < FLOORS["correlation"][main]:
-        shown = "none" if corr is None else f"{corr:.2f}"
-        missed.append(f"{main} correlation {shown} < {FLOORS['correlation'][main]:g}")
-    above(f"{main} mean lag", m.get("mean_lag_s"), FLOORS["mean_lag_s"], " s")
-    if m.get("onsets"):
-        above(f"{main} onset delay", m.get("onset_delay_s"), FLOORS["onset_delay_s"], " s")
-        if m.get("onsets_missed"):
-            missed.append(f"{main} onsets missed {m['onsets_missed']}")
-        above(
-            f"{main} raw wrong-sign peak",
-            m.get("onset_raw_wrong_sign_peak"),
-            FLOORS["onset_raw_wrong_sign_peak"],
-            " m/s^2",
-        )
+    for name in judged:
+        m = ch.get(name) or {}
+        corr = m.get("correlation")
+        if corr is None or corr < FLOORS["correlation"][name]:
+            shown = "none" if corr is None else f"{corr:.2f}"
+            missed.append(f"{name} correlation {shown} < {FLOORS['correlation'][name]:g}")
+        above(f"{name} mean lag", m.get("mean_lag_s"), FLOORS["mean_lag_s"], " s")
+        if m.get("onsets"):
+            above(f"{name} onset delay", m.get("onset_delay_s"), FLOORS["onset_delay_s"], " s")
+            if m.get("onsets_missed"):
+                missed.append(f"{name} onsets missed {m['onsets_missed']}")
+            above(
+                f"{name} raw wrong-sign peak",
+                m.get("onset_raw_wrong_sign_peak"),
+                FLOORS["onset_raw_wrong_sign_peak"],
+                " m/s^2",
+            )
     for rot in ("roll_rate", "pitch_rate"):
         v = (ch.get(rot) or {}).get("false_rotation_s")
         if v is not None:
@@ -464,7 +473,7 @@ def cue_floors(cue: Mapping) -> dict:
     sat = (cue.get("valves") or {}).get("saturated_fraction")
     if sat is not None:
         above("valve saturation", sat, FLOORS["valve_saturated_fraction"])
-    return {"channel": main, "met": not missed, "missed": missed}
+    return {"channel": main, "channels": judged, "met": not missed, "missed": missed}
 
 
 #: Cueing columns of ``simpro-sim batch``'s summary.csv (perceived correlations,

@@ -5,7 +5,7 @@ Runs the CommonRoad multi-body vehicle (:mod:`simpro_mj.config.manoeuvres`, extr
 (:mod:`simpro_mj.config.telemetry`), ready for a scenario's ``setpoint.cueing.telemetry``.
 Parameters by ``--set``: ``speed_kmh``, ``vehicle``, ``deceleration_mps2``,
 ``bump_height_m``, ``bump_length_m``, ``lead_s``, ``duration_s`` (0: automatic),
-``rate_hz``.
+``rate_hz``, ``tyre_offsets`` (``none``; ``commonroad``: the published tyre relay).
 """
 
 from __future__ import annotations
@@ -43,6 +43,7 @@ DEFAULTS = {
     "lead_s": 1.0,
     "duration_s": 0.0,
     "rate_hz": 200.0,
+    "tyre_offsets": "none",  # TYRE_OFFSETS: the lateral offsets p_hy1, p_vy1 at 0
 }
 
 
@@ -73,6 +74,7 @@ def spec_from(args) -> ManoeuvreSpec:
         lead_s=float(p["lead_s"]),
         duration_s=float(p["duration_s"]) or None,
         rate_hz=float(p["rate_hz"]),
+        tyre_offsets=str(p["tyre_offsets"]),
     )
     spec.check()
     return spec

@@ -88,6 +88,7 @@ PARAMETER_KEYS = {
     "tilt_limit_deg": ("tilt_limit", math.pi / 180.0),
     "tilt_accel_limit_deg_s2": ("tilt_accel_limit", math.pi / 180.0),
     "head_height_m": ("head_height", 1.0),
+    "head_height_pitch_m": ("head_height_pitch", 1.0),
     "jolt_limit_mps2": ("jolt_limit", 1.0),
     "heave_omega_rad_s": ("heave_omega", 1.0),
     "heave_zeta": ("heave_zeta", 1.0),
@@ -215,6 +216,7 @@ def manoeuvre_spec(man: Mapping):
         bump_height_m=man["bump_height_m"],
         bump_length_m=man["bump_length_m"],
         lead_s=man["lead_s"],
+        tyre_offsets=man["tyre_offsets"],
     )
 
 

@@ -8,6 +8,22 @@ its published parameter sets (:data:`VEHICLES`). It is an optional extra:
 files made with it (``scenarios/telemetry/``), so running them does
 not need it; ``simpro-sim manoeuvre`` makes more.
 
+Tyres (:data:`TYRE_OFFSETS`)
+    CommonRoad's lateral magic formula (``vehiclemodels.utils.tire_model``)
+    adds the tyre's offsets ``p_hy1`` (0.0027 rad) and ``p_vy1`` (0.037 F_z)
+    with the sign of the camber, ``sign(gamma) (p_hy1 + p_hy3 |gamma|)``: a
+    relay of about 0.1 F_z per tyre that flips whenever a wheel's camber
+    crosses zero, as it does at every small roll of a car driven straight.
+    In the model that relay is a roll limit cycle (0.46 deg peak to peak, 1.6 Hz,
+    1.05 m/s^2 of sway at the head peak to peak, driven straight at 60 km/h; gone,
+    1e-9 deg, without the offsets). A tyre's force is continuous in camber, so
+    the default ``tyre_offsets: none`` sets ``p_hy1 = p_vy1 = 0`` on this run's
+    parameter set (the camber terms stay, now ``p_hy3 gamma``, ``p_vy3 gamma F_z``);
+    ``commonroad`` keeps the published relay. Pacejka's MF 5.2 reading (the
+    offsets without the sign, ``p_hy1 + p_hy3 gamma``) holds still too (roll 2e-9 deg
+    peak to peak) with the car crabbing 0.07 m sideways in 4 s; it needs the
+    library's function replaced, so it is not offered (docs/paper-notes.md).
+
 A driver model closes the loop: speed held by a proportional acceleration
 command, the path followed by pure pursuit (look-ahead ``0.5 s`` of travel
 plus 5 m) with a first-order steering servo (20 1/s) under the model's own
@@ -57,13 +73,24 @@ from scipy.integrate import solve_ivp
 from simpro_mj.config.telemetry import Telemetry
 from simpro_mj.core.errors import UserInputError
 
-__all__ = ["MANOEUVRES", "VEHICLES", "HEAD_OFFSET", "ManoeuvreSpec", "generate", "available"]
+__all__ = [
+    "MANOEUVRES",
+    "TYRE_OFFSETS",
+    "VEHICLES",
+    "HEAD_OFFSET",
+    "ManoeuvreSpec",
+    "generate",
+    "available",
+]
 
 MANOEUVRES = ("braking", "lane_change", "slalom", "bump", "braking_turn")
 #: ``braking_turn``: the turn starts at ``lead_s`` and lasts TURN_S; the braking starts
 #: BRAKE_AFTER_S into the turn and lasts BRAKE_S; the turn's curvature gives
 #: TURN_LATERAL_MPS2 at the entry speed (a brisk country-road bend).
 TURN_S, BRAKE_AFTER_S, BRAKE_S, TURN_LATERAL_MPS2 = 3.0, 1.5, 2.0, 3.0
+#: ``ManoeuvreSpec.tyre_offsets``: ``none`` (the lateral offsets p_hy1, p_vy1 at 0:
+#: the force continuous in camber) or ``commonroad`` (the published sign(camber) relay).
+TYRE_OFFSETS = ("none", "commonroad")
 #: CommonRoad parameter sets (``vehiclemodels.parameters_vehicleN``); 4 is a trailer truck.
 VEHICLES = {"ford_escort": 1, "bmw_320i": 2, "vw_vanagon": 3}
 #: Driver's head from the sprung mass' centre of gravity, V frame (m): 0.3 m behind
@@ -92,11 +119,17 @@ class ManoeuvreSpec:
     lead_s: float = 1.0
     duration_s: float | None = None
     rate_hz: float = 200.0
+    tyre_offsets: str = "none"
 
     def check(self) -> None:
         if self.manoeuvre not in MANOEUVRES:
             raise ManoeuvreError(
                 f"invalid value at manoeuvre: {self.manoeuvre!r}; allowed: {list(MANOEUVRES)}"
+            )
+        if self.tyre_offsets not in TYRE_OFFSETS:
+            raise ManoeuvreError(
+                f"invalid value at tyre_offsets: {self.tyre_offsets!r}; "
+                f"allowed: {list(TYRE_OFFSETS)}"
             )
         if self.vehicle not in VEHICLES:
             raise ManoeuvreError(
@@ -129,7 +162,8 @@ def available() -> bool:
     return True
 
 
-def _params(vehicle: str):
+def _params(vehicle: str, tyre_offsets: str = "none"):
+    """A fresh parameter set of ``vehicle`` with its tyres per ``tyre_offsets``."""
     try:  # the optional extra [vehicle]
         from vehiclemodels import parameters_vehicle1, parameters_vehicle2, parameters_vehicle3
     except ImportError:
@@ -142,7 +176,11 @@ def _params(vehicle: str):
         2: parameters_vehicle2.parameters_vehicle2,
         3: parameters_vehicle3.parameters_vehicle3,
     }[VEHICLES[vehicle]]
-    return make()
+    p = make()  # a new object per call: the change below stays in this run
+    if tyre_offsets == "none":
+        p.tire.p_hy1 = 0.0
+        p.tire.p_vy1 = 0.0
+    return p
 
 
 # ---------------------------------------------------------------- paths
@@ -207,9 +245,6 @@ def _run_mb(
     )  # fmt: skip
     x0 = pre.y[:, -1].copy()
     x0[0] = x0[1] = x0[4] = 0.0  # back to the origin, heading along x
-    # Driven straight the model settles into a small roll limit cycle (+-0.2 deg
-    # at ~1.6 Hz, +-2.3 deg/s; the same at 1 ms and 5 ms steps: the model's, kept
-    # and reported in docs/paper-notes.md; zeroing the roll states only jolts it).
 
     events = None
     if v_stop is not None:
@@ -283,7 +318,7 @@ def _hold_speed(v_set: float):
 def generate(spec: ManoeuvreSpec) -> Telemetry:
     """Run one manoeuvre; returns head telemetry (V frame) at ``spec.rate_hz``."""
     spec.check()
-    p = _params(spec.vehicle)
+    p = _params(spec.vehicle, spec.tyre_offsets)
     v0 = spec.speed_kmh / 3.6
     lead = spec.lead_s
     if spec.manoeuvre == "braking":

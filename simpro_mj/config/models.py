@@ -417,6 +417,7 @@ class CueManoeuvre(CueBlock):
     bump_height_m: SkipValidation[int | float] = 0.06
     bump_length_m: SkipValidation[int | float] = 0.5
     lead_s: SkipValidation[int | float] = 1.0
+    tyre_offsets: SkipValidation[str] = "none"
 
     @model_validator(mode="after")
     def _spec(self):
