@@ -67,6 +67,10 @@ def test_cli_json_and_throughput(capsys):
     assert tp["identical"] is True  # threaded runs equal a serial one bit for bit
     assert tp["workers_1"] > 0 and tp["workers_2"] > 0
     assert math.isclose(tp["speedup"], tp["workers_2"] / tp["workers_1"], rel_tol=1e-12)
+    # bare mj_step's own scaling: the same replay on 1 and 2 threads
+    assert tp["bare_workers_1"] > 0 and tp["bare_workers_2"] > 0
+    assert math.isclose(tp["bare_speedup"], tp["bare_workers_2"] / tp["bare_workers_1"])
+    assert all(s is None or 0.0 <= s <= 1.0 for s in tp["others_share"])
 
 
 def test_human_table(capsys):

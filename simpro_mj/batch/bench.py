@@ -35,7 +35,12 @@ the median over the repeats:
   ``mj_step`` releases the GIL and the compiled step runs inside it), in
   simulated seconds per wall second; the runs are built before the clock
   starts. ``identical`` says whether every threaded run's log and ``qpos``
-  equal a serial run's bit for bit.
+  equal a serial run's bit for bit. ``bare_workers_1``/``bare_workers_2``/
+  ``bare_speedup``: the same for bare ``mj_step`` (the run's replay,
+  :func:`mujoco.rollout.rollout`, on 1 and 2 threads), the ceiling of the
+  scaling on this machine; ``others_share``: per repeat, the share of the
+  cores other processes kept busy meanwhile (Linux ``/proc/stat``; ``null``
+  elsewhere), which a shared machine's threads compete with.
 
 ``docs/performance.md`` holds the figures of this machine and how they scale.
 """
@@ -138,6 +143,44 @@ def _threaded(scenario: dict, model, workers: int, runs: int, serial) -> tuple[f
     return sum(r.sim["simulated_s"] for r in results) / wall, same
 
 
+def _bare_threaded(model, state0, warm0, ctrl, workers: int, runs: int) -> float:
+    """Simulated seconds per wall second of ``runs`` replays of the run's forces
+    (:func:`mujoco.rollout.rollout`, which releases the GIL) on ``workers`` threads:
+    bare ``mj_step``'s own scaling, the ceiling of the co-simulation's."""
+    spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
+    n = len(ctrl)
+    datas = [mujoco.MjData(model) for _ in range(runs)]
+    outs = [np.empty((1, n, mujoco.mj_stateSize(model, spec))) for _ in range(runs)]
+
+    def replay(i):
+        rollout.rollout(model, datas[i], state0[None], ctrl[None],
+                        initial_warmstart=warm0[None], state=outs[i])  # fmt: skip
+
+    t0 = time.perf_counter()
+    with ThreadPoolExecutor(max_workers=workers) as pool:
+        list(pool.map(replay, range(runs)))
+    return runs * n * float(model.opt.timestep) / (time.perf_counter() - t0)
+
+
+def _others_busy():
+    """CPU seconds the whole machine has spent busy so far, and this process's (Linux)."""
+    try:
+        with open("/proc/stat") as fh:
+            v = [int(x) for x in fh.readline().split()[1:]]
+    except OSError:
+        return None
+    return (sum(v) - v[3] - v[4]) / os.sysconf("SC_CLK_TCK"), time.process_time()
+
+
+def _others_share(before, wall: float):
+    """Share of the cores other processes kept busy since ``before`` (:func:`_others_busy`)."""
+    after = _others_busy()
+    if before is None or after is None or wall <= 0:
+        return None
+    others = (after[0] - before[0]) - (after[1] - before[1])
+    return min(1.0, max(0.0, others) / ((os.cpu_count() or 1) * wall))  # /proc/stat: 10 ms ticks
+
+
 def _interpreted(scenario: dict, model) -> float:
     """us per step of the run with ``SIMPRO_KERNEL=python`` (the reference path)."""
     before = os.environ.get("SIMPRO_KERNEL")
@@ -223,21 +266,35 @@ def measure(
     if batch:
         serial = CoSimulation(scenario, model=model).run()
         signal_ready("throughput")
-        tput, same = {1: [], 2: []}, True
+        tput, bare_t, others, same = {1: [], 2: []}, {1: [], 2: []}, [], True
         for r in range(repeats):
+            say(f"throughput, 1 and 2 threads, {r + 1}/{repeats}")
+            t0, before = time.perf_counter(), _others_busy()
             for workers in (1, 2):
-                say(f"throughput, {workers} thread(s), {r + 1}/{repeats}")
                 rate, ok = _threaded(scenario, model, workers, batch_runs, serial)
                 tput[workers].append(rate)
                 same = same and ok
+                rate = _bare_threaded(model, state0, warm0, ctrl, workers, batch_runs)
+                bare_t[workers].append(rate)
+            others.append(_others_share(before, time.perf_counter() - t0))
         w1, w2 = statistics.median(tput[1]), statistics.median(tput[2])
+        b1, b2 = statistics.median(bare_t[1]), statistics.median(bare_t[2])
         out["throughput"] = {
             "workers_1": w1,
             "workers_2": w2,
             "speedup": w2 / w1,
+            "bare_workers_1": b1,
+            "bare_workers_2": b2,
+            "bare_speedup": b2 / b1,
             "runs": batch_runs,
             "identical": same,
-            "samples": {"workers_1": tput[1], "workers_2": tput[2]},
+            "others_share": others,
+            "samples": {
+                "workers_1": tput[1],
+                "workers_2": tput[2],
+                "bare_workers_1": bare_t[1],
+                "bare_workers_2": bare_t[2],
+            },
         }
     return out
 
@@ -277,9 +334,18 @@ def table(r: dict) -> str:
             f"  batch of {tp['runs']} runs      simulated s / wall s",
             f"    1 thread           {tp['workers_1']:8.1f}",
             f"    2 threads          {tp['workers_2']:8.1f}   (x{tp['speedup']:.2f})",
+            f"    bare mj_step       {tp['bare_workers_1']:8.1f}   -> {tp['bare_workers_2']:.1f} "
+            f"on 2 threads (x{tp['bare_speedup']:.2f})",
             "    results            "
             + ("identical to a serial run" if tp["identical"] else "DIFFER from a serial run"),
         ]
+        busy = [x for x in tp["others_share"] if x is not None]
+        if busy:
+            lines.append(
+                f"    other processes    {100 * max(busy):.0f} % of the cores at most (per repeat: "
+                + ", ".join(f"{100 * x:.0f} %" for x in busy)
+                + "; above a few % the threads share the cores with them)"
+            )
     return "\n".join(lines)
 
 

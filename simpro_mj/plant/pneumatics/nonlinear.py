@@ -111,9 +111,7 @@ class NonlinearActuators:
         self._kc = P.conductance * RHO_REF * math.sqrt(T_REF / P.temperature)  # kg/(s Pa)
         self._RTk = P.gas_constant * P.temperature * self._kc
         self._xp, self._fp = psi_table(P.b_crit, P.r_laminar)
-        # metering edges as a (4, 3) block: rows P->1, P->2, 1->R, 2->R
-        self._sg = np.array([[1.0], [-1.0], [-1.0], [1.0]]) * np.ones((1, 3))
-        self._delta = np.broadcast_to(P.underlap, (4, 3)).copy()
+        self._delta = np.broadcast_to(np.asarray(P.underlap, float), (3,)).tolist()
         self._eps = P.leakage
         # volumes V = V0 + dV/dq q: V1 = V01 + A1 q, V2 = V02 + A2 (L - q)
         v0 = np.concatenate([P.dead_cap, P.dead_rod + self._A2 * self._L])
@@ -153,6 +151,7 @@ class NonlinearActuators:
             (fl[j + 1] - fl[j]) / (xl[j + 1] - xl[j]) for j in range(n - 1)
         ]
         self.step_constants = ac
+        self._table = ([0.0] * sf.A_LEN, ac.tolist(), n)  # the ψ table for the static solve
         self._f = np.zeros(3)
         self.u_hold = np.full(3, U_CENTRE)
         self._dt = None
@@ -180,11 +179,6 @@ class NonlinearActuators:
             ac[sf.AC_AD : sf.AC_AD + 4] = e[:2, :2].reshape(4)
             ac[sf.AC_AD + 4 : sf.AC_AD + 6] = e[:2, 2]
 
-    def openings(self, spool) -> np.ndarray:
-        """Edge openings (4, 3) for spool positions: rows P->1, P->2, 1->R, 2->R."""
-        s = np.asarray(spool, float)
-        return np.clip(self._delta + self._sg * s, self._eps, 1.0)
-
     def psi(self, r):
         """ψ(r) = φ(r)/(1 - r) as used in :meth:`step` (table interpolation)."""
         return np.interp(r, self._xp, self._fp)
@@ -195,10 +189,25 @@ class NonlinearActuators:
         The same flow law as :meth:`step` (ψ table): supply edge
         :math:`a_P k ψ(p/p_s)(p_s - p)` minus exhaust edge :math:`a_R k ψ(p_a/p)(p - p_a)`.
         """
-        a = self.openings(spool)
-        p = np.asarray(p, float)
-        m_in = a[chamber - 1] * self._kc * self.psi(p / self._ps) * (self._ps - p)
-        m_out = a[chamber + 1] * self._kc * self.psi(self._pa / p) * (p - self._pa)
+        p, s = np.broadcast_to(p, (3,)), np.broadcast_to(spool, (3,))
+        return np.array([self._net_flow(float(p[i]), float(s[i]), i, chamber) for i in range(3)])
+
+    def _net_flow(self, p: float, s: float, leg: int, chamber: int) -> float:
+        """:meth:`chamber_net_flow` of one leg in scalar arithmetic (the static solve's).
+
+        Python floats in numpy's order of operations, ψ interpolated by the
+        step's own table look-up on lists (the same bits as ``np.interp``): a
+        tenth of the array form's cost (the nested Brent iterations of
+        :meth:`equilibrium` evaluate it about a thousand times, in the GIL,
+        before every run).
+        """
+        d, eps = self._delta[leg], self._eps
+        # metering edges: supply P->1 and exhaust 2->R open with +s, P->2 and 1->R with -s
+        a_in = min(max(d + s if chamber == 1 else d - s, eps), 1.0)
+        a_out = min(max(d - s if chamber == 1 else d + s, eps), 1.0)
+        ps, pa, kc = self._ps, self._pa, self._kc
+        m_in = a_in * kc * sf._psi(p / ps, 0, *self._table) * (ps - p)
+        m_out = a_out * kc * sf._psi(pa / p, 6, *self._table) * (p - pa)
         return m_in - m_out
 
     # -- state ---------------------------------------------------------------
@@ -235,15 +244,10 @@ class NonlinearActuators:
 
     def _static_pressure(self, leg: int, s: float, chamber: int) -> float:
         """Pressure of zero net flow into a chamber at spool ``s`` (Brent)."""
-        sv = np.zeros(3)
-        sv[leg] = s
-
-        def g(p):
-            return self.chamber_net_flow(np.full(3, p), sv, chamber)[leg]
-
         from scipy.optimize import brentq  # on use, see _set_dt
 
-        return brentq(g, self._pa, self._ps, xtol=1e-7, rtol=1e-14)
+        args = (s, leg, chamber)
+        return brentq(self._net_flow, self._pa, self._ps, args=args, xtol=1e-7, rtol=1e-14)
 
     def reset(self, q, qdot, force=None) -> None:
         """Set the state at rest: valve centred (``force=None``), or the static
@@ -288,18 +292,6 @@ class NonlinearActuators:
             _as3(u_volts), _as3(q), _as3(qdot), self.step_state, self.step_constants, self._f
         )
         return self._f.copy()
-
-    def set_supply_pressure(self, p_pa: float) -> None:
-        """Change the supply pressure p_s (Pa absolute) at run time (supply-drop fault).
-
-        :meth:`step` reads it every step; chambers above the new p_s flow
-        back to the supply line on the next steps (the valve's supply edge).
-        """
-        p = float(p_pa)
-        if not p > self._pa:
-            raise ValueError(f"supply pressure must exceed atmospheric {self._pa} Pa, got {p}")
-        self._ps = p
-        self.step_state[sf.A_PS] = p
 
 
 def _as3(x) -> np.ndarray:
