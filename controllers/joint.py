@@ -254,100 +254,39 @@ class JointControllers:
         self.designs = tuple(designs)
         self.plants = tuple(plants)
 
-        n = 3 * _NX
-        m = np.zeros((n + 3, n + 3))
-        r0 = np.empty(3)
+        r0 = np.array([split_integrator(des)[0] for des in self.designs])
+        self._int_gain = r0 * self.dt  # increment of x_I per unit error
+        # the per-step function's arrays (controllers.step_functions.joint_step): per leg
+        # [[A, B], [C, D]], the limits, the states (3 per leg, the integrator last)
+        self.step_matrices = np.zeros((3, _NX + 1, _NX + 1))
         for i, des in enumerate(self.designs):
             a, b, c, d = leg_state_space(des, self.dt, method)
-            s = slice(_NX * i, _NX * (i + 1))
-            m[s, s] = a
-            m[s, n + i] = b[:, 0]
-            m[n + i, s] = c[0]
-            m[n + i, n + i] = d[0, 0]
-            r0[i] = split_integrator(des)[0]
-        self._m = m
-        self._n = n
-        self._int_idx = np.arange(_NX - 1, n, _NX)  # integrator states
-        self._int_gain = r0 * self.dt  # increment of x_I per unit error
-        self._aw = self.dt / self.tracking_time
-        # the per-step function's arrays (controllers.step_functions.joint_step): per leg
-        # [[A, B], [C, D]], the limits, the states
-        self.step_matrices = np.zeros((3, _NX + 1, _NX + 1))
-        for i in range(3):
-            rows = [_NX * i + j for j in range(_NX)] + [n + i]
-            self.step_matrices[i] = m[np.ix_(rows, rows)]
-        self.step_limits = np.array(
-            [self.u_offset, self.u_min, self.u_max, ANTI_WINDUP.index(anti_windup), self._aw]
-        )
-        self._x = np.zeros(n)
+            self.step_matrices[i] = np.block([[a, b], [c, d]])
+        aw = ANTI_WINDUP.index(anti_windup)
+        self.step_limits = np.array([u_offset, u_min, u_max, aw, self.dt / self.tracking_time])
+        self._x = np.zeros(3 * _NX)
         self._v = np.zeros(3)
-
-    # ------------------------------------------------------------------
-    @property
-    def matrices(self) -> np.ndarray:
-        """The stacked ``[[A, B], [C, D]]`` (12 x 12) of the three legs (copy)."""
-        return self._m.copy()
-
-    @property
-    def state(self) -> np.ndarray:
-        """Controller states (3 legs x 3), integrator last (copy)."""
-        return self._x.reshape(3, _NX).copy()
 
     @property
     def integrator(self) -> np.ndarray:
         """The integrator state of each leg, volts (copy)."""
-        return self._x[self._int_idx].copy()
+        return self._x[_NX - 1 :: _NX].copy()
 
     def reset(self) -> None:
         """Zero every state: the next command is ``u_offset`` for zero error."""
         self._x[:] = 0.0
 
-    def update(self, q_ref, q_meas) -> np.ndarray:
-        """One 1 ms step: joint references and measurements (m) -> valve volts (3,).
+    def update(self, q_ref, q_meas, u_ff=None) -> np.ndarray:
+        """One 1 ms step: joint references and measurements (m, (3,)) -> valve volts (3,).
 
-        Parameters
-        ----------
-        q_ref, q_meas : array_like, (3,)
-            Desired and measured cylinder extensions (m).
-
-        Returns
-        -------
-        ndarray, (3,)
-            Valve commands in ``[u_min, u_max]`` V.
-        """
-        return np.array(self.update_floats(_floats3(q_ref), _floats3(q_meas)))
-
-    def update_floats(self, q_ref, q_meas, u_ff=None) -> list:
-        """:meth:`update` on sequences of 3 floats, returning a list of 3 floats.
-
-        ``u_ff`` (3 floats, V, optional) is added to the controllers' outputs before
+        ``u_ff`` ((3,) V, optional) is added to the controllers' outputs before
         the saturation (the leg velocity feed-forward,
         :mod:`controllers.velocity_feedforward`); the anti-windup sees the total.
-        The arithmetic is :func:`controllers.step_functions.joint_step`, the
-        co-simulation's step.
+        Returns a new array in ``[u_min, u_max]`` V. The arithmetic is
+        :func:`controllers.step_functions.joint_step`, the co-simulation's step.
         """
-        f = (0.0, 0.0, 0.0) if u_ff is None else u_ff
-        joint_step(
-            self._x,
-            self.step_matrices,
-            q_ref[0] - q_meas[0],
-            q_ref[1] - q_meas[1],
-            q_ref[2] - q_meas[2],
-            f[0],
-            f[1],
-            f[2],
-            self.step_limits,
-            self._int_gain,
-            self.step_band,
-            self._v,
-        )
-        return self._v.tolist()
-
-
-def _floats3(x) -> list:
-    """Three numbers from a (3,) array or a sequence (the items as they are)."""
-    if type(x) is np.ndarray and x.shape == (3,):
-        return x.tolist()
-    if isinstance(x, list | tuple) and len(x) == 3:
-        return x
-    return np.broadcast_to(np.asarray(x, dtype=float), (3,)).tolist()
+        e = np.broadcast_to(np.asarray(q_ref, float) - np.asarray(q_meas, float), (3,))
+        f = np.broadcast_to(np.asarray(0.0 if u_ff is None else u_ff, float), (3,))
+        joint_step(self._x, self.step_matrices, *e.tolist(), *f.tolist(), self.step_limits,
+                   self._int_gain, self.step_band, self._v)  # fmt: skip
+        return self._v.copy()

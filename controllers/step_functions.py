@@ -446,19 +446,17 @@ def outer_update(r0, r1, r2, y0, y1, y2, qm0, qm1, qm2, hold, ts, tc, g):
         return ERR_MEAS_NONFINITE
     e[0], e[1], e[2] = ref[0] - y0, ref[1] - y1, ref[2] - y2
     mode = tc[TC_MODE]
-    if mode == MODE_FF:
+    if mode == MODE_FF:  # the error the correction integrates
         if tc[TC_AVG] != 0.0 or tc[TC_LAGJ] != 0.0:
             _ff_error(y0, y1, y2, qm0, qm1, qm2, ts, tc, g, e)
         elif tc[TC_TAU] > 0.0:
             e[0], e[1], e[2] = ts[T_MODEL] - y0, ts[T_MODEL + 1] - y1, ts[T_MODEL + 2] - y2
-        for j in range(3):
-            if tc[TC_DB + j] > 0.0:
-                e[j] = dead_band(e[j], tc[TC_DB + j])
-        _correct(ref, e, hold, ts, tc, g, q)
-        return ff_step(ref, ts, tc, g)
     for j in range(3):  # the dead band: within it the integrated pose holds
         if tc[TC_DB + j] > 0.0:
             e[j] = dead_band(e[j], tc[TC_DB + j])
+    if mode == MODE_FF:
+        _correct(ref, e, hold, ts, tc, g, q)
+        return ff_step(ref, ts, tc, g)
     if mode == MODE_I:
         err = _ik_xc(ts, g)
         _integrate(tc[TC_TG] * e[0], tc[TC_TG + 1] * e[1], tc[TC_TG + 2] * e[2], ts, tc, g)

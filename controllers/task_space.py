@@ -60,8 +60,8 @@ joint loops) ``e = y_d - y``: no steady-state error. In the linear loop
 ``e = -c[k-1]``: ``z^2 - z + T K K_I``, stable for ``T K K_I < 1``.
 ``average=True`` takes the means of ``y_d, y, q_d, q_meas`` over the outer
 period (the sensors' noise averaged over its samples instead of one sample).
-Call :meth:`TaskSpaceController.update_floats` at the outer steps (it
-integrates ``c``) and :meth:`TaskSpaceController.feedforward_floats` every
+Call :meth:`TaskSpaceController.update` at the outer steps (it
+integrates ``c``) and :meth:`TaskSpaceController.feedforward` every
 inner step. ``docs/feedforward.md`` has the block diagram.
 
 Workspace: a set-point outside the reachable workspace raises
@@ -154,7 +154,7 @@ class TaskSpaceController:
     average : bool
         ``mode="feedforward"``: the correction uses the means of the signals over
         the outer period (every inner step passes them to
-        :meth:`feedforward_floats`) instead of the samples at the outer step.
+        :meth:`feedforward`) instead of the samples at the outer step.
     margin : float
         Stroke margin (m) kept by the integrated pose and by clamping.
     dead_band : float or (3,) array_like
@@ -262,11 +262,6 @@ class TaskSpaceController:
         """The integrated pose correction ``c`` of ``mode="feedforward"`` (copy)."""
         return self.step_state[sf.T_CORR : sf.T_CORR + 3].copy()
 
-    @property
-    def q_desired(self) -> np.ndarray:
-        """The last joint reference (m, copy)."""
-        return self.step_state[sf.T_QD : sf.T_QD + 3].copy()
-
     def is_due(self, inner_step: int) -> bool:
         """True on the inner steps at which the outer loop runs (every ``ratio`` steps)."""
         return inner_step % self.ratio == 0
@@ -287,50 +282,37 @@ class TaskSpaceController:
         ts[sf.T_REFCMD : sf.T_REFCMD + 3] = pose0
         return q
 
-    def update(self, pose_ref, pose_meas) -> np.ndarray:
+    def update(self, pose_ref, pose_meas, hold: bool = False, q_meas=None) -> np.ndarray:
         """One outer step: set-point and measured pose -> joint reference ``q_d`` (3,), m.
 
-        Parameters
-        ----------
-        pose_ref, pose_meas : array_like, (3,)
-            (roll rad, pitch rad, heave m).
-        """
-        return np.array(self.update_floats(_floats3(pose_ref), _floats3(pose_meas)))
-
-    def update_floats(
-        self, pose_ref: list, pose_meas: list, hold: bool = False, q_meas: list | None = None
-    ) -> list:
-        """:meth:`update` on sequences of 3 floats; returns ``q_d`` as a new list.
-
-        The arithmetic is :func:`controllers.step_functions.outer_update`, the
-        co-simulation's step. ``hold`` and ``q_meas`` (the measured joints,
-        needed with ``lag="joints"``) are used by ``mode="feedforward"`` only.
+        ``pose_ref``, ``pose_meas``: (roll rad, pitch rad, heave m). ``hold`` and
+        ``q_meas`` (the measured joints, needed with ``lag="joints"``) are used by
+        ``mode="feedforward"`` only. The arithmetic is
+        :func:`controllers.step_functions.outer_update`, the co-simulation's step.
         """
         ts, tc, g = self.step_state, self.step_constants, self.step_geometry
         if self.mode == "joint_only":
             ref = ts[sf.T_SCR : sf.T_SCR + 3]
-            err = sf.outer_setpoint(*map(float, pose_ref), tc, g, ts[sf.T_SCR + 3 :], ref)
+            err = sf.outer_setpoint(*_floats(pose_ref), tc, g, ts[sf.T_SCR + 3 :], ref)
             raise_step_error(err, pose_ref, pose_meas, self.geometry, self.margin)
             ts[sf.T_XC : sf.T_XC + 3] = ref
             ts[sf.T_QXC_OK] = 0.0
             q = ts[sf.T_QD : sf.T_QD + 3]
             if sf.ik_pose(ref[0], ref[1], ref[2], g, 0.0, False, q) == sf.IK_MISS:
                 raise_step_error(sf.ERR_GUIDE, pose_ref, pose_meas, self.geometry, self.margin)
-            return q.tolist()
+            return q.copy()
         if self.mode == "feedforward" and self.lag == "joints" and q_meas is None:
             raise ValueError("lag='joints' needs the measured joints q_meas")
         qm = (0.0, 0.0, 0.0) if q_meas is None else q_meas
-        err = sf.outer_update(*_floats9(pose_ref, pose_meas, qm), bool(hold), ts, tc, g)
+        err = sf.outer_update(*_floats(pose_ref, pose_meas, qm), bool(hold), ts, tc, g)
         raise_step_error(err, pose_ref, pose_meas, self.geometry, self.margin)
-        return ts[sf.T_QD : sf.T_QD + 3].tolist()
+        return ts[sf.T_QD : sf.T_QD + 3].copy()
 
-    def feedforward_floats(
-        self, pose_ref: list, pose_meas: list | None = None, q_meas: list | None = None
-    ) -> list:
-        """``q_d = IK(y_d + c)`` of ``mode="feedforward"`` for this inner step (new list).
+    def feedforward(self, pose_ref, pose_meas=None, q_meas=None) -> np.ndarray:
+        """``q_d = IK(y_d + c)`` of ``mode="feedforward"`` for this inner step (new array).
 
         ``pose_ref`` is the set-point of this step (checked or clamped as in
-        :meth:`update_floats`). The I law's pending increment, integrated at
+        :meth:`update`). The I law's pending increment, integrated at
         the last outer step, is applied from the next outer step on. With
         ``average=True`` the measured pose (and joints) of this step are added
         to the outer period's means. The arithmetic is
@@ -340,9 +322,9 @@ class TaskSpaceController:
         y = (0.0, 0.0, 0.0) if pose_meas is None else pose_meas
         qm = (0.0, 0.0, 0.0) if q_meas is None else q_meas
         ts, tc, g = self.step_state, self.step_constants, self.step_geometry
-        err = sf.ff_inner(*_floats9(pose_ref, y, qm), acc, ts, tc, g)
+        err = sf.ff_inner(*_floats(pose_ref, y, qm), acc, ts, tc, g)
         raise_step_error(err, pose_ref, pose_meas, self.geometry, self.margin)
-        return self.step_state[sf.T_QD : sf.T_QD + 3].tolist()
+        return ts[sf.T_QD : sf.T_QD + 3].copy()
 
 
 def raise_step_error(err: int, pose_ref, pose_meas, geometry, margin: float = 0.0) -> None:
@@ -371,11 +353,6 @@ def raise_step_error(err: int, pose_ref, pose_meas, geometry, margin: float = 0.
     )
 
 
-def _floats9(a, b, c) -> list:
-    """Three triples as nine Python floats (the per-step functions' scalar arguments)."""
-    return [float(v) for v in (a[0], a[1], a[2], b[0], b[1], b[2], c[0], c[1], c[2])]
-
-
-def _floats3(x) -> list:
-    """A (3,) pose as a list of 3 Python floats."""
-    return np.asarray(x, dtype=float).reshape(3).tolist()
+def _floats(*triples) -> list:
+    """(3,) poses or joint vectors as Python floats (the per-step functions' scalar arguments)."""
+    return [float(v) for t in triples for v in np.broadcast_to(np.asarray(t, float), (3,))]

@@ -155,7 +155,7 @@ def inscribed_box(
     return out
 
 
-def soft_limit(x, centre, lo, hi, knee: float = 0.8) -> np.ndarray:
+def soft_limit(x, centre, lo, hi, knee: float = 0.8):
     """Smooth saturation of ``x`` into the open interval (lo, hi) about ``centre``.
 
     With ``d = x - centre`` and ``L`` the distance from the centre to the limit
@@ -165,32 +165,21 @@ def soft_limit(x, centre, lo, hi, knee: float = 0.8) -> np.ndarray:
     and approaches the limit asymptotically (reaching it only where tanh rounds
     to 1, far past it), so a set-point near the workspace
     boundary slows down instead of hitting it (a clip would step the rate).
-    ``knee = 1`` is a hard clip. Vectorised; ``lo < centre < hi`` is required.
+    ``knee = 1`` is a hard clip. ``x`` a float or an array; ``lo < centre < hi``
+    is required.
     """
     if not (0.0 <= knee <= 1.0):
         raise ValueError(f"knee must be in [0, 1], got {knee!r}")
-    if isinstance(x, float):  # the per-sample path of the cueing loop: same maths, floats
-        d = x - centre
-        span = hi - centre if d >= 0.0 else centre - lo
-        if span <= 0:
-            raise ValueError(f"soft_limit needs lo < centre < hi, got {lo!r}, {centre!r}, {hi!r}")
-        a, k = abs(d), knee * span
-        if knee >= 1.0:
-            mag = min(a, span)
-        else:
-            rest = (1.0 - knee) * span
-            mag = a if a <= k else k + rest * math.tanh((a - k) / rest)
-        return centre + math.copysign(mag, d)
-    x = np.asarray(x, dtype=float)
-    d = x - centre
-    span = np.where(d >= 0.0, hi - centre, centre - lo)
-    if np.any(span <= 0):
+    if np.ndim(x):  # an array: the same arithmetic on each element
+        return np.vectorize(soft_limit, otypes=[float])(x, centre, lo, hi, knee)
+    d = float(x) - centre
+    span = hi - centre if d >= 0.0 else centre - lo
+    if span <= 0:
         raise ValueError(f"soft_limit needs lo < centre < hi, got {lo!r}, {centre!r}, {hi!r}")
-    a = np.abs(d)
-    k = knee * span
+    a, k = abs(d), knee * span
     if knee >= 1.0:
-        mag = np.minimum(a, span)
+        mag = min(a, span)
     else:
         rest = (1.0 - knee) * span
-        mag = np.where(a <= k, a, k + rest * np.tanh((a - k) / rest))
-    return centre + np.sign(d) * mag
+        mag = a if a <= k else k + rest * math.tanh((a - k) / rest)
+    return centre + math.copysign(mag, d)

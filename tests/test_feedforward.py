@@ -26,7 +26,7 @@ def test_setpoint_goes_through_the_ik_every_step():
     ctl.reset(HOME)
     ref = (HOME + np.array([0.01, -0.02, 0.005])).tolist()
     # between outer steps q_d follows the set-point at once (no outer loop in the path)
-    q = ctl.feedforward_floats(ref)
+    q = ctl.feedforward(ref)
     assert np.allclose(q, inverse_kinematics(np.array(ref)), atol=1e-12)
 
 
@@ -35,17 +35,17 @@ def test_correction_is_the_i_law_on_the_error_one_period_late():
     ctl.reset(HOME)
     ref = HOME.tolist()
     meas = (HOME - np.array([0.0, 0.001, 0.0])).tolist()  # 1 mrad below on pitch
-    ctl.update_floats(ref, meas)  # c[0] = 0 applied, c[1] = T g e integrated
+    ctl.update(ref, meas)  # c[0] = 0 applied, c[1] = T g e integrated
     assert np.allclose(ctl.correction, 0.0)
-    q1 = ctl.update_floats(ref, meas)  # c[1] applied now
+    q1 = ctl.update(ref, meas)  # c[1] applied now
     assert ctl.correction[1] == pytest.approx(0.06 * 2.0 * 0.001, rel=1e-12)
     assert np.allclose(q1, inverse_kinematics(HOME + ctl.correction), atol=1e-12)
     # hold (a valve at its rail during the period): the pending step is applied,
     # no new one is integrated
-    ctl.update_floats(ref, meas, hold=True)
+    ctl.update(ref, meas, hold=True)
     c2 = ctl.correction[1]
     assert c2 == pytest.approx(2 * 0.06 * 2.0 * 0.001, rel=1e-12)
-    ctl.update_floats(ref, meas)
+    ctl.update(ref, meas)
     assert ctl.correction[1] == pytest.approx(c2, rel=1e-12)
 
 
@@ -60,9 +60,9 @@ def test_reference_model_removes_the_expected_lag_only():
         m = HOME.copy()
         for k in range(600):
             if k % 60 == 0:
-                ctl.update_floats(step.tolist(), m.tolist())
+                ctl.update(step.tolist(), m.tolist())
             else:
-                ctl.feedforward_floats(step.tolist())
+                ctl.feedforward(step.tolist())
             m = m + (1 - math.exp(-dt / tau)) * (step - m)  # the pose the model expects
         assert np.allclose(ctl.correction, 0.0, atol=1e-12) == expect_zero
 
@@ -83,9 +83,9 @@ def _leg_lag_run(**kw):
         y = HOME + jinv @ (q - q_home) - delta
         ref = (HOME if k < 4000 else step).tolist()
         if k % 60 == 0:
-            qd = ctl.update_floats(ref, y.tolist(), q_meas=q.tolist())
+            qd = ctl.update(ref, y.tolist(), q_meas=q.tolist())
         else:
-            qd = ctl.feedforward_floats(ref, y.tolist(), q.tolist())
+            qd = ctl.feedforward(ref, y.tolist(), q.tolist())
         corr.append(ctl.correction)
         q = q + alpha * (np.array(qd) - q)
     return np.array(corr), np.array(ref) - y, delta
@@ -109,7 +109,7 @@ def test_joint_lag_needs_the_joints():
     ctl = _ctl(lag="joints")
     ctl.reset(HOME)
     with pytest.raises(ValueError, match="q_meas"):
-        ctl.update_floats(HOME.tolist(), HOME.tolist())
+        ctl.update(HOME.tolist(), HOME.tolist())
     with pytest.raises(ValueError, match="allowed"):
         _ctl(lag="legs")
 
@@ -147,7 +147,7 @@ def ff_step():
 def test_step_on_the_default_plant_meets_the_floors(ff_step):
     """The feed-forward floors on a short step (final window 6.4-8 s, 5.4 s after the step):
     overshoot <= 10 %; the steady-state error of the true pose below the sensor floor
-    the plant's sensors define (:meth:`simpro_mj.plant.sensors.Sensors.resolution_floor`:
+    the plant's sensors define (:meth:`simpro_mj.plant.sensors.SensorConfig.resolution_floor`:
     the IMU's noise averaged over 1 s, the height encoder's resolution)."""
     res, met = ff_step
     assert met["axes"]["pitch"]["overshoot_pct"] <= 10.0

@@ -2,7 +2,7 @@
 
 Floors and tolerances used here:
 
-* sensor-resolution floor: :meth:`simpro_mj.plant.sensors.Sensors.resolution_floor`
+* sensor-resolution floor: :meth:`simpro_mj.plant.sensors.SensorConfig.resolution_floor`
   (IMU: 3 sigma of the 0.005 deg noise averaged over 1 s of 200 Hz samples =
   0.0011 deg; height encoder: one 0.01 mm step). The task loop integrates the
   *measured* error, so it cannot remove error below what the sensors resolve.

@@ -74,8 +74,8 @@ def test_the_setpoint_filter_turns_a_step_into_the_ramps_rate():
 def test_joint_controllers_add_the_feedforward_before_saturation():
     a, b = JointControllers(), JointControllers()
     q = [0.1, 0.2, 0.3]
-    ua = a.update_floats(q, q)
-    ub = b.update_floats(q, q, [1.5, -2.0, 7.0])
+    ua = a.update(q, q)
+    ub = b.update(q, q, [1.5, -2.0, 7.0])
     assert ub[0] - ua[0] == pytest.approx(1.5) and ub[1] - ua[1] == pytest.approx(-2.0)
     assert ub[2] == b.u_max  # 5 V + 7 V: at the rail
 

@@ -23,7 +23,7 @@ the error ``reference - true pose`` of every task axis is quiet:
 The threshold of an axis is the settling band's floor
 (:data:`simpro_mj.analysis.metrics.SETTLING_FLOOR`: 0.02 deg, 0.2 mm, the band a
 settled step stays in), or :data:`FLOOR_FACTOR` times the sensors' resolution
-floor (:meth:`simpro_mj.plant.sensors.Sensors.resolution_floor`: quantisation
+floor (:meth:`simpro_mj.plant.sensors.SensorConfig.resolution_floor`: quantisation
 plus three standard deviations of the 1 s averaged noise, plus the IMU's
 static bias) if that is larger. On the shipped step scenarios the residual is
 0.002-0.003 deg and 0.01-0.02 mm (the sensor noise the loop feeds back), ten

@@ -64,14 +64,14 @@ A fault at ``time_s`` thus acts from the step ``round(time_s / dt)`` on
 controllers saw (``q*_meas_m``, ``*_meas_*``) and the two columns of
 :data:`FAULT_COLUMNS`: ``fault_flags`` and ``supply_pa``.
 
-*Supply pressure at run time.* ``NonlinearActuators.set_supply_pressure``
-sets ``self._ps`` (and the compiled kernel's copy), which ``step`` reads every
-step (supply term of the implicit pressure update, 1/p_s of the supply edge's
-pressure ratio, the upper pressure bound); ``params.p_supply`` (a frozen
-dataclass) is not read after construction. ``LinearActuators`` has no supply
-in its law; its ``set_supply_pressure`` moves its force bound and passes p_s
-on to the nonlinear model behind its display pressures. (The MJCF motors
-are not ``ctrllimited``: the pneumatic model alone bounds the forces.)
+*Supply pressure at run time.* The step's actuator state holds p_s
+(:data:`simpro_mj.plant.step_functions.A_PS`, set at an event by
+:class:`simpro_mj.sim.stages.FaultHooks`), which the nonlinear chamber update
+reads every step (supply term of the implicit pressure update, the supply
+edge's pressure ratio); ``params.p_supply`` (a frozen dataclass) is not read
+after construction. The linear model (eq. 19) has no supply in its law; its
+force bounds follow p_s. (The MJCF motors are not ``ctrllimited``: the
+pneumatic model alone bounds the forces.)
 
 Flags
 -----
@@ -377,25 +377,23 @@ class FaultSchedule:
     def apply_valves(self, u):
         """Valve voltages with the stuck legs replaced.
 
-        Returns a new object of the kind given (a list of floats for a list, an
-        ndarray otherwise); ``u`` itself is left alone.
+        Returns a new array; ``u`` itself is left alone.
         """
         out = np.array(u, dtype=float)
         np.copyto(out, self.valve_values, where=self.valve_mask)
-        return out.tolist() if isinstance(u, list) else out
+        return out
 
     def apply_sensors(self, k: int, q_meas, pose_meas):
         """The readings the controller receives at step ``k``.
 
-        Returns new objects of the kind given (lists of floats for lists, ndarrays
-        otherwise); the inputs are left alone.
+        Returns new arrays; the inputs are left alone.
 
         Parameters
         ----------
         k : int
             Physics step.
         q_meas : array (3,)
-            Slide readings from :class:`simpro_mj.plant.sensors.Sensors` (m).
+            Slide readings of the potentiometers (m).
         pose_meas : array (3,)
             (roll rad, pitch rad, h m) as measured.
         """
@@ -421,8 +419,6 @@ class FaultSchedule:
                     s.last = y[c].copy()
             else:  # sensor_bias
                 y[c] += s.value
-        if isinstance(q_meas, list):
-            return y[:3].tolist(), y[3:].tolist()
         return y[:3], y[3:]
 
 

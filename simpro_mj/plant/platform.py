@@ -2,9 +2,7 @@
 
 The co-simulation (:mod:`simpro_mj.sim.loop`) holds the plant through this
 object, as a dm_control task holds its ``Physics``: :meth:`Platform.reset`
-puts the closed chain at rest with the actuators holding it, and
-:meth:`Platform.check_loops` turns an opened kinematic loop into
-:class:`~simpro_mj.core.errors.PhysicsError`. The 1 ms step itself
+puts the closed chain at rest with the actuators holding it. The 1 ms step itself
 (:mod:`simpro_mj.sim.step`) reads MuJoCo's state, runs the sensors,
 controllers and actuators, and writes the slide forces into ``ctrl`` at the
 point of ``mj_step`` after the position and velocity stages, so the sensors
@@ -17,7 +15,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from simpro_mj.plant.model import PlantIndex, assemble, check_physics
+from simpro_mj.plant.model import PlantIndex, assemble
 from simpro_mj.plant.pneumatics.statics import holding_forces
 
 __all__ = ["Platform"]
@@ -43,7 +41,6 @@ class Platform:
         self.model = model
         self.data = mujoco.MjData(model)
         self.index = index or PlantIndex.of(model)
-        self.timestep = float(model.opt.timestep)
         self.actuators = actuators
 
     def reset(self, q0) -> None:
@@ -54,7 +51,3 @@ class Platform:
         assemble(m, d, q0, index=idx)
         self.actuators.reset(q0, np.zeros(3), force=holding_forces(m, d, idx))
         mujoco.mj_forward(m, d)
-
-    def check_loops(self, bound: float) -> None:
-        """Raise :class:`PhysicsError` naming the kinematic loop open beyond ``bound`` (m)."""
-        check_physics(self.model, self.data, loop_bound=bound, index=self.index)

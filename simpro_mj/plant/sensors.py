@@ -24,7 +24,7 @@ from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.rates import steps_per_period
 from simpro_mj.plant.sensor_errors import bias_walk_sigma, noise_sigma
 
-__all__ = ["DEFAULT_SENSORS", "POT_BITS", "POT_BITS_TEXT", "SensorConfig", "Sensors"]
+__all__ = ["DEFAULT_SENSORS", "POT_BITS", "POT_BITS_TEXT", "SensorConfig"]
 
 #: Resolutions a potentiometer channel may be given (bits); the scenario checks
 #: ``sensors.potentiometer.bits`` against the same range.
@@ -69,7 +69,23 @@ DEFAULT_SENSORS: dict = {
 
 @dataclass(frozen=True)
 class SensorConfig:
-    """Sensor parameters in SI, built from the edge-unit tree."""
+    """Sensor parameters in SI, built from the edge-unit tree.
+
+    The per-step models are :func:`simpro_mj.plant.step_functions.sample_sensors`
+    (run by the co-simulation's step, :mod:`simpro_mj.sim.step`), each sensor
+    sampled at its rate with zero-order hold between samples. Potentiometer i
+    reports ``q_i^m = Q((g_i q_i + o_i) + n)`` with Q the ADC quantiser (one
+    LSB = ``2 range / 2^bits`` volts) and saturation at the ADC's range; the
+    controller converts with the nominal scale, so offset ``o_i`` and gain
+    ``g_i`` appear as joint-space errors. The encoder reports
+    ``round(h / res) res``. The IMU low-pass filters roll and pitch at its
+    bandwidth, adds bias and white noise, and updates every ``rate_ms``. The
+    rig's further errors (:mod:`simpro_mj.plant.sensor_errors`): the track's
+    non-linearity, the IMU bias's random walk, the accelerometer's share of
+    the attitude. Every noise source draws from the scenario's seeded
+    generator in a fixed order (:class:`simpro_mj.sim.stages.NoiseBlock`; the
+    bias walk from a generator spawned from it).
+    """
 
     pot_lsb_m: float  # one ADC count expressed as slide travel, m
     pot_noise_m: float
@@ -153,36 +169,6 @@ class SensorConfig:
             dt=float(dt),
         )
 
-
-class Sensors:
-    """The rig's sensors, sampled every physics step (zero-order hold between samples).
-
-    The per-step models are :func:`simpro_mj.plant.step_functions.sample_sensors`
-    (run by the co-simulation's step, :mod:`simpro_mj.sim.step`); this object
-    holds their configuration.
-
-    Parameters
-    ----------
-    config : SensorConfig
-
-    Notes
-    -----
-    Potentiometer i reports ``q_i^m = Q((g_i q_i + o_i) + n) `` with Q the ADC
-    quantiser (one LSB = ``2 range / 2^bits`` volts) and saturation at the
-    ADC's range; the controller converts with the nominal scale, so offset
-    ``o_i`` and gain ``g_i`` appear as joint-space errors. The encoder reports
-    ``round(h / res) res``. The IMU low-pass filters roll and pitch at its
-    bandwidth, adds bias and white noise, and updates every ``rate_ms``.
-    The rig's further errors (:mod:`simpro_mj.plant.sensor_errors`): the
-    track's non-linearity, the IMU bias's random walk, the accelerometer's
-    share of the attitude. Every noise source draws from the scenario's
-    seeded generator in a fixed order (:class:`simpro_mj.sim.stages.NoiseBlock`;
-    the bias walk from a generator spawned from it).
-    """
-
-    def __init__(self, config: SensorConfig):
-        self.cfg = config
-
     def resolution_floor(self) -> dict:
         """Smallest steady-state error the task loop can be asked to remove, SI.
 
@@ -191,10 +177,10 @@ class Sensors:
         metric window; we state the floor as the quantisation step plus three
         standard deviations of the sample noise averaged over 1 s of samples.
         """
-        c = self.cfg
-        n_imu = max(1, int(1.0 / (c.imu_every * c.dt)))
+        n_imu = max(1, int(1.0 / (self.imu_every * self.dt)))
+        imu = self.imu_noise_rad * 3 / math.sqrt(n_imu)
         return {
-            "roll": c.imu_noise_rad * 3 / math.sqrt(n_imu) + float(np.abs(c.imu_bias_rad[0])),
-            "pitch": c.imu_noise_rad * 3 / math.sqrt(n_imu) + float(np.abs(c.imu_bias_rad[1])),
-            "heave": c.enc_res_m + 3 * c.enc_noise_m,
+            "roll": imu + float(np.abs(self.imu_bias_rad[0])),
+            "pitch": imu + float(np.abs(self.imu_bias_rad[1])),
+            "heave": self.enc_res_m + 3 * self.enc_noise_m,
         }

@@ -80,7 +80,7 @@ from simpro_mj.plant.kernels import kernel_choice
 from simpro_mj.plant.model import PlantIndex, check_physics, load_model
 from simpro_mj.plant.platform import Platform
 from simpro_mj.plant.pneumatics.factory import make_actuators
-from simpro_mj.plant.sensors import SensorConfig, Sensors
+from simpro_mj.plant.sensors import SensorConfig
 from simpro_mj.sim import step
 from simpro_mj.sim.registration import Registration
 from simpro_mj.sim.result import COLUMNS, SimResult, qpos_names
@@ -230,7 +230,6 @@ class CoSimulation:
         self.sensor_cfg = SensorConfig.from_tree(scenario["sensors"], dt)
         # the IMU bias's random walk draws from a generator of its own
         self.walk_rng = self.rng.spawn(1)[0] if self.sensor_cfg.imu_walk_rad > 0 else None
-        self.sensors = Sensors(self.sensor_cfg)
         # the plant as the loop sees it (dm_control's Physics)
         self.platform = Platform(m, self.actuators, self.idx)
         self.data = self.platform.data
@@ -680,7 +679,7 @@ class CoSimulation:
                 "realtime_factor": float(steps * dt / wall) if wall > 0 else None,
             },
             scenario=self.scenario,
-            sensor_floor=self.sensors.resolution_floor(),
+            sensor_floor=self.sensor_cfg.resolution_floor(),
             qpos=rec.qlog[:row].copy(),
             qpos_names=qpos_names(self.model),
         )

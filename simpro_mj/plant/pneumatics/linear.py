@@ -134,19 +134,6 @@ class LinearActuators:
         self.spool[:] = (self.u_hold - U_CENTRE) / 5.0
         self.p1[:], self.p2[:] = self._nl.p1, self._nl.p2
 
-    def set_supply_pressure(self, p_pa: float) -> None:
-        """Change the supply pressure (Pa absolute) at run time (supply-drop fault).
-
-        Eq. (19) has no supply term; what follows p_s is the force bound
-        (``p_s A_cap - p_a A_rod_side - p_a A_rod`` and its mirror) and the
-        display pressures' nonlinear model.
-        """
-        p = float(p_pa)
-        self._nl.set_supply_pressure(p)
-        ast = self.step_state
-        ast[sf.A_PS] = p
-        ast[sf.A_FMIN], ast[sf.A_FMAX] = self.params.force_range_at(p)
-
     def set_timestep(self, dt: float) -> None:
         """The step's constants that depend on ``dt`` (s): ``e^(-a1 dt)`` and its integral."""
         if not dt > 0:
