@@ -39,10 +39,10 @@ PLANT = [
 
 @pytest.mark.parametrize("override, field, words", PLANT, ids=[p[0] for p in PLANT])
 def test_an_impossible_plant_is_refused_with_its_range_and_reason(override, field, words):
-    t0 = time.monotonic()
+    t0 = time.process_time()  # CPU time: what the refusal costs, whatever the load
     with pytest.raises(UserInputError) as info:
         load_scenario("step_pitch", [override])
-    assert time.monotonic() - t0 < 2.0
+    assert time.process_time() - t0 < 2.0
     msg = str(info.value)
     assert "\n" not in msg and field in msg and words in msg and "allowed" in msg, msg
 
@@ -86,9 +86,9 @@ def test_a_subnormal_rate_or_period_is_one_line(tmp_path, capsys, recorded_run, 
     if "{run}" in argv:  # a result folder with a recording (no simulation)
         recorded_run(tmp_path / "r")
         argv = [a.replace("{run}", str(tmp_path / "r")) for a in argv]
-    t0 = time.monotonic()
+    t0 = time.process_time()  # CPU time: what the refusal costs, whatever the load
     assert main(argv) == 2
-    assert time.monotonic() - t0 < 2.0
+    assert time.process_time() - t0 < 2.0
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and field in err[0] and "internal error" not in err[0], err
 

