@@ -232,7 +232,7 @@ def test_a_dask_cluster_without_workers_ends_the_batch(tmp_path, capsys, monkeyp
 
     monkeypatch.setattr(batch, "NO_WORKERS_S", 1.0)  # the stated time, shortened
     with distributed.LocalCluster(
-        n_workers=0, processes=False, dashboard_address=None
+        n_workers=0, processes=False, dashboard_address="127.0.0.1:0"
     ) as cluster:  # a scheduler that has no worker
         out = tmp_path / "out"
         argv = ["batch", "step_pitch", "--scheduler", cluster.scheduler_address, "--out",

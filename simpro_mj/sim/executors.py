@@ -313,7 +313,9 @@ def run_dask(
                 n_workers=min(jobs, len(tasks)),  # never more workers than tasks
                 threads_per_worker=1,
                 processes=True,
-                dashboard_address=None,
+                # a free loopback port: None still takes 8787, and a second cluster
+                # on the machine (another batch, a parallel test) warns and moves
+                dashboard_address="127.0.0.1:0",
                 silence_logs=logging.ERROR,
             )
             client = distributed.Client(cluster)
