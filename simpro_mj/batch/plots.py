@@ -406,7 +406,11 @@ def plot_cue_comparison(rows: list[dict], info: Mapping, out: Path):
         ax.grid(True, axis="y", alpha=0.3)
         ax.tick_params(labelsize=7)
     axes[0].legend(fontsize=7, loc="upper center", framealpha=0.9)
-    fig.suptitle(f"{info['scenario']}: cueing laws side by side (dashed: the floors)", fontsize=10)
+    fig.suptitle(
+        f"{info['scenario']}: cueing laws side by side, each input's main channel "
+        "(dashed: the floors)",
+        fontsize=10,
+    )
     return _save(fig, out / f"{info['scenario']}_cue_laws.png")
 
 
