@@ -8,10 +8,8 @@ key order that reaches the hash: this test pins the hash of every shipped
 scenario (``load_scenario``) and of every variant of every shipped sweep file
 (``load_sweep``).
 
-One normalisation: ``setpoint.cueing.telemetry`` resolves to an absolute path
-(the file beside the scenario or shipped), which differs between checkouts;
-the test writes a path inside the package relative to the folder holding ``scenarios/`` before
-hashing, so the pins hold on any machine. Everything else is hashed as is.
+A telemetry file enters the hash by its contents, not its absolute path (which
+differs between checkouts), so the pins hold on any machine.
 
 Regenerate only on purpose (a scenario or a default changed):
 ``python tests/test_scenario_hashes.py --write``.
@@ -19,7 +17,6 @@ Regenerate only on purpose (a scenario or a default changed):
 
 from __future__ import annotations
 
-import copy
 import json
 import sys
 from pathlib import Path
@@ -33,11 +30,8 @@ from simpro_mj.config.scenario import (
     shipped_scenarios,
 )
 from simpro_mj.config.variants import load_sweep
-from simpro_mj.core.shipped import SCENARIOS_DIR
 
 DATA = Path(__file__).resolve().parent / "data" / "scenario_hashes.json"
-#: what a shipped telemetry path is written relative to (the checkout or the package)
-PACKAGE = SCENARIOS_DIR.parent
 _EMPTY = {"scenarios": {}, "extra": {}, "variants": {}}
 _PINNED = json.loads(DATA.read_text()) if DATA.is_file() else _EMPTY
 
@@ -84,33 +78,19 @@ EXTRA = {
 }
 
 
-def _portable(resolved: dict) -> dict:
-    """The resolved scenario with a shipped telemetry path relative to ``PACKAGE``."""
-    out = copy.deepcopy(resolved)
-    cue = (out.get("setpoint") or {}).get("cueing")
-    if cue and cue.get("telemetry"):
-        path = Path(cue["telemetry"])
-        if path.is_relative_to(PACKAGE):
-            cue["telemetry"] = path.relative_to(PACKAGE).as_posix()
-    return out
-
-
 def current_hashes() -> dict:
     """``{"scenarios": {name: hash}, "extra": {case: hash},
     "variants": {file: {variant: hash or error}}}``."""
     names = shipped_scenarios()
-    scenarios = {name: scenario_hash(_portable(load_scenario(name))) for name in names}
-    extra = {
-        name: scenario_hash(_portable(load_scenario("step_pitch", sets)))
-        for name, sets in EXTRA.items()
-    }
+    scenarios = {name: scenario_hash(load_scenario(name)) for name in names}
+    extra = {name: scenario_hash(load_scenario("step_pitch", sets)) for name, sets in EXTRA.items()}
     variants = {}
     for name in shipped_scenarios():
         sweep = load_sweep(name)
         if sweep.spec is None:
             continue
         variants[name] = {
-            v.name: scenario_hash(_portable(v.scenario)) if v.scenario else f"error: {v.error}"
+            v.name: scenario_hash(v.scenario) if v.scenario else f"error: {v.error}"
             for v in sweep.variants
         }
     return {"scenarios": scenarios, "extra": extra, "variants": variants}
@@ -160,6 +140,24 @@ def test_the_typed_model_is_the_resolved_scenario(name):
     assert model.controller.outer.gains == resolved["controller"]["outer"]["gains"]
     assert model.duration_s == resolved["duration_s"]
     assert [f.type for f in model.faults] == [f["type"] for f in resolved["faults"]]
+
+
+def test_a_recording_is_hashed_by_its_contents(tmp_path):
+    """The same telemetry copied elsewhere hashes the same; one changed sample does
+    not (``batch --resume`` must not keep a run of an edited recording)."""
+    shipped = Path(load_scenario("cue_braking")["setpoint"]["cueing"]["telemetry"])
+    copy_ = tmp_path / shipped.name
+    copy_.write_bytes(shipped.read_bytes())
+    here = load_scenario("cue_braking")
+    there = load_scenario("cue_braking", [f"setpoint.cueing.telemetry={copy_}"])
+    assert here["setpoint"]["cueing"]["telemetry"] != there["setpoint"]["cueing"]["telemetry"]
+    assert scenario_hash(here) == scenario_hash(there)
+    lines = copy_.read_text().splitlines()
+    cells = lines[-1].split(",")
+    cells[1] = repr(float(cells[1]) + 0.01)
+    copy_.write_text("\n".join([*lines[:-1], ",".join(cells)]) + "\n")
+    edited = load_scenario("cue_braking", [f"setpoint.cueing.telemetry={copy_}"])
+    assert scenario_hash(edited) != scenario_hash(here)
 
 
 def test_hash_sees_a_change():

@@ -312,9 +312,33 @@ def _set(tree: dict, key: str, value: Any) -> None:
 
 
 def scenario_hash(resolved: Mapping) -> str:
-    """SHA-256 (hex) of the canonical JSON of a resolved scenario (sorted keys)."""
+    """SHA-256 (hex) of the canonical JSON of a resolved scenario (sorted keys).
+
+    A telemetry file (``setpoint.cueing.telemetry``) enters by its contents, not its
+    path: the same recording hashes the same wherever it lies, and an edited or
+    regenerated one does not, so ``batch --resume`` never keeps a run of the old
+    recording. A file that cannot be read enters by its path.
+    """
+    cue = ((resolved.get("setpoint") or {}).get("cueing")) or {}
+    if isinstance(cue, Mapping) and cue.get("telemetry"):
+        digest = _file_digest(cue["telemetry"])
+        if digest is not None:
+            resolved = {**resolved, "setpoint": {**resolved["setpoint"],
+                        "cueing": {**cue, "telemetry": f"sha256:{digest}"}}}  # fmt: skip
     text = json.dumps(resolved, sort_keys=True, separators=(",", ":"), allow_nan=False)
     return hashlib.sha256(text.encode("utf-8")).hexdigest()
+
+
+def _file_digest(path) -> str | None:
+    """SHA-256 (hex) of a file's bytes, or None if it cannot be read."""
+    h = hashlib.sha256()
+    try:
+        with open(path, "rb") as fh:
+            for block in iter(lambda: fh.read(1 << 20), b""):
+                h.update(block)
+    except (OSError, TypeError, ValueError):
+        return None
+    return h.hexdigest()
 
 
 # ------------------------------------------------------------------ validation
