@@ -328,7 +328,9 @@ class TaskSpaceController:
 
 
 def raise_step_error(err: int, pose_ref, pose_meas, geometry, margin: float = 0.0) -> None:
-    """The exception of an outer-loop error code (:mod:`controllers.step_functions`); 0: none.
+    """The exception of an outer-loop error code (:mod:`controllers.step_functions`).
+
+    Returns for 0 (none) and for codes that are not the outer loop's.
 
     Raises
     ------
@@ -347,10 +349,11 @@ def raise_step_error(err: int, pose_ref, pose_meas, geometry, margin: float = 0.
         raise WorkspaceError("set-point unreachable: outside the guide arc or stroke limits")
     if err == sf.ERR_MEAS_NONFINITE:
         raise ValueError(f"measured pose not finite: {np.array(pose_meas, dtype=float)}")
-    raise WorkspaceError(
-        f"pose unreachable: the guide arc (radius {geometry.guide_radius:.4f} m) does not "
-        "reach that height; allowed heave keeps |z_B1 - z_c| <= r"
-    )
+    if err == sf.ERR_GUIDE:
+        raise WorkspaceError(
+            f"pose unreachable: the guide arc (radius {geometry.guide_radius:.4f} m) does not "
+            "reach that height; allowed heave keeps |z_B1 - z_c| <= r"
+        )
 
 
 def _floats(*triples) -> list:

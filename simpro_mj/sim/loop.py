@@ -61,15 +61,13 @@ import time
 import mujoco
 import numpy as np
 
-from controllers import step_functions as cs
 from controllers.design import Plant, paper_coefficients
-from controllers.errors import WorkspaceError
 from controllers.frames import GRAVITY
 from controllers.geometry import nominal_geometry
 from controllers.joint import JointControllers
-from controllers.kinematics import check_reachable, inverse_kinematics
+from controllers.kinematics import inverse_kinematics
 from controllers.setpoint_filter import SetpointFilter
-from controllers.task_space import TaskSpaceController, outer_law
+from controllers.task_space import TaskSpaceController, outer_law, raise_step_error
 from controllers.velocity_feedforward import leg_velocity_feedforward
 from simpro_mj.config.scenario import reference
 from simpro_mj.core.errors import PhysicsError, UserInputError
@@ -637,18 +635,10 @@ class CoSimulation:
             mujoco.mj_kinematics(self.model, scratch)
             check_physics(self.model, scratch, loop_bound=LOOP_OPEN_BOUND, index=self.idx)
             raise PhysicsError(f"kinematic loop opened at t = {t:.3f} s")
-        ref = self.ref[k]
-        if err == cs.ERR_SETPOINT_NONFINITE:
-            raise WorkspaceError(f"set-point not finite: {ref}")
-        if err == cs.ERR_SETPOINT_UNREACHABLE:
-            check_reachable(ref, self.geometry, self.task.margin)  # raises, naming the limit
-            raise WorkspaceError("set-point unreachable: outside the guide arc or stroke limits")
-        if err == cs.ERR_MEAS_NONFINITE:
-            raise ValueError(f"measured pose not finite: {S[step.YP : step.YP + 3]}")
-        if err == cs.ERR_GUIDE:
-            inverse_kinematics(
-                S[step.TS + cs.T_XC : step.TS + cs.T_XC + 3], self.geometry, check=False
-            )
+        # the controllers' codes, named as TaskSpaceController names them
+        raise_step_error(
+            err, self.ref[k], S[step.YP : step.YP + 3], self.geometry, self.task.margin
+        )
         raise RuntimeError(f"step error {err} at t = {t:.3f} s")
 
     def _result(self, rec: Log, steps: int, status: str, reason, wall: float) -> SimResult:
