@@ -254,6 +254,24 @@ def test_unreachable_setpoint_names_limit_setpoint_and_time():
     assert isinstance(info.value, WorkspaceError) and isinstance(info.value, UserInputError)
 
 
+def test_unreachable_ramp_is_named_at_its_first_unreachable_millisecond():
+    """Held poses are checked once; a ramp's first unreachable sample is still the one
+    named (against every sample of the 1 ms grid checked one by one)."""
+    from controllers.kinematics import reachable
+
+    base = load_scenario("step_pitch", ["setpoint.pitch_deg=[]"])
+    sets = ["setpoint.pitch_deg=[]",
+            "setpoint.heave_mm=[{type: ramp, start_s: 1.0, end_s: 3.0, value: 400}]"]  # fmt: skip
+    with pytest.raises(SetpointError) as info:
+        load_scenario("step_pitch", sets)
+    t = np.arange(int(round(base["duration_s"] / 1e-3)) + 1) * 1e-3
+    sc = dict(base, setpoint=dict(base["setpoint"], heave_mm=[
+        {"type": "ramp", "start_s": 1.0, "end_s": 3.0, "value": 400.0}]))  # fmt: skip
+    first = t[np.argmin(reachable(reference(sc, t, clamp=False)))]
+    assert 1.0 < first < 3.0
+    assert f"t = {first:.3f} s" in str(info.value)
+
+
 def test_clamping_keeps_the_reference_in_the_workspace():
     sets = [
         "setpoint.heave_mm=[{type: step, time_s: 2.0, value: 400}]",
