@@ -19,7 +19,7 @@ from simpro_mj.config.scenario import load_scenario
 @pytest.fixture(scope="module")
 def short():
     scenario = load_scenario("step_pitch", ["duration_s=0.5"])
-    return measure(scenario, repeats=2, batch=False)
+    return measure(scenario, repeats=2, batch=False, run_durations=(0.6, 0.3))
 
 
 def test_keys_and_consistency(short):
@@ -40,6 +40,21 @@ def test_keys_and_consistency(short):
     assert math.isclose(r["interpreted_ratio"], ratio, rel_tol=1e-12)
     # medians of the per-repeat samples
     assert r["full_step_us"] == pytest.approx(sum(r["samples"]["full_step_us"]) / 2)
+    assert r["run_command_durations_s"] == [0.6, 0.3]
+    assert len(r["samples"]["run_command_us"]) == 2
+    assert math.isclose(r["run_command_ratio"], r["run_command_us"] / r["bare_step_us"])
+
+
+def test_run_command_figure_is_null_when_the_scenario_cannot_last():
+    """A ramp reachable over 0.5 s but not over 41 s: no run-command figure, said so."""
+    scenario = load_scenario("step_pitch", [
+        "duration_s=0.5", "setpoint.pitch_deg=[]",
+        "setpoint.heave_mm=[{type: ramp, start_s: 0.2, end_s: 40, value: 400}]"])  # fmt: skip
+    r = measure(scenario, repeats=1, batch=False)
+    assert r["run_command_us"] is None and r["run_command_ratio"] is None
+    from simpro_mj.batch.bench import table
+
+    assert "cannot last 41 s" in table(r)
 
 
 def test_bare_replays_the_same_trajectory(short):

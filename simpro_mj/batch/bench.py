@@ -27,6 +27,14 @@ the median over the repeats:
   as ``physics``). The calls from Python and the clocks cost more than the
   stages inside ``mj_step`` do (``instrumented_step_us`` is that run's own time
   per step): the split shows where the work is, ``full_step_us`` what it costs.
+* ``run_command_us``: what the ``run`` command costs per simulated step, as
+  measured from outside (``run SCENARIO --no-plots --set logging.decimation=10``
+  for 41 s and for 1 s, the difference over the 40 000 steps between them):
+  the set-point check, the run and its result folder written, at 41 s and at
+  1 s of the scenario, here in one process so that start-up (imports, the
+  model's compilation) cancels instead of scattering the difference by
+  tenths of a second; ``run_command_ratio`` = that over ``bare_step_us``.
+  ``null`` when the scenario cannot last 41 s (a recording shorter than that).
 * ``timeseries_write_s``: wall time to write the plain run's columns as
   ``timeseries.csv`` (:func:`simpro_mj.report.results.write_timeseries`, one
   ``numpy.savetxt`` call); a speed figure, so here and not in a timed test.
@@ -60,7 +68,8 @@ import mujoco
 import numpy as np
 from mujoco import rollout
 
-from simpro_mj.core.errors import PhysicsError
+from simpro_mj.config.reference import check_setpoints
+from simpro_mj.core.errors import PhysicsError, UserInputError
 from simpro_mj.plant.model import load_model
 from simpro_mj.report.machine import describe_machine
 from simpro_mj.report.render import render_video, require_video
@@ -195,8 +204,38 @@ def _interpreted(scenario: dict, model) -> float:
     return res.sim["wall_s"] / res.sim["steps"] * 1e6
 
 
+def _run_command(scenario: dict, model, durations: tuple[float, float]) -> float | None:
+    """us per step between the run command's work at two durations (logging every 10).
+
+    The work timed is what ``run`` does that grows with the run: the set-point
+    check, the run, and its result folder (no plots). ``None`` if the scenario
+    cannot last that long.
+    """
+    long_s, short_s = durations
+    dt = float(model.opt.timestep)
+    times = []
+    with tempfile.TemporaryDirectory(prefix="simpro-bench-") as tmp:
+        for d in (short_s, long_s):
+            sc = copy.deepcopy(scenario)
+            sc["duration_s"], sc["logging"]["decimation"] = float(d), 10
+            t0 = time.perf_counter()
+            try:
+                check_setpoints(sc)
+                execute(sc, Path(tmp) / f"run_{d:g}", plots=False, quiet=True, model=model)
+            except UserInputError:
+                return None
+            times.append(time.perf_counter() - t0)
+    return (times[1] - times[0]) / round((long_s - short_s) / dt) * 1e6
+
+
 def measure(
-    scenario: dict, repeats: int = 5, *, batch: bool = True, batch_runs: int = 4, log=None
+    scenario: dict,
+    repeats: int = 5,
+    *,
+    batch: bool = True,
+    batch_runs: int = 4,
+    run_durations: tuple[float, float] = (41.0, 1.0),
+    log=None,
 ) -> dict:
     """Run the benchmark on a resolved scenario; the figures of ``--json``.
 
@@ -213,7 +252,7 @@ def measure(
     dt = float(model.opt.timestep)
     say("recording the trajectory")
     state0, warm0, ctrl, final_qpos = _record(scenario, model)
-    full, bare, bare_py, instr, write, interp = [], [], [], [], [], []
+    full, bare, bare_py, instr, write, interp, command = [], [], [], [], [], [], []
     stages = {s: [] for s in STAGES}
     same = True
     for r in range(repeats):
@@ -230,12 +269,14 @@ def measure(
         bare_py.append(us)
         same = same and ok1 and ok2
         interp.append(_interpreted(scenario, model))
+        command.append(_run_command(scenario, model, run_durations))
         prof: dict = {}
         res = CoSimulation(scenario, model=model).run(profile=prof)
         instr.append(res.sim["wall_s"] / res.sim["steps"] * 1e6)
         for s in STAGES:
             stages[s].append(prof[s] / prof["steps"] / 1e3)
     full_us, bare_us = statistics.median(full), statistics.median(bare)
+    command_us = None if None in command else statistics.median(command)
     out = {
         "scenario": scenario["name"],
         "duration_s": float(scenario["duration_s"]),
@@ -248,6 +289,9 @@ def measure(
         "ratio": full_us / bare_us,
         "interpreted_step_us": statistics.median(interp),
         "interpreted_ratio": statistics.median(interp) / bare_us,
+        "run_command_us": command_us,
+        "run_command_ratio": None if command_us is None else command_us / bare_us,
+        "run_command_durations_s": list(run_durations),
         "realtime_factor": dt * 1e6 / full_us,
         "stages_us": {s: statistics.median(v) for s, v in stages.items()},
         "instrumented_step_us": statistics.median(instr),
@@ -260,6 +304,7 @@ def measure(
             "bare_step_us": bare,
             "bare_python_loop_us": bare_py,
             "interpreted_step_us": interp,
+            "run_command_us": command,
         },
         "machine": describe_machine(),
     }
@@ -302,6 +347,17 @@ def measure(
 # ------------------------------------------------------------------ table
 
 
+def _command_line(r: dict) -> str:
+    long_s, short_s = r["run_command_durations_s"]
+    what = f"the run command, {long_s:g} s - {short_s:g} s, logging every 10, results written"
+    if r["run_command_us"] is None:
+        return f"  run command               -     ({what}: the scenario cannot last {long_s:g} s)"
+    return (
+        f"  run command          {r['run_command_us']:8.2f} us  "
+        f"(ratio {r['run_command_ratio']:.2f}: {what})"
+    )
+
+
 def table(r: dict) -> str:
     """The human table of a :func:`measure` result."""
     m = r["machine"]
@@ -320,6 +376,7 @@ def table(r: dict) -> str:
         f"  interpreted step     {r['interpreted_step_us']:8.2f} us  (ratio "
         f"{r['interpreted_ratio']:.2f}, SIMPRO_KERNEL=python)",
         f"  realtime factor      {r['realtime_factor']:8.1f} x",
+        _command_line(r),
         f"  timeseries.csv write {r['timeseries_write_s']:8.3f} s  ({r['timeseries_rows']} rows)",
         "",
         "  stage (instrumented) us/step",
