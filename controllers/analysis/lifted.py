@@ -227,13 +227,12 @@ def real_inner_limit(
         return spectral_radius(outer_closed_loop(mode, g, period, lifted, jac, pi_zero)[0])
 
     grid = np.geomspace(1e-3, g_max, 200)
-    vals = np.array([rho(g) for g in grid]) - 1.0
-    if vals[0] >= 0:
-        return 0.0
-    bad = np.nonzero(vals >= 0)[0]
-    if not bad.size:
+    # up to the first unstable gain only: the grid beyond it cannot move the crossing
+    i = next((i for i, g in enumerate(grid) if rho(g) >= 1.0), None)
+    if i is None:
         return float("inf")
-    i = bad[0]
+    if i == 0:
+        return 0.0
     return float(brentq(lambda g: rho(g) - 1.0, grid[i - 1], grid[i], xtol=1e-10))
 
 
