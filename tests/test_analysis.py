@@ -292,3 +292,33 @@ def test_analyze_reports_the_shipped_loop_first_and_says_which(capsys):
     assert scenario == ["plant.preset=heavy_cabin", "paper_units=metres"]
     assert main(["analyze", "--no-plots", "--set", "controller.outer.integrater=forward"]) == 2
     assert "controller.outer.integrater" in capsys.readouterr().err
+
+
+def test_a_loops_limits_are_cached_on_disk_and_recomputed_when_damaged(tmp_path, monkeypatch):
+    """The scan runs once per loop: a later process reads its two limits back; a
+    damaged file, or another number the analysis reads, is computed afresh."""
+    from simpro_mj.analysis import stability as st
+    from simpro_mj.config.scenario import load_scenario
+
+    monkeypatch.setenv("SIMPRO_CACHE_DIR", str(tmp_path))
+    s = load_scenario("step_pitch")
+    st._analysed.cache_clear()
+    first = st.outer_loop(s)
+    assert first["limit"] == pytest.approx(11.84, abs=0.01)  # the nonlinear plant's limit
+    (entry,) = (tmp_path / "stability").glob("*.json")
+    real_scan = an.real_inner_limit
+
+    def no_scan(*args, **kwargs):
+        raise AssertionError("the limit was scanned again")
+
+    st._analysed.cache_clear()  # a new process: memory empty, the file there
+    monkeypatch.setattr(an, "real_inner_limit", no_scan)
+    assert st.outer_loop(s) == first
+    entry.write_text('{"key": ')
+    st._analysed.cache_clear()
+    monkeypatch.setattr(an, "real_inner_limit", real_scan)
+    assert st.outer_loop(s) == first
+    assert json.loads(entry.read_text())["limit"] == first["limit"]
+    other = load_scenario("step_pitch", ["controller.outer.period_ms=30"])
+    assert st.outer_loop(other)["limit"] != first["limit"]
+    assert len(list((tmp_path / "stability").glob("*.json"))) == 2

@@ -30,8 +30,6 @@ from __future__ import annotations
 import copy
 import hashlib
 import json
-import os
-import tempfile
 from collections.abc import Mapping
 from pathlib import Path
 
@@ -45,6 +43,7 @@ from simpro_mj.config.scenario import (
     IDENTIFY_CHOICES,  # values of controller.inner.identify
     _merge,
 )
+from simpro_mj.core import cache
 from simpro_mj.identification import identify as identify_module
 
 __all__ = [
@@ -62,12 +61,7 @@ _memo: dict[str, dict] = {}
 
 def cache_dir() -> Path:
     """The folder of cached identifications (module docstring)."""
-    root = os.environ.get("SIMPRO_CACHE_DIR")
-    if root:
-        return Path(root) / "identified"
-    xdg = os.environ.get("XDG_CACHE_HOME")
-    base = Path(xdg) if xdg else Path.home() / ".cache"
-    return base / "simpro-sim" / "identified"
+    return cache.cache_dir("identified")
 
 
 def plant_tree(scenario: Mapping) -> dict:
@@ -116,21 +110,10 @@ def _is_presets_plant(scenario: Mapping) -> bool:
 
 def _read(path: Path) -> dict | None:
     try:
-        doc = json.loads(path.read_text(encoding="utf-8"))
+        doc = cache.read_json(path)
         return {a: {k: float(doc[a][k]) for k in ("b", "a1", "a0")} for a in _ACTS}
-    except (OSError, ValueError, KeyError, TypeError):
+    except (ValueError, KeyError, TypeError):
         return None  # missing or damaged: identify again
-
-
-def _write(path: Path, models: dict) -> None:
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=".tmp-", dir=path.parent)
-        with os.fdopen(fd, "w", encoding="utf-8") as f:
-            json.dump(models, f, indent=1)
-        os.replace(tmp, path)
-    except OSError:
-        pass  # no cache: the next run identifies again
 
 
 def identified_models(scenario: Mapping, progress=None) -> tuple[dict, str]:
@@ -158,7 +141,7 @@ def identified_models(scenario: Mapping, progress=None) -> tuple[dict, str]:
             progress(f"identifying the scenario's own plant (Fig. 12), cached in {path.parent}")
         got = identify_module.identify(tree)  # by attribute: tests replace it
         models = {a: {k: float(got[a][k]) for k in ("b", "a1", "a0")} for a in _ACTS}
-        _write(path, models)
+        cache.write_json(path, models)
         source = "identified"
     _memo[h] = copy.deepcopy(models)
     return models, source
