@@ -361,10 +361,11 @@ def _cache_dir() -> str:
     stale. Under ``NUMBA_CACHE_DIR`` if set, else next to this package (or
     the user's cache directory when that is not writable).
     """
-    import hashlib
     import os
     import sys
     import tempfile
+
+    from simpro_mj.core.cache import source_digest
 
     # the step's modules and every module whose functions they call
     files = {m.__file__ for m in (cs, ps, sys.modules[__name__])}
@@ -374,10 +375,7 @@ def _cache_dir() -> str:
                 files.add(getattr(sys.modules.get(value.__module__), "__file__", None))
     files.discard(None)
     files.add(os.path.join(os.path.dirname(__file__), "callback.py"))
-    h = hashlib.sha256()
-    for path in sorted(files):
-        with open(path, "rb") as fh:
-            h.update(fh.read())
+    digest = source_digest(files)
     base = os.environ.get("NUMBA_CACHE_DIR")
     if not base:
         here = os.path.join(os.path.dirname(__file__), "__pycache__")
@@ -386,7 +384,7 @@ def _cache_dir() -> str:
         else:
             user = os.environ.get("XDG_CACHE_HOME") or os.path.expanduser("~/.cache")
             base = user if os.access(user, os.W_OK) else tempfile.gettempdir()
-    return os.path.join(base, "simpro-step-" + h.hexdigest()[:16])
+    return os.path.join(base, "simpro-step-" + digest[:16])
 
 
 def _module_view(module, env):
