@@ -34,7 +34,8 @@ the median over the repeats:
   1 s of the scenario, here in one process so that start-up (imports, the
   model's compilation) cancels instead of scattering the difference by
   tenths of a second; ``run_command_ratio`` = that over ``bare_step_us``.
-  ``null`` when the scenario cannot last 41 s (a recording shorter than that).
+  ``null`` when the scenario refuses to last 41 s (its set-points leave the
+  workspace by then).
 * ``timeseries_write_s``: wall time to write the plain run's columns as
   ``timeseries.csv`` (:func:`simpro_mj.report.results.write_timeseries`, one
   ``numpy.savetxt`` call); a speed figure, so here and not in a timed test.
@@ -208,8 +209,8 @@ def _run_command(scenario: dict, model, durations: tuple[float, float]) -> float
     """us per step between the run command's work at two durations (logging every 10).
 
     The work timed is what ``run`` does that grows with the run: the set-point
-    check, the run, and its result folder (no plots). ``None`` if the scenario
-    cannot last that long.
+    check, the run, and its result folder (no plots). ``None`` if the longer
+    duration is refused (a set-point unreachable by then).
     """
     long_s, short_s = durations
     dt = float(model.opt.timestep)

@@ -112,6 +112,7 @@ from simpro_mj.config.rules import (
     PHYSICS_DT_S,
 )
 from simpro_mj.config.sweep import count_variants
+from simpro_mj.core.cache import file_digest
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.keys import closest, key_text, parse_set, read_yaml
 from simpro_mj.core.shipped import SCENARIOS_DIR
@@ -321,24 +322,12 @@ def scenario_hash(resolved: Mapping) -> str:
     """
     cue = ((resolved.get("setpoint") or {}).get("cueing")) or {}
     if isinstance(cue, Mapping) and cue.get("telemetry"):
-        digest = _file_digest(cue["telemetry"])
+        digest = file_digest(cue["telemetry"])
         if digest is not None:
             resolved = {**resolved, "setpoint": {**resolved["setpoint"],
                         "cueing": {**cue, "telemetry": f"sha256:{digest}"}}}  # fmt: skip
     text = json.dumps(resolved, sort_keys=True, separators=(",", ":"), allow_nan=False)
     return hashlib.sha256(text.encode("utf-8")).hexdigest()
-
-
-def _file_digest(path) -> str | None:
-    """SHA-256 (hex) of a file's bytes, or None if it cannot be read."""
-    h = hashlib.sha256()
-    try:
-        with open(path, "rb") as fh:
-            for block in iter(lambda: fh.read(1 << 20), b""):
-                h.update(block)
-    except (OSError, TypeError, ValueError):
-        return None
-    return h.hexdigest()
 
 
 # ------------------------------------------------------------------ validation

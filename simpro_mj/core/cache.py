@@ -16,7 +16,7 @@ import os
 import tempfile
 from pathlib import Path
 
-__all__ = ["cache_dir", "read_json", "source_digest", "write_json"]
+__all__ = ["cache_dir", "file_digest", "read_json", "source_digest", "write_json"]
 
 
 def cache_dir(kind: str) -> Path:
@@ -50,9 +50,26 @@ def write_json(path: Path, doc) -> None:
         pass  # no cache: the next run computes again
 
 
+def _update(h, path) -> None:
+    """Feed a file's bytes to the hash ``h``, a megabyte at a time."""
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+
+
+def file_digest(path) -> str | None:
+    """SHA-256 (hex) of one file's bytes, or None if it cannot be read."""
+    h = hashlib.sha256()
+    try:
+        _update(h, path)
+    except (OSError, TypeError, ValueError):
+        return None
+    return h.hexdigest()
+
+
 def source_digest(files) -> str:
     """SHA-256 of source files: a cache entry made by other code is not found."""
     h = hashlib.sha256()
     for path in sorted({str(f) for f in files}):
-        h.update(Path(path).read_bytes())
+        _update(h, path)
     return h.hexdigest()
