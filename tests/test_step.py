@@ -85,13 +85,40 @@ def test_callback_leaves_other_data_alone(monkeypatch):
     def pace(k, log):
         if k == 100:  # mid-run, the callback installed and our run registered
             assert mujoco.get_mjcb_control() is not None
+            # MuJoCo's profiler clock frozen: 100 steps timed at 0 s in all
+            assert mujoco.get_mjcb_time() is not None
+            step_timer = sim.data.timer[mujoco.mjtTimer.mjTIMER_STEP]
+            assert step_timer.number == 100 and step_timer.duration == 0.0
             mujoco.mj_step(m, other, 50)
         return k + 100
 
     res = sim.run(pace=pace)
     assert res.status in ("ok", "not_settled") and res.sim["steps"] == 300
     assert np.array_equal(other.qpos, alone.qpos) and np.array_equal(other.ctrl, alone.ctrl)
-    assert mujoco.get_mjcb_control() is None
+    assert mujoco.get_mjcb_control() is None and mujoco.get_mjcb_time() is None
+
+
+def test_callback_keeps_a_clock_set_before(monkeypatch):
+    """A profiler clock set before the run (``mjcb_time``) times it and is left in place."""
+    import ctypes
+
+    monkeypatch.setenv("SIMPRO_KERNEL", "numba")
+    sim = CoSimulation(load_scenario("step_pitch.yaml", ["duration_s=0.3"]))
+    ticks = [0.0]
+
+    def clock():
+        ticks[0] += 1.0  # 1 "s" per read
+        return ticks[0]
+
+    theirs = ctypes.CFUNCTYPE(ctypes.c_double)(clock)
+    mujoco.set_mjcb_time(theirs)
+    try:
+        res = sim.run()
+        assert mujoco.get_mjcb_time() is theirs
+    finally:
+        mujoco.set_mjcb_time(None)
+    assert res.sim["steps"] == 300
+    assert sim.data.timer[mujoco.mjtTimer.mjTIMER_STEP].duration > 0
 
 
 def test_callback_removed_after_an_error(monkeypatch):
@@ -103,6 +130,7 @@ def test_callback_removed_after_an_error(monkeypatch):
 
     res = sim.run(pace=pace)
     assert res.status == "interrupted" and mujoco.get_mjcb_control() is None
+    assert mujoco.get_mjcb_time() is None
 
 
 def test_kernel_switch(monkeypatch):

@@ -20,6 +20,11 @@ the median over the repeats:
   from a Python loop (``d.ctrl[:] = u_k; mj_step(m, d)``): the floor of any
   Python-driven loop. ``bare_same_trajectory`` says whether both replays end
   in exactly the run's final state (MuJoCo is deterministic, so they should).
+* ``bare_frozen_clock_us``: the same C replay with MuJoCo's profiler clock
+  frozen as a compiled run freezes it (:mod:`simpro_mj.sim.callback`:
+  ``mjcb_time`` returns 0, so ``mj_step`` reads no clock for ``mjData.timer``);
+  ``ratio_frozen_clock`` = ``full_step_us`` over it, the like-for-like
+  ratio. ``null`` with ``SIMPRO_KERNEL=python``, which leaves the clock alone.
 * ``ratio`` = ``full_step_us / bare_step_us``.
 * ``stages_us``: per-stage wall time per step from an instrumented run
   (``CoSimulation.run(profile=...)``: the compiled stages called one by one
@@ -71,6 +76,7 @@ from mujoco import rollout
 
 from simpro_mj.config.reference import check_setpoints
 from simpro_mj.core.errors import PhysicsError, UserInputError
+from simpro_mj.plant.kernels import kernel_choice
 from simpro_mj.plant.model import load_model
 from simpro_mj.report.machine import describe_machine
 from simpro_mj.report.render import render_video, require_video
@@ -120,6 +126,18 @@ def _bare_rollout(model, state0, warm0, ctrl, final_qpos) -> tuple[float, bool]:
     wall = time.perf_counter() - t0
     mujoco.mj_setState(model, data, out[0, -1], spec)
     return wall / n * 1e6, bool(np.array_equal(data.qpos, final_qpos))
+
+
+def _bare_frozen_clock(model, state0, warm0, ctrl, final_qpos) -> tuple[float, bool]:
+    """:func:`_bare_rollout` with ``mjcb_time`` the compiled run's frozen clock."""
+    from simpro_mj.sim.callback import frozen_clock
+
+    previous = mujoco.get_mjcb_time()
+    mujoco.set_mjcb_time(frozen_clock.ctypes)
+    try:
+        return _bare_rollout(model, state0, warm0, ctrl, final_qpos)
+    finally:
+        mujoco.set_mjcb_time(previous)
 
 
 def _bare_python(model, state0, warm0, ctrl, final_qpos) -> tuple[float, bool]:
@@ -254,6 +272,7 @@ def measure(
     say("recording the trajectory")
     state0, warm0, ctrl, final_qpos = _record(scenario, model)
     full, bare, bare_py, instr, write, interp, command = [], [], [], [], [], [], []
+    frozen = [] if kernel_choice() == "numba" else None
     # once untimed: the first result folder imports and caches what the later ones reuse
     # (timed, it made the first 1 s run cost more than the 41 s run after it)
     _run_command(scenario, model, run_durations)
@@ -269,6 +288,10 @@ def measure(
             write.append(time.perf_counter() - t0)
         us, ok1 = _bare_rollout(model, state0, warm0, ctrl, final_qpos)
         bare.append(us)
+        if frozen is not None:
+            us, ok3 = _bare_frozen_clock(model, state0, warm0, ctrl, final_qpos)
+            frozen.append(us)
+            ok1 = ok1 and ok3
         us, ok2 = _bare_python(model, state0, warm0, ctrl, final_qpos)
         bare_py.append(us)
         same = same and ok1 and ok2
@@ -291,6 +314,8 @@ def measure(
         "bare_same_trajectory": same,
         "full_step_us": full_us,
         "ratio": full_us / bare_us,
+        "bare_frozen_clock_us": statistics.median(frozen) if frozen else None,
+        "ratio_frozen_clock": full_us / statistics.median(frozen) if frozen else None,
         "interpreted_step_us": statistics.median(interp),
         "interpreted_ratio": statistics.median(interp) / bare_us,
         "run_command_us": command_us,
@@ -306,6 +331,7 @@ def measure(
         "samples": {
             "full_step_us": full,
             "bare_step_us": bare,
+            "bare_frozen_clock_us": frozen,
             "bare_python_loop_us": bare_py,
             "interpreted_step_us": interp,
             "run_command_us": command,
@@ -377,6 +403,13 @@ def table(r: dict) -> str:
         + ("" if r["bare_same_trajectory"] else "   (replay left the trajectory!)"),
         f"  bare (Python loop)   {r['bare_python_loop_us']:8.2f} us",
         f"  ratio full/bare      {r['ratio']:8.2f}",
+    ]
+    if r["bare_frozen_clock_us"]:
+        lines.append(
+            f"  bare, clock frozen   {r['bare_frozen_clock_us']:8.2f} us  (ratio "
+            f"{r['ratio_frozen_clock']:.2f}: mjcb_time frozen as in a compiled run)"
+        )
+    lines += [
         f"  interpreted step     {r['interpreted_step_us']:8.2f} us  (ratio "
         f"{r['interpreted_ratio']:.2f}, SIMPRO_KERNEL=python)",
         f"  realtime factor      {r['realtime_factor']:8.1f} x",

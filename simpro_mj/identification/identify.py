@@ -36,8 +36,6 @@ import math
 
 import mujoco
 import numpy as np
-from scipy.optimize import least_squares
-from scipy.signal import cont2discrete, lfilter, max_len_seq
 
 from controllers.design import (
     ACTUATORS,
@@ -96,6 +94,10 @@ def paper_models(reading: str = "volts") -> dict:
 
 def _prbs(n_steps: int, clock: int, bits: int, seed: int) -> np.ndarray:
     """±1 maximum-length sequence, each bit held ``clock`` steps."""
+    # scipy.signal and scipy.optimize are imported where used: importing them
+    # costs about 0.6 s, and every run imports this module for its models
+    from scipy.signal import max_len_seq
+
     seq = max_len_seq(bits)[0].astype(float) * 2.0 - 1.0
     seq = np.roll(seq, int(seed))
     n_bits = -(-n_steps // clock)
@@ -215,6 +217,8 @@ def run_experiment(tree: dict, leg: int, model=None) -> dict:
 
 def simulate_velocity(theta, u, dt):
     """ZOH simulation of v = b/(s^2 + a1 s + a0) (u - d); theta = (b, a1, a0, d)."""
+    from scipy.signal import cont2discrete, lfilter
+
     b, a1, a0, d = theta
     num, den, _ = cont2discrete(([b], [1.0, a1, a0]), dt, method="zoh")
     return lfilter(np.ravel(num), den, u - d)
@@ -278,6 +282,8 @@ def fit_eq19(u, qdot, dt: float, skip: int = 0, guess=None) -> dict:
     lo = np.array([1e-6, 0.0, 1e-6, -5.0])
     hi = np.array([np.inf, np.inf, np.inf, 5.0])
     x0 = np.clip(x0, lo + 1e-9, hi - 1e-9)
+    from scipy.optimize import least_squares
+
     sol = least_squares(res, x0, bounds=(lo, hi), x_scale="jac", max_nfev=400)
     b, a1, a0, d = sol.x * scale
     err = sol.fun
