@@ -232,8 +232,6 @@ class JointControllers:
         db = np.broadcast_to(np.asarray(dead_band, dtype=float), (3,))
         if not (np.all(np.isfinite(db)) and np.all(db >= 0)):
             raise ValueError(f"dead_band must be 1 or 3 finite widths >= 0 m, got {dead_band!r}")
-        #: the integrators' dead bands (m), :func:`controllers.step_functions.joint_step`
-        self.step_band = db.copy()
         if plants is None:
             plants = [paper_plant(a, reading) for a in ACTUATORS]
         plants = list(plants)
@@ -256,14 +254,15 @@ class JointControllers:
 
         r0 = np.array([split_integrator(des)[0] for des in self.designs])
         self._int_gain = r0 * self.dt  # increment of x_I per unit error
-        # the per-step function's arrays (controllers.step_functions.joint_step): per leg
-        # [[A, B], [C, D]], the limits, the states (3 per leg, the integrator last)
-        self.step_matrices = np.zeros((3, _NX + 1, _NX + 1))
-        for i, des in enumerate(self.designs):
+        # the per-step function's constants (controllers.step_functions.joint_step): the
+        # limits, the integrators' gains and dead bands, per leg [[A, B], [C, D]]
+        blocks = []
+        for des in self.designs:
             a, b, c, d = leg_state_space(des, self.dt, method)
-            self.step_matrices[i] = np.block([[a, b], [c, d]])
+            blocks.append(np.block([[a, b], [c, d]]))
         aw = ANTI_WINDUP.index(anti_windup)
-        self.step_limits = np.array([u_offset, u_min, u_max, aw, self.dt / self.tracking_time])
+        limits = [u_offset, u_min, u_max, aw, self.dt / self.tracking_time]
+        self.step_constants = np.concatenate([limits, self._int_gain, db, np.ravel(blocks)])
         self._x = np.zeros(3 * _NX)
         self._v = np.zeros(3)
 
@@ -287,6 +286,5 @@ class JointControllers:
         """
         e = np.broadcast_to(np.asarray(q_ref, float) - np.asarray(q_meas, float), (3,))
         f = np.broadcast_to(np.asarray(0.0 if u_ff is None else u_ff, float), (3,))
-        joint_step(self._x, self.step_matrices, *e.tolist(), *f.tolist(), self.step_limits,
-                   self._int_gain, self.step_band, self._v)  # fmt: skip
+        joint_step(self._x, self.step_constants, *e.tolist(), *f.tolist(), self._v)
         return self._v.copy()

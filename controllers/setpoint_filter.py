@@ -35,7 +35,7 @@ import math
 
 import numpy as np
 
-from .step_functions import filter_step
+from .step_functions import FS_HEAD, FS_LEN, FS_SUM, FS_Y, filter_step
 
 __all__ = ["KINDS", "SetpointFilter", "filter_state_space", "leg_times"]
 
@@ -110,31 +110,25 @@ class SetpointFilter:
         self.dt = float(dt)
         self.n = [max(1, int(round(t / dt))) for t in times]
         self._ab = [_first_order(t if kind == "first_order" else 1.0 / PAPER_KI, dt) for t in times]
-        # the per-step function's arrays (controllers.step_functions.filter_step)
-        self.step_kind = {"none": 0.0, "first_order": 1.0, "zero_cancel": 1.0, "ramp": 2.0}[kind]
-        self.step_n = np.array(self.n, dtype=float)
-        self.step_a = np.array([a for a, _ in self._ab])
-        self.step_b = np.array([b for _, b in self._ab])
-        self._y = np.zeros(3)
-        self._sum = np.zeros(3)
-        self._head = np.zeros(3)
-        self._ring = np.zeros((3, max(self.n)))
+        # the per-step function's arrays (controllers.step_functions.filter_step): the
+        # constants, the state (y, running sums, ring heads) and the ramp's ring
+        code = {"none": 0.0, "first_order": 1.0, "zero_cancel": 1.0, "ramp": 2.0}[kind]
+        self.step_constants = np.array([code, *self.n, *np.transpose(self._ab).ravel()])
+        self.step_state = np.zeros(FS_LEN)
+        self.ring = np.zeros((3, max(self.n)))
         self._out = np.zeros(3)
         self._ready = False
 
     def reset(self, q) -> None:
         """At rest at ``q`` (3 floats): the filter's output and memory are ``q``."""
         q = [float(x) for x in q]
-        self._y[:] = q
-        self._sum[:] = [x * n for x, n in zip(q, self.n, strict=True)]
-        self._head[:] = 0.0
+        fs = self.step_state
+        fs[FS_Y : FS_Y + 3] = q
+        fs[FS_SUM : FS_SUM + 3] = [x * n for x, n in zip(q, self.n, strict=True)]
+        fs[FS_HEAD : FS_HEAD + 3] = 0.0
         for i, n in enumerate(self.n):
-            self._ring[i, :n] = q[i]
+            self.ring[i, :n] = q[i]
         self._ready = True
-
-    def state(self):
-        """``(y, running sums, ring heads, ring)``: the arrays the step works on (views)."""
-        return self._y, self._sum, self._head, self._ring
 
     def update(self, q_d) -> list:
         """One joint-loop step: the set-points q_d (3 floats) -> filtered q_ref.
@@ -143,18 +137,6 @@ class SetpointFilter:
         """
         if not self._ready:
             self.reset(q_d)
-        filter_step(
-            self.step_kind,
-            float(q_d[0]),
-            float(q_d[1]),
-            float(q_d[2]),
-            self.step_n,
-            self.step_a,
-            self.step_b,
-            self._y,
-            self._sum,
-            self._head,
-            self._ring,
-            self._out,
-        )
+        q0, q1, q2 = (float(v) for v in q_d[:3])
+        filter_step(self.step_constants, q0, q1, q2, self.step_state, self.ring, self._out)
         return self._out.tolist()

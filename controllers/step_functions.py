@@ -215,55 +215,65 @@ def segment_limit(x0, x1, x2, d0, d1, d2, g, margin, q):
     return lo
 
 
-def filter_step(kind, q0, q1, q2, n, a, b, y, s, head, ring, out):
+# The set-point filter's constants ``fc``: kind (0 none, 1 first order, 2 ramp), then per
+# leg n, a, b; its state ``fs``: per leg y, the running sum, the ring's head
+FC_N, FC_A, FC_B, FC_LEN = 1, 4, 7, 10
+FS_Y, FS_SUM, FS_HEAD, FS_LEN = 0, 3, 6, 9
+
+
+def filter_step(fc, q0, q1, q2, fs, ring, out):
     """Fig. 13's set-point filter for one joint-loop step: q_d -> q_ref in ``out`` (3,).
 
-    ``kind`` 0: none; 1: first order ``y = a y + b q_d`` per leg (``a``, ``b``,
-    ``y`` (3,)); 2: the ramp, the mean of the last ``n[i]`` samples, kept as
-    a running sum ``s`` (3,) over a ring of ``ring`` (3, n_max) whose oldest
-    entry of leg i is at ``head[i]``.
+    Kind 1: first order ``y = a y + b q_d`` per leg; 2: the ramp, the mean of
+    the last ``n`` samples, kept as a running sum over a ring of ``ring``
+    (3, n_max) whose oldest entry of leg i is at its head.
     """
+    kind = fc[0]
     if kind == 0:
         out[0], out[1], out[2] = q0, q1, q2
         return
     for i in range(3):
         qi = q0 if i == 0 else (q1 if i == 1 else q2)
         if kind == 1:
-            y[i] = a[i] * y[i] + b[i] * qi
-            out[i] = y[i]
+            fs[FS_Y + i] = fc[FC_A + i] * fs[FS_Y + i] + fc[FC_B + i] * qi
+            out[i] = fs[FS_Y + i]
         else:
-            ni = int(n[i])
-            j = int(head[i])
-            s[i] += qi - ring[i, j]
+            ni = int(fc[FC_N + i])
+            j = int(fs[FS_HEAD + i])
+            fs[FS_SUM + i] += qi - ring[i, j]
             ring[i, j] = qi
-            head[i] = (j + 1) % ni
-            out[i] = s[i] / ni
+            fs[FS_HEAD + i] = (j + 1) % ni
+            out[i] = fs[FS_SUM + i] / ni
 
 
-def joint_step(x, jm, e0, e1, e2, f0, f1, f2, lim, gains, band, v_out):
+# The joint controllers' constants ``jc``: u_offset, u_min, u_max, the anti-windup kind
+# (0 back-calculation, 1 conditional, 2 none), T / T_t; per leg r0 T of the integrator
+# and its dead band (m; 0: none); per leg [[A, B], [C, D]] (4 x 4, row-major)
+J_GAIN, J_BAND, J_M, J_LEN = 5, 8, 11, 59
+
+
+def joint_step(x, jc, e0, e1, e2, f0, f1, f2, v_out):
     """The three joint controllers (eq. 28) for one step; valve volts into ``v_out``.
 
     ``x`` (9,): states of legs 1-3 (two of the remainder, the integrator
-    last), updated in place. ``jm`` (3, 4, 4): per leg ``[[A, B], [C, D]]``.
-    ``lim`` = (u_offset, u_min, u_max, anti-windup kind (0 back-calculation,
-    1 conditional, 2 none), T / T_t). ``gains`` (3,): r0 T of each
-    integrator. ``band`` (3,): the integrators' dead bands (m; 0: none): an
-    integrator takes ``e -+ w`` outside ``[-w, w]`` and holds inside
-    (:func:`controllers.dead_band.dead_band`). ``f`` is the velocity
-    feed-forward added before saturation.
+    last), updated in place; ``jc`` their constants (:data:`J_M` ...). An
+    integrator with a dead band ``w`` takes ``e -+ w`` outside ``[-w, w]``
+    and holds inside (:func:`controllers.dead_band.dead_band`). ``f`` is the
+    velocity feed-forward added before saturation.
     """
-    off, lo, hi, kind, aw = lim[0], lim[1], lim[2], lim[3], lim[4]
+    off, lo, hi, kind, aw = jc[0], jc[1], jc[2], jc[3], jc[4]
     for i in range(3):
         e = e0 if i == 0 else (e1 if i == 1 else e2)
         f = f0 if i == 0 else (f1 if i == 1 else f2)
         a, b, c = x[3 * i], x[3 * i + 1], x[3 * i + 2]
-        m = jm[i]
-        n0 = m[0, 0] * a + m[0, 1] * b + m[0, 2] * c + m[0, 3] * e
-        n1 = m[1, 0] * a + m[1, 1] * b + m[1, 2] * c + m[1, 3] * e
-        n2 = m[2, 0] * a + m[2, 1] * b + m[2, 2] * c + m[2, 3] * e
-        u = m[3, 0] * a + m[3, 1] * b + m[3, 2] * c + m[3, 3] * e
-        if band[i] > 0.0:  # the integrator takes the error beyond its band only
-            n2 = n2 - gains[i] * (e - dead_band(e, band[i]))
+        m = J_M + 16 * i
+        n0 = jc[m] * a + jc[m + 1] * b + jc[m + 2] * c + jc[m + 3] * e
+        n1 = jc[m + 4] * a + jc[m + 5] * b + jc[m + 6] * c + jc[m + 7] * e
+        n2 = jc[m + 8] * a + jc[m + 9] * b + jc[m + 10] * c + jc[m + 11] * e
+        u = jc[m + 12] * a + jc[m + 13] * b + jc[m + 14] * c + jc[m + 15] * e
+        gain, band = jc[J_GAIN + i], jc[J_BAND + i]
+        if band > 0.0:  # the integrator takes the error beyond its band only
+            n2 = n2 - gain * (e - dead_band(e, band))
         v = u + off + f
         vs = v
         if vs < lo:  # comparisons: a NaN passes through
@@ -273,7 +283,7 @@ def joint_step(x, jm, e0, e1, e2, f0, f1, f2, lim, gains, band, v_out):
         if kind == 0.0:
             n2 = n2 + (vs - v) * aw
         elif kind == 1.0:
-            push = gains[i] * e
+            push = gain * e
             if (v > hi and push > 0.0) or (v < lo and push < 0.0):
                 n2 = n2 - push
         x[3 * i], x[3 * i + 1], x[3 * i + 2] = n0, n1, n2

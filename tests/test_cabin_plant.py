@@ -216,13 +216,12 @@ def _sensor_arrays(tree_changes):
     """The step's sensor constants for the default sensors with ``tree_changes``."""
     from simpro_mj.plant import step_functions as ps
     from simpro_mj.plant.sensors import DEFAULT_SENSORS, SensorConfig
-    from simpro_mj.sim.step_buffers import sensor_constants
 
     tree = {k: dict(v) for k, v in DEFAULT_SENSORS.items()}
     for key, value in tree_changes.items():
         group, name = key.split(".")
         tree[group][name] = value
-    return sensor_constants(SensorConfig.from_tree(tree, DT)), np.zeros(ps.SS_LEN)
+    return SensorConfig.from_tree(tree, DT).step_constants, np.zeros(ps.SS_LEN)
 
 
 def _walk_end_deg(seed):

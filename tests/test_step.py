@@ -12,7 +12,6 @@
 
 from __future__ import annotations
 
-import ctypes
 import math
 
 import mujoco
@@ -26,7 +25,6 @@ from simpro_mj.config.scenario import load_scenario
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.plant.kernels import kernel_choice
 from simpro_mj.plant.step_functions import quantise
-from simpro_mj.sim import step
 from simpro_mj.sim.loop import CoSimulation
 
 numba = pytest.importorskip("numba")
@@ -142,20 +140,6 @@ def test_kernel_switch(monkeypatch):
     assert str(e.value) == (
         "invalid value at SIMPRO_KERNEL: 'x'; allowed: one of ['auto', 'python', 'numba']"
     )
-
-
-def test_mjdata_offsets_point_at_the_arrays():
-    m = mujoco.MjModel.from_xml_string(
-        "<mujoco><worldbody><body><joint name='j' type='slide'/><geom size='.1'/><site name='s'/>"
-        "</body></worldbody><actuator><motor joint='j' name='a'/></actuator>"
-        "<sensor><jointpos joint='j'/></sensor></mujoco>"
-    )
-    d = mujoco.MjData(m)
-    for data in (d, mujoco.MjData(m)):  # found for the first, checked for the second
-        off = step.mjdata_offsets(data)
-        for name in ("qpos", "qvel", "site_xpos", "site_xmat", "ctrl", "sensordata"):
-            word = ctypes.c_int64.from_address(data._address + 8 * off[name]).value
-            assert word == getattr(data, name).ctypes.data
 
 
 def test_quantise_rounds_half_to_even_like_an_adc():

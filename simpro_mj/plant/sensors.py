@@ -16,7 +16,7 @@ fixed order, so the same scenario and seed give identical readings.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 
@@ -168,6 +168,13 @@ class SensorConfig:
             imu_every=imu_every,
             dt=float(dt),
         )
+
+    @property
+    def step_constants(self) -> np.ndarray:
+        """``sc`` of :func:`~simpro_mj.plant.step_functions.sample_sensors`: the fields
+        in their order (its ``SC_*`` offsets), then ``1 / dt^2``."""
+        sc = [np.ravel(getattr(self, f.name)) for f in fields(self)]
+        return np.concatenate([*sc, [1.0 / (self.dt * self.dt)]])
 
     def resolution_floor(self) -> dict:
         """Smallest steady-state error the task loop can be asked to remove, SI.

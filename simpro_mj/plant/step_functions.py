@@ -13,7 +13,8 @@ seal friction is :func:`simpro_mj.plant.friction.seal_friction`.
 
 Layouts (offsets into the arrays the functions take):
 
-* sensor constants ``sc``: :data:`SC_GAIN` ... (:func:`sensor_constants`);
+* sensor constants ``sc``: :data:`SC_LSB` ...
+  (:attr:`~simpro_mj.plant.sensors.SensorConfig.step_constants`);
 * actuator state ``ast``: chamber pressures p1 (3), p2 (3), spool (3),
   spool rate (3), each ψ-table edge's last cell (12), the supply pressure,
   the linear model's state φ (3) and force bounds (2);
@@ -40,20 +41,12 @@ __all__ = [
     "linear_step",
 ]
 
-# sensor constants sc
-SC_GAIN, SC_OFF, SC_SIGMA, SC_LSB, SC_LO, SC_HI, SC_POT_EVERY = 0, 3, 6, 7, 8, 9, 10
-SC_ENC_NOISE, SC_RES, SC_ENC_EVERY, SC_ALPHA, SC_SIGMA_IMU, SC_BIAS, SC_IMU_EVERY = (
-    11,
-    12,
-    13,
-    14,
-    15,
-    16,
-    18,
-)
-# sensor errors (simpro_mj.plant.sensor_errors): the track's full scale and linearity,
-# the bias walk's step per IMU sample (0: off), the accelerometer's weight, 1 / dt^2
-SC_FS, SC_NL, SC_WALK, SC_ACCW, SC_IDT2, SC_LEN = 19, 20, 21, 22, 23, 24
+# sensor constants sc: SensorConfig's fields in their order (SensorConfig.step_constants),
+# then 1 / dt^2; the sensor errors (simpro_mj.plant.sensor_errors) are the track's full
+# scale and linearity, the bias walk's step per IMU sample (0: off), the accelerometer's weight
+SC_LSB, SC_SIGMA, SC_LO, SC_HI, SC_OFF, SC_GAIN, SC_FS, SC_NL = 0, 1, 2, 3, 4, 7, 10, 11
+SC_POT_EVERY, SC_RES, SC_ENC_NOISE, SC_ENC_EVERY, SC_SIGMA_IMU, SC_BIAS = 12, 13, 14, 15, 16, 17
+SC_WALK, SC_ACCW, SC_ALPHA, SC_IMU_EVERY, SC_IDT2, SC_LEN = 19, 20, 21, 22, 24, 25
 # the sensors' own state (an array ``ss``): the IMU filter (2), the bias walk (2), the
 # IMU site's last two positions (6) and how many are known
 SS_IMU, SS_WALK, SS_HIST, SS_HN, SS_LEN = 0, 2, 4, 10, 11

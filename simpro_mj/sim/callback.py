@@ -4,10 +4,8 @@
 and kept in numba's on-disk cache: it finds the run registered for that
 ``mjData`` (:data:`simpro_mj.sim.step.REGISTRY`, keyed by the struct's
 address), views its arrays and MuJoCo's (``numba.carray`` on the addresses
-read from the ``mjData`` struct at the word offsets found at set-up,
-:func:`simpro_mj.sim.step.mjdata_offsets`) and runs
-:func:`simpro_mj.sim.step.callback_step` compiled. It does nothing for any
-other ``mjData``.
+and sizes in its slot) and runs :func:`simpro_mj.sim.step.callback_step`
+compiled. It does nothing for any other ``mjData``.
 
 MuJoCo calls ``mjcb_control(const mjModel*, mjData*)``. The registry's
 address differs in every process, so the function MuJoCo holds is a
@@ -28,7 +26,7 @@ import ctypes
 
 import llvmlite.binding as llvm
 import numpy as np
-from numba import carray, cfunc, types
+from numba import carray, cfunc, njit, types
 from numba.extending import intrinsic
 
 from simpro_mj.sim import step as st
@@ -58,41 +56,35 @@ def _as_int(typingctx, ptr):
     return types.int64(types.voidptr), codegen
 
 
+@njit(cache=True)
+def _flat(a, i):
+    """Array ``i`` of a slot (``a``: its (address, size, columns) triples) as 1-D float64."""
+    return carray(_as_ptr(a[3 * i]), (a[3 * i + 1],), np.float64)
+
+
+@njit(cache=True)
+def _rows(a, i):
+    """Array ``i`` of a slot as rows of float64."""
+    n = a[3 * i + 2]
+    return carray(_as_ptr(a[3 * i]), (a[3 * i + 1] // n, n), np.float64)
+
+
 @cfunc(types.void(types.voidptr, types.voidptr), cache=True)
 def entry(d, registry):
     """The step of the run registered for ``d``, if any (module docstring)."""
     reg = carray(registry, (st.N_SLOTS * st.SLOT,), np.int64)
-    da = _as_int(d)
-    b = -1
+    key = _as_int(d)
     for s in range(st.N_SLOTS):
-        if reg[s * st.SLOT + st.R_DATA] == da:
-            b = s * st.SLOT
-            break
-    if b < 0:
-        return
-    f8 = np.float64
-    dw = carray(d, (st.MJDATA_WORDS,), np.int64)
-    S = carray(_as_ptr(reg[b + st.R_S]), (reg[b + st.R_SN],), f8)
-    C = carray(_as_ptr(reg[b + st.R_C]), (reg[b + st.R_CN],), f8)
-    nref = reg[b + st.R_NREF]
-    ref = carray(_as_ptr(reg[b + st.R_REF]), (nref, 3), f8)
-    qj = carray(_as_ptr(reg[b + st.R_QJ]), (nref, 3), f8)
-    uff = carray(_as_ptr(reg[b + st.R_UFF]), (nref, 3), f8)
-    noise = carray(_as_ptr(reg[b + st.R_NOISE]), (reg[b + st.R_NNOISE], 6), f8)
-    nq, nlog = reg[b + st.R_NQ], reg[b + st.R_NLOG]
-    log = carray(_as_ptr(reg[b + st.R_LOG]), (nlog, st.N_COLS), f8)
-    qlog = carray(_as_ptr(reg[b + st.R_QLOG]), (nlog, nq), f8)
-    hlog = carray(_as_ptr(reg[b + st.R_HLOG]), (reg[b + st.R_NHLOG], 6), f8)
-    walk = carray(_as_ptr(reg[b + st.R_WALK]), (reg[b + st.R_NWALK], 2), f8)
-    qpos = carray(_as_ptr(dw[reg[b + st.R_QPOS]]), (nq,), f8)
-    qvel = carray(_as_ptr(dw[reg[b + st.R_QVEL]]), (nq,), f8)
-    nx = reg[b + st.R_NXPOS]
-    xpos = carray(_as_ptr(dw[reg[b + st.R_XPOS]]), (nx,), f8)
-    xmat = carray(_as_ptr(dw[reg[b + st.R_XMAT]]), (3 * nx,), f8)
-    ctrl = carray(_as_ptr(dw[reg[b + st.R_CTRL]]), (reg[b + st.R_NU],), f8)
-    sd = carray(_as_ptr(dw[reg[b + st.R_SD]]), (reg[b + st.R_NSD],), f8)
-    warn = carray(_as_ptr(da + reg[b + st.R_WARN]), (reg[b + st.R_NWARN],), np.int32)
-    _body(S, C, qpos, qvel, xpos, xmat, sd, ctrl, warn, ref, qj, uff, noise, walk, log, qlog, hlog)
+        if reg[s * st.SLOT] == key:  # the arrays in the order of step.SLOT_ARRAYS
+            a = reg[s * st.SLOT + 1 : (s + 1) * st.SLOT]
+            S, C, qpos, qvel = _flat(a, 0), _flat(a, 1), _flat(a, 2), _flat(a, 3)
+            xpos, xmat, sd, ctrl = _flat(a, 4), _flat(a, 5), _flat(a, 6), _flat(a, 7)
+            warn = carray(_as_ptr(a[24]), (a[25],), np.int32)
+            ref, qj, uff, noise = _rows(a, 9), _rows(a, 10), _rows(a, 11), _rows(a, 12)
+            walk, log, qlog, hlog = _rows(a, 13), _rows(a, 14), _rows(a, 15), _rows(a, 16)
+            _body(S, C, qpos, qvel, xpos, xmat, sd, ctrl, warn, ref, qj, uff, noise, walk, log,
+                  qlog, hlog)  # fmt: skip
+            return
 
 
 @cfunc(types.float64(), cache=True)

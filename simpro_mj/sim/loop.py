@@ -1,25 +1,15 @@
 """The multi-rate co-simulation loop (replaces Simulink + ADAMS, paper Fig. 13).
 
-One physics step of ``dt`` = 1 ms, stage by stage (:mod:`simpro_mj.sim.step`)::
-
-    step1             mj_step1: kinematics and sensors at the state of t_k
-    sense             the state; potentiometers, height encoder, IMU (own rates, ZOH)
-    control           outer loop every ``period_ms``: task error -> integrated pose
-                      -> IK -> q_d (feedforward mode: q_d = IK(y_d + c) every step,
-                      the correction c integrated every ``period_ms``); the
-                      set-point filter; joint loops q_r, q_meas -> valve voltages
-    actuate           pneumatics: voltages, q, q_dot -> chamber pressures -> slide forces
-    record            one log row every ``logging.decimation`` steps
-    step2             mj_step2: integrate to t_{k+1} with those forces held
-
-Compiled (numba, the default), the stages between ``mj_step1`` and
-``mj_step2`` run inside ``mj_step`` as MuJoCo's control callback and Python
-steps chunks of :data:`~simpro_mj.sim.stages.CHUNK` steps; interpreted
-(``SIMPRO_KERNEL=python``), with faults or profiling, :meth:`CoSimulation.run`
-calls them from Python every step. The plant is one object
-(:class:`~simpro_mj.plant.platform.Platform`, dm_control's ``Physics``); the
-controllers are built here from their public classes, whose numbers and
-states the step's arrays take (:mod:`simpro_mj.sim.step_buffers`).
+:class:`CoSimulation` builds a scenario's plant (one object,
+:class:`~simpro_mj.plant.platform.Platform`, dm_control's ``Physics``), sensors
+and controllers from their public classes, whose numbers and states the
+step's arrays take (:mod:`simpro_mj.sim.step_buffers`), and runs the 1 ms
+step of :mod:`simpro_mj.sim.step` (its stages are listed there; the outer
+loop every ``period_ms``). Compiled (numba, the default), the stages run
+inside ``mj_step`` as MuJoCo's control callback and Python steps chunks of
+:data:`~simpro_mj.sim.stages.CHUNK` steps, checking the run between them;
+interpreted (``SIMPRO_KERNEL=python``), with faults or profiling, Python
+calls ``mj_step1``, the stages and ``mj_step2`` every step.
 
 In joint-only mode (the baseline) q_d(t) = IK(y_d(t)) of the nominal model,
 computed for the whole run at once.
@@ -54,6 +44,7 @@ goes on from that step with the bits of the run never stopped.
 
 from __future__ import annotations
 
+import copy
 import sys
 import threading
 import time
@@ -269,9 +260,7 @@ class CoSimulation:
             j = self.joint  # clipped to the valve's span around its centre (5 V)
             span = min(j.u_offset - j.u_min, j.u_max - j.u_offset)
             # through a filter like Fig. 13's, as the reference the joint loops follow
-            vfilt = SetpointFilter(
-                sf["type"], dt=dt, time=(np.asarray(sf["time_ms"], float) * 1e-3).tolist()
-            )
+            vfilt = copy.deepcopy(self.setpoint_filter)  # not yet started
             self.u_ff = leg_velocity_feedforward(
                 self.ref, dt, legs, self.geometry, span, setpoint_filter=vfilt
             )
@@ -446,15 +435,6 @@ class CoSimulation:
             first at 0, then at each step it returns, with the rows logged so far.
             After :meth:`restore`, the run goes on from the snapshot's step
             (``pace`` is first called there).
-
-        Notes
-        -----
-        The step is :mod:`simpro_mj.sim.step`, one source run two ways
-        (``SIMPRO_KERNEL``): compiled, inside ``mj_step`` as MuJoCo's control
-        callback, Python stepping chunks of at most :data:`CHUNK` steps and
-        checking between them (the default with numba; faults and profiling
-        run the compiled stages from Python instead); interpreted, the same
-        functions called from Python every step (the reference).
         """
         resume, self._resume = self._resume, None
         n, dec = self.n_steps, self.decimation
@@ -468,15 +448,20 @@ class CoSimulation:
         if self.scenario.get("faults"):
             faults = FaultSchedule.from_scenario(self.scenario, self.dt)
         kernel = kernel_choice()
-        stages = step.compiled() if kernel == "numba" else step
+        timer = Profile() if profile is not None else None
         status, reason = "ok", None
         wall0 = time.perf_counter()
         k = 0
         try:
             if kernel == "numba" and faults is None and profile is None:
-                k = self._run_callback(log, pace, progress, k0)
+                ref, qj, uff = self._inputs()
+                with Registration(self.data, self.S, self.C, ref, qj, uff, self.noise.rows,
+                                  self.walk.rows, log.log, log.qlog, log.hlog):  # fmt: skip
+                    k = self._chunks(self._callback_steps(), log, pace, progress, k0)
             else:
-                k = self._run_python(stages, log, faults, profile, pace, progress, k0)
+                stages = step.compiled() if kernel == "numba" else step
+                advance = self._python_steps(stages, faults, timer)
+                k = self._chunks(advance, log, pace, progress, k0)
         except PhysicsError as exc:
             status, reason = "diverged", str(exc)
             k = self._k
@@ -487,32 +472,58 @@ class CoSimulation:
             k = max(self._k, int(self.S[step.K]) - 1)
             status = "interrupted"
             reason = f"interrupted by signal (SIGINT/SIGTERM) at t = {k * self.dt:.3f} s"
+        finally:
+            if timer is not None:
+                profile.update(timer.ns, steps=self._k + 1)
         wall = time.perf_counter() - wall0
         log.rows, log.worst_loop = int(self.S[step.ROWS]), float(self.S[step.WORST])
         return self._result(log, k, status, reason, wall)
 
-    def _arrays(self, log):
-        """The arrays the stages read and write (MuJoCo's are views)."""
-        d = self.data
-        empty = np.zeros_like(self.ref)
-        qj = self.q_joint_only if self.q_joint_only is not None else empty
-        uff = self.u_ff if self.u_ff is not None else empty
-        mj = (
-            d.qpos,
-            d.qvel,
-            d.site_xpos.reshape(-1),
-            d.site_xmat.reshape(-1),
-            d.sensordata,
-            d.ctrl,
-        )
-        return mj, (self.ref, np.ascontiguousarray(qj), np.ascontiguousarray(uff))
+    def _inputs(self):
+        """The set-point arrays the stages read: poses, joint-only q_d, feed-forward volts."""
+        unused = np.zeros_like(self.ref)
+        qj = self.q_joint_only if self.q_joint_only is not None else unused
+        uff = self.u_ff if self.u_ff is not None else unused
+        return self.ref, np.ascontiguousarray(qj), np.ascontiguousarray(uff)
 
-    def _run_python(self, stages, log, faults, profile, pace, progress, k0: int = 0) -> int:
-        """Step by step from Python: ``mj_step1``, the stages, ``mj_step2``."""
+    def _chunks(self, advance, log, pace, progress, k0: int) -> int:
+        """Steps ``k0 .. n`` by ``advance(k, stop)`` in chunks of at most :data:`CHUNK`.
+
+        A chunk ends at the next step ``pace`` asked for; between two chunks:
+        ``pace``, progress, a stop request, MuJoCo's warnings.
+        """
+        S, n = self.S, self.n_steps
+        next_pace = k0 if pace is not None else NEVER
+        k = self._k = k0
+        while True:
+            if k == next_pace:
+                next_pace = pace(k, log.log[: int(S[step.ROWS])])
+            stop = min(n, (k // CHUNK + 1) * CHUNK)
+            if k < next_pace < stop:
+                stop = next_pace
+            self._draws(k, stop + 1)
+            advance(k, stop)
+            if k == n:
+                return n
+            if progress is not None and stop // 1000 > k // 1000:
+                progress(stop // 1000 * 1000)
+            k = self._k = stop
+            if _STOP.is_set():
+                raise KeyboardInterrupt("stop requested")
+            if any(self.data.warning.number.tolist()):
+                self._raise(step.ERR_WARNING, k - 1)
+
+    def _python_steps(self, stages, faults, timer):
+        """``advance(k, stop)`` from Python: steps ``k .. stop - 1``, or the last alone.
+
+        Each step: ``mj_step1``, the stages (and the faults' hooks between
+        them), ``mj_step2`` (not after the last step).
+        """
         m, d, S, C, n = self.model, self.data, self.S, self.C, self.n_steps
-        (qpos, qvel, xpos, xmat, sd, ctrl), (ref, qj, uff) = self._arrays(log)
-        noise, walk = self.noise, self.walk
-        timer = Profile() if profile is not None else None
+        qpos, qvel, sd, ctrl = d.qpos, d.qvel, d.sensordata, d.ctrl
+        xpos, xmat = d.site_xpos.reshape(-1), d.site_xmat.reshape(-1)
+        ref, qj, uff = self._inputs()
+        noise, walk, log = self.noise.rows, self.walk.rows, self._log
         wrap = timer.wrap if timer is not None else (lambda fn, stage: fn)
         step1 = wrap(mujoco.mj_step1, "physics")
         step2 = wrap(mujoco.mj_step2, "physics")
@@ -521,19 +532,16 @@ class CoSimulation:
         record = wrap(stages.record, "logging")
         hooks = FaultHooks(faults, S, self.actuators) if faults is not None else None
         next_ev = faults.next_event if faults is not None else NEVER
-        next_pace = k0 if pace is not None else NEVER
         warnings = d.warning.number
-        k = k0
-        try:
-            for k in range(k0, n + 1):
+
+        def advance(k0: int, stop: int) -> None:
+            nonlocal next_ev
+            for k in range(k0, max(stop, k0 + 1)):
                 self._k = k
                 if k == next_ev:
                     next_ev = hooks.at(k)
-                if k == next_pace:
-                    next_pace = pace(k, log.log[: int(S[step.ROWS])])
-                self._draws(k, k + 1)
                 step1(m, d)
-                sense(k, S, C, qpos, qvel, xpos, xmat, noise.rows, walk.rows)
+                sense(k, S, C, qpos, qvel, xpos, xmat, noise, walk)
                 if hooks is not None and hooks.sensors:
                     hooks.apply_sensors(k)
                 err = control(k, S, C, ref, qj, uff)
@@ -549,61 +557,33 @@ class CoSimulation:
                 if err:
                     self._raise(err, k)
                 if k == n:
-                    break
+                    return
                 step2(m, d)
                 if any(warnings.tolist()):
                     self._raise(step.ERR_WARNING, k)
-                if progress is not None and k % 1000 == 0:
-                    progress(k)
-                if k % CHUNK == 0 and _STOP.is_set():
-                    raise KeyboardInterrupt("stop requested")
-        finally:
-            if timer is not None:
-                profile.update(timer.ns, steps=k + 1)
-        return k
 
-    def _run_callback(self, log, pace, progress, k0: int = 0) -> int:
-        """Compiled, inside ``mj_step``: chunks of steps, the checks between them."""
-        m, d, S, C, n = self.model, self.data, self.S, self.C, self.n_steps
-        _, (ref, qj, uff) = self._arrays(log)
-        next_pace = k0 if pace is not None else NEVER
-        reg = Registration(m, d, S, C, ref, qj, uff, self.noise.rows, self.walk.rows, log.log,
-                           log.qlog, log.hlog)  # fmt: skip
-        k = k0
-        self._k = k0
-        with reg:
-            while True:
-                if k == next_pace:
-                    next_pace = pace(k, log.log[: int(S[step.ROWS])])
-                stop = min(n, (k // CHUNK + 1) * CHUNK)
-                if k < next_pace < stop:
-                    stop = next_pace
-                self._draws(k, stop + 1)
-                S[step.K], S[step.STATUS] = k, step.RUNNING
-                if stop > k:
-                    mujoco.mj_step(m, d, stop - k)
-                else:  # the last step: its stages without integrating (mj_step1's work)
-                    mujoco.mj_forward(m, d)
-                if S[step.STATUS] == step.STOPPED:
-                    self._k = int(S[step.ERR_K])
-                    self._raise(int(S[step.ERR]), self._k)
-                S[step.STATUS] = step.IDLE
-                if int(S[step.K]) != max(stop, k + 1):
-                    raise RuntimeError(
-                        f"the control callback ran {int(S[step.K]) - k} of "
-                        f"{max(stop - k, 1)} steps: another callback replaced it"
-                    )
-                if k == n:
-                    break
-                if progress is not None and stop // 1000 > k // 1000:
-                    progress(stop // 1000 * 1000)
-                k = stop
-                self._k = k
-                if _STOP.is_set():
-                    raise KeyboardInterrupt("stop requested")
-                if any(d.warning.number.tolist()):
-                    self._raise(step.ERR_WARNING, k - 1)
-        return n
+        return advance
+
+    def _callback_steps(self):
+        """``advance(k, stop)`` compiled: ``mj_step`` of steps ``k .. stop - 1``, or the last."""
+        m, d, S = self.model, self.data, self.S
+
+        def advance(k: int, stop: int) -> None:
+            S[step.K], S[step.STATUS] = k, step.RUNNING
+            if stop > k:
+                mujoco.mj_step(m, d, stop - k)
+            else:  # the last step: its stages without integrating (mj_step1's work)
+                mujoco.mj_forward(m, d)
+            if S[step.STATUS] == step.STOPPED:
+                self._raise(int(S[step.ERR]), int(S[step.ERR_K]))
+            S[step.STATUS] = step.IDLE
+            if int(S[step.K]) != max(stop, k + 1):
+                raise RuntimeError(
+                    f"the control callback ran {int(S[step.K]) - k} of "
+                    f"{max(stop - k, 1)} steps: another callback replaced it"
+                )
+
+        return advance
 
     def _draws(self, k0: int, k1: int) -> None:
         """The sensors' and the bias walk's draws for steps ``k0 .. k1 - 1`` in their blocks."""

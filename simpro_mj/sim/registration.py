@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import threading
 
+import mujoco
 import numpy as np
 
 from simpro_mj.sim import step as st
@@ -39,57 +40,44 @@ class Registration:
     installed if it is the first), on exit the slot is freed and the last one
     out uninstalls the callback (restoring whatever was installed before).
     The arrays must stay alive and unmoved while registered (the object
-    holds them).
+    holds them; ``mjData``'s arrays keep their addresses for its life).
     """
 
-    def __init__(self, model, data, S, C, ref, qj, uff, noise, walk, log, qlog, hlog):
-        import mujoco
-
-        self._mujoco = mujoco
-        self.arrays = (S, C, ref, qj, uff, noise, walk, log, qlog, hlog)
-        for a in self.arrays:
+    def __init__(self, data, S, C, ref, qj, uff, noise, walk, log, qlog, hlog):
+        own = (S, C, ref, qj, uff, noise, walk, log, qlog, hlog)
+        for a in own:
             if a.dtype != np.float64 or not a.flags.c_contiguous:
                 raise ValueError("registered arrays must be C-contiguous float64")
-        if model.nv != model.nq:
-            raise ValueError("the callback expects nq == nv (1-DOF joints only)")
-        off = st.mjdata_offsets(data)
-        slot = np.zeros(st.SLOT, dtype=np.int64)
-        slot[st.R_DATA] = int(data._address)
-        slot[st.R_S], slot[st.R_SN] = S.ctypes.data, S.size
-        slot[st.R_C], slot[st.R_CN] = C.ctypes.data, C.size
-        slot[st.R_REF], slot[st.R_NREF] = ref.ctypes.data, ref.shape[0]
-        slot[st.R_QJ], slot[st.R_UFF] = qj.ctypes.data, uff.ctypes.data
         if qj.shape != ref.shape or uff.shape != ref.shape:
             raise ValueError("q_joint and u_ff must have the set-points' shape")
-        slot[st.R_NOISE], slot[st.R_NNOISE] = noise.ctypes.data, noise.shape[0]
-        slot[st.R_LOG], slot[st.R_NLOG] = log.ctypes.data, log.shape[0]
-        slot[st.R_QLOG], slot[st.R_NQ] = qlog.ctypes.data, model.nq
-        slot[st.R_HLOG], slot[st.R_NHLOG] = hlog.ctypes.data, hlog.shape[0]
-        slot[st.R_WALK], slot[st.R_NWALK] = walk.ctypes.data, walk.shape[0]
-        if log.shape[1] != st.N_COLS or qlog.shape != (log.shape[0], model.nq):
+        if log.shape[1] != st.N_COLS or qlog.shape != (log.shape[0], data.qpos.size):
             raise ValueError("log buffers of the wrong shape")
-        slot[st.R_QPOS], slot[st.R_QVEL] = off["qpos"], off["qvel"]
-        slot[st.R_XPOS], slot[st.R_NXPOS] = off["site_xpos"], 3 * model.nsite
-        slot[st.R_XMAT] = off["site_xmat"]
-        slot[st.R_CTRL], slot[st.R_NU] = off["ctrl"], model.nu
-        slot[st.R_SD], slot[st.R_NSD] = off["sensordata"], model.nsensordata
-        slot[st.R_WARN], slot[st.R_NWARN] = off["warning"], off["n_warning"]
+        d = data
+        warn = d.warning.lastinfo  # mjWarningStat {int lastinfo; int number}
+        if warn.dtype != np.int32 or warn.strides != (8,):
+            raise RuntimeError("mjData.warning laid out otherwise; run with SIMPRO_KERNEL=python")
+        mj = (d.qpos, d.qvel, d.site_xpos, d.site_xmat, d.sensordata, d.ctrl)
+        self.arrays = (S, C, *mj, warn, *own[2:])  # in the order of step.SLOT_ARRAYS
+        slot = np.zeros(st.SLOT, dtype=np.int64)
+        slot[0] = int(d._address)
+        for i, a in enumerate(self.arrays):
+            slot[1 + 3 * i : 4 + 3 * i] = a.ctypes.data, a.size, a.shape[-1]
+        i = st.SLOT_ARRAYS.index("warn")
+        slot[2 + 3 * i] = 2 * warn.size  # the pairs, as int32
         self.slot = slot
         self.index = None
-        self.data = data
 
     def __enter__(self):
-        mujoco = self._mujoco
         with _reg_lock:
             if _installed["cb"] is None:
                 _installed["cb"] = _make_callback()
-            free = [s for s in range(st.N_SLOTS) if st.REGISTRY[s * st.SLOT + st.R_DATA] == 0]
+            free = [s for s in range(st.N_SLOTS) if st.REGISTRY[s * st.SLOT] == 0]
             if not free:
                 raise RuntimeError(f"more than {st.N_SLOTS} runs stepping at once in one process")
             s = free[0]
             st.REGISTRY[s * st.SLOT + 1 : (s + 1) * st.SLOT] = self.slot[1:]
             # the key last: the slot is whole when the callback can find it
-            st.REGISTRY[s * st.SLOT + st.R_DATA] = self.slot[st.R_DATA]
+            st.REGISTRY[s * st.SLOT] = self.slot[0]
             self.index = s
             if _installed["count"] == 0:
                 _installed["previous"] = mujoco.get_mjcb_control()
@@ -102,7 +90,6 @@ class Registration:
         return self
 
     def __exit__(self, *exc):
-        mujoco = self._mujoco
         with _reg_lock:
             s = self.index
             st.REGISTRY[s * st.SLOT : (s + 1) * st.SLOT] = 0

@@ -36,7 +36,6 @@ leave uninstalls it.
 
 from __future__ import annotations
 
-import ctypes
 import math
 import threading
 import types as pytypes
@@ -49,16 +48,7 @@ from simpro_mj.plant import step_functions as ps
 from simpro_mj.plant.friction import seal_friction
 from simpro_mj.plant.sensor_errors import accel_tilt, pot_nonlinearity
 
-__all__ = [
-    "Layout",
-    "sense",
-    "control",
-    "actuate",
-    "record",
-    "step_once",
-    "compiled",
-    "mjdata_offsets",
-]
+__all__ = ["sense", "control", "actuate", "record", "callback_step", "compiled"]
 
 # ---------------------------------------------------------------- state S
 K, STATUS, ERR, ERR_K, ROWS, WORST, FLAGS, SUPPLY_LOG, NOISE_K0 = range(9)
@@ -71,8 +61,8 @@ SAT = 51  # feed-forward: a valve at its rail since the last outer step
 SS = 52  # the sensors' own state (plant.step_functions.SS_*)
 TS = SS + ps.SS_LEN  # the outer loop's state (controllers.step_functions.T_*)
 JX = TS + cs.T_LEN  # the joint controllers' 9 states
-FY, FSUM, FHEAD = JX + 9, JX + 12, JX + 15  # the set-point filter
-AST = JX + 18  # the actuators' state (plant.step_functions.A_*)
+FS = JX + 9  # the set-point filter's state (controllers.step_functions.FS_*)
+AST = FS + cs.FS_LEN  # the actuators' state (plant.step_functions.A_*)
 RING = AST + ps.A_LEN  # the ramp filter's ring (3 x n_max)
 
 #: STATUS values: registered but not stepping, stepping, stopped on an error
@@ -82,12 +72,14 @@ ERR_FORCE, ERR_LOOP, ERR_WARNING = 5, 6, 7
 
 # ------------------------------------------------------------ constants C
 DT, NSTEPS, DEC, OUTER, HOLD_SAT, HAS_UFF, HEAD, LOOP_BOUND = range(8)
-FKIND, FN, FA, FB = 8, 9, 12, 15
-LIM, IGAIN, JM = 18, 23, 26  # joint loops: (offset, lo, hi, anti-windup, T/T_t), r0 T, 3x4x4
-IQ, IV, IMAT, IH, NPAIR, PAIRS = 74, 77, 80, 81, 82, 83  # state read (8 loops at most)
-IHA, IHG, ICTRL = 99, 100, 101
-JDB = 104  # the joint integrators' dead bands (m)
-SC = JDB + 3
+FC = 8  # the set-point filter's constants (controllers.step_functions.FC_*)
+JC = FC + cs.FC_LEN  # the joint controllers' (controllers.step_functions.J_*)
+# the state read: the slides' qpos and dof, the platform site's xmat and xpos (z), the
+# closed loops' site pairs (8 at most), the head sensors, the slides' motors
+IQ = JC + cs.J_LEN
+IV, IMAT, IH, NPAIR, PAIRS = IQ + 3, IQ + 6, IQ + 7, IQ + 8, IQ + 9
+IHA, IHG, ICTRL = PAIRS + 16, PAIRS + 17, PAIRS + 18
+SC = ICTRL + 3
 TC = SC + ps.SC_LEN
 GEOM = TC + cs.TC_LEN
 AC = GEOM + cs.GEOM_LEN  # the actuators' constants (plant.step_functions.AC_*)
@@ -97,15 +89,6 @@ MAX_PAIRS = 8
 N_COLS = 1 + 3 * 9 + 6 + 1 + 2
 
 
-class Layout:
-    """Sizes of one run's buffers: ``S`` (state) and ``C`` (constants)."""
-
-    def __init__(self, n_ring: int, n_ac: int):
-        self.n_ring = int(n_ring)
-        self.s_len = RING + 3 * self.n_ring
-        self.c_len = AC + int(n_ac)
-
-
 # ---------------------------------------------------------------- the stages
 def sense(k, S, C, qpos, qvel, xpos, xmat, noise, walk):
     """The state and the sensors' readings at step ``k`` into ``S``.
@@ -113,23 +96,15 @@ def sense(k, S, C, qpos, qvel, xpos, xmat, noise, walk):
     ``noise``: the block of the sensors' draws (row ``k - S[NOISE_K0]``);
     ``walk``: the block of the IMU bias walk's draws (row ``S[WALK_M] - S[WALK_M0]``).
     """
-    ps.slide_states(qpos, qvel, C[IQ : IQ + 3], C[IV : IV + 3], S[Q : Q + 3], S[QD : QD + 3])
-    ps.platform_pose(xmat, xpos, C[IMAT], C[IH], S[POSE : POSE + 3])
+    q, pose, qm, pm = S[Q : Q + 3], S[POSE : POSE + 3], S[QM : QM + 3], S[PM : PM + 3]
+    ps.slide_states(qpos, qvel, C[IQ : IQ + 3], C[IV : IV + 3], q, S[QD : QD + 3])
+    ps.platform_pose(xmat, xpos, C[IMAT], C[IH], pose)
     S[LOOP] = ps.loop_closure(xpos, C[PAIRS : PAIRS + 2 * MAX_PAIRS], C[NPAIR])
     site = int(C[IH]) - 2  # the platform frame's origin: the IMU site
-    S[WALK_M] += ps.sample_sensors(
-        k,
-        False,
-        S[Q : Q + 3],
-        S[POSE : POSE + 3],
-        xpos[site : site + 3],
-        noise[k - int(S[NOISE_K0])],
-        walk[int(S[WALK_M]) - int(S[WALK_M0])],
-        C[SC : SC + ps.SC_LEN],
-        S[SS : SS + ps.SS_LEN],
-        S[QM : QM + 3],
-        S[PM : PM + 3],
-    )
+    draws, steps = noise[k - int(S[NOISE_K0])], walk[int(S[WALK_M]) - int(S[WALK_M0])]
+    sc, ss = C[SC : SC + ps.SC_LEN], S[SS : SS + ps.SS_LEN]
+    imu = xpos[site : site + 3]
+    S[WALK_M] += ps.sample_sensors(k, False, q, pose, imu, draws, steps, sc, ss, qm, pm)
     for i in range(3):
         S[YQ + i] = S[QM + i]
         S[YP + i] = S[PM + i]
@@ -165,39 +140,16 @@ def control(k, S, C, ref, qj, uff):
             S[PCMD + i] = ts[cs.T_XC + i]
     if err:
         return err
-    qr = S[QR : QR + 3]
+    qr, ring = S[QR : QR + 3], S[RING:].reshape(3, -1)
     cs.filter_step(
-        C[FKIND],
-        S[QDES],
-        S[QDES + 1],
-        S[QDES + 2],
-        C[FN : FN + 3],
-        C[FA : FA + 3],
-        C[FB : FB + 3],
-        S[FY : FY + 3],
-        S[FSUM : FSUM + 3],
-        S[FHEAD : FHEAD + 3],
-        S[RING:].reshape(3, -1),
-        qr,
+        C[FC : FC + cs.FC_LEN], S[QDES], S[QDES + 1], S[QDES + 2], S[FS : FS + 9], ring, qr
     )
     f0 = f1 = f2 = 0.0
     if C[HAS_UFF] != 0.0:
         f0, f1, f2 = uff[k, 0], uff[k, 1], uff[k, 2]
-    cs.joint_step(
-        S[JX : JX + 9],
-        C[JM : JM + 48].reshape(3, 4, 4),
-        qr[0] - m0,
-        qr[1] - m1,
-        qr[2] - m2,
-        f0,
-        f1,
-        f2,
-        C[LIM : LIM + 5],
-        C[IGAIN : IGAIN + 3],
-        C[JDB : JDB + 3],
-        S[U : U + 3],
-    )
-    lo, hi = C[LIM + 1], C[LIM + 2]
+    jc = C[JC : JC + cs.J_LEN]
+    cs.joint_step(S[JX : JX + 9], jc, qr[0] - m0, qr[1] - m1, qr[2] - m2, f0, f1, f2, S[U : U + 3])
+    lo, hi = jc[1], jc[2]
     for i in range(3):
         S[UA + i] = S[U + i]
     if C[HOLD_SAT] != 0.0 and S[SAT] == 0.0:
@@ -262,34 +214,16 @@ def apply_forces(S, C, ctrl):
         ctrl[int(C[ICTRL + i])] = S[F + i]
 
 
-def step_once(S, C, qpos, qvel, xpos, xmat, sd, ctrl, ref, qj, uff, noise, walk, log, qlog, hlog):
-    """Step ``S[K]`` whole: sense, control, actuate, apply, record; then ``K + 1``.
-
-    Returns an error code (0: none); on an error ``S`` records it and the step.
-    """
-    k = int(S[K])
-    sense(k, S, C, qpos, qvel, xpos, xmat, noise, walk)
-    err = control(k, S, C, ref, qj, uff)
-    if err == 0:
-        err = actuate(S, C)
-    if err == 0:
-        apply_forces(S, C, ctrl)
-        err = record(k, S, C, ref, qpos, sd, log, qlog, hlog)
-    if err:
-        S[ERR], S[ERR_K], S[STATUS] = err, k, STOPPED
-    S[K] = k + 1
-    return err
-
-
 def callback_step(
     S, C, qpos, qvel, xpos, xmat, sd, ctrl, warn, ref, qj, uff, noise, walk, log, qlog, hlog
 ):
-    """The body of MuJoCo's control callback for one registered run.
+    """Step ``S[K]`` whole (sense, control, actuate, apply, record), then ``K + 1``.
 
-    Does nothing unless the run is stepping; stops it (before the step) when
-    a MuJoCo warning counter is set (``warn``: the ``number`` of each
-    ``mjWarningStat``) or the step is past the run's end or the noise rows
-    Python drew.
+    The body of MuJoCo's control callback for one registered run. Does
+    nothing unless the run is stepping; stops it (before the step) when a
+    MuJoCo warning counter is set (``warn``: the ``lastinfo, number`` pairs
+    of ``mjWarningStat``) or the step is past the run's end or the noise
+    rows Python drew. On an error ``S`` records it and the step.
     """
     if S[STATUS] != RUNNING:
         return
@@ -305,7 +239,16 @@ def callback_step(
     ):
         S[STATUS] = IDLE
         return
-    step_once(S, C, qpos, qvel, xpos, xmat, sd, ctrl, ref, qj, uff, noise, walk, log, qlog, hlog)
+    sense(k, S, C, qpos, qvel, xpos, xmat, noise, walk)
+    err = control(k, S, C, ref, qj, uff)
+    if err == 0:
+        err = actuate(S, C)
+    if err == 0:
+        apply_forces(S, C, ctrl)
+        err = record(k, S, C, ref, qpos, sd, log, qlog, hlog)
+    if err:
+        S[ERR], S[ERR_K], S[STATUS] = err, k, STOPPED
+    S[K] = k + 1
 
 
 # ------------------------------------------------------------ compiled form
@@ -318,7 +261,7 @@ _PLAIN = [
     pot_nonlinearity, ps.imu_input, ps.sample_sensors,
     seal_friction, ps._psi, ps.valve_spool, ps.chamber_pressures, ps.slide_forces,
     ps.nonlinear_step, ps.linear_step,
-    sense, control, actuate, record, apply_forces, step_once, callback_step,
+    sense, control, actuate, record, apply_forces, callback_step,
 ]  # fmt: skip
 
 _compiled = None
@@ -395,73 +338,13 @@ def _module_view(module, env):
     return view
 
 
-# ------------------------------------------------------------ the callback
-def mjdata_offsets(data) -> dict:
-    """Where ``mjData`` keeps the arrays the callback reads: word offsets in the struct.
-
-    Each array's own address (``data.qpos.ctypes.data``, ...) is located
-    among the 8-byte words of the ``mjData`` struct (``data._address``),
-    word by word from the start, stopping at the last one found (so nothing
-    past the struct is read); the first match is the field (zero-sized
-    arrays share their neighbour's address and come later). The layout is
-    the same for every ``mjData`` of this MuJoCo: found once, then only
-    checked. The warning counters are inline in the struct.
-
-    Raises
-    ------
-    RuntimeError
-        A field not found: this MuJoCo version lays ``mjData`` out differently.
-    """
-    base = int(data._address)
-    names = ("qpos", "qvel", "site_xpos", "site_xmat", "ctrl", "sensordata")
-    want = {}
-    for name in names:
-        arr = getattr(data, name)
-        if not arr.size:
-            raise RuntimeError(f"mjData.{name} is empty: the model has none")
-        want[name] = arr.ctypes.data
-
-    def word(i: int) -> int:
-        return ctypes.c_int64.from_address(base + 8 * i).value
-
-    out = _OFFSETS.get("fields")
-    if out is None or any(word(out[n]) != want[n] for n in names):
-        out, todo = {}, dict(want)
-        for i in range(MJDATA_WORDS):
-            w = word(i)
-            for n, addr in list(todo.items()):
-                if w == addr:
-                    out[n] = i
-                    del todo[n]
-            if not todo:
-                break
-        if todo:
-            raise RuntimeError(
-                f"mjData.{sorted(todo)[0]} not found in the struct at {base:#x}: this MuJoCo "
-                "version lays mjData out differently; run with SIMPRO_KERNEL=python"
-            )
-        _OFFSETS["fields"] = dict(out)
-    out = dict(out)
-    warn = data.warning.number
-    off = warn.ctypes.data - base
-    if warn.dtype != np.int32 or warn.strides != (8,) or not 0 < off < MJDATA_WORDS * 8:
-        raise RuntimeError("mjData.warning not laid out as expected; run with SIMPRO_KERNEL=python")
-    out["warning"] = off - 4  # mjWarningStat {int lastinfo; int number}
-    out["n_warning"] = 2 * warn.shape[0]
-    return out
-
-
-_OFFSETS: dict = {}
-
-#: most 8-byte words of the mjData struct searched for the arrays' addresses
-MJDATA_WORDS = 65536
-
-# one slot per registered run: addresses and sizes of its arrays
-SLOT = 32
+# ------------------------------------------------------------ the registry
+#: The arrays of a registered run, in the order of its slot and of :func:`callback_step`'s
+#: arguments; MuJoCo's are views of its ``mjData`` (``site_xpos``, ``site_xmat``,
+#: ``sensordata``, the warnings' ``lastinfo, number`` pairs).
+SLOT_ARRAYS = "S C qpos qvel xpos xmat sd ctrl warn ref qj uff noise walk log qlog hlog".split()
+#: one slot per registered run: the ``mjData``'s address (the key; 0: free),
+#: then (address, rows, columns) of each array
+SLOT = 1 + 3 * len(SLOT_ARRAYS)
 N_SLOTS = 64
-(
-    R_DATA, R_S, R_SN, R_C, R_CN, R_REF, R_NREF, R_QJ, R_UFF, R_NOISE, R_NNOISE, R_LOG, R_NLOG,
-    R_QLOG, R_NQ, R_HLOG, R_QPOS, R_QVEL, R_XPOS, R_NXPOS, R_XMAT, R_CTRL, R_NU, R_SD, R_NSD,
-    R_WARN, R_NWARN, R_NHLOG, R_WALK, R_NWALK,
-) = range(30)  # fmt: skip
 REGISTRY = np.zeros(N_SLOTS * SLOT, dtype=np.int64)
