@@ -209,7 +209,7 @@ def test_the_interrupted_message_names_both_folders(tmp_path):
 
 @pytest.mark.parametrize("code", [errno.ENOSPC, errno.EROFS], ids=["full", "read-only"])
 def test_a_failing_write_names_the_users_folder(tmp_path, capsys, monkeypatch, code):
-    def failing(path, columns):
+    def failing(path, columns, rows=None):
         raise OSError(code, os.strerror(code), str(path))
 
     monkeypatch.setattr(results, "write_timeseries", failing)

@@ -224,8 +224,9 @@ class Run:
             identified_source=self.identified_source,
         )
 
-    def execute(self, *, quiet: bool = False, progress=_stepping) -> RunOutcome:
+    def execute(self, *, quiet: bool = False, progress=_stepping, pace=None) -> RunOutcome:
         """Preflight, simulate and measure; warnings on stderr unless ``quiet``.
+        ``progress`` and ``pace`` go to :meth:`simpro_mj.sim.loop.CoSimulation.run`.
 
         Raises
         ------
@@ -234,7 +235,7 @@ class Run:
         """
         warnings, figures = self.preflight()
         warn(warnings, quiet)
-        res = self.simulation().run(progress)
+        res = self.simulation().run(progress, pace=pace)
         metrics = compute_metrics(res.columns, res.scenario)
         if res.status == "ok":  # ran to its end: does the pose settle? (analysis.verdict)
             judged = verdict(res.columns, res.sensor_floor)

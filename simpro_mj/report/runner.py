@@ -26,7 +26,8 @@ from simpro_mj.core.interrupts import held_signals
 from simpro_mj.core.progress import show_progress
 from simpro_mj.core.rates import PHYSICS_DT_S
 from simpro_mj.job.run import Run, warn
-from simpro_mj.report.results import write_run
+from simpro_mj.plant.kernels import kernel_choice
+from simpro_mj.report.results import RowText, write_run
 from simpro_mj.sim.readiness import signal_ready
 
 __all__ = [
@@ -84,19 +85,30 @@ def execute(
         If the simulation does not hand back a partial result on Ctrl-C.
     """
     bar = _Bar(scenario, label) if progress else None
+    # timeseries.csv's lines formatted while the compiled step runs (its columns
+    # are the log's but for a cueing run's vehicle signals)
+    rows = None
+    if kernel_choice() == "numba" and not scenario["setpoint"].get("cueing"):
+        rows = RowText.if_useful()
     try:
-        if bar is None:
-            outcome = Run(scenario, model=model).execute(quiet=quiet)
-        else:
-            outcome = Run(scenario, model=model).execute(quiet=quiet, progress=bar.step)
+        run = Run(scenario, model=model)
+        pace = rows.pace if rows is not None else None
+        try:
+            if bar is None:
+                outcome = run.execute(quiet=quiet, pace=pace)
+            else:
+                outcome = run.execute(quiet=quiet, progress=bar.step, pace=pace)
+        finally:
+            if bar is not None:
+                bar.close()
+        res = outcome.result
+        with held_signals():  # a folder is always written whole
+            res.folder, doc = write_run(
+                Path(out), outcome, scenario, plots=plots, arrays=recording(res), rows=rows
+            )
     finally:
-        if bar is not None:
-            bar.close()
-    res = outcome.result
-    with held_signals():  # a folder is always written whole
-        res.folder, doc = write_run(
-            Path(out), outcome, scenario, plots=plots, arrays=recording(res)
-        )
+        if rows is not None:
+            rows.close()
     return res, doc
 
 
