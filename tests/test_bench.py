@@ -43,6 +43,10 @@ def test_keys_and_consistency(short):
     assert r["run_command_durations_s"] == [0.6, 0.3]
     assert len(r["samples"]["run_command_us"]) == 2
     assert math.isclose(r["run_command_ratio"], r["run_command_us"] / r["bare_step_us"])
+    # the compiled run freezes MuJoCo's profiler clock: the like-for-like bare figure
+    frozen = r["bare_frozen_clock_us"]
+    assert frozen > 0 and len(r["samples"]["bare_frozen_clock_us"]) == 2
+    assert math.isclose(r["ratio_frozen_clock"], r["full_step_us"] / frozen, rel_tol=1e-12)
 
 
 def test_run_command_figure_is_null_when_the_scenario_cannot_last():
@@ -90,8 +94,13 @@ def test_cli_json_and_throughput(capsys):
 
 def test_human_table(capsys):
     assert main(["bench", "--duration", "0.1", "--repeats", "1", "--no-batch"]) == 0
-    out = capsys.readouterr().out
+    captured = capsys.readouterr()
+    out = captured.out
     assert "bare mj_step" in out and "ratio full/bare" in out and "pneumatics" in out
+    assert "clock frozen" in out
+    assert "repeat 1/1" in captured.err  # progress, which --quiet silences
+    assert main(["bench", "--duration", "0.1", "--repeats", "1", "--no-batch", "--quiet"]) == 0
+    assert capsys.readouterr().err == ""
 
 
 @pytest.mark.parametrize(

@@ -93,7 +93,7 @@ def run(args) -> int:
         else:
             print(video_table(result))
         return 0
-    progress = None if args.json else (lambda msg: print(f"  {msg}", file=sys.stderr))
+    progress = None if args.json or args.quiet else (lambda msg: print(f"  {msg}", file=sys.stderr))
     # SIGTERM: exit 130 like Ctrl-C (commands.main), workers stopped
     result = measure(scenario, repeats, batch=not args.no_batch, batch_runs=runs, log=progress)
     if args.json:
