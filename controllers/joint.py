@@ -27,8 +27,9 @@ integrator state only:
   and the error would drive it further into saturation;
 * ``"none"``.
 
-Per leg one step is ``[x[k+1]; u[k]] = [[A, B], [C, D]] [x[k]; e[k]]`` plus
-the saturation and the anti-windup: :func:`controllers.step_functions.joint_step`,
+Per leg one step is ``[x[k+1]; u[k]] = [[A, B], [C, D]] [x[k]; e[k]]``
+(``e = q_ref - q_meas``, m) plus the saturation and the anti-windup on the
+integrator: :func:`controllers.step_functions.joint_step`,
 the co-simulation's step (this class designs the matrices and runs the same
 function for its :meth:`JointControllers.update`).
 """
@@ -174,16 +175,6 @@ class JointControllers:
         (:func:`controllers.dead_band.dead_band`): the integrator takes
         ``e -+ w`` outside the band and holds inside it, while the rest of the
         controller sees the whole error. Default 0 (none).
-
-    Notes
-    -----
-    Per leg, with ``e = q_ref - q_meas`` (m)::
-
-        u[k]    = C x[k] + D e[k]
-        v[k]    = sat(u_offset + u[k])
-        x[k+1]  = A x[k] + B e[k] + L (v[k] - u_offset - u[k])   (back-calculation)
-
-    where ``L = T / T_t`` on the integrator state only.
     """
 
     def __init__(

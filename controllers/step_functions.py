@@ -45,16 +45,10 @@ IK_OK, IK_OUT, IK_MISS = 1, 0, -1
 
 def geometry_constants(geometry) -> np.ndarray:
     """The flat constants array ``g`` of a :class:`~controllers.geometry.PlatformGeometry`."""
-    g = np.zeros(GEOM_LEN)
-    g[0:9] = np.asarray(geometry.platform_points, float).reshape(9)
-    g[9:11] = geometry.guide_centre
-    g[11] = geometry.guide_radius
-    g[12] = geometry.guide_side
-    g[13:16] = geometry.bracket_c1
-    g[16:25] = np.asarray(geometry.base_points, float).reshape(9)
-    g[25:28] = geometry.retracted_length
-    g[28] = geometry.stroke
-    return g
+    G = geometry  # in the order of the module docstring's table
+    head = [np.ravel(G.platform_points), G.guide_centre, [G.guide_radius, G.guide_side]]
+    tail = [G.bracket_c1, np.ravel(G.base_points), G.retracted_length, [G.stroke]]
+    return np.concatenate([*head, *tail], dtype=float)
 
 
 def ik_pose(roll, pitch, h, g, margin, arc_check, q):
@@ -113,18 +107,9 @@ def ik_lag(roll, pitch, h, g, dq0, dq1, dq2, out):
     """
     ct, st = math.cos(roll), math.sin(roll)
     cp, sp = math.cos(pitch), math.sin(pitch)
-    rot = np.empty((3, 3))
-    rot[0, 0], rot[0, 1], rot[0, 2] = cp, sp * st, sp * ct
-    rot[1, 0], rot[1, 1], rot[1, 2] = 0.0, ct, -st
-    rot[2, 0], rot[2, 1], rot[2, 2] = -sp, cp * st, cp * ct
-    d_r = np.empty((3, 3))  # dR/droll
-    d_r[0, 0], d_r[0, 1], d_r[0, 2] = 0.0, sp * ct, -sp * st
-    d_r[1, 0], d_r[1, 1], d_r[1, 2] = 0.0, -st, -ct
-    d_r[2, 0], d_r[2, 1], d_r[2, 2] = 0.0, cp * ct, -cp * st
-    d_p = np.empty((3, 3))  # dR/dpitch
-    d_p[0, 0], d_p[0, 1], d_p[0, 2] = -sp, cp * st, cp * ct
-    d_p[1, 0], d_p[1, 1], d_p[1, 2] = 0.0, 0.0, 0.0
-    d_p[2, 0], d_p[2, 1], d_p[2, 2] = -cp, -sp * st, -sp * ct
+    rot = np.array([[cp, sp * st, sp * ct], [0.0, ct, -st], [-sp, cp * st, cp * ct]])
+    d_r = np.array([[0.0, sp * ct, -sp * st], [0.0, -st, -ct], [0.0, cp * ct, -cp * st]])
+    d_p = np.array([[-sp, cp * st, cp * ct], [0.0, 0.0, 0.0], [-cp, -sp * st, -sp * ct]])
     xc, zc, r, side = g[9], g[10], g[11], g[12]
     # B1's offset R PB_1 and its derivatives (columns roll, pitch, h)
     off = np.zeros(3)
@@ -154,14 +139,11 @@ def ik_lag(roll, pitch, h, g, dq0, dq1, dq2, out):
             for c in range(3):
                 dx[0, c], dx[1, c], dx[2, c] = d_b1x[c], 0.0, d_b1z[c]
         else:  # X_k = P + R PB_k
+            p0, p1, p2 = g[3 * k], g[3 * k + 1], g[3 * k + 2]
             for i in range(3):
-                x[i] = rot[i, 0] * g[3 * k] + rot[i, 1] * g[3 * k + 1] + rot[i, 2] * g[3 * k + 2]
-                dx[i, 0] = (
-                    d_r[i, 0] * g[3 * k] + d_r[i, 1] * g[3 * k + 1] + d_r[i, 2] * g[3 * k + 2]
-                )
-                dx[i, 1] = (
-                    d_p[i, 0] * g[3 * k] + d_p[i, 1] * g[3 * k + 1] + d_p[i, 2] * g[3 * k + 2]
-                )
+                x[i] = rot[i, 0] * p0 + rot[i, 1] * p1 + rot[i, 2] * p2
+                dx[i, 0] = d_r[i, 0] * p0 + d_r[i, 1] * p1 + d_r[i, 2] * p2
+                dx[i, 1] = d_p[i, 0] * p0 + d_p[i, 1] * p1 + d_p[i, 2] * p2
                 dx[i, 2] = 0.0
             x[0] += px
             x[2] += h

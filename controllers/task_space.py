@@ -115,6 +115,7 @@ def outer_law(kind: str, integrator: str = "forward", pi_zero: float = 0.2) -> t
 
 
 MODES = ("I", "PI", "joint_only", "feedforward")
+_MODE_CODES = dict(joint_only=sf.MODE_JOINT, I=sf.MODE_I, PI=sf.MODE_PI, feedforward=sf.MODE_FF)
 
 #: How ``mode="feedforward"`` removes the joint loops' lag from the error it integrates.
 LAGS = ("model", "joints")
@@ -227,27 +228,16 @@ class TaskSpaceController:
         # the per-step functions' arrays (controllers.step_functions): the geometry,
         # the constants and the state of the outer loop
         self.step_geometry = sf.geometry_constants(self.geometry)
-        tc = np.zeros(sf.TC_LEN)
-        tc[sf.TC_MODE] = {
-            "joint_only": sf.MODE_JOINT,
-            "I": sf.MODE_I,
-            "PI": sf.MODE_PI,
-            "feedforward": sf.MODE_FF,
-        }[mode]
-        tc[sf.TC_LAW] = 2.0 if outer_law == "PI" else 1.0
-        tc[sf.TC_CLAMP] = 1.0 if self.clamp else 0.0
-        tc[sf.TC_LAGJ] = 1.0 if lag == "joints" else 0.0
-        tc[sf.TC_AVG] = 1.0 if self.average else 0.0
-        tc[sf.TC_TAU], tc[sf.TC_BETA], tc[sf.TC_PIZ] = self.model_tau, self._beta, self.pi_zero
-        tc[sf.TC_TG : sf.TC_TG + 3] = self.period * self.gains  # T K K_I per axis
-        tc[sf.TC_MARGIN] = self.margin
-        tc[sf.TC_HOME : sf.TC_HOME + 3] = self.geometry.home
         db = np.broadcast_to(np.asarray(dead_band, dtype=float), (3,))
         if not (np.all(np.isfinite(db)) and np.all(db >= 0)):
             raise ValueError(f"dead_band must be 1 or 3 finite widths >= 0, got {dead_band!r}")
         self.dead_band = db.copy()
-        tc[sf.TC_DB : sf.TC_DB + 3] = db
-        self.step_constants = tc
+        # in the order of controllers.step_functions.TC_*
+        flags = [_MODE_CODES[mode], 2.0 if outer_law == "PI" else 1.0, self.clamp, lag == "joints"]
+        tg = self.period * self.gains  # T K K_I per axis
+        scalars = [self.average, self.model_tau, self._beta, self.pi_zero]
+        tail = [*tg, self.margin, *self.geometry.home, *db]
+        self.step_constants = np.array([*flags, *scalars, *tail], dtype=float)
         self.step_state = np.zeros(sf.T_LEN)
         self.reset()  # raises if home is not reachable
 

@@ -21,6 +21,7 @@ import numpy as np
 from simpro_mj.core.errors import PhysicsError, UserInputError
 from simpro_mj.core.keys import apply_overrides, closest
 from simpro_mj.core.shipped import MODEL_DIR
+from simpro_mj.plant.step_functions import platform_pose
 
 __all__ = [
     "MODEL_PATH",
@@ -336,15 +337,12 @@ def assemble(
 
 
 def measured_pose(data, site_p: int) -> np.ndarray:
-    """(roll, pitch, h) of the platform frame from MuJoCo, eq. (8) inverted.
-
-    ``R = Ry(pitch) Rx(roll)``: pitch = atan2(-R20, R00), roll = atan2(R21, R22).
-    """
-    r = data.site_xmat[site_p].tolist()
-    # one arctan2 call for both angles: numpy's kernel gives the same bits for
-    # a 2-vector as for two scalars (it is not libm's atan2, so no math.atan2)
-    roll, pitch = np.arctan2((r[7], -r[6]), (r[8], r[0])).tolist()
-    return np.array([roll, pitch, data.site_xpos[site_p, 2]])
+    """(roll, pitch, h) of the platform frame from MuJoCo, eq. (8) inverted: the
+    step's own read (:func:`simpro_mj.plant.step_functions.platform_pose`)."""
+    pose = np.empty(3)
+    xmat, xpos = data.site_xmat.reshape(-1), data.site_xpos.reshape(-1)
+    platform_pose(xmat, xpos, 9 * int(site_p), 3 * int(site_p) + 2, pose)
+    return pose
 
 
 def check_physics(model, data, warnings_before=None, loop_bound: float | None = None, index=None):

@@ -4,13 +4,10 @@ The rig reads, through a Humusoft MF624 board (14-bit, ±10 V ADC):
 
 * joint potentiometers on q_i,
 * an encoder for the height h,
-* an IMU for roll and pitch.
+* an IMU for roll and pitch;
 
-Each sensor here turns MuJoCo's exact state into what such a sensor would
-report: as-built errors (potentiometer offset and gain), noise, quantisation,
-bandwidth (IMU), and a sampling rate with zero-order hold. Every noise source
-draws from one :class:`numpy.random.Generator` seeded by the scenario, in a
-fixed order, so the same scenario and seed give identical readings.
+:class:`SensorConfig` states how each turns MuJoCo's exact state into what
+such a sensor reports.
 """
 
 from __future__ import annotations
@@ -74,12 +71,12 @@ class SensorConfig:
     The per-step models are :func:`simpro_mj.plant.step_functions.sample_sensors`
     (run by the co-simulation's step, :mod:`simpro_mj.sim.step`), each sensor
     sampled at its rate with zero-order hold between samples. Potentiometer i
-    reports ``q_i^m = Q((g_i q_i + o_i) + n)`` with Q the ADC quantiser (one
+    reports ``q_i^m = Q(g_i q_i + o_i [+ bow(q_i)] + n)`` with Q the ADC quantiser (one
     LSB = ``2 range / 2^bits`` volts) and saturation at the ADC's range; the
     controller converts with the nominal scale, so offset ``o_i`` and gain
     ``g_i`` appear as joint-space errors. The encoder reports
     ``round(h / res) res``. The IMU low-pass filters roll and pitch at its
-    bandwidth, adds bias and white noise, and updates every ``rate_ms``. The
+    bandwidth, adds its bias (+ walk) and white noise, and updates every ``rate_ms``. The
     rig's further errors (:mod:`simpro_mj.plant.sensor_errors`): the track's
     non-linearity, the IMU bias's random walk, the accelerometer's share of
     the attitude. Every noise source draws from the scenario's seeded

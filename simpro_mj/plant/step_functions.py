@@ -10,16 +10,6 @@ loops and indexing only: interpreted they are the reference
 MuJoCo's control callback. Each stage is a small named function so that a
 plant change (a friction law, a sensor error) is made in one place; the
 seal friction is :func:`simpro_mj.plant.friction.seal_friction`.
-
-Layouts (offsets into the arrays the functions take):
-
-* sensor constants ``sc``: :data:`SC_LSB` ...
-  (:attr:`~simpro_mj.plant.sensors.SensorConfig.step_constants`);
-* actuator state ``ast``: chamber pressures p1 (3), p2 (3), spool (3),
-  spool rate (3), each ψ-table edge's last cell (12), the supply pressure,
-  the linear model's state φ (3) and force bounds (2);
-* actuator constants ``ac``: :data:`AC_KIND` ... (built by
-  :func:`simpro_mj.sim.step.actuator_constants`).
 """
 
 from __future__ import annotations
@@ -51,9 +41,10 @@ SC_WALK, SC_ACCW, SC_ALPHA, SC_IMU_EVERY, SC_IDT2, SC_LEN = 19, 20, 21, 22, 24, 
 # IMU site's last two positions (6) and how many are known
 SS_IMU, SS_WALK, SS_HIST, SS_HN, SS_LEN = 0, 2, 4, 10, 11
 
-# actuator state ast
+# actuator state ast: chamber pressures p1 (3), p2 (3), spool (3), spool rate (3), each
+# ψ-table edge's last cell (12), the supply pressure, the linear model's φ (3), force bounds
 A_P, A_SPOOL, A_RATE, A_CELL, A_PS, A_PHI, A_FMIN, A_FMAX, A_LEN = 0, 6, 9, 12, 24, 25, 28, 29, 30
-# actuator constants ac (both kinds), then the kind's own
+# actuator constants ac (the actuator classes' step_constants): both kinds', then the kind's own
 AC_KIND, AC_PA, AC_A1, AC_A2, AC_AR = 0, 1, 2, 3, 4
 # nonlinear
 AC_RTK, AC_EPS, AC_HN, AC_ALPHA, AC_ORDER, AC_NSUB, AC_NTAB = 5, 6, 7, 8, 9, 10, 11
@@ -143,10 +134,9 @@ def sample_sensors(k, force, q, pose, site, noise, walk, sc, ss, qm, pm):
     IMU sample. The IMU's first-order output filter (``ss``) runs every step
     on :func:`imu_input` (``site``: the IMU site's position, or None); each
     sensor updates its reading (``qm``, ``pm``) at its own rate (zero-order
-    hold between), all of them when ``force``. Potentiometer i:
-    ``Q(g_i q_i + o_i [+ bow(q_i)] + n)`` clipped to the ADC's range; the
-    IMU: filter + (bias + walk) + noise. Returns 1 when the IMU sampled (a
-    walk row used), else 0.
+    hold between), all of them when ``force``, as
+    :class:`~simpro_mj.plant.sensors.SensorConfig` states. Returns 1 when the
+    IMU sampled (a walk row used), else 0.
     """
     alpha = sc[SC_ALPHA]
     r_in, p_in = pose[0], pose[1]
@@ -328,14 +318,10 @@ def linear_step(u, q, qd, ast, ac, f):
         drive = ac[AC_LB + i] * (ui - ac[AC_UHOLD + i]) - ac[AC_LA0 + i] * qd[i]
         ast[A_PHI + i] = ast[A_PHI + i] * ac[AC_EA + i] + ac[AC_IA + i] * drive
     for i in range(3):
-        df = 0.0
+        df = dd = dk = 0.0
         for j in range(3):
             df += ac[AC_MQ + 3 * i + j] * ast[A_PHI + j]
-        dd = 0.0
-        for j in range(3):
             dd += ac[AC_DQ + 3 * i + j] * qd[j]
-        dk = 0.0
-        for j in range(3):
             dk += ac[AC_KQ + 3 * i + j] * (q[j] - ac[AC_Q0 + j])
         fi = ac[AC_FHOLD + i] + (df + dd + dk)
         if ac[AC_SAT] != 0.0:

@@ -3,7 +3,7 @@
 :class:`CoSimulation` builds a scenario's plant (one object,
 :class:`~simpro_mj.plant.platform.Platform`, dm_control's ``Physics``), sensors
 and controllers from their public classes, whose numbers and states the
-step's arrays take (:mod:`simpro_mj.sim.step_buffers`), and runs the 1 ms
+step's arrays take (:func:`simpro_mj.sim.step.build`), and runs the 1 ms
 step of :mod:`simpro_mj.sim.step` (its stages are listed there; the outer
 loop every ``period_ms``). Compiled (numba, the default), the stages run
 inside ``mj_step`` as MuJoCo's control callback and Python steps chunks of
@@ -16,30 +16,15 @@ computed for the whole run at once.
 
 Set-points from outside (the live interface)
 --------------------------------------------
-A run normally computes its set-points from the scenario before it steps.
-``CoSimulation(scenario, setpoints="external")`` instead starts every row
-of the set-point buffer at the neutral pose (home; for a cueing scenario the
-vehicle at rest) and lets a driver fill it while the loop runs, through two
-things only (:mod:`simpro_mj.sim.live` is that driver):
-
-* :meth:`CoSimulation.write_setpoints` ``(k, poses, f, w)`` writes rows
-  ``k, k + 1, ...`` of the set-point buffer (and of the vehicle input logged
-  beside it), in place;
-* ``run(pace=...)``: ``pace(k, log) -> next_k`` is called before step ``k``
-  is taken, first at ``k = 0`` and then at each step it returns, with the
-  rows logged so far (``log``, a view of the :data:`COLUMNS` rows: read it only).
-  Between two calls the loop steps without looking outside; the caller
-  writes the rows its next chunk reads, waits for the wall clock, sends the
-  pose. It ends the run early by raising ``KeyboardInterrupt`` (as a signal
-  does).
-
-Stop and resume
----------------
-:meth:`CoSimulation.snapshot` (between two steps: from ``pace`` or after a
-run) copies the run's whole state (:class:`~simpro_mj.sim.snapshot.Snapshot`);
-:meth:`CoSimulation.restore` puts it back, into the same simulation or a
-fresh one of the same model and scenario, and the next :meth:`~CoSimulation.run`
-goes on from that step with the bits of the run never stopped.
+``CoSimulation(scenario, setpoints="external")`` starts every row of the
+set-point buffer at the neutral pose (home; for a cueing scenario the
+vehicle at rest) and lets a driver (:mod:`simpro_mj.sim.live`) fill it while
+the loop runs, through :meth:`CoSimulation.write_setpoints` and
+``run(pace=...)`` only. Between two calls of ``pace`` the loop steps without
+looking outside; the caller writes the rows its next chunk reads, waits for
+the wall clock, sends the pose, and ends the run early by raising
+``KeyboardInterrupt`` (as a signal does). :meth:`CoSimulation.snapshot` and
+:meth:`CoSimulation.restore` stop and resume a run bit for bit.
 """
 
 from __future__ import annotations
@@ -75,7 +60,6 @@ from simpro_mj.sim.registration import Registration
 from simpro_mj.sim.result import COLUMNS, SimResult, qpos_names
 from simpro_mj.sim.snapshot import NoiseState, Snapshot, model_digest, scenario_digest
 from simpro_mj.sim.stages import CHUNK, FaultHooks, Log, NoiseBlock, Profile
-from simpro_mj.sim.step_buffers import build, initial_state
 
 __all__ = ["LOOP_OPEN_BOUND", "CoSimulation", "request_stop", "simulate"]
 
@@ -85,6 +69,8 @@ LOOP_OPEN_BOUND = 5e-3
 
 
 _STOP = threading.Event()
+#: the set-point arrays a live run writes (a snapshot of it keeps them)
+_SETPOINTS = ("ref", "q_joint_only", "veh_f", "veh_w")
 
 
 def request_stop(stop: bool = True) -> None:
@@ -140,8 +126,7 @@ class CoSimulation:
     ):
         if setpoints not in ("scenario", "external"):
             raise ValueError(f"setpoints={setpoints!r}; allowed: 'scenario' or 'external'")
-        external = setpoints == "external"
-        self.external = external
+        self.external = external = setpoints == "external"
         self._resume = None
         if identified_source is None:
             # design_plant identified: the scenario's own plant's models (cached)
@@ -150,8 +135,7 @@ class CoSimulation:
         self.scenario = scenario
         m = load_model(scenario["plant"]) if model is None else model
         self.model, self.idx = m, PlantIndex.of(m)
-        self.dt = float(m.opt.timestep)
-        dt = self.dt
+        self.dt = dt = float(m.opt.timestep)
         self.n_steps = int(round(scenario["duration_s"] / dt))
         self.decimation = int(scenario["logging"]["decimation"])
         if self.decimation < 1:
@@ -163,6 +147,8 @@ class CoSimulation:
         outer = ctl["outer"]
         self.outer_every = steps_per_period(outer["period_ms"], dt, "controller.outer.period_ms")
         law, pi_zero = outer_law(outer["type"], outer["integrator"], outer["pi_zero"])
+        db = outer["dead_band"]  # degrees and millimetres at the edge
+        band = [np.radians(db["roll_deg"]), np.radians(db["pitch_deg"]), db["heave_mm"] * 1e-3]
         self.task = TaskSpaceController(
             mode={"task_space": law, "feedforward": "feedforward"}.get(self.mode, "joint_only"),
             # feedforward: the correction's own K K_I (controller.feedforward.gains)
@@ -176,20 +162,13 @@ class CoSimulation:
             model_tau=ctl["feedforward"]["model_tau_ms"] * 1e-3,
             lag=ctl["feedforward"]["lag"],
             average=bool(ctl["feedforward"]["average"]),
-            # controller.outer.dead_band: degrees and millimetres at the edge
-            dead_band=[
-                np.radians(outer["dead_band"]["roll_deg"]),
-                np.radians(outer["dead_band"]["pitch_deg"]),
-                outer["dead_band"]["heave_mm"] * 1e-3,
-            ],
+            dead_band=band,
         )
         self.hold_on_saturation = bool(ctl["feedforward"]["hold_on_saturation"])
         inner = ctl["inner"]
-        if inner["design_plant"] == "identified":
-            acts = ("actuator1", "actuator2", "actuator3")
-            plants = [Plant(**inner["identified"][a]) for a in acts]
-        else:
-            plants = None  # eqs. (34)-(35) in SI under the paper_units reading
+        identified = [Plant(**inner["identified"][f"actuator{i}"]) for i in (1, 2, 3)]
+        # design_plant paper: eqs. (34)-(35) in SI under the paper_units reading
+        plants = identified if inner["design_plant"] == "identified" else None
         spec = None
         if inner["variant"] == "redesigned":
             spec = {"zeta": inner["zeta"], "wn": inner["wn_rad_s"]}
@@ -232,10 +211,10 @@ class CoSimulation:
             self.ref = np.ascontiguousarray(poses)
         # motion cueing: the vehicle side, and the head sensors to log
         self.cueing = bool(scenario["setpoint"].get("cueing"))
+        self.veh_f = self.veh_w = None
         if self.cueing and external:  # the vehicle at rest: f = (0, 0, g), w = 0
-            self.veh_f = np.zeros((self.n_steps + 1, 3))
-            self.veh_f[:, 2] = GRAVITY
-            self.veh_w = np.zeros((self.n_steps + 1, 3))
+            self.veh_f = np.tile([0.0, 0.0, GRAVITY], (self.n_steps + 1, 1))
+            self.veh_w = np.zeros_like(self.veh_f)
         elif self.cueing:
             # on use: config.cueing loads scipy's filter design (seconds under load),
             # which no other run needs
@@ -255,14 +234,12 @@ class CoSimulation:
                     "invalid value at controller.feedforward.leg_velocity: true needs the "
                     "set-points in advance; allowed: false with set-points from outside (live)"
                 )
-            ident = ctl["inner"]["identified"]
-            legs = [Plant(**ident[a]) for a in ("actuator1", "actuator2", "actuator3")]
             j = self.joint  # clipped to the valve's span around its centre (5 V)
             span = min(j.u_offset - j.u_min, j.u_max - j.u_offset)
             # through a filter like Fig. 13's, as the reference the joint loops follow
             vfilt = copy.deepcopy(self.setpoint_filter)  # not yet started
             self.u_ff = leg_velocity_feedforward(
-                self.ref, dt, legs, self.geometry, span, setpoint_filter=vfilt
+                self.ref, dt, identified, self.geometry, span, setpoint_filter=vfilt
             )
         self.q_joint_only = None
         if self.mode == "joint_only":
@@ -326,12 +303,9 @@ class CoSimulation:
         mujoco.mj_getState(m, d, state, spec)
         rows = int(S[step.ROWS])
         setpoints = None
-        if self.external:
-            setpoints = tuple(
-                None if a is None else a.copy()
-                for a in (self.ref, self.q_joint_only, getattr(self, "veh_f", None),
-                          getattr(self, "veh_w", None))
-            )  # fmt: skip
+        if self.external:  # written while the run went
+            arrays = [getattr(self, name) for name in _SETPOINTS]
+            setpoints = tuple(None if a is None else a.copy() for a in arrays)
         return Snapshot(
             model=self._model_digest(),
             scenario=scenario_digest(self.scenario),
@@ -376,16 +350,12 @@ class CoSimulation:
         self.S[:], self.C[:] = snap.S, snap.C
         snap.noise.into(self.noise)
         snap.walk.into(self.walk)
-        log = self._log = Log(self.n_steps // self.decimation + 1, m.nq, self.cueing)
-        rows = snap.log.shape[0]
+        log, rows = self._log, snap.log.shape[0]
         log.log[:rows], log.qlog[:rows] = snap.log, snap.qlog
         log.hlog[: snap.hlog.shape[0]] = snap.hlog
-        if snap.setpoints is not None:
-            for name, a in zip(
-                ("ref", "q_joint_only", "veh_f", "veh_w"), snap.setpoints, strict=True
-            ):
-                if a is not None:
-                    getattr(self, name)[:] = a
+        for name, a in zip(_SETPOINTS, snap.setpoints or [None] * 4, strict=True):
+            if a is not None:
+                getattr(self, name)[:] = a
         self._k = snap.k
         self._resume = snap.k
 
@@ -412,8 +382,8 @@ class CoSimulation:
         self.setpoint_filter.reset(q_d0.tolist())
         self.noise = NoiseBlock(self.rng)
         self.walk = NoiseBlock(self.walk_rng, width=2)
-        self.S, self.C = build(self, LOOP_OPEN_BOUND)
-        initial_state(self.S, self.C, self, self.noise.rows[0], self.walk.rows[0])
+        self.S, self.C = step.build(self, LOOP_OPEN_BOUND, self.noise.rows[0], self.walk.rows[0])
+        self._log = Log(self.n_steps // self.decimation + 1, self.model.nq, self.cueing)
 
     # ------------------------------------------------------------------ run
     def run(self, progress=None, *, profile: dict | None = None, pace=None) -> SimResult:
@@ -431,19 +401,16 @@ class CoSimulation:
             ``mj_step2``), ``sensors``, ``controllers`` (with the faults' hooks),
             ``pneumatics``, ``logging``; plus ``steps``.
         pace : callable(int, ndarray) -> int, optional
-            The live interface (module docstring): called before step ``k``,
-            first at 0, then at each step it returns, with the rows logged so far.
-            After :meth:`restore`, the run goes on from the snapshot's step
-            (``pace`` is first called there).
+            The live interface (module docstring): ``pace(k, log)`` is called
+            before step ``k``, first at 0, then at each step it returns; ``log``
+            is a view of the rows logged so far (read it only). After
+            :meth:`restore`, the run goes on from the snapshot's step.
         """
-        resume, self._resume = self._resume, None
-        n, dec = self.n_steps, self.decimation
-        if resume is None:
+        k0, self._resume = self._resume, None
+        if k0 is None:
             self._initial_state()
-            log = self._log = Log(n // dec + 1, self.model.nq, self.cueing)
             k0 = 0
-        else:
-            log, k0 = self._log, resume
+        log = self._log
         faults = None
         if self.scenario.get("faults"):
             faults = FaultSchedule.from_scenario(self.scenario, self.dt)
@@ -476,7 +443,6 @@ class CoSimulation:
             if timer is not None:
                 profile.update(timer.ns, steps=self._k + 1)
         wall = time.perf_counter() - wall0
-        log.rows, log.worst_loop = int(self.S[step.ROWS]), float(self.S[step.WORST])
         return self._result(log, k, status, reason, wall)
 
     def _inputs(self):
@@ -544,18 +510,12 @@ class CoSimulation:
                 sense(k, S, C, qpos, qvel, xpos, xmat, noise, walk)
                 if hooks is not None and hooks.sensors:
                     hooks.apply_sensors(k)
-                err = control(k, S, C, ref, qj, uff)
-                if err:
-                    self._raise(err, k)
+                self._raise(control(k, S, C, ref, qj, uff), k)
                 if hooks is not None and hooks.valves:
                     hooks.apply_valves()
-                err = actuate(S, C)
-                if err:
-                    self._raise(err, k)
+                self._raise(actuate(S, C), k)
                 apply_forces(S, C, ctrl)
-                err = record(k, S, C, ref, qpos, sd, log.log, log.qlog, log.hlog)
-                if err:
-                    self._raise(err, k)
+                self._raise(record(k, S, C, ref, qpos, sd, log.log, log.qlog, log.hlog), k)
                 if k == n:
                     return
                 step2(m, d)
@@ -593,7 +553,9 @@ class CoSimulation:
         S[step.WALK_M0] = self.walk.ensure(m, m + (k1 - k0))
 
     def _raise(self, err: int, k: int):
-        """The exception of a step's error code (:mod:`simpro_mj.sim.step`)."""
+        """The exception of a step's error code (:mod:`simpro_mj.sim.step`); none for 0."""
+        if not err:
+            return
         self._k = k
         S, t = self.S, k * self.dt
         if err == step.ERR_WARNING:
@@ -623,7 +585,7 @@ class CoSimulation:
 
     def _result(self, rec: Log, steps: int, status: str, reason, wall: float) -> SimResult:
         """The log as columns (copies), the cueing columns, the run's figures."""
-        row, dt = rec.rows, self.dt
+        row, dt = int(self.S[step.ROWS]), self.dt
         log = rec.log[:row]
         columns = {name: log[:, j].copy() for j, name in enumerate(COLUMNS)}
         if self.cueing:
@@ -644,7 +606,7 @@ class CoSimulation:
                 "steps": int(steps),
                 "timestep_s": dt,
                 "simulated_s": float(steps * dt),
-                "max_loop_closure_error_m": float(rec.worst_loop),
+                "max_loop_closure_error_m": float(self.S[step.WORST]),
                 "wall_s": wall,
                 "realtime_factor": float(steps * dt / wall) if wall > 0 else None,
             },

@@ -1,13 +1,10 @@
 """One run's arrays registered for MuJoCo's control callback (:mod:`simpro_mj.sim.callback`).
 
 The callback is process-wide in MuJoCo; it acts on the ``mjData`` of the
-runs registered in :data:`simpro_mj.sim.step.REGISTRY` and on nothing else.
-The first registration installs it, the last one out uninstalls it. While
-it is installed MuJoCo's profiler clock is frozen (``mjcb_time`` returns 0,
-:func:`simpro_mj.sim.callback.frozen_clock`), unless another ``mjcb_time``
-was set before: ``mjData.timer`` is not read by a run, and the clock's reads
-are about 7 % of ``mj_step``. The callbacks are process-wide, so another
-model stepping in this process meanwhile reads zero timers as well.
+runs registered in :data:`simpro_mj.sim.step.REGISTRY` only. While it is
+installed MuJoCo's profiler clock is frozen too
+(:func:`simpro_mj.sim.callback.frozen_clock`; an ``mjcb_time`` set before is
+kept), so another model stepping in this process meanwhile reads zero timers.
 """
 
 from __future__ import annotations

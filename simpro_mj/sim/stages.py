@@ -1,15 +1,5 @@
-"""What the loop keeps around the step (:mod:`simpro_mj.sim.step`): the log, the noise, faults.
-
-* :class:`Log`: the run's preallocated log, filled by the step's ``record``
-  stage (one row of :data:`~simpro_mj.sim.result.COLUMNS` every
-  ``logging.decimation`` steps, with ``qpos`` and, for cueing runs, the head
-  sensors);
-* :class:`NoiseBlock`: the sensors' standard normal draws, one row of six
-  per step, drawn from the scenario's generator in blocks ahead of the step;
-* :class:`FaultHooks`: scheduled faults acting between the stages of a step
-  run from Python;
-* :class:`Profile`: wall time per stage.
-"""
+"""What the loop keeps around the step (:mod:`simpro_mj.sim.step`): the log, the
+sensors' noise, scheduled faults, wall time per stage."""
 
 from __future__ import annotations
 
@@ -35,8 +25,9 @@ if step.N_COLS != len(COLUMNS):  # pragma: no cover - the layouts are edited tog
 class Log:
     """The run's log buffers: ``log`` (rows x columns), ``qlog`` (rows x nq), ``hlog`` (rows x 6).
 
-    ``rows`` (written) and ``worst_loop`` (largest loop-closure error logged,
-    m) are set from the step's state at the end of the run.
+    The step's ``record`` stage fills one row every ``logging.decimation``
+    steps (``hlog``, the head sensors, in cueing runs only); the step's state
+    counts the rows written (``S[ROWS]``).
     """
 
     def __init__(self, n_rows: int, nq: int, head: bool):
@@ -44,8 +35,6 @@ class Log:
         self.qlog = np.zeros((n_rows, nq))
         self.hlog = np.full((n_rows if head else 1, 6), np.nan)
         self.head = head
-        self.rows = 0
-        self.worst_loop = 0.0
 
 
 class NoiseBlock:

@@ -21,17 +21,11 @@ them, the same source:
   :class:`~simpro_mj.sim.loop.CoSimulation` calls ``mj_step1``, the stages,
   ``mj_step2`` from Python every step;
 * compiled (numba, the default when it is installed): :func:`compiled` turns
-  every function into machine code and :func:`callback` into one C function
-  installed as MuJoCo's control callback (``mjcb_control``), which MuJoCo
-  calls inside ``mj_step`` exactly where the split step runs the stages
-  (after the position and velocity stages, before actuation). Python then
-  only calls ``mj_step(model, data, nstep)`` for chunks of steps and checks
-  the run between chunks.
-
-The callback is process-wide in MuJoCo: it acts only on the ``mjData`` of a
-run registered in :data:`REGISTRY` (its address is the key; any other model
-or data, a viewer's or a renderer's, is left alone), and the last run to
-leave uninstalls it.
+  every function into machine code and :func:`callback_step` runs inside
+  ``mj_step`` as MuJoCo's control callback (:mod:`simpro_mj.sim.callback`,
+  acting only on the runs registered in :data:`REGISTRY`), exactly where the
+  split step runs the stages (after the position and velocity stages, before
+  actuation); Python steps chunks of steps.
 """
 
 from __future__ import annotations
@@ -48,7 +42,7 @@ from simpro_mj.plant import step_functions as ps
 from simpro_mj.plant.friction import seal_friction
 from simpro_mj.plant.sensor_errors import accel_tilt, pot_nonlinearity
 
-__all__ = ["sense", "control", "actuate", "record", "callback_step", "compiled"]
+__all__ = ["sense", "control", "actuate", "record", "callback_step", "build", "compiled"]
 
 # ---------------------------------------------------------------- state S
 K, STATUS, ERR, ERR_K, ROWS, WORST, FLAGS, SUPPLY_LOG, NOISE_K0 = range(9)
@@ -251,6 +245,57 @@ def callback_step(
     S[K] = k + 1
 
 
+# ------------------------------------------------------------ the run's arrays
+def build(sim, loop_bound: float, noise_row, walk_row) -> tuple[np.ndarray, np.ndarray]:
+    """``(S, C)`` of a :class:`~simpro_mj.sim.loop.CoSimulation` from its objects.
+
+    The controllers, the sensors' configuration and the actuators are built,
+    validated and reset as objects; their numbers go into ``C`` and their
+    states (run through the same per-step functions) into ``S``. The sensors
+    take a first reading at the true state, the IMU's filter starting there.
+    """
+    filt, joint, task, idx, act = sim.setpoint_filter, sim.joint, sim.task, sim.idx, sim.actuators
+    act.set_timestep(sim.dt)
+    C = np.zeros(AC + act.step_constants.size)
+    C[DT : OUTER + 1] = sim.dt, sim.n_steps, sim.decimation, sim.outer_every
+    C[HOLD_SAT] = 1.0 if sim.mode == "feedforward" and sim.hold_on_saturation else 0.0
+    C[HAS_UFF] = 1.0 if sim.u_ff is not None else 0.0
+    C[LOOP_BOUND] = loop_bound
+    C[FC : FC + cs.FC_LEN] = filt.step_constants
+    C[JC : JC + cs.J_LEN] = joint.step_constants
+    C[IQ : IQ + 3], C[IV : IV + 3] = idx.slide_qpos, idx.slide_dof
+    C[IMAT], C[IH] = 9 * int(idx.site_p), 3 * int(idx.site_p) + 2
+    pairs = [(3 * int(a), 3 * int(b)) for a, b in idx.connect_sites]
+    if len(pairs) > MAX_PAIRS:
+        raise ValueError(f"the model has {len(pairs)} closed loops; the step reads {MAX_PAIRS}")
+    C[NPAIR] = len(pairs)
+    C[PAIRS : PAIRS + 2 * len(pairs)] = [i for p in pairs for i in p]
+    if sim.cueing:  # the first sensordata index of each (a slice)
+        C[HEAD], C[IHA], C[IHG] = 1.0, idx.sensor["head_accel"].start, idx.sensor["head_gyro"].start
+    C[ICTRL : ICTRL + 3] = idx.actuators
+    C[SC : SC + ps.SC_LEN] = sim.sensor_cfg.step_constants
+    C[TC : TC + cs.TC_LEN] = task.step_constants
+    C[GEOM : GEOM + cs.GEOM_LEN] = task.step_geometry
+    C[AC:] = act.step_constants
+    S = np.zeros(RING + 3 * max(filt.n))
+    S[STATUS], S[SUPPLY_LOG] = IDLE, act.params.p_supply
+    S[AST : AST + ps.A_LEN] = act.step_state
+    d = sim.data
+    q, pose, qm, pm = S[Q : Q + 3], S[POSE : POSE + 3], S[QM : QM + 3], S[PM : PM + 3]
+    ps.slide_states(d.qpos, d.qvel, C[IQ : IQ + 3], C[IV : IV + 3], q, S[QD : QD + 3])
+    ps.platform_pose(d.site_xmat.reshape(-1), d.site_xpos.reshape(-1), C[IMAT], C[IH], pose)
+    ss, sc = S[SS : SS + ps.SS_LEN], C[SC : SC + ps.SC_LEN]
+    ss[ps.SS_IMU : ps.SS_IMU + 2] = pose[:2]
+    # no acceleration at the first reading (no IMU site positions)
+    S[WALK_M] += ps.sample_sensors(0, True, q, pose, None, noise_row, walk_row, sc, ss, qm, pm)
+    S[TS : TS + cs.T_LEN] = task.step_state
+    S[PCMD : PCMD + 3] = task.step_state[cs.T_XC : cs.T_XC + 3]
+    S[JX : JX + 9] = joint._x
+    S[FS : FS + cs.FS_LEN] = filt.step_state
+    S[RING:].reshape(3, -1)[:] = filt.ring
+    return S, C
+
+
 # ------------------------------------------------------------ compiled form
 _PLAIN = [
     dead_band,
@@ -310,13 +355,8 @@ def _cache_dir() -> str:
 
     from simpro_mj.core.cache import source_digest
 
-    # the step's modules and every module whose functions they call
-    files = {m.__file__ for m in (cs, ps, sys.modules[__name__])}
-    for module in (cs, ps):
-        for value in vars(module).values():
-            if isinstance(value, pytypes.FunctionType):
-                files.add(getattr(sys.modules.get(value.__module__), "__file__", None))
-    files.discard(None)
+    # the modules of every compiled function, and the callback's
+    files = {sys.modules[f.__module__].__file__ for f in _PLAIN}
     files.add(os.path.join(os.path.dirname(__file__), "callback.py"))
     digest = source_digest(files)
     base = os.environ.get("NUMBA_CACHE_DIR")

@@ -1,18 +1,5 @@
-"""Linearised actuators of the paper's eq. (19), on every slide of the closed chain.
-
-Per leg a state φ (pressure difference per unit effective mass) around the
-static holding force F_h, driven by the voltage deviation and the piston speed:
-
-.. math::
-    \\dot φ = b\\,(u - u_h) - a_0 \\dot q - a_1 φ, \\qquad
-    F = F_h + M_q φ + D_q \\dot q + K_q (q - q_0),
-
-with M_q, D_q, K_q the closed chain's mass, joint-damping and gravity-stiffness
-matrices reduced to the slides at home
-(:func:`~simpro_mj.plant.pneumatics.statics.slide_mass_matrix`). Linearised, the multibody gives
-:math:`\\ddot q = φ`, so every leg follows exactly
-:math:`Q/U = b / (s (s^2 + a_1 s + a_0))` (eqs. 19, 34, 35), decoupled.
-"""
+"""Linearised actuators of the paper's eq. (19), on every slide of the closed chain
+(:class:`LinearActuators`; its docstring states the model)."""
 
 from __future__ import annotations
 
@@ -20,13 +7,13 @@ import numpy as np
 
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.plant import step_functions as sf
-from simpro_mj.plant.pneumatics.nonlinear import NonlinearActuators, _as3
+from simpro_mj.plant.pneumatics.nonlinear import ArrayStep, NonlinearActuators
 from simpro_mj.plant.pneumatics.params import U_CENTRE, PneumaticParams, fill_linear
 
 __all__ = ["LinearActuators"]
 
 
-class LinearActuators:
+class LinearActuators(ArrayStep):
     r"""Linearised actuators reproducing eq. (19) on every slide of the closed chain.
 
     Per leg an acceleration-like state :math:`φ` (a pressure difference per
@@ -70,6 +57,7 @@ class LinearActuators:
     """
 
     kind = "linear"
+    step_function = staticmethod(sf.linear_step)
 
     def __init__(self, params=None, mass_matrix=None, damping_matrix=None, stiffness_matrix=None):
         P = params if isinstance(params, PneumaticParams) else PneumaticParams.from_tree(params)
@@ -103,20 +91,16 @@ class LinearActuators:
         ast[sf.A_PS] = P.p_supply
         ast[sf.A_FMIN], ast[sf.A_FMAX] = P.force_range
         ac = np.zeros(sf.AC_LIN_LEN)
-        ac[sf.AC_KIND], ac[sf.AC_PA] = 1.0, P.p_atm
-        ac[sf.AC_A1], ac[sf.AC_A2], ac[sf.AC_AR] = P.area_cap, P.area_rod_side, P.area_rod
+        ac[: sf.AC_LB] = 1.0, P.p_atm, P.area_cap, P.area_rod_side, P.area_rod
         ac[sf.AC_LB : sf.AC_LB + 3] = P.lin_b
         ac[sf.AC_LA0 : sf.AC_LA0 + 3] = P.lin_a0
-        ac[sf.AC_MQ : sf.AC_MQ + 9] = self.mass_matrix.reshape(9)
-        ac[sf.AC_DQ : sf.AC_DQ + 9] = self.damping_matrix.reshape(9)
-        ac[sf.AC_KQ : sf.AC_KQ + 9] = self.stiffness_matrix.reshape(9)
+        matrices = (self.mass_matrix, self.damping_matrix, self.stiffness_matrix)
+        ac[sf.AC_MQ : sf.AC_SAT] = np.ravel(matrices)
         ac[sf.AC_SAT] = 1.0 if P.lin_saturate else 0.0
         self.step_constants = ac
         self.u_hold = ac[sf.AC_UHOLD : sf.AC_UHOLD + 3]  # views of the constants
         self.force_hold = ac[sf.AC_FHOLD : sf.AC_FHOLD + 3]
         self.q_ref = ac[sf.AC_Q0 : sf.AC_Q0 + 3]
-        self._f = np.zeros(3)
-        self._dt = None
 
     def reset(self, q, qdot, force=None) -> None:
         """At rest holding ``force`` (N) with the valve at the nonlinear model's
@@ -143,16 +127,3 @@ class LinearActuators:
         ac[sf.AC_EA : sf.AC_EA + 3] = np.exp(-a1 * dt)
         safe = np.where(a1 > 0, a1, 1.0)
         ac[sf.AC_IA : sf.AC_IA + 3] = np.where(a1 > 0, -np.expm1(-a1 * dt) / safe, dt)
-
-    def step(self, u_volts, q, qdot, dt: float) -> np.ndarray:
-        """Advance the states by ``dt`` and return the slide forces (N).
-
-        The arithmetic is :func:`simpro_mj.plant.step_functions.linear_step`,
-        the co-simulation's step.
-        """
-        if dt != self._dt:
-            self.set_timestep(dt)
-        sf.linear_step(
-            _as3(u_volts), _as3(q), _as3(qdot), self.step_state, self.step_constants, self._f
-        )
-        return self._f.copy()

@@ -33,14 +33,24 @@ friction :math:`F_f` (breakaway, Stribeck, Coulomb, viscous) of
 talk to each other through the piston). Near the end stops the chamber is
 small (``V_0`` only) and the laminar orifice is stiff: the explicit time
 constant falls below 0.1 ms. Each pressure is therefore advanced by a
-linearly implicit (Rosenbrock-Euler) step,
-:math:`p^+ = p + h f(p) / (1 - h \\min(∂f/∂p, 0))`, which is L-stable for the
-stiff flow terms and has the exact static equilibrium as fixed point. It is
-not bounded: a chamber compressed above the supply pressure flows back to
-the supply through its supply edge (ISO 6358 with the chamber upstream, ratio
-p_s/p), one expanded below the atmosphere draws air through its exhaust
-edge (ratio p/p_a); the MPYE has no relief valve. ``integration.substeps``
-splits the step further (default 1; tests compare with a fine reference).
+linearly implicit (Rosenbrock-Euler) step with the conductances frozen over
+the step, :math:`G_P = a_P k ψ(p/p_s)`, :math:`G_R = a_R k ψ(p_a/p)` (ratios
+downstream/upstream, inverted on back flow), :math:`c = n R T / V`:
+
+.. math::
+    p^+ = \\frac{p + h c (G_P p_s + G_R p_a)}
+               {1 + h c (G_P + G_R) + h n \\dot V / V}.
+
+For :math:`\\dot V \\ge 0` this is a weighted mean of p, p_s, p_a: the
+pressure cannot leave [p_a, p_s] and cannot overshoot the orifice
+equilibrium however small V is (L-stable); its fixed point at rest is the
+exact static equilibrium. Compression (:math:`\\dot V < 0`) is explicit in
+effect (the denominator is kept >= 0.5) and may lift p above p_s; it stays
+positive. No bound is applied: above p_s the supply edge carries the flow
+back to the supply (:math:`ψ(p_s/p)`, the chamber upstream), below p_a the
+exhaust edge draws air in (:math:`ψ(p/p_a)`), as the MPYE's spool does; it
+has no relief valve. ``integration.substeps`` splits the step further
+(default 1; tests compare with a fine reference).
 
 The per-step arithmetic is :mod:`simpro_mj.plant.step_functions` (valve,
 chambers, forces), the co-simulation's step; this class configures it.
@@ -59,7 +69,31 @@ from simpro_mj.plant.pneumatics.params import U_CENTRE, PneumaticParams
 __all__ = ["NonlinearActuators"]
 
 
-class NonlinearActuators:
+class ArrayStep:
+    """The actuator classes' :meth:`step`: their per-step function on (3,) arrays."""
+
+    _dt = None
+
+    def step(self, u_volts, q, qdot, dt: float) -> np.ndarray:
+        """Advance the actuators by ``dt`` (s); return the slide forces (N).
+
+        Inputs are held over the step (zero-order hold, as the rig's 1 ms DAC).
+        ``u_volts``, ``q``, ``qdot`` are (3,) arrays or sequences of 3 floats (a
+        scalar applies to all legs). Returns a new (3,) array: the force to
+        apply during the next physics step. The arithmetic is the class's
+        ``step_function`` (:mod:`simpro_mj.plant.step_functions`), the
+        co-simulation's step.
+        """
+        if dt != self._dt:
+            self.set_timestep(dt)
+        f = np.zeros(3)
+        self.step_function(
+            _as3(u_volts), _as3(q), _as3(qdot), self.step_state, self.step_constants, f
+        )
+        return f
+
+
+class NonlinearActuators(ArrayStep):
     """Three valve + cylinder actuators, nonlinear (vectorised over the legs).
 
     Parameters
@@ -75,74 +109,39 @@ class NonlinearActuators:
         Normalised spool positions in [-1, 1] (+1: supply to the cap side).
     u_hold : ndarray (3,)
         Valve voltages of the static equilibrium found by :meth:`reset`.
-
-    Notes
-    -----
-    Pressure update (per chamber, conductances frozen over the step, a
-    linearly implicit Euler step): with :math:`G_P = a_P k ψ(p/p_s)`,
-    :math:`G_R = a_R k ψ(p_a/p)` (ratios downstream/upstream, inverted on back
-    flow), :math:`c = n R T / V`,
-
-    .. math::
-        p^+ = \\frac{p + h c (G_P p_s + G_R p_a)}
-                   {1 + h c (G_P + G_R) + h n \\dot V / V}.
-
-    For :math:`\\dot V \\ge 0` this is a weighted mean of p, p_s, p_a: the
-    pressure cannot leave [p_a, p_s] and cannot overshoot the orifice
-    equilibrium however small V is (L-stable); its fixed point at rest is the
-    exact static equilibrium. Compression (:math:`\\dot V < 0`) is explicit in
-    effect (the denominator is kept >= 0.5) and may lift p above p_s; it stays
-    positive. No bound is applied: above p_s the supply edge carries the flow
-    back to the supply (:math:`ψ(p_s/p)`, the chamber upstream), below p_a the
-    exhaust edge draws air in (:math:`ψ(p/p_a)`), as the MPYE's spool does; it
-    has no relief valve.
     """
 
     kind = "nonlinear"
+    step_function = staticmethod(sf.nonlinear_step)
 
     def __init__(self, params=None):
         P = params if isinstance(params, PneumaticParams) else PneumaticParams.from_tree(params)
         self.params = P
-        ps, pa = P.p_supply, P.p_atm
-        self._ps, self._pa = ps, pa
-        self._A1, self._A2, self._Ar = P.area_cap, P.area_rod_side, P.area_rod
-        self._L = P.stroke
-        self._n = P.n_poly
         self._kc = P.conductance * RHO_REF * math.sqrt(T_REF / P.temperature)  # kg/(s Pa)
-        self._RTk = P.gas_constant * P.temperature * self._kc
         self._xp, self._fp = psi_table(P.b_crit, P.r_laminar)
         self._delta = np.broadcast_to(np.asarray(P.underlap, float), (3,)).tolist()
-        self._eps = P.leakage
-        # volumes V = V0 + dV/dq q: V1 = V01 + A1 q, V2 = V02 + A2 (L - q)
-        v0 = np.concatenate([P.dead_cap, P.dead_rod + self._A2 * self._L])
-        dvdq = np.concatenate([np.full(3, self._A1), np.full(3, -self._A2)])
-        # overtravel past the soft end stops must not empty a chamber
+        # volumes V = V0 + dV/dq q: V1 = V01 + A1 q, V2 = V02 + A2 (L - q); V_min: overtravel
+        # past the soft end stops must not empty a chamber
+        v0 = np.concatenate([P.dead_cap, P.dead_rod + P.area_rod_side * P.stroke])
+        dvdq = np.concatenate([np.full(3, P.area_cap), np.full(3, -P.area_rod_side)])
         vmin = 0.5 * np.concatenate([P.dead_cap, P.dead_rod])
         # the per-step function's arrays (simpro_mj.plant.step_functions.nonlinear_step):
         # the state (p1, p2, spool, spool rate are views of it) and the constants
-        self.step_state = np.zeros(sf.A_LEN)
-        ast = self.step_state
+        ast = self.step_state = np.zeros(sf.A_LEN)
         self.p1, self.p2 = ast[sf.A_P : sf.A_P + 3], ast[sf.A_P + 3 : sf.A_P + 6]
         self.spool = ast[sf.A_SPOOL : sf.A_SPOOL + 3]
         self.spool_rate = ast[sf.A_RATE : sf.A_RATE + 3]
-        ast[sf.A_PS] = ps
+        ast[sf.A_PS] = P.p_supply
         n = len(self._xp)
         ac = np.zeros(sf.AC_TAB + 3 * n)
-        ac[sf.AC_KIND], ac[sf.AC_PA] = 0.0, pa
-        ac[sf.AC_A1], ac[sf.AC_A2], ac[sf.AC_AR] = self._A1, self._A2, self._Ar
-        ac[sf.AC_RTK], ac[sf.AC_EPS] = self._RTk, self._eps
+        rtk = P.gas_constant * P.temperature * self._kc
+        ac[: sf.AC_HN] = 0.0, P.p_atm, P.area_cap, P.area_rod_side, P.area_rod, rtk, P.leakage
         ac[sf.AC_ORDER], ac[sf.AC_NSUB], ac[sf.AC_NTAB] = P.spool_order, int(P.substeps), n
-        for i in range(3):  # seal friction: breakaway, Coulomb, Stribeck velocity, viscous, v_reg
-            ac[sf.AC_FRIC + 5 * i : sf.AC_FRIC + 5 * i + 5] = (
-                P.breakaway[i],
-                P.coulomb[i],
-                P.v_stribeck,
-                P.viscous[i],
-                P.v_smooth,
-            )
+        # per leg the seal friction: breakaway, Coulomb, Stribeck velocity, viscous, v_reg
+        fric = [P.breakaway, P.coulomb, np.full(3, P.v_stribeck), P.viscous, np.full(3, P.v_smooth)]
+        ac[sf.AC_FRIC : sf.AC_AD] = np.transpose(fric).ravel()
         ac[sf.AC_DELTA : sf.AC_DELTA + 3] = P.underlap
-        for c in range(6):
-            ac[sf.AC_CH + 3 * c : sf.AC_CH + 3 * c + 3] = (v0[c], dvdq[c], vmin[c])
+        ac[sf.AC_CH : sf.AC_TAB] = np.transpose([v0, dvdq, vmin]).ravel()
         # the ψ table: grid, values and the slope of each cell (np.interp's)
         ac[sf.AC_TAB : sf.AC_TAB + n] = self._xp
         ac[sf.AC_TAB + n : sf.AC_TAB + 2 * n] = self._fp
@@ -152,10 +151,8 @@ class NonlinearActuators:
         ]
         self.step_constants = ac
         self._table = ([0.0] * sf.A_LEN, ac.tolist(), n)  # the ψ table for the static solve
-        self._f = np.zeros(3)
         self.u_hold = np.full(3, U_CENTRE)
-        self._dt = None
-        self.reset(np.full(3, 0.5 * self._L), np.zeros(3))
+        self.reset(np.full(3, 0.5 * P.stroke), np.zeros(3))
 
     # -- valve ---------------------------------------------------------------
     def set_timestep(self, dt: float) -> None:
@@ -164,7 +161,7 @@ class NonlinearActuators:
             raise ValueError(f"dt must be > 0, got {dt}")
         P, ac = self.params, self.step_constants
         self._dt = dt
-        ac[sf.AC_HN] = dt / P.substeps * self._n
+        ac[sf.AC_HN] = dt / P.substeps * P.n_poly
         w = P.spool_omega
         if P.spool_order == 1:
             ac[sf.AC_ALPHA] = -math.expm1(-w * dt)
@@ -201,11 +198,11 @@ class NonlinearActuators:
         :meth:`equilibrium` evaluate it about a thousand times, in the GIL,
         before every run).
         """
-        d, eps = self._delta[leg], self._eps
+        P, d = self.params, self._delta[leg]
+        ps, pa, kc, eps = P.p_supply, P.p_atm, self._kc, P.leakage
         # metering edges: supply P->1 and exhaust 2->R open with +s, P->2 and 1->R with -s
         a_in = min(max(d + s if chamber == 1 else d - s, eps), 1.0)
         a_out = min(max(d - s if chamber == 1 else d + s, eps), 1.0)
-        ps, pa, kc = self._ps, self._pa, self._kc
         m_in = a_in * kc * sf._psi(p / ps, 0, *self._table) * (ps - p)
         m_out = a_out * kc * sf._psi(pa / p, 6, *self._table) * (p - pa)
         return m_in - m_out
@@ -220,13 +217,13 @@ class NonlinearActuators:
         monotone in the spool). A force beyond the cylinder's range gives the
         saturated spool (±1).
         """
-        F = np.broadcast_to(np.asarray(force, float), (3,))
+        P, F = self.params, np.broadcast_to(np.asarray(force, float), (3,))
         s_out, p1_out, p2_out = np.zeros(3), np.zeros(3), np.zeros(3)
         for i in range(3):
 
             def f_of(s, i=i):
                 p1, p2 = self._static_pressure(i, s, 1), self._static_pressure(i, s, 2)
-                return p1 * self._A1 - p2 * self._A2 - self._pa * self._Ar - F[i]
+                return p1 * P.area_cap - p2 * P.area_rod_side - P.p_atm * P.area_rod - F[i]
 
             lo, hi = f_of(-1.0), f_of(1.0)
             if lo >= 0:
@@ -234,7 +231,7 @@ class NonlinearActuators:
             elif hi <= 0:
                 s = 1.0
             else:
-                from scipy.optimize import brentq  # on use, see _set_dt
+                from scipy.optimize import brentq  # on use, see set_timestep
 
                 s = brentq(f_of, -1.0, 1.0, xtol=1e-12)
             s_out[i] = s
@@ -244,10 +241,10 @@ class NonlinearActuators:
 
     def _static_pressure(self, leg: int, s: float, chamber: int) -> float:
         """Pressure of zero net flow into a chamber at spool ``s`` (Brent)."""
-        from scipy.optimize import brentq  # on use, see _set_dt
+        from scipy.optimize import brentq  # on use, see set_timestep
 
-        args = (s, leg, chamber)
-        return brentq(self._net_flow, self._pa, self._ps, args=args, xtol=1e-7, rtol=1e-14)
+        P, args = self.params, (s, leg, chamber)
+        return brentq(self._net_flow, P.p_atm, P.p_supply, args=args, xtol=1e-7, rtol=1e-14)
 
     def reset(self, q, qdot, force=None) -> None:
         """Set the state at rest: valve centred (``force=None``), or the static
@@ -274,24 +271,6 @@ class NonlinearActuators:
         f = np.zeros(3)
         sf.slide_forces(qd, self.step_state, self.step_constants, f)
         return f
-
-    # -- step ----------------------------------------------------------------
-    def step(self, u_volts, q, qdot, dt: float) -> np.ndarray:
-        """Advance valves and chambers by ``dt`` (s); return the slide forces (N).
-
-        Inputs are held over the step (zero-order hold, as the rig's 1 ms DAC).
-        ``u_volts``, ``q``, ``qdot`` are (3,) arrays or sequences of 3 floats (a
-        scalar applies to all legs). Returns a new (3,) array: the force to
-        apply during the next physics step. The arithmetic is
-        :func:`simpro_mj.plant.step_functions.nonlinear_step`, the
-        co-simulation's step.
-        """
-        if dt != self._dt:
-            self.set_timestep(dt)
-        sf.nonlinear_step(
-            _as3(u_volts), _as3(q), _as3(qdot), self.step_state, self.step_constants, self._f
-        )
-        return self._f.copy()
 
 
 def _as3(x) -> np.ndarray:
