@@ -255,7 +255,6 @@ class JointControllers:
         limits = [u_offset, u_min, u_max, aw, self.dt / self.tracking_time]
         self.step_constants = np.concatenate([limits, self._int_gain, db, np.ravel(blocks)])
         self._x = np.zeros(3 * _NX)
-        self._v = np.zeros(3)
 
     @property
     def integrator(self) -> np.ndarray:
@@ -277,5 +276,6 @@ class JointControllers:
         """
         e = np.broadcast_to(np.asarray(q_ref, float) - np.asarray(q_meas, float), (3,))
         f = np.broadcast_to(np.asarray(0.0 if u_ff is None else u_ff, float), (3,))
-        joint_step(self._x, self.step_constants, *e.tolist(), *f.tolist(), self._v)
-        return self._v.copy()
+        v = np.zeros(3)
+        joint_step(self._x, self.step_constants, *e.tolist(), *f.tolist(), v)
+        return v

@@ -116,7 +116,6 @@ class SetpointFilter:
         self.step_constants = np.array([code, *self.n, *np.transpose(self._ab).ravel()])
         self.step_state = np.zeros(FS_LEN)
         self.ring = np.zeros((3, max(self.n)))
-        self._out = np.zeros(3)
         self._ready = False
 
     def reset(self, q) -> None:
@@ -138,5 +137,6 @@ class SetpointFilter:
         if not self._ready:
             self.reset(q_d)
         q0, q1, q2 = (float(v) for v in q_d[:3])
-        filter_step(self.step_constants, q0, q1, q2, self.step_state, self.ring, self._out)
-        return self._out.tolist()
+        out = np.zeros(3)
+        filter_step(self.step_constants, q0, q1, q2, self.step_state, self.ring, out)
+        return out.tolist()

@@ -1,12 +1,9 @@
 """The controllers' part of one 1 ms step, as plain functions on flat float64 arrays.
 
-These functions are the one implementation of the per-step controller
-arithmetic (the classes of this package configure them and keep their
-array APIs on top of them). They use only scalar ``math``, loops and
-indexing into float64 arrays, the subset numba compiles: run interpreted
-they are the readable reference (``SIMPRO_KERNEL=python``); compiled by
-:mod:`simpro_mj.sim.step` they run inside MuJoCo's control callback. No
-MuJoCo here.
+The one implementation of the per-step controller arithmetic (this
+package's classes configure it and keep their array APIs on top), in the
+subset numba compiles (scalar ``math``, loops, indexing):
+:mod:`simpro_mj.sim.step` runs it interpreted or compiled. No MuJoCo here.
 
 Geometry constants (:func:`geometry_constants`), one flat array ``g``::
 
@@ -425,19 +422,24 @@ def ff_step(ref, ts, tc, g):
 def outer_update(r0, r1, r2, y0, y1, y2, qm0, qm1, qm2, hold, ts, tc, g):
     """One outer step (eqs. 21-27): set-point and measured pose -> ``q_d`` in ``ts[T_QD]``.
 
-    Mode I (eq. 22, Fig. 7): output ``IK(x_c[k])``, then integrate ``T K K_I e[k]``;
-    PI (section 4): integrate ``T K K_I (e[k] + c e[k-1])`` first; feed-forward:
-    integrate the correction (held while ``hold``) and output ``IK(y_d + c)``.
+    Joint-only: ``IK(y_d)``. Mode I (eq. 22, Fig. 7): output ``IK(x_c[k])``,
+    then integrate ``T K K_I e[k]``; PI (section 4): integrate
+    ``T K K_I (e[k] + c e[k-1])`` first; feed-forward: integrate the correction
+    (held while ``hold``) and output ``IK(y_d + c)``.
     Returns an error code (0: none).
     """
     ref, q, e = ts[T_SCR : T_SCR + 3], ts[T_SCR + 3 : T_SCR + 6], ts[T_SCR + 6 : T_SCR + 9]
     err = outer_setpoint(r0, r1, r2, tc, g, q, ref)
     if err:
         return err
+    mode = tc[TC_MODE]
+    if mode == MODE_JOINT:  # no feedback (the class's; the step's IK(y_d) is computed ahead)
+        ts[T_XC], ts[T_XC + 1], ts[T_XC + 2] = ref[0], ref[1], ref[2]
+        ts[T_QXC_OK] = 0.0
+        return _ik_xc(ts, g)
     if not (math.isfinite(y0) and math.isfinite(y1) and math.isfinite(y2)):
         return ERR_MEAS_NONFINITE
     e[0], e[1], e[2] = ref[0] - y0, ref[1] - y1, ref[2] - y2
-    mode = tc[TC_MODE]
     if mode == MODE_FF:  # the error the correction integrates
         if tc[TC_AVG] != 0.0 or tc[TC_LAGJ] != 0.0:
             _ff_error(y0, y1, y2, qm0, qm1, qm2, ts, tc, g, e)

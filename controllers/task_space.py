@@ -281,16 +281,6 @@ class TaskSpaceController:
         :func:`controllers.step_functions.outer_update`, the co-simulation's step.
         """
         ts, tc, g = self.step_state, self.step_constants, self.step_geometry
-        if self.mode == "joint_only":
-            ref = ts[sf.T_SCR : sf.T_SCR + 3]
-            err = sf.outer_setpoint(*_floats(pose_ref), tc, g, ts[sf.T_SCR + 3 :], ref)
-            raise_step_error(err, pose_ref, pose_meas, self.geometry, self.margin)
-            ts[sf.T_XC : sf.T_XC + 3] = ref
-            ts[sf.T_QXC_OK] = 0.0
-            q = ts[sf.T_QD : sf.T_QD + 3]
-            if sf.ik_pose(ref[0], ref[1], ref[2], g, 0.0, False, q) == sf.IK_MISS:
-                raise_step_error(sf.ERR_GUIDE, pose_ref, pose_meas, self.geometry, self.margin)
-            return q.copy()
         if self.mode == "feedforward" and self.lag == "joints" and q_meas is None:
             raise ValueError("lag='joints' needs the measured joints q_meas")
         qm = (0.0, 0.0, 0.0) if q_meas is None else q_meas

@@ -105,12 +105,15 @@ class SensorConfig:
 
     @classmethod
     def from_tree(cls, tree: dict, dt: float, path: str = "sensors") -> SensorConfig:
-        pot, enc, imu = tree["potentiometer"], tree["height_encoder"], tree["imu"]
+        pot, imu = tree["potentiometer"], tree["imu"]
 
-        def every(ms, where):
-            return steps_per_period(ms, dt, f"{path}.{where}.rate_ms")
+        def every(where):
+            return steps_per_period(tree[where]["rate_ms"], dt, f"{path}.{where}.rate_ms")
 
-        def positive(v, where, zero_ok=False):
+        def positive(where, zero_ok=False):
+            """The value at ``where`` (a sensor's key; its default when absent), checked."""
+            group, key = where.split(".")
+            v = tree[group].get(key, DEFAULT_SENSORS[group][key])
             if not (math.isfinite(v) and (v >= 0 if zero_ok else v > 0)):
                 allowed = ">= 0" if zero_ok else "> 0"
                 raise UserInputError(f"invalid value at {path}.{where}: {v}; allowed: {allowed}")
@@ -121,16 +124,14 @@ class SensorConfig:
             raise UserInputError(
                 f"invalid value at {path}.potentiometer.bits: {bits}; allowed: {POT_BITS_TEXT}"
             )
-        rng_v = positive(pot["range_v"], "potentiometer.range_v")
-        vpm = positive(pot["volts_per_mm"], "potentiometer.volts_per_mm") * 1e3  # V/m
+        rng_v = positive("potentiometer.range_v")
+        vpm = positive("potentiometer.volts_per_mm") * 1e3  # V/m
         lsb_v = 2.0 * rng_v / 2**bits
-        bw = positive(imu["bandwidth_hz"], "imu.bandwidth_hz")
-        imu_every = every(imu["rate_ms"], "imu")
+        bw = positive("imu.bandwidth_hz")
+        imu_every = every("imu")
         imu_t = imu_every * dt
-        sigma_imu = math.radians(positive(imu["noise_deg"], "imu.noise_deg", True))
-        density = positive(
-            imu.get("noise_density_deg_per_sqrt_hz", 0.0), "imu.noise_density_deg_per_sqrt_hz", True
-        )
+        sigma_imu = math.radians(positive("imu.noise_deg", True))
+        density = positive("imu.noise_density_deg_per_sqrt_hz", True)
         if density > 0:
             sigma_imu = math.hypot(sigma_imu, noise_sigma(math.radians(density), imu_t))
         weight = float(imu.get("accel_tilt_weight", 0.0))
@@ -139,24 +140,20 @@ class SensorConfig:
                 f"invalid value at {path}.imu.accel_tilt_weight: {weight}; allowed: 0 (gyro "
                 "only) .. 1 (accelerometer only)"
             )
-        walk = positive(
-            imu.get("bias_walk_deg_per_sqrt_s", 0.0), "imu.bias_walk_deg_per_sqrt_s", True
-        )
-        nl = positive(
-            pot.get("nonlinearity_pct_fs", 0.0), "potentiometer.nonlinearity_pct_fs", True
-        )
+        walk = positive("imu.bias_walk_deg_per_sqrt_s", True)
+        nl = positive("potentiometer.nonlinearity_pct_fs", True)
         return cls(
             pot_lsb_m=lsb_v / vpm,
-            pot_noise_m=positive(pot["noise_lsb"], "potentiometer.noise_lsb", True) * lsb_v / vpm,
+            pot_noise_m=positive("potentiometer.noise_lsb", True) * lsb_v / vpm,
             pot_range_m=(-rng_v / vpm, (rng_v - lsb_v) / vpm),
             pot_offset_m=np.asarray(pot["offset_mm"], dtype=float) * 1e-3,
             pot_gain=1.0 + np.asarray(pot["gain_error_pct"], dtype=float) * 1e-2,
             pot_full_scale_m=rng_v / vpm,
             pot_nonlinearity=nl * 1e-2,
-            pot_every=every(pot["rate_ms"], "potentiometer"),
-            enc_res_m=positive(enc["resolution_mm"], "height_encoder.resolution_mm", True) * 1e-3,
-            enc_noise_m=positive(enc["noise_mm"], "height_encoder.noise_mm", True) * 1e-3,
-            enc_every=every(enc["rate_ms"], "height_encoder"),
+            pot_every=every("potentiometer"),
+            enc_res_m=positive("height_encoder.resolution_mm", True) * 1e-3,
+            enc_noise_m=positive("height_encoder.noise_mm", True) * 1e-3,
+            enc_every=every("height_encoder"),
             imu_noise_rad=sigma_imu,
             imu_bias_rad=np.radians(np.asarray(imu["bias_deg"], dtype=float)),
             imu_walk_rad=bias_walk_sigma(math.radians(walk), imu_t),

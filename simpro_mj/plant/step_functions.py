@@ -1,15 +1,11 @@
 """The plant's part of one 1 ms step, as plain functions on flat float64 arrays.
 
 The one implementation of the state read, the sensor models and the
-actuator models per step (the classes of :mod:`simpro_mj.plant` configure
-them: :class:`~simpro_mj.plant.sensors.SensorConfig`,
-:class:`~simpro_mj.plant.pneumatics.nonlinear.NonlinearActuators`,
-:class:`~simpro_mj.plant.pneumatics.linear.LinearActuators`). Scalar ``math``,
-loops and indexing only: interpreted they are the reference
-(``SIMPRO_KERNEL=python``), compiled by :mod:`simpro_mj.sim.step` they run in
-MuJoCo's control callback. Each stage is a small named function so that a
-plant change (a friction law, a sensor error) is made in one place; the
-seal friction is :func:`simpro_mj.plant.friction.seal_friction`.
+actuator models per step (:class:`~simpro_mj.plant.sensors.SensorConfig` and
+the actuator classes configure them), in the subset numba compiles:
+:mod:`simpro_mj.sim.step` runs them interpreted or compiled. Each stage is a
+small named function so that a plant change (a friction law, a sensor
+error) is made in one place.
 """
 
 from __future__ import annotations
@@ -23,6 +19,7 @@ __all__ = [
     "slide_states",
     "platform_pose",
     "loop_closure",
+    "clip",
     "quantise",
     "imu_input",
     "sample_sensors",
@@ -88,6 +85,15 @@ def loop_closure(xpos, pairs, npair):
     return math.sqrt(worst)
 
 
+def clip(v, lo, hi):
+    """``v`` within ``[lo, hi]``; NaN passed on (the comparisons are false)."""
+    if v < lo:
+        v = lo
+    if v > hi:
+        v = hi
+    return v
+
+
 def quantise(v, step):
     """``v`` rounded to a multiple of ``step``, half to even (an ADC's code); NaN, inf kept."""
     x = v / step
@@ -109,19 +115,17 @@ def imu_input(roll, pitch, site, sc, ss):
         return roll, pitch
     x, y, z = site[0], site[1], site[2]
     h = SS_HIST
-    if ss[SS_HN] < 2.0:  # the first two positions of a run: no acceleration yet
-        ss[h + 3], ss[h + 4], ss[h + 5] = ss[h], ss[h + 1], ss[h + 2]
-        ss[h], ss[h + 1], ss[h + 2] = x, y, z
-        ss[SS_HN] += 1.0
-        return roll, pitch
     x1, y1, z1 = ss[h], ss[h + 1], ss[h + 2]
     x2, y2, z2 = ss[h + 3], ss[h + 4], ss[h + 5]
+    ss[h + 3], ss[h + 4], ss[h + 5] = x1, y1, z1
+    ss[h], ss[h + 1], ss[h + 2] = x, y, z
+    if ss[SS_HN] < 2.0:  # the first two positions of a run: no acceleration yet
+        ss[SS_HN] += 1.0
+        return roll, pitch
     idt2 = sc[SC_IDT2]
     ax = ((x - x2) - 2.0 * (x1 - x2)) * idt2
     ay = ((y - y2) - 2.0 * (y1 - y2)) * idt2
     az = ((z - z2) - 2.0 * (z1 - z2)) * idt2
-    ss[h + 3], ss[h + 4], ss[h + 5] = x1, y1, z1
-    ss[h], ss[h + 1], ss[h + 2] = x, y, z
     ra, pa = accel_tilt(ax, ay, az, roll, pitch)
     return roll + w * (ra - roll), pitch + w * (pa - pitch)
 
@@ -153,12 +157,7 @@ def sample_sensors(k, force, q, pose, site, noise, walk, sc, ss, qm, pm):
                 v = sc[SC_GAIN + j] * q[j] + sc[SC_OFF + j] + e + sigma * noise[j]
             else:
                 v = sc[SC_GAIN + j] * q[j] + sc[SC_OFF + j] + sigma * noise[j]
-            v = quantise(v, lsb)
-            if v < lo:
-                v = lo
-            if v > hi:
-                v = hi
-            qm[j] = v
+            qm[j] = clip(quantise(v, lsb), lo, hi)
     if force or k % int(sc[SC_ENC_EVERY]) == 0:
         h = pose[2] + sc[SC_ENC_NOISE] * noise[3]
         if sc[SC_RES] > 0.0:
@@ -210,11 +209,7 @@ def valve_spool(u, ast, ac):
     ``alpha = 1 - e^(-w dt)``) or the exact ZOH of a second-order one.
     """
     for i in range(3):
-        c = u[i] * 0.2 - 1.0
-        if c < -1.0:
-            c = -1.0
-        if c > 1.0:
-            c = 1.0
+        c = clip(u[i] * 0.2 - 1.0, -1.0, 1.0)
         sp = ast[A_SPOOL + i]
         if ac[AC_ORDER] == 1.0:
             ast[A_SPOOL + i] = sp + (c - sp) * ac[AC_ALPHA]
@@ -246,16 +241,7 @@ def chamber_pressures(q, qd, ast, ac):
         i = c % 3
         sp = ast[A_SPOOL + i]
         d = ac[AC_DELTA + i]
-        ap = sp + d
-        am = d - sp
-        if ap < eps:
-            ap = eps
-        if ap > 1.0:
-            ap = 1.0
-        if am < eps:
-            am = eps
-        if am > 1.0:
-            am = 1.0
+        ap, am = clip(sp + d, eps, 1.0), clip(d - sp, eps, 1.0)
         if c < 3:  # cap side: supply edge P->1, exhaust edge 1->R
             a_s, a_e = ap, am
         else:  # rod side: P->2, 2->R
@@ -309,11 +295,7 @@ def linear_step(u, q, qd, ast, ac, f):
     force range; display pressures share the force deviation equally.
     """
     for i in range(3):
-        ui = u[i]
-        if ui < 0.0:
-            ui = 0.0
-        if ui > 10.0:
-            ui = 10.0
+        ui = clip(u[i], 0.0, 10.0)
         ast[A_SPOOL + i] = (ui - 5.0) / 5.0
         drive = ac[AC_LB + i] * (ui - ac[AC_UHOLD + i]) - ac[AC_LA0 + i] * qd[i]
         ast[A_PHI + i] = ast[A_PHI + i] * ac[AC_EA + i] + ac[AC_IA + i] * drive
@@ -325,10 +307,7 @@ def linear_step(u, q, qd, ast, ac, f):
             dk += ac[AC_KQ + 3 * i + j] * (q[j] - ac[AC_Q0 + j])
         fi = ac[AC_FHOLD + i] + (df + dd + dk)
         if ac[AC_SAT] != 0.0:
-            if fi < ast[A_FMIN]:
-                fi = ast[A_FMIN]
-            if fi > ast[A_FMAX]:
-                fi = ast[A_FMAX]
+            fi = clip(fi, ast[A_FMIN], ast[A_FMAX])
         f[i] = fi
         dfi = fi - ac[AC_FHOLD + i]
         ast[A_P + i] = ac[AC_P10 + i] + 0.5 * dfi / ac[AC_A1]

@@ -1,6 +1,6 @@
 """The compiled step as MuJoCo's control callback (numba; imported only when it runs).
 
-:func:`entry` is a C function ``entry(mjData*, registry*)`` compiled once
+:func:`entry` is a C function ``entry(mjData address, registry*)`` compiled once
 and kept in numba's on-disk cache: it finds the run registered for that
 ``mjData`` (:data:`simpro_mj.sim.step.REGISTRY`, keyed by the struct's
 address), views its arrays and MuJoCo's (``numba.carray`` on the addresses
@@ -46,16 +46,6 @@ def _as_ptr(typingctx, addr):
     return types.voidptr(types.int64), codegen
 
 
-@intrinsic
-def _as_int(typingctx, ptr):
-    """A ``void*`` as an int64 address."""
-
-    def codegen(context, builder, signature, args):
-        return builder.ptrtoint(args[0], context.get_value_type(types.int64))
-
-    return types.int64(types.voidptr), codegen
-
-
 @njit(cache=True)
 def _flat(a, i):
     """Array ``i`` of a slot (``a``: its (address, size, columns) triples) as 1-D float64."""
@@ -69,11 +59,10 @@ def _rows(a, i):
     return carray(_as_ptr(a[3 * i]), (a[3 * i + 1] // n, n), np.float64)
 
 
-@cfunc(types.void(types.voidptr, types.voidptr), cache=True)
-def entry(d, registry):
-    """The step of the run registered for ``d``, if any (module docstring)."""
+@cfunc(types.void(types.int64, types.voidptr), cache=True)
+def entry(key, registry):
+    """The step of the run registered for the ``mjData`` at ``key``, if any (module docstring)."""
     reg = carray(registry, (st.N_SLOTS * st.SLOT,), np.int64)
-    key = _as_int(d)
     for s in range(st.N_SLOTS):
         if reg[s * st.SLOT] == key:  # the arrays in the order of step.SLOT_ARRAYS
             a = reg[s * st.SLOT + 1 : (s + 1) * st.SLOT]
@@ -105,7 +94,8 @@ def install_pointer(registry: np.ndarray):
 define void @simpro_mjcb(ptr %m, ptr %d) {{
   %f = inttoptr i64 {entry.address} to ptr
   %r = inttoptr i64 {registry.ctypes.data} to ptr
-  call void %f(ptr %d, ptr %r)
+  %k = ptrtoint ptr %d to i64
+  call void %f(i64 %k, ptr %r)
   ret void
 }}
 """

@@ -30,6 +30,7 @@ the wall clock, sends the pose, and ends the run early by raising
 from __future__ import annotations
 
 import copy
+import functools
 import sys
 import threading
 import time
@@ -307,7 +308,7 @@ class CoSimulation:
             arrays = [getattr(self, name) for name in _SETPOINTS]
             setpoints = tuple(None if a is None else a.copy() for a in arrays)
         return Snapshot(
-            model=self._model_digest(),
+            model=self._model_digest,
             scenario=scenario_digest(self.scenario),
             k=int(self._k),
             mj_state=state,
@@ -337,7 +338,7 @@ class CoSimulation:
         """
         if not isinstance(snap, Snapshot):
             raise ValueError(f"restore: {type(snap).__name__} given; allowed: a Snapshot")
-        if snap.model != self._model_digest():
+        if snap.model != self._model_digest:
             raise ValueError("restore: snapshot field 'model' is from another model")
         if snap.scenario != scenario_digest(self.scenario):
             raise ValueError("restore: snapshot field 'scenario' is from another scenario")
@@ -359,10 +360,9 @@ class CoSimulation:
         self._k = snap.k
         self._resume = snap.k
 
+    @functools.cached_property
     def _model_digest(self) -> str:
-        if getattr(self, "_digest", None) is None:
-            self._digest = model_digest(self.model)
-        return self._digest
+        return model_digest(self.model)
 
     # ------------------------------------------------------------------ setup
     def _initial_state(self) -> None:

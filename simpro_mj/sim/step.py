@@ -99,9 +99,7 @@ def sense(k, S, C, qpos, qvel, xpos, xmat, noise, walk):
     sc, ss = C[SC : SC + ps.SC_LEN], S[SS : SS + ps.SS_LEN]
     imu = xpos[site : site + 3]
     S[WALK_M] += ps.sample_sensors(k, False, q, pose, imu, draws, steps, sc, ss, qm, pm)
-    for i in range(3):
-        S[YQ + i] = S[QM + i]
-        S[YP + i] = S[PM + i]
+    S[YQ : YQ + 3], S[YP : YP + 3] = qm, pm
 
 
 def control(k, S, C, ref, qj, uff):
@@ -117,9 +115,7 @@ def control(k, S, C, ref, qj, uff):
     m0, m1, m2 = S[YQ], S[YQ + 1], S[YQ + 2]
     err = 0
     if mode == cs.MODE_JOINT:  # q_d = IK(y_d), precomputed
-        for i in range(3):
-            S[QDES + i] = qj[k, i]
-            S[PCMD + i] = ref[k, i]
+        S[QDES : QDES + 3], S[PCMD : PCMD + 3] = qj[k], ref[k]
     else:
         if k % int(C[OUTER]) == 0:
             hold = S[SAT] != 0.0
@@ -129,9 +125,8 @@ def control(k, S, C, ref, qj, uff):
             S[SAT] = 0.0
         elif mode == cs.MODE_FF:
             err = cs.ff_inner(ref[k, 0], ref[k, 1], ref[k, 2], y0, y1, y2, m0, m1, m2, 2, ts, tc, g)
-        for i in range(3):
-            S[QDES + i] = ts[cs.T_QD + i]
-            S[PCMD + i] = ts[cs.T_XC + i]
+        S[QDES : QDES + 3] = ts[cs.T_QD : cs.T_QD + 3]
+        S[PCMD : PCMD + 3] = ts[cs.T_XC : cs.T_XC + 3]
     if err:
         return err
     qr, ring = S[QR : QR + 3], S[RING:].reshape(3, -1)
@@ -144,8 +139,7 @@ def control(k, S, C, ref, qj, uff):
     jc = C[JC : JC + cs.J_LEN]
     cs.joint_step(S[JX : JX + 9], jc, qr[0] - m0, qr[1] - m1, qr[2] - m2, f0, f1, f2, S[U : U + 3])
     lo, hi = jc[1], jc[2]
-    for i in range(3):
-        S[UA + i] = S[U + i]
+    S[UA : UA + 3] = S[U : U + 3]
     if C[HOLD_SAT] != 0.0 and S[SAT] == 0.0:
         for i in range(3):
             if not (lo < S[U + i] < hi):
@@ -187,13 +181,10 @@ def record(k, S, C, ref, qpos, sd, log, qlog, hlog):
         out[29 + 2 * i] = S[AST + ps.A_P + 3 + i]
     loop = S[LOOP]
     out[34], out[35], out[36] = loop, S[FLAGS], S[SUPPLY_LOG]
-    for j in range(qpos.shape[0]):
-        qlog[row, j] = qpos[j]
+    qlog[row] = qpos
     if C[HEAD] != 0.0:
         a, g = int(C[IHA]), int(C[IHG])
-        for i in range(3):
-            hlog[row, i] = sd[a + i]
-            hlog[row, 3 + i] = sd[g + i]
+        hlog[row, :3], hlog[row, 3:] = sd[a : a + 3], sd[g : g + 3]
     S[ROWS] = row + 1
     if loop > S[WORST]:
         S[WORST] = loop
@@ -302,7 +293,7 @@ _PLAIN = [
     cs.ik_pose, cs.ik_lag, cs.segment_limit, cs.filter_step, cs.joint_step, cs.outer_setpoint,
     cs._ik_xc, cs._integrate, cs._accumulate, cs._ff_error, cs._correct, cs.ff_step,
     cs.outer_update, cs.ff_inner,
-    ps.slide_states, ps.platform_pose, ps.loop_closure, ps.quantise, accel_tilt,
+    ps.slide_states, ps.platform_pose, ps.loop_closure, ps.clip, ps.quantise, accel_tilt,
     pot_nonlinearity, ps.imu_input, ps.sample_sensors,
     seal_friction, ps._psi, ps.valve_spool, ps.chamber_pressures, ps.slide_forces,
     ps.nonlinear_step, ps.linear_step,
