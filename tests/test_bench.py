@@ -14,6 +14,7 @@ import pytest
 from simpro_mj.batch.bench import STAGES, measure
 from simpro_mj.commands.main import main
 from simpro_mj.config.scenario import load_scenario
+from simpro_mj.core.errors import UserInputError
 
 
 @pytest.fixture(scope="module")
@@ -110,9 +111,29 @@ def test_human_table(capsys):
         (["--repeats", "many"], "--repeats"),
         (["--duration", "-1"], "--duration"),
         (["--batch-runs", "0"], "--batch-runs"),
+        (["--commands", "-3"], "--commands"),
     ],
 )
 def test_user_errors_are_one_line(argv, field, capsys):
     assert main(["bench", "--no-batch", *argv]) == 2
     err = capsys.readouterr().err.strip()
     assert err.startswith("error: ") and "\n" not in err and field in err
+
+
+def test_separate_commands_time_whole_processes():
+    """One pair of whole run commands (0.6 s and 0.3 s) after an untimed one: the
+    per-step difference, wall and CPU, with their spread."""
+    from simpro_mj.batch.bench import separate_commands
+
+    r = separate_commands("step_pitch", ["controller.mode=joint_only"], 1, (0.6, 0.3))
+    assert r["pairs"] == 1 and r["durations_s"] == [0.6, 0.3]
+    for key in ("wall_us", "cpu_us"):
+        (x,) = r["samples"][key]
+        assert r[key]["median"] == x and r[key]["range"] == [x, x]
+
+
+def test_separate_commands_name_a_failing_command():
+    from simpro_mj.batch.bench import separate_commands
+
+    with pytest.raises(UserInputError, match="the run command failed: .*no_such"):
+        separate_commands("no_such_scenario", [], 1, (0.6, 0.3))

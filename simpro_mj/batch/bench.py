@@ -41,6 +41,15 @@ the median over the repeats:
   tenths of a second; ``run_command_ratio`` = that over ``bare_step_us``.
   ``null`` when the scenario refuses to last 41 s (its set-points leave the
   workspace by then).
+* ``separate_commands`` (``--commands N``, else ``null``): the same
+  figure as a user measures it, from N pairs of whole ``run SCENARIO
+  --no-plots --set logging.decimation=10`` commands at 41 s and 1 s,
+  each a fresh process timed from outside, the order alternating pair by
+  pair: the per-step difference in wall time and in CPU time (user +
+  system) as median, quartiles and range, and ``ratio`` = the median wall
+  figure over ``bare_step_us``. Start-up (imports, loading the compiled
+  step, the caches) is in both commands and scatters the difference by
+  microseconds per step, hence the median of many pairs.
 * ``timeseries_write_s``: wall time to write the plain run's columns as
   ``timeseries.csv`` (:func:`simpro_mj.report.results.write_timeseries`, one
   ``numpy.savetxt`` call); a speed figure, so here and not in a timed test.
@@ -63,8 +72,11 @@ from __future__ import annotations
 
 import copy
 import os
+import resource
 import shutil
 import statistics
+import subprocess
+import sys
 import tempfile
 import time
 from concurrent.futures import ThreadPoolExecutor
@@ -247,6 +259,60 @@ def _run_command(scenario: dict, model, durations: tuple[float, float]) -> float
     return (times[1] - times[0]) / round((long_s - short_s) / dt) * 1e6
 
 
+def _spread(values: list[float]) -> dict:
+    q1, median, q3 = statistics.quantiles(values, n=4) if len(values) > 1 else values * 3
+    return {"median": statistics.median(values), "quartiles": [q1, q3],
+            "range": [min(values), max(values)]}  # fmt: skip
+
+
+def separate_commands(
+    scenario: str, sets: list[str], pairs: int, durations=(41.0, 1.0), log=None
+) -> dict:
+    """The ``run`` command's cost per step from ``pairs`` pairs of whole commands
+    (``separate_commands`` in the module docstring); ``scenario`` and ``sets`` as
+    given on the command line.
+
+    Raises
+    ------
+    UserInputError
+        If a command fails (its last line of stderr says why).
+    """
+    long_s, short_s = durations
+    steps = round((long_s - short_s) / 1e-3)
+    base = [sys.executable, "-m", "simpro_mj.commands.main", "run", scenario, "--no-plots"]
+    for item in [*sets, "logging.decimation=10"]:
+        base += ["--set", item]
+
+    def one(d: float, out: Path) -> tuple[float, float]:
+        r0, t0 = resource.getrusage(resource.RUSAGE_CHILDREN), time.perf_counter()
+        cmd = [*base, "--set", f"duration_s={d:g}", "--out", str(out)]
+        done = subprocess.run(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+        wall, r1 = time.perf_counter() - t0, resource.getrusage(resource.RUSAGE_CHILDREN)
+        if done.returncode not in (0, 1):  # 1: a finished run whose verdict is not ok
+            last = (done.stderr.strip().splitlines() or ["no message"])[-1]
+            raise UserInputError(f"bench --commands: the run command failed: {last}")
+        cpu = (r1.ru_utime - r0.ru_utime) + (r1.ru_stime - r0.ru_stime)
+        return wall, cpu
+
+    wall, cpu = [], []
+    with tempfile.TemporaryDirectory(prefix="simpro-bench-") as tmp:
+        one(short_s, Path(tmp) / "warm")  # untimed: the first loads what the rest reuse
+        for i in range(pairs):
+            if log is not None:
+                log(f"separate commands, pair {i + 1}/{pairs}")
+            order = (long_s, short_s) if i % 2 == 0 else (short_s, long_s)
+            got = {d: one(d, Path(tmp) / f"run_{i}_{d:g}") for d in order}
+            wall.append((got[long_s][0] - got[short_s][0]) / steps * 1e6)
+            cpu.append((got[long_s][1] - got[short_s][1]) / steps * 1e6)
+    return {
+        "pairs": pairs,
+        "durations_s": [long_s, short_s],
+        "wall_us": _spread(wall),
+        "cpu_us": _spread(cpu),
+        "samples": {"wall_us": wall, "cpu_us": cpu},
+    }
+
+
 def measure(
     scenario: dict,
     repeats: int = 5,
@@ -388,6 +454,18 @@ def _command_line(r: dict) -> str:
     )
 
 
+def _separate_lines(r: dict) -> list[str]:
+    sep = r.get("separate_commands")
+    if not sep:
+        return []
+    w, c = sep["wall_us"], sep["cpu_us"]
+    return [
+        f"  separate commands    {w['median']:8.2f} us  (ratio {sep['ratio']:.2f}; "
+        f"{sep['pairs']} pairs of whole run commands, quartiles {w['quartiles'][0]:.2f}"
+        f"-{w['quartiles'][1]:.2f}; CPU time {c['median']:.2f} us)"
+    ]
+
+
 def table(r: dict) -> str:
     """The human table of a :func:`measure` result."""
     m = r["machine"]
@@ -414,6 +492,7 @@ def table(r: dict) -> str:
         f"{r['interpreted_ratio']:.2f}, SIMPRO_KERNEL=python)",
         f"  realtime factor      {r['realtime_factor']:8.1f} x",
         _command_line(r),
+        *_separate_lines(r),
         f"  timeseries.csv write {r['timeseries_write_s']:8.3f} s  ({r['timeseries_rows']} rows)",
         "",
         "  stage (instrumented) us/step",

@@ -43,6 +43,12 @@ def add_arguments(parser) -> None:
         "--no-batch", action="store_true", help="skip the 1- and 2-worker throughput part"
     )
     parser.add_argument(
+        "--commands",
+        default=0,
+        help="also time N pairs of whole 'run --no-plots' commands at 41 s and 1 s, "
+        "each a fresh process (default 0: not)",
+    )
+    parser.add_argument(
         "--video",
         action="store_true",
         help="instead: time simpro-sim render on a 20 s run at 25 fps, 640x480 with the plot "
@@ -50,12 +56,12 @@ def add_arguments(parser) -> None:
     )
 
 
-def _positive_int(value, field: str, hi: int) -> int:
+def _positive_int(value, field: str, hi: int, lo: int = 1) -> int:
     text = str(value).strip()
-    n = int(text) if text.isdigit() and len(text) <= 9 else 0
-    if not 1 <= n <= hi:
+    n = int(text) if text.isdigit() and len(text) <= 9 else -1
+    if not lo <= n <= hi:
         raise UserInputError(
-            f"invalid value at {field}: {value_text(value)}; allowed: an integer 1..{hi}"
+            f"invalid value at {field}: {value_text(value)}; allowed: an integer {lo}..{hi}"
         )
     return n
 
@@ -75,6 +81,7 @@ def _duration(value) -> float:
 
 def run(args) -> int:
     repeats = _positive_int(args.repeats, "--repeats", MAX_REPEATS)
+    pairs = _positive_int(args.commands, "--commands", MAX_REPEATS, lo=0)
     runs = _positive_int(args.batch_runs, "--batch-runs", MAX_BATCH_RUNS)
     sets = list(args.sets)
     if args.duration is not None:
@@ -82,7 +89,13 @@ def run(args) -> int:
     scenario = load_scenario(args.scenario, sets)
     # the measurements load MuJoCo: only once the input is known good (a mistake is
     # refused within a second)
-    from simpro_mj.batch.bench import measure, measure_video, table, video_table
+    from simpro_mj.batch.bench import (
+        measure,
+        measure_video,
+        separate_commands,
+        table,
+        video_table,
+    )
 
     if args.video:
         if args.duration is None:
@@ -96,6 +109,11 @@ def run(args) -> int:
     progress = None if args.json or args.quiet else (lambda msg: print(f"  {msg}", file=sys.stderr))
     # SIGTERM: exit 130 like Ctrl-C (commands.main), workers stopped
     result = measure(scenario, repeats, batch=not args.no_batch, batch_runs=runs, log=progress)
+    result["separate_commands"] = None
+    if pairs:
+        sep = separate_commands(args.scenario, list(args.sets), pairs, log=progress)
+        sep["ratio"] = sep["wall_us"]["median"] / result["bare_step_us"]
+        result["separate_commands"] = sep
     if args.json:
         emit_json(result)
     else:
