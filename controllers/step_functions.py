@@ -306,8 +306,7 @@ def outer_setpoint(r0, r1, r2, tc, g, q, out):
 def _ik_xc(ts, g):
     """``IK(x_c)`` into ``ts[T_QD]``, the one the integration found when it is known."""
     if ts[T_QXC_OK] == 1.0:
-        for i in range(3):
-            ts[T_QD + i] = ts[T_QXC + i]
+        ts[T_QD : T_QD + 3] = ts[T_QXC : T_QXC + 3]
         return 0
     q = ts[T_QD : T_QD + 3]
     if ik_pose(ts[T_XC], ts[T_XC + 1], ts[T_XC + 2], g, 0.0, False, q) == IK_MISS:
@@ -332,14 +331,12 @@ def _integrate(s0, s1, s2, ts, tc, g):
 def _accumulate(y0, y1, y2, with_q, qm0, qm1, qm2, ts):
     """Add this step's measurements and the last step's command to the period's sums."""
     a = T_ACC
-    for i in range(3):
-        ts[a + i] += ts[T_REFCMD + i]
+    ts[a : a + 3] += ts[T_REFCMD : T_REFCMD + 3]
     ts[a + 3] += y0
     ts[a + 4] += y1
     ts[a + 5] += y2
     if with_q:
-        for i in range(3):
-            ts[a + 6 + i] += ts[T_QD + i]
+        ts[a + 6 : a + 9] += ts[T_QD : T_QD + 3]
         ts[a + 9] += qm0
         ts[a + 10] += qm1
         ts[a + 11] += qm2
@@ -357,8 +354,7 @@ def _ff_error(y0, y1, y2, qm0, qm1, qm2, ts, tc, g, e):
         y0, y1, y2 = ts[a + 3] * k, ts[a + 4] * k, ts[a + 5] * k
         d0, d1, d2 = ts[a + 6] * k, ts[a + 7] * k, ts[a + 8] * k
         qm0, qm1, qm2 = ts[a + 9] * k, ts[a + 10] * k, ts[a + 11] * k
-        for i in range(12):
-            ts[a + i] = 0.0
+        ts[a : a + 12] = 0.0
         ts[T_NACC] = 0.0
     else:
         r0, r1, r2 = ts[T_REFCMD], ts[T_REFCMD + 1], ts[T_REFCMD + 2]
@@ -373,8 +369,7 @@ def _ff_error(y0, y1, y2, qm0, qm1, qm2, ts, tc, g, e):
 def _correct(ref, e, hold, ts, tc, g, q):
     """One outer step of the feed-forward correction ``c`` (I law: applied one period late)."""
     if ts[T_PEND_OK] == 1.0:
-        for i in range(3):
-            ts[T_CORR + i] = ts[T_PEND + i]
+        ts[T_CORR : T_CORR + 3] = ts[T_PEND : T_PEND + 3]
         ts[T_PEND_OK] = 0.0
     if hold:
         return
@@ -390,11 +385,9 @@ def _correct(ref, e, hold, ts, tc, g, q):
     p0, p1, p2 = ref[0] + new[0], ref[1] + new[1], ref[2] + new[2]
     if ik_pose(p0, p1, p2, g, tc[TC_MARGIN], True, q) == IK_OK:
         if pi:
-            for i in range(3):
-                ts[T_CORR + i] = new[i]
+            ts[T_CORR : T_CORR + 3] = new
         else:
-            for i in range(3):
-                ts[T_PEND + i] = new[i]
+            ts[T_PEND : T_PEND + 3] = new
             ts[T_PEND_OK] = 1.0
 
 

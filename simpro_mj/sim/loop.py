@@ -271,11 +271,9 @@ class CoSimulation:
         self.ref[rows] = poses[:m]
         if self.q_joint_only is not None:
             self.q_joint_only[rows] = inverse_kinematics(poses[:m], self.geometry, check=False)
-        if self.cueing:
-            if f is not None:
-                self.veh_f[rows] = np.atleast_2d(np.asarray(f, float))[:m]
-            if w is not None:
-                self.veh_w[rows] = np.atleast_2d(np.asarray(w, float))[:m]
+        for name, v in (("veh_f", f), ("veh_w", w)):
+            if self.cueing and v is not None:
+                getattr(self, name)[rows] = np.atleast_2d(np.asarray(v, float))[:m]
 
     # ------------------------------------------------------------- snapshot
     def snapshot(self) -> Snapshot:
@@ -357,8 +355,7 @@ class CoSimulation:
         for name, a in zip(_SETPOINTS, snap.setpoints or [None] * 4, strict=True):
             if a is not None:
                 getattr(self, name)[:] = a
-        self._k = snap.k
-        self._resume = snap.k
+        self._k = self._resume = snap.k
 
     @functools.cached_property
     def _model_digest(self) -> str:
