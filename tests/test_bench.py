@@ -130,6 +130,9 @@ def test_separate_commands_time_whole_processes():
     for key in ("wall_us", "cpu_us"):
         (x,) = r["samples"][key]
         assert r[key]["median"] == x and r[key]["range"] == [x, x]
+    (long_s,), (short_s,) = r["samples"]["wall_s"]["0.6"], r["samples"]["wall_s"]["0.3"]
+    assert r["min_us"] == pytest.approx((long_s - short_s) / 300 * 1e6)
+    assert r["wall_us"]["median"] == pytest.approx(r["min_us"])  # one pair: the same
 
 
 def test_separate_commands_name_a_failing_command():

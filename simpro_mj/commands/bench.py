@@ -113,6 +113,7 @@ def run(args) -> int:
     if pairs:
         sep = separate_commands(args.scenario, list(args.sets), pairs, log=progress)
         sep["ratio"] = sep["wall_us"]["median"] / result["bare_step_us"]
+        sep["ratio_min"] = sep["min_us"] / min(result["samples"]["bare_step_us"])
         result["separate_commands"] = sep
     if args.json:
         emit_json(result)
