@@ -38,9 +38,19 @@ def test_run_writes_savetxt_bytes_from_the_thread(tmp_path, monkeypatch):
 
     monkeypatch.setattr(RowText, "lines_for", spy)
     sc = load_scenario("step_pitch.yaml", ["duration_s=2.5", "logging.decimation=10"])
-    res, _ = execute(sc, tmp_path / "run", plots=False, quiet=True)
+    res, _ = execute(sc, tmp_path / "run", plots=False, quiet=True, csv_beside=True)
     assert taken == [(200, 251)]
     assert (tmp_path / "run" / "timeseries.csv").read_text() == savetxt_text(res.columns)
+
+
+def test_only_when_asked(tmp_path, monkeypatch):
+    """A batch's runs (``csv_beside`` False, the default) start no formatting thread."""
+    monkeypatch.setenv("SIMPRO_KERNEL", "numba")
+    made = []
+    monkeypatch.setattr(RowText, "if_useful", classmethod(lambda cls: made.append(1) or cls()))
+    sc = load_scenario("step_pitch.yaml", ["duration_s=0.3"])
+    execute(sc, tmp_path / "run", plots=False, quiet=True)
+    assert made == []
 
 
 def test_lines_stop_at_the_first_row_that_differs(tmp_path):

@@ -53,7 +53,12 @@ def run(args) -> int:
     # refused (exit 2) before anything runs: not ours to replace, or busy
     with claim(out, "run", inputs=[args.scenario]):
         res, metrics = execute(
-            scenario, out, plots=not args.no_plots, quiet=args.quiet, progress=show_progress(args)
+            scenario,
+            out,
+            plots=not args.no_plots,
+            quiet=args.quiet,
+            progress=show_progress(args),
+            csv_beside=True,  # one run: the second core formats timeseries.csv meanwhile
         )
     if args.json:
         emit_json(metrics)
