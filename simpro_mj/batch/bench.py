@@ -243,7 +243,8 @@ def _run_command(scenario: dict, model, durations: tuple[float, float]) -> float
     """us per step between the run command's work at two durations (logging every 10).
 
     The work timed is what ``run`` does that grows with the run: the set-point
-    check, the run, and its result folder (no plots). ``None`` if the longer
+    check, the run, and its result folder (no plots), ``timeseries.csv``
+    formatted beside the run as ``run`` formats it. ``None`` if the longer
     duration is refused (a set-point unreachable by then).
     """
     long_s, short_s = durations
@@ -256,7 +257,8 @@ def _run_command(scenario: dict, model, durations: tuple[float, float]) -> float
             t0 = time.perf_counter()
             try:
                 check_setpoints(sc)
-                execute(sc, Path(tmp) / f"run_{d:g}", plots=False, quiet=True, model=model)
+                execute(sc, Path(tmp) / f"run_{d:g}", plots=False, quiet=True, model=model,
+                        csv_beside=True)  # fmt: skip
             except UserInputError:
                 return None
             times.append(time.perf_counter() - t0)
