@@ -125,7 +125,7 @@ def test_separate_commands_time_whole_processes():
     per-step difference, wall and CPU, with their spread."""
     from simpro_mj.batch.bench import separate_commands
 
-    r = separate_commands("step_pitch", ["controller.mode=joint_only"], 1, (0.6, 0.3))
+    r = separate_commands("step_pitch", ["controller.mode=joint_only"], 1, [8.0, 10.0], (0.6, 0.3))
     assert r["pairs"] == 1 and r["durations_s"] == [0.6, 0.3]
     for key in ("wall_us", "cpu_us"):
         (x,) = r["samples"][key]
@@ -133,10 +133,13 @@ def test_separate_commands_time_whole_processes():
     (long_s,), (short_s,) = r["samples"]["wall_s"]["0.6"], r["samples"]["wall_s"]["0.3"]
     assert r["min_us"] == pytest.approx((long_s - short_s) / 300 * 1e6)
     assert r["wall_us"]["median"] == pytest.approx(r["min_us"])  # one pair: the same
+    # the median over the median bare sample, the fastest over the fastest
+    assert r["ratio"] == pytest.approx(r["wall_us"]["median"] / 9.0)
+    assert r["ratio_min"] == pytest.approx(r["min_us"] / 8.0)
 
 
 def test_separate_commands_name_a_failing_command():
     from simpro_mj.batch.bench import separate_commands
 
     with pytest.raises(UserInputError, match="the run command failed: .*no_such"):
-        separate_commands("no_such_scenario", [], 1, (0.6, 0.3))
+        separate_commands("no_such_scenario", [], 1, [8.0], (0.6, 0.3))

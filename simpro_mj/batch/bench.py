@@ -92,6 +92,7 @@ from mujoco import rollout
 
 from simpro_mj.config.reference import check_setpoints
 from simpro_mj.core.errors import PhysicsError, UserInputError
+from simpro_mj.core.rates import PHYSICS_DT_S
 from simpro_mj.plant.kernels import kernel_choice
 from simpro_mj.plant.model import load_model
 from simpro_mj.report.machine import describe_machine
@@ -266,17 +267,23 @@ def _run_command(scenario: dict, model, durations: tuple[float, float]) -> float
 
 
 def _spread(values: list[float]) -> dict:
-    q1, median, q3 = statistics.quantiles(values, n=4) if len(values) > 1 else values * 3
+    q1, _, q3 = statistics.quantiles(values, n=4) if len(values) > 1 else values * 3
     return {"median": statistics.median(values), "quartiles": [q1, q3],
             "range": [min(values), max(values)]}  # fmt: skip
 
 
 def separate_commands(
-    scenario: str, sets: list[str], pairs: int, durations=(41.0, 1.0), log=None
+    scenario: str,
+    sets: list[str],
+    pairs: int,
+    bare_us: list[float],
+    durations=(41.0, 1.0),
+    log=None,
 ) -> dict:
     """The ``run`` command's cost per step from ``pairs`` pairs of whole commands
     (``separate_commands`` in the module docstring); ``scenario`` and ``sets`` as
-    given on the command line.
+    given on the command line, ``bare_us`` the bare step's samples
+    (:func:`measure`'s ``samples["bare_step_us"]``) the ratios divide by.
 
     Raises
     ------
@@ -284,7 +291,7 @@ def separate_commands(
         If a command fails (its last line of stderr says why).
     """
     long_s, short_s = durations
-    steps = round((long_s - short_s) / 1e-3)
+    steps = round((long_s - short_s) / PHYSICS_DT_S)
     base = [sys.executable, "-m", "simpro_mj.commands.main", "run", scenario, "--no-plots"]
     for item in [*sets, "logging.decimation=10"]:
         base += ["--set", item]
@@ -312,12 +319,16 @@ def separate_commands(
                 each[d].append(got[d][0])
             wall.append((got[long_s][0] - got[short_s][0]) / steps * 1e6)
             cpu.append((got[long_s][1] - got[short_s][1]) / steps * 1e6)
+    spread = _spread(wall)
+    min_us = (min(each[long_s]) - min(each[short_s])) / steps * 1e6
     return {
         "pairs": pairs,
         "durations_s": [long_s, short_s],
-        "wall_us": _spread(wall),
+        "wall_us": spread,
         "cpu_us": _spread(cpu),
-        "min_us": (min(each[long_s]) - min(each[short_s])) / steps * 1e6,
+        "ratio": spread["median"] / statistics.median(bare_us),
+        "min_us": min_us,
+        "ratio_min": min_us / min(bare_us),
         "samples": {"wall_us": wall, "cpu_us": cpu, "wall_s": {f"{d:g}": each[d] for d in each}},
     }
 
@@ -396,6 +407,7 @@ def measure(
         "run_command_us": command_us,
         "run_command_ratio": None if command_us is None else command_us / bare_us,
         "run_command_durations_s": list(run_durations),
+        "separate_commands": None,  # separate_commands(), when asked
         "realtime_factor": dt * 1e6 / full_us,
         "stages_us": {s: statistics.median(v) for s, v in stages.items()},
         "instrumented_step_us": statistics.median(instr),

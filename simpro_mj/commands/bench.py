@@ -109,12 +109,11 @@ def run(args) -> int:
     progress = None if args.json or args.quiet else (lambda msg: print(f"  {msg}", file=sys.stderr))
     # SIGTERM: exit 130 like Ctrl-C (commands.main), workers stopped
     result = measure(scenario, repeats, batch=not args.no_batch, batch_runs=runs, log=progress)
-    result["separate_commands"] = None
     if pairs:
-        sep = separate_commands(args.scenario, list(args.sets), pairs, log=progress)
-        sep["ratio"] = sep["wall_us"]["median"] / result["bare_step_us"]
-        sep["ratio_min"] = sep["min_us"] / min(result["samples"]["bare_step_us"])
-        result["separate_commands"] = sep
+        bare = result["samples"]["bare_step_us"]
+        result["separate_commands"] = separate_commands(
+            args.scenario, list(args.sets), pairs, bare, log=progress
+        )
     if args.json:
         emit_json(result)
     else:

@@ -95,7 +95,7 @@ def paper_models(reading: str = "volts") -> dict:
 def _prbs(n_steps: int, clock: int, bits: int, seed: int) -> np.ndarray:
     """±1 maximum-length sequence, each bit held ``clock`` steps."""
     # scipy.signal and scipy.optimize are imported where used: importing them
-    # costs about 0.6 s, and every run imports this module for its models
+    # costs about 0.6 s (-X importtime), and every run imports this module for its models
     from scipy.signal import max_len_seq
 
     seq = max_len_seq(bits)[0].astype(float) * 2.0 - 1.0
