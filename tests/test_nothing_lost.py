@@ -217,7 +217,7 @@ def test_a_failing_write_names_the_users_folder(tmp_path, capsys, monkeypatch, c
     assert main(["run", "step_pitch", "--out", str(out), *SHORT]) == 2
     line = _one_error_line(capsys.readouterr().err)
     assert f"cannot access at {out}: {os.strerror(code)}" in line
-    assert ".tmp-" not in line
+    assert ".simpro-tmp-" not in line
     assert list(tmp_path.iterdir()) == []
 
 

@@ -387,7 +387,7 @@ def test_interrupted_render_leaves_no_file(pitch_run, tmp_path, monkeypatch):
         render.render_video([pitch_run], out, size=(32, 32), fps=25, end=1.0, plots=False,
                             jobs=1, progress=False)  # fmt: skip
     assert calls == [1, 1]
-    assert list(out.parent.iterdir()) == []  # neither clip.mp4 nor .clip.tmp-*.mp4
+    assert list(out.parent.iterdir()) == []  # neither clip.mp4 nor .clip.mp4.simpro-tmp-*.mp4
     assert not list(tmp_path.glob("simpro-render-*.pkl"))
 
 

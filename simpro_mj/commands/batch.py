@@ -17,6 +17,7 @@ from simpro_mj.config.scenario import read_document, resolve_scenario
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.jsonout import emit_json
 from simpro_mj.core.keys import short_text
+from simpro_mj.report.folders import folder_name
 from simpro_mj.report.runner import EXIT_INTERRUPTED
 from simpro_mj.sim.executors import MAX_JOBS
 
@@ -28,7 +29,9 @@ def add_arguments(parser) -> None:
         "paths", nargs="+", metavar="PATH", help="scenario files, shipped names or folders"
     )
     parser.add_argument(
-        "--out", default="results/batch", help="output folder (default results/batch)"
+        "--out",
+        default=None,
+        help="output folder (default results/batch-<file stem>, one per sweep file)",
     )
     parser.add_argument(
         "--jobs",
@@ -63,6 +66,13 @@ def add_arguments(parser) -> None:
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
+def default_batch_out(paths) -> Path:
+    """``results/batch-<stem>``: a folder per sweep file (stems joined by ``+``), so a
+    second sweep never fills the first one's folder."""
+    stem = "+".join(Path(p).name.removesuffix(".yaml").removesuffix(".yml") for p in paths)
+    return Path("results") / folder_name(f"batch-{stem}")
+
+
 def check_sets(paths, sets) -> None:
     """A ``--set`` that a file's base scenario refuses is the command line's mistake: one
     line, exit 2, before anything runs (not one ``invalid`` row per variant)."""
@@ -90,7 +100,7 @@ def run(args) -> int:
     check_sets(args.paths, args.sets)
     report = run_batch(
         args.paths,
-        Path(args.out),
+        Path(args.out) if args.out else default_batch_out(args.paths),
         sets=args.sets,
         jobs=jobs,
         resume=args.resume,

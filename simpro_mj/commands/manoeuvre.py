@@ -20,7 +20,7 @@ from simpro_mj.config.telemetry import write_telemetry
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.jsonout import emit_json
 from simpro_mj.core.keys import apply_overrides
-from simpro_mj.report.folders import check_file, record_file
+from simpro_mj.report.folders import check_file, hidden, record_file
 
 HELP = (
     "generate a vehicle manoeuvre (braking, lane_change, slalom, bump, braking_turn) as "
@@ -93,7 +93,7 @@ def run(args) -> int:
         "specific force includes gravity (fz = +9.81 at rest); "
         "format: simpro_mj/config/telemetry.py"
     )
-    fd, tmp = tempfile.mkstemp(prefix=f".{out.name}.tmp-", dir=out.parent)
+    fd, tmp = tempfile.mkstemp(prefix=hidden(out, "tmp"), dir=out.parent)
     os.close(fd)
     try:
         write_telemetry(tmp, tel, comment)

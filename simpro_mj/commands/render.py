@@ -11,7 +11,7 @@ import sys
 from pathlib import Path
 
 from simpro_mj.core.jsonout import emit_json
-from simpro_mj.report.folders import record_file
+from simpro_mj.report.folders import locked, record_file
 from simpro_mj.report.recording import find_runs
 from simpro_mj.report.render import render_video
 from simpro_mj.report.video_options import add_video_options, said, video_options
@@ -26,12 +26,15 @@ def add_arguments(parser) -> None:
 
 def run(args) -> int:
     folder = Path(args.result_dir)
-    runs = find_runs(folder)
-    opts = video_options(args, folder / "replay.mp4")
-    out = opts.pop("out")
-    # SIGTERM as Ctrl-C (commands.main): exit 130, no partial video left
-    info = render_video(runs, out, progress=not args.json and sys.stderr.isatty(), **opts)
-    record_file(out)  # listed in its folder's marker: a re-render may replace it
+    find_runs(folder)  # a folder that is no result: refused before it is locked
+    # the folder's write lock while it is read: a run replacing it meanwhile is refused
+    with locked(folder):
+        runs = find_runs(folder)
+        opts = video_options(args, folder / "replay.mp4")
+        out = opts.pop("out")
+        # SIGTERM as Ctrl-C (commands.main): exit 130, no partial video left
+        info = render_video(runs, out, progress=not args.json and sys.stderr.isatty(), **opts)
+        record_file(out)  # listed in its folder's marker: a re-render may replace it
     if args.json:
         emit_json(info)
     else:

@@ -21,9 +21,9 @@ import sys
 from pathlib import Path
 
 from simpro_mj.analysis.verdict import FINISHED_STATUSES
-from simpro_mj.config.scenario import load_scenario
+from simpro_mj.config.scenario import load_scenario, scenario_hash
 from simpro_mj.core.jsonout import emit_json
-from simpro_mj.report.folders import claim
+from simpro_mj.report.folders import claim, default_out, said_replacing
 from simpro_mj.report.results import print_summary
 from simpro_mj.report.runner import (
     EXIT_INTERRUPTED,
@@ -38,7 +38,12 @@ HELP = "run a scenario (shipped name or YAML path) and write time series, metric
 
 def add_arguments(parser) -> None:
     parser.add_argument("scenario", help="shipped scenario name (e.g. step_pitch.yaml) or a path")
-    parser.add_argument("--out", default=None, help="result folder (default results/<name>)")
+    parser.add_argument(
+        "--out",
+        default=None,
+        help="result folder (default results/<name>, +<each --set>, -2, -3... past another "
+        "run's result)",
+    )
     parser.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     add_video_flag(parser)
 
@@ -49,9 +54,12 @@ def run(args) -> int:
         from simpro_mj.report.render import require_video  # the renderer only for a video
 
         require_video()  # the install hint before the run, not after it
-    out = Path(args.out) if args.out else Path("results") / scenario["name"]
+    digest = scenario_hash(scenario)
+    base = Path("results") / scenario["name"]
+    out = Path(args.out) if args.out else default_out(base, args.sets or (), digest)
     # refused (exit 2) before anything runs: not ours to replace, or busy
     with claim(out, "run", inputs=[args.scenario]):
+        said_replacing(out, digest)
         res, metrics = execute(
             scenario,
             out,

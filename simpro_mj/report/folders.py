@@ -14,22 +14,22 @@ in its folder's marker, or the user says ``--overwrite``. Anything else is
 refused (a user's mistake, exit 2, naming what would be lost) and nothing is
 touched, as is an ``--out`` that is the working folder (or one above it),
 holds the scenario file, or is a dangling link. A writer holds an exclusive
-lock (:func:`locked`: ``flock`` on a hidden ``.<name>.lock`` beside the
+lock (:func:`locked`: ``flock`` on a hidden ``.<name>.simpro-lock`` beside the
 folder) from its first check to the end of the write, so a second writer of
 the same folder is refused, not raced; :func:`claim` also refuses a folder
-inside one another process is writing.
+inside a result or one another process is writing, or holding one.
 
 Atomic install
 --------------
-The folder is written under a temporary name (``.<name>.tmp-*``) next to
+The folder is written under a temporary name (``.<name>.simpro-tmp-*``) next to
 ``out_dir`` and renamed into place when complete. An existing ``out_dir`` is
-first renamed aside (``.<name>.old-*``) and deleted only after the new folder
+first renamed aside (``.<name>.simpro-old-*``) and deleted only after the new folder
 is in place; if anything (an exception, Ctrl-C) stops the write before that,
 the temporary folder is removed and the previous folder put back. So a reader
 never sees a truncated file under ``out_dir`` (on POSIX, ``out_dir`` is
 briefly absent between the two renames: directories cannot be swapped
 atomically there). A process killed outright (SIGKILL, power loss) can leave
-a hidden ``.tmp-`` folder, never a half-written ``out_dir``. An interrupted
+a hidden temporary folder, never a half-written ``out_dir``. An interrupted
 run never replaces a complete result: its partial result goes beside it, to
 ``<name>.partial`` (:func:`write_results` returns where it went). An
 ``OSError`` (read-only or full disk) names ``out_dir``, not a temporary name.
@@ -50,6 +50,7 @@ import os
 import re
 import shutil
 import stat
+import sys
 import tempfile
 from collections.abc import Iterable, Iterator
 from pathlib import Path
@@ -66,6 +67,8 @@ __all__ = [
     "check_free",
     "check_out",
     "claim",
+    "default_out",
+    "folder_name",
     "foreign",
     "record",
     "install_figures",
@@ -74,6 +77,8 @@ __all__ = [
     "locked",
     "partial_sibling",
     "record_file",
+    "result_hash",
+    "said_replacing",
     "result_kind",
     "write_file",
     "write_marker",
@@ -87,18 +92,76 @@ RESULT_MARKER = ".simpro-result"
 MARKER_MAX_BYTES = 1_000_000
 #: Largest ``metrics.json`` read back (bytes).
 MAX_METRICS_BYTES = 20_000_000
-_HIDDEN = re.compile(r"^\..+\.(?:tmp|old)-[A-Za-z0-9_]+$|^\..+\.lock$")
+#: Our temporaries, moved-aside folders and locks: ``.<name>.simpro-tmp-*``,
+#: ``.<name>.simpro-old-*``, ``.<name>.simpro-lock``, made beside the path they stand
+#: for (:func:`hidden`); a user's ``.env.lock`` or ``.thesis.old-v2`` is never ours.
+_HIDDEN = re.compile(r"^\..+\.simpro-(?:(?:tmp|old)-[A-Za-z0-9_]+(?:\.[a-z0-9]+)?|lock)$")
+
+
+def hidden(path, what: str) -> str:
+    """The name of our temporary (``what`` = ``tmp``, ``old``) or lock (``lock``)
+    beside ``path``: a long name is cut and a digest of it added, so a legal
+    250-character name still leaves room for the suffix."""
+    name = Path(path).name
+    if len(name) > 100:
+        name = f"{name[:80]}~{hashlib.sha256(name.encode()).hexdigest()[:12]}"
+    return f".{name}.simpro-{what}" + ("" if what == "lock" else "-")
 
 
 def partial_sibling(out_dir: Path) -> Path:
-    """``<name>.partial`` beside ``out_dir`` (``.partial-2``, ... if that is not ours)."""
+    """``<name>.partial`` beside ``out_dir`` (``.partial-2``, ... if that is not ours):
+    a folder of that name is ours only if it is a partial result by its marker
+    (``PARTIAL`` listed), never a complete result a user named so."""
     for i in range(1, 100):
         cand = out_dir.with_name(f"{out_dir.name}.partial" + (f"-{i}" if i > 1 else ""))
-        if not cand.exists() or _replaceable(cand, "run"):
+        files = _manifest(_marker(cand)) or {}
+        if not cand.exists() or (PARTIAL_MARKER in files and _replaceable(cand, "run")):
             return cand
     raise UserInputError(
         f"no room at {out_dir}: 99 .partial folders beside it; allowed: remove some"
     )
+
+
+def folder_name(text: str) -> str:
+    """``text`` as a folder name: letters, digits and ``._=,+-`` kept, the rest ``_``;
+    over 120 characters cut, a digest of the whole added."""
+    name = re.sub(r"[^\w.=,+-]+", "_", text).lstrip(".") or "_"
+    if len(name) > 120:
+        name = f"{name[:100]}~{hashlib.sha256(name.encode()).hexdigest()[:12]}"
+    return name
+
+
+def default_out(base: Path, sets: Iterable[str], digest: str) -> Path:
+    """Where a run goes without ``--out``: ``base`` (``results/<name>``) followed by
+    its overrides (``results/step_pitch+controller.mode=joint_only``), and a number
+    (``-2``, ``-3``, ...) past a folder holding anything but a result of the same
+    scenario (SHA-256 ``digest``): a run never silently replaces another's results."""
+    stem = folder_name(base.name + "".join(f"+{s}" for s in sets))
+    for i in range(1, 1000):
+        cand = base.with_name(stem + (f"-{i}" if i > 1 else ""))
+        if not os.path.lexists(cand) or result_hash(cand) == digest:
+            return cand
+    raise UserInputError(f"no room at {_short(base)}: 999 results beside it; allowed: --out")
+
+
+def said_replacing(out: Path, digest: str) -> None:
+    """One line on stderr when ``out`` holds a result the run will replace."""
+    kind = result_kind(out)
+    if kind is not None:
+        old = result_hash(out)
+        same = "the same scenario" if old == digest else f"scenario {str(old)[:8]}, now {digest[:8]}"
+        sys.stderr.write(f"replacing the previous {kind} result in {_short(out)} ({same})\n")
+
+
+def result_hash(folder) -> str | None:
+    """The scenario hash in a run result's ``metrics.json``, or None."""
+    if result_kind(folder) != "run":
+        return None
+    try:
+        doc = json.loads(read_text(Path(folder) / "metrics.json", MAX_METRICS_BYTES, "metrics"))
+        return str(doc["scenario"]["hash"])
+    except (OSError, ValueError, TypeError, KeyError, RecursionError):
+        return None
 
 
 def _marker(folder) -> dict | None:
@@ -137,12 +200,6 @@ def _entry(path: Path) -> dict:
     return {"size": path.stat().st_size, "sha256": _digest(path)}
 
 
-def _ours_hidden(name: str) -> bool:
-    """A hidden temporary, moved-aside or lock entry of :func:`install_folder` or
-    :func:`locked` (``.<name>.tmp-*``, ``.<name>.old-*``, ``.<name>.lock``)."""
-    return bool(_HIDDEN.match(name))
-
-
 def _walk(folder: Path, prefix: str = "") -> Iterator[tuple[str, Path, str]]:
     """(relative path, path, what) of the entries of ``folder`` a marker lists:
     regular files (``file``), sub-folders carrying their own marker (``result``),
@@ -154,7 +211,7 @@ def _walk(folder: Path, prefix: str = "") -> Iterator[tuple[str, Path, str]]:
         return
     for e in entries:
         rel = f"{prefix}{e.name}"
-        if e.name == RESULT_MARKER or _ours_hidden(e.name):
+        if e.name == RESULT_MARKER or _HIDDEN.match(e.name):
             continue
         path = Path(e.path)
         if e.is_symlink():
@@ -197,9 +254,11 @@ def foreign(folder, only: Iterable[str] | None = None) -> list[str]:
     """Files under ``folder`` that simpro-sim did not write, or that changed since.
 
     A file is ours when the marker of its folder lists it (``files``: size and
-    SHA-256 at the time we wrote it) and it still matches; a sub-folder with a
-    marker of its own is checked against its own list. Our hidden temporaries
-    are ours. A folder whose marker holds no list has every file foreign.
+    SHA-256 at the time we wrote it) and it still matches. A sub-folder with a
+    marker of its own is another result: foreign to a folder replaced whole,
+    checked against its own list when named in ``only`` (a batch's variants).
+    Our hidden temporaries (:func:`hidden`) are ours. A folder whose marker
+    holds no list has every file foreign.
 
     Parameters
     ----------
@@ -234,7 +293,9 @@ def foreign(folder, only: Iterable[str] | None = None) -> list[str]:
                 items.append((rel, path, "other"))
     out = []
     for rel, path, what in items:
-        if what == "result":
+        if what == "result" and only is None:  # a result never inside another
+            out.append(f"{rel}/ (a simpro-sim result of its own)")
+        elif what == "result":
             out += [f"{rel}/{x}" for x in foreign(path)]
         elif what == "other" or not _matches(files, rel, path):
             listed = what == "file" and rel in files
@@ -246,7 +307,7 @@ def _write_marker_doc(folder: Path, doc: dict) -> None:
     """The marker written whole (temporary name, then renamed): a reader never
     sees half a list."""
     text = json.dumps(doc, sort_keys=True)
-    fd, tmp = tempfile.mkstemp(prefix=f"{RESULT_MARKER}.tmp-", dir=folder)
+    fd, tmp = tempfile.mkstemp(prefix=hidden(RESULT_MARKER, "tmp"), dir=folder)
     try:
         with os.fdopen(fd, "w", encoding="utf-8") as fh:
             fh.write(text + "\n")
@@ -382,6 +443,8 @@ def check_out(out, kind: str = "run", inputs: Iterable = (), writes: Iterable[st
         raise OSError(exc.errno, exc.strerror, str(out)) from exc
     if empty:
         return out
+    if kind not in IN_PLACE:  # a batch checks each variant's lock before it runs it
+        _check_inside_free(out)
     found = result_kind(out)
     if found != kind:
         what = f"a simpro-sim {found} result" if found else "not a simpro-sim result"
@@ -414,10 +477,35 @@ def check_free(out) -> None:
         )
 
 
+def _check_inside_free(out: Path) -> None:
+    """Refuse ``out`` holding a folder another process is writing (``run --out q``
+    while ``run --out q/sub`` runs): its lock is inside ``out``."""
+    ours = {Path(k).parent / hidden(k, "lock") for k in _HELD}
+    for root, _dirs, names in os.walk(out):
+        for name in names:
+            if name.endswith(".simpro-lock") and Path(root, name) not in ours:
+                pid = _lock_holder(Path(root) / name)
+                if pid is not None:
+                    raise UserInputError(
+                        f"busy at {_short(out)}: another simpro-sim process (pid {pid}) is "
+                        f"writing inside it ({_short(Path(root) / name[1:-12], 120)}); "
+                        "allowed: wait for it to end or choose another --out"
+                    )
+
+
 def _check_parents_free(out: Path) -> None:
     """Refuse ``out`` inside a folder another process is writing (a ``run --out
-    OUT/x`` while a batch writes ``OUT``): two writers never share a folder."""
+    OUT/x`` while a batch writes ``OUT``), or inside a result (``run --out r/sub``
+    with ``r`` a result): two writers never share a folder, a result never holds
+    another."""
     for parent in out.parents:
+        kind = result_kind(parent)
+        if kind is not None:
+            raise UserInputError(
+                f"refused --out at {_short(out)}: it is inside the simpro-sim {kind} result "
+                f"{_short(parent)}; nothing was touched; allowed: a folder outside any "
+                "result, e.g. beside it"
+            )
         pid = _writer(parent)
         if pid is not None:
             raise UserInputError(
@@ -429,7 +517,7 @@ def _check_parents_free(out: Path) -> None:
 
 def _writer(folder: Path) -> str | None:
     """The pid of another process holding ``folder``'s write lock, else None."""
-    lock = folder.parent / f".{folder.name}.lock"
+    lock = folder.parent / hidden(folder, "lock")
     if str(folder) in _HELD or not os.path.lexists(lock):
         return None
     return _lock_holder(lock)
@@ -470,7 +558,7 @@ def _umask() -> int:
 def locked(out) -> Iterator[Path]:
     """Hold the exclusive write lock of folder ``out`` (reentrant in this process).
 
-    The lock is ``flock`` on ``.<name>.lock`` beside ``out``, holding the
+    The lock is ``flock`` on ``.<name>.simpro-lock`` beside ``out``, holding the
     writer's pid; it is removed on release. A lock file removed and re-created
     by another writer between our ``open`` and ``flock`` is detected (inode
     check) and the lock taken again.
@@ -497,7 +585,7 @@ def locked(out) -> Iterator[Path]:
     except ImportError:  # pragma: no cover - not POSIX: no lock
         yield out
         return
-    path = out.parent / f".{out.name}.lock"
+    path = out.parent / hidden(out, "lock")
     try:
         out.parent.mkdir(parents=True, exist_ok=True)
         while True:
@@ -544,8 +632,9 @@ def claim(
     A folder inside one another process is writing is refused too (a ``run
     --out OUT/x`` while a batch writes ``OUT``)."""
     writes = list(writes)
+    _check_parents_free(_real_out(Path(out).expanduser().absolute()))
+    check_free(out)
     out = check_out(out, kind, inputs, writes)
-    _check_parents_free(out)
     with locked(out):
         yield check_out(out, kind, inputs, writes)
 
@@ -580,12 +669,12 @@ def install_folder(out_dir, fill, kind: str = "run") -> Path:
         tmp: Path | None = None
         old = None
         try:
-            tmp = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.tmp-", dir=out_dir.parent))
+            tmp = Path(tempfile.mkdtemp(prefix=hidden(out_dir, "tmp"), dir=out_dir.parent))
             tmp.chmod(0o777 & ~_umask())  # mkdtemp's 0700 is for the temporary name only
             fill(tmp)
             write_marker(tmp, kind)
             if out_dir.exists():
-                old = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.old-", dir=out_dir.parent))
+                old = Path(tempfile.mkdtemp(prefix=hidden(out_dir, "old"), dir=out_dir.parent))
                 old.rmdir()
                 out_dir.rename(old)
             tmp.rename(out_dir)
@@ -725,7 +814,7 @@ def write_file(path, data: str | bytes, overwrite: bool = False, option: str = "
     path = check_file(path, overwrite, option)
     created = not path.parent.exists()
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.tmp-", dir=path.parent)
+    fd, tmp = tempfile.mkstemp(prefix=hidden(path, "tmp"), dir=path.parent)
     try:
         with os.fdopen(fd, "wb") as fh:
             fh.write(data.encode("utf-8") if isinstance(data, str) else data)

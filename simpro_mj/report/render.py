@@ -32,6 +32,7 @@ from tqdm import tqdm
 
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.messages import one_line
+from simpro_mj.report.folders import hidden
 from simpro_mj.report.recording import frame_times, ghost_poses, load_recording, nearest_rows
 from simpro_mj.report.scene import (
     CAMERAS,
@@ -279,7 +280,7 @@ def render_video(
         raise
     tmp = None
     try:
-        fd, name = tempfile.mkstemp(prefix=f".{out.stem}.tmp-", suffix=".mp4", dir=out.parent)
+        fd, name = tempfile.mkstemp(prefix=hidden(out, "tmp"), suffix=".mp4", dir=out.parent)
         os.close(fd)
         tmp = Path(name)
         bar = tqdm(total=n, unit="frame", desc="render", disable=not progress, leave=False)
