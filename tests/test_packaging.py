@@ -113,7 +113,8 @@ def test_the_installed_wheel_runs_the_main_job_from_an_empty_folder(wheel, tmp_p
         cwd=work, env=env, capture_output=True, text=True,
     )  # fmt: skip
     # 0.3 s ends before the pose has settled from its start: the verdict may say so (exit 1)
-    status = json.loads((work / "results" / "step_pitch" / "metrics.json").read_text())["status"]
+    metrics = work / "results" / "step_pitch+duration_s=0.3" / "metrics.json"
+    status = json.loads(metrics.read_text())["status"]
     assert status in ("ok", "not_settled"), proc.stderr[-2000:]
     assert proc.returncode == (0 if status == "ok" else 1), proc.stderr[-2000:]
     first, second = proc.stdout.splitlines()[:2]
