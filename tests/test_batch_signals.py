@@ -102,7 +102,7 @@ def _worker_pids(ready: Path) -> list[int]:
 
 
 def _no_temp_folders(folder: Path) -> bool:
-    return not [p for p in folder.rglob("*") if ".simpro-tmp-" in p.name or ".simpro-old-" in p.name]
+    return not [p for p in folder.rglob("*") if ".simpro-" in p.name]
 
 
 linux = pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs /proc")

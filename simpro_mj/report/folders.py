@@ -148,8 +148,8 @@ def said_replacing(out: Path, digest: str) -> None:
     """One line on stderr when ``out`` holds a result the run will replace."""
     kind = result_kind(out)
     if kind is not None:
-        old = result_hash(out)
-        same = "the same scenario" if old == digest else f"scenario {str(old)[:8]}, now {digest[:8]}"
+        old, new = str(result_hash(out))[:12], digest[:12]
+        same = "the same scenario" if old == new else f"scenario {old}..., now {new}..."
         sys.stderr.write(f"replacing the previous {kind} result in {_short(out)} ({same})\n")
 
 
