@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -102,7 +103,7 @@ def _worker_pids(ready: Path) -> list[int]:
 
 
 def _no_temp_folders(folder: Path) -> bool:
-    return not [p for p in folder.rglob("*") if ".simpro-" in p.name]
+    return not [p for p in folder.rglob("*") if re.search(r"\.simpro-(tmp|old)-", p.name)]
 
 
 linux = pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs /proc")

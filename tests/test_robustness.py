@@ -20,6 +20,7 @@ import importlib.util
 import json
 import math
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -601,7 +602,7 @@ def test_interrupted_run_leaves_a_marked_partial_folder(tmp_path, sig):
     assert proc.returncode == 130, stderr
     assert "Traceback" not in stderr
     assert stderr.strip().splitlines()[-1].startswith("error: ")
-    assert not [p.name for p in tmp_path.iterdir() if ".simpro-" in p.name]
+    assert not [p.name for p in tmp_path.iterdir() if re.search(r"\.simpro-(tmp|old)-", p.name)]
     assert not [p.name for p in tmp_path.iterdir() if p.name.startswith(("ready.", ".ready."))]
     doc = json.loads((out / "metrics.json").read_text())
     assert doc["status"] == "interrupted" and doc["reason"]

@@ -44,6 +44,8 @@ from simpro_mj.plant.pneumatics.params import PneumaticParams
 
 __all__ = [
     "GAIN_REFUSE_FACTOR",
+    "MIN_GAIN_DURATION",
+    "check_gains_move",
     "check_payload",
     "cueing_mode_warnings",
     "gain_warnings",
@@ -215,6 +217,30 @@ def stability_limit(scenario: Mapping, dt: float = 1e-3) -> dict:
     return {k: info[k] for k in ("limit", "basis", "spectral_radius", "delay_model_limit")}
 
 
+#: Smallest K K_I * duration_s of the task-space loop: below it an integrating loop
+#: moves the platform less than 1 - exp(-0.01) = 1 % of a step within the run.
+MIN_GAIN_DURATION = 0.01
+
+
+def check_gains_move(gains, duration_s: float) -> None:
+    """Refuse an outer gain that cannot move the platform within the run.
+
+    The task-space law integrates the pose error, so on an axis with K K_I = 0 the
+    joint set-points never leave the start pose (a 3 deg pitch step ended ``ok``
+    with a 3.36 deg error); with K K_I duration_s < :data:`MIN_GAIN_DURATION` a step
+    is followed by less than 1 % by the end of the run.
+    """
+    for i, (axis, k) in enumerate(zip(("roll", "pitch", "heave"), gains, strict=False)):
+        if not k * duration_s >= MIN_GAIN_DURATION:
+            raise UserInputError(
+                f"invalid value at controller.outer.gains[{i}]: {k:g} on {axis}: the "
+                f"task-space loop integrates the error, so it would move the platform by "
+                f"less than 1 % of a step in {duration_s:g} s; allowed: K K_I >= "
+                f"{MIN_GAIN_DURATION / duration_s:.3g} 1/s in this run (the paper's 3), or "
+                "controller.mode=joint_only to drive the joints without the outer loop"
+            )
+
+
 def gain_warnings(scenario: Mapping) -> tuple[list[str], dict]:
     """Warnings for outer gains above the analysed limit, and the analysis figures.
 
@@ -223,6 +249,7 @@ def gain_warnings(scenario: Mapping) -> tuple[list[str], dict]:
     if scenario["controller"]["mode"] != "task_space":
         return [], {}
     outer = scenario["controller"]["outer"]
+    check_gains_move(outer["gains"], scenario["duration_s"])
     info = stability_limit(scenario)
     lim = info["limit"]
     label = f"{outer['type']}, T = {outer['period_ms']:g} ms, {info['basis']}"

@@ -73,6 +73,9 @@ __all__ = [
 TELEMETRY_COLUMNS = ("time_s", "fx_mps2", "fy_mps2", "fz_mps2", "wx_rad_s", "wy_rad_s", "wz_rad_s")
 #: Largest allowed interval between two samples (s).
 MAX_GAP_S = 0.1
+#: Tolerance on :data:`MAX_GAP_S` (s): a 10 Hz log whose times are written rounded
+#: (``0.30000000000000004 - 0.2``) is at the limit, not past it.
+GAP_TOLERANCE_S = 1e-6
 #: Largest file read (bytes): a 600 s run at 1 kHz with 7 columns is ~60 MB.
 MAX_BYTES = 200_000_000
 
@@ -237,8 +240,8 @@ def _text(raw: bytes, lineno: int, name: str) -> str:
             f"telemetry file {name}: row {lineno}: a line of more than {MAX_LINE_CHARS:,} "
             f"characters; allowed: at most {MAX_LINE_CHARS:,}"
         )
-    try:
-        return raw.decode("utf-8").strip()
+    try:  # a byte-order mark (Excel's UTF-8 CSV) before the header is dropped
+        return raw.decode("utf-8-sig" if lineno == 1 else "utf-8").strip()
     except UnicodeDecodeError:
         raise TelemetryError(
             f"telemetry file {name}: row {lineno}: not UTF-8 text; allowed: a CSV file"
@@ -247,27 +250,44 @@ def _text(raw: bytes, lineno: int, name: str) -> str:
 
 def _parse(body: bytes, lineno: int, header, pos, name) -> tuple[np.ndarray, np.ndarray]:
     """The required columns of the whole lines in ``body`` (the first is line
-    ``lineno + 1``) and each row's line number. Plain numeric rows are parsed by
-    NumPy in one call; anything else (comments, blank lines, quotes, a bad
-    cell) line by line, to name the cell."""
+    ``lineno + 1``) and each row's line number.
+
+    One parser: every data line (not blank, not a ``#`` comment) must hold as
+    many fields as the header, else it is refused with its line number (a row
+    with a field too many or too few would shift values across columns); the
+    numbers of the data lines are then converted by NumPy in one call, or line
+    by line to name a cell that is not a number."""
     width = len(header)
-    n = body.count(b"\n") + (not body.endswith(b"\n"))
-    plain = not any(x in body for x in (b"#", b'"', b"\r", b"\n\n")) and not body.startswith(b"\n")
-    if plain and body.count(b",") == n * (width - 1):
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            try:
-                flat = np.fromstring(body.replace(b"\n", b",").decode("ascii"), sep=",")
-            except (ValueError, UnicodeDecodeError):
-                flat = None
-        if flat is not None and flat.size == n * width:
-            return flat.reshape(n, width)[:, pos], np.arange(lineno + 1, lineno + n + 1)
+    raw_lines = body.split(b"\n")
+    if raw_lines[-1] == b"":
+        raw_lines.pop()
+    keep = [k for k, ln in enumerate(raw_lines) if ln.strip() and not ln.lstrip().startswith(b"#")]
+    for k in keep:
+        if raw_lines[k].count(b",") != width - 1 and b'"' not in raw_lines[k]:
+            raise TelemetryError(
+                f"telemetry file {name}: row {lineno + 1 + k}: "
+                f"{raw_lines[k].count(b',') + 1} fields; allowed: {width}, as in the header "
+                "(a field too many or too few would shift values across columns)"
+            )
+    n = len(keep)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        try:
+            joined = b",".join(raw_lines[k] for k in keep).replace(b"\r", b"")
+            flat = np.fromstring(joined.decode("ascii"), sep=",") if n else np.empty(0)
+        except (ValueError, UnicodeDecodeError):
+            flat = None
+    if flat is not None and flat.size == n * width:
+        return flat.reshape(n, width)[:, pos], np.array(keep, dtype=int) + lineno + 1
     rows, lines = [], []
-    for k, raw in enumerate(body.split(b"\n")):
-        line = _text(raw, lineno + 1 + k, name)
-        if not line or line.startswith("#"):
-            continue
+    for k in keep:
+        line = _text(raw_lines[k], lineno + 1 + k, name)
         row = next(csv.reader([line]))
+        if len(row) != width:
+            raise TelemetryError(
+                f"telemetry file {name}: row {lineno + 1 + k}: {len(row)} fields; allowed: "
+                f"{width}, as in the header"
+            )
         vals = []
         for c, j in zip(TELEMETRY_COLUMNS, pos, strict=True):
             cell = row[j].strip() if j < len(row) else ""
@@ -306,11 +326,12 @@ def _check(data: np.ndarray, lines, last, name: str) -> None:
             f"telemetry file {name}: column time_s row {rows[i]}: {t[i]:g} s after "
             f"{t[i - 1]:g} s; allowed: strictly increasing times"
         )
-    if np.any(dt > MAX_GAP_S):
-        i = int(np.argmax(dt > MAX_GAP_S)) + 1
+    if np.any(dt > MAX_GAP_S + GAP_TOLERANCE_S):
+        i = int(np.argmax(dt > MAX_GAP_S + GAP_TOLERANCE_S)) + 1
         raise TelemetryError(
-            f"telemetry file {name}: column time_s row {rows[i]}: gap of {dt[i - 1]:g} s "
-            f"after {t[i - 1]:g} s; allowed: <= {MAX_GAP_S} s between samples"
+            f"telemetry file {name}: column time_s row {rows[i]}: gap of {dt[i - 1]:.9g} s "
+            f"after {t[i - 1]:g} s; allowed: <= {MAX_GAP_S} s between samples (10 Hz or "
+            f"faster, {GAP_TOLERANCE_S * 1e6:g} us tolerance for rounded times)"
         )
 
 

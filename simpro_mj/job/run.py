@@ -28,7 +28,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from simpro_mj.analysis.metrics import compute_metrics
-from simpro_mj.analysis.preflight import check_payload, preflight
+from simpro_mj.analysis.preflight import check_gains_move, check_payload, preflight
 from simpro_mj.analysis.verdict import verdict
 from simpro_mj.config.reference import reference
 from simpro_mj.plant.faults import flag_series
@@ -205,6 +205,9 @@ class Run:
         """The checks before stepping, on this run's plant and set-points: the payload
         first (a refusal costs no identification), then the design plants and the rest."""
         setpoints = (self.t, self.ref)
+        if self.scenario["controller"]["mode"] == "task_space":  # before any analysis
+            check_gains_move(self.scenario["controller"]["outer"]["gains"],
+                             self.scenario["duration_s"])  # fmt: skip
         payload = check_payload(self.scenario, self.model, setpoints)
         self.design_plants()
         return preflight(self.scenario, self.model, setpoints=setpoints, payload=payload)
