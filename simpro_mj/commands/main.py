@@ -38,6 +38,7 @@ COMMANDS = {
     "run": "simpro_mj.commands.run",
     "compare": "simpro_mj.commands.compare",
     "validate-ik": "simpro_mj.commands.validate_ik",
+    "check-plant": "simpro_mj.commands.check_plant",
     "workspace": "simpro_mj.commands.workspace",
     "identify": "simpro_mj.commands.identify",
     "calibrate": "simpro_mj.commands.calibrate",

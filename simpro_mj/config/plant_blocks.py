@@ -63,6 +63,10 @@ def _pneumatic_leaves(value: Mapping, ref: Mapping) -> dict:
             if not isinstance(sub, bool):
                 raise Problem.wrong_type(sub, "true or false", here)
             out[key] = sub
+        elif isinstance(default, str):  # a choice: PneumaticParams checks the value
+            if not isinstance(sub, str):
+                raise Problem.wrong_type(sub, "a name", here)
+            out[key] = sub
         elif (default is None or isinstance(default, list)) and isinstance(sub, (list, tuple)):
             if len(sub) != 3:
                 raise Problem.wrong_type(sub, "a number or a list of 3 numbers (one per leg)", here)

@@ -15,6 +15,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
+from simpro_mj.plant.friction import dry_friction_forces
 from simpro_mj.plant.model import PlantIndex, assemble
 from simpro_mj.plant.pneumatics.statics import holding_forces
 
@@ -42,6 +43,10 @@ class Platform:
         self.data = mujoco.MjData(model)
         self.index = index or PlantIndex.of(model)
         self.actuators = actuators
+        # the seals' breakaway as MuJoCo's joint dry friction (simpro_mj.plant.friction)
+        params = getattr(actuators, "params", None)
+        dry = dry_friction_forces(params) if actuators.kind == "nonlinear" else [0.0] * 3
+        model.dof_frictionloss[self.index.slide_dof] = dry
 
     def reset(self, q0) -> None:
         """At rest with the slides at ``q0`` (m): the closed chain assembled and

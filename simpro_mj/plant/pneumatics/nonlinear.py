@@ -138,7 +138,9 @@ class NonlinearActuators(ArrayStep):
         ac[: sf.AC_HN] = 0.0, P.p_atm, P.area_cap, P.area_rod_side, P.area_rod, rtk, P.leakage
         ac[sf.AC_ORDER], ac[sf.AC_NSUB], ac[sf.AC_NTAB] = P.spool_order, int(P.substeps), n
         # per leg the seal friction: breakaway, Coulomb, Stribeck velocity, viscous, v_reg
-        fric = [P.breakaway, P.coulomb, np.full(3, P.v_stribeck), P.viscous, np.full(3, P.v_smooth)]
+        # (0: the stick model, MuJoCo's dry friction holds F_S; Platform sets it)
+        v_reg = P.v_smooth if P.friction_model == "regularised" else 0.0
+        fric = [P.breakaway, P.coulomb, np.full(3, P.v_stribeck), P.viscous, np.full(3, v_reg)]
         ac[sf.AC_FRIC : sf.AC_AD] = np.transpose(fric).ravel()
         ac[sf.AC_DELTA : sf.AC_DELTA + 3] = P.underlap
         ac[sf.AC_CH : sf.AC_TAB] = np.transpose([v0, dvdq, vmin]).ravel()

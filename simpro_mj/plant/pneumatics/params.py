@@ -23,6 +23,7 @@ from simpro_mj.core.keys import apply_overrides, check_keys
 __all__ = [
     "DEFAULT_PNEUMATIC_PARAMS",
     "ACTUATOR_KINDS",
+    "FRICTION_MODELS",
     "U_CENTRE",
     "U_MAX",
     "PneumaticParams",
@@ -34,6 +35,9 @@ U_CENTRE = 5.0  # V, closed centre of the MPYE
 U_MAX = 10.0  # V
 
 ACTUATOR_KINDS = ("nonlinear", "linear")
+
+#: ``cylinder.friction_model``'s values (:mod:`simpro_mj.plant.friction`)
+FRICTION_MODELS = ("stick", "regularised")
 
 #: Parameters of the actuators, edge units in the key names. Per-leg values
 #: are lists [leg1, leg2, leg3]; a scalar applies to all three legs.
@@ -75,8 +79,15 @@ DEFAULT_PNEUMATIC_PARAMS: dict = {
         # Stribeck velocity, mm/s: where the breakaway peak has fallen to 1/e
         # (assumption; only a breakaway_friction_n above the Coulomb force uses it)
         "stribeck_velocity_mm_per_s": 10.0,
-        # regularising velocity of the dry friction (tanh), mm/s: below it the
-        # seal acts as a damper of slope breakaway / velocity (assumption)
+        # How the dry friction acts. "stick": MuJoCo's joint dry friction
+        # (frictionloss, solved with the constraints) carries the breakaway force, so
+        # a seal under a smaller load sticks; the drop to the Coulomb force with speed
+        # (Stribeck) is added explicitly (simpro_mj.plant.friction). "regularised":
+        # the whole map in the pneumatic force, tanh over coulomb_smoothing_mm_per_s
+        # (a seal under any load creeps)
+        "friction_model": "stick",
+        # regularising velocity of the "regularised" dry friction (tanh), mm/s: below
+        # it the seal acts as a damper of slope breakaway / velocity (assumption)
         "coulomb_smoothing_mm_per_s": 5.0,
     },
     "valve": {
@@ -180,6 +191,18 @@ def _scalar(
     return x
 
 
+def _choice(tree: Mapping, path: str, allowed: tuple) -> str:
+    node = tree
+    for part in path.split("."):
+        node = node[part]
+    if node not in allowed:
+        raise UserInputError(
+            f"invalid value at pneumatics.{path}: {node!r}; allowed: "
+            + ", ".join(repr(a) for a in allowed)
+        )
+    return str(node)
+
+
 #: Physically plausible range of each parameter: path -> (low, high, low open, why).
 #: A value outside is refused before the simulation, the reason in the message.
 _PLAUSIBLE = {
@@ -253,6 +276,7 @@ class PneumaticParams:
     breakaway: np.ndarray  # N, >= coulomb
     v_stribeck: float  # m/s
     v_smooth: float  # m/s, the regularising velocity of the seal friction
+    friction_model: str  # "stick" or "regularised"
     conductance: float  # m^3/(s Pa)
     b_crit: float
     r_laminar: float
@@ -336,6 +360,7 @@ class PneumaticParams:
             breakaway=breakaway,
             v_stribeck=_scalar(t, "cylinder.stribeck_velocity_mm_per_s", 0.0) * 1e-3,
             v_smooth=_scalar(t, "cylinder.coulomb_smoothing_mm_per_s", 0.0) * 1e-3,
+            friction_model=_choice(t, "cylinder.friction_model", FRICTION_MODELS),
             conductance=_scalar(t, "valve.sonic_conductance_dm3_per_s_bar", 0.0) * 1e-3 / 1e5,
             b_crit=_scalar(t, "valve.critical_pressure_ratio", 0.0, 0.528, open_lo=False),
             r_laminar=_scalar(t, "valve.laminar_pressure_ratio", 0.9, 0.99999),

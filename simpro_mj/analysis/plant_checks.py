@@ -1,0 +1,351 @@
+"""Physical checks of a plant: does the model do what its physics says?
+
+``simpro-sim check-plant`` runs :func:`check_plant`: short experiments on the
+scenario's own plant (its MuJoCo model and its pneumatic actuators, stepped at
+the run's 1 ms with the step's own functions, no controller), each compared
+with what a law of physics or the plant's own parameters predict:
+
+========================  ==================================================
+stiction                  a leg at valve null, loaded by 80 % of its seal's
+                          breakaway force, does not move (Coulomb's law of
+                          static friction)
+breakaway                 a force ramped on a leg at valve null sets it
+                          sliding at the seal's breakaway force
+sealed chamber energy     a sealed chamber compressed and expanded through
+                          one cycle gives back the work put in (adiabatic,
+                          no heat flow) or loses what its walls take
+null leakage              a valve at null with the piston held bleeds what
+                          its underlap's ISO 6358 orifice passes
+chamber filling           a chamber filled from the atmosphere through the
+                          open valve, at 1 ms, against the same model at
+                          1/64 of the step
+supply sag                the supply pressure at the valves during a fast
+                          move, against the receiver's mass balance
+loop closure              the closed chain's largest loop gap during a fast
+                          move (the stiff loop constraints hold)
+========================  ==================================================
+
+Each check is a :class:`Check` with its measured value, the expected value,
+the tolerance and the source of the expectation.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+
+import mujoco
+import numpy as np
+
+from simpro_mj.plant.model import load_model
+from simpro_mj.plant.platform import Platform
+from simpro_mj.plant.pneumatics.factory import make_actuators
+from simpro_mj.plant.step_functions import A_PS
+
+__all__ = ["Check", "check_plant", "table"]
+
+
+@dataclass(frozen=True)
+class Check:
+    """One physical check: ``ok`` when ``|measured - expected| <= tolerance``."""
+
+    name: str
+    measured: float
+    expected: float
+    tolerance: float
+    unit: str
+    source: str
+
+    @property
+    def ok(self) -> bool:
+        """Whether the measured value lies within the tolerance of the expected one."""
+        return bool(abs(self.measured - self.expected) <= self.tolerance)
+
+    def as_dict(self) -> dict:
+        """The check as plain numbers and text, ``ok`` included (for ``--json``)."""
+        return {**asdict(self), "ok": self.ok}
+
+
+def _plant(scenario: dict, settle: float = 1.0):
+    """The scenario's MuJoCo model and nonlinear actuators on a :class:`Platform` at
+    home, the valves at their holding voltages for ``settle`` s (the closed chain's
+    own static deflection under its load, which the static pressures do not know)."""
+    model = load_model(scenario["plant"])
+    act = make_actuators("nonlinear", scenario["actuator"].get("pneumatics") or {}, model=model)
+    act.set_timestep(float(model.opt.timestep))
+    plat = Platform(model, act)
+    plat.reset(np.full(3, 0.5 * act.params.stroke))
+    for _ in range(int(round(settle / model.opt.timestep))):  # the start-up settling
+        _step(plat, act.u_hold.copy())
+    return plat
+
+
+def _step(plat: Platform, u, extra=None) -> None:
+    """One 1 ms step of the plant alone: valve volts ``u`` held, ``extra`` N on the slides."""
+    m, d, idx, act = plat.model, plat.data, plat.index, plat.actuators
+    q, qd = d.qpos[idx.slide_qpos].copy(), d.qvel[idx.slide_dof].copy()
+    d.ctrl[idx.actuators] = act.step(u, q, qd, float(m.opt.timestep))
+    d.qfrc_applied[idx.slide_dof] = 0.0 if extra is None else extra
+    mujoco.mj_step(m, d)
+
+
+def _leg_push(plat: Platform, leg: int, force: float) -> np.ndarray:
+    f = np.zeros(3)
+    f[leg] = force
+    return f
+
+
+def stiction(scenario: dict, leg: int = 1, share: float = 0.8, seconds: float = 2.0) -> Check:
+    """A leg at valve null loaded by ``share`` of its breakaway force stays put."""
+    plat = _plant(scenario)
+    fs = float(plat.actuators.params.breakaway[leg])
+    idx, d = plat.index, plat.data
+    q0 = float(d.qpos[idx.slide_qpos[leg]])
+    push = _leg_push(plat, leg, share * fs)
+    for _ in range(int(round(seconds / plat.model.opt.timestep))):
+        _step(plat, plat.actuators.u_hold.copy(), push)
+    moved = abs(float(d.qpos[idx.slide_qpos[leg]]) - q0)
+    return Check(
+        f"stiction (leg {leg + 1}, {share:.0%} of {fs:.0f} N breakaway, {seconds:g} s)",
+        moved * 1e3,
+        0.0,
+        0.05,
+        "mm",
+        "Coulomb: a seal loaded below its breakaway force does not slide",
+    )
+
+
+def _air_spring(act, leg: int, q: float) -> float:
+    """The leg's pneumatic stiffness at valve null and position ``q``, N/m:
+    :math:`n (p_1 A_1^2 / V_1 + p_2 A_2^2 / V_2)` of sealed chambers."""
+    P = act.params
+    v1 = P.dead_cap[leg] + P.area_cap * q
+    v2 = P.dead_rod[leg] + P.area_rod_side * (P.stroke - q)
+    p1, p2 = float(act.p1[leg]), float(act.p2[leg])
+    return P.n_poly * (p1 * P.area_cap**2 / v1 + p2 * P.area_rod_side**2 / v2)
+
+
+def breakaway(scenario: dict, leg: int = 1, seconds: float = 4.0, slip: float = 2e-5) -> Check:
+    """The seal's force when a leg at valve null, pushed by a force ramped from 0
+    to twice its breakaway force over ``2 seconds``, has moved ``slip`` m: the
+    push less what the air springs then carry (quasi-static)."""
+    plat = _plant(scenario)
+    act = plat.actuators
+    fs = float(act.params.breakaway[leg])
+    idx, d, dt = plat.index, plat.data, float(plat.model.opt.timestep)
+    q0 = float(d.qpos[idx.slide_qpos[leg]])
+    k_air = _air_spring(act, leg, q0)
+    rate, f, k = fs / seconds, 0.0, 0
+    while f < 2.0 * fs + 100.0:
+        f = rate * k * dt
+        _step(plat, act.u_hold.copy(), _leg_push(plat, leg, f))
+        k += 1
+        if abs(float(d.qpos[idx.slide_qpos[leg]]) - q0) > slip:
+            break
+    return Check(
+        f"breakaway force (leg {leg + 1}, ramp to it over {seconds:g} s)",
+        f - k_air * slip,
+        fs,
+        0.03 * fs + 0.5,
+        "N",
+        "the seal's breakaway force (pneumatics.cylinder.breakaway_friction_n)",
+    )
+
+
+def _sealed(scenario: dict):
+    """The scenario's actuators with the valve sealed: no underlap, no leakage."""
+    tree = dict(scenario["actuator"].get("pneumatics") or {})
+    valve = dict(tree.get("valve") or {})
+    valve.update(underlap_fraction=0.0, leakage_fraction=1e-12)  # > 0: the model needs an edge
+    tree["valve"] = valve
+    act = make_actuators("nonlinear", tree)
+    act.set_timestep(1e-3)
+    return act
+
+
+def sealed_chamber_energy(scenario: dict, amplitude: float = 0.1, hz: float = 1.0) -> Check:
+    """Net work on a sealed chamber over one compression cycle, over the work put in."""
+    act = _sealed(scenario)
+    P, dt = act.params, 1e-3
+    q_mid = 0.5 * P.stroke
+    act.reset(np.full(3, q_mid), np.zeros(3))
+    act.spool[:] = 0.0
+    w = 2.0 * math.pi * hz
+    n = int(round(1.0 / (hz * dt)))
+    net, stored = 0.0, 0.0
+    for k in range(n):
+        t = (k + 0.5) * dt
+        q = q_mid + amplitude * math.sin(w * t)
+        qd = amplitude * w * math.cos(w * t)
+        p1 = act.p1[0]
+        act.step([5.0] * 3, [q] * 3, [qd] * 3, dt)
+        p_mean = 0.5 * (p1 + act.p1[0])
+        dw = -p_mean * P.area_cap * qd * dt  # work done on the cap-side gas
+        net += dw
+        stored = max(stored, abs(net))
+    return Check(
+        f"sealed chamber energy (cap side, +-{amplitude * 1e3:g} mm at {hz:g} Hz)",
+        100.0 * net / stored,
+        0.0,
+        1.0,
+        "% of the work stored",
+        "first law: an adiabatic sealed chamber gives back the work put into it",
+    )
+
+
+def null_leakage(scenario: dict) -> Check:
+    """Supply flow of one valve at null (both chambers at rest), in l/min ANR."""
+    act = make_actuators("nonlinear", scenario["actuator"].get("pneumatics") or {})
+    P = act.params
+    act.reset(np.full(3, 0.5 * P.stroke), np.zeros(3))
+    rho_anr = 1.185  # kg/m^3 at ISO 8778's 20 deg C, 1 bar (ANR)
+    p1, p2 = float(act.p1[0]), float(act.p2[0])
+    # measured: the model's own net supply flow into both chambers at null
+    kc = act._kc
+    d = float(P.underlap[0])
+    m_in = 0.0
+    for p in (p1, p2):
+        a = max(d, P.leakage)
+        m_in += a * kc * float(act.psi(p / P.p_supply)) * (P.p_supply - p)
+    measured = m_in / rho_anr * 60e3
+    # expected: ISO 6358 through the underlap's share of the conductance, each chamber
+    b = P.b_crit
+    exp_in = 0.0
+    for p in (p1, p2):
+        r = p / P.p_supply
+        phi = 1.0 if r <= b else math.sqrt(max(0.0, 1.0 - ((r - b) / (1.0 - b)) ** 2))
+        exp_in += max(d, P.leakage) * P.conductance * P.p_supply * phi * rho_ref_scale(P)
+    expected = exp_in / rho_anr * 60e3
+    return Check(
+        "null leakage (one valve, piston held at mid-stroke)",
+        measured,
+        expected,
+        0.05 * expected + 0.1,
+        "l/min ANR",
+        "ISO 6358 flow of the underlap (valve.underlap_fraction of the conductance); "
+        "assumption: the MPYE's null leakage is not in the data at hand",
+    )
+
+
+def rho_ref_scale(P) -> float:
+    """ISO 6358's reference density times sqrt(T_ref / T_supply), kg/m^3."""
+    return 1.185 * math.sqrt(293.15 / P.temperature)
+
+
+def chamber_filling(scenario: dict, seconds: float = 0.3, fine: int = 64) -> Check:
+    """Largest pressure difference filling a held chamber at 1 ms against 1 ms / ``fine``."""
+    traces = []
+    for sub in (1, fine):
+        tree = dict(scenario["actuator"].get("pneumatics") or {})
+        base = int((tree.get("integration") or {}).get("substeps", 1))
+        tree["integration"] = {"substeps": sub * base}
+        act = make_actuators("nonlinear", tree)
+        act.set_timestep(1e-3)
+        P = act.params
+        act.reset(np.full(3, 0.5 * P.stroke), np.zeros(3))
+        act.p1[:] = P.p_atm
+        act.p2[:] = P.p_atm
+        act.spool[:] = 1.0
+        tr = []
+        for _ in range(int(round(seconds / 1e-3))):
+            act.step([10.0] * 3, [0.5 * P.stroke] * 3, [0.0] * 3, 1e-3)
+            tr.append(float(act.p1[0]))
+        traces.append(np.array(tr))
+    gap = float(np.max(np.abs(traces[0] - traces[1])))
+    return Check(
+        f"chamber filling (cap side from atmosphere, 1 ms vs 1/{fine} ms)",
+        100.0 * gap / (P.p_supply - P.p_atm),
+        0.0,
+        1.0,
+        "% of the supply's gauge pressure",
+        "the same chamber ODE integrated at a step 64 times finer",
+    )
+
+
+def _fast_move(plat: Platform, seconds: float = 0.4):
+    """Every valve at 8 V for ``seconds``: the legs extend about as fast as they can."""
+    gaps, supply = [], []
+    ps0 = float(_supply_pa(plat))
+    for _ in range(int(round(seconds / plat.model.opt.timestep))):
+        _step(plat, [8.0, 8.0, 8.0])
+        gaps.append(_loop_gap(plat))
+        supply.append(float(_supply_pa(plat)))
+    return np.array(gaps), ps0, np.array(supply)
+
+
+def _supply_pa(plat: Platform) -> float:
+    """The supply pressure at the valves now (Pa absolute)."""
+    return float(plat.actuators.step_state[A_PS])
+
+
+def _loop_gap(plat: Platform) -> float:
+    d, pairs = plat.data, plat.index.connect_sites
+    return float(max(np.linalg.norm(d.site_xpos[a] - d.site_xpos[b]) for a, b in pairs))
+
+
+def supply_sag(scenario: dict) -> Check:
+    """The supply pressure's largest drop during a fast move, against the ideal source's 0."""
+    plat = _plant(scenario)
+    _, ps0, supply = _fast_move(plat)
+    sag = (ps0 - float(np.min(supply))) / 1e5
+    return Check(
+        "supply sag (every valve at 8 V for 0.4 s)",
+        sag,
+        0.0,
+        1e-9,
+        "bar",
+        "the ideal supply holds its pressure whatever the valves draw",
+    )
+
+
+def loop_closure(scenario: dict) -> Check:
+    """The largest loop-closure gap during a fast move (m)."""
+    plat = _plant(scenario)
+    gaps, _, _ = _fast_move(plat)
+    return Check(
+        "loop closure (every valve at 8 V for 0.4 s)",
+        float(np.max(gaps)) * 1e3,
+        0.0,
+        0.1,
+        "mm",
+        "the MJCF's loop constraints (solref 2 ms, solimp 0.9999): gaps of microns at rest",
+    )
+
+
+#: the checks in the order of the table
+CHECKS = (
+    stiction,
+    breakaway,
+    sealed_chamber_energy,
+    null_leakage,
+    chamber_filling,
+    supply_sag,
+    loop_closure,
+)
+
+
+def check_plant(scenario: dict) -> list[Check]:
+    """Every check of :data:`CHECKS` on the resolved ``scenario``'s plant."""
+    return [fn(scenario) for fn in CHECKS]
+
+
+def table(checks: list[Check]) -> str:
+    """The checks as a fixed-width text table, one row each, and a last line."""
+    rows = [("check", "measured", "expected", "tolerance", "unit", "ok")]
+    for c in checks:
+        rows.append(
+            (
+                c.name,
+                f"{c.measured:.4g}",
+                f"{c.expected:.4g}",
+                f"{c.tolerance:.3g}",
+                c.unit,
+                "yes" if c.ok else "NO",
+            )  # fmt: skip
+        )
+    widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
+    lines = ["  ".join(v.ljust(w) for v, w in zip(r, widths, strict=True)).rstrip() for r in rows]
+    lines.insert(1, "-" * len(lines[0]))
+    n_ok = sum(c.ok for c in checks)
+    lines.append(f"{n_ok} of {len(checks)} checks hold")
+    return "\n".join(lines)
