@@ -215,6 +215,12 @@ class Inner(Block):
         0.0,
         0.0,
     ]
+    # valve dither (controllers.dither): a square wave of +-dither_v volts added to
+    # every valve command, period dither_period_ms (an even number of 1 ms steps); 0: off
+    dither_v: Annotated[float, rule(lambda v: 0 <= v <= 5, "0..5 V")] = 0.0
+    dither_period_ms: Annotated[
+        float, rule(lambda v: v >= 2 and v == int(v) and int(v) % 2 == 0, "an even number >= 2 ms")
+    ] = 40.0
 
 
 class Feedforward(Block):

@@ -57,6 +57,7 @@ from simpro_mj.plant.model import (
     load_model,
 )
 from simpro_mj.plant.payload import holding_force_model, max_payload
+from simpro_mj.plant.platform import set_seal_friction
 from simpro_mj.plant.pneumatics.factory import make_actuators
 from simpro_mj.plant.pneumatics.params import ACTUATOR_KINDS
 from simpro_mj.plant.pneumatics.statics import holding_forces
@@ -143,6 +144,7 @@ def run_experiment(tree: dict, leg: int, model=None) -> dict:
     act = make_actuators(
         kind, tree["pneumatics"], model=m, linear_plants=paper_coefficients(tree["paper_units"])
     )
+    set_seal_friction(m, idx, act)  # the seals that stick (simpro_mj.plant.friction)
     force_range = act.params.force_range
     if np.any(f_hold > force_range[1]) or np.any(f_hold < force_range[0]):
         f0, slope = holding_force_model(m, d, idx, 100.0)  # affine in the mass: any probe

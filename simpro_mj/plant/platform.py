@@ -19,7 +19,20 @@ from simpro_mj.plant.friction import dry_friction_forces
 from simpro_mj.plant.model import PlantIndex, assemble
 from simpro_mj.plant.pneumatics.statics import holding_forces
 
-__all__ = ["Platform"]
+__all__ = ["Platform", "set_seal_friction"]
+
+
+def set_seal_friction(model: mujoco.MjModel, index: PlantIndex, actuators) -> None:
+    """Each slide's MuJoCo dry friction for ``actuators``' seals: their breakaway
+    force under the ``stick`` model, 0 otherwise (:mod:`simpro_mj.plant.friction`).
+
+    Whatever steps the model with these actuators sets it first: the step's own
+    friction is then only the rest of the seal's curve.
+    """
+    dry = [0.0] * 3
+    if actuators.kind == "nonlinear":
+        dry = dry_friction_forces(actuators.params)
+    model.dof_frictionloss[index.slide_dof] = dry
 
 
 class Platform:
@@ -43,10 +56,7 @@ class Platform:
         self.data = mujoco.MjData(model)
         self.index = index or PlantIndex.of(model)
         self.actuators = actuators
-        # the seals' breakaway as MuJoCo's joint dry friction (simpro_mj.plant.friction)
-        params = getattr(actuators, "params", None)
-        dry = dry_friction_forces(params) if actuators.kind == "nonlinear" else [0.0] * 3
-        model.dof_frictionloss[self.index.slide_dof] = dry
+        set_seal_friction(model, self.index, actuators)
 
     def reset(self, q0) -> None:
         """At rest with the slides at ``q0`` (m): the closed chain assembled and

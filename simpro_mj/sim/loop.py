@@ -39,6 +39,7 @@ import mujoco
 import numpy as np
 
 from controllers.design import Plant, paper_coefficients
+from controllers.dither import dither_signal
 from controllers.frames import GRAVITY
 from controllers.geometry import nominal_geometry
 from controllers.joint import JointControllers
@@ -242,6 +243,11 @@ class CoSimulation:
             self.u_ff = leg_velocity_feedforward(
                 self.ref, dt, identified, self.geometry, span, setpoint_filter=vfilt
             )
+        if inner["dither_v"] > 0.0:  # added to the joint loops' output like the feed-forward
+            wave = dither_signal(
+                self.n_steps + 1, dt, inner["dither_v"], inner["dither_period_ms"] * 1e-3
+            )
+            self.u_ff = wave if self.u_ff is None else self.u_ff + wave
         self.q_joint_only = None
         if self.mode == "joint_only":
             # the baseline: q_d = IK(y_d) of the nominal model, every 1 ms
