@@ -33,6 +33,7 @@ from simpro_mj.analysis.verdict import verdict
 from simpro_mj.config.reference import reference
 from simpro_mj.plant.faults import flag_series
 from simpro_mj.plant.model_params import MAX_MODEL_PAYLOAD_KG
+from simpro_mj.sim.compiling import note, prepare_step
 from simpro_mj.sim.readiness import signal_ready
 
 if TYPE_CHECKING:  # the result module loads MuJoCo: when a run is built, not on import
@@ -227,9 +228,18 @@ class Run:
             identified_source=self.identified_source,
         )
 
-    def execute(self, *, quiet: bool = False, progress=_stepping, pace=None) -> RunOutcome:
+    def execute(
+        self, *, quiet: bool = False, progress=_stepping, pace=None, bar: bool = False
+    ) -> RunOutcome:
         """Preflight, simulate and measure; warnings on stderr unless ``quiet``.
         ``progress`` and ``pace`` go to :meth:`simpro_mj.sim.loop.CoSimulation.run`.
+
+        Between the preflight and the simulation the compiled step is loaded
+        (:func:`simpro_mj.sim.compiling.prepare_step`): a first compile is said on
+        stderr unless ``quiet`` (with a bar of its functions if ``bar``), and its
+        time is kept out of the run's ``realtime_factor`` (``metrics.json``:
+        ``sim.wall_clock.kernel_load_s``). A mistake the preflight refuses costs
+        no compile.
 
         Raises
         ------
@@ -238,7 +248,9 @@ class Run:
         """
         warnings, figures = self.preflight()
         warn(warnings, quiet)
+        loaded = prepare_step(say=None if quiet else note, bar=bar)
         res = self.simulation().run(progress, pace=pace)
+        res.sim.update(loaded)
         metrics = compute_metrics(res.columns, res.scenario)
         if res.status == "ok":  # ran to its end: does the pose settle? (analysis.verdict)
             judged = verdict(res.columns, res.sensor_floor)

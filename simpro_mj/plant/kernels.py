@@ -4,9 +4,10 @@
 or ``numba`` (an error if numba is missing), read when a run starts
 (:meth:`simpro_mj.sim.loop.CoSimulation.run`): ``numba`` compiles the step
 (:mod:`simpro_mj.sim.step`) into MuJoCo's control callback, ``python`` runs
-the same functions interpreted. numba is an optional extra
-(``simpro-sim[fast]``): this module only asks whether it is installed, it
-never imports it (its import costs ~0.2 s).
+the same functions interpreted (the readable reference, for debugging; several
+times slower). numba is a dependency of the package; ``auto`` still runs the
+step interpreted where it cannot be installed. This module only asks whether
+it is installed, it never imports it (its import costs ~0.2 s).
 """
 
 from __future__ import annotations
@@ -52,7 +53,7 @@ def kernel_choice() -> str:
         return "numba" if _HAVE_NUMBA else "python"
     if value == "numba" and not _HAVE_NUMBA:
         raise UserInputError(
-            "SIMPRO_KERNEL=numba but numba is not installed: pip install 'simpro-sim[fast]'"
+            "SIMPRO_KERNEL=numba but numba is not installed: pip install numba"
         )
     return value
 

@@ -75,7 +75,17 @@ __all__ = [
 #: stopped by the user (Ctrl-C, SIGTERM), marked with a ``PARTIAL`` file.
 STATUSES = (*FINISHED_STATUSES, "interrupted")
 #: ``extra["sim"]`` keys that depend on the machine, not on the scenario.
-WALL_CLOCK_KEYS = ("realtime_factor", "wall_time_s", "wall_s", "elapsed_s", "steps_per_s", "host")
+WALL_CLOCK_KEYS = (
+    "realtime_factor",
+    "wall_time_s",
+    "wall_s",
+    "elapsed_s",
+    "steps_per_s",
+    "host",
+    # the compiled step loaded before the clock started (simpro_mj.sim.compiling)
+    "kernel_load_s",
+    "kernel_compiled",
+)
 _RESERVED = {"status", "reason", "scenario", "axes", "joints", "metrics", "sim", "versions"}
 
 

@@ -104,7 +104,7 @@ def execute(
             if bar is None:
                 outcome = run.execute(quiet=quiet, pace=pace)
             else:
-                outcome = run.execute(quiet=quiet, progress=bar.step, pace=pace)
+                outcome = run.execute(quiet=quiet, progress=bar.step, pace=pace, bar=True)
         finally:
             if bar is not None:
                 bar.close()
