@@ -361,3 +361,20 @@ def test_a_leg_loaded_below_breakaway_sticks_only_with_the_stick_model(model_nam
     assert check.ok is still
     if not still:
         assert check.measured > 1.0  # mm
+
+
+def test_a_drawn_payload_mass_scales_the_cabins_inertia():
+    """The preset's inertia is its 230 kg cabin's (``inertia_mass_kg``): half the mass
+    is the same cabin at half the density, half every moment; an empty platform
+    carries no cabin inertia (not the 230 kg cabin's at 0 kg)."""
+    from simpro_mj.config.scenario import resolve_scenario
+    from simpro_mj.plant.model import load_model
+
+    def moments(mass):
+        sc = resolve_scenario({"plant": {"preset": "heavy_cabin", "payload": {"mass_kg": mass}}})
+        m = load_model(sc["plant"])
+        return m.body_inertia[m.body("payload").id].copy()
+
+    full, half, empty = moments(230.0), moments(115.0), moments(0.0)
+    np.testing.assert_allclose(half, 0.5 * full, rtol=1e-9)
+    assert np.all(empty < 1e-5 * full)

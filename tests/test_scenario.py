@@ -106,6 +106,7 @@ def test_sets_apply_after_file_and_before_validation():
         "mass_kg": 100.0,
         "com_mm": [60.0, 0.0, 400.0],
         "inertia_kg_m2": None,
+        "inertia_mass_kg": None,
     }
     assert s["setpoint"]["heave_mm"][0]["type"] == "ramp"
     # validation runs after the overrides: an override can make a file valid

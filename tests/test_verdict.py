@@ -113,3 +113,17 @@ def test_outer_gains_far_above_the_limit_are_never_ok(tmp_path):
     assert v["amplitude"] > 10 * v["thresholds"][v["axis"]]
     assert 1.0 <= v["frequency_hz"] <= 1.0 / (2 * 0.06)  # below the outer loop's Nyquist rate
     assert doc["reason"].startswith("limit cycle on")
+
+
+@pytest.mark.slow
+def test_a_static_imu_bias_does_not_raise_the_oscillation_threshold():
+    """A 0.5 deg IMU bias shifts where the loop settles; the verdict's roll threshold
+    stays at its noise-and-quantisation floor (0.02 deg here), not 3 x (noise + bias)
+    = 1.5 deg, at which a 2 deg peak-to-peak cycle would read ok."""
+    import math
+
+    import simpro_mj as s
+
+    r = s.run("step_pitch", {"duration_s": 4, "sensors.imu.bias_deg": [0.5, 0.0]})
+    assert r.metrics["sensor_floor"]["roll"] > math.radians(0.5)  # the floor a user reads
+    assert r.metrics["verdict"]["thresholds"]["roll"] < math.radians(0.05)

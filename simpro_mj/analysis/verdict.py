@@ -23,12 +23,14 @@ the error ``reference - true pose`` of every task axis is quiet:
 The threshold of an axis is the settling band's floor
 (:data:`simpro_mj.analysis.metrics.SETTLING_FLOOR`: 0.02 deg, 0.2 mm, the band a
 settled step stays in), or :data:`FLOOR_FACTOR` times the sensors' resolution
-floor (:meth:`simpro_mj.plant.sensors.SensorConfig.resolution_floor`: quantisation
-plus three standard deviations of the 1 s averaged noise, plus the IMU's
-static bias) if that is larger. On the shipped step scenarios the residual is
-0.002-0.003 deg and 0.01-0.02 mm (the sensor noise the loop feeds back), ten
-times below it; the outer gains [25, 25, 25] on ``step_pitch`` hold a roll cycle
-of about 4 deg at 2 Hz.
+floor (:meth:`simpro_mj.plant.sensors.SensorConfig.resolution_floor` without the
+IMU's static bias: quantisation plus three standard deviations of the 1 s averaged
+noise) if that is larger. A bias moves the pose the loop settles at, by a constant
+the fit takes out; it does not oscillate, so it does not raise the threshold (a
+0.5 deg bias would otherwise let a 2 deg peak-to-peak cycle read ``ok``). On the
+shipped step scenarios the residual is 0.002-0.003 deg and 0.01-0.02 mm (the sensor
+noise the loop feeds back), ten times below it; the outer gains [25, 25, 25] on
+``step_pitch`` hold a roll cycle of about 4 deg at 2 Hz.
 """
 
 from __future__ import annotations

@@ -165,6 +165,12 @@ class Payload(Block):
     inertia_kg_m2: Annotated[list[float] | None, BeforeValidator(_inertia_leaf)] = _MODEL[
         "payload"
     ]["inertia_kg_m2"]
+    # the payload mass inertia_kg_m2 belongs to; set, the inertia scales with mass_kg /
+    # this (the same cabin, lighter or heavier: a sweep over the mass draws whole
+    # cabins); null: inertia_kg_m2 as given at any mass
+    inertia_mass_kg: Annotated[
+        float | None, rule(lambda v: v is None or v > 0, "null or > 0 kg")
+    ] = None
 
 
 class AnchorOffsets(Block):

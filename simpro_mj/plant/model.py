@@ -132,7 +132,11 @@ def load_spec(params: dict | None = None, path: Path | str | None = None) -> muj
         payload.explicitinertial = True
         payload.mass = max(float(p["payload"]["mass_kg"]), 1e-6)
         payload.ipos = [0.0, 0.0, 0.0]
-        payload.fullinertia = inertia_tensor(inertia)
+        scale = 1.0
+        ref_mass = p["payload"].get("inertia_mass_kg")
+        if ref_mass is not None:  # the same cabin at another mass: inertia ~ mass
+            scale = max(float(p["payload"]["mass_kg"]), 1e-6) / float(ref_mass)
+        payload.fullinertia = [scale * v for v in inertia_tensor(inertia)]
     spec.geom("platform_frame").mass = float(p["platform_mass_kg"])
 
     for name in BASE_POINTS:

@@ -37,6 +37,9 @@ DEFAULT_MODEL_PARAMS: dict = {
         # [Ixx, Iyy, Izz, Ixy, Ixz, Iyz] (MuJoCo's fullinertia order). null: a
         # uniform 1.4 m x 0.9 m x 0.8 m box of the payload's mass (the MJCF's geom)
         "inertia_kg_m2": None,
+        # the mass inertia_kg_m2 was given for, kg: set, the inertia scales with
+        # mass_kg / inertia_mass_kg (the same body, lighter or heavier); null: as given
+        "inertia_mass_kg": None,
     },
     "platform_mass_kg": 120.0,
     # as-built errors of the attachment points, mm, added to the nominal ones

@@ -170,18 +170,22 @@ class SensorConfig:
         sc = [np.ravel(getattr(self, f.name)) for f in fields(self)]
         return np.concatenate([*sc, [1.0 / (self.dt * self.dt)]])
 
-    def resolution_floor(self) -> dict:
+    def resolution_floor(self, with_bias: bool = True) -> dict:
         """Smallest steady-state error the task loop can be asked to remove, SI.
 
         The loop integrates the *measured* error, so the true pose settles
         within about one quantisation step plus the noise averaged over the
         metric window; we state the floor as the quantisation step plus three
-        standard deviations of the sample noise averaged over 1 s of samples.
+        standard deviations of the sample noise averaged over 1 s of samples,
+        plus the IMU's static bias (``with_bias``). A bias shifts the pose the
+        loop settles at; it does not make it move, so the verdict's floor on
+        oscillation leaves it out (``with_bias=False``).
         """
         n_imu = max(1, int(1.0 / (self.imu_every * self.dt)))
         imu = self.imu_noise_rad * 3 / math.sqrt(n_imu)
+        b = np.abs(self.imu_bias_rad) if with_bias else np.zeros(2)
         return {
-            "roll": imu + float(np.abs(self.imu_bias_rad[0])),
-            "pitch": imu + float(np.abs(self.imu_bias_rad[1])),
+            "roll": imu + float(b[0]),
+            "pitch": imu + float(b[1]),
             "heave": self.enc_res_m + 3 * self.enc_noise_m,
         }

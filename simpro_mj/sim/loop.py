@@ -617,6 +617,7 @@ class CoSimulation:
             },
             scenario=self.scenario,
             sensor_floor=self.sensor_cfg.resolution_floor(),
+            noise_floor=self.sensor_cfg.resolution_floor(with_bias=False),
             qpos=rec.qlog[:row].copy(),
             qpos_names=qpos_names(self.model),
         )

@@ -40,6 +40,9 @@ class SimResult:
     sim: dict
     scenario: dict
     sensor_floor: dict = field(default_factory=dict)
+    #: the sensors' floor without the IMU's static bias: what the verdict's
+    #: oscillation threshold scales with (a bias does not oscillate)
+    noise_floor: dict = field(default_factory=dict)
     #: where :func:`simpro_mj.report.runner.execute` wrote the result folder (None: not written)
     folder: Path | None = None
     #: ``qpos`` at every logged row, (rows, nq), a copy: the whole closed chain, so
