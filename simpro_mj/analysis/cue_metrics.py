@@ -27,6 +27,10 @@ __all__ = [
     "onsets",
     "perceived_columns",
     "print_cue_summary",
+    "print_strength",
+    "strength",
+    "bound_block",
+    "bound_share",
     "mean_lag",
     "perceived",
     "shift_correlations",
@@ -183,7 +187,7 @@ def _corr(a: np.ndarray, b: np.ndarray) -> float | None:
 
 
 def cue_metrics(columns: Mapping, scenario: Mapping, model: VestibularModel | None = None, *,
-                info: Mapping | None = None) -> dict:  # fmt: skip
+                info: Mapping | None = None, bound: bool = True) -> dict:  # fmt: skip
     """The ``cueing`` block of ``metrics.json``: per channel, vehicle vs simulator, perceived.
 
     Per channel (:data:`CHANNELS`), of the perceived signals: ``rms_error``,
@@ -212,6 +216,13 @@ def cue_metrics(columns: Mapping, scenario: Mapping, model: VestibularModel | No
     Then ``workspace`` (largest excursion per axis as a fraction of the cueing
     box, strokes used, end-stop margin) and ``valves`` (fraction of samples
     with a valve at 0 or 10 V).
+
+    Strength beside shape (:func:`strength`): ``gain`` (least squares of the head's
+    perceived signal on the vehicle's, at the mean lag), ``gain_rms`` (ratio of their
+    RMS), ``rms_error`` (SI; rotation channels also ``rms_error_deg_s``). With
+    ``bound`` (default): ``bound`` (:func:`bound_block`: the same figures for the best
+    platform motion with the whole drive known, :mod:`controllers.cue_bound`) and per
+    channel ``gain_share`` and ``error_share`` (:func:`bound_share`).
 
     ``info``: the washout's ``box``, ``softened_fraction``,
     ``rate_limited_fraction`` and ``source`` when the vehicle input did not
@@ -258,6 +269,7 @@ def cue_metrics(columns: Mapping, scenario: Mapping, model: VestibularModel | No
             "unit": "m/s^2" if kind == "f" else "rad/s",
             "threshold": thr,
             "rms_error": float(np.sqrt(np.mean((pv - ps) ** 2))),
+            "vehicle_rms": float(np.sqrt(np.mean(pv * pv))),
             "correlation": _corr(pv, ps),
             "raw_correlation": _corr(col[vc], col[sc]),
             "vehicle_peak": float(pv[iv]),
@@ -274,11 +286,18 @@ def cue_metrics(columns: Mapping, scenario: Mapping, model: VestibularModel | No
             "onset_right_sign": bool(felt.size) and not bool(false[onset].any()),
         }
         ch.update(_onset_block(t, pv, ps, veh_raw, raw, thr))
+        ch.update(strength(pv, ps, lag, dt))
+        if kind == "w":
+            ch["rms_error_deg_s"] = float(np.degrees(ch["rms_error"]))
         if kind == "w":
             excess = false_rotation(pv, ps)
             wrong_rot = above & (excess > thr)
             ch["false_rotation_s"] = float(wrong_rot.sum() * dt)
             ch["false_rotation_peak"] = float(excess[wrong_rot].max()) if wrong_rot.any() else 0.0
+    if bound:
+        out["bound"] = bound_block(col, dt, scenario, veh, model)
+        for name, ch in out["channels"].items():
+            ch.update(bound_share(ch, out["bound"]["channels"].get(name)))
     if info is None:
         _, _, _, _, info = vehicle_input(scenario)
     box = info["box"]
@@ -310,6 +329,94 @@ def cue_metrics(columns: Mapping, scenario: Mapping, model: VestibularModel | No
     if info.get("solve_time"):
         out["solve_time"] = info["solve_time"]
     return out
+
+
+def strength(pv: np.ndarray, ps: np.ndarray, lag_s: float | None, dt: float) -> dict:
+    """How strong the head's sensation ``ps`` is against the vehicle's ``pv``.
+
+    ``gain``: the least-squares ``g`` minimising ``|ps(t + lag) - g pv(t)|`` over the
+    overlap, at the mean lag (so that a late cue of the right size is not read as a
+    weak one; the lag is reported beside); ``gain_rms``: ``rms(ps) / rms(pv)`` (no
+    shape, no shift). A cue of the right shape at a tenth of the car's has correlation
+    1 and gain 0.1. None where the vehicle's sensation is zero.
+    """
+    k = int(round((lag_s or 0.0) / dt))
+    k = min(max(k, 0), pv.size - 2)
+    a, b = pv[: pv.size - k], ps[k:]
+    den = float(a @ a)
+    rv = float(np.sqrt(np.mean(pv * pv)))
+    return {
+        "gain": float(a @ b) / den if den > 0 else None,
+        "gain_rms": float(np.sqrt(np.mean(ps * ps))) / rv if rv > 0 else None,
+    }
+
+
+#: The bound is computed for drives up to this long (s): its QP grows with the drive
+#: (about 1 s of solve for a 12 s drive on this machine).
+BOUND_MAX_S = 120.0
+
+
+def bound_block(col: Mapping, dt: float, scenario: Mapping, veh, model: VestibularModel) -> dict:
+    """The ``bound`` block: the best platform motion for this drive
+    (:func:`controllers.cue_bound.cue_bound`, with the scenario's MPC parameters, or the
+    MPC's defaults with the washout's box for a washout run), perceived through
+    ``model``: per channel ``gain``, ``gain_rms``, ``correlation``, ``rms_error``
+    against the vehicle's perceived ``veh``; ``status`` per axis, ``solve_s``."""
+    from controllers.cue_bound import cue_bound
+    from controllers.mpc_cueing import MpcParams
+    from simpro_mj.config.cueing import washout_params
+
+    n = col["time_s"].size if "time_s" in col else len(next(iter(col.values())))
+    if n * dt > BOUND_MAX_S:
+        return {"note": f"not computed: the drive is longer than {BOUND_MAX_S:g} s", "channels": {}}
+    cue = (scenario.get("setpoint") or {}).get("cueing") or {}
+    params = washout_params(cue) if cue.get("algorithm") else None
+    if not isinstance(params, MpcParams):
+        box = {} if params is None else {
+            "heave_fraction": params.heave_fraction, "stroke_margin": params.stroke_margin
+        }  # fmt: skip
+        params = MpcParams(**box)
+    f = np.stack([col[f"veh_f{a}_mps2"] for a in "xyz"], -1)
+    w = np.stack([col[f"veh_w{a}_rad_s"] for a in "xyz"], -1)
+    b = cue_bound(f, w, dt, params)
+    sim = model.perceive(b.f, b.w, dt)
+    chans = {}
+    for name, _, _, kind, ax in CHANNELS:
+        pv = (veh.f if kind == "f" else veh.w)[:, ax]
+        ps = (sim.f if kind == "f" else sim.w)[:, ax]
+        lag, _ = mean_lag(pv, ps, dt)
+        chans[name] = {
+            "correlation": _corr(pv, ps),
+            "mean_lag_s": lag,
+            "rms_error": float(np.sqrt(np.mean((pv - ps) ** 2))),
+            **strength(pv, ps, lag, dt),
+        }
+    return {
+        "channels": chans,
+        "status": b.status,
+        "solve_s": b.solve_s,
+        "box_fraction_max": {
+            k: float(np.abs(b.pose_iso[:, i]).max() / b.limits[i])
+            for i, k in enumerate(("roll", "pitch", "heave"))
+        },
+    }
+
+
+def bound_share(ch: Mapping, b: Mapping | None) -> dict:
+    """The law's share of the bound on one channel: ``gain_share`` (its gain over the
+    bound's) and ``error_share`` (how much of the error the bound removes, against a
+    platform at rest whose head feels nothing, the law removes: ``(e_0 - e) / (e_0 -
+    e_bound)`` with ``e_0`` the RMS of the vehicle's sensation). None where undefined."""
+    if not b:
+        return {"gain_share": None, "error_share": None}
+    g, gb = ch.get("gain"), b.get("gain")
+    e0 = ch.get("vehicle_rms")
+    e, eb = ch.get("rms_error"), b.get("rms_error")
+    ok = None not in (e0, e, eb) and e0 - eb > 1e-12
+    return {
+        "gain_share": g / gb if g is not None and gb and abs(gb) > 1e-9 else None,
+        "error_share": (e0 - e) / (e0 - eb) if ok else None,
+    }
 
 
 def perceived_columns(columns: Mapping, model: VestibularModel | None = None) -> dict:
@@ -352,6 +459,8 @@ def print_cue_summary(cue: Mapping, file=None) -> None:
             f"{f(ch.get('false_cue_s'), '9.2f')}{f(ch.get('false_rotation_s'), '13.2f')}",
             file=file,
         )
+    print(file=file)
+    print_strength(cue, file=file)
     ws = cue.get("workspace") or {}
     box = ws.get("box_fraction_max") or {}
     margin = ws.get("end_stop_margin_m")
@@ -384,6 +493,45 @@ def print_cue_summary(cue: Mapping, file=None) -> None:
     )
 
 
+def print_strength(cue: Mapping, file=None) -> None:
+    """The strength table of a cueing summary: per channel the perceived gain (least
+    squares, and the RMS ratio), the RMS perceived error (m/s^2, deg/s), and beside them
+    the bound's gain and error and the law's share of it (:func:`bound_share`)."""
+
+    def f(v, fmt):
+        width = int(fmt.split(".")[0])
+        return f"{'-':>{width}}" if v is None else format(v, fmt)
+
+    bound = (cue.get("bound") or {}).get("channels") or {}
+    head = (
+        f"{'channel':<15}{'gain':>6}{'rms ratio':>10}{'rms err':>9}{'unit':>7}"
+        f"{'bound gain':>12}{'rms err':>9}{'gain share':>12}{'err share':>10}"
+    )
+    print(head, file=file)
+    print("-" * len(head), file=file)
+    for name, ch in (cue.get("channels") or {}).items():
+        deg = ch.get("unit") == "rad/s"
+        err = ch.get("rms_error_deg_s") if deg else ch.get("rms_error")
+        b = bound.get(name) or {}
+        berr = b.get("rms_error")
+        if deg and berr is not None:
+            berr = float(np.degrees(berr))
+        print(
+            f"{name:<15}{f(ch.get('gain'), '6.2f')}{f(ch.get('gain_rms'), '10.2f')}"
+            f"{f(err, '9.3f')}{'deg/s' if deg else 'm/s^2':>7}"
+            f"{f(b.get('gain'), '12.2f')}{f(berr, '9.3f')}"
+            f"{f(ch.get('gain_share'), '12.2f')}{f(ch.get('error_share'), '10.2f')}",
+            file=file,
+        )
+    note = (cue.get("bound") or {}).get("note")
+    print(
+        "(gain: least squares of the head's perceived signal on the car's at the mean lag; "
+        "bound: the best platform motion with the whole drive known, same model, cost and "
+        "limits, the car at full scale" + (f"; bound {note}" if note else "") + ")",
+        file=file,
+    )
+
+
 def perceived(columns: Mapping, model: VestibularModel | None = None):
     """(t, vehicle Perception, simulator Perception) of a cueing run's columns (for plots)."""
     model = VestibularModel() if model is None else model
@@ -411,7 +559,9 @@ def telemetry_of(columns: Mapping) -> Telemetry:
 #: two if neither does): perceived correlation (0.8 on surge, 0.85 on sway), mean lag (s),
 #: worst onset delay (s) with no onset missed, the raw head signal's wrong-sign peak at the
 #: onsets (m/s^2, the otoliths' threshold); felt false roll and pitch (s); the cueing box
-#: and the end stops; valve saturation.
+#: and the end stops; valve saturation; the perceived gain at least ``gain_share`` of the
+#: bound's (:func:`bound_share`: a cue right in shape but weaker than the platform can
+#: give misses it), where the bound was computed.
 FLOORS = {
     "correlation": {"longitudinal_f": 0.8, "lateral_f": 0.85},
     "mean_lag_s": 0.5,
@@ -420,6 +570,7 @@ FLOORS = {
     "false_rotation_s": 0.5,
     "box_fraction": 1.0,
     "valve_saturated_fraction": 0.05,
+    "gain_share": 0.8,
 }
 
 
@@ -460,6 +611,12 @@ def cue_floors(cue: Mapping) -> dict:
                 FLOORS["onset_raw_wrong_sign_peak"],
                 " m/s^2",
             )
+        share = m.get("gain_share")
+        if share is not None and share < FLOORS["gain_share"]:
+            missed.append(
+                f"{name} gain {m.get('gain'):.2f} is {share:.2f} of the bound's "
+                f"< {FLOORS['gain_share']:g}"
+            )
     for rot in ("roll_rate", "pitch_rate"):
         v = (ch.get(rot) or {}).get("false_rotation_s")
         if v is not None:
@@ -478,7 +635,8 @@ def cue_floors(cue: Mapping) -> dict:
 
 #: Cueing columns of ``simpro-sim batch``'s summary.csv (perceived correlations,
 #: false-cue times, workspace and valve usage; lags, onset delays, the raw wrong-sign
-#: peak at the onsets, felt false rotation, the MPC's p99 solve time).
+#: peak at the onsets, felt false rotation, the MPC's p99 solve time; the perceived
+#: gain, its RMS ratio, the RMS perceived error, the bound's gain and the law's shares).
 SUMMARY_COLUMNS = (
     "cue_long_corr",
     "cue_lat_corr",
@@ -504,6 +662,20 @@ SUMMARY_COLUMNS = (
     "cue_solve_p99_ms",
     "cue_floors_met",
     "cue_floors_missed",
+    "cue_long_gain",
+    "cue_lat_gain",
+    "cue_long_gain_rms",
+    "cue_lat_gain_rms",
+    "cue_long_rms_err_mps2",
+    "cue_lat_rms_err_mps2",
+    "cue_roll_rms_err_deg_s",
+    "cue_pitch_rms_err_deg_s",
+    "cue_long_bound_gain",
+    "cue_lat_bound_gain",
+    "cue_long_gain_share",
+    "cue_lat_gain_share",
+    "cue_long_error_share",
+    "cue_lat_error_share",
 )
 
 
@@ -517,6 +689,7 @@ def summary_columns(cue: Mapping) -> dict:
         return (ch.get(name) or {}).get(key)
 
     margin = ws.get("end_stop_margin_m")
+    bound = (cue.get("bound") or {}).get("channels") or {}
     floors = cue_floors(cue)
     lat = abs(g("lateral_f", "vehicle_peak") or 0.0)
     long = abs(g("longitudinal_f", "vehicle_peak") or 0.0)
@@ -546,4 +719,18 @@ def summary_columns(cue: Mapping) -> dict:
         "cue_solve_p99_ms": (cue.get("solve_time") or {}).get("p99_ms"),
         "cue_floors_met": floors["met"],
         "cue_floors_missed": "; ".join(floors["missed"]),
+        "cue_long_gain": g("longitudinal_f", "gain"),
+        "cue_lat_gain": g("lateral_f", "gain"),
+        "cue_long_gain_rms": g("longitudinal_f", "gain_rms"),
+        "cue_lat_gain_rms": g("lateral_f", "gain_rms"),
+        "cue_long_rms_err_mps2": g("longitudinal_f", "rms_error"),
+        "cue_lat_rms_err_mps2": g("lateral_f", "rms_error"),
+        "cue_roll_rms_err_deg_s": g("roll_rate", "rms_error_deg_s"),
+        "cue_pitch_rms_err_deg_s": g("pitch_rate", "rms_error_deg_s"),
+        "cue_long_bound_gain": bound.get("longitudinal_f", {}).get("gain"),
+        "cue_lat_bound_gain": bound.get("lateral_f", {}).get("gain"),
+        "cue_long_gain_share": g("longitudinal_f", "gain_share"),
+        "cue_lat_gain_share": g("lateral_f", "gain_share"),
+        "cue_long_error_share": g("longitudinal_f", "error_share"),
+        "cue_lat_error_share": g("lateral_f", "error_share"),
     }
