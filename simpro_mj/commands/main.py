@@ -49,6 +49,7 @@ COMMANDS = {
     "view": "simpro_mj.commands.view",
     "manoeuvre": "simpro_mj.commands.manoeuvre",
     "response": "simpro_mj.commands.response",
+    "omct": "simpro_mj.commands.omct",
     "live": "simpro_mj.commands.live",
     "send": "simpro_mj.commands.send",
     "list": "simpro_mj.commands.listing",

@@ -1,0 +1,260 @@
+"""The Objective Motion Cueing Test of each cueing law: vehicle -> driver's head.
+
+The OMCT (ICAO 9625, 4th ed., Attachment 2; Hosman & Advani) drives the cueing chain
+with a sine on one vehicle channel at twelve frequencies (0.1 to 15.85 rad/s, five per
+decade: :data:`controllers.frequency.OMCT_RAD_S`) and reports the gain and phase from the
+vehicle's specific force or rotation to the simulator's at the pilot's (here the
+driver's) head. ``simpro-sim response --chain`` measures it through the whole plant in
+MuJoCo, one run per frequency. This module runs it for every law side by side, fast:
+the law itself (:class:`~controllers.washout.ClassicalWashout` or
+:class:`~controllers.mpc_cueing.ModelPredictiveCueing`, with its own constraints and
+preview), then the platform loop from set-point to pose as the MPC's fitted model
+``G(s) = (T_z s + 1) w^2 / (s^2 + 2 zeta w s + w^2) e^(-s T_d)`` (docs/cueing.md: 5.0
+rad/s, 0.72, 0.31 s, 0.03 s), then a rigid cabin with the head ``h`` above the tilt
+axes (0.75 m in roll, 1.21 m in pitch)::
+
+    f_x = h_p theta'' - g sin(theta),  f_y = g sin(phi) - h_r phi'',
+    f_z = g cos(theta) cos(phi) + z'',  w_x = phi',  w_y = theta'
+
+A constrained law (the washout's rate limit, the MPC's box and jolt limits) is not
+linear: the response holds at the amplitude tested (``amplitudes``), which the result
+names.
+
+Fidelity at 1 rad/s (Sinacori 1977, revised by Schroeder 1999, NASA/TP-1999-208766):
+the gain and the phase distortion of each direct response at 1 rad/s place the law in a
+high, medium or low fidelity region (:data:`FIDELITY_REGIONS`).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+
+from controllers.frames import GRAVITY
+from controllers.frequency import CHAIN_CHANNELS, OMCT_RAD_S, fit_sine
+from controllers.geometry import HEAD_HEIGHT_PITCH, HEAD_HEIGHT_ROLL
+
+__all__ = [
+    "FIDELITY_REGIONS",
+    "OMCT_TESTS",
+    "LAWS",
+    "fidelity",
+    "law_blocks",
+    "law_response",
+    "omct",
+]
+
+#: OMCT tests a roll-pitch-heave platform has: name -> (input, output) channel.
+OMCT_TESTS = {
+    "surge": ("fx", "fx"),
+    "sway": ("fy", "fy"),
+    "heave": ("fz", "fz"),
+    "pitch": ("wy", "wy"),
+    "roll": ("wx", "wx"),
+    "pitch-to-surge": ("wy", "fx"),
+    "roll-to-sway": ("wx", "fy"),
+    "surge-to-pitch": ("fx", "wy"),
+    "sway-to-roll": ("fy", "wx"),
+}
+
+#: Fidelity regions at 1 rad/s on the plane (gain, phase distortion), as
+#: ``(name, gain_min, gain_max, phase_max_deg)``, first match wins: Sinacori's (1977)
+#: criterion as reproduced by Schroeder (1999, NASA/TP-1999-208766), the same for
+#: rotation and translation. The boundaries are read as rectangles (high: gain 0.8-1.25,
+#: phase within 10 deg; medium: gain 0.4-2.5, within 30 deg); the published ones are
+#: curved and Schroeder's revision widens them, so a law near a boundary is not judged by
+#: this table alone. Gains above 1 are treated as the mirror of those below (a cue
+#: stronger than the car's is no better than one weaker by the same factor).
+FIDELITY_REGIONS = (
+    ("high", 0.8, 1.25, 10.0),
+    ("medium", 0.4, 2.5, 30.0),
+)
+
+#: Small-signal amplitudes (SI): 0.3 m/s^2 (specific force) and 1 deg/s (rotation), those
+#: of ``response --chain``.
+AMPLITUDES = {"f": 0.3, "w": math.radians(1.0)}
+
+#: The laws tested by default, each from a shipped scenario's cueing block:
+#: name -> (scenario, parameter changes).
+LAWS = {
+    "classical_washout": ("cue_slalom", {}),
+    "mpc_causal": ("cue_braking", {"preview_s": 0.0, "lead_s": 0.0}),
+    "mpc_shipped": ("cue_braking", {}),
+}
+
+_SETTLE_S = 10.0
+_PERIODS = 2
+_DT = 0.01  # divides both laws' periods (10 and 60 ms)
+
+
+def law_blocks(names: Sequence[str] | None = None) -> dict:
+    """The cueing blocks ``{algorithm, parameters}`` of the named laws (:data:`LAWS`)."""
+    from simpro_mj.config.scenario import load_scenario
+    from simpro_mj.core.errors import UserInputError
+
+    names = list(LAWS) if names is None else list(names)
+    out = {}
+    for name in names:
+        if name not in LAWS:
+            raise UserInputError(f"invalid value at --laws: {name!r}; allowed: {list(LAWS)}")
+        scen, changes = LAWS[name]
+        cue = load_scenario(scen)["setpoint"]["cueing"]
+        out[name] = {
+            "algorithm": cue["algorithm"],
+            "parameters": {**dict(cue.get("parameters") or {}), **changes},
+            "scenario": scen,
+        }
+    return out
+
+
+def _law(block: Mapping):
+    from simpro_mj.config.cueing import washout_params
+
+    params = washout_params(block)
+    if block["algorithm"] == "mpc":
+        from controllers.mpc_cueing import ModelPredictiveCueing
+
+        return ModelPredictiveCueing(params), params
+    from controllers.washout import ClassicalWashout
+
+    return ClassicalWashout(params), params
+
+
+def _poses(block: Mapping, f: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The law's set-points (n, 3), base frame, on the ``_DT`` grid, and its home."""
+    law, params = _law(block)
+    home = np.asarray(law.geometry.home, float)
+    if block["algorithm"] == "mpc":
+        return law.run(f, w, _DT).pose, home
+    every = int(round(params.period / _DT))
+    res = law.run(f[::every], w[::every])
+    return np.repeat(res.pose, every, axis=0)[: f.shape[0]], home
+
+
+def _loop(y: np.ndarray, dt: float) -> np.ndarray:
+    """The platform loop's model (module docstring) on each column of set-points."""
+    from scipy import signal
+
+    from controllers.mpc_cueing import MpcParams
+
+    p = MpcParams()
+    w2 = p.loop_omega**2
+    sys = signal.cont2discrete(
+        ([p.loop_zero * w2, w2], [1.0, 2 * p.loop_zeta * p.loop_omega, w2]), dt, method="bilinear"
+    )
+    b, a = np.ravel(sys[0]), np.ravel(sys[1])
+    out = np.empty_like(y)
+    for k in range(y.shape[1]):
+        zi = signal.lfilter_zi(b, a) * y[0, k]
+        out[:, k] = signal.lfilter(b, a, y[:, k], zi=zi)[0]
+    delay = int(round(p.loop_delay / dt))
+    if delay:
+        out = np.vstack([np.repeat(out[:1], delay, axis=0), out[:-delay]])
+    return out
+
+
+def _head(pose_b: np.ndarray, home: np.ndarray, dt: float) -> dict:
+    """Head specific force and rates (ISO, SI) of a rigid cabin following ``pose_b``."""
+    phi, theta, z = -pose_b[:, 0], -pose_b[:, 1], pose_b[:, 2] - home[2]
+
+    def d(x, order):
+        for _ in range(order):
+            x = np.gradient(x, dt)
+        return x
+
+    return {
+        "fx": HEAD_HEIGHT_PITCH * d(theta, 2) - GRAVITY * np.sin(theta),
+        "fy": GRAVITY * np.sin(phi) - HEAD_HEIGHT_ROLL * d(phi, 2),
+        "fz": GRAVITY * np.cos(theta) * np.cos(phi) + d(z, 2),
+        "wx": d(phi, 1),
+        "wy": d(theta, 1),
+    }
+
+
+def law_response(block: Mapping, channel: str, omega: float, amplitude: float) -> dict:
+    """Complex responses (SI per SI) from the vehicle ``channel`` to every head channel at
+    ``omega`` (rad/s): a sine of ``amplitude`` after the car at rest, fitted over
+    ``_PERIODS`` whole periods after ``_SETTLE_S``."""
+    period = 2 * math.pi / omega
+    n0 = int(round(_SETTLE_S / _DT))
+    n1 = n0 + int(round(_PERIODS * period / _DT))
+    t = _DT * np.arange(n1 + 1)
+    f = np.zeros((t.size, 3))
+    w = np.zeros((t.size, 3))
+    f[:, 2] = GRAVITY
+    k = "xyz".index(channel[1])
+    (f if channel[0] == "f" else w)[:, k] += amplitude * np.sin(omega * t)
+    pose, home = _poses(block, f, w)
+    head = _head(_loop(pose, _DT), home, _DT)
+    sl = slice(n0, n1)
+    ref = fit_sine(t[sl], (f if channel[0] == "f" else w)[sl, k], omega)
+    return {c: complex(fit_sine(t[sl], head[c][sl], omega)) / ref for c in CHAIN_CHANNELS}
+
+
+def fidelity(gain: float, phase_deg: float) -> str:
+    """The region (:data:`FIDELITY_REGIONS`) of a response's gain and phase at 1 rad/s."""
+    distortion = abs((phase_deg + 180.0) % 360.0 - 180.0)  # whatever the branch
+    for name, lo, hi, ph in FIDELITY_REGIONS:
+        if lo <= gain <= hi and distortion <= ph:
+            return name
+    return "low"
+
+
+def _edge(channel: str) -> float:
+    return 1.0 if channel[0] == "f" else math.pi / 180.0
+
+
+def omct(laws: Mapping, omegas: Sequence[float] = OMCT_RAD_S, amplitudes=None, progress=None):
+    """The OMCT of each law: rows (law, test, omega, gain, phase) for every test of
+    :data:`OMCT_TESTS`, and per law the fidelity of each direct test at 1 rad/s.
+
+    ``laws``: name -> cueing block (:func:`law_blocks`). Gains in edge units (m/s^2 per
+    m/s^2, deg/s per deg/s; mixed for the cross-couplings); phases unwrapped along the
+    frequencies from the lowest.
+    """
+    amps = dict(AMPLITUDES, **(amplitudes or {}))
+    rows, verdicts = [], {}
+    for name, block in laws.items():
+        h = {}
+        for cin in sorted({c for c, _ in OMCT_TESTS.values()}):
+            for om in omegas:
+                h[cin, om] = law_response(block, cin, om, amps[cin[0]])
+                if progress:
+                    progress()
+        verdicts[name] = {}
+        for test, (cin, cout) in OMCT_TESTS.items():
+            resp = np.array([h[cin, om][cout] for om in omegas])
+            phase = np.degrees(np.unwrap(np.angle(resp)))
+            # the branch nearest 0 at the lowest frequency for the direct tests
+            if cin == cout:
+                phase -= 360.0 * round(phase[0] / 360.0)
+            for om, r, ph in zip(omegas, resp, phase, strict=True):
+                g = abs(r) * _edge(cin) / _edge(cout)
+                rows.append(
+                    {
+                        "law": name,
+                        "test": test,
+                        "input": cin,
+                        "output": cout,
+                        "omega_rad_s": float(om),
+                        "frequency_hz": float(om / (2 * math.pi)),
+                        "gain": float(g),
+                        "gain_db": 20 * math.log10(max(g, 1e-300)),
+                        "phase_deg": float(ph),
+                    }
+                )
+                if cin == cout and abs(om - 1.0) < 1e-9:
+                    verdicts[name][test] = {
+                        "gain": float(g),
+                        "phase_deg": float(ph),
+                        "fidelity": fidelity(g, ph),
+                    }
+    return {
+        "rows": rows,
+        "fidelity_at_1_rad_s": verdicts,
+        "amplitudes": {"f_mps2": amps["f"], "w_deg_s": math.degrees(amps["w"])},
+        "laws": {k: {kk: v for kk, v in b.items()} for k, b in laws.items()},
+        "chain": "law -> platform loop model (5.0 rad/s, 0.72, 0.31 s, 0.03 s) -> rigid cabin",
+    }
