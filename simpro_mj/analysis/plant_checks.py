@@ -40,7 +40,7 @@ import numpy as np
 from simpro_mj.plant.model import load_model
 from simpro_mj.plant.platform import Platform
 from simpro_mj.plant.pneumatics.factory import make_actuators
-from simpro_mj.plant.step_functions import A_PS
+from simpro_mj.plant.step_functions import A_PS, A_T, AC_AW
 
 __all__ = ["Check", "check_plant", "table"]
 
@@ -164,32 +164,46 @@ def _sealed(scenario: dict):
 
 
 def sealed_chamber_energy(scenario: dict, amplitude: float = 0.1, hz: float = 1.0) -> Check:
-    """Net work on a sealed chamber over one compression cycle, over the work put in."""
+    """The first law over one compression cycle of a sealed cap-side chamber:
+    work done on the gas plus heat from the wall less the change of its internal
+    energy ``p V / (γ - 1)``, over the largest work stored in the cycle."""
     act = _sealed(scenario)
     P, dt = act.params, 1e-3
+    ac, st = act.step_constants, act.step_state
     q_mid = 0.5 * P.stroke
     act.reset(np.full(3, q_mid), np.zeros(3))
     act.spool[:] = 0.0
+    energy = P.thermal_model == "energy"
+    gamma = P.gamma if energy else P.n_poly
+    aw0, awv = float(ac[AC_AW]), float(ac[AC_AW + 1])
     w = 2.0 * math.pi * hz
     n = int(round(1.0 / (hz * dt)))
-    net, stored = 0.0, 0.0
-    for k in range(n):
-        t = (k + 0.5) * dt
+    v_start = float(P.dead_cap[0] + P.area_cap * q_mid)
+    u_start = float(act.p1[0]) * v_start / (gamma - 1.0)
+    work = heat = stored = 0.0
+    for k in range(n):  # the state at the step's start, as the co-simulation passes it
+        t = k * dt
         q = q_mid + amplitude * math.sin(w * t)
         qd = amplitude * w * math.cos(w * t)
-        p1 = act.p1[0]
+        p1, t1 = float(act.p1[0]), float(st[A_T])
         act.step([5.0] * 3, [q] * 3, [qd] * 3, dt)
-        p_mean = 0.5 * (p1 + act.p1[0])
-        dw = -p_mean * P.area_cap * qd * dt  # work done on the cap-side gas
-        net += dw
-        stored = max(stored, abs(net))
+        dvol = P.area_cap * (amplitude * math.sin(w * (t + dt)) - (q - q_mid))
+        work += -0.5 * (p1 + float(act.p1[0])) * dvol  # on the gas
+        if energy:  # heat from the wall over the step, at the step's mean temperature
+            vol = P.dead_cap[0] + P.area_cap * (q + 0.5 * dvol / P.area_cap)
+            t_mean = 0.5 * (t1 + float(st[A_T]))
+            heat += P.heat_transfer * (aw0 + awv * vol) * (P.temperature - t_mean) * dt
+        stored = max(stored, abs(work))
+    du = float(act.p1[0]) * v_start / (gamma - 1.0) - u_start
+    kind = "energy equation, wall heat" if energy else f"polytropic n = {P.n_poly:g}, no heat"
     return Check(
-        f"sealed chamber energy (cap side, +-{amplitude * 1e3:g} mm at {hz:g} Hz)",
-        100.0 * net / stored,
+        f"sealed chamber energy (cap side, +-{amplitude * 1e3:g} mm at {hz:g} Hz, {kind})",
+        100.0 * (work + heat - du) / stored,
         0.0,
-        1.0,
+        3.0,
         "% of the work stored",
-        "first law: an adiabatic sealed chamber gives back the work put into it",
+        "first law: work in + heat in = the gas's internal energy gained; the 1 ms "
+        "step's first-order volume term leaves about 2 % (0.65 % at 1/8 ms)",
     )
 
 

@@ -52,9 +52,7 @@ def kernel_choice() -> str:
     if value == "auto":
         return "numba" if _HAVE_NUMBA else "python"
     if value == "numba" and not _HAVE_NUMBA:
-        raise UserInputError(
-            "SIMPRO_KERNEL=numba but numba is not installed: pip install numba"
-        )
+        raise UserInputError("SIMPRO_KERNEL=numba but numba is not installed: pip install numba")
     return value
 
 

@@ -39,16 +39,22 @@ SC_WALK, SC_ACCW, SC_ALPHA, SC_IMU_EVERY, SC_IDT2, SC_LEN = 19, 20, 21, 22, 24, 
 SS_IMU, SS_WALK, SS_HIST, SS_HN, SS_LEN = 0, 2, 4, 10, 11
 
 # actuator state ast: chamber pressures p1 (3), p2 (3), spool (3), spool rate (3), each
-# ψ-table edge's last cell (12), the supply pressure, the linear model's φ (3), force bounds
-A_P, A_SPOOL, A_RATE, A_CELL, A_PS, A_PHI, A_FMIN, A_FMAX, A_LEN = 0, 6, 9, 12, 24, 25, 28, 29, 30
+# ψ-table edge's last cell (12), the supply pressure, the linear model's φ (3), force bounds,
+# the chamber gas temperatures (6; the energy model's, 0: the wall's)
+A_P, A_SPOOL, A_RATE, A_CELL, A_PS, A_PHI, A_FMIN, A_FMAX, A_T = 0, 6, 9, 12, 24, 25, 28, 29, 30
+A_LEN = 36
 # actuator constants ac (the actuator classes' step_constants): both kinds', then the kind's own
 AC_KIND, AC_PA, AC_A1, AC_A2, AC_AR = 0, 1, 2, 3, 4
 # nonlinear
 AC_RTK, AC_EPS, AC_HN, AC_ALPHA, AC_ORDER, AC_NSUB, AC_NTAB = 5, 6, 7, 8, 9, 10, 11
 # per leg the seal friction (breakaway, Coulomb, Stribeck velocity, viscous, v_reg: 5 x 3),
 # the second-order spool (6), the underlaps (3), per chamber V0, dV/dq, V_min (6 x 3),
-# the ψ table (grid, values, slopes)
-AC_FRIC, AC_AD, AC_DELTA, AC_CH, AC_TAB = 12, 27, 33, 36, 54
+# the energy model (TH_*: 7), per chamber the wall
+# area's constant and volume terms (6 x 2), the ψ table (grid, values, slopes)
+AC_FRIC, AC_AD, AC_DELTA, AC_CH, AC_TH, AC_AW, AC_TAB = 12, 27, 33, 36, 54, 61, 73
+# the energy model's constants: on (1) or polytropic (0), γ, R, k (kg/(s Pa)), the wall's
+# temperature (K; the supply's and the atmosphere's too), h_w (W/(m^2 K)), the sub-step (s)
+TH_ON, TH_GAMMA, TH_R, TH_K, TH_TW, TH_HW, TH_H = 0, 1, 2, 3, 4, 5, 6
 # linear (eq. 19): b, a0, exp(-a1 dt), its integral, u_hold, F_hold, q_0, M_q, D_q, K_q,
 # saturate, the display pressures at rest p10, p20
 AC_LB, AC_LA0, AC_EA, AC_IA, AC_UHOLD, AC_FHOLD, AC_Q0 = 5, 8, 11, 14, 17, 20, 23
@@ -267,14 +273,85 @@ def chamber_pressures(q, qd, ast, ac):
         ast[A_P + c] = pc
 
 
+def chamber_energy(q, qd, ast, ac):
+    """The six chambers over the step with the energy equation and wall heat transfer.
+
+    Per chamber of volume ``V`` and gas temperature ``T`` (Richer & Hurmuzlu 2000,
+    eq. 9 with its heat term; Carneiro & de Almeida 2006):
+    ``V ṗ = γ R (T_in ṁ_in - T ṁ_out) - γ p V̇ + (γ - 1) h_w A_w (T_w - T)``,
+    ``ṁ = k G (p_up - p_down)`` through each edge (``G = a ψ(r)``, as
+    :func:`chamber_pressures`), air entering at the supply's (or the
+    atmosphere's) temperature, leaving at the chamber's; the wall area
+    ``A_w = A_0 + A_V V`` (both ends and the barrel wetted over the chamber's
+    length). Linearly implicit in ``p`` like :func:`chamber_pressures`; the
+    chamber's mass ``m = p V / (R T)`` then takes the step's flows and gives
+    the new ``T = p V⁺ / (R m)``. Charging is near adiabatic, discharging
+    cools the gas and the wall warms it back: the polytropic index of the
+    other model emerges instead of being chosen.
+    """
+    eps = ac[AC_EPS]
+    ps, pa = ast[A_PS], ac[AC_PA]
+    ips = 1.0 / ps
+    nsub = int(ac[AC_NSUB])
+    n = int(ac[AC_NTAB])
+    th = AC_TH
+    gam, rg, kk = ac[th + TH_GAMMA], ac[th + TH_R], ac[th + TH_K]
+    tw, hw = ac[th + TH_TW], ac[th + TH_HW]
+    h = ac[th + TH_H]
+    for c in range(6):
+        i = c % 3
+        sp = ast[A_SPOOL + i]
+        d = ac[AC_DELTA + i]
+        ap, am = clip(sp + d, eps, 1.0), clip(d - sp, eps, 1.0)
+        if c < 3:
+            a_s, a_e = ap, am
+        else:
+            a_s, a_e = am, ap
+        v0 = ac[AC_CH + 3 * c]
+        dv = ac[AC_CH + 3 * c + 1]
+        V = v0 + dv * q[i]
+        if V < ac[AC_CH + 3 * c + 2]:
+            V = ac[AC_CH + 3 * c + 2]
+        vdot = dv * qd[i]
+        aw = ac[AC_AW + 2 * c] + ac[AC_AW + 2 * c + 1] * V
+        pc = ast[A_P + c]
+        tc = ast[A_T + c]
+        if not tc > 0.0:
+            tc = tw
+        for _ in range(nsub):
+            psi_s = _psi(pc * ips if pc <= ps else ps / pc, c, ast, ac, n)
+            psi_e = _psi(pa / pc if pc >= pa else pc / pa, c + 6, ast, ac, n)
+            g_s = a_s * psi_s * kk
+            g_e = a_e * psi_e * kk
+            t_s = tw if pc <= ps else tc  # the supply is at the wall's temperature
+            t_e = tc if pc >= pa else tw
+            c_s = h * gam * rg * t_s * g_s / V
+            c_e = h * gam * rg * t_e * g_e / V
+            heat = h * (gam - 1.0) * hw * aw * (tw - tc) / V
+            den = 1.0 + c_s + c_e + h * gam * vdot / V
+            if den < 0.5:
+                den = 0.5
+            p_new = (pc + c_s * ps + c_e * pa + heat) / den
+            m = pc * V / (rg * tc) + h * (g_s * (ps - p_new) + g_e * (pa - p_new))
+            V = V + h * vdot
+            pc = p_new
+            tc = pc * V / (rg * m) if m > 0.0 else tw
+        ast[A_P + c] = pc
+        ast[A_T + c] = tc
+
+
 def nonlinear_step(u, q, qd, ast, ac, f):
     """Valves, chambers and the net slide forces ``f`` (3,) N for one step.
 
     ``F = p1 A1 - p2 A2 - p_a A_r - F_f(q̇)``, the seal friction ``F_f`` of
-    :func:`simpro_mj.plant.friction.seal_friction`.
+    :func:`simpro_mj.plant.friction.seal_friction`; the chambers polytropic
+    (:func:`chamber_pressures`) or with the energy equation (:func:`chamber_energy`).
     """
     valve_spool(u, ast, ac)
-    chamber_pressures(q, qd, ast, ac)
+    if ac[AC_TH + TH_ON] != 0.0:
+        chamber_energy(q, qd, ast, ac)
+    else:
+        chamber_pressures(q, qd, ast, ac)
     slide_forces(qd, ast, ac, f)
 
 

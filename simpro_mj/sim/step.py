@@ -295,7 +295,8 @@ _PLAIN = [
     cs.outer_update, cs.ff_inner,
     ps.slide_states, ps.platform_pose, ps.loop_closure, ps.clip, ps.quantise, accel_tilt,
     pot_nonlinearity, ps.imu_input, ps.sample_sensors,
-    seal_friction, ps._psi, ps.valve_spool, ps.chamber_pressures, ps.slide_forces,
+    seal_friction, ps._psi, ps.valve_spool, ps.chamber_pressures, ps.chamber_energy,
+    ps.slide_forces,
     ps.nonlinear_step, ps.linear_step,
     sense, control, actuate, record, apply_forces, callback_step,
 ]  # fmt: skip

@@ -143,7 +143,23 @@ class NonlinearActuators(ArrayStep):
         fric = [P.breakaway, P.coulomb, np.full(3, P.v_stribeck), P.viscous, np.full(3, v_reg)]
         ac[sf.AC_FRIC : sf.AC_AD] = np.transpose(fric).ravel()
         ac[sf.AC_DELTA : sf.AC_DELTA + 3] = P.underlap
-        ac[sf.AC_CH : sf.AC_TAB] = np.transpose([v0, dvdq, vmin]).ravel()
+        ac[sf.AC_CH : sf.AC_TH] = np.transpose([v0, dvdq, vmin]).ravel()
+        # the energy model (sf.chamber_energy): wall area A_0 + A_V V per chamber, both
+        # ends plus the barrel (and, rod side, the rod) wetted over the length V / A
+        th = sf.AC_TH
+        ac[th + sf.TH_ON] = 1.0 if P.thermal_model == "energy" else 0.0
+        ac[th + sf.TH_GAMMA], ac[th + sf.TH_R], ac[th + sf.TH_K] = P.gamma, P.gas_constant, self._kc
+        ac[th + sf.TH_TW], ac[th + sf.TH_HW] = P.temperature, P.heat_transfer
+        bore = 2.0 * math.sqrt(P.area_cap / math.pi)
+        rod = 2.0 * math.sqrt(P.area_rod / math.pi)
+        a0 = np.concatenate([np.full(3, 2 * P.area_cap), np.full(3, 2 * P.area_rod_side)])
+        av = np.concatenate(
+            [
+                np.full(3, math.pi * bore / P.area_cap),
+                np.full(3, math.pi * (bore + rod) / P.area_rod_side),
+            ]
+        )
+        ac[sf.AC_AW : sf.AC_TAB] = np.transpose([a0, av]).ravel()
         # the ψ table: grid, values and the slope of each cell (np.interp's)
         ac[sf.AC_TAB : sf.AC_TAB + n] = self._xp
         ac[sf.AC_TAB + n : sf.AC_TAB + 2 * n] = self._fp
@@ -164,6 +180,7 @@ class NonlinearActuators(ArrayStep):
         P, ac = self.params, self.step_constants
         self._dt = dt
         ac[sf.AC_HN] = dt / P.substeps * P.n_poly
+        ac[sf.AC_TH + sf.TH_H] = dt / P.substeps
         w = P.spool_omega
         if P.spool_order == 1:
             ac[sf.AC_ALPHA] = -math.expm1(-w * dt)
@@ -265,6 +282,7 @@ class NonlinearActuators(ArrayStep):
         self.p2[:] = p2
         self.spool[:] = s
         self.spool_rate[:] = 0.0
+        self.step_state[sf.A_T : sf.A_T + 6] = self.params.temperature  # at the wall's
         self.u_hold[:] = U_CENTRE + 5.0 * s
 
     def force_now(self, qdot) -> np.ndarray:

@@ -24,6 +24,7 @@ __all__ = [
     "DEFAULT_PNEUMATIC_PARAMS",
     "ACTUATOR_KINDS",
     "FRICTION_MODELS",
+    "THERMAL_MODELS",
     "U_CENTRE",
     "U_MAX",
     "PneumaticParams",
@@ -39,6 +40,9 @@ ACTUATOR_KINDS = ("nonlinear", "linear")
 #: ``cylinder.friction_model``'s values (:mod:`simpro_mj.plant.friction`)
 FRICTION_MODELS = ("stick", "regularised")
 
+#: ``thermal.model``'s values (:func:`simpro_mj.plant.step_functions.chamber_energy`)
+THERMAL_MODELS = ("polytropic", "energy")
+
 #: Parameters of the actuators, edge units in the key names. Per-leg values
 #: are lists [leg1, leg2, leg3]; a scalar applies to all three legs.
 DEFAULT_PNEUMATIC_PARAMS: dict = {
@@ -52,6 +56,20 @@ DEFAULT_PNEUMATIC_PARAMS: dict = {
     # 125 mm chamber (seconds), Richer & Hurmuzlu 2000 sec. 2.2. Calibrated
     # (the stiffest physical choice, see docs/paper-notes.md (pneumatics)).
     "polytropic_index": 1.4,
+    # The chamber gas: "polytropic", p V^n with polytropic_index and the gas at
+    # temperature_c (the calibrated paper preset's); "energy", each chamber's energy
+    # equation with its temperature as a state and heat exchanged with the wall at
+    # temperature_c (simpro_mj.plant.step_functions.chamber_energy; Richer & Hurmuzlu
+    # 2000, Carneiro & de Almeida 2006): charging near adiabatic, discharging cooler,
+    # the polytropic behaviour emerging from the heat flow
+    "thermal": {
+        "model": "polytropic",
+        "ratio_of_specific_heats": 1.4,  # dry air
+        # convective coefficient gas-to-wall (assumption: forced convection of a
+        # charging chamber is tens of W/(m^2 K); the effect of 10 and 100 is shown in
+        # docs/paper-notes.md, chamber thermodynamics)
+        "heat_transfer_w_per_m2_k": 30.0,
+    },
     "cylinder": {
         # DNC-125-500 (ISO 15552): bore 125 mm, stroke 500 mm (type code)
         "bore_mm": 125.0,
@@ -277,6 +295,9 @@ class PneumaticParams:
     v_stribeck: float  # m/s
     v_smooth: float  # m/s, the regularising velocity of the seal friction
     friction_model: str  # "stick" or "regularised"
+    thermal_model: str  # "polytropic" or "energy"
+    gamma: float  # ratio of specific heats
+    heat_transfer: float  # W/(m^2 K)
     conductance: float  # m^3/(s Pa)
     b_crit: float
     r_laminar: float
@@ -361,6 +382,9 @@ class PneumaticParams:
             v_stribeck=_scalar(t, "cylinder.stribeck_velocity_mm_per_s", 0.0) * 1e-3,
             v_smooth=_scalar(t, "cylinder.coulomb_smoothing_mm_per_s", 0.0) * 1e-3,
             friction_model=_choice(t, "cylinder.friction_model", FRICTION_MODELS),
+            thermal_model=_choice(t, "thermal.model", THERMAL_MODELS),
+            gamma=_scalar(t, "thermal.ratio_of_specific_heats", 1.0, 1.67, open_lo=True),
+            heat_transfer=_scalar(t, "thermal.heat_transfer_w_per_m2_k", 0.0, 1e4, open_lo=False),
             conductance=_scalar(t, "valve.sonic_conductance_dm3_per_s_bar", 0.0) * 1e-3 / 1e5,
             b_crit=_scalar(t, "valve.critical_pressure_ratio", 0.0, 0.528, open_lo=False),
             r_laminar=_scalar(t, "valve.laminar_pressure_ratio", 0.9, 0.99999),
