@@ -11,10 +11,14 @@ import math
 
 import pytest
 
-from simpro_mj.batch.bench import STAGES, measure
+from simpro_mj.commands.bench import harness
 from simpro_mj.commands.main import main
 from simpro_mj.config.scenario import load_scenario
 from simpro_mj.core.errors import UserInputError
+
+#: benchmarks/step_cost.py, as the command loads it
+bench = harness()
+STAGES, measure = bench.STAGES, bench.measure
 
 
 @pytest.fixture(scope="module")
@@ -57,7 +61,7 @@ def test_run_command_figure_is_null_when_the_scenario_cannot_last():
         "setpoint.heave_mm=[{type: ramp, start_s: 0.2, end_s: 40, value: 400}]"])  # fmt: skip
     r = measure(scenario, repeats=1, batch=False)
     assert r["run_command_us"] is None and r["run_command_ratio"] is None
-    from simpro_mj.batch.bench import table
+    table = bench.table
 
     assert "cannot last 41 s" in table(r)
 
@@ -123,7 +127,7 @@ def test_user_errors_are_one_line(argv, field, capsys):
 def test_separate_commands_time_whole_processes():
     """One pair of whole run commands (0.6 s and 0.3 s) after an untimed one: the
     per-step difference, wall and CPU, with their spread."""
-    from simpro_mj.batch.bench import separate_commands
+    separate_commands = bench.separate_commands
 
     r = separate_commands("step_pitch", ["controller.mode=joint_only"], 1, [8.0, 10.0], (0.6, 0.3))
     assert r["pairs"] == 1 and r["durations_s"] == [0.6, 0.3]
@@ -139,7 +143,19 @@ def test_separate_commands_time_whole_processes():
 
 
 def test_separate_commands_name_a_failing_command():
-    from simpro_mj.batch.bench import separate_commands
+    separate_commands = bench.separate_commands
 
     with pytest.raises(UserInputError, match="the run command failed: .*no_such"):
         separate_commands("no_such_scenario", [], 1, [8.0], (0.6, 0.3))
+
+
+def test_without_a_checkout_bench_refuses_in_one_line(tmp_path, monkeypatch, capsys):
+    """An installed wheel carries no benchmarks/: bench names the folder it needs."""
+    import simpro_mj.commands.bench as command
+
+    monkeypatch.setattr(command, "HARNESS", tmp_path / "nowhere" / "step_cost.py")
+    monkeypatch.delitem(command.sys.modules, command.HARNESS_MODULE)
+    monkeypatch.chdir(tmp_path)
+    assert main(["bench", "--duration", "0.1", "--repeats", "1", "--no-batch"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and "step_cost.py" in err and "allowed: run it from a clone" in err

@@ -1,13 +1,19 @@
 """``simpro-sim bench [SCENARIO]``: the cost of one co-simulation step.
 
-The measurements are :mod:`simpro_mj.batch.bench` (``--video``:
-:func:`simpro_mj.batch.bench.measure_video`); ``docs/performance.md`` holds the figures.
+The measurements are ``benchmarks/step_cost.py`` of a checkout (``--video``: its
+``measure_video``), outside the package: no run needs them. The command finds that
+folder beside the package (an editable install) or in the current folder (a clone);
+an installed wheel alone refuses with one line. ``docs/performance.md`` holds the
+figures.
 """
 
 from __future__ import annotations
 
+import importlib.util
 import math
 import sys
+from pathlib import Path
+from types import ModuleType
 
 from simpro_mj.config.scenario import load_scenario
 from simpro_mj.core.errors import UserInputError
@@ -17,6 +23,11 @@ from simpro_mj.core.keys import value_text
 #: Upper bounds of the counts (a benchmark of the median of 100 is already minutes).
 MAX_REPEATS = 100
 MAX_BATCH_RUNS = 64
+
+#: the harness, relative to a checkout's top folder
+HARNESS = Path("benchmarks") / "step_cost.py"
+#: its name in ``sys.modules`` (the folder is not an installed package)
+HARNESS_MODULE = "simpro_benchmarks_step_cost"
 
 HELP = "time the co-simulation step against bare mj_step, per stage, and batch throughput"
 
@@ -56,6 +67,36 @@ def add_arguments(parser) -> None:
     )
 
 
+def harness() -> ModuleType:
+    """The benchmark harness of the checkout, loaded once.
+
+    Raises
+    ------
+    UserInputError
+        When neither the package's checkout nor the current folder holds it.
+    """
+    if HARNESS_MODULE in sys.modules:
+        return sys.modules[HARNESS_MODULE]
+    places = (Path(__file__).resolve().parents[2], Path.cwd())  # the package's, the user's
+    found = [p / HARNESS for p in places if (p / HARNESS).is_file()]
+    if not found:
+        raise UserInputError(
+            f"bench needs {HARNESS.as_posix()} of a simpro-sim checkout, found neither beside "
+            "the package nor in the current folder; allowed: run it from a clone of the "
+            "repository (or install it with pip install -e)"
+        )
+    spec = importlib.util.spec_from_file_location(HARNESS_MODULE, found[0])
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[HARNESS_MODULE] = module
+    try:
+        spec.loader.exec_module(module)
+    except BaseException:
+        del sys.modules[HARNESS_MODULE]
+        raise
+    return module
+
+
 def _positive_int(value, field: str, hi: int, lo: int = 1) -> int:
     text = str(value).strip()
     n = int(text) if text.isdigit() and len(text) <= 9 else -1
@@ -89,33 +130,28 @@ def run(args) -> int:
     scenario = load_scenario(args.scenario, sets)
     # the measurements load MuJoCo: only once the input is known good (a mistake is
     # refused within a second)
-    from simpro_mj.batch.bench import (
-        measure,
-        measure_video,
-        separate_commands,
-        table,
-        video_table,
-    )
-
+    bench = harness()
     if args.video:
         if args.duration is None:
             scenario["duration_s"] = 20.0
-        result = measure_video(scenario, progress=not args.json)
+        result = bench.measure_video(scenario, progress=not args.json)
         if args.json:
             emit_json(result)
         else:
-            print(video_table(result))
+            print(bench.video_table(result))
         return 0
     progress = None if args.json or args.quiet else (lambda msg: print(f"  {msg}", file=sys.stderr))
     # SIGTERM: exit 130 like Ctrl-C (commands.main), workers stopped
-    result = measure(scenario, repeats, batch=not args.no_batch, batch_runs=runs, log=progress)
+    result = bench.measure(
+        scenario, repeats, batch=not args.no_batch, batch_runs=runs, log=progress
+    )
     if pairs:
         bare = result["samples"]["bare_step_us"]
-        result["separate_commands"] = separate_commands(
+        result["separate_commands"] = bench.separate_commands(
             args.scenario, list(args.sets), pairs, bare, log=progress
         )
     if args.json:
         emit_json(result)
     else:
-        print(table(result))
+        print(bench.table(result))
     return 0
