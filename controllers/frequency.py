@@ -82,7 +82,7 @@ OMCT_RAD_S = tuple(10.0 ** (k / 5.0) for k in range(-5, 7))
 RESPONSE_MODES = ("joint_only", "I", "PI", "feedforward")
 
 
-def fit_sine(t, y, omega: float, trend: bool = True) -> complex:
+def fit_sine(t, y, omega: float, trend: bool = True) -> complex | np.ndarray:
     """Complex amplitude ``Y`` of ``y(t) ~ c0 + c1 t + Re(Y e^{j omega t})`` (least squares).
 
     Parameters
@@ -178,7 +178,7 @@ class LoopModel:
     imu_every: int = 1
     velocity_ff: np.ndarray = field(default_factory=lambda: np.zeros(3))
     model_tau: float = 0.0
-    setpoint_filter: tuple | None = None
+    setpoint_filter: tuple | list | None = None
     lag: str = "model"
     average: bool = False
 
@@ -209,7 +209,7 @@ def _leg_loops(model: LoopModel):
     import control as ct
 
     legs = []
-    filters = model.setpoint_filter
+    filters: tuple | list | None = model.setpoint_filter
     if filters is not None and not isinstance(filters, list):
         filters = [filters] * len(model.plants)  # one (A, B, C, D) for every leg
     for i, (plant, design) in enumerate(zip(model.plants, model.designs, strict=True)):
@@ -281,7 +281,7 @@ def predict(model: LoopModel, omega) -> dict:
     e_imu = np.diag([1.0, 1.0, 0.0])
     legs = _leg_loops(model)
     imu = _imu_filter(model)
-    filters = model.setpoint_filter
+    filters: tuple | list | None = model.setpoint_filter
     if filters is not None and not isinstance(filters, list):
         filters = [filters] * 3
     sf_sys = None if filters is None else [ct.ss(*f, dt) for f in filters]
@@ -319,6 +319,7 @@ def predict(model: LoopModel, omega) -> dict:
         if model.mode == "joint_only":
             h = direct
         else:
+            assert slow is not None  # built above for every mode but joint_only
             zs = np.exp(1j * w * T)
             pg = np.array([_eval(lg, zs) for lg, _ in slow])
             pf = np.array([_eval(lf, zs) for _, lf in slow])

@@ -277,5 +277,6 @@ class JointControllers:
         e = np.broadcast_to(np.asarray(q_ref, float) - np.asarray(q_meas, float), (3,))
         f = np.broadcast_to(np.asarray(0.0 if u_ff is None else u_ff, float), (3,))
         v = np.zeros(3)
-        joint_step(self._x, self.step_constants, *e.tolist(), *f.tolist(), v)
+        (e0, e1, e2), (f0, f1, f2) = e.tolist(), f.tolist()
+        joint_step(self._x, self.step_constants, e0, e1, e2, f0, f1, f2, v)
         return v

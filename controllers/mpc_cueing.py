@@ -296,8 +296,8 @@ class MpcStream:
         self.box, self.geometry = law.box, law.geometry
         self.last_rate_limited = self.last_softened = False
         self._k = 0
-        self._u = None
-        self._held = None
+        self._u: np.ndarray | None = None
+        self._held: tuple[np.ndarray, np.ndarray] = (np.zeros(3), np.zeros(3))
 
     def step(self, f, w) -> np.ndarray:
         """Vehicle ``f``, ``w`` (3,) now -> the set-point (roll, pitch, h) in B (3,)."""
@@ -311,6 +311,7 @@ class MpcStream:
             self._held = (f.copy(), w.copy())
             self._u = law.solve(np.tile(f, (N, 1)), np.tile(w, (N, 1)))
         self._k += 1
+        assert self._u is not None  # solved at k = 0
         return law._pose(self._u, np.array([j * self.dt]), self.dt)[0]
 
 
@@ -362,6 +363,7 @@ class _Axis:
         rows["f"] = (e_f, np.zeros(3))
         rows["raw"] = (fh.copy(), np.array([0.0, -1.0, 0.0]))
         if nc:
+            assert ca is not None and cb is not None and cc is not None and cd is not None
             c = slice(3 + no_, 3 + no_ + nc)
             v = slice(3 + no_ + nc, n)
             rate = np.zeros(n)
@@ -545,14 +547,14 @@ class ModelPredictiveCueing:
 
         self._P = block_diag(*blocks_p)
         self._A = block_diag(*blocks_a)
-        felt = []
+        felt_rows = []
         for pr in self._pred:
-            rows = np.zeros((N, pr["rows"]), bool)
+            mask = np.zeros((N, pr["rows"]), bool)
             for r in (pr["felt"], pr["jolt"]):
                 if r is not None:
-                    rows[:, r] = True
-            felt.append(rows.ravel())
-        self._felt_rows = np.concatenate(felt)
+                    mask[:, r] = True
+            felt_rows.append(mask.ravel())
+        self._felt_rows = np.concatenate(felt_rows)
 
     def reset(self) -> None:
         """Back to rest: the platform at home, the perception errors at zero."""
@@ -595,13 +597,12 @@ class ModelPredictiveCueing:
         """One QP: the vehicle input over the horizon (N, 3) each -> the N jerks per axis
         (3, N); records the solve's wall time and status."""
         N = self.N
-        q = []
-        lo, hi = [], []
+        q_parts, lo_parts, hi_parts = [], [], []
         for k, pr in enumerate(self._pred):
             d = self._d(f_future, w_future, k)
             free = pr["phi"] @ self._x[k] + pr["psi"] @ d  # X without the jerks
             yfree = pr["CY"] @ free + pr["DY"] @ d
-            q.append(2.0 * pr["G"].T @ yfree)
+            q_parts.append(2.0 * pr["G"].T @ yfree)
             sfree = pr["S"] @ free
             low, high = -np.ones(sfree.size), np.ones(sfree.size)
             if pr["veh"] is not None:  # the vehicle's felt rotation (free of the jerks)
@@ -621,10 +622,10 @@ class ModelPredictiveCueing:
                 j = pr["jolt"]
                 low[j :: pr["rows"]] = np.where(target > thr, -1.0, -np.inf)
                 high[j :: pr["rows"]] = np.where(target < -thr, 1.0, np.inf)
-            lo.append(low - sfree)
-            hi.append(high - sfree)
-        q = np.concatenate(q)
-        lo, hi = np.concatenate(lo), np.concatenate(hi)
+            lo_parts.append(low - sfree)
+            hi_parts.append(high - sfree)
+        q = np.concatenate(q_parts)
+        lo, hi = np.concatenate(lo_parts), np.concatenate(hi_parts)
         # infeasible bounds (a state already outside, e.g. after a limit change) are opened
         bad = lo > hi
         lo[bad], hi[bad] = -np.inf, np.inf

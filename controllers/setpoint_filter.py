@@ -71,9 +71,9 @@ def filter_state_space(kind: str, dt: float, time: float):
         return np.zeros((0, 0)), np.zeros((0, 1)), np.zeros((1, 0)), np.ones((1, 1))
     if kind in ("first_order", "zero_cancel"):
         tau = time if kind == "first_order" else 1.0 / PAPER_KI
-        a, b = _first_order(tau, dt)
+        pole, gain = _first_order(tau, dt)
         # y[k] is the output used at step k: y[k] = a y[k-1] + b u[k] -> state y[k-1]
-        return np.array([[a]]), np.array([[b]]), np.array([[a]]), np.array([[b]])
+        return np.array([[pole]]), np.array([[gain]]), np.array([[pole]]), np.array([[gain]])
     if kind == "ramp":
         n = max(1, int(round(time / dt)))
         if n == 1:

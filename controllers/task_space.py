@@ -284,7 +284,8 @@ class TaskSpaceController:
         if self.mode == "feedforward" and self.lag == "joints" and q_meas is None:
             raise ValueError("lag='joints' needs the measured joints q_meas")
         qm = (0.0, 0.0, 0.0) if q_meas is None else q_meas
-        err = sf.outer_update(*_floats(pose_ref, pose_meas, qm), bool(hold), ts, tc, g)
+        args = (*_floats(pose_ref, pose_meas, qm), bool(hold), ts, tc, g)
+        err = sf.outer_update(*args)
         raise_step_error(err, pose_ref, pose_meas, self.geometry, self.margin)
         return ts[sf.T_QD : sf.T_QD + 3].copy()
 
@@ -302,7 +303,8 @@ class TaskSpaceController:
         y = (0.0, 0.0, 0.0) if pose_meas is None else pose_meas
         qm = (0.0, 0.0, 0.0) if q_meas is None else q_meas
         ts, tc, g = self.step_state, self.step_constants, self.step_geometry
-        err = sf.ff_inner(*_floats(pose_ref, y, qm), acc, ts, tc, g)
+        args = (*_floats(pose_ref, y, qm), acc, ts, tc, g)
+        err = sf.ff_inner(*args)
         raise_step_error(err, pose_ref, pose_meas, self.geometry, self.margin)
         return ts[sf.T_QD : sf.T_QD + 3].copy()
 
@@ -336,6 +338,6 @@ def raise_step_error(err: int, pose_ref, pose_meas, geometry, margin: float = 0.
         )
 
 
-def _floats(*triples) -> list:
+def _floats(*triples) -> list[float]:
     """(3,) poses or joint vectors as Python floats (the per-step functions' scalar arguments)."""
     return [float(v) for t in triples for v in np.broadcast_to(np.asarray(t, float), (3,))]

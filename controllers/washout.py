@@ -268,7 +268,9 @@ class ClassicalWashout:
         self._rot = [DiscreteFilter(*rot, dt), DiscreteFilter(*rot, dt)]  # roll, pitch
         self._max_step = p.tilt_rate_limit * dt
         self._home = [float(v) for v in self.geometry.home]
-        self._lims = [tuple(map(float, self.box[k])) for k in ("roll", "pitch", "heave")]
+        self._lims = [
+            (float(self.box[k][0]), float(self.box[k][1])) for k in ("roll", "pitch", "heave")
+        ]
         self.reset()
 
     def reset(self) -> None:

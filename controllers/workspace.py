@@ -9,6 +9,7 @@ the others fixed.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 
@@ -146,7 +147,7 @@ def inscribed_box(
         else:
             hi = mid
     s = lo
-    out = {
+    out: dict[str, Any] = {
         name: (home[k] + s * (single[k][0] - home[k]), home[k] + s * (single[k][1] - home[k]))
         for k, name in enumerate(AXIS_NAMES[:2])
     }

@@ -280,7 +280,7 @@ class SweepResult:
 SWEEP_ROW_METRICS = ("overshoot_pct", "settling_time_s", "iae", "steady_state_error")
 
 
-def _measured(task: dict) -> dict:
+def _measured(task: Mapping) -> dict:
     """One resolved scenario measured without writing anything (:func:`run`, and each
     variant of :func:`sweep` here or in a pool worker: top level, it pickles by name)."""
     # MuJoCo is loaded when a plant is built, not by ``import simpro_mj``
@@ -356,11 +356,12 @@ def sweep(
     for i, v in enumerate(valid):
         out = done.get(i) or {}
         if "columns" in out:
+            assert v.scenario is not None  # a valid variant
             results[v.name] = Result(v.scenario, out["columns"], out["metrics"], None)
         else:  # a worker that died fails its variant only
             errors[v.name] = out.get("reason") or "the worker ended without a result"
     if valid and not results:
-        reason = next(iter(errors[v.name] for v in valid))
+        reason = next(iter(errors[v.name] for v in valid)) or ""
         hint = ""
         if processes and jobs > 1 and ("BrokenProcessPool" in reason or "bootstrapping" in reason):
             hint = (

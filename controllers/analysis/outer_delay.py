@@ -39,7 +39,7 @@ def outer_polynomials(
         raise ValueError(f"mode must be 'I' or 'PI', got {mode!r}")
     if delay < 1 or int(delay) != delay:
         raise ValueError(f"delay must be a positive integer number of samples, got {delay}")
-    a = np.polymul([1.0, -1.0], np.r_[1.0, np.zeros(int(delay))])
+    a = np.asarray(np.polymul([1.0, -1.0], np.r_[1.0, np.zeros(int(delay))]))
     b = np.array([period]) if mode == "I" else period * np.array([1.0, pi_zero])
     return a, np.r_[np.zeros(a.size - b.size), b]
 
@@ -91,17 +91,17 @@ def stability_limit(a, b, g_max: float = 1e4) -> float:
         z = np.exp(1j * w)
         return -np.polyval(a, z) / np.polyval(b, z)
 
-    cands = []
+    cands: list[float] = []
     for z in (1.0, -1.0):
         bz = np.polyval(b, z)
         if bz != 0:
-            cands.append(-np.polyval(a, z) / bz)
+            cands.append(float(-np.polyval(a, z) / bz))
     w = np.linspace(1e-6, np.pi - 1e-6, 4001)
     im = gain(w).imag
     for i in np.nonzero(np.sign(im[:-1]) * np.sign(im[1:]) < 0)[0]:
         wi = brentq(lambda x: gain(x).imag, w[i], w[i + 1], xtol=1e-15)
         cands.append(gain(wi).real)
-    cands = sorted(c for c in cands if 0 < c < g_max and np.isfinite(c))
+    cands = sorted(float(c) for c in cands if 0 < c < g_max and np.isfinite(c))
     for g in cands:
         eps = 1e-9 * max(g, 1.0)
         if not schur_stable(np.polyadd(a, (g + eps) * b)):

@@ -267,7 +267,8 @@ def _feedforward(p: dict, spec: dict, jac, real_i: dict) -> dict:
             gains=ff["gain"] if mode == "feedforward" else o["gain"],
             period=o["period_s"], dt=i["dt_s"], method=i["method"], pi_zero=o["pi_zero"],
             model_tau=ff["model_tau_s"], lag=ff["lag"], velocity_ff=(
-                velocity_gains(plants) if mode == "feedforward" and ff["leg_velocity"] else 0.0
+                velocity_gains(plants) if mode == "feedforward" and ff["leg_velocity"]
+                else np.zeros(3)
             ),
         )  # fmt: skip
         h = predict(model, 2 * np.pi * f_hz)["true"]

@@ -46,6 +46,7 @@ from __future__ import annotations
 import copy
 import json
 import math
+from typing import Any
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -170,7 +171,7 @@ def calibrate(
     names = [p[0] for p in PARAMETERS]
     start = {}
     for name, path, legs, default, _ in PARAMETERS:
-        node = tree
+        node: Any = tree
         for part in path.split("."):
             node = node[part]
         v = float(np.broadcast_to(np.asarray(node, float), (3,))[legs[0]]) if legs else float(node)

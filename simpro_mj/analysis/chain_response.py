@@ -56,7 +56,7 @@ import numpy as np
 
 from controllers.frequency import CHAIN_CHANNELS, OMCT_RAD_S, chain_response, fit_sine, predict
 from controllers.kinematics import inverse_kinematics
-from controllers.washout import ClassicalWashout
+from controllers.washout import ClassicalWashout, WashoutParams
 from simpro_mj.analysis.response import check_run_length, check_settle_periods, failures, measure
 from simpro_mj.analysis.response_summary import loop_model
 from simpro_mj.config.cueing import vehicle_input, washout_params
@@ -262,7 +262,7 @@ def fit_columns(columns: Mapping, task: Mapping, dt: float = 0.001) -> dict:
     head = fit_sine(t, np.column_stack([col("head", c) for c in CHANNELS]), w)
     return {
         "ref": [ref.real, ref.imag],
-        "head": [[v.real, v.imag] for v in head],
+        "head": [[v.real, v.imag] for v in np.atleast_1d(head)],
         "k0": k0,
         "k1": k1,
     }
@@ -355,7 +355,9 @@ def predictions(plan: ChainPlan, omega) -> dict:
         # a constrained optimisation, not a filter: no transfer function to draw beside
         note = "no linear prediction: the mpc law is a constrained QP, not a linear filter"
         return {"washout": None, "predicted": None, "note": note}
-    wash = ClassicalWashout(washout_params(sc["setpoint"]["cueing"]))
+    params = washout_params(sc["setpoint"]["cueing"])
+    assert isinstance(params, WashoutParams)  # mpc returned above
+    wash = ClassicalWashout(params)
     out = {"washout": chain_response(wash, omega), "predicted": None, "note": None}
     try:
         loop = predict(loop_model(sc), omega)["true"]
@@ -422,18 +424,18 @@ def chain_summary(plan: ChainPlan, results: list) -> dict:
                 "gain_db": 20 * math.log10(max(g, 1e-300)),
                 "phase_deg": float(phase),
                 "washout_gain_db": None if gw is None else 20 * math.log10(max(gw, 1e-300)),
-                "washout_phase_deg": None if gw is None else float(ph_w[n]),
+                "washout_phase_deg": None if ph_w is None else float(ph_w[n]),
                 "predicted_gain_db": None,
                 "predicted_phase_deg": None,
                 "platform_db": None
                 if gw is None
                 else 20 * math.log10(max(g, 1e-300) / max(gw, 1e-300)),
-                "platform_deg": None if gw is None else float(np.degrees(np.angle(hm / hw[at[n]]))),
+                "platform_deg": None if hw is None else float(np.degrees(np.angle(hm / hw[at[n]]))),
                 "saturated_pct": r["saturated_pct"],
                 "rate_limited_pct": r["rate_limited_pct"],
                 "softened_pct": r["softened_pct"],
             }
-            if hp is not None:
+            if hp is not None and ph_p is not None:
                 gp = abs(_edge(cin, cout, hp[at[n]]))
                 row["predicted_gain_db"] = 20 * math.log10(max(gp, 1e-300))
                 row["predicted_phase_deg"] = float(ph_p[n])

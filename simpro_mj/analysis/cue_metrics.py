@@ -10,6 +10,7 @@ the ``cueing`` block of ``metrics.json`` and the cueing columns of a batch summa
 from __future__ import annotations
 
 from collections.abc import Mapping
+from typing import Any
 
 import numpy as np
 
@@ -562,7 +563,7 @@ def telemetry_of(columns: Mapping) -> Telemetry:
 #: and the end stops; valve saturation; the perceived gain at least ``gain_share`` of the
 #: bound's (:func:`bound_share`: a cue right in shape but weaker than the platform can
 #: give misses it), where the bound was computed.
-FLOORS = {
+FLOORS: dict[str, Any] = {
     "correlation": {"longitudinal_f": 0.8, "lateral_f": 0.85},
     "mean_lag_s": 0.5,
     "onset_delay_s": 0.3,
@@ -581,7 +582,7 @@ def cue_floors(cue: Mapping) -> dict:
     ``missed`` (one short phrase per floor missed, with its value)."""
     ch = cue.get("channels") or {}
     peak = {c: abs((ch.get(c) or {}).get("vehicle_peak") or 0.0) for c in FLOORS["correlation"]}
-    main = max(peak, key=peak.get)
+    main = max(peak, key=lambda c: peak[c])
     thr = FLOORS["onset_raw_wrong_sign_peak"]
     judged = [
         c for c in FLOORS["correlation"] if peak[c] > ((ch.get(c) or {}).get("threshold") or thr)

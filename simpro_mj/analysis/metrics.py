@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
+from typing import Any
 
 import numpy as np
 
@@ -152,7 +153,7 @@ def step_info(
     before = np.flatnonzero(t < t_step)
     y0 = float(y[before[-1]]) if before.size else float(y[0])
     dy = float(y_final) - y0
-    out = {
+    out: dict[str, Any] = {
         "output_change": dy,
         "rise_time_s": None,
         "overshoot_pct": None,
@@ -245,7 +246,7 @@ def compute_metrics(columns: Mapping[str, np.ndarray], scenario: Mapping) -> dic
         "axes": {},
         "joints": {},
     }
-    empty = {
+    empty: dict[str, Any] = {
         "steady_state_error": None,
         "steady_state_error_measured": None,
         "rise_time_s": None,

@@ -309,8 +309,8 @@ def measure_point(task: Mapping) -> dict:
             "axis": task["axis"],
             "period_ms": task["period_ms"],
             "ref": [r.real, r.imag],
-            "true": [[v.real, v.imag] for v in yt],
-            "measured": [[v.real, v.imag] for v in ym],
+            "true": [[v.real, v.imag] for v in np.atleast_1d(yt)],
+            "measured": [[v.real, v.imag] for v in np.atleast_1d(ym)],
             "saturated_pct": float(sat),
         }
     except UserInputError as exc:

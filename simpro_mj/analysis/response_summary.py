@@ -177,7 +177,7 @@ def summary(plan: ResponsePlan, results: list, model: LoopModel | None) -> dict:
                         "diff_deg": None,
                         "saturated_pct": r["saturated_pct"],
                     }
-                    if hp is not None:
+                    if hp is not None and ph_p is not None:
                         gp = abs(_in_edge(axis_in, axis_out, hp[i]))
                         row["predicted_gain_db"] = 20 * math.log10(max(gp, 1e-300))
                         row["predicted_phase_deg"] = float(ph_p[i])
@@ -213,16 +213,16 @@ def summary(plan: ResponsePlan, results: list, model: LoopModel | None) -> dict:
                 }
                 for sig in ("true", "measured")
             }
-    curves = {}
+    predicted: dict[str, dict] = {}
     if pred is not None:  # the prediction between the measured frequencies, to draw as curves
         span = (dense >= omega.min() * (1 - 1e-9)) & (dense <= omega.max() * (1 + 1e-9))
         for axis_in in plan.axes:
             j = AXES.index(axis_in)
-            curves[axis_in] = {"frequency_hz": (dense[span] / (2 * np.pi)).tolist()}
+            predicted[axis_in] = {"frequency_hz": (dense[span] / (2 * np.pi)).tolist()}
             for sig in ("true", "measured"):
                 h = full[sig][span, j, j]
                 phase = np.degrees(np.unwrap(np.angle(full[sig][:, j, j])))[span]
-                curves[axis_in][sig] = {
+                predicted[axis_in][sig] = {
                     "gain_db": (20 * np.log10(np.maximum(np.abs(h), 1e-300))).tolist(),
                     "phase_deg": phase.tolist(),
                 }
@@ -231,7 +231,7 @@ def summary(plan: ResponsePlan, results: list, model: LoopModel | None) -> dict:
         "axes": axes,
         "agreement": agreement,
         "failed": failed,
-        "predicted_curves": curves,
+        "predicted_curves": predicted,
     }
 
 

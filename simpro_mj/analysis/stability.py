@@ -75,6 +75,7 @@ def _loop_plants(scenario: Mapping, plant: str) -> tuple[tuple, str]:
     if scenario["actuator"]["model"] == "linear":
         p = PneumaticParams.from_tree(scenario["actuator"].get("pneumatics") or {})
         p = fill_linear(p, paper_coefficients(reading))
+        assert p.lin_b is not None and p.lin_a1 is not None and p.lin_a0 is not None
         coeffs = tuple(
             (float(p.lin_b[i]), float(p.lin_a1[i]), float(p.lin_a0[i])) for i in range(3)
         )
@@ -144,7 +145,7 @@ def _code() -> str:
     import controllers.kinematics
     import controllers.setpoint_filter
 
-    files = [Path(m.__file__) for m in (controllers.design, controllers.kinematics,
+    files = [Path(str(m.__file__)) for m in (controllers.design, controllers.kinematics,
                                         controllers.setpoint_filter)]  # fmt: skip
     files += Path(an.__file__).parent.glob("*.py")  # the whole analysis package
     return cache.source_digest([Path(__file__), *files])

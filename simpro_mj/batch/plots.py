@@ -28,6 +28,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from matplotlib.figure import Figure
@@ -119,7 +120,7 @@ def metric_vs_param_figure(rows: list[dict], info: Mapping, stability: list[dict
     axes = fig.subplots(n, 1, sharex=True)
     ringed = False
     for name, members in groups.items():
-        members = sorted(members, key=lambda r: _x(r["values"][xpath]))
+        members = sorted(members, key=lambda r: _x(r["values"][xpath]) or math.inf)
         xs = np.array([_x(r["values"][xpath]) for r in members])
         bad = np.array([r.get("stable") is False or r["status"] != "ok" for r in members])
         col = colours[name]
@@ -144,8 +145,8 @@ def metric_vs_param_figure(rows: list[dict], info: Mapping, stability: list[dict
     for s in stability:
         name = ", ".join(f"{k.split('.')[-1]}={v}" for k, v in s["group"].items()) or "all"
         col = colours.get(name, "k")
-        ana, sim = s.get("analytic_limit"), s.get("simulated_limit")
-        for kind, x, ls, lw in (("analytic", ana, "--", 0.9), ("simulated", sim, ":", 1.2)):
+        limit_a, limit_s = s.get("analytic_limit"), s.get("simulated_limit")
+        for kind, x, ls, lw in (("analytic", limit_a, "--", 0.9), ("simulated", limit_s, ":", 1.2)):
             if x is None or not math.isfinite(x):
                 continue
             for k, ax in enumerate(axes):
@@ -154,7 +155,7 @@ def metric_vs_param_figure(rows: list[dict], info: Mapping, stability: list[dict
             limits.add(kind)
     for ax, (axis, unit, _) in zip(axes[:3], _AXES, strict=True):
         ax.set_ylabel(f"{axis} rms error [{unit}]")
-        ys = np.concatenate([np.asarray(ln.get_ydata(), float) for ln in ax.lines] or [[]])
+        ys = np.concatenate([np.asarray(ln.get_ydata(), float) for ln in ax.lines] or [np.empty(0)])
         ys = ys[np.isfinite(ys) & (ys > 0)]
         if ys.size and ys.max() > 10 * ys.min():  # a log axis only where it spans a decade
             ax.set_yscale("log")
@@ -279,11 +280,7 @@ def plot_mc(rows: list[dict], info: Mapping, out: Path):
     for ax, (axis, unit, _) in zip(axes, _AXES, strict=True):
         data = []
         for name in names:
-            v = [
-                abs(r.get(f"{axis}_ss_err_{unit}"))
-                for r in groups[name]
-                if r.get(f"{axis}_ss_err_{unit}") is not None
-            ]
+            v = [abs(e) for r in groups[name] if (e := r.get(f"{axis}_ss_err_{unit}")) is not None]
             data.append(np.maximum(np.array(v, float), 1e-9))
         ax.boxplot(data, showfliers=False)
         ax.set_xticks(range(1, len(names) + 1), names, rotation=20, fontsize=8)
@@ -346,7 +343,7 @@ def plot_summary(report, jobs) -> list[Path]:
 
 #: The acceptance floors drawn on :func:`plot_cue_comparison` (docs/cueing.md;
 #: :data:`simpro_mj.analysis.cue_metrics.FLOORS`): the correlation's per main channel.
-CUE_FLOORS = {
+CUE_FLOORS: dict[str, Any] = {
     "correlation": {"long": FLOORS["correlation"]["longitudinal_f"],
                     "lat": FLOORS["correlation"]["lateral_f"]},
     "lag_s": FLOORS["mean_lag_s"],
@@ -388,8 +385,10 @@ def plot_cue_comparison(rows: list[dict], info: Mapping, out: Path):
         for j, law in enumerate(laws):
             vals = []
             for key in inputs:
-                r = next((x for x in pts if _law_label(x) == law and _input_label(x) == key), None)
-                vals.append(np.nan if r is None else _main(r, what))
+                hit = next(
+                    (x for x in pts if _law_label(x) == law and _input_label(x) == key), None
+                )
+                vals.append(np.nan if hit is None else _main(hit, what))
             x = np.arange(len(inputs)) + (j - (len(laws) - 1) / 2) * width
             ax.bar(x, vals, width, label=law)
         if floor == "correlation":  # the floor of each input's main channel
@@ -437,8 +436,8 @@ def _main(r: Mapping, what: str) -> float:
     """The figure of the channel the vehicle input drives (``cue_main_channel``); the
     false rotation: the longer of roll and pitch."""
     if what == "false_rot":
-        vals = [r.get("cue_roll_false_rot_s"), r.get("cue_pitch_false_rot_s")]
-        vals = [float(v) for v in vals if v is not None]
+        both = [r.get("cue_roll_false_rot_s"), r.get("cue_pitch_false_rot_s")]
+        vals = [float(v) for v in both if v is not None]
         return max(vals) if vals else np.nan
     side = r.get("cue_main_channel") or "long"
     v = r.get(f"cue_{side}_{'corr' if what == 'correlation' else what + '_s'}")

@@ -65,6 +65,7 @@ def meets_floors(row: Mapping) -> bool:
         row.get("status") == "ok"
         and over is not None
         and over <= OVERSHOOT_PCT
+        and settle is not None
         and settle <= SETTLING_S
     )
 
@@ -85,8 +86,7 @@ def robustness_table(rows: list[dict], name: str) -> dict | None:
     friction: ``{scenario, n, met, fraction, floors, statuses, cells}``; ``cells`` one
     per payload x friction cell ``{payload_kg, coulomb_n, n, met, fraction}``. None
     when no variant drew both."""
-    pts = [(r, _point(r)) for r in rows if r["scenario"] == name]
-    pts = [(r, p) for r, p in pts if p is not None]
+    pts = [(r, p) for r in rows if r["scenario"] == name and (p := _point(r)) is not None]
     if not pts:
         return None
     met = [meets_floors(r) for r, _ in pts]
@@ -166,8 +166,9 @@ def map_figure(rows: list[dict], table: Mapping):
     (a matplotlib Figure; None without points)."""
     from matplotlib.figure import Figure  # when drawn: the batch's start does not load it
 
-    pts = [(r, _point(r)) for r in rows if r["scenario"] == table["scenario"]]
-    pts = [(r, p) for r, p in pts if p is not None]
+    pts = [
+        (r, p) for r in rows if r["scenario"] == table["scenario"] and (p := _point(r)) is not None
+    ]
     if not pts:
         return None
     fig = Figure(figsize=(15, 4.8), layout="constrained")

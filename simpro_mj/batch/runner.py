@@ -216,8 +216,8 @@ def _run_batch(
         files = result.pop("files", None)
         if files is not None:
             install(files, out / p.jobs[key].folder)
-        rows[key] = summary_row(p.jobs[key], result)
-        bar.update(rows[key]["status"])
+        row = rows[key] = summary_row(p.jobs[key], result)
+        bar.update(row["status"])
 
     out.mkdir(parents=True, exist_ok=True)
     record(out, SUMMARY_FILES, "batch", pending=True)

@@ -42,6 +42,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -84,7 +85,7 @@ def stability_of(columns: Mapping, status: str | None = "ok") -> dict:
         or the reason it is unstable).
     """
 
-    out = {
+    out: dict[str, Any] = {
         "stable": True,
         "growth_rate_1_s": None,
         "oscillation_floors": None,

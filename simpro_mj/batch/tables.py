@@ -56,6 +56,7 @@ def stability_table(rows: list[dict], jobs: list[Job]) -> list[dict]:
         lo = lo_m[0] if lo_m else None
         estimate = None
         if lo is not None and hi is not None:
+            assert lo_m is not None  # lo is its gain
             hi_m = next(m for m in members if m[0] == hi)
             s_lo, s_hi = lo_m[1]["growth_rate_1_s"], hi_m[1]["growth_rate_1_s"]
             if s_lo is not None and s_hi is not None and s_lo < 0 < s_hi:
@@ -63,6 +64,7 @@ def stability_table(rows: list[dict], jobs: list[Job]) -> list[dict]:
             else:
                 estimate = 0.5 * (lo + hi)
         first = members[0][2].scenario
+        assert first is not None  # a planned variant's
         ana = members[0][1].get("analytic_limit")
         note = []
         if first["actuator"]["model"] != "linear":

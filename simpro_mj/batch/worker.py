@@ -44,7 +44,7 @@ def run_variant(task: Mapping) -> dict:
     ship = bool(task.get("ship"))
     tmp = Path(tempfile.mkdtemp(prefix="simpro-batch-")) if ship else None
     try:
-        folder = tmp / "variant" if ship else Path(task["out"])
+        folder = tmp / "variant" if tmp is not None else Path(task["out"])
         # warnings go to metrics.json only: many workers on one stderr would be noise
         res, doc = execute(
             task["scenario"], folder, plots=bool(task.get("plots", True)), quiet=True

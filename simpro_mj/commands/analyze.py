@@ -8,6 +8,7 @@ from __future__ import annotations
 import os
 import sys
 from pathlib import Path
+from typing import cast
 
 from simpro_mj.analysis.analyze import DEFAULTS, compute, document
 from simpro_mj.core.jsonout import emit_json
@@ -58,7 +59,7 @@ def _scenario(name: str, sets: list, say) -> dict:
     from simpro_mj.config.scenario import load_scenario
     from simpro_mj.identification.auto import with_identified
 
-    return with_identified(load_scenario(name, sets), say)[0]
+    return cast(dict, with_identified(load_scenario(name, sets), say)[0])  # a resolved scenario
 
 
 def run(args) -> int:

@@ -236,7 +236,7 @@ if getattr(yaml, "__with_libyaml__", False):
 
     _LOADERS: tuple = (BoundedLoader, _BoundedCLoader)
 else:  # pragma: no cover - PyYAML built without libyaml
-    _BoundedCLoader = None
+    _BoundedCLoader = None  # type: ignore[assignment,misc]
     _LOADERS = (BoundedLoader,)
 
 #: ``1e9``, ``-2E-3``: floats in YAML 1.2, strings in PyYAML's YAML 1.1 (where

@@ -193,7 +193,8 @@ class Run:
 
     def stroke(self) -> list[tuple[float, float]]:
         """Each slide's range (m): the model's joint limits (the DNC-125-500 stroke)."""
-        return [tuple(map(float, self.model.joint(f"leg{i}").range)) for i in (1, 2, 3)]
+        ranges = [self.model.joint(f"leg{i}").range for i in (1, 2, 3)]
+        return [(float(lo), float(hi)) for lo, hi in ranges]
 
     def design_plants(self) -> None:
         """The scenario with its design plants (identified once when it asks; step 1)."""

@@ -14,6 +14,7 @@ import copy
 import os
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -99,7 +100,7 @@ def _check_params(params: dict) -> None:
         ("loop_timeconst_s", 0.0, True, " s"),
         ("guide.radius_offset_mm", -1000.0, True, " mm"),
     ):
-        node = params
+        node: Any = params
         for part in path.split("."):
             node = node[part]
         ok = isinstance(node, (int, float)) and not isinstance(node, bool)

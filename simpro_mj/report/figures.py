@@ -151,19 +151,23 @@ def legend_mismatches(fig: Figure) -> list[str]:
     and every labelled artist of an axis must be listed by some legend of the
     figure (an axis's legend, or the figure's). Returns one line per mismatch.
     """
+    # matplotlib is loaded: the figure exists
+    from matplotlib.collections import Collection
+    from matplotlib.lines import Line2D
+
     drawn: dict[str, bool] = {}
     for ax in fig.axes:
         if not ax.get_visible():
             continue
         for artist in (*ax.lines, *ax.collections, *ax.patches):
             label = artist.get_label()
-            if not label or label.startswith("_"):
+            if not isinstance(label, str) or not label or label.startswith("_"):
                 continue
             has_data = True
-            if hasattr(artist, "get_xydata"):
-                has_data = len(artist.get_xydata()) > 0
-            elif hasattr(artist, "get_offsets"):
-                has_data = len(artist.get_offsets()) > 0 or bool(artist.get_paths())
+            if isinstance(artist, Line2D):
+                has_data = np.size(artist.get_xydata()) > 0
+            elif isinstance(artist, Collection):
+                has_data = np.size(artist.get_offsets()) > 0 or bool(artist.get_paths())
             drawn[label] = drawn.get(label, False) or has_data
     listed: set[str] = set()
     legends = [ax.get_legend() for ax in fig.axes] + list(fig.legends)

@@ -16,6 +16,7 @@ code paths and numpy's enabled SIMD features.
 from __future__ import annotations
 
 import hashlib
+import importlib
 import json
 import os
 import platform
@@ -66,14 +67,14 @@ def _cpu_flags() -> list[str]:
 
 
 def _numpy_simd() -> list[str]:
-    try:
-        from numpy._core._multiarray_umath import __cpu_features__
-    except ImportError:  # numpy < 2
+    # numpy's own extension, loaded with numpy (numpy >= 2, then numpy < 2)
+    for name in ("numpy._core._multiarray_umath", "numpy.core._multiarray_umath"):
         try:
-            from numpy.core._multiarray_umath import __cpu_features__
-        except ImportError:
-            return []
-    return sorted(k for k, on in __cpu_features__.items() if on)
+            features = importlib.import_module(name).__cpu_features__
+        except (ImportError, AttributeError):
+            continue
+        return sorted(k for k, on in features.items() if on)
+    return []
 
 
 def _dist(name: str) -> str | None:

@@ -192,7 +192,7 @@ def plot_strip(rec: Recording, width: int, height: int, t0: float, t1: float):
 
     dpi = 100.0
     fig = Figure(figsize=(width / dpi, height / dpi), dpi=dpi)
-    FigureCanvasAgg(fig)
+    canvas = FigureCanvasAgg(fig)
     c, t = rec.columns, rec.columns["time_s"]
     sel = (t >= t0 - 1e-9) & (t <= t1 + 1e-9)
     px = text_px(width, 2 * height)  # the strip is half a view high
@@ -227,8 +227,8 @@ def plot_strip(rec: Recording, width: int, height: int, t0: float, t1: float):
     fig.subplots_adjust(left=min(3.6 * px / width, 0.2), right=0.99,
                         bottom=min(3.0 * px / height, 0.3), top=max(1.0 - 3.2 * px / height, 0.7),
                         wspace=0.55)  # fmt: skip
-    fig.canvas.draw()
-    img = np.asarray(fig.canvas.buffer_rgba())[..., :3].copy()
+    canvas.draw()
+    img = np.asarray(canvas.buffer_rgba())[..., :3].copy()
     boxes = []
     for ax in axes:
         (x0, y0), (x1, y1) = ax.get_window_extent().get_points()
@@ -259,11 +259,11 @@ class TextStamp:
         for ch in dict.fromkeys(self.CHARS):
             fig = Figure(figsize=(self.w / 100.0, self.h / 100.0), dpi=100.0,
                          facecolor=(0.1, 0.1, 0.12))  # fmt: skip
-            FigureCanvasAgg(fig)
+            canvas = FigureCanvasAgg(fig)
             fig.text(0.5, 0.5, ch, color="white", ha="center", va="center",
                      fontsize=px * 0.72, family="monospace")  # fmt: skip
-            fig.canvas.draw()
-            self.cells[ch] = np.asarray(fig.canvas.buffer_rgba())[..., :3].copy()
+            canvas.draw()
+            self.cells[ch] = np.asarray(canvas.buffer_rgba())[..., :3].copy()
 
     def stamp(self, image: np.ndarray, text: str, right: int, top: int) -> np.ndarray:
         """Paste ``text`` into ``image`` (in place) ending at column ``right``, row ``top``."""
@@ -284,10 +284,10 @@ def label_image(text: str, height: int) -> np.ndarray:
     h = max(int(1.6 * TEXT_PX), int(height * 0.06)) // 2 * 2
     w = max(2 * h, int(0.62 * h * (len(text) + 1))) // 2 * 2
     fig = Figure(figsize=(w / 100.0, h / 100.0), dpi=100.0, facecolor=(0.1, 0.1, 0.12))
-    FigureCanvasAgg(fig)
+    canvas = FigureCanvasAgg(fig)
     fig.text(0.5, 0.5, text, color="white", ha="center", va="center", fontsize=h * 0.5)
-    fig.canvas.draw()
-    return np.asarray(fig.canvas.buffer_rgba())[..., :3].copy()
+    canvas.draw()
+    return np.asarray(canvas.buffer_rgba())[..., :3].copy()
 
 
 def draw_cursor(strip: np.ndarray, boxes, frac: float) -> np.ndarray:

@@ -122,6 +122,6 @@ def recording_for(target: str, sets):
     result = simulate(scenario)
     if result.status != "ok":
         sys.stderr.write(f"warning: the run {result.status}: {result.reason}; showing it\n")
-    if not len(result.qpos):
+    if result.qpos is None or not len(result.qpos):
         raise UserInputError(f"no recorded motion in {target}")
     return recording_of(result)

@@ -60,6 +60,7 @@ class Progress:
     def _post(self, refresh: bool = True) -> None:
         left = self.total - self.done - self.failed
         text = f"done={self.done} failed={self.failed} left={left}"
+        assert self.bar is not None  # called only with a bar
         self.bar.set_postfix_str(text, refresh=refresh)
 
     def update(self, status: str) -> None:

@@ -56,7 +56,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from controllers.frames import GRAVITY
-from controllers.washout import ClassicalWashout
+from controllers.mpc_cueing import MpcParams, MpcStream  # the module loads osqp on use
+from controllers.washout import ClassicalWashout, WashoutParams
 from simpro_mj.config.datagrams import DatagramError, decode
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.interrupts import held_signals
@@ -382,8 +383,8 @@ class Pacer:
         ``time.perf_counter`` and ``time.sleep`` (replaceable in tests).
     """
 
-    def __init__(self, sim, receiver: Receiver, washout: ClassicalWashout, *, wash_every: int,
-                 send_every: int, sender: PoseSender | None = None, say=None,
+    def __init__(self, sim, receiver: Receiver, washout: ClassicalWashout | MpcStream, *,
+                 wash_every: int, send_every: int, sender: PoseSender | None = None, say=None,
                  clock=time.perf_counter, sleep=time.sleep):  # fmt: skip
         self.sim, self.rx, self.washout, self.sender, self.say = sim, receiver, washout, sender, say
         self.dt, self.n = sim.dt, sim.n_steps
@@ -533,7 +534,7 @@ def realtime_scheduling(wanted: bool, say=None):
     try:
         yield
     finally:
-        if policy is not None:
+        if policy is not None and param is not None:
             with contextlib.suppress(OSError):
                 os.sched_setscheduler(0, policy, param)
 
@@ -584,7 +585,7 @@ def run_session(scenario: dict, options: LiveOptions, say=None, checks=None):
             checks()
         params = washout_params(cue)
         mpc = cue.get("algorithm") == "mpc"
-        if mpc and params.preview > 0 and say is not None:
+        if isinstance(params, MpcParams) and params.preview > 0 and say is not None:
             say(
                 f"live: setpoint.cueing.parameters.preview_s = {params.preview:g} needs the "
                 "vehicle's future, which a live session does not have: played with 0"
@@ -598,9 +599,11 @@ def run_session(scenario: dict, options: LiveOptions, say=None, checks=None):
         if mpc:
             from controllers.mpc_cueing import ModelPredictiveCueing  # on use: osqp
 
+            assert isinstance(params, MpcParams)
             law = ModelPredictiveCueing(params.replace(preview=0.0), geometry=sim.geometry)
-            washout = law.stream(period)
+            washout: MpcStream | ClassicalWashout = law.stream(period)
         else:
+            assert isinstance(params, WashoutParams)
             washout = ClassicalWashout(params, geometry=sim.geometry)
         if options.send is not None:
             sender = PoseSender(options.send, options.send_format, sim.geometry.home[2])

@@ -34,6 +34,7 @@ import functools
 import sys
 import threading
 import time
+from typing import cast
 
 import mujoco
 import numpy as np
@@ -130,10 +131,11 @@ class CoSimulation:
         if setpoints not in ("scenario", "external"):
             raise ValueError(f"setpoints={setpoints!r}; allowed: 'scenario' or 'external'")
         self.external = external = setpoints == "external"
-        self._resume = None
+        self._resume: int | None = None
         if identified_source is None:
             # design_plant identified: the scenario's own plant's models (cached)
-            scenario, identified_source = with_identified(scenario, _say)
+            designed, identified_source = with_identified(scenario, _say)
+            scenario = cast(dict, designed)  # the resolved scenario, a dict
         self.identified_source = identified_source
         self.scenario = scenario
         m = load_model(scenario["plant"]) if model is None else model
@@ -445,7 +447,7 @@ class CoSimulation:
             status = "interrupted"
             reason = f"interrupted by signal (SIGINT/SIGTERM) at t = {k * self.dt:.3f} s"
         finally:
-            if timer is not None:
+            if timer is not None and profile is not None:
                 profile.update(timer.ns, steps=self._k + 1)
         wall = time.perf_counter() - wall0
         return self._result(log, k, status, reason, wall)
@@ -598,6 +600,8 @@ class CoSimulation:
 
             rows = np.arange(row) * self.decimation
             hlog = rec.hlog
+            # a cueing run logs the head and holds the vehicle's input
+            assert hlog is not None and self.veh_f is not None and self.veh_w is not None
             if row > 1:  # at t = 0 the accelerometer holds mj_forward's value with no
                 hlog[0] = hlog[1]  # pneumatic force yet: the first row repeats the second
             veh = np.hstack([self.veh_f[rows], self.veh_w[rows], hlog[:row]])
