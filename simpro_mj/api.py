@@ -287,7 +287,7 @@ def _measured(task: Mapping) -> dict:
     from simpro_mj.job.run import Run
     from simpro_mj.report.results import jsonable
 
-    outcome = Run(task["scenario"]).execute(quiet=True)
+    outcome = Run(task["scenario"]).execute(quiet=True, stop=task.get("stop"))
     metrics = dict(outcome.metrics, **outcome.extra())
     return {"status": outcome.status, "columns": outcome.result.columns,
             "metrics": jsonable(metrics)}  # fmt: skip

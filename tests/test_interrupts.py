@@ -75,13 +75,15 @@ def _python(tmp_path: Path, body: str, *args: str) -> subprocess.CompletedProces
 @linux
 @pytest.mark.parametrize("sig", ["SIGINT", "SIGTERM"])
 def test_a_signal_inside_an_import_is_raised_when_the_import_ends(tmp_path, sig):
-    """The import completes (the module is usable), the interrupt follows it,
-    and the process exits with the status the program chose, not from SIGINT."""
+    """An import inside held_signals (as main imports a command's modules and a run its
+    simulation's): the import completes (the module is usable), the interrupt follows
+    it, and the process exits with the status the program chose, not from SIGINT."""
     body = """
-    from simpro_mj.core.interrupts import interruptible
+    from simpro_mj.core.interrupts import held_signals, interruptible
     with interruptible():
         try:
-            import mujoco
+            with held_signals():
+                import mujoco
             print("not interrupted")
         except KeyboardInterrupt as exc:
             mj = sys.modules["mujoco"]

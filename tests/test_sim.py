@@ -155,3 +155,25 @@ def test_divergence_stops_and_keeps_what_was_computed(monkeypatch, tmp_path, cap
     assert 0 < rows < 4001
     assert met["sim"]["steps"] < 4000
     assert "DIVERGED" in capsys.readouterr().out
+
+
+def test_a_stop_token_stops_its_own_run_only():
+    """Two runs on two threads of one process: the one whose token is set ends at its
+    first chunk boundary as ``interrupted``; the other, with its own token, runs all of
+    its 400 steps. (A process-wide stop would have ended both.)"""
+    import threading
+    from concurrent.futures import ThreadPoolExecutor
+
+    from simpro_mj.sim.loop import CoSimulation
+    from simpro_mj.sim.stages import CHUNK
+
+    scenario = load_scenario("step_pitch", ["duration_s=0.4", "controller.mode=joint_only"])
+    stopped, running = threading.Event(), threading.Event()
+    stopped.set()
+    sims = [CoSimulation(scenario), CoSimulation(scenario)]
+    with ThreadPoolExecutor(max_workers=2) as pool:
+        a, b = pool.map(lambda sim, token: sim.run(stop=token), sims, (stopped, running))
+    assert a.status == "interrupted" and "t = " in a.reason
+    assert a.sim["steps"] == CHUNK  # the first chunk, then the token is seen
+    assert b.status == "ok" and b.sim["steps"] == 400
+    assert not running.is_set()

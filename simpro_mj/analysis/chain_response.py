@@ -277,7 +277,7 @@ def measure_chain_point(task: Mapping) -> dict:
     tilt rate limit or the workspace soft limit acted).
     """
     try:
-        res = CoSimulation(task["scenario"]).run()
+        res = CoSimulation(task["scenario"]).run(stop=task.get("stop"))
         if res.status != "ok":
             return {"status": res.status, "reason": res.reason}
         c = res.columns

@@ -283,7 +283,7 @@ def measure_point(task: Mapping) -> dict:
     from simpro_mj.sim.loop import CoSimulation
 
     try:
-        res = CoSimulation(task["scenario"]).run()
+        res = CoSimulation(task["scenario"]).run(stop=task.get("stop"))
         if res.status != "ok":
             return {"status": res.status, "reason": res.reason}
         c = res.columns

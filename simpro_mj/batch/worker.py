@@ -47,7 +47,11 @@ def run_variant(task: Mapping) -> dict:
         folder = tmp / "variant" if tmp is not None else Path(task["out"])
         # warnings go to metrics.json only: many workers on one stderr would be noise
         res, doc = execute(
-            task["scenario"], folder, plots=bool(task.get("plots", True)), quiet=True
+            task["scenario"],
+            folder,
+            plots=bool(task.get("plots", True)),
+            quiet=True,
+            stop=task.get("stop"),
         )
         folder = res.folder
         out = {

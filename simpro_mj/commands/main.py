@@ -27,7 +27,7 @@ import sys
 
 from controllers.errors import DesignError, KinematicsError
 from simpro_mj.core.errors import PhysicsError, UserInputError
-from simpro_mj.core.interrupts import import_module, interruptible
+from simpro_mj.core.interrupts import held_signals, import_module, interruptible
 from simpro_mj.core.messages import MAX_MESSAGE_CHARS, one_line
 
 #: an error line of this command line: one line, at most MAX_MESSAGE_CHARS
@@ -147,8 +147,8 @@ def main(argv=None) -> int:
     # so far does; a user's own setting wins.
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
     try:
-        # Ctrl-C and SIGTERM raise KeyboardInterrupt, held while a module is being
-        # imported so that no extension turns them into ImportError (core.interrupts)
+        # Ctrl-C and SIGTERM raise KeyboardInterrupt, held while the command's modules
+        # are imported so that no extension turns them into ImportError (core.interrupts)
         with interruptible():
             return _main(argv)
     except KeyboardInterrupt:  # while the command's modules were imported
@@ -157,18 +157,19 @@ def main(argv=None) -> int:
 
 
 def _main(argv) -> int:
-    problem = _check_gl_backend()
-    if problem:
-        sys.stderr.write(f"error: {problem}\n")
-        return 2
     words = sys.argv[1:] if argv is None else list(argv)
-    if words == ["--version"]:  # without importing the commands
-        print(_version())
-        return 0
     # the command's own module only (the first word, when it names one); --help
     # and mistakes in the command name see them all
     only = words[0] if words and words[0] in COMMANDS else None
-    parser, _ = build_parser(only)
+    with held_signals():  # the imports first: a signal meanwhile is raised after them
+        problem = _check_gl_backend()
+        if problem:
+            sys.stderr.write(f"error: {problem}\n")
+            return 2
+        if words == ["--version"]:  # without importing the commands
+            print(_version())
+            return 0
+        parser, _ = build_parser(only)
     try:
         args = parser.parse_args(words)
     except SystemExit as exc:  # argparse: --help (0) or a misuse (2, one line already)

@@ -11,34 +11,36 @@ batches sent Ctrl-C in their first 1.5 s, 2 reported the first variant
 ``failed: ImportError`` and then ran the next 600 s variant to its end, and 3
 exited with -2 instead of 130.
 
-So a signal that arrives while the main thread imports, or while a block that
-must not be cut (a result folder being written) runs, is *held* and raised as
-``KeyboardInterrupt`` as soon as the outermost such block ends:
+So the modules are imported at the top of the modules that need them, and the
+imports that load them run inside :func:`held_signals`: a signal that arrives
+meanwhile, or while a block that must not be cut (a result folder being
+written) runs, is *held* and raised as ``KeyboardInterrupt`` as soon as the
+outermost such block ends. Those blocks are few and named: the command's
+module with everything it imports (:func:`simpro_mj.commands.main.main`), a
+run's simulation modules, MuJoCo's among them, once its input is known good
+(:class:`simpro_mj.job.run.Run`), and a result folder with its figures
+(:func:`simpro_mj.report.runner.execute`). No import hook: Python's own import
+machinery is left as it is.
 
 - :func:`interruptible` installs :func:`raise_or_hold` for SIGINT and SIGTERM
-  and counts the main thread's imports (``builtins.__import__``, which import
-  statements and C extensions' imports go through), for the duration of a
-  command;
-- :func:`guarded_imports` counts the imports alone (a pool worker keeps its own
-  SIGTERM handler, which calls :func:`raise_or_hold`);
+  for the duration of a command;
 - :func:`held_signals` holds the signals for a block (it works with or
-  without :func:`interruptible`);
+  without :func:`interruptible`, and in a pool worker whose SIGTERM handler
+  calls :func:`raise_or_hold`);
 - :func:`import_module` is :func:`importlib.import_module` under
-  :func:`held_signals` (that function does not go through ``__import__``).
+  :func:`held_signals`.
 
-Only the main thread counts: Python runs signal handlers there.
+Only the main thread holds: Python runs signal handlers there.
 """
 
 from __future__ import annotations
 
-import builtins
 import contextlib
 import importlib
 import signal
 import threading
 
 __all__ = [
-    "guarded_imports",
     "held_signals",
     "hold_aware",
     "import_module",
@@ -48,9 +50,8 @@ __all__ = [
 
 SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
-_holding = 0  # open held blocks and imports in the main thread
+_holding = 0  # open held blocks in the main thread
 _held: list[int] = []  # signals that arrived while holding
-_original_import = builtins.__import__
 
 
 def hold_aware(handler):
@@ -95,16 +96,6 @@ def _leave() -> None:
         raise _interrupt(signum)
 
 
-def _guarded_import(name, globals=None, locals=None, fromlist=(), level=0):  # noqa: A002
-    if not _in_main_thread():
-        return _original_import(name, globals, locals, fromlist, level)
-    _enter()
-    try:
-        return _original_import(name, globals, locals, fromlist, level)
-    finally:
-        _leave()
-
-
 @contextlib.contextmanager
 def held_signals():
     """Within the block, SIGINT/SIGTERM are held; the first is raised as
@@ -140,30 +131,17 @@ def import_module(name: str):
 @contextlib.contextmanager
 def interruptible():
     """Within the block, SIGINT and SIGTERM raise ``KeyboardInterrupt`` (SIGTERM
-    as Ctrl-C does), held while the main thread imports (module docstring).
+    as Ctrl-C does), held within :func:`held_signals` (module docstring).
 
-    The previous handlers and ``__import__`` are restored on exit; nested use
-    is harmless. Outside the main thread this is a no-op.
+    The previous handlers are restored on exit; nested use is harmless.
+    Outside the main thread this is a no-op.
     """
     if not _in_main_thread():
         yield
         return
     previous = {s: signal.signal(s, raise_or_hold) for s in SIGNALS}
     try:
-        with guarded_imports():
-            yield
+        yield
     finally:
         for s, h in previous.items():
             signal.signal(s, h)
-
-
-@contextlib.contextmanager
-def guarded_imports():
-    """Within the block, a signal that arrives while the main thread imports is
-    held until the import ends (for handlers that call :func:`raise_or_hold`)."""
-    before = builtins.__import__
-    builtins.__import__ = _guarded_import
-    try:
-        yield
-    finally:
-        builtins.__import__ = before

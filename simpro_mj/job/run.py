@@ -31,6 +31,7 @@ from simpro_mj.analysis.metrics import compute_metrics
 from simpro_mj.analysis.preflight import check_gains_move, check_payload, preflight
 from simpro_mj.analysis.verdict import verdict
 from simpro_mj.config.reference import reference
+from simpro_mj.core.interrupts import held_signals
 from simpro_mj.plant.faults import flag_series
 from simpro_mj.plant.model_params import MAX_MODEL_PAYLOAD_KG
 from simpro_mj.sim.compiling import note, prepare_step
@@ -170,9 +171,13 @@ class Run:
     """
 
     def __init__(self, scenario: Mapping, *, model=None, say: Callable[[str], None] = _say):
-        # the loop builds from MuJoCo: loaded when a run is built, not when a command
-        # that refuses bad input within a second imports this module
-        from simpro_mj.plant.model import load_model
+        # the run's simulation modules (MuJoCo's bindings among them): loaded when a run
+        # is built, not when a command that refuses bad input within a second imports
+        # this module; a signal meanwhile is raised once they are in (core.interrupts)
+        with held_signals():
+            from simpro_mj.identification.auto import with_identified  # noqa: F401
+            from simpro_mj.plant.model import load_model
+            from simpro_mj.sim.loop import CoSimulation  # noqa: F401
 
         self.scenario = scenario
         self._say = say
@@ -230,10 +235,17 @@ class Run:
         )
 
     def execute(
-        self, *, quiet: bool = False, progress=_stepping, pace=None, bar: bool = False
+        self,
+        *,
+        quiet: bool = False,
+        progress=_stepping,
+        pace=None,
+        bar: bool = False,
+        stop=None,
     ) -> RunOutcome:
         """Preflight, simulate and measure; warnings on stderr unless ``quiet``.
-        ``progress`` and ``pace`` go to :meth:`simpro_mj.sim.loop.CoSimulation.run`.
+        ``progress``, ``pace`` and ``stop`` (the run's stop token) go to
+        :meth:`simpro_mj.sim.loop.CoSimulation.run`.
 
         Between the preflight and the simulation the compiled step is loaded
         (:func:`simpro_mj.sim.compiling.prepare_step`): a first compile is said on
@@ -250,7 +262,7 @@ class Run:
         warnings, figures = self.preflight()
         warn(warnings, quiet)
         loaded = prepare_step(say=None if quiet else note, bar=bar)
-        res = self.simulation().run(progress, pace=pace)
+        res = self.simulation().run(progress, pace=pace, stop=stop)
         res.sim.update(loaded)
         metrics = compute_metrics(res.columns, res.scenario)
         if res.status == "ok":  # ran to its end: does the pose settle? (analysis.verdict)

@@ -52,6 +52,7 @@ def execute(
     progress: bool = False,
     label: str | None = None,
     csv_beside: bool = False,
+    stop=None,
 ):
     """Run a resolved scenario and write its result folder.
 
@@ -75,6 +76,8 @@ def execute(
         alone in its process, as ``simpro-sim run``. Runs of a batch on
         threads already keep both cores busy; there the thread only competes
         (about 14 % slower for ``sweep_outer_gain`` with ``--jobs 2``).
+    stop : threading.Event, optional
+        The run's stop token (:meth:`simpro_mj.sim.loop.CoSimulation.run`).
 
     Returns
     -------
@@ -102,9 +105,11 @@ def execute(
         pace = rows.pace if rows is not None else None
         try:
             if bar is None:
-                outcome = run.execute(quiet=quiet, pace=pace)
+                outcome = run.execute(quiet=quiet, pace=pace, stop=stop)
             else:
-                outcome = run.execute(quiet=quiet, progress=bar.step, pace=pace, bar=True)
+                outcome = run.execute(
+                    quiet=quiet, progress=bar.step, pace=pace, bar=True, stop=stop
+                )
         finally:
             if bar is not None:
                 bar.close()

@@ -16,6 +16,7 @@ import logging
 import multiprocessing
 import os
 import sys
+import threading
 import time
 from collections.abc import Callable, Mapping
 from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor, as_completed
@@ -78,9 +79,10 @@ class Progress:
 
 
 Callback = Callable[[int, dict], None]
-#: A worker function: a task (plain data, with ``ship`` on Dask) -> a result dict
-#: with ``status`` and ``reason`` (:func:`simpro_mj.batch.worker.run_variant`;
-#: ``simpro-sim response`` passes its own). Top level in its module, so that it pickles by name.
+#: A worker function: a task (plain data, with ``ship`` on Dask; on threads with ``stop``,
+#: the runs' stop token) -> a result dict with ``status`` and ``reason``
+#: (:func:`simpro_mj.batch.worker.run_variant`; ``simpro-sim response`` passes its own).
+#: Top level in its module, so that it pickles by name.
 Worker = Callable[[Mapping], dict]
 
 
@@ -134,18 +136,18 @@ def run_threads(tasks: list[tuple[int, dict]], jobs: int, done: Callback, fn: Wo
 
     The compiled step runs inside ``mj_step``, which releases the GIL, so
     threads step several simulations at once without starting processes or
-    pickling results. SIGINT/SIGTERM (in the main thread) ask every running
-    simulation to stop at its next chunk (:func:`simpro_mj.sim.loop.request_stop`);
-    those report ``interrupted``, the ones not started are cancelled.
+    pickling results. Each task gets these runs' stop token as ``task["stop"]``
+    (its worker passes it to :meth:`simpro_mj.sim.loop.CoSimulation.run`):
+    SIGINT/SIGTERM (in the main thread) set it, every running simulation of
+    these tasks stops at its next chunk and reports ``interrupted``, the ones
+    not started are cancelled. Runs elsewhere in the process go on.
     """
-    from simpro_mj.sim.loop import request_stop
-
+    stop = threading.Event()
     pool = ThreadPoolExecutor(max_workers=min(jobs, len(tasks)), thread_name_prefix="simpro")
     futures: dict = {}
     reported: set = set()
-    request_stop(False)
     try:
-        futures = {pool.submit(fn, task): key for key, task in tasks}
+        futures = {pool.submit(fn, {**task, "stop": stop}): key for key, task in tasks}
         signal_ready("batch")
         for fut in as_completed(futures):
             try:
@@ -158,7 +160,7 @@ def run_threads(tasks: list[tuple[int, dict]], jobs: int, done: Callback, fn: Wo
             if result.get("status") == "interrupted":
                 raise KeyboardInterrupt(result.get("reason") or "interrupted")
     except BaseException:
-        request_stop(True)  # the running simulations end at their next chunk
+        stop.set()  # the running simulations end at their next chunk
         for fut in futures:
             fut.cancel()
         pool.shutdown(wait=True)
@@ -167,7 +169,6 @@ def run_threads(tasks: list[tuple[int, dict]], jobs: int, done: Callback, fn: Wo
                 continue
             with contextlib.suppress(Exception):
                 done(key, fut.result(timeout=0))
-        request_stop(False)
         raise
     pool.shutdown(wait=True)
 

@@ -65,30 +65,15 @@ from simpro_mj.sim.result import COLUMNS, SimResult, qpos_names
 from simpro_mj.sim.snapshot import NoiseState, Snapshot, model_digest, scenario_digest
 from simpro_mj.sim.stages import CHUNK, FaultHooks, Log, NoiseBlock, Profile
 
-__all__ = ["LOOP_OPEN_BOUND", "CoSimulation", "request_stop", "simulate"]
+__all__ = ["LOOP_OPEN_BOUND", "CoSimulation", "simulate"]
 
 #: Divergence bound on the loop-closure error (m): far above the 0.5 mm of
 #: normal motion, well below anything physical.
 LOOP_OPEN_BOUND = 5e-3
 
 
-_STOP = threading.Event()
 #: the set-point arrays a live run writes (a snapshot of it keeps them)
 _SETPOINTS = ("ref", "q_joint_only", "veh_f", "veh_w")
-
-
-def request_stop(stop: bool = True) -> None:
-    """Ask every run of this process to stop (``stop=False``: stop asking).
-
-    A run sees it between two chunks of steps and ends as ``interrupted``
-    with what it logged, as a signal would end it: how runs on other threads
-    than the main one (which alone receives signals) are stopped
-    (:func:`simpro_mj.sim.executors.run_threads`).
-    """
-    if stop:
-        _STOP.set()
-    else:
-        _STOP.clear()
 
 
 def _say(message: str) -> None:
@@ -392,7 +377,14 @@ class CoSimulation:
         self._log = Log(self.n_steps // self.decimation + 1, self.model.nq, self.cueing)
 
     # ------------------------------------------------------------------ run
-    def run(self, progress=None, *, profile: dict | None = None, pace=None) -> SimResult:
+    def run(
+        self,
+        progress=None,
+        *,
+        profile: dict | None = None,
+        pace=None,
+        stop: threading.Event | None = None,
+    ) -> SimResult:
         """Run the scenario; on divergence or interruption stop and return what was computed.
 
         Parameters
@@ -411,6 +403,12 @@ class CoSimulation:
             before step ``k``, first at 0, then at each step it returns; ``log``
             is a view of the rows logged so far (read it only). After
             :meth:`restore`, the run goes on from the snapshot's step.
+        stop : threading.Event, optional
+            This run's stop token: once set, the run ends between two chunks of
+            steps as ``interrupted`` with what it logged, as a signal ends it (how
+            runs on threads other than the main one, which alone receives
+            signals, are stopped: :func:`simpro_mj.sim.executors.run_threads`).
+            Other runs in the process hold their own.
         """
         k0, self._resume = self._resume, None
         if k0 is None:
@@ -431,11 +429,11 @@ class CoSimulation:
                 ref, qj, uff = self._inputs()
                 with Registration(self.data, self.S, self.C, ref, qj, uff, self.noise.rows,
                                   self.walk.rows, log.log, log.qlog, log.hlog):  # fmt: skip
-                    k = self._chunks(self._callback_steps(), log, pace, progress, k0)
+                    k = self._chunks(self._callback_steps(), log, pace, progress, k0, stop)
             else:
                 stages = step.compiled() if kernel == "numba" else step
                 advance = self._python_steps(stages, faults, timer)
-                k = self._chunks(advance, log, pace, progress, k0)
+                k = self._chunks(advance, log, pace, progress, k0, stop)
         except PhysicsError as exc:
             status, reason = "diverged", str(exc)
             k = self._k
@@ -459,7 +457,7 @@ class CoSimulation:
         uff = self.u_ff if self.u_ff is not None else unused
         return self.ref, np.ascontiguousarray(qj), np.ascontiguousarray(uff)
 
-    def _chunks(self, advance, log, pace, progress, k0: int) -> int:
+    def _chunks(self, advance, log, pace, progress, k0: int, token=None) -> int:
         """Steps ``k0 .. n`` by ``advance(k, stop)`` in chunks of at most :data:`CHUNK`.
 
         A chunk ends at the next step ``pace`` asked for; between two chunks:
@@ -481,7 +479,7 @@ class CoSimulation:
             if progress is not None and stop // 1000 > k // 1000:
                 progress(stop // 1000 * 1000)
             k = self._k = stop
-            if _STOP.is_set():
+            if token is not None and token.is_set():
                 raise KeyboardInterrupt("stop requested")
             if any(self.data.warning.number.tolist()):
                 self._raise(step.ERR_WARNING, k - 1)

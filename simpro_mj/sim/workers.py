@@ -7,8 +7,8 @@
 * ignores SIGINT: Ctrl-C at a terminal reaches the whole process group, and
   the parent decides what stops (it sends SIGTERM, :func:`stop_pool`);
 * turns SIGTERM into ``KeyboardInterrupt`` while a task runs
-  (:func:`run_task`; held while the worker imports, see
-  :mod:`simpro_mj.core.interrupts`): the simulation hands back what it computed, the
+  (:func:`run_task`; held while a run loads its simulation modules or writes
+  its folder, see :mod:`simpro_mj.core.interrupts`): the simulation hands back what it computed, the
   variant's folder is written marked ``PARTIAL`` and the worker exits (it
   takes no further task, not even one the pool had queued); an idle worker
   exits at once;
@@ -30,7 +30,7 @@ import sys
 import threading
 import time
 
-from simpro_mj.core.interrupts import guarded_imports, hold_aware, raise_or_hold
+from simpro_mj.core.interrupts import hold_aware, raise_or_hold
 from simpro_mj.sim.readiness import ENV
 
 __all__ = [
@@ -127,8 +127,7 @@ def run_task(fn, *args):
         os._exit(1)
     _busy = True
     try:
-        with guarded_imports():  # SIGTERM is held while an import runs (core.interrupts)
-            return fn(*args)
+        return fn(*args)  # SIGTERM is held where a run imports (core.interrupts)
     finally:
         _busy = False
         if _ending:  # stopped: the partial result is written, nobody collects it
