@@ -188,7 +188,7 @@ def calibrate(
         )
     acts = ("actuator1", "actuator2")
     count = [0]
-    best = {"cost": math.inf}
+    best: dict[str, Any] = {"cost": math.inf}
 
     class _Budget(Exception):
         pass
@@ -199,16 +199,17 @@ def calibrate(
         values = dict(zip(names, np.exp(x).tolist(), strict=True))
         count[0] += 1
         trial = apply_values(base, values)
-        r, ident, res = [], None, None
+        parts: list[float] = []
+        ident, res = None, None
         try:
             for amp in amplitudes:
                 trial["identify"]["prbs_amplitude_v"] = [amp] * 3
                 got = identify(trial, legs=(1, 2))
                 rs = residuals(got, {a: targets[a] for a in acts})
-                r.extend(rs[a][k] for a in acts for k in TOLERANCES)
+                parts.extend(rs[a][k] for a in acts for k in TOLERANCES)
                 if ident is None:  # the first amplitude's models are reported
                     ident, res = got, rs
-            r = np.array(r)
+            r = np.array(parts)
         except (PhysicsError, UserInputError):
             ident, res, r = None, None, np.full(6 * len(amplitudes), 10.0)
         cost = float(r @ r)

@@ -39,6 +39,7 @@ import math
 from collections.abc import Mapping
 from functools import lru_cache
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -265,7 +266,7 @@ def washout_params(cue: Mapping) -> WashoutParams | MpcParams:
     resolved block's ``parameters`` (YAML units)."""
     algorithm = cue.get("algorithm", "classical_washout")
     keys = parameter_keys(algorithm)
-    kw = {}
+    kw: dict[str, Any] = {}
     for key, v in cue["parameters"].items():
         name, factor = keys[key]
         if name in _INTEGERS:  # a whole number as int; 1.5 stays 1.5 and is refused
@@ -321,21 +322,24 @@ def _chain(key: str):
     if cue.get("algorithm") == "mpc":
         from controllers.mpc_cueing import ModelPredictiveCueing  # on use: imports osqp
 
-        law = ModelPredictiveCueing(params)
+        assert isinstance(params, MpcParams)
+        mpc = ModelPredictiveCueing(params)
+        law: ModelPredictiveCueing | ClassicalWashout = mpc
         # the model's own trajectory between solves: a set-point every 1 ms
-        res = law.run(f, w, PHYSICS_DT_S)
-        pose = res.pose
+        planned = mpc.run(f, w, PHYSICS_DT_S)
+        pose = planned.pose
         none = np.zeros(t.size, bool)
         info = {
             "rate_limited": none,
             "softened": none,
             "rate_limited_fraction": 0.0,
             "softened_fraction": 0.0,
-            "solve_time": res.solve_time_stats(),
+            "solve_time": planned.solve_time_stats(),
         }
     else:
-        law = ClassicalWashout(params)
-        res = law.run(f[::every], w[::every])
+        assert isinstance(params, WashoutParams)
+        law = washout = ClassicalWashout(params)
+        res = washout.run(f[::every], w[::every])
         pose = np.repeat(res.pose, every, axis=0)[: t.size]  # zero-order hold
         info = {
             "rate_limited": res.rate_limited,

@@ -252,8 +252,9 @@ def _run_mb(
         def stopped(t, x):
             return x[3] - v_stop
 
-        stopped.terminal = True
-        stopped.direction = -1
+        # solve_ivp's event attributes: end the integration when the speed falls through
+        stopped.terminal = True  # type: ignore[attr-defined]
+        stopped.direction = -1  # type: ignore[attr-defined]
         events = [stopped]
     t_eval = np.arange(0.0, t_end + 0.5 / rate_hz, 1.0 / rate_hz)
     sol = solve_ivp(

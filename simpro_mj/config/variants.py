@@ -83,7 +83,7 @@ def load_sweep(name_or_path: str | Path, sets: Iterable[str] = ()) -> SweepFile:
         The file cannot be found or read, is not a mapping, its ``sweep:``
         block is malformed, or a ``--set`` is malformed.
     """
-    path, doc = read_document(name_or_path)
+    path, doc = read_document(str(name_or_path))
     doc = dict(doc)
     block = doc.pop("sweep", None)
     spec = parse_sweep(block) if block is not None else None

@@ -11,7 +11,7 @@ import copy
 import difflib
 import math
 import re
-from collections.abc import Iterable, Mapping
+from collections.abc import Collection, Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -72,14 +72,14 @@ def check_tagged(
     entry: Mapping,
     path: str,
     tag: str,
-    kinds: Mapping[str, tuple[tuple[str, ...], Mapping[str, Any]]],
+    kinds: Mapping[str, tuple[tuple[str, ...], Collection[str]]],
     noun: str = "",
-) -> tuple[str, tuple[str, ...], Mapping[str, Any]]:
+) -> tuple[str, tuple[str, ...], Collection[str]]:
     """Check a tagged entry such as ``{type: step, time_s: 1, value: 3}``.
 
     The tag (``entry[tag]``) picks the entry's kind in ``kinds``, which maps
-    each kind to its required keys and its optional keys with defaults; the
-    entry's other keys must be among them.
+    each kind to its required keys and its optional keys; the entry's other
+    keys must be among them.
 
     Parameters
     ----------
@@ -90,7 +90,7 @@ def check_tagged(
     tag : str
         The key naming the kind (``type``, ``distribution``).
     kinds : mapping
-        ``kind -> (required keys, {optional key: default})``.
+        ``kind -> (required keys, optional keys)``.
     noun : str, optional
         Appended to the kind in messages (``"distribution"``: "a normal
         distribution needs ...").

@@ -21,9 +21,9 @@ analysed limit are warned about), steps the co-simulation and measures it
 from __future__ import annotations
 
 import sys
-from collections.abc import Callable, Mapping
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
 
@@ -170,7 +170,7 @@ class Run:
     (``payload too heavy at plant.payload.mass_kg``).
     """
 
-    def __init__(self, scenario: Mapping, *, model=None, say: Callable[[str], None] = _say):
+    def __init__(self, scenario: dict, *, model=None, say: Callable[[str], None] = _say):
         # the run's simulation modules (MuJoCo's bindings among them): loaded when a run
         # is built, not when a command that refuses bad input within a second imports
         # this module; a signal meanwhile is raised once they are in (core.interrupts)
@@ -206,7 +206,8 @@ class Run:
         if self.identified_source is None:
             from simpro_mj.identification.auto import with_identified
 
-            self.scenario, self.identified_source = with_identified(self.scenario, self._say)
+            designed, self.identified_source = with_identified(self.scenario, self._say)
+            self.scenario = cast(dict, designed)  # the resolved scenario, a dict
 
     def preflight(self) -> tuple[list[str], dict]:
         """The checks before stepping, on this run's plant and set-points: the payload

@@ -509,7 +509,7 @@ class CoSimulation:
             nonlocal next_ev
             for k in range(k0, max(stop, k0 + 1)):
                 self._k = k
-                if k == next_ev:
+                if k == next_ev and hooks is not None:
                     next_ev = hooks.at(k)
                 step1(m, d)
                 sense(k, S, C, qpos, qvel, xpos, xmat, noise, walk)
