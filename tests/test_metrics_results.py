@@ -252,3 +252,32 @@ def test_plot_compare_writes_one_figure(tmp_path, step_all):
     assert [p.name for p in paths] == ["compare.png"]
     assert paths[0].stat().st_size > 10_000
     assert reference(step_all, np.array([0.0]))[0, 2] == pytest.approx(H0)
+
+
+def test_metrics_record_the_kernel_and_the_model_file(tmp_path):
+    """SIMPRO_KERNEL and SIMPRO_MODEL change a run: metrics.json says which, with the
+    MJCF's digest (a copy of the shipped model with one comment more: another digest)."""
+    import hashlib
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    from simpro_mj.core.shipped import MODEL_DIR
+
+    shipped = MODEL_DIR / "simpro_platform.xml"
+    mjcf = tmp_path / "platform.xml"
+    mjcf.write_bytes(shipped.read_bytes() + b"<!-- a copy -->\n")
+    root = Path(__file__).resolve().parents[1]
+    env = dict(os.environ, SIMPRO_KERNEL="python", SIMPRO_MODEL=str(mjcf), PYTHONPATH=str(root))
+    cmd = [sys.executable, "-m", "simpro_mj.commands.main", "run", "step_pitch",
+           "--set", "duration_s=0.05", "--no-plots", "--quiet", "--out", "run"]  # fmt: skip
+    proc = subprocess.run(cmd, cwd=tmp_path, env=env, capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    v = json.loads((tmp_path / "run" / "metrics.json").read_text())["versions"]
+    assert v["SIMPRO_KERNEL"] == "python" and v["kernels"] == "python"
+    assert v["model"] == {
+        "file": str(mjcf),
+        "sha256": hashlib.sha256(mjcf.read_bytes()).hexdigest(),
+    }
+    assert v["model"]["sha256"] != hashlib.sha256(shipped.read_bytes()).hexdigest()

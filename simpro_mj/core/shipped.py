@@ -17,9 +17,17 @@ its package's copy.
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
-__all__ = ["shipped_dir", "MODEL_DIR", "SCENARIOS_DIR", "TELEMETRY_DIR", "PRESETS_DIR"]
+__all__ = [
+    "shipped_dir",
+    "model_path",
+    "MODEL_DIR",
+    "SCENARIOS_DIR",
+    "TELEMETRY_DIR",
+    "PRESETS_DIR",
+]
 
 _PACKAGE = Path(__file__).resolve().parents[1]  # simpro_mj/
 _CHECKOUT = _PACKAGE.parent
@@ -46,3 +54,8 @@ SCENARIOS_DIR = shipped_dir("scenarios")
 TELEMETRY_DIR = SCENARIOS_DIR / "telemetry"
 #: The shipped plant presets.
 PRESETS_DIR = SCENARIOS_DIR / "presets"
+
+
+def model_path() -> Path:
+    """The MJCF a run compiles: ``$SIMPRO_MODEL`` when set, else the shipped one."""
+    return Path(os.environ.get("SIMPRO_MODEL") or MODEL_DIR / "simpro_platform.xml")

@@ -11,7 +11,6 @@ perturbed model do not close at ``qpos0``).
 from __future__ import annotations
 
 import copy
-import os
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -21,7 +20,7 @@ import numpy as np
 
 from simpro_mj.core.errors import PhysicsError, UserInputError
 from simpro_mj.core.keys import apply_overrides, closest
-from simpro_mj.core.shipped import MODEL_DIR
+from simpro_mj.core.shipped import model_path
 from simpro_mj.plant.step_functions import platform_pose
 
 __all__ = [
@@ -41,8 +40,9 @@ __all__ = [
     "WARNING_NAMES",
 ]
 
-#: The shipped model; ``SIMPRO_MODEL`` in the environment points elsewhere.
-MODEL_PATH = Path(os.environ.get("SIMPRO_MODEL", MODEL_DIR / "simpro_platform.xml"))
+#: The MJCF a run compiles: the shipped one, or ``SIMPRO_MODEL``
+#: (:func:`~simpro_mj.core.shipped.model_path`).
+MODEL_PATH = model_path()
 
 # the parameters are plain data in simpro_mj.plant.model_params (scenarios read them
 # without importing MuJoCo); re-exported here

@@ -45,6 +45,8 @@ import yaml
 from simpro_mj import __version__
 from simpro_mj.analysis.verdict import FINISHED_STATUSES
 from simpro_mj.config.scenario import scenario_hash
+from simpro_mj.core.cache import file_digest
+from simpro_mj.core.shipped import model_path
 from simpro_mj.plant import kernels
 from simpro_mj.report.folders import (
     PARTIAL_MARKER,
@@ -98,13 +100,18 @@ def versions(resolved: Mapping | None = None) -> dict:
         except metadata.PackageNotFoundError:
             return None
 
+    model = model_path()
     out = {
         "simpro-sim": __version__,
         "mujoco": dist("mujoco"),
         "numpy": np.__version__,
         "python-control": dist("control"),
         "python": platform.python_version(),
-        "kernels": kernels.kernel_label(),  # SIMPRO_KERNEL: pneumatics + sensors
+        "kernels": kernels.kernel_label(),  # what ran: pneumatics + sensors
+        # what the environment chose: SIMPRO_KERNEL as set (docs/performance.md), and the
+        # MJCF compiled (SIMPRO_MODEL, else the shipped one) with the digest of its bytes
+        "SIMPRO_KERNEL": os.environ.get("SIMPRO_KERNEL", "auto"),
+        "model": {"file": str(model), "sha256": file_digest(model)},
         # results are bit-identical only under one fingerprint (simpro_mj.report.machine)
         "machine": fingerprint_id(),
     }
