@@ -58,7 +58,8 @@ def test_table_counts_the_floors_per_payload_and_friction_cell():
     assert cells[(0.0, 100.0), (200.0, 250.0)]["fraction"] == 0.0
     assert sum(c["n"] for c in t["cells"]) == 3
     text = "\n".join(table_lines(t))
-    assert "1 of 3 variants (33.3 %)" in text and "limit_cycle 1" in text
+    assert "1 of 3 finished variants (33.3 %)" in text and "limit_cycle 1" in text
+    assert "not finished" not in text and t["unfinished"] == 0
     assert robustness_table([{**_row(), "values": {}}], "rob") is None
 
 
@@ -92,3 +93,31 @@ def test_the_shipped_sweep_spans_the_cabins_range():
     assert 5.0 <= sup.min() < 5.1 and 6.9 < sup.max() <= 7.0
     assert {s["plant"]["preset"] for s in good} == {"heavy_cabin"}
     assert {s["controller"]["inner"]["design_plant"] for s in good} == {"identified"}
+
+
+def test_a_stopped_batch_counts_finished_variants_only_and_names_the_rest():
+    # 3 finished (1 meets the floors), 2 not run and 1 stopped while it ran: the
+    # fraction is 1 of 3, not 1 of 6, and the unfinished are neither met nor failed
+    rows = [
+        _row(payload=150.0, coulomb=(100.0, 120.0, 140.0)),
+        _row(payload=160.0, coulomb=(110.0, 120.0, 130.0), status="limit_cycle"),
+        _row(payload=20.0, coulomb=(240.0, 230.0, 250.0), over=30.0),
+        _row(payload=170.0, coulomb=(110.0, 120.0, 130.0), status="cancelled", over=None),
+        _row(payload=30.0, coulomb=(10.0, 20.0, 30.0), status="cancelled", over=None),
+        _row(payload=180.0, coulomb=(110.0, 120.0, 130.0), status="interrupted"),
+    ]
+    t = robustness_table(rows, "rob")
+    assert (t["n"], t["met"], t["unfinished"]) == (3, 1, 3)
+    assert abs(t["fraction"] - 1 / 3) < 1e-12
+    assert t["statuses"] == {"ok": 2, "limit_cycle": 1}
+    assert sum(c["n"] for c in t["cells"]) == 3
+    cell = next(
+        c for c in t["cells"] if c["payload_kg"] == [100.0, 200.0] and c["coulomb_n"][0] == 100.0
+    )
+    assert (cell["met"], cell["n"]) == (1, 2)  # the cancelled and interrupted ones left out
+    text = "\n".join(table_lines(t))
+    assert "1 of 3 finished variants (33.3 %)" in text and "3 not finished" in text
+    # nothing finished: no fraction, no division by zero
+    t0 = robustness_table([_row(status="cancelled")], "rob")
+    assert (t0["n"], t0["fraction"], t0["unfinished"]) == (0, None, 1)
+    assert "0 of 0 finished variants (-)" in "\n".join(table_lines(t0))

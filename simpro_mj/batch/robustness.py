@@ -11,6 +11,11 @@ payload against the smallest Coulomb friction of the three legs (the seal whose
 breakaway stands farthest above its running friction when the breakaway is held,
 as in the cabin's sweep), coloured by the verdict, the overshoot and the settling
 time.
+
+The fractions are over the variants that *finished* (ran to their end or diverged,
+failed or were invalid): a variant the batch did not finish (``cancelled``, or
+``interrupted`` when the batch was stopped while it ran) has no answer, so it is
+neither a success nor a failure; the table counts those apart as ``unfinished``.
 """
 
 from __future__ import annotations
@@ -24,10 +29,12 @@ __all__ = [
     "SETTLING_S",
     "PAYLOAD",
     "COULOMB",
+    "UNFINISHED",
     "meets_floors",
     "worst",
     "robustness_table",
     "table_lines",
+    "fraction_text",
     "map_figure",
 ]
 
@@ -41,6 +48,8 @@ COULOMB = "actuator.pneumatics.cylinder.coulomb_friction_n"
 PAYLOAD_EDGES = (0.0, 100.0, 200.0, 300.0, 400.0)
 COULOMB_EDGES = (0.0, 50.0, 100.0, 150.0, 200.0, 250.0)
 _AXES = ("roll", "pitch", "heave")
+#: The statuses of a variant the batch did not finish (no verdict to count).
+UNFINISHED = ("cancelled", "interrupted")
 
 
 def _stepped(row: Mapping) -> list[str]:
@@ -82,13 +91,16 @@ def _cell(edges, x: float) -> int:
 
 
 def robustness_table(rows: list[dict], name: str) -> dict | None:
-    """The floors over the variants of scenario file ``name`` that drew payload and
-    friction: ``{scenario, n, met, fraction, floors, statuses, cells}``; ``cells`` one
+    """The floors over the finished variants of scenario file ``name`` that drew
+    payload and friction: ``{scenario, n, met, fraction, unfinished, floors, statuses,
+    cells}``; ``n`` the finished variants, ``unfinished`` those the batch did not
+    finish (module docstring), ``statuses`` the finished ones' statuses; ``cells`` one
     per payload x friction cell ``{payload_kg, coulomb_n, n, met, fraction}``. None
-    when no variant drew both."""
-    pts = [(r, p) for r in rows if r["scenario"] == name and (p := _point(r)) is not None]
-    if not pts:
+    when no variant drew both; ``fraction`` None when none finished."""
+    drawn = [(r, p) for r in rows if r["scenario"] == name and (p := _point(r)) is not None]
+    if not drawn:
         return None
+    pts = [(r, p) for r, p in drawn if r["status"] not in UNFINISHED]
     met = [meets_floors(r) for r, _ in pts]
     statuses: dict[str, int] = {}
     for r, _ in pts:
@@ -114,7 +126,8 @@ def robustness_table(rows: list[dict], name: str) -> dict | None:
         "scenario": name,
         "n": len(pts),
         "met": sum(met),
-        "fraction": sum(met) / len(pts),
+        "fraction": sum(met) / len(pts) if pts else None,
+        "unfinished": len(drawn) - len(pts),
         "floors": {"overshoot_pct": OVERSHOOT_PCT, "settling_s": SETTLING_S, "status": "ok"},
         "statuses": statuses,
         "cells": cells,
@@ -126,11 +139,11 @@ def table_lines(table: Mapping) -> list[str]:
     f = table["floors"]
     per_row = len(COULOMB_EDGES) - 1
     lines = [
-        f"\nRobustness {table['scenario']}: {table['met']} of {table['n']} variants "
-        f"({100 * table['fraction']:.1f} %) meet overshoot <= {f['overshoot_pct']:g} %, "
-        f"settling <= {f['settling_s']:g} s, status ok; statuses "
-        + ", ".join(f"{k} {v}" for k, v in sorted(table["statuses"].items())),
-        "  met / n per cell: payload (kg) rows, smallest Coulomb friction of a leg (N) columns",
+        f"\nRobustness {table['scenario']}: {fraction_text(table)} meet overshoot <= "
+        f"{f['overshoot_pct']:g} %, settling <= {f['settling_s']:g} s, status ok; statuses "
+        + (", ".join(f"{k} {v}" for k, v in sorted(table["statuses"].items())) or "none"),
+        "  met / n per cell (n: finished variants): payload (kg) rows, smallest Coulomb "
+        "friction of a leg (N) columns",
         "  " + " " * 10 + "".join(f"{_band(COULOMB_EDGES, j):>10}" for j in range(per_row)),
     ]
     for i in range(len(PAYLOAD_EDGES) - 1):
@@ -138,6 +151,15 @@ def table_lines(table: Mapping) -> list[str]:
         text = "".join(f"{str(c['met']) + '/' + str(c['n']):>10}" for c in cells)
         lines.append(f"  {_band(PAYLOAD_EDGES, i):<10}{text}")
     return lines
+
+
+def fraction_text(table: Mapping) -> str:
+    """``"51 of 53 finished variants (96.2 %)"``, with the unfinished ones named."""
+    pct = "-" if table["fraction"] is None else f"{100 * table['fraction']:.1f} %"
+    text = f"{table['met']} of {table['n']} finished variants ({pct})"
+    if table.get("unfinished"):
+        text += f" [{table['unfinished']} not finished, not counted]"
+    return text
 
 
 def _band(edges, i: int) -> str:
@@ -167,7 +189,11 @@ def map_figure(rows: list[dict], table: Mapping):
     from matplotlib.figure import Figure  # when drawn: the batch's start does not load it
 
     pts = [
-        (r, p) for r in rows if r["scenario"] == table["scenario"] and (p := _point(r)) is not None
+        (r, p)
+        for r in rows
+        if r["scenario"] == table["scenario"]
+        and (p := _point(r)) is not None
+        and r["status"] not in UNFINISHED
     ]
     if not pts:
         return None
@@ -205,8 +231,7 @@ def map_figure(rows: list[dict], table: Mapping):
     axes[0].set_ylabel("smallest Coulomb friction of a leg [N]")
     f = table["floors"]
     fig.suptitle(
-        f"{table['scenario']}: {table['met']} of {table['n']} variants "
-        f"({100 * table['fraction']:.1f} %) meet overshoot <= {f['overshoot_pct']:g} %, "
+        f"{table['scenario']}: {fraction_text(table)} meet overshoot <= {f['overshoot_pct']:g} %, "
         f"settling <= {f['settling_s']:g} s, no limit cycle",
         fontsize=11,
     )

@@ -6,7 +6,10 @@ OUT), one column per swept path (the value as declared, or as drawn),
 ``<axis>_ss_err_<u>`` (signed mean error over the final window),
 ``<axis>_rms_err_<u>``, ``<axis>_max_err_<u>``, ``<axis>_rise_s``,
 ``<axis>_settling_s``, ``<axis>_overshoot_pct`` with ``u`` = deg (roll,
-pitch) or mm (heave), then ``stable``, ``growth_rate_1_s``, for sweeps of
+pitch) or mm (heave), then ``stable``, ``growth_rate_1_s``, ``stability_note``
+(why a run is unstable, or, beside a ``stable`` run whose verdict is
+``limit_cycle`` or ``not_settled``, that it is small-signal stable and
+large-signal not: :mod:`simpro_mj.batch.tables`), for sweeps of
 ``controller.outer.gains`` ``analytic_limit``, ``analytic_limit_delay_model``
 and ``analytic_growth_rate_1_s``, and last ``realtime_factor`` (the only
 wall-clock column).
@@ -34,12 +37,14 @@ from simpro_mj.report.results import jsonable
 __all__ = [
     "AXES",
     "RUN_STATUSES",
+    "SMALL_SIGNAL_ONLY",
     "STATUSES",
     "Report",
     "csv_columns",
     "metric_columns",
     "summary_row",
     "summary_csv_text",
+    "verdict_note",
     "write_summary",
 ]
 
@@ -75,6 +80,21 @@ def _sim_rt(doc: Mapping) -> float | None:
     if rt is None:
         rt = (sim.get("wall_clock") or {}).get("realtime_factor")
     return rt
+
+
+#: Verdicts a run can have while its error envelope does not grow (:mod:`simpro_mj.batch.tables`).
+SMALL_SIGNAL_ONLY = ("limit_cycle", "not_settled")
+
+
+def verdict_note(row: Mapping) -> str | None:
+    """The note of a row whose two answers differ (:mod:`simpro_mj.batch.tables`), else None."""
+    if row.get("stable") is True and row.get("status") in SMALL_SIGNAL_ONLY:
+        why = f": {row['reason']}" if row.get("reason") else ""
+        return (
+            "small-signal stable (the error envelope does not grow), large-signal "
+            f"{row['status']} (the verdict{why})"
+        )
+    return None
 
 
 def summary_row(job: Job, result: Mapping | None, skipped: bool = False) -> dict:
@@ -127,7 +147,7 @@ def summary_row(job: Job, result: Mapping | None, skipped: bool = False) -> dict
     if stab:
         row["stable"] = stab["stable"]
         row["growth_rate_1_s"] = stab["growth_rate_1_s"]
-        row["stability_note"] = stab["why"]
+        row["stability_note"] = stab["why"] or verdict_note(row)
     return row
 
 
@@ -200,6 +220,7 @@ def csv_columns(report: Report) -> list[str]:
     if any(r["sample"] is not None for r in report.rows):
         cols.append("sample")
     cols += ["seed", "status", "reason", *metric_columns(), "stable", "growth_rate_1_s"]
+    cols.append("stability_note")
     if any("analytic_limit" in r for r in report.rows):
         cols += ["analytic_limit", "analytic_limit_delay_model", "analytic_growth_rate_1_s"]
     if any("cue_long_corr" in r for r in report.rows):  # cueing runs

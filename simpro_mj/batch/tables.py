@@ -3,7 +3,18 @@ the human summary :func:`print_report` prints.
 
 Stability limit: see :mod:`simpro_mj.batch.stability`. Monte Carlo: per file and
 grid combination, the median, 90th percentile and maximum of |steady-state
-error| over the variants with status ``ok``.
+error| over the variants with status ``ok``, out of those that finished; the
+variants the batch did not finish (``cancelled``, ``interrupted``) are counted
+apart, never as failures.
+
+Two answers per variant of a gain sweep, printed side by side: ``stable`` is the
+error envelope's growth (:mod:`simpro_mj.batch.stability`: does a disturbance
+grow? the small-signal question the linear analysis answers) and ``status`` the
+run's verdict on its final window (:mod:`simpro_mj.analysis.verdict`: is the pose
+still moving?). They differ where the loop is small-signal stable but holds a
+bounded, large-signal limit cycle (saturation, the valves' dead zone, the seals'
+friction): the row's ``stability_note`` says so, and the limit table gives both
+limits (``stable <=`` by the growth, ``settled <=`` by the verdict).
 """
 
 from __future__ import annotations
@@ -15,11 +26,15 @@ from typing import Any
 import numpy as np
 
 from simpro_mj.batch.plan import GAIN_PATH, Job
-from simpro_mj.batch.robustness import table_lines
-from simpro_mj.batch.summary import AXES, Report
+from simpro_mj.batch.robustness import UNFINISHED, table_lines
+from simpro_mj.batch.summary import AXES, SMALL_SIGNAL_ONLY, Report, verdict_note
 from simpro_mj.config.sweep import format_value
 
 __all__ = ["monte_carlo_table", "print_report", "stability_table"]
+
+
+def _gain_list(gains: list[float]) -> str:
+    return ", ".join(f"{g:g}" for g in gains)
 
 
 def _gain(values: Mapping) -> float | None:
@@ -49,6 +64,7 @@ def stability_table(rows: list[dict], jobs: list[Job]) -> list[dict]:
         members.sort(key=lambda m: m[0])
         gains = [m[0] for m in members]
         stable = [bool(m[1]["stable"]) for m in members]
+        statuses = [m[1]["status"] for m in members]
         unstable_at = [g for g, s in zip(gains, stable, strict=True) if not s]
         hi = min(unstable_at) if unstable_at else None
         below = [m for m in members if m[1]["stable"] and (hi is None or m[0] < hi)]
@@ -71,6 +87,23 @@ def stability_table(rows: list[dict], jobs: list[Job]) -> list[dict]:
             note.append("nonlinear pneumatics: the analysis assumes eq. (19) plants")
         if any(s and g > hi for g, s in zip(gains, stable, strict=True) if hi is not None):
             note.append("not monotonic: a stable gain above an unstable one")
+        unsettled_at = [g for g, st in zip(gains, statuses, strict=True) if st != "ok"]
+        settled_hi = min(unsettled_at) if unsettled_at else None
+        settled = [g for g, st in zip(gains, statuses, strict=True) if st == "ok"]
+        settled_lo = max((g for g in settled if settled_hi is None or g < settled_hi), default=None)
+        cycling = [
+            (g, st)
+            for g, s, st in zip(gains, stable, statuses, strict=True)
+            if s and st in SMALL_SIGNAL_ONLY
+        ]
+        if cycling:
+            kinds = sorted({st for _, st in cycling})
+            note.append(
+                f"K K_I {_gain_list([g for g, _ in cycling])}: small-signal stable (the error "
+                f"envelope does not grow) but the verdict is {' / '.join(kinds)} (a bounded "
+                "large-signal oscillation or drift): stable <= is the growth's limit, settled "
+                "<= the verdict's"
+            )
         table.append(
             {
                 "scenario": sname,
@@ -81,8 +114,11 @@ def stability_table(rows: list[dict], jobs: list[Job]) -> list[dict]:
                 "gains": gains,
                 "stable": stable,
                 "growth_rate_1_s": [m[1]["growth_rate_1_s"] for m in members],
+                "statuses": statuses,
                 "largest_stable": lo,
                 "smallest_unstable": hi,
+                "largest_settled": settled_lo,
+                "smallest_unsettled": settled_hi,
                 "simulated_limit": estimate,
                 "analytic_limit": ana,
                 "analytic_limit_delay_model": members[0][1].get("analytic_limit_delay_model"),
@@ -97,7 +133,9 @@ def monte_carlo_table(rows: list[dict], jobs: list[Job]) -> list[dict]:
     """Distribution of |steady-state error| per Monte Carlo file and grid combination.
 
     Per axis the median, 90th percentile and maximum over the variants with
-    status ``ok`` (deg, deg, mm as in the summary columns).
+    status ``ok`` (deg, deg, mm as in the summary columns). Per group ``n`` those
+    variants, ``finished`` the variants that finished, ``of`` all its variants;
+    per file ``finished`` and ``unfinished`` (module docstring).
     """
 
     files: dict[str, dict] = {}
@@ -130,8 +168,27 @@ def monte_carlo_table(rows: list[dict], jobs: list[Job]) -> list[dict]:
                     "p90": float(np.percentile(v, 90)) if v.size else None,
                     "max": float(v.max()) if v.size else None,
                 }
-            groups.append({"group": name, "n": len(ok), "of": len(members), "axes": axes})
-        out.append({"scenario": sname, "samples": f["samples"], "groups": groups})
+            finished = sum(r["status"] not in UNFINISHED for r in members)
+            groups.append(
+                {
+                    "group": name,
+                    "n": len(ok),
+                    "finished": finished,
+                    "of": len(members),
+                    "axes": axes,
+                }
+            )
+        finished = sum(g["finished"] for g in groups)
+        total = sum(g["of"] for g in groups)
+        out.append(
+            {
+                "scenario": sname,
+                "samples": f["samples"],
+                "finished": finished,
+                "unfinished": total - finished,
+                "groups": groups,
+            }
+        )
     return out
 
 
@@ -153,6 +210,8 @@ def print_report(report: Report, file=None) -> None:
             print(header + "\n" + "-" * len(header), file=file)
             last = r["scenario"]
         stable = "-" if r["stable"] is None else ("yes" if r["stable"] else "NO")
+        differ = verdict_note(r) is not None
+        stable += "*" if differ else ""
         print(
             f"{r['variant']:<34} {r['status']:<11} {stable:<6} "
             f"{_num(r['roll_ss_err_deg'], 3):>9} {_num(r['pitch_ss_err_deg'], 3):>9} "
@@ -162,17 +221,27 @@ def print_report(report: Report, file=None) -> None:
         )
         if r["status"] != "ok" and r["reason"]:
             print(f"    {r['status']}: {r['reason']}", file=file)
+        if differ:
+            print(
+                "    * small-signal stable (the error envelope does not grow), "
+                f"large-signal {r['status']}",
+                file=file,
+            )
         if r.get("cue_floors_met") is not None:
             floors = "met" if r["cue_floors_met"] else "missed: " + r["cue_floors_missed"]
             print(f"    cue floors {floors}", file=file)
     print(
         "(ss: steady-state error, deg, deg, mm; growth: error envelope, 1/s; "
-        "rt x: realtime factor; a cueing run's stability is judged by the cue floors)",
+        "rt x: realtime factor; stable: the error envelope does not grow (small signal), "
+        "status: the verdict on the final window (large signal); a cueing run's stability "
+        "is judged by the cue floors)",
         file=file,
     )
     for m in report.monte_carlo:
+        unfinished = f"; {m['unfinished']} not finished, not counted" if m.get("unfinished") else ""
         print(
-            f"\nMonte Carlo {m['scenario']}, |steady-state error| over {m['samples']} samples "
+            f"\nMonte Carlo {m['scenario']}, |steady-state error| of the ok variants "
+            f"(n: ok of the finished; {m['samples']} samples drawn{unfinished}) "
             "(median / 90th percentile / max):",
             file=file,
         )
@@ -184,14 +253,20 @@ def print_report(report: Report, file=None) -> None:
                     f"{axis} {_num(st['median'], 3)} / {_num(st['p90'], 3)} / "
                     f"{_num(st['max'], 3)} {unit}"
                 )
-            print(f"  {g['group']:<24} n={g['n']:<3} " + "; ".join(cells), file=file)
+            n = f"{g['n']}/{g['finished']}"
+            print(f"  {g['group']:<24} n={n:<7} " + "; ".join(cells), file=file)
     for table in report.robustness:
         print("\n".join(table_lines(table)), file=file)
     if report.stability:
-        print("\nstability limit, K K_I (1/s):", file=file)
+        print(
+            "\nstability limit, K K_I (1/s): stable/unstable by the error envelope's growth "
+            "(small signal, what the analysis predicts), settled/unsettled by the verdict:",
+            file=file,
+        )
         print(
             f"{'scenario':<20} {'group':<26} {'analytic':>9} {'delay mdl':>9} "
-            f"{'stable <=':>9} {'unstable >=':>11} {'simulated':>9} {'sim/ana':>7}",
+            f"{'stable <=':>9} {'unstable >=':>11} {'simulated':>9} {'sim/ana':>7} "
+            f"{'settled <=':>10} {'unsettled >=':>12}",
             file=file,
         )
         for s in report.stability:
@@ -200,7 +275,8 @@ def print_report(report: Report, file=None) -> None:
                 f"{s['scenario']:<20} {group:<26} {_num(s['analytic_limit']):>9} "
                 f"{_num(s['analytic_limit_delay_model']):>9} {_num(s['largest_stable']):>9} "
                 f"{_num(s['smallest_unstable']):>11} {_num(s['simulated_limit']):>9} "
-                f"{_num(s['simulated_over_analytic'], 3):>7}",
+                f"{_num(s['simulated_over_analytic'], 3):>7} "
+                f"{_num(s['largest_settled']):>10} {_num(s['smallest_unsettled']):>12}",
                 file=file,
             )
             if s["note"]:
