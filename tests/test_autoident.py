@@ -101,3 +101,39 @@ def test_the_simulation_designs_on_the_scenarios_own_plant(cache, monkeypatch):
     own = cs.scenario["controller"]["inner"]["identified"]
     assert own["actuator1"]["a0"] > 1.2 * preset_a0  # lighter: stiffer per kg
     assert len(list(cache.glob("*.json"))) == 1
+
+
+def test_a_batch_counts_the_identification_line_instead_of_printing_it(
+    cache, fake_identify, capsys
+):
+    from simpro_mj.core import notices
+
+    said, phases = [], []
+    scs = [load_scenario("step_pitch", [IDENT, f"plant.payload.mass_kg={m}"]) for m in (80, 90)]
+    with notices.collecting(phases.append) as c:
+        for sc in scs:
+            ai.with_identified(sc, said.append)
+    assert said == [] and len(fake_identify) == 2
+    ((text, count),) = c.counts.items()
+    assert text.startswith("identifying the scenario's own plant (Fig. 12)") and count == 2
+    assert phases == ["identifying", "simulating"] * 2
+    ai.with_identified(
+        load_scenario("step_pitch", [IDENT, "plant.payload.mass_kg=70"]), said.append
+    )
+    assert len(said) == 1 and said[0] == text  # outside a batch: said at once
+
+
+def test_experiment_seconds_name_the_variants_that_identify(cache, fake_identify):
+    from simpro_mj.batch.runner import EXPERIMENT_WEIGHT, expected_cost
+
+    new = load_scenario("step_pitch", [IDENT, "plant.payload.mass_kg=80"])
+    ip = ai.plant_tree(new)["identify"]
+    assert ai.experiment_s(new) == pytest.approx(3 * (ip["settle_s"] + ip["duration_s"]))
+    assert ai.experiment_s(load_scenario("step_pitch", [IDENT])) == 0.0  # the preset's plant
+    paper = load_scenario("step_pitch", ["plant.payload.mass_kg=80"])
+    assert ai.experiment_s(paper) == 0.0  # designed on the paper's plants
+    assert expected_cost(new) == pytest.approx(
+        new["duration_s"] + EXPERIMENT_WEIGHT * ai.experiment_s(new)
+    )
+    ai.identified_models(new)  # now cached: the run alone
+    assert ai.experiment_s(new) == 0.0 and expected_cost(new) == new["duration_s"]

@@ -119,12 +119,14 @@ def summary_row(job: Job, result: Mapping | None, skipped: bool = False) -> dict
             analytic_limit=None, analytic_limit_delay_model=None, analytic_growth_rate_1_s=None
         )
     row["realtime_factor"] = None
+    row.update(wall_s=None, cpu_s=None)
     if job.scenario is not None and job.gain_sweep:
         row.update(analytic(job.scenario))
     if result is None:
         return row
     row["status"] = result.get("status", "failed")
     row["reason"] = result.get("reason")
+    row["wall_s"], row["cpu_s"] = result.get("wall_s"), result.get("cpu_s")
     doc = result.get("metrics")
     if doc:
         axes = doc.get("axes") or {}
@@ -168,6 +170,8 @@ class Report:
     wall_s: float = 0.0
     #: why the batch stopped before its end (a signal, no Dask workers), else None
     stopped: str | None = None
+    #: the lines the variants' runs said (text -> how many variants), printed once
+    notices: dict = field(default_factory=dict)
 
     @property
     def counts(self) -> dict:
@@ -190,6 +194,8 @@ class Report:
                 "skipped": self.skipped,
                 "wall_s": self.wall_s,
                 "stopped": self.stopped,
+                "notices": self.notices,
+                "cpu_s": sum(r.get("cpu_s") or 0.0 for r in self.rows),
                 "swept_paths": self.paths,
                 "files": self.files,
                 "stability": self.stability,

@@ -281,6 +281,8 @@ def print_report(report: Report, file=None) -> None:
             )
             if s["note"]:
                 print(f"    note: {s['note']}", file=file)
+    for text, count in report.notices.items():
+        print(f"\n{text} ({count} variant{'s' if count != 1 else ''})", file=file)
     c = report.counts
     counts = ", ".join(f"{k} {v}" for k, v in c.items() if v)
     extra = f", {report.skipped} skipped (complete)" if report.skipped else ""

@@ -6,22 +6,34 @@ folder, builds its own MuJoCo model, runs, writes a normal result folder
 model is ever pickled; the function is top level so that it pickles by name
 to a pool or Dask worker. A worker that may not share this file system writes
 into a temporary folder and ships the files back (:func:`install` writes them here).
+
+The notices a run would print (the identification line) are gathered
+(:mod:`simpro_mj.core.notices`) and returned, so the batch says each once with a
+count; on threads of the batch's process, :data:`ACTIVITY` holds what each worker
+is doing for the progress line.
 """
 
 from __future__ import annotations
 
 import shutil
 import tempfile
+import threading
+import time
 from collections.abc import Mapping
 from pathlib import Path
 
 from simpro_mj.batch.stability import stability_of_folder
+from simpro_mj.core import notices
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.messages import one_line
 from simpro_mj.report.folders import install_folder
 from simpro_mj.report.runner import execute
 
-__all__ = ["install", "run_variant"]
+__all__ = ["ACTIVITY", "install", "run_variant"]
+
+#: Worker thread name -> (variant label, phase, time.monotonic() the phase began), of
+#: the variants running on threads of this process (the progress line reads it).
+ACTIVITY: dict[str, tuple[str, str, float]] = {}
 
 
 def run_variant(task: Mapping) -> dict:
@@ -38,9 +50,31 @@ def run_variant(task: Mapping) -> dict:
     -------
     dict
         ``status``, ``reason``, ``metrics`` (the ``metrics.json`` document,
-        ``None`` if the run failed), ``stability`` (:func:`stability_of_folder`)
+        ``None`` if the run failed), ``stability`` (:func:`stability_of_folder`),
+        ``notices`` (text -> count), ``wall_s`` and ``cpu_s`` (this thread's CPU
+        time: the variant's own cost, less inflated by other work on the machine)
         and, when shipping, ``files`` (name -> bytes).
     """
+    me = threading.current_thread().name
+    label = str(task.get("label") or Path(task["out"]).name)
+
+    def on_phase(name: str) -> None:
+        ACTIVITY[me] = (label, name, time.monotonic())
+
+    wall0, cpu0 = time.perf_counter(), time.thread_time()
+    on_phase("preparing")
+    try:
+        with notices.collecting(on_phase) as said:
+            out = _run_variant(task)
+    finally:
+        ACTIVITY.pop(me, None)
+    out["notices"] = said.counts
+    out["wall_s"] = time.perf_counter() - wall0
+    out["cpu_s"] = time.thread_time() - cpu0
+    return out
+
+
+def _run_variant(task: Mapping) -> dict:
     ship = bool(task.get("ship"))
     tmp = Path(tempfile.mkdtemp(prefix="simpro-batch-")) if ship else None
     try:

@@ -43,7 +43,7 @@ from simpro_mj.config.scenario import (
     IDENTIFY_CHOICES,  # values of controller.inner.identify
     _merge,
 )
-from simpro_mj.core import cache
+from simpro_mj.core import cache, notices
 from simpro_mj.identification import identify as identify_module
 
 __all__ = [
@@ -52,6 +52,7 @@ __all__ = [
     "plant_tree",
     "plant_hash",
     "identified_models",
+    "experiment_s",
     "with_identified",
 ]
 
@@ -137,14 +138,35 @@ def identified_models(scenario: Mapping, progress=None) -> tuple[dict, str]:
     models = _read(path)
     source = "cache"
     if models is None:
-        if progress is not None:
-            progress(f"identifying the scenario's own plant (Fig. 12), cached in {path.parent}")
+        # in a batch, said once with the number of variants (simpro_mj.core.notices)
+        notices.say(
+            f"identifying the scenario's own plant (Fig. 12), cached in {path.parent}", progress
+        )
+        notices.phase("identifying")
         got = identify_module.identify(tree)  # by attribute: tests replace it
         models = {a: {k: float(got[a][k]) for k in ("b", "a1", "a0")} for a in _ACTS}
         cache.write_json(path, models)
         source = "identified"
     _memo[h] = copy.deepcopy(models)
     return models, source
+
+
+def experiment_s(scenario: Mapping) -> float:
+    """Simulated seconds of the experiment :func:`with_identified` would run for the
+    scenario now: 0 when it needs none (not ``design_plant: identified``, the preset's
+    plant, ``identify: preset``, or the plant's models in the cache), else per leg the
+    settling time and the excitation."""
+    inner = scenario["controller"]["inner"]
+    if inner["design_plant"] != "identified" or inner.get("identify", "auto") == "preset":
+        return 0.0
+    if _is_presets_plant(scenario):
+        return 0.0
+    tree = plant_tree(scenario)
+    h = plant_hash(tree)
+    if h in _memo or (cache_dir() / f"{h}.json").is_file():
+        return 0.0
+    ip = tree["identify"]
+    return 3.0 * (float(ip["settle_s"]) + float(ip["duration_s"]))
 
 
 def with_identified(scenario: Mapping, progress=None) -> tuple[Mapping, str]:
@@ -155,8 +177,10 @@ def with_identified(scenario: Mapping, progress=None) -> tuple[Mapping, str]:
     preflight's analysis, which keeps the preset's (no experiment per variant of a
     Monte-Carlo sweep)."""
     if scenario["controller"]["inner"]["design_plant"] != "identified":
+        notices.phase("simulating")
         return scenario, "preset"
     models, source = identified_models(scenario, progress)
+    notices.phase("simulating")  # the design plants are known: the run proper follows
     if source == "preset":
         return scenario, source
     out = dict(scenario)

@@ -48,32 +48,79 @@ MAX_JOBS = 256
 
 
 class Progress:
-    """tqdm bar with done/failed/left, or nothing."""
+    """tqdm bar with ok/not ok/left, what each worker does and the time left, or nothing.
 
-    def __init__(self, total: int, enabled: bool, desc: str = "batch"):
+    ``activity``, when given, maps a worker to ``(label, phase, since)`` (``since``
+    from :func:`time.monotonic`), read once a second for the line (the batch's
+    threads: :data:`simpro_mj.batch.worker.ACTIVITY`). The time left is the mean
+    wall time of the finished tasks times the tasks not finished, over ``workers``,
+    less what the running ones have done.
+    """
+
+    def __init__(
+        self,
+        total: int,
+        enabled: bool,
+        desc: str = "batch",
+        *,
+        activity: Mapping | None = None,
+        workers: int = 1,
+    ):
         self.done = self.failed = 0
         self.total = total
         self.bar = None
+        self.activity = activity
+        self.workers = max(1, int(workers))
+        self.walls: list[float] = []
+        self._stop = threading.Event()
+        self._ticker = None
         if enabled and total and sys.stderr.isatty():
             self.bar = tqdm(total=total, desc=desc, unit="run", file=sys.stderr, dynamic_ncols=True)
             self._post()
+            if activity is not None:
+                self._ticker = threading.Thread(target=self._tick, name="progress", daemon=True)
+                self._ticker.start()
+
+    def _tick(self) -> None:
+        while not self._stop.wait(1.0):
+            with contextlib.suppress(Exception):  # a line not redrawn is no failure
+                self._post()
+
+    def line(self) -> str:
+        """The postfix: counts, the expected time left, then each worker's variant and phase."""
+        left = self.total - self.done - self.failed
+        text = f"ok={self.done} not ok={self.failed} left={left}"
+        now = time.monotonic()
+        running = sorted(dict(self.activity or {}).items())
+        if self.walls and left:
+            mean = sum(self.walls) / len(self.walls)
+            spent = sum(now - since for _, (_, _, since) in running)
+            eta = max(0.0, (left * mean - spent) / self.workers)
+            text += f" time left ~{eta:.0f} s"
+        for _, (label, phase, since) in running:
+            text += f" | {label}: {phase} {now - since:.0f} s"
+        return text
 
     def _post(self, refresh: bool = True) -> None:
-        left = self.total - self.done - self.failed
-        text = f"done={self.done} failed={self.failed} left={left}"
         assert self.bar is not None  # called only with a bar
-        self.bar.set_postfix_str(text, refresh=refresh)
+        self.bar.set_postfix_str(self.line(), refresh=refresh)
 
-    def update(self, status: str) -> None:
+    def update(self, status: str, wall_s: float | None = None) -> None:
+        """One task finished with ``status`` (``ok`` counts done), in ``wall_s`` seconds."""
         if status == "ok":
             self.done += 1
         else:
             self.failed += 1
+        if wall_s is not None:
+            self.walls.append(float(wall_s))
         if self.bar is not None:
             self._post(refresh=False)  # shown by the update, with the new count
             self.bar.update(1)
 
     def close(self) -> None:
+        self._stop.set()
+        if self._ticker is not None:
+            self._ticker.join(timeout=2.0)
         if self.bar is not None:
             self.bar.close()
 
