@@ -156,3 +156,20 @@ def test_full_identification_writes_the_plot(tmp_path):
     rc = cli.main(["identify", "--out", str(tmp_path)])
     assert rc == 0
     assert (tmp_path / "identify.png").stat().st_size > 10_000
+
+
+def test_experiment_on_the_compiled_step_matches_the_interpreted_one(monkeypatch):
+    # one source run two ways (simpro_mj.plant.step_functions): the records agree to
+    # rounding (1e-9 m/s against slide speeds of ~1e-2 m/s; the arithmetic is the same,
+    # only the compiler's ordering of float operations may differ)
+    from simpro_mj.identification.identify import run_experiment
+
+    tree = apply_overrides(default_tree(), ["identify.duration_s=0.6", "identify.settle_s=0.2"])
+    recs = {}
+    for kernel in ("python", "numba"):
+        monkeypatch.setenv("SIMPRO_KERNEL", kernel)
+        recs[kernel] = run_experiment(copy.deepcopy(tree), 2)
+    a, b = recs["python"], recs["numba"]
+    assert np.abs(a["qdot"]).max() > 1e-3  # the PRBS moved the slide
+    for key in ("u", "q", "qdot", "q_all"):
+        np.testing.assert_allclose(b[key], a[key], rtol=0, atol=1e-9)

@@ -38,7 +38,8 @@ atomic) and returns a small dict. No model is ever pickled.
 * A progress bar (tqdm, stderr; off with ``--quiet`` or when stderr is not a
   terminal) shows ok/not ok/left, the expected time left and, on threads,
   what each worker is doing (its variant, ``identifying`` or ``simulating``,
-  for how long).
+  for how long). While threads run, BLAS is held to one thread (the
+  parallelism is the workers'; BLAS threads would only spin against them).
 * A line a run would print (the identification's) is printed once at the
   end with the number of variants that said it (:mod:`simpro_mj.core.notices`).
   Each row of ``summary.json`` carries the variant's ``wall_s`` and ``cpu_s``
@@ -256,10 +257,12 @@ def _run_batch(
     record(out, SUMMARY_FILES, "batch", pending=True)
     stopped = None
     try:
-        run_tasks(
-            tasks, done, jobs=jobs, scheduler=scheduler, fn=run_variant, no_workers_s=NO_WORKERS_S,
-            threads=not processes,
-        )  # fmt: skip
+        # one BLAS thread each: the batch's parallelism is its workers
+        with _blas_limited(threaded):
+            run_tasks(
+                tasks, done, jobs=jobs, scheduler=scheduler, fn=run_variant,
+                no_workers_s=NO_WORKERS_S, threads=not processes,
+            )  # fmt: skip
     except KeyboardInterrupt as exc:  # SIGINT, or SIGTERM (commands.main: interruptible)
         stopped = f"interrupted ({exc})" if str(exc) else "interrupted"
     except NoWorkers as exc:
@@ -299,6 +302,17 @@ def _run_batch(
     write_summary(report)
     record(out, SUMMARY_FILES, "batch")
     return report
+
+
+def _blas_limited(on: bool):
+    """One BLAS thread in this process while the batch's threads run (else nothing)."""
+    import contextlib
+
+    if not on:
+        return contextlib.nullcontext()
+    from threadpoolctl import threadpool_limits
+
+    return threadpool_limits(limits=1, user_api="blas")
 
 
 def expected_cost(scenario: Mapping) -> float:

@@ -13,7 +13,9 @@ Per actuator i, around mid-stroke under the nominal payload:
    is added to the valve voltage of leg i only;
 3. the co-simulation runs at 1 ms: read q, qdot -> voltages -> actuator
    ``step`` -> ``data.ctrl`` -> ``mj_step``; MuJoCo warnings and loop closure
-   are checked;
+   are checked. The actuators' step is the run's own step function compiled
+   (:func:`simpro_mj.sim.step.compiled`, under ``SIMPRO_KERNEL`` as a run), the
+   same arithmetic interpreted otherwise (:func:`_actuator_step`);
 4. eq. (19), :math:`Y/U = b / (s (s^2 + a_1 s + a_0))`, is fitted to the
    recorded valve voltage (deviation from 5 V) and slide motion. Because (19)
    has a pure integrator, it is fitted on the slide velocity
@@ -106,6 +108,29 @@ def _prbs(n_steps: int, clock: int, bits: int, seed: int) -> np.ndarray:
     return np.repeat(np.tile(seq, reps)[:n_bits], clock)[:n_steps]
 
 
+def _actuator_step(act, dt: float):
+    """``step(u, q, qdot, f)``: the actuators' step function on their own state,
+    writing the slide forces into ``f``; compiled when the run's step is
+    (``SIMPRO_KERNEL``, :func:`simpro_mj.plant.kernels.kernel_choice`). The compiled and
+    the interpreted function are one source
+    (:mod:`simpro_mj.plant.step_functions`); the Python form costs most of the
+    experiment's time (the valve and chamber arithmetic per 1 ms step)."""
+    from simpro_mj.plant.kernels import kernel_choice
+
+    act.set_timestep(dt)
+    fn = act.step_function
+    if kernel_choice() == "numba":
+        from simpro_mj.sim.step import compiled  # the stages' compiled namespace
+
+        fn = getattr(compiled(), fn.__name__)
+    state, constants = act.step_state, act.step_constants
+
+    def step(u, q, qd, f):
+        fn(u, q, qd, state, constants, f)
+
+    return step
+
+
 def run_experiment(tree: dict, leg: int, model=None) -> dict:
     """Run the Fig. 12 experiment on ``leg`` (1..3); return the record.
 
@@ -179,6 +204,8 @@ def run_experiment(tree: dict, leg: int, model=None) -> dict:
     warn0 = d.warning.number.copy()
     d.ctrl[ia] = f_hold
     u = np.empty(3)
+    force = np.zeros(3)
+    step = _actuator_step(act, dt)
     qpos, qvel, ctrl = d.qpos, d.qvel, d.ctrl
     for k in range(n_settle + n_exc):
         q = qpos[sq]
@@ -190,7 +217,9 @@ def run_experiment(tree: dict, leg: int, model=None) -> dict:
         if e >= 0:
             u[j] += prbs[e]
         np.clip(u, 0.0, 10.0, out=u)
-        ctrl[ia] = act.step(u, q, qd, dt)
+        force[:] = 0.0
+        step(u, q, qd, force)
+        ctrl[ia] = force
         if e >= 0:
             rec_u[e] = u[j]
             rec_q[e] = q[j]
@@ -285,8 +314,12 @@ def fit_eq19(u, qdot, dt: float, skip: int = 0, guess=None) -> dict:
     hi = np.array([np.inf, np.inf, np.inf, 5.0])
     x0 = np.clip(x0, lo + 1e-9, hi - 1e-9)
     from scipy.optimize import least_squares
+    from threadpoolctl import threadpool_limits
 
-    sol = least_squares(res, x0, bounds=(lo, hi), x_scale="jac", max_nfev=400)
+    # one BLAS thread: the problem is small (4 parameters; a 3 x 3 matrix exponential per
+    # evaluation) and BLAS threads spinning on a busy machine cost ten times its CPU time
+    with threadpool_limits(limits=1, user_api="blas"):
+        sol = least_squares(res, x0, bounds=(lo, hi), x_scale="jac", max_nfev=400)
     b, a1, a0, d = sol.x * scale
     err = sol.fun
     vv = v[sl] - v[sl].mean()
