@@ -94,3 +94,34 @@ def test_the_energy_model_spans_adiabatic_to_isothermal(hw):
     want = {0.0: 1.4, 30.0: 1.39, 1e4: 1.0}[hw]
     assert n_eff == pytest.approx(want, abs=0.03)
     assert sealed_chamber_energy(sc).ok
+
+
+def test_the_supply_as_built_sags_and_conserves_mass():
+    """Every valve open for 0.4 s on the cabin: the ideal source holds 6 bar; the
+    receiver, regulator and line sag (by more than 0.5 bar here: the valves ask
+    several times the compressor's 400 l/min) while receiver and line lose exactly
+    the mass the valves take less the compressor's."""
+    from simpro_mj.analysis.plant_checks import supply_sag
+
+    ideal = supply_sag(resolve_scenario({"plant": {"preset": "heavy_cabin"}}))
+    assert ideal.ok and ideal.measured == 0.0
+    sc = resolve_scenario(
+        {"plant": {"preset": "heavy_cabin"}}, ["actuator.pneumatics.supply.model=receiver"]
+    )
+    built = supply_sag(sc)
+    assert built.ok, built
+    sag = float(built.name.split("sags ")[1].split(" bar")[0])
+    assert sag > 0.5
+
+
+def test_a_pressure_switch_that_stops_below_it_starts_is_refused():
+    from simpro_mj.core.errors import UserInputError
+
+    with pytest.raises(UserInputError, match=r"cut_out_bar_gauge.*cut_in_bar_gauge"):
+        resolve_scenario(
+            {"plant": {"preset": "paper"}},
+            [
+                "actuator.pneumatics.supply.cut_in_bar_gauge=8",
+                "actuator.pneumatics.supply.cut_out_bar_gauge=7",
+            ],
+        )

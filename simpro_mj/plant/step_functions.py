@@ -42,7 +42,9 @@ SS_IMU, SS_WALK, SS_HIST, SS_HN, SS_LEN = 0, 2, 4, 10, 11
 # ψ-table edge's last cell (12), the supply pressure, the linear model's φ (3), force bounds,
 # the chamber gas temperatures (6; the energy model's, 0: the wall's)
 A_P, A_SPOOL, A_RATE, A_CELL, A_PS, A_PHI, A_FMIN, A_FMAX, A_T = 0, 6, 9, 12, 24, 25, 28, 29, 30
-A_LEN = 36
+# the supply's state: the receiver's pressure, this step's draw through the valves'
+# supply edges (kg/s), the compressor running (1) or not
+A_PR, A_DRAW, A_COMP, A_LEN = 36, 37, 38, 39
 # actuator constants ac (the actuator classes' step_constants): both kinds', then the kind's own
 AC_KIND, AC_PA, AC_A1, AC_A2, AC_AR = 0, 1, 2, 3, 4
 # nonlinear
@@ -51,10 +53,14 @@ AC_RTK, AC_EPS, AC_HN, AC_ALPHA, AC_ORDER, AC_NSUB, AC_NTAB = 5, 6, 7, 8, 9, 10,
 # the second-order spool (6), the underlaps (3), per chamber V0, dV/dq, V_min (6 x 3),
 # the energy model (TH_*: 7), per chamber the wall
 # area's constant and volume terms (6 x 2), the ψ table (grid, values, slopes)
-AC_FRIC, AC_AD, AC_DELTA, AC_CH, AC_TH, AC_AW, AC_TAB = 12, 27, 33, 36, 54, 61, 73
+AC_FRIC, AC_AD, AC_DELTA, AC_CH, AC_TH, AC_AW, AC_SUP, AC_TAB = 12, 27, 33, 36, 54, 61, 73, 83
 # the energy model's constants: on (1) or polytropic (0), γ, R, k (kg/(s Pa)), the wall's
 # temperature (K; the supply's and the atmosphere's too), h_w (W/(m^2 K)), the sub-step (s)
 TH_ON, TH_GAMMA, TH_R, TH_K, TH_TW, TH_HW, TH_H = 0, 1, 2, 3, 4, 5, 6
+# the supply as built (supply_step): on (1) or an ideal source (0), R T / V of the
+# receiver and of the line (Pa/kg), the regulator's conductance (kg/(s Pa)) and set
+# point (Pa), the compressor's delivery (kg/s), cut-in and cut-out (Pa), the step (s)
+SUP_ON, SUP_RTV_R, SUP_RTV_L, SUP_KREG, SUP_PSET, SUP_QC, SUP_PON, SUP_POFF, SUP_H = range(9)
 # linear (eq. 19): b, a0, exp(-a1 dt), its integral, u_hold, F_hold, q_0, M_q, D_q, K_q,
 # saturate, the display pressures at rest p10, p20
 AC_LB, AC_LA0, AC_EA, AC_IA, AC_UHOLD, AC_FHOLD, AC_Q0 = 5, 8, 11, 14, 17, 20, 23
@@ -239,6 +245,7 @@ def chamber_pressures(q, qd, ast, ac):
     draws air in).
     """
     eps = ac[AC_EPS]
+    draw = 0.0
     ps, pa, hn, rtk = ast[A_PS], ac[AC_PA], ac[AC_HN], ac[AC_RTK]
     ips = 1.0 / ps
     nsub = int(ac[AC_NSUB])
@@ -270,7 +277,9 @@ def chamber_pressures(q, qd, ast, ac):
             if den < 0.5:
                 den = 0.5
             pc = ((g_s * ps + g_e * pa) * hc + pc) / den
+            draw += g_s * (ps - pc)
         ast[A_P + c] = pc
+    ast[A_DRAW] = draw * ac[AC_TH + TH_K] / nsub
 
 
 def chamber_energy(q, qd, ast, ac):
@@ -290,6 +299,7 @@ def chamber_energy(q, qd, ast, ac):
     other model emerges instead of being chosen.
     """
     eps = ac[AC_EPS]
+    draw = 0.0
     ps, pa = ast[A_PS], ac[AC_PA]
     ips = 1.0 / ps
     nsub = int(ac[AC_NSUB])
@@ -333,11 +343,44 @@ def chamber_energy(q, qd, ast, ac):
                 den = 0.5
             p_new = (pc + c_s * ps + c_e * pa + heat) / den
             m = pc * V / (rg * tc) + h * (g_s * (ps - p_new) + g_e * (pa - p_new))
+            draw += g_s * (ps - p_new)
             V = V + h * vdot
             pc = p_new
             tc = pc * V / (rg * m) if m > 0.0 else tw
         ast[A_P + c] = pc
         ast[A_T + c] = tc
+    ast[A_DRAW] = draw / nsub
+
+
+def supply_step(ast, ac):
+    """The supply as built over the step: compressor, receiver, regulator, line.
+
+    The valves draw ``ast[A_DRAW]`` (kg/s) from the line at the supply pressure
+    ``p_s``; a regulator refills it from the receiver towards its set point,
+    ``ṁ_reg = k_reg (min(p_set, p_r) - p_s)`` (a linear droop, no back-flow);
+    a compressor delivers its free-air flow into the receiver while its
+    pressure switch is on (on below cut-in, off above cut-out). Each volume is
+    isothermal at the supply's temperature: ``ṗ = (R T / V) Σ ṁ`` (explicit:
+    ``h R T k_reg / V_line`` is about 0.03 with the defaults). Nothing moves
+    with the ideal source (``SUP_ON`` 0).
+    """
+    sup = AC_SUP
+    if ac[sup + SUP_ON] == 0.0:
+        return
+    h, ps, pr = ac[sup + SUP_H], ast[A_PS], ast[A_PR]
+    preg = pr if pr < ac[sup + SUP_PSET] else ac[sup + SUP_PSET]
+    m_reg = ac[sup + SUP_KREG] * (preg - ps)
+    if m_reg < 0.0:
+        m_reg = 0.0
+    if pr < ac[sup + SUP_PON]:
+        ast[A_COMP] = 1.0
+    elif pr > ac[sup + SUP_POFF]:
+        ast[A_COMP] = 0.0
+    ps = ps + h * ac[sup + SUP_RTV_L] * (m_reg - ast[A_DRAW])
+    if ps < ac[AC_PA]:
+        ps = ac[AC_PA]
+    ast[A_PS] = ps
+    ast[A_PR] = pr + h * ac[sup + SUP_RTV_R] * (ast[A_COMP] * ac[sup + SUP_QC] - m_reg)
 
 
 def nonlinear_step(u, q, qd, ast, ac, f):
@@ -352,6 +395,7 @@ def nonlinear_step(u, q, qd, ast, ac, f):
         chamber_energy(q, qd, ast, ac)
     else:
         chamber_pressures(q, qd, ast, ac)
+    supply_step(ast, ac)
     slide_forces(qd, ast, ac, f)
 
 

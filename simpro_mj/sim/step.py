@@ -180,7 +180,7 @@ def record(k, S, C, ref, qpos, sd, log, qlog, hlog):
         out[28 + 2 * i] = S[AST + ps.A_P + i]
         out[29 + 2 * i] = S[AST + ps.A_P + 3 + i]
     loop = S[LOOP]
-    out[34], out[35], out[36] = loop, S[FLAGS], S[SUPPLY_LOG]
+    out[34], out[35], out[36] = loop, S[FLAGS], S[AST + ps.A_PS]  # the supply at the valves
     qlog[row] = qpos
     if C[HEAD] != 0.0:
         a, g = int(C[IHA]), int(C[IHG])
@@ -296,7 +296,7 @@ _PLAIN = [
     ps.slide_states, ps.platform_pose, ps.loop_closure, ps.clip, ps.quantise, accel_tilt,
     pot_nonlinearity, ps.imu_input, ps.sample_sensors,
     seal_friction, ps._psi, ps.valve_spool, ps.chamber_pressures, ps.chamber_energy,
-    ps.slide_forces,
+    ps.supply_step, ps.slide_forces,
     ps.nonlinear_step, ps.linear_step,
     sense, control, actuate, record, apply_forces, callback_step,
 ]  # fmt: skip

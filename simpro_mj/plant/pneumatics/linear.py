@@ -85,6 +85,7 @@ class LinearActuators(ArrayStep):
         # state (phi, spool and the display pressures are views of it) and the constants
         self.step_state = np.zeros(sf.A_LEN)
         ast = self.step_state
+        ast[sf.A_PS] = P.p_supply  # the supply the log shows (a fault changes it)
         self.phi = ast[sf.A_PHI : sf.A_PHI + 3]
         self.spool = ast[sf.A_SPOOL : sf.A_SPOOL + 3]
         self.p1, self.p2 = ast[sf.A_P : sf.A_P + 3], ast[sf.A_P + 3 : sf.A_P + 6]

@@ -159,7 +159,15 @@ class NonlinearActuators(ArrayStep):
                 np.full(3, math.pi * (bore + rod) / P.area_rod_side),
             ]
         )
-        ac[sf.AC_AW : sf.AC_TAB] = np.transpose([a0, av]).ravel()
+        ac[sf.AC_AW : sf.AC_SUP] = np.transpose([a0, av]).ravel()
+        # the supply as built (sf.supply_step): isothermal receiver and line at T
+        sup, rt = sf.AC_SUP, P.gas_constant * P.temperature
+        ac[sup + sf.SUP_ON] = 1.0 if P.supply_model == "receiver" else 0.0
+        ac[sup + sf.SUP_RTV_R], ac[sup + sf.SUP_RTV_L] = rt / P.receiver_volume, rt / P.line_volume
+        ac[sup + sf.SUP_KREG], ac[sup + sf.SUP_PSET] = P.regulator_conductance, P.p_supply
+        ac[sup + sf.SUP_QC] = P.compressor_flow
+        ac[sup + sf.SUP_PON], ac[sup + sf.SUP_POFF] = P.cut_in, P.cut_out
+        ast[sf.A_PR], ast[sf.A_COMP] = P.cut_out, 0.0  # a full receiver, the switch off
         # the ψ table: grid, values and the slope of each cell (np.interp's)
         ac[sf.AC_TAB : sf.AC_TAB + n] = self._xp
         ac[sf.AC_TAB + n : sf.AC_TAB + 2 * n] = self._fp
@@ -181,6 +189,7 @@ class NonlinearActuators(ArrayStep):
         self._dt = dt
         ac[sf.AC_HN] = dt / P.substeps * P.n_poly
         ac[sf.AC_TH + sf.TH_H] = dt / P.substeps
+        ac[sf.AC_SUP + sf.SUP_H] = dt
         w = P.spool_omega
         if P.spool_order == 1:
             ac[sf.AC_ALPHA] = -math.expm1(-w * dt)

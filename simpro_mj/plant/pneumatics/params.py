@@ -25,6 +25,7 @@ __all__ = [
     "ACTUATOR_KINDS",
     "FRICTION_MODELS",
     "THERMAL_MODELS",
+    "SUPPLY_MODELS",
     "U_CENTRE",
     "U_MAX",
     "PneumaticParams",
@@ -39,6 +40,11 @@ ACTUATOR_KINDS = ("nonlinear", "linear")
 
 #: ``cylinder.friction_model``'s values (:mod:`simpro_mj.plant.friction`)
 FRICTION_MODELS = ("stick", "regularised")
+
+#: ``supply.model``'s values (:func:`simpro_mj.plant.step_functions.supply_step`)
+SUPPLY_MODELS = ("ideal", "receiver")
+#: density of air at ISO 8778's reference (ANR: 20 deg C, 1 bar), kg/m^3
+RHO_ANR = 1.185
 
 #: ``thermal.model``'s values (:func:`simpro_mj.plant.step_functions.chamber_energy`)
 THERMAL_MODELS = ("polytropic", "energy")
@@ -69,6 +75,23 @@ DEFAULT_PNEUMATIC_PARAMS: dict = {
         # charging chamber is tens of W/(m^2 K); the effect of 10 and 100 is shown in
         # docs/paper-notes.md, chamber thermodynamics)
         "heat_transfer_w_per_m2_k": 30.0,
+    },
+    # The compressed-air supply at the valves: "ideal", a source held at
+    # supply_pressure_bar_gauge whatever the valves draw; "receiver", as built: a
+    # compressor with a pressure switch fills a receiver, a regulator set to
+    # supply_pressure_bar_gauge feeds the line to the valves (simpro_mj.plant.
+    # step_functions.supply_step). Assumptions, a workshop installation of the size
+    # a 3-4 kW piston compressor makes (no figures of the SIMPRO rig at hand):
+    "supply": {
+        "model": "ideal",
+        "compressor_flow_l_per_min": 400.0,  # free air delivered (ANR)
+        "receiver_volume_l": 100.0,
+        "cut_in_bar_gauge": 7.0,  # the pressure switch starts the compressor below it
+        "cut_out_bar_gauge": 8.0,  # and stops it above it
+        # the regulator and line: flow at 1 bar of droop, l/min ANR (a G 1/2
+        # regulator's catalogue order), and the hoses' volume to the three valves
+        "regulator_flow_l_per_min_per_bar": 2000.0,
+        "line_volume_l": 2.0,
     },
     "cylinder": {
         # DNC-125-500 (ISO 15552): bore 125 mm, stroke 500 mm (type code)
@@ -296,6 +319,13 @@ class PneumaticParams:
     v_smooth: float  # m/s, the regularising velocity of the seal friction
     friction_model: str  # "stick" or "regularised"
     thermal_model: str  # "polytropic" or "energy"
+    supply_model: str  # "ideal" or "receiver"
+    compressor_flow: float  # kg/s
+    receiver_volume: float  # m^3
+    line_volume: float  # m^3
+    cut_in: float  # Pa absolute
+    cut_out: float  # Pa absolute
+    regulator_conductance: float  # kg/(s Pa)
     gamma: float  # ratio of specific heats
     heat_transfer: float  # W/(m^2 K)
     conductance: float  # m^3/(s Pa)
@@ -361,6 +391,14 @@ class PneumaticParams:
                     f"{t['cylinder']['breakaway_friction_n']!r}; allowed: null or, per leg, at "
                     f"least pneumatics.cylinder.coulomb_friction_n ({coulomb.tolist()})"
                 )
+        if _scalar(t, "supply.cut_out_bar_gauge", 0.0, 16.0) <= _scalar(
+            t, "supply.cut_in_bar_gauge", 0.0, 16.0
+        ):
+            raise UserInputError(
+                f"invalid value at pneumatics.supply.cut_out_bar_gauge: "
+                f"{t['supply']['cut_out_bar_gauge']!r}; allowed: above "
+                f"pneumatics.supply.cut_in_bar_gauge ({t['supply']['cut_in_bar_gauge']!r})"
+            )
         lin_m = t["linear"]["effective_mass_kg"]
         sat = t["linear"]["saturate_force"]
         if not isinstance(sat, bool):
@@ -383,6 +421,18 @@ class PneumaticParams:
             v_smooth=_scalar(t, "cylinder.coulomb_smoothing_mm_per_s", 0.0) * 1e-3,
             friction_model=_choice(t, "cylinder.friction_model", FRICTION_MODELS),
             thermal_model=_choice(t, "thermal.model", THERMAL_MODELS),
+            supply_model=_choice(t, "supply.model", SUPPLY_MODELS),
+            compressor_flow=_scalar(t, "supply.compressor_flow_l_per_min", 0.0, 1e5, False)
+            * RHO_ANR
+            / 60e3,
+            receiver_volume=_scalar(t, "supply.receiver_volume_l", 0.0, 1e5) * 1e-3,
+            line_volume=_scalar(t, "supply.line_volume_l", 0.0, 1e3) * 1e-3,
+            cut_in=_scalar(t, "supply.cut_in_bar_gauge", 0.0, 16.0) * 1e5 + p_atm,
+            cut_out=_scalar(t, "supply.cut_out_bar_gauge", 0.0, 16.0) * 1e5 + p_atm,
+            regulator_conductance=_scalar(t, "supply.regulator_flow_l_per_min_per_bar", 0.0, 1e6)
+            * RHO_ANR
+            / 60e3
+            / 1e5,
             gamma=_scalar(t, "thermal.ratio_of_specific_heats", 1.0, 1.67, open_lo=True),
             heat_transfer=_scalar(t, "thermal.heat_transfer_w_per_m2_k", 0.0, 1e4, open_lo=False),
             conductance=_scalar(t, "valve.sonic_conductance_dm3_per_s_bar", 0.0) * 1e-3 / 1e5,
