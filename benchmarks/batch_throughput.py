@@ -1,0 +1,88 @@
+"""A batch's throughput: variants per minute and the ratio to the step's own cost.
+
+    python benchmarks/batch_throughput.py [--samples 20] [--jobs 2] [--keep-cache]
+
+Runs a Monte Carlo of ``--samples`` new cabins (``scenarios/sweep_robustness.yaml``
+with its sample count replaced: every variant a plant not seen before) as
+``simpro-sim batch --jobs J`` runs it (:func:`simpro_mj.batch.runner.run_batch`,
+threads), with an empty identification cache unless ``--keep-cache``, and
+prints one JSON document:
+
+* ``wall_s``, ``variants_per_min``: the batch's wall time (planning, the
+  identification of every new plant, the runs, their folders, the summary;
+  not the summary plots) and variants finished per minute;
+* ``stepping_s``: the variants' own stepping time, the sum over the variants
+  of ``duration_s / realtime_factor`` (each run's stepping loop, measured in
+  the same batch, so under the same load);
+* ``ratio``: ``wall_s`` over ``stepping_s / jobs``, what the batch costs per
+  unit of the step's own cost on the same workers (1: nothing but stepping);
+* ``cpu_s_per_variant``: the mean of the variants' worker-thread CPU time
+  (``cpu_s`` in summary.json, identification included) and
+  ``cpu_ratio`` = their sum over ``stepping_s``: process CPU is less inflated
+  than wall time by other work on a shared machine.
+
+A speed figure: here, not in a timed test. Meaningful on a quiet machine only.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def measure(samples: int = 20, jobs: int = 2, keep_cache: bool = False) -> dict:
+    """Run the batch and return the figures of the module docstring."""
+    with tempfile.TemporaryDirectory(prefix="simpro-throughput-") as tmp:
+        tmp = Path(tmp)
+        if not keep_cache:
+            os.environ["SIMPRO_CACHE_DIR"] = str(tmp / "cache")
+        text = (ROOT / "scenarios" / "sweep_robustness.yaml").read_text()
+        text = text.replace("samples: 200", f"samples: {samples}")
+        (tmp / "throughput.yaml").write_text(text)
+        from simpro_mj.batch.runner import run_batch
+
+        wall0 = time.perf_counter()
+        report = run_batch([str(tmp / "throughput.yaml")], tmp / "out", jobs=jobs,
+                           plots=False, summary_plots=False)  # fmt: skip
+        wall = time.perf_counter() - wall0
+    rows = [r for r in report.rows if r.get("realtime_factor")]
+    duration = float(text.split("duration_s:")[1].split()[0])
+    stepping = sum(duration / r["realtime_factor"] for r in rows)
+    cpu = [r["cpu_s"] for r in rows if r.get("cpu_s") is not None]
+    return {
+        "samples": samples,
+        "jobs": jobs,
+        "finished": len(rows),
+        "counts": {k: v for k, v in report.counts.items() if v},
+        "notices": report.notices,
+        "wall_s": wall,
+        "variants_per_min": 60.0 * len(rows) / wall if wall > 0 else None,
+        "stepping_s": stepping,
+        "ratio": wall / (stepping / jobs) if stepping > 0 else None,
+        "cpu_s_per_variant": sum(cpu) / len(cpu) if cpu else None,
+        "cpu_ratio": sum(cpu) / stepping if stepping > 0 and cpu else None,
+    }
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    p.add_argument("--samples", type=int, default=20)
+    p.add_argument("--jobs", type=int, default=2)
+    p.add_argument("--keep-cache", action="store_true")
+    a = p.parse_args(argv)
+    if not (1 <= a.samples <= 1000 and 1 <= a.jobs <= 64):
+        print("error: invalid value at --samples/--jobs: allowed 1..1000 / 1..64", file=sys.stderr)
+        return 2
+    print(json.dumps(measure(a.samples, a.jobs, a.keep_cache), indent=2))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
