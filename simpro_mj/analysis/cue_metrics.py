@@ -434,16 +434,18 @@ def perceived_columns(columns: Mapping, model: VestibularModel | None = None) ->
     return out
 
 
+def _cell(v, fmt: str) -> str:
+    """``v`` formatted by ``fmt``, or a dash as wide for None."""
+    width = int(fmt.split(".")[0])
+    return f"{'-':>{width}}" if v is None else format(v, fmt)
+
+
 def print_cue_summary(cue: Mapping, file=None) -> None:
     """The cueing summary of a run: per channel the perceived correlation, lag, onset
     delay, raw wrong-sign peak and false cues; workspace, valves and solve times."""
     import sys
 
     file = sys.stdout if file is None else file
-
-    def f(v, fmt):
-        width = int(fmt.split(".")[0])
-        return f"{'-':>{width}}" if v is None else format(v, fmt)
 
     print(f"cueing ({cue.get('algorithm', '?')}, {cue.get('source', '')}), perceived:", file=file)
     head = (
@@ -454,10 +456,10 @@ def print_cue_summary(cue: Mapping, file=None) -> None:
     print("-" * len(head), file=file)
     for name, ch in (cue.get("channels") or {}).items():
         print(
-            f"{name:<15}{f(ch.get('correlation'), '6.2f')}{f(ch.get('mean_lag_s'), '8.2f')}"
-            f"{f(ch.get('onset_delay_s'), '9.2f')}"
-            f"{f(ch.get('onset_raw_wrong_sign_peak'), '11.2f')}"
-            f"{f(ch.get('false_cue_s'), '9.2f')}{f(ch.get('false_rotation_s'), '13.2f')}",
+            f"{name:<15}{_cell(ch.get('correlation'), '6.2f')}{_cell(ch.get('mean_lag_s'), '8.2f')}"
+            f"{_cell(ch.get('onset_delay_s'), '9.2f')}"
+            f"{_cell(ch.get('onset_raw_wrong_sign_peak'), '11.2f')}"
+            f"{_cell(ch.get('false_cue_s'), '9.2f')}{_cell(ch.get('false_rotation_s'), '13.2f')}",
             file=file,
         )
     print(file=file)
@@ -499,10 +501,6 @@ def print_strength(cue: Mapping, file=None) -> None:
     squares, and the RMS ratio), the RMS perceived error (m/s^2, deg/s), and beside them
     the bound's gain and error and the law's share of it (:func:`bound_share`)."""
 
-    def f(v, fmt):
-        width = int(fmt.split(".")[0])
-        return f"{'-':>{width}}" if v is None else format(v, fmt)
-
     bound = (cue.get("bound") or {}).get("channels") or {}
     head = (
         f"{'channel':<15}{'gain':>6}{'rms ratio':>10}{'rms err':>9}{'unit':>7}"
@@ -518,10 +516,10 @@ def print_strength(cue: Mapping, file=None) -> None:
         if deg and berr is not None:
             berr = float(np.degrees(berr))
         print(
-            f"{name:<15}{f(ch.get('gain'), '6.2f')}{f(ch.get('gain_rms'), '10.2f')}"
-            f"{f(err, '9.3f')}{'deg/s' if deg else 'm/s^2':>7}"
-            f"{f(b.get('gain'), '12.2f')}{f(berr, '9.3f')}"
-            f"{f(ch.get('gain_share'), '12.2f')}{f(ch.get('error_share'), '10.2f')}",
+            f"{name:<15}{_cell(ch.get('gain'), '6.2f')}{_cell(ch.get('gain_rms'), '10.2f')}"
+            f"{_cell(err, '9.3f')}{'deg/s' if deg else 'm/s^2':>7}"
+            f"{_cell(b.get('gain'), '12.2f')}{_cell(berr, '9.3f')}"
+            f"{_cell(ch.get('gain_share'), '12.2f')}{_cell(ch.get('error_share'), '10.2f')}",
             file=file,
         )
     note = (cue.get("bound") or {}).get("note")
