@@ -266,6 +266,7 @@ def cue_metrics(columns: Mapping, scenario: Mapping, model: VestibularModel | No
         lag, lag_bound = mean_lag(pv, ps, dt)
         g0 = 9.80665 if name == "vertical_f" else 0.0
         raw, veh_raw = col[sc] - g0, col[vc] - g0
+        ch: dict[str, Any]
         out["channels"][name] = ch = {
             "unit": "m/s^2" if kind == "f" else "rad/s",
             "threshold": thr,
@@ -373,7 +374,7 @@ def bound_block(col: Mapping, dt: float, scenario: Mapping, veh, model: Vestibul
     cue = (scenario.get("setpoint") or {}).get("cueing") or {}
     params = washout_params(cue) if cue.get("algorithm") else None
     if not isinstance(params, MpcParams):
-        box = {} if params is None else {
+        box: dict[str, Any] = {} if params is None else {
             "heave_fraction": params.heave_fraction, "stroke_margin": params.stroke_margin
         }  # fmt: skip
         params = MpcParams(**box)
@@ -413,10 +414,12 @@ def bound_share(ch: Mapping, b: Mapping | None) -> dict:
     g, gb = ch.get("gain"), b.get("gain")
     e0 = ch.get("vehicle_rms")
     e, eb = ch.get("rms_error"), b.get("rms_error")
-    ok = None not in (e0, e, eb) and e0 - eb > 1e-12
+    share = None
+    if e0 is not None and e is not None and eb is not None and e0 - eb > 1e-12:
+        share = (e0 - e) / (e0 - eb)
     return {
         "gain_share": g / gb if g is not None and gb and abs(gb) > 1e-9 else None,
-        "error_share": (e0 - e) / (e0 - eb) if ok else None,
+        "error_share": share,
     }
 
 

@@ -29,12 +29,15 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
+from typing import Any
 
 import numpy as np
 
 from controllers.frames import GRAVITY
 from controllers.frequency import CHAIN_CHANNELS, OMCT_RAD_S, fit_sine
 from controllers.geometry import HEAD_HEIGHT_PITCH, HEAD_HEIGHT_ROLL
+from controllers.mpc_cueing import MpcParams
+from controllers.washout import WashoutParams
 
 __all__ = [
     "FIDELITY_REGIONS",
@@ -116,9 +119,11 @@ def _law(block: Mapping):
     if block["algorithm"] == "mpc":
         from controllers.mpc_cueing import ModelPredictiveCueing
 
+        assert isinstance(params, MpcParams)
         return ModelPredictiveCueing(params), params
     from controllers.washout import ClassicalWashout
 
+    assert isinstance(params, WashoutParams)
     return ClassicalWashout(params), params
 
 
@@ -215,7 +220,8 @@ def omct(laws: Mapping, omegas: Sequence[float] = OMCT_RAD_S, amplitudes=None, p
     frequencies from the lowest.
     """
     amps = dict(AMPLITUDES, **(amplitudes or {}))
-    rows, verdicts = [], {}
+    rows: list[dict] = []
+    verdicts: dict[str, Any] = {}
     for name, block in laws.items():
         h = {}
         for cin in sorted({c for c, _ in OMCT_TESTS.values()}):
