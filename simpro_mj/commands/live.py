@@ -1,6 +1,6 @@
 """``simpro-sim live SCENARIO --listen HOST:PORT``: the co-simulation paced to the wall clock.
 
-A game's telemetry (UDP datagrams, ``--format outsim`` or ``csv``,
+A game's telemetry (UDP datagrams of ``--format``,
 :mod:`simpro_mj.config.datagrams`) drives the scenario's cueing law, plant
 and controllers at the pace of the wall clock; the platform's pose goes out
 to ``--send`` as one ASCII line per ``1/--send-rate`` s. The session ends
@@ -50,8 +50,10 @@ def add_arguments(parser) -> None:
         dest="fmt",
         choices=FORMATS,
         default="outsim",
-        help="telemetry datagrams: outsim (LFS OutSim, 64/68 bytes) or csv "
-        "(one line of the telemetry columns); default outsim",
+        help="telemetry datagrams: outsim (LFS OutSim, 64/68 bytes), csv (one line of the "
+        "telemetry columns), forza_sled/forza_dash/forza_horizon (Forza Data Out, 232/311/324 "
+        "bytes), codemasters (extradata=3, 264 bytes), beamng (MotionSim BNG1, 88 bytes), or "
+        "auto (told by the first good datagram's size, and said); default outsim",
     )
     parser.add_argument(
         "--send",

@@ -13,13 +13,13 @@ from __future__ import annotations
 import math
 import sys
 
-from simpro_mj.config.datagrams import FORMATS, telemetry_datagrams
+from simpro_mj.config.datagrams import SEND_FORMATS, telemetry_datagrams
 from simpro_mj.config.telemetry import read_telemetry
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.jsonout import emit_json
 from simpro_mj.sim.live import parse_address, send_datagrams
 
-HELP = "send a telemetry CSV as paced UDP datagrams (outsim or csv): a game's stand-in for live"
+HELP = "send a telemetry CSV as paced UDP datagrams (OutSim, Forza, ...): a game's stand-in"
 
 
 def add_arguments(parser) -> None:
@@ -27,8 +27,8 @@ def add_arguments(parser) -> None:
                         help="a telemetry file (e.g. scenarios/telemetry/"
                         "braking_100kmh.csv)")  # fmt: skip
     parser.add_argument("--to", required=True, metavar="HOST:PORT", help="where to send")
-    parser.add_argument("--format", dest="fmt", choices=FORMATS, default="outsim",
-                        help="datagram format (default outsim)")  # fmt: skip
+    parser.add_argument("--format", dest="fmt", choices=SEND_FORMATS, default="outsim",
+                        help="datagram format, as a game sends it (default outsim)")  # fmt: skip
     parser.add_argument("--rate", type=float, default=100.0, metavar="HZ",
                         help="datagrams per second (default 100, at most 1000)")  # fmt: skip
 

@@ -1,6 +1,9 @@
 """Vehicle telemetry as UDP datagrams: the input of a live session (``simpro-sim live``).
 
-Two formats, both decoded to one sample ``(time_s, f, w)`` of the telemetry
+The formats (:data:`FORMATS`): ``outsim`` and ``csv`` below, and the games'
+packets of :mod:`simpro_mj.config.games` (Forza Sled, Dash and Horizon,
+Codemasters ``extradata=3``, BeamNG MotionSim); ``auto`` (:class:`AutoDecoder`)
+tells them apart by size. All are decoded to one sample ``(time_s, f, w)`` of the telemetry
 format (:mod:`simpro_mj.config.telemetry`): the specific force ``f`` (gravity
 included, +9.81 m/s^2 on ``z`` at rest) and the angular velocity ``w`` at the
 driver's head, ISO 8855 vehicle frame V (x forward, y left, z up), SI.
@@ -61,10 +64,17 @@ import struct
 import numpy as np
 
 from controllers.frames import GRAVITY
+from simpro_mj.config.games import beamng, codemasters, forza
+from simpro_mj.config.games.common import MAX_RATE, MAX_SPECIFIC_FORCE, DatagramError
+from simpro_mj.config.games.common import check as _check
 from simpro_mj.config.telemetry import TELEMETRY_COLUMNS, Telemetry, resample
 
 __all__ = [
     "FORMATS",
+    "SEND_FORMATS",
+    "SIZES",
+    "AutoDecoder",
+    "make_decoder",
     "OUTSIM_BYTES",
     "MAX_CSV_BYTES",
     "MAX_SPECIFIC_FORCE",
@@ -81,27 +91,18 @@ __all__ = [
     "telemetry_datagrams",
 ]
 
-FORMATS = ("outsim", "csv")
+#: What ``send`` packs and ``live`` reads (``live`` also takes ``auto``).
+SEND_FORMATS = ("outsim", "csv", "forza_sled", "forza_dash", "forza_horizon", "codemasters",
+                "beamng")  # fmt: skip
+FORMATS = (*SEND_FORMATS, "auto")
 #: OutSim packet sizes: without and with the optional ID.
 OUTSIM_BYTES = (64, 68)
 _OUTSIM = struct.Struct("<I3f3f3f3f3i")
 _OUTSIM_ID = struct.Struct("<I3f3f3f3f3ii")
 #: Longest ``csv`` datagram (seven numbers at full precision take about 180 bytes).
 MAX_CSV_BYTES = 512
-#: Largest accepted specific force component (m/s^2): 10 g, beyond any car's.
-MAX_SPECIFIC_FORCE = 10.0 * GRAVITY
-#: Largest accepted angular rate component (rad/s): a car spinning at 3 turns/s.
-MAX_RATE = 6.0 * math.pi
 #: Largest accepted attitude angle (rad) in an OutSim packet.
 _MAX_ANGLE = 4.0 * math.pi
-
-
-class DatagramError(ValueError):
-    """A datagram that is not a sample; ``kind`` is ``short``, ``oversized`` or ``malformed``."""
-
-    def __init__(self, kind: str, message: str):
-        super().__init__(message)
-        self.kind = kind
 
 
 def car_to_world(heading: float, pitch: float, roll: float) -> tuple:
@@ -136,20 +137,6 @@ def vehicle_to_world(r, v) -> tuple[float, float, float]:
     """A V vector in W: ``R M^T v``."""
     c = (-v[1], v[0], v[2])  # M^T v: car (right, forward, up)
     return tuple(r[i][0] * c[0] + r[i][1] * c[1] + r[i][2] * c[2] for i in range(3))
-
-
-def _check(t: float, f, w) -> tuple[float, tuple, tuple]:
-    vals = (t, *f, *w)
-    if not all(map(math.isfinite, vals)):
-        raise DatagramError("malformed", "a value is not finite")
-    if t < 0:
-        raise DatagramError("malformed", f"time {t:g} s < 0")
-    if max(abs(v) for v in f) > MAX_SPECIFIC_FORCE or max(abs(v) for v in w) > MAX_RATE:
-        raise DatagramError(
-            "malformed",
-            f"f={f}, w={w}: allowed |f| <= {MAX_SPECIFIC_FORCE:g} m/s^2, |w| <= {MAX_RATE:g} rad/s",
-        )
-    return t, f, w
 
 
 def decode_outsim(data: bytes) -> tuple[float, tuple, tuple]:
@@ -188,9 +175,64 @@ def decode_csv(data: bytes) -> tuple[float, tuple, tuple]:
     return _check(vals[0], tuple(vals[1:4]), tuple(vals[4:7]))
 
 
+#: Datagram sizes of the binary formats (bytes) -> format, for ``auto``.
+SIZES = {
+    OUTSIM_BYTES[0]: "outsim",
+    OUTSIM_BYTES[1]: "outsim",
+    beamng.SIZE: "beamng",
+    **{n: name for name, n in forza.SIZES.items()},
+    codemasters.SIZE: "codemasters",
+}
+
+
+def make_decoder(fmt: str):
+    """A callable ``data -> (time_s | None, f, w)`` for ``fmt`` (:data:`FORMATS`), raising
+    :class:`DatagramError`; Codemasters' keeps state between packets (a new one per stream)."""
+    if fmt == "outsim":
+        return decode_outsim
+    if fmt == "csv":
+        return decode_csv
+    if fmt.startswith("forza_"):
+        return forza.decode  # a Dash or Horizon packet has the Sled part first
+    if fmt == "codemasters":
+        return codemasters.Decoder()
+    if fmt == "beamng":
+        return beamng.decode
+    if fmt == "auto":
+        return AutoDecoder()
+    raise ValueError(f"format {fmt!r}; allowed: {', '.join(FORMATS)}")
+
+
 def decode(fmt: str, data: bytes) -> tuple[float, tuple, tuple]:
-    """Decode one datagram of format ``fmt`` (:data:`FORMATS`)."""
-    return decode_outsim(data) if fmt == "outsim" else decode_csv(data)
+    """Decode one datagram of a stateless format ``fmt`` (not ``codemasters`` or ``auto``)."""
+    return make_decoder(fmt)(data)
+
+
+class AutoDecoder:
+    """``--format auto``: the first datagram that decodes fixes the format, told by its size.
+
+    64/68 bytes OutSim, 88 BeamNG (magic ``BNG1``), 232/311/324 Forza Sled/Dash/Horizon,
+    264 Codemasters; any other size is tried as a ``csv`` line. The sizes are distinct,
+    so one good datagram is enough; a datagram that does not decode fixes nothing (it is
+    counted by its kind). ``chosen`` names the format once fixed; ``on_choose(name)`` is
+    called then (the session says it).
+    """
+
+    def __init__(self, on_choose=None):
+        self.chosen: str | None = None
+        self.on_choose = on_choose
+        self._decoder = None
+
+    def __call__(self, data: bytes):
+        if self._decoder is not None:
+            return self._decoder(data)
+        name = SIZES.get(len(data), "csv")
+        decoder = make_decoder(name)
+        sample = decoder(data)  # a DatagramError leaves the choice open
+        self.chosen, self._decoder = name, decoder
+        if self.on_choose is not None:
+            self.on_choose(name)
+        return sample
 
 
 def encode_csv(t: float, f, w) -> bytes:
@@ -226,15 +268,43 @@ def _attitudes(w: np.ndarray, dt: float) -> list[tuple[float, float, float]]:
 
 
 def telemetry_datagrams(tel: Telemetry, fmt: str, rate_hz: float) -> tuple[np.ndarray, list]:
-    """(times, datagrams): ``tel`` resampled every ``1/rate_hz`` s and packed in ``fmt``."""
+    """(times, datagrams): ``tel`` resampled every ``1/rate_hz`` s and packed in ``fmt``.
+
+    For the binary formats the car's attitude is integrated from the file's rates
+    (level, heading 0) and each packet carries what that game would send of it:
+    OutSim its world vectors, Forza and BeamNG the acceleration without gravity
+    and the tilt angles, Codemasters the world velocity (integrated from the
+    specific force less gravity) and the car's axes, taken after each sample's
+    turn so that the receiver's difference of two packets gives that sample's rate.
+    """
     n = int(math.floor(tel.t[-1] * rate_hz + 1e-9)) + 1
     t = np.arange(n) / rate_hz
     f, w = resample(tel, t)
+    rows = list(zip(t.tolist(), f.tolist(), w.tolist(), strict=True))
     if fmt == "csv":
-        return t, [encode_csv(*row) for row in zip(t, f.tolist(), w.tolist(), strict=True)]
-    att = _attitudes(w, 1.0 / rate_hz)
-    grams = [
-        encode_outsim(ti, fi, wi, a)
-        for ti, fi, wi, a in zip(t, f.tolist(), w.tolist(), att, strict=True)
-    ]
+        return t, [encode_csv(*row) for row in rows]
+    dt = 1.0 / rate_hz
+    if fmt == "codemasters":
+        att = _attitudes(np.vstack([w, w[-1:]]), dt)[1:]
+        grams, v = [], np.zeros(3)
+        for (ti, fi, _), a in zip(rows, att, strict=True):
+            r = car_to_world(*a)
+            fw = vehicle_to_world(r, fi)
+            v = v + dt * np.array([fw[0], fw[1], fw[2] - GRAVITY])
+            # the game's world: x right, y up, z forward (left-handed) = (X, Z, Y) of W
+            swap = lambda u: (u[0], u[2], u[1])  # noqa: E731
+            cols = [tuple(r[i][j] for i in range(3)) for j in range(2)]  # car right, forward
+            grams.append(codemasters.encode(ti, swap(v.tolist()), swap(cols[1]), swap(cols[0])))
+        return t, grams
+    att = _attitudes(w, dt)
+    grams = []
+    for (ti, fi, wi), a in zip(rows, att, strict=True):
+        if fmt == "outsim":
+            grams.append(encode_outsim(ti, fi, wi, a))
+            continue
+        up = world_to_vehicle(car_to_world(*a), (0.0, 0.0, 1.0))
+        if fmt == "beamng":
+            grams.append(beamng.encode(fi, wi, up, a[0]))
+        else:
+            grams.append(forza.encode(fmt, ti, fi, wi, up, a[0]))
     return t, grams

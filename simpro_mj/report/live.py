@@ -101,7 +101,8 @@ def execute_live(scenario: dict, options: LiveOptions, out, plots: bool = True, 
             )
         realtime["ended"] = ended
         host, port = wash.pop("address")
-        source = f"udp {options.fmt} {host}:{port}"
+        fmt = realtime["packets"]["format"]  # for auto, the format it found
+        source = f"udp {fmt} {host}:{port}"
         metrics = compute_metrics(res.columns, home)
         lateness = wash.pop("lateness")
         metrics["cueing"] = cue_metrics(res.columns, scenario, info=dict(wash, source=source))

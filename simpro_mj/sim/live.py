@@ -58,7 +58,7 @@ import numpy as np
 from controllers.frames import GRAVITY
 from controllers.mpc_cueing import MpcParams, MpcStream  # the module loads osqp on use
 from controllers.washout import ClassicalWashout, WashoutParams
-from simpro_mj.config.datagrams import DatagramError, decode
+from simpro_mj.config.datagrams import AutoDecoder, DatagramError, make_decoder
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.interrupts import held_signals
 from simpro_mj.plant.faults import NEVER
@@ -229,24 +229,33 @@ class Receiver:
 
     Attributes
     ----------
-    received, bad, late, restarts : int
+    received, bad, idle, late, restarts : int
         Datagrams read; of them, not a sample (``bad_kinds``: short,
-        oversized, malformed); older than the newest sample (out of order or
-        repeated, skipped); game times that jumped back by more than
-        :data:`RESTART_S` (taken as a new stream).
+        oversized, malformed); well-formed but saying the game is not driving
+        (Forza's ``IsRaceOn = 0``: skipped, the input goes stale); older than
+        the newest sample (out of order or repeated, skipped); game times that
+        jumped back by more than :data:`RESTART_S` (taken as a new stream).
+        A format without a game clock (BeamNG's) is ordered by arrival.
+    format : str
+        The format read: ``fmt``, or for ``auto`` the one the first good
+        datagram showed (``on_choose(name)`` is called then).
     """
 
     REST_F = (0.0, 0.0, GRAVITY)
     REST_W = (0.0, 0.0, 0.0)
 
-    def __init__(self, address: tuple[str, int], fmt: str, stale_after_s: float, fade_s: float):
+    def __init__(self, address: tuple[str, int], fmt: str, stale_after_s: float, fade_s: float,
+                 on_choose=None):  # fmt: skip
         self.fmt = fmt
+        self.decode = make_decoder(fmt)
+        if isinstance(self.decode, AutoDecoder):
+            self.decode.on_choose = on_choose
         self.stale_after, self.fade = float(stale_after_s), float(fade_s)
         self.sock = _bound_socket(address)
         self.sock.setblocking(False)
         self.address = self.sock.getsockname()[:2]
         self._buf = bytearray(_RECV_BYTES)
-        self.received = self.bad = self.late = self.restarts = 0
+        self.received = self.bad = self.idle = self.late = self.restarts = 0
         self.bad_kinds = {"short": 0, "oversized": 0, "malformed": 0}
         self.last_time: float | None = None  # the game's time of the newest sample
         self.last_wall: float | None = None  # when it arrived
@@ -254,7 +263,7 @@ class Receiver:
 
     def poll(self, now: float) -> int:
         """Read the datagrams waiting (at most :data:`MAX_DRAIN`); returns how many."""
-        recv, buf, fmt = self.sock.recv_into, self._buf, self.fmt
+        recv, buf, decode = self.sock.recv_into, self._buf, self.decode
         n = 0
         for _ in range(MAX_DRAIN):
             try:
@@ -267,11 +276,16 @@ class Receiver:
             try:
                 if size >= len(buf):  # filled the buffer: cut short by the read
                     raise DatagramError("oversized", f">= {size} bytes")
-                t, f, w = decode(fmt, bytes(buf[:size]))
+                t, f, w = decode(bytes(buf[:size]))
             except DatagramError as exc:
-                self.bad += 1
-                self.bad_kinds[exc.kind] += 1
+                if exc.kind == "idle":
+                    self.idle += 1
+                else:
+                    self.bad += 1
+                    self.bad_kinds[exc.kind] += 1
                 continue
+            if t is None:  # no game clock in the packet: its arrival orders it
+                t = now
             if self.last_time is not None and t <= self.last_time:
                 if self.last_time - t <= RESTART_S:
                     self.late += 1
@@ -293,11 +307,18 @@ class Receiver:
         w = tuple((1.0 - a) * v for v in self.w)
         return f, w, True
 
+    @property
+    def format(self) -> str:
+        chosen = getattr(self.decode, "chosen", None)
+        return chosen or self.fmt
+
     def counts(self) -> dict:
         return {
+            "format": self.format,
             "received": self.received,
             "bad": self.bad,
             "late": self.late,
+            "idle": self.idle,
             "bad_kinds": dict(self.bad_kinds),
             "restarts": self.restarts,
         }
@@ -568,7 +589,12 @@ def run_session(scenario: dict, options: LiveOptions, say=None, checks=None):
             "invalid value at setpoint.cueing: a live session needs a cueing scenario (the "
             "vehicle input drives the washout); allowed: e.g. cue_braking.yaml"
         )
-    rx = Receiver(options.listen, options.fmt, options.stale_after_s, options.fade_s)
+
+    def chose(name: str) -> None:
+        if say is not None:
+            say(f"live: --format auto: the datagrams are {name}")
+
+    rx = Receiver(options.listen, options.fmt, options.stale_after_s, options.fade_s, chose)
     if say is not None:
         say(
             f"live: {scenario['name']}, {options.fmt} datagrams at {rx.address[0]}:"
