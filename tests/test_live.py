@@ -481,3 +481,89 @@ def test_a_live_session_driven_over_udp_and_ended_by_sigterm(tmp_path):
     assert doc["metrics"]["cueing"]["channels"]["longitudinal_f"]["vehicle_peak"] < 0
     lat = np.load(out / "realtime.npz")
     assert lat["lateness_us"].size == rt["deadlines"]
+
+
+# ------------------------------------------------------------------ strict templates, send
+
+
+@pytest.mark.parametrize(
+    "template, why",
+    [
+        ("{t_s.__class__}", "attribute or index access"),
+        ("{t_s.__class__.__mro__}", "attribute or index access"),
+        ("{t_s[0]}", "attribute or index access"),
+        ("{t_s:>900000000}", "format '>900000000'"),
+        ("{t_s:>99}", "width 99"),
+        ("{t_s:.40f}", "precision 40"),
+        ("{t_s!r}", "conversion !r"),
+        ("{t_s:{pitch_deg}}", "format"),
+        ("{t_s:s}", "format 's'"),
+        ("x" * 513, "too long"),
+        ("{t_s} \u00b0", "not ASCII"),
+    ],
+)
+def test_pose_template_takes_only_the_fields_with_bounded_number_formats(template, why):
+    with pytest.raises(UserInputError) as err:
+        pose_template(template)
+    msg = str(err.value)
+    assert msg.startswith("invalid value at --send-format:") and why in msg and "\n" not in msg
+
+
+def test_pose_templates_within_the_bounds_format_any_value_briefly():
+    tpl = pose_template("{t_s:>32.12f}|{heave_mm:+08.2f}|{pitch_deg:e}|{roll_deg:%}\\r\\n")
+    line = tpl.format(**dict.fromkeys(["t_s", "heave_mm", "pitch_deg", "roll_deg"], -1e300))
+    assert line.endswith("\r\n") and len(line) < 2000  # fits a datagram
+    assert pose_template("{{literal}}{q1_mm:.1f}").format(q1_mm=1.25) == "{literal}1.2"
+
+
+def test_live_refuses_an_unbounded_send_format_at_start(capsys, tmp_path):
+    argv = ["live", "cue_braking.yaml", "--listen", "127.0.0.1:0", "--out", str(tmp_path / "o")]
+    assert main([*argv, "--send-format", "{t_s:>900000000}"]) == 2
+    assert "invalid value at --send-format" in _one_error_line(capsys)
+    assert not (tmp_path / "o").exists()
+
+
+def test_send_refuses_a_host_that_does_not_resolve(capsys, tmp_path, monkeypatch):
+    """The resolver answers no (patched: no name server is asked): exit 2, one line."""
+
+    def no(*args, **kwargs):
+        raise socket.gaierror(socket.EAI_NONAME, "Name or service not known")
+
+    monkeypatch.setattr(socket, "getaddrinfo", no)
+    path = write_telemetry(tmp_path / "t.csv", Telemetry(np.array([0.0, 0.01]),
+                           np.array([[0, 0, GRAVITY]] * 2), np.zeros((2, 3))))  # fmt: skip
+    assert main(["send", str(path), "--to", "nohost.invalid:9"]) == 2
+    line = _one_error_line(capsys)
+    assert "invalid value at --to: nohost.invalid:9: the host does not resolve" in line
+
+
+def test_send_stops_at_once_when_nothing_can_be_sent(capsys, tmp_path, monkeypatch):
+    """Every send refused locally (as a broadcast address without permission is; patched, so
+    nothing leaves the machine): exit 2 at the first send, one line, not 'sent 0'."""
+    real = socket.socket
+    attempts = []
+
+    class Refusing(real):
+        def sendto(self, *args):
+            attempts.append(args)
+            raise PermissionError(13, "Permission denied")
+
+    monkeypatch.setattr(socket, "socket", Refusing)
+    n = 50
+    path = write_telemetry(tmp_path / "t.csv", Telemetry(np.arange(n) * 0.01,
+                           np.array([[0, 0, GRAVITY]] * n), np.zeros((n, 3))))  # fmt: skip
+    assert main(["send", str(path), "--to", "127.0.0.1:9"]) == 2
+    line = _one_error_line(capsys)
+    assert "nothing could be sent (Permission denied)" in line
+    assert len(attempts) == 1
+
+
+def test_send_takes_the_shipped_telemetry_names_that_list_shows(capsys):
+    from simpro_mj.commands.send import _telemetry_path
+
+    assert main(["list"]) == 0
+    listed = capsys.readouterr().out
+    for name in ("braking_100kmh.csv", "lane_change_80kmh.csv"):
+        assert name in listed
+        assert _telemetry_path(name) == TELEMETRY_DIR / name
+    assert _telemetry_path("no_such.csv").name == "no_such.csv"  # refused by the reader

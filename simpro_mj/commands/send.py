@@ -5,18 +5,23 @@ tested) without one: the file (:mod:`simpro_mj.config.telemetry`) is
 resampled every ``1/--rate`` s and each sample sent as one datagram of
 ``--format`` (:mod:`simpro_mj.config.datagrams`: ``outsim`` packs the
 attitude integrated from the file's rates), at absolute deadlines from the
-first. A refused send (nobody listening) is counted, not fatal.
+first. A refused send (nobody listening) is counted, not fatal; a host that
+does not resolve, or an address nothing can be sent to, is refused at once
+(exit 2), and a run that sent nothing exits 1. ``TELEMETRY.csv`` is a path,
+or the name of a shipped file (``simpro-sim list``).
 """
 
 from __future__ import annotations
 
 import math
 import sys
+from pathlib import Path
 
 from simpro_mj.config.datagrams import SEND_FORMATS, telemetry_datagrams
 from simpro_mj.config.telemetry import read_telemetry
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.jsonout import emit_json
+from simpro_mj.core.shipped import TELEMETRY_DIR
 from simpro_mj.sim.live import parse_address, send_datagrams
 
 HELP = "send a telemetry CSV as paced UDP datagrams (OutSim, Forza, ...): a game's stand-in"
@@ -37,7 +42,7 @@ def run(args) -> int:
     address = parse_address(args.to, "--to")
     if not (math.isfinite(args.rate) and 0 < args.rate <= 1000):
         raise UserInputError(f"invalid value at --rate: {args.rate:g}; allowed: > 0 and <= 1000")
-    tel = read_telemetry(args.telemetry)
+    tel = read_telemetry(_telemetry_path(args.telemetry))
     times, grams = telemetry_datagrams(tel, args.fmt, args.rate)
 
     def say(line: str) -> None:
@@ -53,4 +58,12 @@ def run(args) -> int:
             f"sent {info['sent']} {args.fmt} datagrams to {info['to']} in "
             f"{info['duration_s']:.2f} s ({info['errors']} refused)"
         )
-    return 0
+    return 0 if info["sent"] else 1
+
+
+def _telemetry_path(text: str) -> Path:
+    """The file as given, else the shipped file of that name (as scenarios find it)."""
+    path = Path(text).expanduser()
+    if not path.exists() and not path.is_absolute() and (TELEMETRY_DIR / path).is_file():
+        return TELEMETRY_DIR / path
+    return path

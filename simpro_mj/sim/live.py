@@ -49,7 +49,9 @@ import ctypes.util
 import gc
 import math
 import os
+import re
 import socket
+import string
 import time
 from dataclasses import dataclass
 
@@ -77,6 +79,7 @@ __all__ = [
     "parse_address",
     "pose_template",
     "request_realtime",
+    "resolve_address",
     "run_session",
     "send_datagrams",
 ]
@@ -138,25 +141,62 @@ def parse_address(text: str, option: str, *, bind: bool = False) -> tuple[str, i
     return host.strip("[]"), p
 
 
+#: Longest ``--send-format`` template (characters), and the widest field and most digits.
+MAX_TEMPLATE_CHARS = 512
+MAX_FIELD_WIDTH = 32
+MAX_PRECISION = 12
+#: What a field's format may be: ``[[fill]align][sign][0][width][,|_][.precision][type]``,
+#: types ``f e g`` (and their capitals, ``%``): a number, bounded by the two maxima above.
+_SPEC = re.compile(r"^(?:.?[<>=^])?[+\- ]?0?(\d{1,2})?[,_]?(?:\.(\d{1,2}))?[eEfFgG%]?$")
+
+
 def pose_template(text: str | None) -> str:
-    """The pose line template, checked: a one-line error names the unknown field."""
+    """The pose line template, checked at start: one-line :class:`UserInputError` naming
+    ``--send-format`` for anything but the fields :data:`POSE_FIELDS` with a plain number
+    format (no attribute or index access, no conversion, no nested field, widths up to
+    :data:`MAX_FIELD_WIDTH`, precisions up to :data:`MAX_PRECISION`), ASCII, at most
+    :data:`MAX_TEMPLATE_CHARS` characters. A line is then at most a few kB, whatever the
+    values: it always fits one datagram and is formatted in microseconds."""
     if text is None:
         return DEFAULT_POSE_FORMAT
+    allowed = (
+        f"allowed: an ASCII template of at most {MAX_TEMPLATE_CHARS} characters with fields "
+        f"{', '.join(POSE_FIELDS)}, each with a number format of width <= {MAX_FIELD_WIDTH} "
+        f"and precision <= {MAX_PRECISION}, e.g. 'P{{pitch_deg:.2f}}R{{roll_deg:.2f}}\\n'"
+    )
+
+    def refuse(why: str):
+        return UserInputError(f"invalid value at --send-format: {text[:60]!r}: {why}; {allowed}")
+
+    if len(text) > MAX_TEMPLATE_CHARS or not text.isascii():
+        raise refuse("too long" if len(text) > MAX_TEMPLATE_CHARS else "not ASCII")
     tpl = text.replace("\\n", "\n").replace("\\r", "\r").replace("\\t", "\t")
     try:
-        line = tpl.format(**dict.fromkeys(POSE_FIELDS, 0.0))
-        line.encode("ascii")
-    except KeyError as exc:
-        raise UserInputError(
-            f"invalid value at --send-format: unknown field {exc.args[0]!r}; allowed: "
-            f"{', '.join(POSE_FIELDS)}"
-        ) from None
-    except (ValueError, IndexError, UnicodeEncodeError) as exc:
-        raise UserInputError(
-            f"invalid value at --send-format: {text!r} ({exc}); allowed: an ASCII Python "
-            f"format string of the fields {', '.join(POSE_FIELDS)}, e.g. "
-            "'P{pitch_deg:.2f}R{roll_deg:.2f}\\n'"
-        ) from None
+        parts = list(string.Formatter().parse(tpl))
+    except ValueError as exc:
+        raise refuse(str(exc)) from None
+    for _, name, spec, conversion in parts:
+        if name is None:
+            continue
+        if name not in POSE_FIELDS:
+            if name.split(".")[0].split("[")[0] in POSE_FIELDS:
+                raise refuse(f"field {name!r}: attribute or index access")
+            raise UserInputError(
+                f"invalid value at --send-format: unknown field {name!r}; allowed: "
+                f"{', '.join(POSE_FIELDS)}"
+            )
+        if conversion is not None:
+            raise refuse(f"field {name!r}: conversion !{conversion}")
+        m = _SPEC.match(spec or "")
+        if m is None or "{" in spec:
+            raise refuse(f"field {name!r}: format {spec!r}")
+        width, precision = int(m.group(1) or 0), int(m.group(2) or 0)
+        if width > MAX_FIELD_WIDTH or precision > MAX_PRECISION:
+            raise refuse(f"field {name!r}: width {width}, precision {precision}")
+    try:
+        tpl.format(**dict.fromkeys(POSE_FIELDS, -1e9))
+    except (ValueError, IndexError, KeyError) as exc:
+        raise refuse(str(exc)) from None
     return tpl
 
 
@@ -639,11 +679,34 @@ def run_session(scenario: dict, options: LiveOptions, say=None, checks=None):
             res = sim.run(pace=pacer)
         realtime = pacer.realtime(int(res.sim["steps"]))
         info = dict(pacer.washout_info(), lateness=pacer.lateness(), address=rx.address)
+        info["algorithm"] = cue.get("algorithm", "classical_washout")  # the law that ran
+        if mpc and law.solve_times:
+            from controllers.mpc_cueing import MpcResult
+
+            done = MpcResult(np.empty(0), np.empty((0, 3)), np.asarray(law.solve_times),
+                             list(law.status), np.asarray(law.iterations))  # fmt: skip
+            info["solve_time"] = done.solve_time_stats()
+            realtime["cue_solve_ms"] = info["solve_time"]
         return res, realtime, info
     finally:
         rx.close()
         if sender is not None:
             sender.close()
+
+
+def resolve_address(address: tuple[str, int], option: str) -> tuple:
+    """The UDP socket address of ``(host, port)``: one line naming ``option`` if the host
+    does not resolve."""
+    try:
+        info = socket.getaddrinfo(address[0], address[1], type=socket.SOCK_DGRAM)
+    except (socket.gaierror, UnicodeError, OSError) as exc:
+        why = getattr(exc, "strerror", None) or str(exc)
+        raise UserInputError(
+            f"invalid value at {option}: {address[0]}:{address[1]}: the host does not "
+            f"resolve ({why}); allowed: a host name or address this machine can reach"
+        ) from None
+    family, _, _, _, sockaddr = info[0]
+    return family, sockaddr
 
 
 def send_datagrams(grams, times, address: tuple[str, int], *, say=None,
@@ -652,9 +715,12 @@ def send_datagrams(grams, times, address: tuple[str, int], *, say=None,
 
     The stand-in for a game (``simpro-sim send``). Returns the figures:
     ``sent``, ``errors`` (refused sends, counted), ``duration_s``,
-    ``lateness_us`` {p50, p99, max} of the sends.
+    ``lateness_us`` {p50, p99, max} of the sends. The host is resolved first;
+    a first send that fails other than by a refusal from the other end (a
+    broadcast address without permission, no route) ends it at once with a
+    one-line :class:`UserInputError` naming ``--to``: nothing could be sent.
     """
-    family = socket.AF_INET6 if ":" in address[0] else socket.AF_INET
+    family, sockaddr = resolve_address(address, "--to")
     sock = socket.socket(family, socket.SOCK_DGRAM)
     late = np.zeros(len(grams))
     sent = errors = 0
@@ -668,10 +734,18 @@ def send_datagrams(grams, times, address: tuple[str, int], *, say=None,
                 now = clock()
             late[i] = max(0.0, now - deadline)
             try:
-                sock.sendto(g, address)
+                sock.sendto(g, sockaddr)
                 sent += 1
-            except OSError:
+            except ConnectionRefusedError:  # the other end said no to an earlier one
                 errors += 1
+            except OSError as exc:
+                errors += 1
+                if sent == 0:
+                    raise UserInputError(
+                        f"invalid value at --to: {address[0]}:{address[1]}: nothing could be "
+                        f"sent ({exc.strerror or exc}); allowed: a unicast HOST:PORT this "
+                        "machine can send to"
+                    ) from None
             if say is not None and i and i % 1000 == 0:
                 say(f"send t {float(t):7.2f} s | sent {sent} errors {errors}")
     finally:
