@@ -404,12 +404,17 @@ def test_a_live_session_driven_over_udp_and_ended_by_sigterm(tmp_path):
     pose.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1 << 20)
     pose.bind(("127.0.0.1", 0))
     pose.setblocking(False)
+    rig = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    rig.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1 << 20)
+    rig.bind(("127.0.0.1", 0))
+    rig.setblocking(False)
     tx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     out, ready = tmp_path / "live", tmp_path / "ready"
     env = dict(os.environ, MPLBACKEND="Agg", PYTHONPATH=str(ROOT), SIMPRO_READY_FILE=str(ready))
     cmd = [sys.executable, "-m", "simpro_mj.commands.main", "live", "cue_braking.yaml",
            "--listen", "127.0.0.1:0", "--format", "csv", "--send",
            f"127.0.0.1:{pose.getsockname()[1]}", "--duration", "300", "--out", str(out),
+           "--output", f"udp:127.0.0.1:{rig.getsockname()[1]}", "--output-rate", "50",
            "--no-plots", "--json"]  # fmt: skip
     proc = subprocess.Popen(
         cmd, cwd=tmp_path, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
@@ -442,6 +447,13 @@ def test_a_live_session_driven_over_udp_and_ended_by_sigterm(tmp_path):
         tx.close()
     lines += _pose_lines(pose)
     pose.close()
+    strings = []
+    while True:
+        try:
+            strings.append(rig.recv(4096))
+        except BlockingIOError:
+            break
+    rig.close()
     assert proc.returncode == 0, stderr
     assert "Traceback" not in stderr
     doc = json.loads(stdout)
@@ -479,6 +491,17 @@ def test_a_live_session_driven_over_udp_and_ended_by_sigterm(tmp_path):
     assert rec.qpos.shape[0] == cols["time_s"].size
     assert doc["metrics"]["cueing"]["source"].startswith("udp csv 127.0.0.1:")
     assert doc["metrics"]["cueing"]["channels"]["longitudinal_f"]["vehicle_peak"] < 0
+    # the law that ran, its solves, commanded against simulated actuator positions
+    assert doc["metrics"]["cueing"]["algorithm"] == "mpc"
+    assert rt["cue_solve_ms"]["solves"] > 0 and rt["cue_solve_ms"]["p50_ms"] > 0
+    assert doc["live"]["actuators"]["q1"]["max_abs_mm"] >= doc["live"]["actuators"]["q1"]["rms_mm"]
+    # the rig's strings ('S', three 16-bit counts, LF) are logged leg set-points within a count
+    assert 0 < len(strings) <= rt["rig_out"]["strings"]
+    q_ref = np.column_stack([cols[f"q{i}_ref_m"] for i in (1, 2, 3)]) / 0.5 * 65535
+    for data in strings:
+        assert len(data) == 8 and data[:1] == b"S" and data[-1:] == b"\n"
+        counts = np.array([int.from_bytes(data[1 + 2 * i : 3 + 2 * i], "big") for i in range(3)])
+        assert np.abs(q_ref - counts).max(axis=1).min() <= 1.0
     lat = np.load(out / "realtime.npz")
     assert lat["lateness_us"].size == rt["deadlines"]
 
@@ -567,3 +590,60 @@ def test_send_takes_the_shipped_telemetry_names_that_list_shows(capsys):
         assert name in listed
         assert _telemetry_path(name) == TELEMETRY_DIR / name
     assert _telemetry_path("no_such.csv").name == "no_such.csv"  # refused by the reader
+
+
+# ------------------------------------------------------------------ rest after the feed
+
+
+def test_after_the_feed_stops_the_set_point_goes_home_and_stays_for_the_mpc():
+    """A biased drive (fz 9.6 m/s^2, as a real accelerometer's bias) for 6 s, then nothing:
+    the MPC alone keeps moving the heave for seconds after the fade (its felt-force error
+    state), the pacer's set-point is home exactly from HOME_S after the fade on, and stays."""
+    from controllers.geometry import nominal_geometry
+    from controllers.mpc_cueing import ModelPredictiveCueing
+    from simpro_mj.config.cueing import washout_params
+    from simpro_mj.config.scenario import load_scenario
+    from simpro_mj.sim.live import HOME_S
+
+    cue = load_scenario("cue_lane_change.yaml", [])["setpoint"]["cueing"]
+    law = ModelPredictiveCueing(washout_params(cue).replace(preview=0.0), nominal_geometry())
+    stream = law.stream(0.01)
+    raw = {}
+
+    class Recorded:  # the law's own output, before the pacer's blend
+        geometry, box = stream.geometry, stream.box
+        last_rate_limited = last_softened = False
+
+        def step(self, f, w):
+            raw[len(raw)] = stream.step(f, w)
+            return raw[len(raw) - 1]
+
+    sim, clock = _FakeSim(), _Clock(100.0)
+    sim.n_steps = 14000
+    rx = Receiver(("127.0.0.1", 0), "csv", stale_after_s=0.5, fade_s=1.0)
+    try:
+        pacer = Pacer(sim, rx, Recorded(), wash_every=10, send_every=10, clock=clock,
+                      sleep=clock.sleep)  # fmt: skip
+        log = np.zeros((0, 1))
+        for k in range(0, 14001, 10):
+            t = k * 1e-3
+            if t < 6.0:  # a sample every 10 ms: lane changes on a biased vertical force
+                rx.last_wall, rx.last_time = clock(), t
+                rx.f = (2.0 * math.sin(t), 2.0 * math.sin(2 * t), 9.6)
+                rx.w = (0.05 * math.sin(2 * t), 0.0, 0.1 * math.sin(2 * t))
+            pacer(k, log)
+    finally:
+        rx.close()
+    home = np.asarray(law.geometry.home)
+    poses = {k: sim.rows[k][0][0] for k in sim.rows}
+    law_out = np.array([raw[i] for i in range(len(raw))])
+    t_home = 6.0 + 0.5 + 1.0 + HOME_S  # the last sample, held, faded, blended home
+    after = [k for k in poses if k * 1e-3 >= t_home + 0.011]
+    assert after and all(np.array_equal(poses[k], home) for k in after)
+    # the law alone is not home then: its heave moves by tens of millimetres
+    late = law_out[int(t_home / 0.01) :]
+    assert np.abs(late[:, 2] - home[2]).max() > 0.010
+    # while the drive came, the law's set-points were played (after the soft start)
+    mid = [k for k in poses if 3.0 <= k * 1e-3 < 6.0]
+    assert max(abs(poses[k][2] - home[2]) for k in mid) > 0.005
+    assert all(np.array_equal(poses[k], law_out[k // 10]) for k in mid)

@@ -77,6 +77,36 @@ def add_arguments(parser) -> None:
         "{q2_mm:.3f},{q3_mm:.3f}\\n'",
     )
     parser.add_argument(
+        "--output",
+        default=None,
+        metavar="DEST",
+        help="write a rig's output string there each period: udp:HOST:PORT or "
+        "serial:DEVICE[@BAUD] (pyserial); docs/live.md",
+    )
+    parser.add_argument(
+        "--output-string",
+        default="S<q1><q2><q3>\\n",
+        metavar="TEMPLATE",
+        help="the string: literal text, the tokens <q1> <q2> <q3> (leg set-points) <roll> "
+        "<pitch> <heave> (set-point pose), escapes \\n \\r \\t \\xHH; default "
+        "'S<q1><q2><q3>\\n'",
+    )
+    parser.add_argument(
+        "--output-bits", type=int, choices=(8, 16), default=16, help="counts of 8 or 16 bits"
+    )
+    parser.add_argument(
+        "--output-text",
+        action="store_true",
+        help="counts as decimal text (default: binary, most significant byte first)",
+    )
+    parser.add_argument(
+        "--output-rate",
+        type=float,
+        default=100.0,
+        metavar="HZ",
+        help="output strings per second, a divisor of 1000 (default 100)",
+    )
+    parser.add_argument(
         "--duration",
         type=float,
         default=None,
@@ -99,15 +129,26 @@ def add_arguments(parser) -> None:
     parser.add_argument("--quiet", action="store_true", help="no console line every second")
 
 
-def _options(args) -> LiveOptions:
-    """The options checked, before anything heavy is loaded."""
-    rate = args.send_rate
+def _rate(rate: float, option: str) -> float:
     if not (math.isfinite(rate) and 0 < rate <= 1000 and abs(1000 / rate - round(1000 / rate))
             < 1e-9):  # fmt: skip
         raise UserInputError(
-            f"invalid value at --send-rate: {rate:g}; allowed: a divisor of 1000 Hz "
+            f"invalid value at {option}: {rate:g}; allowed: a divisor of 1000 Hz "
             "(1000, 500, 250, 200, 125, 100, 50, ...)"
         )
+    return float(rate)
+
+
+def _options(args) -> LiveOptions:
+    """The options checked, before anything heavy is loaded."""
+    rate = _rate(args.send_rate, "--send-rate")
+    template = None
+    if args.output is not None:
+        from simpro_mj.sim.rig_output import RigTemplate, open_destination
+
+        _rate(args.output_rate, "--output-rate")
+        template = RigTemplate(args.output_string, args.output_bits, args.output_text)
+        open_destination(args.output, check_only=True)
     if args.duration is not None and not (
         math.isfinite(args.duration) and 0 < args.duration <= MAX_DURATION_S
     ):
@@ -125,10 +166,13 @@ def _options(args) -> LiveOptions:
         listen=listen,
         fmt=args.fmt,
         send=None if args.send is None else parse_address(args.send, "--send"),
-        send_rate_hz=float(rate),
+        send_rate_hz=rate,
         send_format=pose_template(args.send_format),
         stale_after_s=float(args.stale_after),
         rt=bool(args.rt),
+        output=args.output,
+        output_template=template,
+        output_rate_hz=float(args.output_rate),
     )
 
 
@@ -156,6 +200,7 @@ def run(args) -> int:
             f"{_ms(rt['drift_ms'])} ms; packets {pk['received']} (bad {pk['bad']}, late "
             f"{pk['late']}); stale {rt['stale_s']:.2f} s; pose sent "
             f"{(rt.get('pose_sent') or {}).get('datagrams', 0)}"
+            + (f"; rig strings {rt['rig_out']['strings']}" if "rig_out" in rt else "")
         )
         if res.status == "diverged":
             print(f"DIVERGED: {res.reason}")

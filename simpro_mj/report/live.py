@@ -38,7 +38,7 @@ from simpro_mj.report.results import write_results
 from simpro_mj.report.runner import recording, warn
 from simpro_mj.sim.live import LiveOptions, run_session
 
-__all__ = ["MAX_LOG_BYTES", "execute_live", "live_scenario"]
+__all__ = ["MAX_LOG_BYTES", "actuator_tracking", "execute_live", "live_scenario"]
 
 #: Largest log a session may preallocate (bytes): beyond, raise logging.decimation.
 MAX_LOG_BYTES = 1 << 30
@@ -58,6 +58,21 @@ def live_scenario(scenario: dict, duration_s: float | None) -> dict:
             f"at logging.decimation {out['logging']['decimation']}; allowed: a shorter session "
             f"or --set logging.decimation={need} or more"
         )
+    return out
+
+
+def actuator_tracking(columns) -> dict:
+    """Commanded (``q*_ref_m``) against simulated (``q*_m``) actuator positions, per leg:
+    the rms and largest difference (mm). Both are columns of ``timeseries.csv``."""
+    import numpy as np
+
+    out = {}
+    for i in (1, 2, 3):
+        d = (np.asarray(columns[f"q{i}_ref_m"]) - np.asarray(columns[f"q{i}_m"])) * 1e3
+        out[f"q{i}"] = {
+            "rms_mm": float(np.sqrt(np.mean(d**2))) if d.size else None,
+            "max_abs_mm": float(np.abs(d).max()) if d.size else None,
+        }
     return out
 
 
@@ -119,6 +134,15 @@ def execute_live(scenario: dict, options: LiveOptions, out, plots: bool = True, 
             },
             "stale_after_s": options.stale_after_s,
             "fade_s": options.fade_s,
+            "rig_out": None
+            if options.output is None
+            else {
+                "to": options.output,
+                "rate_hz": options.output_rate_hz,
+                "bits": options.output_template.bits,
+                "text": options.output_template.text_counts,
+            },
+            "actuators": actuator_tracking(res.columns),
         }
         extra = {
             "sim": dict(res.sim),

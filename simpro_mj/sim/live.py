@@ -64,9 +64,11 @@ from simpro_mj.config.datagrams import AutoDecoder, DatagramError, make_decoder
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.interrupts import held_signals
 from simpro_mj.plant.faults import NEVER
+from simpro_mj.sim.cue_worker import CueWorker
 from simpro_mj.sim.readiness import signal_ready
 
 __all__ = [
+    "HOME_S",
     "MAX_BEHIND_S",
     "MAX_DRAIN",
     "POSE_FIELDS",
@@ -92,6 +94,9 @@ MAX_DRAIN = 256
 RESTART_S = 1.0
 #: Receive buffer asked of the kernel (bytes): a second of 1 kB datagrams at 1 kHz.
 RCVBUF_BYTES = 1 << 20
+#: Once the input has faded to rest, the set-point is blended to home over this (s),
+#: and back to the law's when samples come again (:class:`Pacer`).
+HOME_S = 1.5
 #: Largest datagram read whole; anything longer is oversized in both formats.
 _RECV_BYTES = 2048
 
@@ -233,6 +238,10 @@ class LiveOptions:
     fade_s: float = 1.0
     rt: bool = False
     console: bool = True
+    #: a rig's output string (:mod:`simpro_mj.sim.rig_output`): where, what, how often
+    output: str | None = None
+    output_template: object = None
+    output_rate_hz: float = 100.0
 
 
 def _bound_socket(address: tuple[str, int]) -> socket.socket:
@@ -352,6 +361,12 @@ class Receiver:
         chosen = getattr(self.decode, "chosen", None)
         return chosen or self.fmt
 
+    def at_rest(self, now: float) -> bool:
+        """True once the input has faded all the way to rest (or before any sample)."""
+        if self.last_wall is None:
+            return True
+        return now - self.last_wall >= self.stale_after + self.fade
+
     def counts(self) -> dict:
         return {
             "format": self.format,
@@ -444,13 +459,15 @@ class Pacer:
         ``time.perf_counter`` and ``time.sleep`` (replaceable in tests).
     """
 
-    def __init__(self, sim, receiver: Receiver, washout: ClassicalWashout | MpcStream, *,
-                 wash_every: int, send_every: int, sender: PoseSender | None = None, say=None,
+    def __init__(self, sim, receiver: Receiver, washout: ClassicalWashout | MpcStream | CueWorker,
+                 *, wash_every: int, send_every: int, sender: PoseSender | None = None, say=None,
+                 rig=None, rig_every: int | None = None,
                  clock=time.perf_counter, sleep=time.sleep):  # fmt: skip
         self.sim, self.rx, self.washout, self.sender, self.say = sim, receiver, washout, sender, say
         self.dt, self.n = sim.dt, sim.n_steps
         self.wash_every, self.send_every = wash_every, send_every
-        self.chunk = math.gcd(wash_every, send_every)
+        self.rig, self.rig_every = rig, rig_every or send_every
+        self.chunk = math.gcd(math.gcd(wash_every, send_every), self.rig_every)
         self.clock, self.sleep = clock, sleep
         size = self.n // self.chunk + 2
         self.stats = _Stats(lateness_s=np.zeros(size), compute_s=np.zeros(size))
@@ -459,6 +476,8 @@ class Pacer:
         self.end_wall: float | None = None
         self._left: float | None = None  # when the last chunk was handed to the loop
         self._ones = np.ones((wash_every, 1))
+        self.home = np.asarray(washout.geometry.home, float)
+        self._home_weight = 1.0  # at home until samples come (a soft start)
         self._last_console = 0
         self._col = _columns()
 
@@ -493,7 +512,7 @@ class Pacer:
             f, w, stale = rx.sample(now)
             if stale and self.wall0 is not None and k < self.n:
                 st.stale_s += self.wash_every * self.dt
-            pose = self.washout.step(f, w)
+            pose = self._homed(self.washout.step(f, w), rx.at_rest(now))
             st.washout_steps += 1
             st.rate_limited += self.washout.last_rate_limited
             st.softened += self.washout.last_softened
@@ -504,12 +523,34 @@ class Pacer:
             return NEVER
         if self.sender is not None and k % self.send_every == 0 and len(log):
             self.sender.send(log[-1].tolist())
+        if self.rig is not None and k % self.rig_every == 0 and len(log):
+            self.rig.send(log[-1].tolist())
         if self.say is not None and k - self._last_console >= 1000 and len(log):
             self._last_console = k
             self.say(self._console_line(k, log[-1]))
         if self.wall0 is not None:
             self._left = self.clock()
         return k + self.chunk
+
+    def _homed(self, pose, at_rest: bool) -> np.ndarray:
+        """The law's set-point blended with home: weight 1 (home) once the input has
+        faded to rest, 0 (the law's) while samples come, moving between them over
+        :data:`HOME_S` along a smoothstep (no jump in position or rate).
+
+        Why: a law's state need not return home by itself when the input rests. The
+        MPC's heave axis weighs the felt force error and, lightly, the position, not
+        the rate: a felt-force error state left by a biased drive keeps the heave
+        moving for seconds after the fade (about +45 mm and back at 7 mm/s, from
+        -26 mm). At rest the platform goes home and stays there, whatever the law."""
+        step = self.wash_every * self.dt / HOME_S
+        target = 1.0 if at_rest else 0.0
+        w = self._home_weight
+        w = min(target, w + step) if target > w else max(target, w - step)
+        self._home_weight = w
+        a = w * w * (3.0 - 2.0 * w)
+        if a == 0.0:
+            return pose
+        return (1.0 - a) * np.asarray(pose, float) + a * self.home
 
     def _console_line(self, k: int, row) -> str:
         st = self.stats
@@ -557,6 +598,8 @@ class Pacer:
         }
         if self.sender is not None:
             out["pose_sent"] = {"datagrams": self.sender.sent, "errors": self.sender.errors}
+        if self.rig is not None:
+            out["rig_out"] = {"strings": self.rig.sent, "errors": self.rig.errors}
         return out
 
     def lateness(self) -> dict:
@@ -640,7 +683,7 @@ def run_session(scenario: dict, options: LiveOptions, say=None, checks=None):
             f"live: {scenario['name']}, {options.fmt} datagrams at {rx.address[0]}:"
             f"{rx.address[1]}, {scenario['duration_s']:g} s (Ctrl-C ends it, the result is kept)"
         )
-    sender = None
+    sender = rig = law = None
     try:
         # on use, once the port is ours: scipy's filter design and MuJoCo take seconds
         from simpro_mj.config.cueing import washout_params
@@ -662,24 +705,37 @@ def run_session(scenario: dict, options: LiveOptions, say=None, checks=None):
         wash_every = steps_per_period(period * 1e3, 1e-3, "setpoint.cueing.parameters.period_ms")
         send_every = steps_per_period(1e3 / options.send_rate_hz, 1e-3, "--send-rate")
         sim = CoSimulation(scenario, setpoints="external")
-        if mpc:
-            from controllers.mpc_cueing import ModelPredictiveCueing  # on use: osqp
-
+        if mpc:  # its solves in a child process, one period late (sim/cue_worker.py)
             assert isinstance(params, MpcParams)
-            law = ModelPredictiveCueing(params.replace(preview=0.0), geometry=sim.geometry)
-            washout: MpcStream | ClassicalWashout = law.stream(period)
+            law = CueWorker(params.replace(preview=0.0), sim.geometry, period)
+            washout: CueWorker | ClassicalWashout = law
         else:
             assert isinstance(params, WashoutParams)
             washout = ClassicalWashout(params, geometry=sim.geometry)
         if options.send is not None:
             sender = PoseSender(options.send, options.send_format, sim.geometry.home[2])
+        rig_every = None
+        if options.output is not None:
+            from simpro_mj.sim.rig_output import RigOutput
+
+            rig_every = steps_per_period(1e3 / options.output_rate_hz, 1e-3, "--output-rate")
+            rig = RigOutput(options.output, options.output_template, sim.geometry.home[2])
         pacer = Pacer(sim, rx, washout, wash_every=wash_every, send_every=send_every,
-                      sender=sender, say=say)  # fmt: skip
+                      sender=sender, say=say, rig=rig, rig_every=rig_every)  # fmt: skip
         with realtime_scheduling(options.rt, say), frozen_gc():
             res = sim.run(pace=pacer)
         realtime = pacer.realtime(int(res.sim["steps"]))
         info = dict(pacer.washout_info(), lateness=pacer.lateness(), address=rx.address)
         info["algorithm"] = cue.get("algorithm", "classical_washout")  # the law that ran
+        if mpc:
+            law.close()
+            realtime["cue"] = {
+                "in": "process",
+                "latency_periods": 1,
+                "period_ms": period * 1e3,
+                "late_results": law.late,
+                "periods": law.periods,
+            }
         if mpc and law.solve_times:
             from controllers.mpc_cueing import MpcResult
 
@@ -692,6 +748,10 @@ def run_session(scenario: dict, options: LiveOptions, say=None, checks=None):
         rx.close()
         if sender is not None:
             sender.close()
+        if rig is not None:
+            rig.close()
+        if law is not None:
+            law.close()  # a second close does nothing
 
 
 def resolve_address(address: tuple[str, int], option: str) -> tuple:
