@@ -318,6 +318,13 @@ def _one_error_line(capsys) -> str:
         (["--listen", "127.0.0.1:0", "--send", "x:99999"], "invalid value at --send: 'x:99999'"),
         (["--listen", "127.0.0.1:0", "--send-format", "{q4_mm}"], "unknown field 'q4_mm'"),
         (["--listen", "127.0.0.1:0", "--duration", "-1"], "invalid value at --duration: -1"),
+        (["--listen", "127.0.0.1:0", "--bias-tau", "-1"], "invalid value at --bias-tau: -1"),
+        (["--listen", "127.0.0.1:0", "--vibration-hz", "60"], "invalid value at --vibration-hz"),
+        (["--listen", "127.0.0.1:0", "--output", "tcp:x:1"], "invalid value at --output"),
+        (
+            ["--listen", "127.0.0.1:0", "--output", "udp:127.0.0.1:9", "--output-string", "<q9>"],
+            "unknown token <q9>",
+        ),
     ],
 )
 def test_live_refuses_bad_options_in_one_line(capsys, tmp_path, args, message):

@@ -122,6 +122,21 @@ def add_arguments(parser) -> None:
         "rest over 1 s (default 0.5)",
     )
     parser.add_argument(
+        "--bias-tau",
+        type=float,
+        default=0.0,
+        metavar="S",
+        help="remove each channel's slow bias with this time constant (a real "
+        "accelerometer's; e.g. 10); default 0: off",
+    )
+    parser.add_argument(
+        "--vibration-hz",
+        type=float,
+        default=0.0,
+        metavar="HZ",
+        help="low-pass the input at this corner, 2nd-order Butterworth (e.g. 10); default 0: off",
+    )
+    parser.add_argument(
         "--rt", action="store_true", help="ask for real-time scheduling (SCHED_FIFO, locked memory)"
     )
     parser.add_argument("--out", default=None, help="result folder (default results/<name>-live)")
@@ -160,6 +175,15 @@ def _options(args) -> LiveOptions:
         raise UserInputError(
             f"invalid value at --stale-after: {args.stale_after:g}; allowed: > 0 and <= 60 s"
         )
+    if not (math.isfinite(args.bias_tau) and 0 <= args.bias_tau <= 3600):
+        raise UserInputError(
+            f"invalid value at --bias-tau: {args.bias_tau:g}; allowed: 0 (off) to 3600 s"
+        )
+    if not (math.isfinite(args.vibration_hz) and 0 <= args.vibration_hz < 50):
+        raise UserInputError(
+            f"invalid value at --vibration-hz: {args.vibration_hz:g}; allowed: 0 (off) or "
+            "below 50 Hz (the Nyquist frequency of the 10 ms cueing period)"
+        )
     listen = parse_address(args.listen, "--listen", bind=True)
     check_listen(listen)  # a busy port refused now, not after the scenario's seconds
     return LiveOptions(
@@ -173,6 +197,8 @@ def _options(args) -> LiveOptions:
         output=args.output,
         output_template=template,
         output_rate_hz=float(args.output_rate),
+        bias_tau_s=float(args.bias_tau),
+        vibration_hz=float(args.vibration_hz),
     )
 
 

@@ -143,6 +143,10 @@ def execute_live(scenario: dict, options: LiveOptions, out, plots: bool = True, 
                 "text": options.output_template.text_counts,
             },
             "actuators": actuator_tracking(res.columns),
+            "conditioning": {
+                "bias_tau_s": options.bias_tau_s,
+                "vibration_hz": options.vibration_hz,
+            },
         }
         extra = {
             "sim": dict(res.sim),

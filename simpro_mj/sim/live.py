@@ -64,6 +64,7 @@ from simpro_mj.config.datagrams import AutoDecoder, DatagramError, make_decoder
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.interrupts import held_signals
 from simpro_mj.plant.faults import NEVER
+from simpro_mj.sim.addresses import parse_address, resolve_address
 from simpro_mj.sim.cue_worker import CueWorker
 from simpro_mj.sim.readiness import signal_ready
 
@@ -124,26 +125,6 @@ def _columns() -> dict:
     from simpro_mj.sim.result import COLUMNS
 
     return {name: j for j, name in enumerate(COLUMNS)}
-
-
-def parse_address(text: str, option: str, *, bind: bool = False) -> tuple[str, int]:
-    """``HOST:PORT`` as (host, port); a one-line :class:`UserInputError` naming ``option``.
-
-    Port 0 is allowed only where the address is bound (``bind``): the system
-    picks a free port, which the readiness file names.
-    """
-    host, sep, port = str(text).rpartition(":")
-    low = 0 if bind else 1
-    try:
-        p = int(port)
-    except ValueError:
-        p = -1
-    if not sep or not host or not low <= p <= 65535:
-        raise UserInputError(
-            f"invalid value at {option}: {text!r}; allowed: HOST:PORT with a port {low}..65535 "
-            "(e.g. 127.0.0.1:4444)"
-        )
-    return host.strip("[]"), p
 
 
 #: Longest ``--send-format`` template (characters), and the widest field and most digits.
@@ -242,6 +223,10 @@ class LiveOptions:
     output: str | None = None
     output_template: object = None
     output_rate_hz: float = 100.0
+    #: input conditioning (controllers.conditioning): bias time constant (s), vibration
+    #: corner (Hz); 0 leaves the stage out
+    bias_tau_s: float = 0.0
+    vibration_hz: float = 0.0
 
 
 def _bound_socket(address: tuple[str, int]) -> socket.socket:
@@ -461,12 +446,13 @@ class Pacer:
 
     def __init__(self, sim, receiver: Receiver, washout: ClassicalWashout | MpcStream | CueWorker,
                  *, wash_every: int, send_every: int, sender: PoseSender | None = None, say=None,
-                 rig=None, rig_every: int | None = None,
+                 rig=None, rig_every: int | None = None, conditioner=None,
                  clock=time.perf_counter, sleep=time.sleep):  # fmt: skip
         self.sim, self.rx, self.washout, self.sender, self.say = sim, receiver, washout, sender, say
         self.dt, self.n = sim.dt, sim.n_steps
         self.wash_every, self.send_every = wash_every, send_every
         self.rig, self.rig_every = rig, rig_every or send_every
+        self.conditioner = conditioner
         self.chunk = math.gcd(math.gcd(wash_every, send_every), self.rig_every)
         self.clock, self.sleep = clock, sleep
         size = self.n // self.chunk + 2
@@ -510,6 +496,8 @@ class Pacer:
         rx.poll(now)
         if k % self.wash_every == 0:
             f, w, stale = rx.sample(now)
+            if self.conditioner is not None:  # bias and vibration out, before the law
+                f, w = self.conditioner.step(f, w)
             if stale and self.wall0 is not None and k < self.n:
                 st.stale_s += self.wash_every * self.dt
             pose = self._homed(self.washout.step(f, w), rx.at_rest(now))
@@ -714,6 +702,14 @@ def run_session(scenario: dict, options: LiveOptions, say=None, checks=None):
             washout = ClassicalWashout(params, geometry=sim.geometry)
         if options.send is not None:
             sender = PoseSender(options.send, options.send_format, sim.geometry.home[2])
+        conditioner = None
+        if options.bias_tau_s > 0 or options.vibration_hz > 0:
+            from controllers.conditioning import InputConditioner
+
+            try:
+                conditioner = InputConditioner(period, options.bias_tau_s, options.vibration_hz)
+            except ValueError as exc:  # a corner above this law's Nyquist frequency
+                raise UserInputError(f"invalid value at --vibration-hz: {exc}") from None
         rig_every = None
         if options.output is not None:
             from simpro_mj.sim.rig_output import RigOutput
@@ -721,7 +717,8 @@ def run_session(scenario: dict, options: LiveOptions, say=None, checks=None):
             rig_every = steps_per_period(1e3 / options.output_rate_hz, 1e-3, "--output-rate")
             rig = RigOutput(options.output, options.output_template, sim.geometry.home[2])
         pacer = Pacer(sim, rx, washout, wash_every=wash_every, send_every=send_every,
-                      sender=sender, say=say, rig=rig, rig_every=rig_every)  # fmt: skip
+                      sender=sender, say=say, rig=rig, rig_every=rig_every,
+                      conditioner=conditioner)  # fmt: skip
         with realtime_scheduling(options.rt, say), frozen_gc():
             res = sim.run(pace=pacer)
         realtime = pacer.realtime(int(res.sim["steps"]))
@@ -752,21 +749,6 @@ def run_session(scenario: dict, options: LiveOptions, say=None, checks=None):
             rig.close()
         if law is not None:
             law.close()  # a second close does nothing
-
-
-def resolve_address(address: tuple[str, int], option: str) -> tuple:
-    """The UDP socket address of ``(host, port)``: one line naming ``option`` if the host
-    does not resolve."""
-    try:
-        info = socket.getaddrinfo(address[0], address[1], type=socket.SOCK_DGRAM)
-    except (socket.gaierror, UnicodeError, OSError) as exc:
-        why = getattr(exc, "strerror", None) or str(exc)
-        raise UserInputError(
-            f"invalid value at {option}: {address[0]}:{address[1]}: the host does not "
-            f"resolve ({why}); allowed: a host name or address this machine can reach"
-        ) from None
-    family, _, _, _, sockaddr = info[0]
-    return family, sockaddr
 
 
 def send_datagrams(grams, times, address: tuple[str, int], *, say=None,

@@ -167,7 +167,7 @@ def open_destination(text: str, check_only: bool = False):
     kind, sep, rest = str(text).partition(":")
     allowed = "allowed: udp:HOST:PORT or serial:DEVICE[@BAUD] (e.g. serial:/dev/ttyACM0@115200)"
     if kind == "udp" and sep:
-        from simpro_mj.sim.live import parse_address, resolve_address
+        from simpro_mj.sim.addresses import parse_address, resolve_address
 
         family, addr = resolve_address(parse_address(rest, "--output"), "--output")
         if check_only:
@@ -217,10 +217,10 @@ class RigOutput:
         self._col = None
 
     def values(self, row) -> dict:
-        if self._col is None:
-            from simpro_mj.sim.live import _columns
+        if self._col is None:  # on use: sim.result loads MuJoCo
+            from simpro_mj.sim.result import COLUMNS
 
-            self._col = _columns()
+            self._col = {name: j for j, name in enumerate(COLUMNS)}
         c = self._col
         return {
             "q1": row[c["q1_ref_m"]],
