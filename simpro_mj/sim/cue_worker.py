@@ -10,9 +10,12 @@ per washout period (10 ms):
 * at period ``n`` the pacer hands the vehicle input ``(f_n, w_n)`` to the
   child and plays the set-point the child computed from ``(f_(n-1), w_(n-1))``:
   **one period of latency**, always the same;
-* if that result is not back yet (a solve longer than a period), the last
-  set-point is held and the period is counted in ``late`` (``realtime.cue.
-  late_results``); the child catches up in order, the newest result is used.
+* if that result is not back yet (a solve longer than a period, or a child
+  the machine did not run in time), the last set-point is held and the
+  period is counted in ``late`` (``realtime.cue.late_results``), and the
+  most inputs waiting for the child in ``max_behind``
+  (``realtime.cue.max_behind_periods``); the child catches up in order, the
+  newest result is used.
 
 The pacing thread thus never waits for a solve: it sends and polls, a few
 tens of microseconds. The child ignores SIGINT and SIGTERM (the session ends
@@ -82,7 +85,7 @@ class CueWorker:
         self.last_rate_limited = self.last_softened = False
         self._pose = np.asarray(geometry.home, float)
         self._pending = 0
-        self.periods = self.late = 0
+        self.periods = self.late = self.max_behind = 0
         self.solve_times: list = []
         self.status: list = []
         self.iterations: list = []
@@ -96,6 +99,7 @@ class CueWorker:
         self.periods += 1
         if self._pending:
             self.late += 1
+            self.max_behind = max(self.max_behind, self._pending)
         conn.send((tuple(map(float, f)), tuple(map(float, w))))
         self._pending += 1
         return self._pose

@@ -731,6 +731,7 @@ def run_session(scenario: dict, options: LiveOptions, say=None, checks=None):
                 "latency_periods": 1,
                 "period_ms": period * 1e3,
                 "late_results": law.late,
+                "max_behind_periods": law.max_behind,
                 "periods": law.periods,
             }
         if mpc and law.solve_times:
