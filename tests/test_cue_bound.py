@@ -36,6 +36,8 @@ def test_gain_share_floor_names_a_cue_weaker_than_the_platform_can_give():
     weak.update(bound_share(weak, {"gain": 0.30, "rms_error": 0.9}))
     assert weak["gain_share"] == pytest.approx(0.065 / 0.30)
     assert weak["error_share"] == pytest.approx(0.1 / 0.4)
+    # a channel where even the bound removes little of the error has no error share
+    assert bound_share(weak, {"gain": 0.30, "rms_error": 1.25})["error_share"] is None
     floors = cue_floors({"channels": {"longitudinal_f": weak}})
     assert floors["missed"] == ["longitudinal_f gain 0.07 is 0.22 of the bound's < 0.8"]
     strong = dict(weak, gain=0.27)

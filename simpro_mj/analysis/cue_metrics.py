@@ -408,14 +408,17 @@ def bound_share(ch: Mapping, b: Mapping | None) -> dict:
     """The law's share of the bound on one channel: ``gain_share`` (its gain over the
     bound's) and ``error_share`` (how much of the error the bound removes, against a
     platform at rest whose head feels nothing, the law removes: ``(e_0 - e) / (e_0 -
-    e_bound)`` with ``e_0`` the RMS of the vehicle's sensation). None where undefined."""
+    e_bound)`` with ``e_0`` the RMS of the vehicle's sensation). None where undefined
+    (``error_share`` also where the bound removes less than a tenth of ``e_0``)."""
     if not b:
         return {"gain_share": None, "error_share": None}
     g, gb = ch.get("gain"), b.get("gain")
     e0 = ch.get("vehicle_rms")
     e, eb = ch.get("rms_error"), b.get("rms_error")
+    # undefined where the bound removes less than a tenth of the error (a channel the
+    # car hardly drives, such as the roll rate in a straight braking): no share to take
     share = None
-    if e0 is not None and e is not None and eb is not None and e0 - eb > 1e-12:
+    if e0 is not None and e is not None and eb is not None and e0 - eb > 0.1 * e0 > 0:
         share = (e0 - e) / (e0 - eb)
     return {
         "gain_share": g / gb if g is not None and gb and abs(gb) > 1e-9 else None,
