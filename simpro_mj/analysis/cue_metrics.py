@@ -446,6 +446,13 @@ def _cell(v, fmt: str) -> str:
     return f"{'-':>{width}}" if v is None else format(v, fmt)
 
 
+def _rows(cue: Mapping, head: str, file):
+    """Print a table's ``head`` and its rule; then the channels of ``cue``, one per row."""
+    print(head, file=file)
+    print("-" * len(head), file=file)
+    return (cue.get("channels") or {}).items()
+
+
 def print_cue_summary(cue: Mapping, file=None) -> None:
     """The cueing summary of a run: per channel the perceived correlation, lag, onset
     delay, raw wrong-sign peak and false cues; workspace, valves and solve times."""
@@ -458,9 +465,7 @@ def print_cue_summary(cue: Mapping, file=None) -> None:
         f"{'channel':<15}{'corr':>6}{'lag[s]':>8}{'onset[s]':>9}{'raw wrong':>11}"
         f"{'false[s]':>9}{'false rot[s]':>13}"
     )
-    print(head, file=file)
-    print("-" * len(head), file=file)
-    for name, ch in (cue.get("channels") or {}).items():
+    for name, ch in _rows(cue, head, file):
         print(
             f"{name:<15}{_cell(ch.get('correlation'), '6.2f')}{_cell(ch.get('mean_lag_s'), '8.2f')}"
             f"{_cell(ch.get('onset_delay_s'), '9.2f')}"
@@ -512,9 +517,7 @@ def print_strength(cue: Mapping, file=None) -> None:
         f"{'channel':<15}{'gain':>6}{'rms ratio':>10}{'rms err':>9}{'unit':>7}"
         f"{'bound gain':>12}{'rms err':>9}{'gain share':>12}{'err share':>10}"
     )
-    print(head, file=file)
-    print("-" * len(head), file=file)
-    for name, ch in (cue.get("channels") or {}).items():
+    for name, ch in _rows(cue, head, file):
         deg = ch.get("unit") == "rad/s"
         err = ch.get("rms_error_deg_s") if deg else ch.get("rms_error")
         b = bound.get(name) or {}
