@@ -137,3 +137,39 @@ def test_experiment_seconds_name_the_variants_that_identify(cache, fake_identify
     )
     ai.identified_models(new)  # now cached: the run alone
     assert ai.experiment_s(new) == 0.0 and expected_cost(new) == new["duration_s"]
+
+
+def test_threads_needing_one_new_plant_run_one_experiment(cache, monkeypatch):
+    # a batch's two threads start on variants of the same new plant: the second waits
+    # for the first's models instead of running the experiment again
+    import threading
+
+    import simpro_mj.identification.identify as ident
+
+    calls, b_started = [], threading.Event()
+
+    def slow(tree, legs=(1, 2, 3), records=None):
+        calls.append(threading.current_thread().name)
+        b_started.wait(10.0)  # the other thread is on its way before this one ends
+        threading.Event().wait(0.3)  # and has time to reach the experiment, were it let
+        return {f"actuator{i}": {"b": 10.0, "a1": 20.0, "a0": 300.0} for i in legs}
+
+    monkeypatch.setattr(ident, "identify", slow)
+    sc = load_scenario("step_pitch", [IDENT, "plant.payload.mass_kg=80"])
+    got = {}
+
+    def one(name):
+        if name == "b":
+            b_started.set()
+        got[name] = ai.identified_models(sc)
+
+    a = threading.Thread(target=one, args=("a",), name="a")
+    a.start()
+    while not calls:  # thread a is inside the experiment
+        threading.Event().wait(0.01)
+    b = threading.Thread(target=one, args=("b",), name="b")
+    b.start()
+    a.join(30.0)
+    b.join(30.0)
+    assert calls == ["a"]
+    assert got["a"] == (got["b"][0], "identified") and got["b"][1] == "cache"

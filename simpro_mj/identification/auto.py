@@ -30,6 +30,7 @@ from __future__ import annotations
 import copy
 import hashlib
 import json
+import threading
 from collections.abc import Mapping
 from pathlib import Path
 
@@ -58,6 +59,13 @@ __all__ = [
 
 _ACTS = ("actuator1", "actuator2", "actuator3")
 _memo: dict[str, dict] = {}
+_locks: dict[str, threading.Lock] = {}
+_locks_lock = threading.Lock()
+
+
+def _lock_of(h: str) -> threading.Lock:
+    with _locks_lock:
+        return _locks.setdefault(h, threading.Lock())
 
 
 def cache_dir() -> Path:
@@ -132,22 +140,26 @@ def identified_models(scenario: Mapping, progress=None) -> tuple[dict, str]:
         return given, "preset"
     tree = plant_tree(scenario)
     h = plant_hash(tree)
-    if h in _memo:
-        return copy.deepcopy(_memo[h]), "cache"
-    path = cache_dir() / f"{h}.json"
-    models = _read(path)
-    source = "cache"
-    if models is None:
-        # in a batch, said once with the number of variants (simpro_mj.core.notices)
-        notices.say(
-            f"identifying the scenario's own plant (Fig. 12), cached in {path.parent}", progress
-        )
-        notices.phase("identifying")
-        got = identify_module.identify(tree)  # by attribute: tests replace it
-        models = {a: {k: float(got[a][k]) for k in ("b", "a1", "a0")} for a in _ACTS}
-        cache.write_json(path, models)
-        source = "identified"
-    _memo[h] = copy.deepcopy(models)
+    # one experiment per plant in this process: a batch's threads that need the same
+    # new plant wait for the first instead of running it again
+    with _lock_of(h):
+        if h in _memo:
+            return copy.deepcopy(_memo[h]), "cache"
+        path = cache_dir() / f"{h}.json"
+        models = _read(path)
+        source = "cache"
+        if models is None:
+            # in a batch, said once with the number of variants (simpro_mj.core.notices)
+            notices.say(
+                f"identifying the scenario's own plant (Fig. 12), cached in {path.parent}",
+                progress,
+            )
+            notices.phase("identifying")
+            got = identify_module.identify(tree)  # by attribute: tests replace it
+            models = {a: {k: float(got[a][k]) for k in ("b", "a1", "a0")} for a in _ACTS}
+            cache.write_json(path, models)
+            source = "identified"
+        _memo[h] = copy.deepcopy(models)
     return models, source
 
 
