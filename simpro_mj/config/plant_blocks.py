@@ -268,9 +268,11 @@ class Imu(Block):
     bias_walk_deg_per_sqrt_s: Annotated[float, rule(lambda v: v >= 0, ">= 0 deg/sqrt(s)")] = (
         _SENSORS["imu"]["bias_walk_deg_per_sqrt_s"]
     )
-    accel_tilt_weight: Annotated[
-        float, rule(lambda v: 0 <= v <= 1, "0 (gyro only) .. 1 (accelerometer only)")
-    ] = _SENSORS["imu"]["accel_tilt_weight"]
+    # the attitude's complementary filter: the accelerometer's tilt below this
+    # crossover, the gyro above (0: the gyro alone)
+    accel_crossover_hz: Annotated[
+        float, rule(lambda v: 0 <= v <= 500, "0 (gyro only) .. 500 Hz")
+    ] = _SENSORS["imu"]["accel_crossover_hz"]
     bandwidth_hz: Annotated[float, rule(lambda v: v > 0, "> 0 Hz")] = _SENSORS["imu"][
         "bandwidth_hz"
     ]

@@ -57,7 +57,10 @@ DEFAULT_SENSORS: dict = {
         "bias_walk_deg_per_sqrt_s": 0.0,
         # share of the accelerometer's tilt (which sees the platform's own linear
         # acceleration) in the attitude output, 0 (gyro only) .. 1 (accelerometer only)
-        "accel_tilt_weight": 0.0,
+        # crossover of the attitude's complementary filter, Hz: the accelerometer's tilt
+        # below it, the gyro above (0: the gyro alone, the platform's own acceleration
+        # unseen)
+        "accel_crossover_hz": 0.0,
         "bandwidth_hz": 20.0,  # first-order output filter
         "rate_ms": 5,  # 200 Hz output
     },
@@ -98,7 +101,7 @@ class SensorConfig:
     imu_noise_rad: float
     imu_bias_rad: np.ndarray
     imu_walk_rad: float  # step of the bias's random walk per IMU sample
-    imu_accel_weight: float
+    imu_accel_alpha: float  # the complementary filter's 1 - exp(-2 pi f_c dt)
     imu_alpha: float  # first-order filter coefficient per physics step
     imu_every: int
     dt: float
@@ -134,11 +137,11 @@ class SensorConfig:
         density = positive("imu.noise_density_deg_per_sqrt_hz", True)
         if density > 0:
             sigma_imu = math.hypot(sigma_imu, noise_sigma(math.radians(density), imu_t))
-        weight = float(imu.get("accel_tilt_weight", 0.0))
-        if not 0.0 <= weight <= 1.0:
+        fc = float(imu.get("accel_crossover_hz", 0.0))
+        if not 0.0 <= fc <= 0.5 / dt:
             raise UserInputError(
-                f"invalid value at {path}.imu.accel_tilt_weight: {weight}; allowed: 0 (gyro "
-                "only) .. 1 (accelerometer only)"
+                f"invalid value at {path}.imu.accel_crossover_hz: {fc}; allowed: 0 (gyro "
+                f"only) .. {0.5 / dt:g} Hz (the step's Nyquist frequency)"
             )
         walk = positive("imu.bias_walk_deg_per_sqrt_s", True)
         nl = positive("potentiometer.nonlinearity_pct_fs", True)
@@ -157,7 +160,7 @@ class SensorConfig:
             imu_noise_rad=sigma_imu,
             imu_bias_rad=np.radians(np.asarray(imu["bias_deg"], dtype=float)),
             imu_walk_rad=bias_walk_sigma(math.radians(walk), imu_t),
-            imu_accel_weight=weight,
+            imu_accel_alpha=-math.expm1(-2.0 * math.pi * fc * dt),
             imu_alpha=1.0 - math.exp(-2.0 * math.pi * bw * dt),
             imu_every=imu_every,
             dt=float(dt),

@@ -35,8 +35,9 @@ SC_LSB, SC_SIGMA, SC_LO, SC_HI, SC_OFF, SC_GAIN, SC_FS, SC_NL = 0, 1, 2, 3, 4, 7
 SC_POT_EVERY, SC_RES, SC_ENC_NOISE, SC_ENC_EVERY, SC_SIGMA_IMU, SC_BIAS = 12, 13, 14, 15, 16, 17
 SC_WALK, SC_ACCW, SC_ALPHA, SC_IMU_EVERY, SC_IDT2, SC_LEN = 19, 20, 21, 22, 24, 25
 # the sensors' own state (an array ``ss``): the IMU filter (2), the bias walk (2), the
-# IMU site's last two positions (6) and how many are known
-SS_IMU, SS_WALK, SS_HIST, SS_HN, SS_LEN = 0, 2, 4, 10, 11
+# IMU site's last two positions (6) and how many are known, the complementary filter's
+# low-passed accelerometer tilt error (2)
+SS_IMU, SS_WALK, SS_HIST, SS_HN, SS_ACC, SS_LEN = 0, 2, 4, 10, 11, 13
 
 # actuator state ast: chamber pressures p1 (3), p2 (3), spool (3), spool rate (3), each
 # ψ-table edge's last cell (12), the supply pressure, the linear model's φ (3), force bounds,
@@ -119,9 +120,18 @@ def quantise(v, step):
 
 
 def imu_input(roll, pitch, site, sc, ss):
-    """The IMU filter's input: the true angles, moved by the accelerometer's weight
-    times what it reads from the IMU site's acceleration (the second difference of
-    its last three positions, :func:`simpro_mj.plant.sensor_errors.accel_tilt`)."""
+    """The IMU filter's input: the true angles plus what a complementary filter lets
+    through of the accelerometer's tilt error.
+
+    The accelerometer reads the tilt of the specific force at the IMU site (its
+    acceleration from the second difference of its last three positions,
+    :func:`simpro_mj.plant.sensor_errors.accel_tilt`); a complementary filter
+    trusts it below its crossover f_c and the gyro above, so the attitude it
+    gives is the true one plus the accelerometer's error low-passed at f_c
+    (``sc[SC_ACCW]`` = 1 - exp(-2 π f_c dt); 0: the gyro alone). A 7 Hz cycle
+    passes 1.4 % of its acceleration's tilt at f_c = 0.1 Hz, a sustained tilt
+    error all of it.
+    """
     w = sc[SC_ACCW]
     if not w > 0.0:
         return roll, pitch
@@ -139,7 +149,9 @@ def imu_input(roll, pitch, site, sc, ss):
     ay = ((y - y2) - 2.0 * (y1 - y2)) * idt2
     az = ((z - z2) - 2.0 * (z1 - z2)) * idt2
     ra, pa = accel_tilt(ax, ay, az, roll, pitch)
-    return roll + w * (ra - roll), pitch + w * (pa - pitch)
+    ss[SS_ACC] += w * ((ra - roll) - ss[SS_ACC])
+    ss[SS_ACC + 1] += w * ((pa - pitch) - ss[SS_ACC + 1])
+    return roll + ss[SS_ACC], pitch + ss[SS_ACC + 1]
 
 
 def sample_sensors(k, force, q, pose, site, noise, walk, sc, ss, qm, pm):
