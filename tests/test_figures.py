@@ -340,3 +340,37 @@ def test_identify_figure_legends_name_their_series(tmp_path, monkeypatch):
     plot(results, records, tmp_path / "identify.png", tree["paper_units"])
     assert len(saved) == 1
     assert legend_mismatches(saved[0]) == []
+
+
+def test_sweep_responses_of_many_variants_coloured_by_gain(tmp_path):
+    """More variants than a legend can name: colour is the gain (a colour bar), the line
+    style the rest of the grid (in the legend); heave is drawn from the home height."""
+    from simpro_mj.batch.plots import responses_figure
+    from simpro_mj.report.results import write_timeseries
+
+    rows = []
+    for law in ("I", "PI"):
+        for k, gain in enumerate(np.linspace(4.0, 24.0, 16).tolist()):
+            c = _run_columns(n=3001, seed=k)
+            c["heave_m"] = c["heave_m"] - 3.3e-3 * np.exp(-c["time_s"] / 0.3)  # start-up
+            folder = f"sweep/type={law}_gains={gain:g}"
+            (tmp_path / folder).mkdir(parents=True)
+            write_timeseries(tmp_path / folder / "timeseries.csv", c)
+            rows.append({"variant": f"type={law}_gains={gain:g}", "folder": folder,
+                         "status": "ok", "stable": gain < 14.0,
+                         "values": {"controller.outer.type": law,
+                                    "controller.outer.gains": float(gain)}})  # fmt: skip
+    info = {"scenario": "sweep", "folder": "sweep", "monte_carlo": False,
+            "grid_paths": ["controller.outer.type", "controller.outer.gains"]}  # fmt: skip
+    fig = responses_figure(rows, info, tmp_path)
+    assert legend_mismatches(fig) == []
+    labels = {t.get_text() for t in fig.axes[0].get_legend().get_texts()}
+    assert {"type=I", "type=PI", "set-point (all variants)", "unstable or not ok"} <= labels
+    assert not any("gains=" in lab for lab in labels)  # the gain is on the colour bar
+    bars = [ax for ax in fig.axes if "gains" in ax.get_ylabel()]
+    assert len(bars) == 1
+    heave = fig.axes[2]
+    assert heave.get_ylabel() == "heave from home [mm]"
+    first = [ln.get_ydata()[0] for ln in heave.lines if ln.get_linestyle() != "--"]
+    assert np.allclose(first, -3.3, atol=0.01)  # from home: the start-up offset shows
+    fig.savefig(tmp_path / "responses.png", dpi=80)

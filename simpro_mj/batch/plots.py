@@ -33,6 +33,7 @@ from typing import Any
 import numpy as np
 from matplotlib.figure import Figure
 
+from controllers.geometry import H0
 from simpro_mj.analysis.cue_metrics import FLOORS
 from simpro_mj.analysis.verdict import VERDICTS
 from simpro_mj.batch.robustness import map_figure
@@ -176,6 +177,47 @@ _RESPONSE_COLUMNS = ("time_s", "roll_rad", "pitch_rad", "heave_m", "roll_ref_rad
                      "pitch_ref_rad", "heave_ref_m")  # fmt: skip
 
 
+#: Line styles of the other grid values when the variants are coloured by one number.
+_STYLES = ("-", ":", "-.", (0, (3, 1, 1, 1, 1, 1)))
+
+
+def _shade_by_number(series, labels: list[str], info: Mapping):
+    """Colours by the swept number (the gain if swept) and line styles by the rest of
+    the grid, for more than 12 variants in colour (too many to name in a legend).
+
+    Returns ``(colours, group_of, groups, mappable)``: each label's colour and its
+    group (the rest of the grid as text), each group's line style, the colour bar's
+    mappable and label; or None to colour by variant.
+    """
+    grid = info["grid_paths"]
+    ok = [(r, lab) for (r, _), lab in zip(series, labels, strict=True)
+          if not (r.get("stable") is False or r["status"] != "ok")]  # fmt: skip
+    if info["monte_carlo"] or len({lab for _, lab in ok}) <= 12 or not grid:
+        return None
+    numeric = [p for p in grid if all(_x(r["values"].get(p)) is not None for r, _ in series)]
+    numeric = [p for p in numeric if len({_x(r["values"][p]) for r, _ in series}) >= 2]
+    if not numeric:
+        return None
+    path = _GAIN if _GAIN in numeric else max(
+        numeric, key=lambda p: len({_x(r["values"][p]) for r, _ in series}))  # fmt: skip
+    rest = [_combo(r, grid, skip=path) for r, _ in series]
+    kinds = list(dict.fromkeys(rest))
+    if len(kinds) > len(_STYLES):
+        return None
+    from matplotlib import colormaps
+    from matplotlib.cm import ScalarMappable
+    from matplotlib.colors import Normalize
+
+    xs = [_x(r["values"][path]) for r, _ in series]
+    norm = Normalize(min(xs), max(xs))
+    cmap = colormaps["viridis"]
+    colours = {lab: cmap(norm(x)) for lab, x in zip(labels, xs, strict=True)}
+    groups = {kind: _STYLES[i] for i, kind in enumerate(kinds)}
+    group_of = dict(zip(labels, rest, strict=True))
+    scale = ScalarMappable(norm=norm, cmap=cmap)
+    return colours, group_of, groups, (scale, path + (" (K K_I, 1/s)" if path == _GAIN else ""))
+
+
 def plot_responses(rows: list[dict], info: Mapping, batch_out: Path, out: Path):
     """Task-space responses of the variants overlaid; None if none has a time series."""
     fig = responses_figure(rows, info, batch_out)
@@ -195,6 +237,11 @@ def responses_figure(rows: list[dict], info: Mapping, batch_out: Path):
         return None
     labels = [_combo(r, grid) if info["monte_carlo"] else r["variant"] for r, _ in series]
     colours = _colours(labels)
+    group_of: dict[str, str] = {}
+    groups: dict[str, object] = {}
+    shade = _shade_by_number(series, labels, info)  # too many variants to name one by one
+    if shade is not None:
+        colours, group_of, groups, (mappable, bar_label) = shade
     # one dashed set-point when every variant has the same, else each its own
     refs = [
         np.column_stack([c[f"{a}_ref_{'m' if a == 'heave' else 'rad'}"] for a, _u, _s in _AXES])
@@ -213,7 +260,7 @@ def responses_figure(rows: list[dict], info: Mapping, batch_out: Path):
         for k, (ax, (axis, _unit, scale)) in enumerate(zip(axes, _AXES, strict=True)):
             true = "heave_m" if axis == "heave" else f"{axis}_rad"
             ref = "heave_ref_m" if axis == "heave" else f"{axis}_ref_rad"
-            home = c[ref][0] if axis == "heave" else 0.0  # heave relative to the start
+            home = H0 if axis == "heave" else 0.0  # heave from the home height
             y = (c[true] - home) * scale
             yr = (c[ref] - home) * scale
             if bad:
@@ -221,8 +268,12 @@ def responses_figure(rows: list[dict], info: Mapping, batch_out: Path):
                 ax.plot(*envelope(t, y), color="0.6", lw=0.5, alpha=0.35, zorder=1, label=label)
             else:
                 label = lab if lab not in seen and k == 0 else None
+                group = group_of.get(lab)
+                if group is not None:  # the line style names the rest of the grid, once
+                    label = group if k == 0 and group not in seen else None
+                    seen.add(group)
                 ax.plot(*envelope(t, y), color=colours[lab], lw=0.8, alpha=0.85, zorder=2,
-                        label=label)  # fmt: skip
+                        ls=groups.get(group, "-"), label=label)  # fmt: skip
                 fin = np.concatenate([y[np.isfinite(y)], yr[np.isfinite(yr)]])
                 if fin.size:
                     span[k] = [min(span[k][0], fin.min()), max(span[k][1], fin.max())]
@@ -243,10 +294,16 @@ def responses_figure(rows: list[dict], info: Mapping, batch_out: Path):
         if np.isfinite(lo) and np.isfinite(hi):
             pad = 0.15 * max(hi - lo, 1e-3)
             ax.set_ylim(lo - pad, hi + pad)
-        ax.set_ylabel(f"{axis} [{unit}]" + (" from start" if axis == "heave" else ""))
+        ax.set_ylabel(f"{axis} from home [{unit}]" if axis == "heave" else f"{axis} [{unit}]")
         ax.grid(True, alpha=0.3)
     axes[-1].set_xlabel("time [s]")
-    if len(seen) <= 12:
+    if shade is not None:  # line styles in the legend, colours on the bar
+        legend = axes[0].legend(loc="best", fontsize=7)
+        for handle, text in zip(legend.legend_handles, legend.get_texts(), strict=True):
+            if text.get_text() in groups:
+                handle.set_color("0.3")
+        fig.colorbar(mappable, ax=list(axes), shrink=0.6, pad=0.01).set_label(bar_label)
+    elif len(seen) <= 12:
         axes[0].legend(loc="best", fontsize=7)
     else:  # too many variants to name: the legend keeps the set-point and the grey runs
         for line in axes[0].lines:

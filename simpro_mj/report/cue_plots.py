@@ -4,8 +4,9 @@
 roll and pitch rate) the vehicle's stimulus (grey), the vehicle's perceived
 (black) and the simulator's perceived (red), with the perception threshold
 band shaded, as Reid & Nahon (1986) and Telban & Cardullo (2005) compare
-cueing algorithms. ``cue_pose.png``: the washout's set-points (blue) and the
-platform's pose (green) with the workspace box (dashed), and the leg strokes.
+cueing algorithms. ``cue_pose.png``: the cueing law's set-points (blue; the MPC's
+or the classical washout's) and the platform's pose (green) with the workspace box
+(dashed), and the leg strokes.
 matplotlib Agg only, no pyplot.
 """
 
@@ -18,6 +19,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
+from controllers.geometry import H0
 from simpro_mj.analysis.cue_metrics import CHANNELS, perceived
 from simpro_mj.report.figures import DESIRED, LEG_COLOURS, OUTPUT, envelope, save
 
@@ -73,22 +75,24 @@ def cueing_figures(columns: Mapping, scenario: Mapping) -> dict[str, Figure]:
     fig = Figure(figsize=(9, 8), layout="constrained")
     axes = fig.subplots(4, 1, sharex=True)
     box = scenario_box(scenario)
+    algorithm = (scenario.get("setpoint", {}).get("cueing") or {}).get("algorithm")
+    law = _LAW_NAMES.get(algorithm, "cueing")
     for ax, (axis, unit, scale, disp) in zip(
         axes[:3],
         (("roll", "rad", 180 / math.pi, "deg"), ("pitch", "rad", 180 / math.pi, "deg"),
          ("heave", "m", 1e3, "mm")),
         strict=True,
     ):  # fmt: skip
-        off = 1.265 if axis == "heave" else 0.0
+        off = H0 if axis == "heave" else 0.0
         ax.plot(*envelope(t, (np.asarray(columns[f"{axis}_ref_{unit}"], float) - off) * scale),
-                color=DESIRED, lw=1.3, label="washout set-point")  # fmt: skip
+                color=DESIRED, lw=1.3, label=f"{law} set-point")  # fmt: skip
         ax.plot(*envelope(t, (np.asarray(columns[f"{axis}_{unit}"], float) - off) * scale),
                 color=OUTPUT, lw=1.1, label="platform")  # fmt: skip
         if box is not None:
             for k, v in enumerate(box[axis]):
                 label = "workspace box" if axis == "roll" and k == 0 else None
                 ax.axhline((v - off) * scale, color="k", ls="--", lw=0.7, label=label)
-        ax.set_ylabel(f"{axis} [{disp}]")
+        ax.set_ylabel(f"{axis} from home [{disp}]" if axis == "heave" else f"{axis} [{disp}]")
         ax.grid(True, alpha=0.3)
     for i in (1, 2, 3):
         axes[3].plot(*envelope(t, np.asarray(columns[f"q{i}_m"], float) * 1e3),
@@ -101,9 +105,13 @@ def cueing_figures(columns: Mapping, scenario: Mapping) -> dict[str, Figure]:
     axes[0].legend(loc="best", fontsize=7)
     axes[3].legend(loc="best", fontsize=7, ncol=4)
     boxed = "; workspace box dashed" if box is not None else ""
-    fig.suptitle(f"{name}: platform pose vs washout set-points{boxed}")
+    fig.suptitle(f"{name}: platform pose vs the {law} set-points{boxed}")
     figs["cue_pose"] = fig
     return figs
+
+
+#: ``setpoint.cueing.algorithm`` -> the law's name in the figures.
+_LAW_NAMES = {"mpc": "MPC", "classical_washout": "classical washout"}
 
 
 def scenario_box(scenario: Mapping):

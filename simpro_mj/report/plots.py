@@ -12,12 +12,14 @@ skipped (the figure needing them is not written).
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
 from matplotlib.figure import Figure
 
+from controllers.geometry import H0
 from simpro_mj.plant.faults import fault_intervals
 from simpro_mj.report.cue_plots import plot_cueing
 from simpro_mj.report.figures import (
@@ -43,11 +45,12 @@ __all__ = [
     "RUN_FIGURES",
 ]
 
-#: (title, ref column, true column, measured column, scale to display unit, unit)
+#: (title, ref column, true column, measured column, scale to display unit, unit, zero);
+#: heave from the home height H0, as the summary's table and metrics.json give it
 _TASK = (
-    ("a) Roll", "roll_ref_rad", "roll_rad", "roll_meas_rad", 180.0 / math.pi, "deg"),
-    ("b) Pitch", "pitch_ref_rad", "pitch_rad", "pitch_meas_rad", 180.0 / math.pi, "deg"),
-    ("c) Height", "heave_ref_m", "heave_m", "heave_meas_m", 1e3, "mm"),
+    ("a) Roll", "roll_ref_rad", "roll_rad", "roll_meas_rad", 180.0 / math.pi, "deg", 0.0),
+    ("b) Pitch", "pitch_ref_rad", "pitch_rad", "pitch_meas_rad", 180.0 / math.pi, "deg", 0.0),
+    ("c) Heave from home", "heave_ref_m", "heave_m", "heave_meas_m", 1e3, "mm", H0),
 )
 
 
@@ -104,7 +107,7 @@ def _task_axes(fig: Figure, columns: Mapping, ncols: int = 1, col: int = 0, axes
     """Draw the three task-space panels into column ``col`` of a 3 x ncols grid."""
     t = _col(columns, "time_s")
     drawn = []
-    for row, (title, ref, true, meas, scale, unit) in enumerate(_TASK):
+    for row, (title, ref, true, meas, scale, unit, zero) in enumerate(_TASK):
         if axes is not None:
             ax = axes[row]
         else:
@@ -113,16 +116,51 @@ def _task_axes(fig: Figure, columns: Mapping, ncols: int = 1, col: int = 0, axes
             ax.set_visible(False)
             continue
         if meas in columns:
-            _line(ax, t, _col(columns, meas) * scale, color=MEASURED, lw=0.6,
+            _line(ax, t, (_col(columns, meas) - zero) * scale, color=MEASURED, lw=0.6,
                   label="measured (sensors)")  # fmt: skip
-        _line(ax, t, _col(columns, ref) * scale, color=DESIRED, lw=1.4, label="desired")
-        _line(ax, t, _col(columns, true) * scale, color=OUTPUT, lw=1.2, label="output")
+        _line(ax, t, (_col(columns, ref) - zero) * scale, color=DESIRED, lw=1.4, label="desired")
+        _line(ax, t, (_col(columns, true) - zero) * scale, color=OUTPUT, lw=1.2, label="output")
         ax.set_ylabel(f"{title.split(') ')[1]} [{unit}]")
         ax.grid(True, alpha=0.3)
         drawn.append(ax)
     if drawn:
         drawn[-1].set_xlabel("time [s]")
     return drawn
+
+
+#: Start-up offsets smaller than these (roll/pitch rad, heave m) go unmentioned.
+_START_NOTED = (math.radians(0.01), math.radians(0.01), 0.1e-3)
+
+
+def start_offset_note(columns: Mapping, scenario: Mapping) -> str | None:
+    """What the true pose at t = 0 is off the set-point by, and why (None when it is not).
+
+    A run starts with the slides where the potentiometers read the inverse kinematics
+    of the first set-point on the drawings' geometry (``CoSimulation._initial_state``);
+    a platform built a few millimetres off its drawings (the as-built errors of the
+    scenario's ``plant`` block, docs/paper-notes.md)
+    then stands off that pose. The task-space loop measures it and removes it before
+    the first step; joint control alone keeps it (the paper's Fig. 15a).
+    """
+    off = []
+    for (_t, ref, true, _m, scale, unit, _z), floor in zip(_TASK, _START_NOTED, strict=True):
+        if not _has(columns, ref, true) or len(columns[true]) == 0:
+            continue
+        d = float(_col(columns, true)[0] - _col(columns, ref)[0])
+        if abs(d) >= floor:
+            off.append(f"{_t.split(') ')[1].split()[0].lower()} {d * scale:+.2f} {unit}")
+    if not off:
+        return None
+    mode = (scenario.get("controller") or {}).get("mode")
+    fate = (
+        "joint control alone keeps this offset"
+        if mode == "joint_only"
+        else "the task-space loop measures and removes it within about a second"
+    )
+    return (
+        f"t = 0: the slides start at the drawings' inverse kinematics of the set-point; the "
+        f"platform as built stands off it by {', '.join(off)}: {fate}."
+    )
 
 
 #: The figures of one run, by name (:func:`run_figures`), in the order they are written.
@@ -147,6 +185,9 @@ def run_figures(
         if drawn:
             drawn[0].legend(loc="best", fontsize=8)
             fig.suptitle(_title(scenario, "task space, desired (blue) vs output (green)"))
+            note = start_offset_note(columns, scenario)
+            if note:  # under the time axis, in the room margins() leaves for it
+                fig.text(0.01, 0.01, note, fontsize=7, va="bottom", wrap=True)
             figs["task_space"] = fig
 
     if only in (None, "joints"):
@@ -205,9 +246,9 @@ def run_figures(
             fig.suptitle(_title(scenario, "chamber pressures"))
             figs["pressures"] = fig
 
-    for fig in figs.values():
+    for name, fig in figs.items():
         _shade_faults(fig, scenario)
-        margins(fig)
+        margins(fig, bottom=0.9 if name == "task_space" and fig.texts else 0.55)
     return figs
 
 
@@ -241,6 +282,26 @@ def plot_run(columns: Mapping[str, np.ndarray], scenario: Mapping, out_dir) -> l
     return paths
 
 
+def _paper_figure(scenario: Mapping) -> str | None:
+    """The paper's figure a scenario reproduces, from its description ("Fig. 16: ...")."""
+    m = re.match(r"\s*Figs?\. ([0-9a-c/]+)", str(scenario.get("description") or ""))
+    return m.group(1) if m else None
+
+
+def compare_title(scenario: Mapping) -> str:
+    """compare.png's title: the paper's Fig. 15 a/b, or its comparison on another figure's
+    steps (``step_all`` is Fig. 16, whose paper figure shows the task-space run only)."""
+    name = scenario.get("name", "run")
+    fig = _paper_figure(scenario)
+    if fig == "15":
+        what = "the paper's Fig. 15 a/b"
+    elif fig:
+        what = f"Fig. 15 a/b's comparison on Fig. {fig}'s steps (the paper shows b only)"
+    else:
+        what = "Fig. 15 a/b's comparison"
+    return f"{name}: {what} (blue desired, green output)"
+
+
 def compare_figure(
     columns_joint_only: Mapping[str, np.ndarray],
     columns_task_space: Mapping[str, np.ndarray],
@@ -258,7 +319,7 @@ def compare_figure(
     grid[0, 0].set_title("a) joint control only")
     grid[0, 1].set_title("b) joint control + kinematic task-space control")
     grid[0, 0].legend(loc="best", fontsize=8)
-    fig.suptitle(f"{scenario.get('name', 'run')}: Fig. 15 a/b (blue desired, green output)")
+    fig.suptitle(compare_title(scenario))
     return margins(fig, top=0.75, wspace=0.08)
 
 

@@ -175,8 +175,10 @@ def plot_strip(rec: Recording, width: int, height: int, t0: float, t1: float):
     """The plots under the 3D view, drawn once; the cursor is added per frame.
 
     Four panels: set-point (dashed, the ghost's blue) and pose (the figures'
-    green) for roll, pitch (deg) and heave (mm), and the three valve voltages
-    (V) in the legs' colours, over the replayed window. Text is
+    green) for roll, pitch (deg) and heave from home (mm), and the three valve
+    voltages (V) in the legs' colours, over the replayed window; u3 dashed, u2
+    thicker behind it, so that both show where they are equal (legs 2 and 3 mirror
+    each other on a pitch or heave step). Text is
     :data:`TEXT_PX` pixels high at 640 px wide (:func:`text_px`).
 
     Returns
@@ -188,6 +190,7 @@ def plot_strip(rec: Recording, width: int, height: int, t0: float, t1: float):
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
+    from controllers.geometry import H0
     from simpro_mj.report.figures import DESIRED, LEG_COLOURS, OUTPUT, envelope
 
     dpi = 100.0
@@ -200,16 +203,18 @@ def plot_strip(rec: Recording, width: int, height: int, t0: float, t1: float):
     panels = [
         ("roll [deg]", "roll_ref_rad", "roll_rad", 180.0 / math.pi),
         ("pitch [deg]", "pitch_ref_rad", "pitch_rad", 180.0 / math.pi),
-        ("heave [mm]", "heave_ref_m", "heave_m", 1e3),
+        ("heave from home [mm]", "heave_ref_m", "heave_m", 1e3),
     ]
+    home = {"heave_ref_m": H0, "heave_m": H0}
     axes = fig.subplots(1, 4)
     for ax, (label, ref, real, scale) in zip(axes[:3], panels, strict=True):
-        ax.plot(*envelope(t[sel], c[ref][sel] * scale), color=DESIRED, lw=1.0, ls="--",
-                label="set-point (ghost)")  # fmt: skip
-        ax.plot(*envelope(t[sel], c[real][sel] * scale), color=OUTPUT, lw=1.2, label="pose")
+        ax.plot(*envelope(t[sel], (c[ref][sel] - home.get(ref, 0.0)) * scale), color=DESIRED,
+                lw=1.0, ls="--", label="set-point (ghost)")  # fmt: skip
+        ax.plot(*envelope(t[sel], (c[real][sel] - home.get(real, 0.0)) * scale), color=OUTPUT,
+                lw=1.2, label="pose")  # fmt: skip
         ax.set_title(label, fontsize=pt, pad=2)
-    for i in (1, 2, 3):
-        axes[3].plot(*envelope(t[sel], c[f"u{i}_v"][sel]), color=LEG_COLOURS[i], lw=0.8,
+    for i, lw, ls in ((1, 0.8, "-"), (2, 1.6, "-"), (3, 0.9, (0, (3, 2)))):
+        axes[3].plot(*envelope(t[sel], c[f"u{i}_v"][sel]), color=LEG_COLOURS[i], lw=lw, ls=ls,
                      label=f"u{i}")  # fmt: skip
     axes[3].set_title("valves [V]", fontsize=pt, pad=2)
     # above the panels, where no curve runs
@@ -220,7 +225,7 @@ def plot_strip(rec: Recording, width: int, height: int, t0: float, t1: float):
     for ax in axes:
         ax.set_xlim(t0, t1)
         ax.locator_params(nbins=3)
-        ax.ticklabel_format(axis="y", useOffset=False)  # 1265.0 mm, not +1.265e3
+        ax.ticklabel_format(axis="y", useOffset=False)  # 3.0, not an offset +1e-3
         ax.tick_params(labelsize=pt, length=2, pad=1)
         ax.set_xlabel("t [s]", fontsize=pt, labelpad=1)
     # room for four-digit tick labels, x labels and the legend (within reach of a tiny strip)
