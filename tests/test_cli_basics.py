@@ -47,13 +47,21 @@ def test_batch_bad_set_is_one_line_exit_2(tmp_path, capsys):
     assert not (tmp_path / "b").exists()
 
 
-def test_every_command_takes_quiet():
+def test_every_command_takes_the_shared_options_that_mean_something_to_it():
     from simpro_mj.commands.main import COMMANDS, build_parser
 
-    parser, _ = build_parser()
+    parser, mods = build_parser(every=True)
     for name in COMMANDS:
         sub = parser._subparsers._group_actions[0].choices[name]
-        assert "--quiet" in sub._option_string_actions, name
+        assert "--json" in sub._option_string_actions, name
+        if name not in ("list", "send"):
+            assert "--quiet" in sub._option_string_actions, name
+    for name in ("list", "send", "render"):  # nothing to override: no --set offered
+        sub = parser._subparsers._group_actions[0].choices[name]
+        assert "--set" not in sub._option_string_actions, name
+    for name in set(COMMANDS) - {"list", "send", "render"}:
+        sub = parser._subparsers._group_actions[0].choices[name]
+        assert "--set" in sub._option_string_actions, name
     for name in ("identify", "validate-ik", "run", "compare", "batch", "response"):
         sub = parser._subparsers._group_actions[0].choices[name]
         assert "--no-plots" in sub._option_string_actions, name  # one spelling everywhere

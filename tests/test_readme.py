@@ -37,7 +37,7 @@ def test_links_point_to_files():
 def test_every_command_line_parses():
     from simpro_mj.commands.main import build_parser
 
-    parser, _ = build_parser()
+    parser, _ = build_parser(every=True)
     lines = [ln.split("#")[0].strip() for b in _blocks("bash") for ln in b.splitlines()]
     commands = []
     for line in lines:

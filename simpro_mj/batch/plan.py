@@ -16,7 +16,7 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
-from simpro_mj.config.scenario import _find as find_scenario
+from simpro_mj.config.scenario import find_scenario
 from simpro_mj.config.sweep import MAX_VARIANTS
 from simpro_mj.config.variants import load_sweep
 from simpro_mj.core.errors import UserInputError

@@ -8,7 +8,7 @@ import json
 import sys
 from pathlib import Path
 
-from simpro_mj.config.scenario import load_scenario
+from simpro_mj.config.scenario import find_scenario, load_scenario
 from simpro_mj.core.jsonout import emit_json
 from simpro_mj.report.compare import compare, table
 from simpro_mj.report.folders import claim, record
@@ -34,7 +34,10 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
+    source = find_scenario(args.scenario)  # the file that runs, said first
     scenario = load_scenario(args.scenario, args.sets)
+    if not args.json:
+        print(f"scenario: {source.resolve()}", flush=True)
     if args.video:
         from simpro_mj.report.render import require_video  # the renderer only for a video
 
@@ -62,7 +65,7 @@ def run(args) -> int:
         print(text)
         for mode, met in metrics.items():
             if met["status"] != "ok":
-                print(f"{mode} DIVERGED: {met['reason']}")
+                print(f"{mode} {met['status'].upper().replace('_', ' ')}: {met['reason']}")
         print(f"results: {out}")
     if args.video:  # both runs side by side
         video_after_run(out, quiet=args.json)

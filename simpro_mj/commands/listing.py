@@ -8,6 +8,8 @@ from simpro_mj.config.catalogue import catalogue
 from simpro_mj.core.jsonout import emit_json
 
 HELP = "list the shipped scenarios, plant presets and telemetry files, one line each"
+#: no parameter to override, nothing to wait for
+COMMON_OPTIONS = ("json",)
 
 #: section -> (heading, how it is used)
 _SECTIONS = {

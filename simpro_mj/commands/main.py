@@ -6,10 +6,17 @@ Every subcommand lives in its own module ``simpro_mj.commands.<name>`` exposing
 * ``add_arguments(parser)``: its own options,
 * ``run(args) -> int``: the job (exit code).
 
-Conventions shared by all subcommands (added here): ``--set KEY=VALUE``
-(dotted path, repeatable) overrides any parameter, ``--json`` prints exactly
-one JSON object on stdout and nothing else there, ``--out DIR`` chooses where
-files go. A user's mistake exits 2 with one line ``error: ...`` on stderr.
+and, when it takes fewer than all of the shared options, ``COMMON_OPTIONS``.
+
+Shared options (added here, to the commands where they mean something):
+``--set KEY=VALUE`` (dotted path, repeatable) overrides any parameter, ``--json``
+prints exactly one JSON object on stdout and nothing else there, ``--quiet`` draws
+no progress bar and prints no warnings; ``--out DIR`` chooses where files go. A
+user's mistake exits 2 with one line ``error: ...`` on stderr.
+
+``simpro-sim --help`` and a mistake in the command's name import no command
+module: each command's one-line ``HELP`` is read from its source. A command's own
+``--help`` imports its module only, whose heavy imports wait for ``run``.
 
 Exit codes: 0 done, 1 the simulation diverged, 2 a user's mistake (bad
 scenario, ``--set``, arguments, a file that cannot be read or written),
@@ -21,9 +28,12 @@ docs/robustness.md lists the messages.
 from __future__ import annotations
 
 import argparse
+import ast
 import functools
+import importlib.util
 import os
 import sys
+from pathlib import Path
 
 from controllers.errors import DesignError, KinematicsError
 from simpro_mj.core.errors import PhysicsError, UserInputError
@@ -56,6 +66,10 @@ COMMANDS = {
 }
 
 
+#: The shared options (:func:`build_parser`) a command takes unless it names fewer.
+COMMON_OPTIONS = ("set", "json", "quiet")
+
+
 class _Parser(argparse.ArgumentParser):
     """argparse that reports mistakes on one line with exit status 2."""
 
@@ -79,9 +93,34 @@ def _available(only: str | None = None) -> dict:
     return mods
 
 
-def build_parser(only: str | None = None) -> tuple[argparse.ArgumentParser, dict]:
-    """The parser of every command, or of the one named by ``only`` (a COMMANDS key)."""
-    mods = _available(only)
+def command_help(path: str) -> str | None:
+    """A command module's ``HELP`` read from its source without importing it (None: no
+    such module)."""
+    spec = importlib.util.find_spec(path)
+    if spec is None or not spec.origin:
+        return None
+    tree = ast.parse(Path(spec.origin).read_text(encoding="utf-8"))
+    for node in tree.body:
+        if (
+            isinstance(node, ast.Assign)
+            and any(isinstance(t, ast.Name) and t.id == "HELP" for t in node.targets)
+            and isinstance(node.value, ast.Constant)
+        ):
+            return str(node.value.value)
+    return ""
+
+
+def build_parser(
+    only: str | None = None, *, every: bool = False
+) -> tuple[argparse.ArgumentParser, dict]:
+    """The parser of the command named by ``only`` (a COMMANDS key), or of every
+    command with ``every``.
+
+    Otherwise the commands are listed by their ``HELP`` (read from the source,
+    :func:`command_help`) and no module is imported: enough for ``simpro-sim --help``
+    and for refusing an unknown command. Returns ``(parser, modules imported)``.
+    """
+    mods = _available(None) if every else _available(only) if only is not None else {}
     parser = _Parser(
         prog="simpro-sim",
         description="Co-simulation of the SIMPRO 3-DOF pneumatic motion platform (MuJoCo).",
@@ -89,23 +128,33 @@ def build_parser(only: str | None = None) -> tuple[argparse.ArgumentParser, dict
     parser.add_argument("--version", action="version", version=_version())
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     sub.required = True
-    for name, mod in mods.items():
+    for name, path in COMMANDS.items():
+        mod = mods.get(name)
+        if mod is None:
+            text = command_help(path) if only is None and not every else None
+            if text is not None:
+                sub.add_parser(name, help=text, description=text)
+            continue
         p = sub.add_parser(name, help=mod.HELP, description=mod.HELP)
-        p.add_argument(
-            "--set",
-            dest="sets",
-            action="append",
-            default=[],
-            metavar="KEY=VALUE",
-            help="override a parameter by dotted path (repeatable)",
-        )
-        p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+        common = getattr(mod, "COMMON_OPTIONS", COMMON_OPTIONS)
+        if "set" in common:
+            p.add_argument(
+                "--set",
+                dest="sets",
+                action="append",
+                default=[],
+                metavar="KEY=VALUE",
+                help="override a parameter by dotted path (repeatable)",
+            )
+        if "json" in common:
+            p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
         mod.add_arguments(p)
-        if "--quiet" not in p._option_string_actions:
+        if "quiet" in common and "--quiet" not in p._option_string_actions:
             p.add_argument(
                 "--quiet", action="store_true", help="no progress bar and no warnings on stderr"
             )
-        p.set_defaults(_run=mod.run)
+        # an option the command does not take reads as its neutral value
+        p.set_defaults(_run=mod.run, sets=[], json=False, quiet=False)
     return parser, mods
 
 
@@ -162,7 +211,8 @@ def _main(argv) -> int:
     # and mistakes in the command name see them all
     only = words[0] if words and words[0] in COMMANDS else None
     with held_signals():  # the imports first: a signal meanwhile is raised after them
-        problem = _check_gl_backend()
+        # help needs no MuJoCo: the backend is checked for the commands that run
+        problem = None if {"-h", "--help"} & set(words) else _check_gl_backend()
         if problem:
             sys.stderr.write(f"error: {problem}\n")
             return 2

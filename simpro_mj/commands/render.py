@@ -7,16 +7,18 @@ the options are :mod:`simpro_mj.report.video_options` (shared with ``run/compare
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 
 from simpro_mj.core.jsonout import emit_json
+from simpro_mj.core.progress import show_progress
 from simpro_mj.report.folders import locked, record_file
 from simpro_mj.report.recording import find_runs
 from simpro_mj.report.render import render_video
 from simpro_mj.report.video_options import add_video_options, said, video_options
 
 HELP = "render a result folder (or each run of a compare folder, side by side) to MP4"
+#: the recorded runs' scenarios are replayed as they ran: nothing to override
+COMMON_OPTIONS = ("json", "quiet")
 
 
 def add_arguments(parser) -> None:
@@ -33,7 +35,7 @@ def run(args) -> int:
         opts = video_options(args, folder / "replay.mp4")
         out = opts.pop("out")
         # SIGTERM as Ctrl-C (commands.main): exit 130, no partial video left
-        info = render_video(runs, out, progress=not args.json and sys.stderr.isatty(), **opts)
+        info = render_video(runs, out, progress=show_progress(args), **opts)
         record_file(out)  # listed in its folder's marker: a re-render may replace it
     if args.json:
         emit_json(info)

@@ -21,7 +21,7 @@ import sys
 from pathlib import Path
 
 from simpro_mj.analysis.verdict import FINISHED_STATUSES
-from simpro_mj.config.scenario import load_scenario, scenario_hash
+from simpro_mj.config.scenario import find_scenario, load_scenario, scenario_hash
 from simpro_mj.core.jsonout import emit_json
 from simpro_mj.report.folders import claim, default_out, said_replacing
 from simpro_mj.report.results import print_summary
@@ -49,7 +49,10 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
+    source = find_scenario(args.scenario)  # the file that runs, said first
     scenario = load_scenario(args.scenario, args.sets)
+    if not args.json:
+        print(f"scenario: {source.resolve()}", flush=True)
     if args.video:
         from simpro_mj.report.render import require_video  # the renderer only for a video
 

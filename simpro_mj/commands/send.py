@@ -25,6 +25,8 @@ from simpro_mj.core.shipped import TELEMETRY_DIR
 from simpro_mj.sim.live import parse_address, send_datagrams
 
 HELP = "send a telemetry CSV as paced UDP datagrams (OutSim, Forza, ...): a game's stand-in"
+#: no scenario to override; its lines on stderr are what it sends
+COMMON_OPTIONS = ("json",)
 
 
 def add_arguments(parser) -> None:

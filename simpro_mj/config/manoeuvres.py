@@ -67,8 +67,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import signal
-from scipy.integrate import solve_ivp
 
 from simpro_mj.config.telemetry import Telemetry
 from simpro_mj.core.errors import UserInputError
@@ -227,6 +225,8 @@ def _run_mb(
     ``method``: :func:`scipy.integrate.solve_ivp`'s; LSODA where the tyres turn stiff
     (braking in a turn: an explicit method takes microsecond steps there).
     """
+    from scipy.integrate import solve_ivp  # on use: scipy's import is most of a --help
+
     # commonroad-vehicle-models is an optional extra ([vehicle]): imported when used
     from vehiclemodels.init_mb import init_mb
     from vehiclemodels.vehicle_dynamics_mb import vehicle_dynamics_mb
@@ -408,6 +408,8 @@ def _bump(spec: ManoeuvreSpec, p, v0: float) -> Telemetry:
     bmat = np.vstack([np.zeros((4, 2)), mi @ kr])
     cmat = np.vstack([amat[4:6], np.eye(8)[5:6]])  # z'', theta'', theta'
     dmat = np.vstack([bmat[4:6], np.zeros((1, 2))])
+    from scipy import signal  # on use: scipy.signal's import is most of a --help
+
     sys = signal.StateSpace(amat, bmat, cmat, dmat)
     t_end = spec.duration_s or (spec.lead_s + (a + b + spec.bump_length_m) / v0 + 3.0)
     t = np.arange(0.0, t_end + 0.5 / spec.rate_hz, 1.0 / spec.rate_hz)

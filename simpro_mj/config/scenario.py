@@ -111,7 +111,7 @@ from simpro_mj.config.rules import (
     OUTER_TYPES,
     PHYSICS_DT_S,
 )
-from simpro_mj.config.sweep import count_variants
+from simpro_mj.config.sweep import broadcast_value, count_variants
 from simpro_mj.core.cache import file_digest
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.keys import closest, key_text, parse_set, read_yaml
@@ -139,6 +139,7 @@ __all__ = [
     "SetpointError",
     "scenarios_dir",
     "shipped_scenarios",
+    "find_scenario",
     "load_scenario",
     "resolve_scenario",
     "validate_scenario",
@@ -171,25 +172,63 @@ def shipped_scenarios() -> list[str]:
     return sorted(p.stem for p in folder.iterdir() if p.suffix in (".yaml", ".yml"))
 
 
-def _find(name_or_path: str) -> Path:
+#: local files already named as shadowing a shipped scenario (said once per process)
+_SHADOWS_SAID: set[Path] = set()
+
+
+def find_scenario(name_or_path: str) -> Path:
+    """The scenario file a name or path stands for.
+
+    A path that exists is that file; a bare name (no folder) that no file here
+    matches is a shipped scenario (``step_pitch`` or ``step_pitch.yaml``). A
+    file here that has a shipped scenario's name is used, and a ``note:`` line
+    on stderr says that it shadows the shipped one.
+
+    Raises
+    ------
+    UserInputError
+        A path (with a folder) that does not exist, or a bare name that is
+        neither a file here nor a shipped scenario (with "did you mean").
+    """
     path = Path(name_or_path).expanduser()
+    text = str(name_or_path)
+    stem = re.sub(r"\.ya?ml$", "", text)
+    bare = "/" not in text and os.sep not in text
+    shipped = None
+    if bare:
+        for ext in (".yaml", ".yml"):
+            candidate = scenarios_dir() / f"{stem}{ext}"
+            if candidate.is_file():
+                shipped = candidate
+                break
     if path.is_file():
+        if shipped is not None and path.resolve() != shipped.resolve():
+            here = path.resolve()
+            if here not in _SHADOWS_SAID:
+                _SHADOWS_SAID.add(here)
+                sys.stderr.write(
+                    f"note: running {here}, a file in this folder, not the shipped scenario "
+                    f"{shipped.name} ({shipped}); rename the file to run the shipped one\n"
+                )
         return path
     if path.exists() and not path.is_dir():  # a FIFO, a device, a socket: never opened
         from simpro_mj.core.safe_files import read_bytes
 
         read_bytes(path, 0, "scenario")  # refuses it in one line, without blocking
-    text = str(name_or_path)
-    stem = re.sub(r"\.ya?ml$", "", text)
-    if "/" not in text and os.sep not in text:
-        for ext in (".yaml", ".yml"):
-            candidate = scenarios_dir() / f"{stem}{ext}"
-            if candidate.is_file():
-                return candidate
-    shipped = shipped_scenarios()
+    if shipped is not None:
+        return shipped
+    names = shipped_scenarios()
+    hint = closest(Path(stem).name, names)
+    if not bare:
+        where = "a folder" if path.is_dir() else "no such file"
+        raise UserInputError(
+            f"{where} at '{text}' ({path.absolute()}); allowed: a path to an existing YAML "
+            f"file, or a shipped scenario by name {names}{hint}"
+        )
     raise UserInputError(
-        f"unknown scenario at '{text}': allowed: a path to a YAML file or a shipped "
-        f"scenario {shipped} (in {scenarios_dir()}){closest(Path(stem).name, shipped)}"
+        f"unknown scenario at '{text}': no such file here and no shipped scenario of that "
+        f"name; allowed: a path to a YAML file or a shipped scenario {names} "
+        f"(in {scenarios_dir()}){hint}"
     )
 
 
@@ -208,7 +247,7 @@ def read_document(name_or_path: str) -> tuple[Path, Mapping]:
         Unknown scenario (listing the shipped ones), invalid YAML (line and
         column), or a top level that is not a mapping.
     """
-    path = _find(str(name_or_path))
+    path = find_scenario(str(name_or_path))
     doc = read_yaml(path, "scenario")
     if not isinstance(doc, Mapping):
         raise UserInputError(
@@ -283,11 +322,15 @@ def resolve_scenario(
 
 
 def _overlay(base: Mapping, doc: Mapping, sets: list) -> dict:
-    """``base``, the document merged over it, the ``--set`` overrides applied."""
+    """``base``, the document merged over it, the ``--set`` overrides applied.
+
+    One number where the scenario has a list of numbers applies to each element, as
+    in a sweep: ``--set controller.outer.gains=30`` is ``[30, 30, 30]``.
+    """
     tree = _merge(base, doc)
     for expr in sets:
         key, value = parse_set(expr)
-        _set(tree, key, value)
+        _set(tree, key, broadcast_value(key, value))
     return _merge(base, tree)  # a replaced mapping keeps its other defaults
 
 
