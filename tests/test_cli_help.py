@@ -50,3 +50,10 @@ def test_no_command_help_imports_the_heavy_numerics():
         assert got["code"] == 0 and "usage: simpro-sim " + name in got["help"], name
         modules = set(got["modules"])
         assert not set(HEAVY) & modules, (name, sorted(set(HEAVY) & modules))
+
+
+def test_the_first_commands_help_imports_no_numerics():
+    """The README's commands: their --help reads as quickly as the top level's."""
+    for name in ("run", "compare", "list"):
+        modules = set(_help(name)["modules"])
+        assert not {"numpy", "pydantic", "yaml"} & modules, (name, modules & {"numpy"})

@@ -8,12 +8,7 @@ import json
 import sys
 from pathlib import Path
 
-from simpro_mj.config.scenario import find_scenario, load_scenario
-from simpro_mj.core.jsonout import emit_json
-from simpro_mj.report.compare import compare, table
-from simpro_mj.report.folders import claim, record
-from simpro_mj.report.runner import EXIT_INTERRUPTED, interrupted_message, show_progress
-from simpro_mj.report.video_options import add_video_flag, video_after_run
+from simpro_mj.report.video_options import add_video_flag
 
 HELP = "run a scenario with joint-only and with task-space control on the same plant and seed"
 
@@ -34,6 +29,14 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
+    # the job's modules on use: --help and argparse's refusals import none of them
+    from simpro_mj.config.scenario import find_scenario, load_scenario
+    from simpro_mj.core.jsonout import emit_json
+    from simpro_mj.report.compare import compare, table
+    from simpro_mj.report.folders import claim, record
+    from simpro_mj.report.runner import EXIT_INTERRUPTED, interrupted_message, show_progress
+    from simpro_mj.report.video_options import video_after_run
+
     source = find_scenario(args.scenario)  # the file that runs, said first
     scenario = load_scenario(args.scenario, args.sets)
     if not args.json:

@@ -4,9 +4,6 @@ The catalogue is :func:`simpro_mj.config.catalogue.catalogue`."""
 
 from __future__ import annotations
 
-from simpro_mj.config.catalogue import catalogue
-from simpro_mj.core.jsonout import emit_json
-
 HELP = "list the shipped scenarios, plant presets and telemetry files, one line each"
 #: no parameter to override, nothing to wait for
 COMMON_OPTIONS = ("json",)
@@ -26,6 +23,10 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
+    # on use: the catalogue reads the scenario package (pydantic), not needed for --help
+    from simpro_mj.config.catalogue import catalogue
+    from simpro_mj.core.jsonout import emit_json
+
     items = catalogue()
     if args.what is not None:
         items = {args.what: items[args.what]}

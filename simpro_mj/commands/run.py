@@ -20,18 +20,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from simpro_mj.analysis.verdict import FINISHED_STATUSES
-from simpro_mj.config.scenario import find_scenario, load_scenario, scenario_hash
-from simpro_mj.core.jsonout import emit_json
-from simpro_mj.report.folders import claim, default_out, said_replacing
-from simpro_mj.report.results import print_summary
-from simpro_mj.report.runner import (
-    EXIT_INTERRUPTED,
-    execute,
-    interrupted_message,
-    show_progress,
-)
-from simpro_mj.report.video_options import add_video_flag, video_after_run
+from simpro_mj.report.video_options import add_video_flag
 
 HELP = "run a scenario (shipped name or YAML path) and write time series, metrics and plots"
 
@@ -49,6 +38,20 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
+    # the job's modules on use: --help and argparse's refusals import none of them
+    from simpro_mj.analysis.verdict import FINISHED_STATUSES
+    from simpro_mj.config.scenario import find_scenario, load_scenario, scenario_hash
+    from simpro_mj.core.jsonout import emit_json
+    from simpro_mj.report.folders import claim, default_out, said_replacing
+    from simpro_mj.report.results import print_summary
+    from simpro_mj.report.runner import (
+        EXIT_INTERRUPTED,
+        execute,
+        interrupted_message,
+        show_progress,
+    )
+    from simpro_mj.report.video_options import video_after_run
+
     source = find_scenario(args.scenario)  # the file that runs, said first
     scenario = load_scenario(args.scenario, args.sets)
     if not args.json:

@@ -13,8 +13,6 @@ import sys
 from pathlib import Path
 
 from simpro_mj.core.errors import UserInputError
-from simpro_mj.report.folders import check_file, record_file
-from simpro_mj.report.recording import find_runs
 
 # the renderer (report.render, report.scene: MuJoCo's GL context, imageio) is imported
 # by the functions that render, so that a run without --video never loads it
@@ -136,6 +134,8 @@ def _out_path(value, default: Path, overwrite: bool = False) -> Path:
         raise UserInputError(
             f"cannot write at --out: {out}: permission denied; allowed: a writable .mp4 path"
         )
+    from simpro_mj.report.folders import check_file  # on use: not for a --help
+
     return check_file(out, overwrite)
 
 
@@ -186,6 +186,9 @@ def video_options(args, default_out: Path) -> dict:
 
 def video_after_run(folder, quiet: bool) -> dict:
     """Render a finished run or compare folder to ``folder/replay.mp4``."""
+    # on use: none of them is needed for a --help
+    from simpro_mj.report.folders import check_file, record_file
+    from simpro_mj.report.recording import find_runs
     from simpro_mj.report.render import render_video
 
     folder = Path(folder)
