@@ -72,7 +72,7 @@ BAD_INPUTS = [
     (["run", "step_pitch", "--set", "controler.mode=joint_only"], "controler", ["controller"]),
     # wrong types
     (["run", "step_pitch", "--set", "duration_s=abc"], "duration_s", ["wrong type", "number"]),
-    (["run", "step_pitch", "--set", "controller.outer.gains=3"], "controller.outer.gains", []),
+    (["run", "step_pitch", "--set", "controller.outer.gains=three"], "controller.outer.gains", []),
     (["run", "step_pitch", "--set", "seed=[1]"], "seed", ["wrong type"]),
     (["compare", "step_pitch", "--set", "controller.clamp_setpoints=1"], "clamp_setpoints", []),
     # zero, negative, non-finite, absurd durations
