@@ -654,3 +654,25 @@ def test_after_the_feed_stops_the_set_point_goes_home_and_stays_for_the_mpc():
     mid = [k for k in poses if 3.0 <= k * 1e-3 < 6.0]
     assert max(abs(poses[k][2] - home[2]) for k in mid) > 0.005
     assert all(np.array_equal(poses[k], law_out[k // 10]) for k in mid)
+
+
+def test_the_pacer_gives_the_law_the_conditioned_input():
+    """A feed biased to fz = 9.6 m/s^2 held for 30 s with --bias-tau 5: what the law is given
+    (and what is logged as the received signal) comes back to g, to exp(-6) of the bias."""
+    from controllers.conditioning import InputConditioner
+
+    sim, clock = _FakeSim(), _Clock(100.0)
+    sim.n_steps = 30000
+    rx = Receiver(("127.0.0.1", 0), "csv", stale_after_s=0.5, fade_s=1.0)
+    try:
+        pacer = Pacer(sim, rx, ClassicalWashout(), wash_every=10, send_every=10, clock=clock,
+                      sleep=clock.sleep, conditioner=InputConditioner(0.01, 5.0, 0.0))  # fmt: skip
+        log = np.zeros((0, 1))
+        for k in range(0, 30001, 10):
+            rx.last_wall, rx.last_time, rx.f = clock(), k * 1e-3, (0.0, 0.0, 9.6)
+            pacer(k, log)
+    finally:
+        rx.close()
+    f_first, f_last = sim.rows[0][1][0], sim.rows[30000][1][0]
+    assert abs(f_first[2] - 9.6) < 1e-3  # a step passes at once (Tustin: to 0.1 %)
+    assert abs(f_last[2] - GRAVITY) < abs(9.6 - GRAVITY) * math.exp(-6.0) * 1.05

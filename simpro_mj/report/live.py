@@ -135,7 +135,7 @@ def execute_live(scenario: dict, options: LiveOptions, out, plots: bool = True, 
             "stale_after_s": options.stale_after_s,
             "fade_s": options.fade_s,
             "rig_out": None
-            if options.output is None
+            if options.output is None or options.output_template is None
             else {
                 "to": options.output,
                 "rate_hz": options.output_rate_hz,

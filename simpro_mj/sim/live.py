@@ -54,6 +54,7 @@ import socket
 import string
 import time
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -67,6 +68,9 @@ from simpro_mj.plant.faults import NEVER
 from simpro_mj.sim.addresses import parse_address, resolve_address
 from simpro_mj.sim.cue_worker import CueWorker
 from simpro_mj.sim.readiness import signal_ready
+
+if TYPE_CHECKING:
+    from simpro_mj.sim.rig_output import RigTemplate
 
 __all__ = [
     "HOME_S",
@@ -174,7 +178,7 @@ def pose_template(text: str | None) -> str:
         if conversion is not None:
             raise refuse(f"field {name!r}: conversion !{conversion}")
         m = _SPEC.match(spec or "")
-        if m is None or "{" in spec:
+        if m is None or "{" in (spec or ""):
             raise refuse(f"field {name!r}: format {spec!r}")
         width, precision = int(m.group(1) or 0), int(m.group(2) or 0)
         if width > MAX_FIELD_WIDTH or precision > MAX_PRECISION:
@@ -221,7 +225,7 @@ class LiveOptions:
     console: bool = True
     #: a rig's output string (:mod:`simpro_mj.sim.rig_output`): where, what, how often
     output: str | None = None
-    output_template: object = None
+    output_template: RigTemplate | None = None
     output_rate_hz: float = 100.0
     #: input conditioning (controllers.conditioning): bias time constant (s), vibration
     #: corner (Hz); 0 leaves the stage out
@@ -715,6 +719,7 @@ def run_session(scenario: dict, options: LiveOptions, say=None, checks=None):
             from simpro_mj.sim.rig_output import RigOutput
 
             rig_every = steps_per_period(1e3 / options.output_rate_hz, 1e-3, "--output-rate")
+            assert options.output_template is not None  # checked with --output
             rig = RigOutput(options.output, options.output_template, sim.geometry.home[2])
         pacer = Pacer(sim, rx, washout, wash_every=wash_every, send_every=send_every,
                       sender=sender, say=say, rig=rig, rig_every=rig_every,
@@ -724,7 +729,7 @@ def run_session(scenario: dict, options: LiveOptions, say=None, checks=None):
         realtime = pacer.realtime(int(res.sim["steps"]))
         info = dict(pacer.washout_info(), lateness=pacer.lateness(), address=rx.address)
         info["algorithm"] = cue.get("algorithm", "classical_washout")  # the law that ran
-        if mpc:
+        if law is not None:
             law.close()
             realtime["cue"] = {
                 "in": "process",
@@ -734,7 +739,7 @@ def run_session(scenario: dict, options: LiveOptions, say=None, checks=None):
                 "max_behind_periods": law.max_behind,
                 "periods": law.periods,
             }
-        if mpc and law.solve_times:
+        if law is not None and law.solve_times:
             from controllers.mpc_cueing import MpcResult
 
             done = MpcResult(np.empty(0), np.empty((0, 3)), np.asarray(law.solve_times),

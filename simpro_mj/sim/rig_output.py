@@ -184,7 +184,7 @@ def open_destination(text: str, check_only: bool = False):
         if rate <= 0:
             raise UserInputError(f"invalid value at --output: {text!r}: baud {baud!r}; {allowed}")
         try:
-            import serial  # pyserial, optional
+            import serial  # type: ignore[import-untyped]  # pyserial, optional
         except ImportError:
             raise UserInputError(
                 f"invalid value at --output: {text!r}: a serial port needs pyserial, which is "
@@ -214,14 +214,14 @@ class RigOutput:
         self.destination = destination
         self._write, self._close = open_destination(destination)
         self.sent = self.errors = 0
-        self._col = None
+        self._col: dict[str, int] | None = None
 
     def values(self, row) -> dict:
-        if self._col is None:  # on use: sim.result loads MuJoCo
+        c = self._col
+        if c is None:  # on use: sim.result loads MuJoCo
             from simpro_mj.sim.result import COLUMNS
 
-            self._col = {name: j for j, name in enumerate(COLUMNS)}
-        c = self._col
+            c = self._col = {name: j for j, name in enumerate(COLUMNS)}
         return {
             "q1": row[c["q1_ref_m"]],
             "q2": row[c["q2_ref_m"]],
