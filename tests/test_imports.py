@@ -224,9 +224,18 @@ def test_every_module_is_in_a_room():
     assert not stray, f"modules outside the rooms {ROOMS}: {stray}"
 
 
+#: Upward imports made on purpose, each inside one function, with the reason.
+UPWARD = {
+    # the Fig. 12 experiment steps the actuators with the run's own compiled stages
+    # (one numba compilation and cache for both), imported when it runs
+    ("simpro_mj.identification.identify", "simpro_mj.sim.step"),
+}
+
+
 def test_rooms_import_one_way():
     """A room imports only the rooms below it (core < plant < config < identification <
-    sim < analysis < report < batch < commands < api), at module or function level."""
+    sim < analysis < report < batch < commands < api), at module or function level,
+    but for the few of :data:`UPWARD`, each named with its reason."""
     rank = {r: i for i, r in enumerate(ROOMS)}
     bad = []
     for src, targets in import_graph().items():
@@ -235,7 +244,7 @@ def test_rooms_import_one_way():
             continue
         for dst in targets:
             b = _room(dst)
-            if b is not None and rank[b] > rank[a]:
+            if b is not None and rank[b] > rank[a] and (src, dst) not in UPWARD:
                 bad.append(f"{src} -> {dst}")
     assert not bad, "imports against the rooms' order: " + "; ".join(sorted(bad))
 
