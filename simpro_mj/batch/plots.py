@@ -208,7 +208,7 @@ def _shade_by_number(series, labels: list[str], info: Mapping):
     from matplotlib.cm import ScalarMappable
     from matplotlib.colors import Normalize
 
-    xs = [_x(r["values"][path]) for r, _ in series]
+    xs = [_x(r["values"][path]) or 0.0 for r, _ in series]  # path's values are numbers
     norm = Normalize(min(xs), max(xs))
     cmap = colormaps["viridis"]
     colours = {lab: cmap(norm(x)) for lab, x in zip(labels, xs, strict=True)}
@@ -272,8 +272,9 @@ def responses_figure(rows: list[dict], info: Mapping, batch_out: Path):
                 if group is not None:  # the line style names the rest of the grid, once
                     label = group if k == 0 and group not in seen else None
                     seen.add(group)
+                style = "-" if group is None else groups.get(group, "-")
                 ax.plot(*envelope(t, y), color=colours[lab], lw=0.8, alpha=0.85, zorder=2,
-                        ls=groups.get(group, "-"), label=label)  # fmt: skip
+                        ls=style, label=label)  # fmt: skip
                 fin = np.concatenate([y[np.isfinite(y)], yr[np.isfinite(yr)]])
                 if fin.size:
                     span[k] = [min(span[k][0], fin.min()), max(span[k][1], fin.max())]

@@ -76,7 +76,7 @@ def cueing_figures(columns: Mapping, scenario: Mapping) -> dict[str, Figure]:
     axes = fig.subplots(4, 1, sharex=True)
     box = scenario_box(scenario)
     algorithm = (scenario.get("setpoint", {}).get("cueing") or {}).get("algorithm")
-    law = _LAW_NAMES.get(algorithm, "cueing")
+    law = _LAW_NAMES.get(algorithm or "", "cueing")
     for ax, (axis, unit, scale, disp) in zip(
         axes[:3],
         (("roll", "rad", 180 / math.pi, "deg"), ("pitch", "rad", 180 / math.pi, "deg"),
