@@ -155,12 +155,15 @@ def _limits(key: tuple, legs: list) -> tuple[float, float]:
     """(limit, delay-model limit) of one loop, from the disk cache or computed."""
     text = json.dumps([key, _code()], allow_nan=True)
     path = cache.cache_dir("stability") / f"{hashlib.sha256(text.encode()).hexdigest()}.json"
-    doc = cache.read_json(path)
-    try:
-        if doc["key"] == text:  # the file's own key: a hash collision reads as a miss
-            return float(doc["limit"]), float(doc["delay_model_limit"])
-    except (KeyError, TypeError, ValueError):
-        pass  # missing or damaged: computed again
+
+    def entry(doc) -> tuple[float, float] | None:  # NaN refused by read_json
+        if doc["key"] != text:  # the file's own key: a hash collision reads as a miss
+            return None
+        return float(doc["limit"]), float(doc["delay_model_limit"])
+
+    found = cache.read_json(path, entry)  # missing or damaged (said): computed again
+    if found is not None:
+        return found
     dt = key[0]
     mode, pi_zero, period, delay = key[11:]
     jac = _jacobian_home()

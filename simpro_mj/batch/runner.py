@@ -185,6 +185,10 @@ def run_batch(
     out = Path(out)
     inputs = [f for f, _ in scenario_files(paths)]
 
+    if scheduler is not None:  # before the output folder is made
+        dask_module()  # say so before anything runs
+        if scheduler != "local":
+            probe_scheduler(scheduler)  # a closed, silent or foreign server: refused now
     with claim(out, "batch", inputs=inputs, writes=SUMMARY_FILES):
         args = (paths, out, sets, jobs, resume, strict, scheduler, plots, progress, summary_plots)
         return _run_batch(*args, wall0, processes)
@@ -201,10 +205,6 @@ def _run_batch(
             if job.error:
                 which = f" (variant {job.variant})" if job.variant != "-" else ""
                 raise UserInputError(f"invalid scenario at {job.file}{which}: {job.error}")
-    if scheduler is not None:
-        dask_module()  # say so before anything runs
-        if scheduler != "local":
-            probe_scheduler(scheduler)  # a closed, silent or foreign server: refused now
     rows: list[dict | None] = [None] * len(p.jobs)
     tasks: list[tuple[int, dict]] = []
     skipped = 0
@@ -355,7 +355,7 @@ def _complete(folder: Path, scenario: Mapping) -> dict | None:
         return None
     try:
         doc = json.loads(read_text(folder / "metrics.json", MAX_METRICS_BYTES, "metrics"))
-    except (OSError, ValueError):
+    except (OSError, ValueError, RecursionError):  # RecursionError: JSON nested too deep
         return None
     if (doc.get("scenario") or {}).get("hash") != scenario_hash(scenario):
         return None

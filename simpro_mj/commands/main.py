@@ -36,6 +36,7 @@ import sys
 from pathlib import Path
 
 from controllers.errors import DesignError, KinematicsError
+from simpro_mj.core.environment import environment_problem
 from simpro_mj.core.errors import PhysicsError, UserInputError
 from simpro_mj.core.interrupts import held_signals, import_module, interruptible
 from simpro_mj.core.messages import MAX_MESSAGE_CHARS, one_line
@@ -213,6 +214,7 @@ def _main(argv) -> int:
     with held_signals():  # the imports first: a signal meanwhile is raised after them
         # help needs no MuJoCo: the backend is checked for the commands that run
         problem = None if {"-h", "--help"} & set(words) else _check_gl_backend()
+        problem = problem or environment_problem()
         if problem:
             sys.stderr.write(f"error: {problem}\n")
             return 2

@@ -48,7 +48,7 @@ from controllers.washout import ClassicalWashout, WashoutParams
 from simpro_mj.config.telemetry import read_telemetry, resample
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.rates import PHYSICS_DT_S, steps_per_period
-from simpro_mj.core.shipped import TELEMETRY_DIR
+from simpro_mj.core.shipped import TELEMETRY_DIR, user_path
 
 __all__ = [
     "PARAMETER_KEYS",
@@ -239,7 +239,7 @@ def resolve_paths(scenario: dict, base: Path | None) -> None:
     cue = (scenario.get("setpoint") or {}).get("cueing")
     if not cue or not cue.get("telemetry"):
         return
-    name = Path(cue["telemetry"]).expanduser()
+    name = user_path(cue["telemetry"], "setpoint.cueing.telemetry")
     tries = [name] if name.is_absolute() else []
     if not name.is_absolute():
         if base is not None:

@@ -39,7 +39,7 @@ from pathlib import Path
 
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.keys import closest, read_yaml
-from simpro_mj.core.shipped import PRESETS_DIR
+from simpro_mj.core.shipped import PRESETS_DIR, user_path
 
 __all__ = [
     "DEFAULT_PRESET",
@@ -78,7 +78,7 @@ def _path(name_or_path: str) -> Path:
     text = str(name_or_path)
     if text in shipped_presets():
         return presets_dir() / f"{text}.yaml"
-    p = Path(text).expanduser()
+    p = user_path(text, "plant.preset")
     if text.endswith((".yaml", ".yml")) and p.is_file():
         return p
     raise UserInputError(

@@ -115,7 +115,7 @@ from simpro_mj.config.sweep import broadcast_value, count_variants
 from simpro_mj.core.cache import file_digest
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.keys import closest, key_text, parse_set, read_yaml
-from simpro_mj.core.shipped import SCENARIOS_DIR
+from simpro_mj.core.shipped import SCENARIOS_DIR, model_digest, user_path
 
 __all__ = [
     "Scenario",
@@ -190,7 +190,7 @@ def find_scenario(name_or_path: str) -> Path:
         A path (with a folder) that does not exist, or a bare name that is
         neither a file here nor a shipped scenario (with "did you mean").
     """
-    path = Path(name_or_path).expanduser()
+    path = user_path(name_or_path, "scenario")
     text = str(name_or_path)
     stem = re.sub(r"\.ya?ml$", "", text)
     bare = "/" not in text and os.sep not in text
@@ -361,7 +361,8 @@ def scenario_hash(resolved: Mapping) -> str:
     A telemetry file (``setpoint.cueing.telemetry``) enters by its contents, not its
     path: the same recording hashes the same wherever it lies, and an edited or
     regenerated one does not, so ``batch --resume`` never keeps a run of the old
-    recording. A file that cannot be read enters by its path.
+    recording. A file that cannot be read enters by its path. The MJCF enters by its
+    SHA-256 too (``SIMPRO_MODEL`` or the shipped one): a heavier rod is another run.
     """
     cue = ((resolved.get("setpoint") or {}).get("cueing")) or {}
     if isinstance(cue, Mapping) and cue.get("telemetry"):
@@ -369,6 +370,7 @@ def scenario_hash(resolved: Mapping) -> str:
         if digest is not None:
             resolved = {**resolved, "setpoint": {**resolved["setpoint"],
                         "cueing": {**cue, "telemetry": f"sha256:{digest}"}}}  # fmt: skip
+    resolved = {**resolved, "mjcf": f"sha256:{model_digest()}"}  # the model it compiles
     text = json.dumps(resolved, sort_keys=True, separators=(",", ":"), allow_nan=False)
     return hashlib.sha256(text.encode("utf-8")).hexdigest()
 

@@ -18,7 +18,9 @@ Which models a scenario uses (:func:`identified_models`):
 * ``preset``: the preset's models (or the scenario's ``controller.inner.identified``)
   as given, even for a changed plant.
 
-The cache is a folder of small JSON files, one per plant hash:
+The cache is a folder of small JSON files, one per plant hash (the plant's
+parameters, the MJCF's bytes, the sources that identify; a damaged file is said
+in one line and identified again):
 ``$SIMPRO_CACHE_DIR``, else ``$XDG_CACHE_HOME/simpro-sim``, else
 ``~/.cache/simpro-sim``, sub-folder ``identified``. A file is written under a
 temporary name and renamed, so concurrent runs (a batch) never read half a
@@ -30,14 +32,15 @@ from __future__ import annotations
 import copy
 import hashlib
 import json
+import math
 import threading
 from collections.abc import Mapping
+from functools import lru_cache
 from pathlib import Path
 
 import mujoco
 import numpy as np
 
-from simpro_mj import __version__
 from simpro_mj.config.presets import scenario_overlay
 from simpro_mj.config.scenario import (
     DEFAULT_SCENARIO,
@@ -45,6 +48,7 @@ from simpro_mj.config.scenario import (
     _merge,
 )
 from simpro_mj.core import cache, notices
+from simpro_mj.core.shipped import model_digest
 from simpro_mj.identification import identify as identify_module
 
 __all__ = [
@@ -86,15 +90,29 @@ def plant_tree(scenario: Mapping) -> dict:
     return tree
 
 
+@lru_cache(maxsize=1)
+def _code() -> str:
+    """Digest of the sources the experiment runs: the plant, the step, the identification."""
+    import simpro_mj.plant
+    import simpro_mj.sim
+
+    roots = [Path(m.__file__).parent for m in (simpro_mj.plant, simpro_mj.sim)]
+    files = [f for root in roots for f in root.rglob("*.py")]
+    return cache.source_digest([*files, *Path(__file__).parent.glob("*.py")])
+
+
 def plant_hash(tree: Mapping) -> str:
-    """SHA-256 of what the experiment depends on: model, pneumatics, identify settings
-    and the package versions that compute it."""
+    """SHA-256 of what the experiment depends on: model parameters, the MJCF's bytes,
+    pneumatics, identify settings, the sources that compute it and the versions of
+    MuJoCo and NumPy."""
 
     key = {
         "model": tree["model"],
+        "mjcf": model_digest(),
         "pneumatics": tree["pneumatics"],
         "identify": tree["identify"],
-        "versions": [__version__, mujoco.__version__, np.__version__],
+        "code": _code(),
+        "versions": [mujoco.__version__, np.__version__],
     }
     text = json.dumps(key, sort_keys=True, default=str)
     return hashlib.sha256(text.encode()).hexdigest()
@@ -117,12 +135,18 @@ def _is_presets_plant(scenario: Mapping) -> bool:
     return text(scenario) == text(base)
 
 
+def _models(doc) -> dict:
+    """The three identified models of a cache file; ``KeyError``, ``TypeError`` or
+    ``ValueError`` (a non-finite number) for anything else."""
+    out = {a: {k: float(doc[a][k]) for k in ("b", "a1", "a0")} for a in _ACTS}
+    if not all(math.isfinite(v) for m in out.values() for v in m.values()):
+        raise ValueError("a number that is not finite")
+    return out
+
+
 def _read(path: Path) -> dict | None:
-    try:
-        doc = cache.read_json(path)
-        return {a: {k: float(doc[a][k]) for k in ("b", "a1", "a0")} for a in _ACTS}
-    except (ValueError, KeyError, TypeError):
-        return None  # missing or damaged: identify again
+    """The cached models, or None: missing, or damaged (said; identified again)."""
+    return cache.read_json(path, _models)
 
 
 def identified_models(scenario: Mapping, progress=None) -> tuple[dict, str]:

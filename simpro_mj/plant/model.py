@@ -20,7 +20,8 @@ import numpy as np
 
 from simpro_mj.core.errors import PhysicsError, UserInputError
 from simpro_mj.core.keys import apply_overrides, closest
-from simpro_mj.core.shipped import model_path
+from simpro_mj.core.messages import one_line
+from simpro_mj.core.shipped import MODEL_DIR, model_path
 from simpro_mj.plant.step_functions import platform_pose
 
 __all__ = [
@@ -40,9 +41,9 @@ __all__ = [
     "WARNING_NAMES",
 ]
 
-#: The MJCF a run compiles: the shipped one, or ``SIMPRO_MODEL``
-#: (:func:`~simpro_mj.core.shipped.model_path`).
-MODEL_PATH = model_path()
+#: The shipped model; ``SIMPRO_MODEL`` in the environment points elsewhere
+#: (:func:`simpro_mj.core.shipped.model_path`, checked when a model is loaded).
+MODEL_PATH = MODEL_DIR / "simpro_platform.xml"
 
 # the parameters are plain data in simpro_mj.plant.model_params (scenarios read them
 # without importing MuJoCo); re-exported here
@@ -115,11 +116,44 @@ def _check_params(params: dict) -> None:
         )
 
 
+#: What :func:`load_spec` edits, so what an MJCF given as ``SIMPRO_MODEL`` must name.
+_REQUIRED = {
+    "body": ("payload", "guide_upper", "guide_lower", "bracket")
+    + tuple(f"leg{i}_barrel" for i in (1, 2, 3)),
+    "geom": ("payload", "platform_frame", "guide_upper", "guide_lower"),
+    "joint": ("leg1", "leg2", "leg3"),
+    "site": (*BASE_POINTS, *LEG_POINTS, "guide_lower_tip"),
+}
+
+
+def _read_spec(path) -> mujoco.MjSpec:
+    """The MJCF at ``path`` (default :func:`~simpro_mj.core.shipped.model_path`), parsed;
+    a file MuJoCo cannot read, or an MJCF of another machine, is a one-line refusal
+    naming ``SIMPRO_MODEL``."""
+    where = str(path or model_path())
+    try:
+        spec = mujoco.MjSpec.from_file(where)
+    except ValueError as exc:
+        raise UserInputError(
+            f"invalid value at SIMPRO_MODEL: {where}: {one_line(str(exc))[:300]}; allowed: "
+            "the SIMPRO platform's MJCF (models/simpro_platform.xml or an edited copy)"
+        ) from None
+    for kind, names in _REQUIRED.items():
+        missing = [n for n in names if getattr(spec, kind)(n) is None]
+        if missing:
+            raise UserInputError(
+                f"invalid value at SIMPRO_MODEL: {where}: no {kind} {', '.join(missing)}; "
+                "allowed: the SIMPRO platform's MJCF (models/simpro_platform.xml or an "
+                "edited copy)"
+            )
+    return spec
+
+
 def load_spec(params: dict | None = None, path: Path | str | None = None) -> mujoco.MjSpec:
     """The model as an :class:`mujoco.MjSpec` with the parameters applied."""
     p = copy.deepcopy(DEFAULT_MODEL_PARAMS) if params is None else params
     _check_params(p)
-    spec = mujoco.MjSpec.from_file(str(path or MODEL_PATH))
+    spec = _read_spec(path)
 
     payload = spec.body("payload")
     payload.pos = _vec(p, "payload.com_mm", 3) * 1e-3

@@ -59,6 +59,7 @@ from simpro_mj import __version__
 from simpro_mj.analysis.verdict import FINISHED_STATUSES
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.safe_files import open_regular, read_text
+from simpro_mj.core.shipped import user_path
 
 __all__ = [
     "PARTIAL_MARKER",
@@ -169,7 +170,7 @@ def _marker(folder) -> dict | None:
     file (a FIFO is refused at once, never waited on), too large or not JSON."""
     try:
         doc = json.loads(read_text(Path(folder) / RESULT_MARKER, MARKER_MAX_BYTES, "marker"))
-    except (OSError, ValueError):
+    except (OSError, ValueError, RecursionError):  # RecursionError: JSON nested too deep
         return None
     return doc if isinstance(doc, dict) else None
 
@@ -370,6 +371,11 @@ def _replaceable(folder: Path, kind: str) -> bool:
     return empty or (result_kind(folder) == kind and not foreign(folder))
 
 
+def _abs(out, where: str = "--out") -> Path:
+    """``out`` absolute, ``~`` and ``~USER`` expanded (an unknown user refused)."""
+    return user_path(out, where).absolute()
+
+
 def _short(path, limit: int = 200) -> str:
     text = str(path)
     return text if len(text) <= limit else f"{text[:90]}...{text[-90:]}"
@@ -418,7 +424,7 @@ def check_out(out, kind: str = "run", inputs: Iterable = (), writes: Iterable[st
         it, holds an input, or is a non-empty folder not ours to write
         (nothing is touched).
     """
-    out = _real_out(Path(out).expanduser().absolute())
+    out = _real_out(_abs(out))
     real = out.resolve()
     cwd = Path.cwd().resolve()
     if real == cwd or real in cwd.parents:
@@ -427,7 +433,7 @@ def check_out(out, kind: str = "run", inputs: Iterable = (), writes: Iterable[st
             "allowed: a new folder, e.g. results/<name>"
         )
     for item in inputs:
-        p = Path(item).expanduser()
+        p = user_path(item, "scenario")
         if p.is_file() and p.resolve().is_relative_to(real):
             raise UserInputError(
                 f"refused --out at {_short(out)}: it holds the input {_short(p)}; "
@@ -468,7 +474,7 @@ def check_out(out, kind: str = "run", inputs: Iterable = (), writes: Iterable[st
 def check_free(out) -> None:
     """Refuse ``out`` while another process holds its write lock (:func:`locked`):
     what a batch checks of each variant before running it."""
-    out = Path(out).expanduser().absolute()
+    out = _abs(out)
     pid = _writer(out)
     if pid is not None:
         raise UserInputError(
@@ -571,7 +577,7 @@ def locked(out) -> Iterator[Path]:
     OSError
         The lock cannot be created (read-only parent); ``filename`` is ``out``.
     """
-    out = Path(out).expanduser().absolute()
+    out = _abs(out)
     key = str(out)
     if key in _HELD:
         _HELD[key][1] += 1
@@ -632,7 +638,7 @@ def claim(
     A folder inside one another process is writing is refused too (a ``run
     --out OUT/x`` while a batch writes ``OUT``)."""
     writes = list(writes)
-    _check_parents_free(_real_out(Path(out).expanduser().absolute()))
+    _check_parents_free(_real_out(_abs(out)))
     check_free(out)
     out = check_out(out, kind, inputs, writes)
     with locked(out):
@@ -663,7 +669,7 @@ def install_folder(out_dir, fill, kind: str = "run") -> Path:
     OSError
         A write failed (full or read-only disk); ``filename`` is ``out_dir``.
     """
-    out_dir = _real_out(Path(out_dir).expanduser().absolute())
+    out_dir = _real_out(_abs(out_dir))
     with locked(out_dir):
         check_out(out_dir, kind)
         tmp: Path | None = None
@@ -729,7 +735,7 @@ def is_complete(folder) -> bool:
         return False  # a stranger's file, or one of ours gone
     try:
         doc = json.loads(read_text(folder / "metrics.json", MAX_METRICS_BYTES, "metrics"))
-    except (OSError, ValueError):
+    except (OSError, ValueError, RecursionError):  # RecursionError: JSON nested too deep
         return False
     return (
         isinstance(doc, dict)
@@ -755,7 +761,7 @@ def check_file(path, overwrite: bool = False, option: str = "--out") -> Path:
     UserInputError
         Any of the above (nothing is touched).
     """
-    path = Path(path).expanduser().absolute()
+    path = _abs(path, "--out")
     if path.is_symlink():
         if not path.exists():
             raise UserInputError(

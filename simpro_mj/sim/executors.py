@@ -287,8 +287,8 @@ def probe_scheduler(address: str, timeout: float | None = None) -> None:
     of its first message) within the same time; refuses a closed port, a
     server that accepts and stays silent, and one whose first bytes are not a
     plausible Dask message (an HTTP server's reply read as a length asked Dask
-    for exabytes). Other schemes (``tls://``, ``ucx://``...) are left to Dask,
-    with its connection timeout bounded.
+    for exabytes). ``inproc://`` (a scheduler in this process) is left to Dask;
+    other schemes (``tls://``, ``ucx://``...) are refused.
 
     Raises
     ------
@@ -300,11 +300,16 @@ def probe_scheduler(address: str, timeout: float | None = None) -> None:
 
     timeout = CONNECT_S if timeout is None else timeout
     scheme, _, rest = address.rpartition("://")
-    if scheme not in ("", "tcp"):
+    allowed = "allowed: a running Dask scheduler address (tcp://host:8786) or 'local'"
+    if scheme == "inproc":  # a scheduler in this process (the tests'): nothing to probe
         return
+    if scheme not in ("", "tcp"):  # tls needs certificates, ucx a UCX build: neither passed
+        raise UserInputError(
+            f"invalid value at --scheduler: {address[:200]!r}: the scheme {scheme[:20]!r} is "
+            f"not supported (TLS needs certificates, UCX its own build); {allowed}"
+        )
     host, sep, port_text = rest.rpartition(":")
     host = host.strip("[]")
-    allowed = "allowed: a running Dask scheduler address (tcp://host:8786) or 'local'"
     if not sep or not host or not port_text.isdigit() or not 0 < int(port_text) < 65536:
         raise UserInputError(f"invalid value at --scheduler: {address!r}; {allowed}")
     try:
