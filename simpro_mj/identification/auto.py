@@ -92,13 +92,13 @@ def plant_tree(scenario: Mapping) -> dict:
 
 @lru_cache(maxsize=1)
 def _code() -> str:
-    """Digest of the sources the experiment runs: the plant, the step, the identification."""
-    import simpro_mj.plant
-    import simpro_mj.sim
+    """Digest of the sources the experiment runs: the identification, the plant and
+    the joint design (read as files: nothing imported for it)."""
+    import controllers.design
 
-    roots = [Path(m.__file__).parent for m in (simpro_mj.plant, simpro_mj.sim)]
-    files = [f for root in roots for f in root.rglob("*.py")]
-    return cache.source_digest([*files, *Path(__file__).parent.glob("*.py")])
+    here = Path(__file__).parent
+    files = [*here.glob("*.py"), *(here.parent / "plant").rglob("*.py")]
+    return cache.source_digest([*files, Path(controllers.design.__file__)])
 
 
 def plant_hash(tree: Mapping) -> str:
