@@ -110,12 +110,14 @@ linux = pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs /
 
 
 @linux
-def test_a_signal_stops_the_pool_writes_the_summary_and_exits_130(tmp_path):
-    """SIGTERM (Ctrl-C takes the same path: both raise KeyboardInterrupt in the batch)."""
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGHUP], ids=["SIGTERM", "SIGHUP"])
+def test_a_signal_stops_the_pool_writes_the_summary_and_exits_130(tmp_path, sig):
+    """SIGTERM or SIGHUP, a closed terminal (Ctrl-C takes the same path: each raises
+    KeyboardInterrupt in the batch)."""
     out = tmp_path / "out"
     argv = ["batch", str(_sweep(tmp_path)), "--jobs", "2", "--processes", "--out", str(out),
             "--no-plots"]  # fmt: skip
-    rc, stderr, workers, _ = _signal_when_ready(tmp_path, argv, signal.SIGTERM, _stepping_workers)
+    rc, stderr, workers, _ = _signal_when_ready(tmp_path, argv, sig, _stepping_workers)
     assert rc == 130, stderr
     last = stderr.strip().splitlines()[-1]
     assert last.startswith("error: batch stopped: interrupted"), stderr

@@ -581,7 +581,9 @@ def _wait_ready(proc, ready: Path) -> bool:
     return False
 
 
-@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+@pytest.mark.parametrize(
+    "sig", [signal.SIGINT, signal.SIGTERM, signal.SIGHUP], ids=["SIGINT", "SIGTERM", "SIGHUP"]
+)
 def test_interrupted_run_leaves_a_marked_partial_folder(tmp_path, sig):
     out = tmp_path / "long"
     ready = tmp_path / "ready"
@@ -604,8 +606,11 @@ def test_interrupted_run_leaves_a_marked_partial_folder(tmp_path, sig):
     assert stderr.strip().splitlines()[-1].startswith("error: ")
     assert not [p.name for p in tmp_path.iterdir() if re.search(r"\.simpro-(tmp|old)-", p.name)]
     assert not [p.name for p in tmp_path.iterdir() if p.name.startswith(("ready.", ".ready."))]
+    assert not [p.name for p in tmp_path.iterdir() if p.name.endswith(".simpro-lock")]
     doc = json.loads((out / "metrics.json").read_text())
     assert doc["status"] == "interrupted" and doc["reason"]
+    if sig != signal.SIGINT:  # the reason names the signal (a closed terminal: SIGHUP)
+        assert f"signal ({sig.name})" in doc["reason"], doc["reason"]
     assert (out / folders.PARTIAL_MARKER).is_file() and not folders.is_complete(out)
     lines = (out / "timeseries.csv").read_text().splitlines()
     width = len(lines[0].split(","))

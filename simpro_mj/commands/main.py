@@ -21,7 +21,7 @@ module: each command's one-line ``HELP`` is read from its source. A command's ow
 Exit codes: 0 done, 1 the simulation diverged, 2 a user's mistake (bad
 scenario, ``--set``, arguments, a file that cannot be read or written),
 3 an internal error (a bug: one line on stderr; ``SIMPRO_DEBUG=1`` shows the
-traceback), 130 interrupted (Ctrl-C, SIGTERM), 141 stdout closed.
+traceback), 130 interrupted (Ctrl-C, SIGTERM, SIGHUP), 141 stdout closed.
 docs/robustness.md lists the messages.
 """
 
@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import argparse
 import ast
+import contextlib
 import functools
 import importlib.util
 import os
@@ -38,8 +39,9 @@ from pathlib import Path
 from controllers.errors import DesignError, KinematicsError
 from simpro_mj.core.environment import environment_problem
 from simpro_mj.core.errors import PhysicsError, UserInputError
-from simpro_mj.core.interrupts import held_signals, import_module, interruptible
+from simpro_mj.core.interrupts import Interrupted, held_signals, import_module, interruptible
 from simpro_mj.core.messages import MAX_MESSAGE_CHARS, one_line
+from simpro_mj.core.streams import StreamError, standard_streams
 
 #: an error line of this command line: one line, at most MAX_MESSAGE_CHARS
 _one_line = functools.partial(one_line, max_chars=MAX_MESSAGE_CHARS)
@@ -199,11 +201,17 @@ def main(argv=None) -> int:
     try:
         # Ctrl-C and SIGTERM raise KeyboardInterrupt, held while the command's modules
         # are imported so that no extension turns them into ImportError (core.interrupts)
-        with interruptible():
+        with interruptible(), standard_streams():
             return _main(argv)
     except KeyboardInterrupt:  # while the command's modules were imported
-        sys.stderr.write("error: interrupted\n")
+        _say("error: interrupted")
         return 130
+
+
+def _say(line: str) -> None:
+    """The last line on stderr; a stderr that cannot take it is not a second error."""
+    with contextlib.suppress(OSError, ValueError, AttributeError):
+        sys.stderr.write(line + "\n")
 
 
 def _main(argv) -> int:
@@ -227,22 +235,30 @@ def _main(argv) -> int:
     except SystemExit as exc:  # argparse: --help (0) or a misuse (2, one line already)
         return exc.code if isinstance(exc.code, int) else 2
     try:
-        return int(args._run(args) or 0)
+        code = int(args._run(args) or 0)
+        sys.stdout.flush()  # a failing stdout (a full disk) is found here, and named
+        return code
     except (UserInputError, KinematicsError, DesignError) as exc:
         # KinematicsError/DesignError reach here only from a check that did not
         # wrap them with a field path; their messages still name the limit
-        sys.stderr.write(f"error: {_one_line(exc)}\n")
+        _say(f"error: {_one_line(exc)}")
         return 2
     except PhysicsError as exc:
-        sys.stderr.write(f"error: simulation diverged: {exc}\n")
+        _say(f"error: simulation diverged: {exc}")
         return 1
-    except KeyboardInterrupt:
-        sys.stderr.write("error: interrupted\n")
+    except KeyboardInterrupt as exc:  # Interrupted: during a write, which it names
+        _say(f"error: interrupted; {exc}" if isinstance(exc, Interrupted) else "error: interrupted")
         return 130
     except BrokenPipeError:
         # stdout closed by a reader such as `| head`: results are already on disk
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 141
+    except StreamError as exc:  # the files are written; the printing failed
+        _say(
+            f"error: cannot write at {exc.filename}: {exc.strerror}; allowed: a writable "
+            "standard output (the command's files are written)"
+        )
+        return 2
     except OSError as exc:
         # a folder or file the user named that cannot be written or read
         where = exc.filename if exc.filename is not None else "--out"

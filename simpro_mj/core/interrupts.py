@@ -1,4 +1,4 @@
-"""Ctrl-C and SIGTERM as ``KeyboardInterrupt``, never in the middle of an import.
+"""Ctrl-C, SIGTERM and SIGHUP as ``KeyboardInterrupt``, never in the middle of an import.
 
 A signal handler that raises ``KeyboardInterrupt`` raises it in whatever Python
 code runs next. When that code runs inside the initialisation of a compiled
@@ -22,8 +22,9 @@ run's simulation modules, MuJoCo's among them, once its input is known good
 (:func:`simpro_mj.report.runner.execute`). No import hook: Python's own import
 machinery is left as it is.
 
-- :func:`interruptible` installs :func:`raise_or_hold` for SIGINT and SIGTERM
-  for the duration of a command;
+- :func:`interruptible` installs :func:`raise_or_hold` for SIGINT, SIGTERM and
+  SIGHUP (the terminal closed: the same stop, the result written, the lock
+  released; :func:`hung_up` says it came) for the duration of a command;
 - :func:`held_signals` holds the signals for a block (it works with or
   without :func:`interruptible`, and in a pool worker whose SIGTERM handler
   calls :func:`raise_or_hold`);
@@ -41,17 +42,26 @@ import signal
 import threading
 
 __all__ = [
+    "Interrupted",
     "held_signals",
     "hold_aware",
+    "hung_up",
     "import_module",
     "interruptible",
     "raise_or_hold",
 ]
 
-SIGNALS = (signal.SIGINT, signal.SIGTERM)
+SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 
 _holding = 0  # open held blocks in the main thread
 _held: list[int] = []  # signals that arrived while holding
+_hung_up = False  # a SIGHUP arrived: the terminal may be gone
+
+
+def hung_up() -> bool:
+    """Whether this process received SIGHUP (its terminal may be gone, so a failed
+    write to it is nobody's loss)."""
+    return _hung_up
 
 
 def hold_aware(handler):
@@ -71,6 +81,8 @@ def _interrupt(signum: int) -> KeyboardInterrupt:
 @hold_aware
 def raise_or_hold(signum, frame=None):  # noqa: ARG001 - signal handler signature
     """Signal handler: ``KeyboardInterrupt`` now, or when the held block ends."""
+    global _hung_up
+    _hung_up = _hung_up or signum == signal.SIGHUP
     if _holding:
         _held.append(signum)
         return
@@ -122,6 +134,25 @@ def held_signals():
         _leave()
 
 
+class Interrupted(KeyboardInterrupt):
+    """A signal that came while a result was written: the message says what was
+    kept (:func:`writing`)."""
+
+
+@contextlib.contextmanager
+def writing(kept):
+    """:func:`held_signals` around a result's write; a signal that came meanwhile is
+    raised afterwards as :class:`Interrupted` with ``kept()``, one line saying
+    what is on disk (a second Ctrl-C says what the first one kept)."""
+    try:
+        with held_signals():
+            yield
+    except KeyboardInterrupt as exc:
+        if isinstance(exc, Interrupted):
+            raise
+        raise Interrupted(kept()) from None
+
+
 def import_module(name: str):
     """:func:`importlib.import_module` with the signals held during the import."""
     with held_signals():
@@ -130,8 +161,8 @@ def import_module(name: str):
 
 @contextlib.contextmanager
 def interruptible():
-    """Within the block, SIGINT and SIGTERM raise ``KeyboardInterrupt`` (SIGTERM
-    as Ctrl-C does), held within :func:`held_signals` (module docstring).
+    """Within the block, SIGINT, SIGTERM and SIGHUP raise ``KeyboardInterrupt``
+    (as Ctrl-C does), held within :func:`held_signals` (module docstring).
 
     The previous handlers are restored on exit; nested use is harmless.
     Outside the main thread this is a no-op.

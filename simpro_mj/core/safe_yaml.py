@@ -195,6 +195,8 @@ def _too_deep(mark) -> YAMLLimitError:
 def _unique_mapping(loader, node, deep=False):
     seen = set()
     for key_node, _ in node.value:
+        if key_node.tag == "tag:yaml.org,2002:merge":  # '<<: *base', merged below
+            continue
         key = loader.construct_object(key_node, deep=True)
         if isinstance(key, (str, int, float, bool)) or key is None:
             if key in seen:
@@ -205,6 +207,15 @@ def _unique_mapping(loader, node, deep=False):
     return loader.construct_mapping(node, deep=deep)
 
 
+#: A number as YAML 1.2 writes it (and ``.inf``, ``.nan``): PyYAML's YAML 1.1 also
+#: reads ``0_3`` as 3, ``0x1F`` as 31, ``010`` as 8 and ``1:30`` as 90.
+_YAML12_NUMBER = re.compile(
+    r"^[-+]?(?:0|[1-9][0-9]*)$|^[-+]?(?:\.[0-9]+|[0-9]+\.[0-9]*)(?:[eE][-+]?[0-9]+)?$"
+    r"|^[-+]?[0-9]+[eE][-+]?[0-9]+$"
+    r"|^[-+]?\.(?:inf|Inf|INF)$|^\.(?:nan|NaN|NAN)$"
+)
+
+
 def _bounded_number(construct):
     def build(loader, node):
         text = str(node.value)
@@ -212,6 +223,13 @@ def _bounded_number(construct):
             raise YAMLLimitError(
                 f"a number written with {len(text):,} characters ({_short(text, 24)})",
                 f"at most {MAX_NUMBER_CHARS} characters (use an exponent: 1.5e300)",
+                node.start_mark,
+            )
+        if not _YAML12_NUMBER.match(text):
+            raise YAMLLimitError(
+                f"the number {_short(text, 24)} is written the YAML 1.1 way (an underscore, "
+                "hex, octal, a leading 0 or base 60), which reads it otherwise than it looks",
+                "plain decimal numbers (YAML 1.2): 3, 0.3, 1.5e3; or quote it as text",
                 node.start_mark,
             )
         return construct(loader, node)

@@ -33,9 +33,9 @@ from simpro_mj.analysis.cue_metrics import cue_metrics
 from simpro_mj.analysis.metrics import compute_metrics
 from simpro_mj.analysis.preflight import preflight
 from simpro_mj.core.errors import UserInputError
-from simpro_mj.core.interrupts import held_signals
+from simpro_mj.core.interrupts import writing
 from simpro_mj.report.results import write_results
-from simpro_mj.report.runner import recording, warn
+from simpro_mj.report.runner import kept_line, recording, warn
 from simpro_mj.sim.live import LiveOptions, run_session
 
 __all__ = ["MAX_LOG_BYTES", "actuator_tracking", "execute_live", "live_scenario"]
@@ -106,7 +106,9 @@ def execute_live(scenario: dict, options: LiveOptions, out, plots: bool = True, 
 
     res, realtime, wash = run_session(scenario, options, say=say, checks=checks)
     warnings, figures = found["warnings"], found["figures"]
-    with held_signals():  # from here on a signal waits for the folder to be written
+    res.folder = None
+    # from here on a signal waits for the folder to be written, then says it is kept
+    with writing(lambda: kept_line(res)):
         ended = "signal" if res.status == "interrupted" else "duration"
         if res.status == "interrupted":
             res.status = "ok"

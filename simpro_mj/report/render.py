@@ -104,6 +104,7 @@ def _worker_init(
     # Ctrl-C reaches the whole process group: the parent stops the pool and removes
     # the partial video; a worker must not die with a traceback of its own
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGHUP, signal.SIG_IGN)
     # a parent killed outright (kill -9) ends its workers within a poll (0.5 s)
     from simpro_mj.sim.workers import watch_parent
 

@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from simpro_mj.core.interrupts import held_signals
+from simpro_mj.core.interrupts import writing
 from simpro_mj.core.progress import show_progress
 from simpro_mj.core.rates import PHYSICS_DT_S
 from simpro_mj.job.run import Run, warn
@@ -114,7 +114,8 @@ def execute(
             if bar is not None:
                 bar.close()
         res = outcome.result
-        with held_signals():  # a folder is always written whole
+        res.folder = None
+        with writing(lambda: kept_line(res)):  # a folder is always written whole
             res.folder, doc = write_run(
                 Path(out), outcome, scenario, plots=plots, arrays=recording(res), rows=rows
             )
@@ -122,6 +123,13 @@ def execute(
         if rows is not None:
             rows.close()
     return res, doc
+
+
+def kept_line(res) -> str:
+    """What a signal during the write left on disk, in one line."""
+    if res.folder is None:
+        return "no result was written"
+    return f"the {res.status} result in {res.folder} is kept, written whole"
 
 
 class _Bar:

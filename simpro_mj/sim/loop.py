@@ -437,13 +437,14 @@ class CoSimulation:
         except PhysicsError as exc:
             status, reason = "diverged", str(exc)
             k = self._k
-        except KeyboardInterrupt:
-            # SIGINT, or SIGTERM turned into KeyboardInterrupt by the CLI: keep
+        except KeyboardInterrupt as exc:
+            # SIGINT, or SIGTERM/SIGHUP turned into KeyboardInterrupt by the CLI: keep
             # what was computed so the caller can still write it (a compiled chunk
             # may have run past the step Python last saw: S[K] is the next step)
             k = max(self._k, int(self.S[step.K]) - 1)
             status = "interrupted"
-            reason = f"interrupted by signal (SIGINT/SIGTERM) at t = {k * self.dt:.3f} s"
+            which = str(exc).removeprefix("signal ") or "SIGINT"
+            reason = f"interrupted by signal ({which}) at t = {k * self.dt:.3f} s"
         finally:
             if timer is not None and profile is not None:
                 profile.update(timer.ns, steps=self._k + 1)

@@ -4,7 +4,8 @@
 ``ProcessPoolExecutor`` of spawned workers. Each worker starts with
 :func:`init_worker` (the pool's ``initializer``), which
 
-* ignores SIGINT: Ctrl-C at a terminal reaches the whole process group, and
+* ignores SIGINT and SIGHUP: Ctrl-C or a closed terminal reaches the whole
+  process group, and
   the parent decides what stops (it sends SIGTERM, :func:`stop_pool`);
 * turns SIGTERM into ``KeyboardInterrupt`` while a task runs
   (:func:`run_task`; held while a run loads its simulation modules or writes
@@ -98,6 +99,7 @@ def init_worker(parent_pid: int) -> None:
     if os.environ.get(ENV):
         os.environ[ENV] = f"{os.environ[ENV]}.worker-{os.getpid()}"
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGHUP, signal.SIG_IGN)  # the terminal's: the parent decides
     signal.signal(signal.SIGTERM, _on_sigterm)
     watch_parent(parent_pid)
 
