@@ -1,0 +1,89 @@
+"""numba's on-disk cache of the compiled step: a folder that works, files that load.
+
+numba loads a cached function with ``pickle``: a truncated ``.nbi`` (index) or
+``.nbc`` (object code) raises inside the first call of the step, an internal
+error on every run until the file is deleted. And a ``NUMBA_CACHE_DIR`` that
+is not a writable folder made numba fall back, silently, to compiling every
+run (23.8 s instead of 1.4 s) and to writing into the package's folders. So:
+
+* :func:`cache_base` picks the folder: ``NUMBA_CACHE_DIR`` if it is (or can be
+  made) a writable folder, else, said in one line, the user's cache folder;
+* :func:`heal` loads every cache file of the step's folder as numba would and
+  deletes a damaged one with a one-line notice: the function it held is
+  compiled again.
+"""
+
+from __future__ import annotations
+
+import os
+import pickle
+import tempfile
+from collections.abc import Callable
+from pathlib import Path
+
+from simpro_mj.core.cache import notice
+
+__all__ = ["cache_base", "heal"]
+
+
+def _writable(folder: str) -> bool:
+    """Whether ``folder`` is, or can be made, a folder this process can write in."""
+    try:
+        os.makedirs(folder, exist_ok=True)
+        with tempfile.TemporaryFile(dir=folder):
+            return True
+    except OSError:
+        return False
+
+
+def cache_base(package_dir: str, say: Callable[[str], None] = notice) -> str:
+    """The folder under which the step's cache lives.
+
+    ``NUMBA_CACHE_DIR`` when set and writable (else said, and not used), then
+    ``package_dir`` (``__pycache__`` beside the step, an editable install), then
+    ``$XDG_CACHE_HOME`` or ``~/.cache``, then the temporary folder.
+    """
+    given = os.environ.get("NUMBA_CACHE_DIR")
+    user = os.environ.get("XDG_CACHE_HOME") or os.path.expanduser("~/.cache")
+    fallbacks = [package_dir, os.path.join(user, "simpro-sim"), tempfile.gettempdir()]
+    if given:
+        if _writable(given):
+            return given
+        fallback = next((f for f in fallbacks[1:] if _writable(f)), None)
+        say(
+            f"notice: NUMBA_CACHE_DIR={given[:200]} is not a writable folder; the compiled "
+            + (f"step is cached in {fallback}" if fallback else "step is compiled on every run")
+        )
+        return fallback or given
+    return next((f for f in fallbacks if _writable(f)), fallbacks[-1])
+
+
+def _loads(path: Path) -> None:
+    """Load a numba cache file as numba does (``caching.IndexDataCacheFile``)."""
+    with open(path, "rb") as fh:
+        if path.suffix == ".nbi":
+            pickle.load(fh)  # the version
+            stamp, overloads = pickle.loads(fh.read())
+            if not isinstance(overloads, dict):
+                raise ValueError("an index without its table")
+        else:
+            pickle.loads(fh.read())
+
+
+def heal(folder: str, say: Callable[[str], None] = notice) -> list[Path]:
+    """Delete the cache files under ``folder`` that do not load (said, one line
+    each); returns them. Only ``*.nbi`` and ``*.nbc`` files: numba's, in the
+    step's own folder."""
+    removed = []
+    for path in sorted(Path(folder).rglob("*.nb[ci]")):
+        try:
+            _loads(path)
+        except Exception as exc:  # noqa: BLE001 - whatever unpickling a damaged file raises
+            try:
+                path.unlink()
+            except OSError:
+                continue
+            removed.append(path)
+            why = type(exc).__name__
+            say(f"notice: numba cache file {path} is damaged ({why}); the step is compiled again")
+    return removed

@@ -1,0 +1,71 @@
+"""numba's cache of the compiled step: a damaged file is deleted with a notice and
+compiled again; an unusable ``NUMBA_CACHE_DIR`` is said and another folder used."""
+
+from __future__ import annotations
+
+import os
+import pickle
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from simpro_mj.sim import numba_cache
+
+
+def test_a_truncated_cache_file_is_deleted_and_said(tmp_path):
+    good_index = tmp_path / "f-1.py311.nbi"
+    with open(good_index, "wb") as fh:
+        pickle.dump("0.61", fh)
+        fh.write(pickle.dumps(("stamp", {"key": "f-1.py311.1.nbc"})))
+    good = tmp_path / "f-1.py311.1.nbc"
+    good.write_bytes(pickle.dumps(("code", b"\x00" * 1000)))
+    bad = tmp_path / "sub" / "g-2.py311.1.nbc"
+    bad.parent.mkdir()
+    bad.write_bytes(pickle.dumps(("code", b"\x00" * 1000))[:100])  # truncated
+    empty = tmp_path / "g-2.py311.nbi"
+    empty.write_bytes(b"")
+    mine = tmp_path / "notes.txt"
+    mine.write_text("not numba's\n")
+    said: list[str] = []
+    removed = numba_cache.heal(str(tmp_path), said.append)
+    assert sorted(removed) == sorted([bad, empty])
+    assert good.exists() and good_index.exists() and mine.exists()
+    assert len(said) == 2 and all(s.startswith("notice: numba cache file ") for s in said)
+
+
+def test_an_unusable_numba_cache_dir_is_said_and_another_used(tmp_path, monkeypatch):
+    afile = tmp_path / "afile"
+    afile.write_text("x")
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(afile))
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
+    said: list[str] = []
+    base = numba_cache.cache_base(str(tmp_path / "pkg"), said.append)
+    assert base == str(tmp_path / "xdg" / "simpro-sim")
+    assert said == [f"notice: NUMBA_CACHE_DIR={afile} is not a writable folder; the compiled "
+                    f"step is cached in {base}"]  # fmt: skip
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path / "new"))  # made when missing
+    assert numba_cache.cache_base(str(tmp_path / "pkg"), said.append) == str(tmp_path / "new")
+    assert len(said) == 1
+
+
+@pytest.mark.slow
+def test_a_run_after_its_cache_file_was_truncated_heals(tmp_path):
+    """Compiles the step once into a fresh cache (about 25 s of CPU), truncates one
+    object file, and runs again: a notice, then the run, as fresh."""
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "nb"))
+    cmd = [sys.executable, "-m", "simpro_mj.commands.main", "run", "step_pitch.yaml",
+           "--no-plots", "--set", "duration_s=0.2"]  # fmt: skip
+    first = subprocess.run([*cmd, "--out", str(tmp_path / "a")], env=env, capture_output=True,
+                           text=True, timeout=900)  # fmt: skip
+    assert first.returncode in (0, 1), first.stderr
+    files = sorted(Path(tmp_path / "nb").rglob("*.nbc"))
+    assert files
+    files[0].write_bytes(files[0].read_bytes()[:64])
+    again = subprocess.run([*cmd, "--out", str(tmp_path / "b")], env=env, capture_output=True,
+                           text=True, timeout=900)  # fmt: skip
+    assert again.returncode == first.returncode, again.stderr
+    assert f"notice: numba cache file {files[0]} is damaged" in again.stderr
+    a = (tmp_path / "a" / "timeseries.csv").read_bytes()
+    assert (tmp_path / "b" / "timeseries.csv").read_bytes() == a
