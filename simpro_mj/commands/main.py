@@ -236,7 +236,7 @@ def _main(argv) -> int:
         return exc.code if isinstance(exc.code, int) else 2
     try:
         code = int(args._run(args) or 0)
-        sys.stdout.flush()  # a failing stdout (a full disk) is found here, and named
+        getattr(sys.stdout, "check", sys.stdout.flush)()  # a failed stdout, named
         return code
     except (UserInputError, KinematicsError, DesignError) as exc:
         # KinematicsError/DesignError reach here only from a check that did not

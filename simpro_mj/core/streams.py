@@ -25,23 +25,20 @@ class StreamError(OSError):
 
 
 class _Named:
-    """A text stream whose failed writes raise :class:`StreamError` naming it."""
+    """A text stream that remembers its first failed write instead of stopping the
+    command (whose files come first) and raises it, named, at :meth:`check`."""
 
     def __init__(self, raw, name: str):
-        self._raw, self._name = raw, name
+        self._raw, self._name, self._error = raw, name, None
 
-    def _failed(self, exc: OSError):
-        if hung_up():
-            return None  # the terminal is gone: nobody reads it
-        if isinstance(exc, BrokenPipeError):
+    def _failed(self, exc: OSError) -> None:
+        if isinstance(exc, BrokenPipeError) and not hung_up():
             raise exc  # a reader that stopped (| head): exit 141, its own case
-        raise StreamError(exc.errno, exc.strerror or str(exc), f"<{self._name}>") from exc
+        self._error = self._error or exc
 
     def write(self, text):
         try:
             return self._raw.write(text)
-        except StreamError:
-            raise
         except OSError as exc:
             self._failed(exc)
             return len(text)
@@ -49,10 +46,16 @@ class _Named:
     def flush(self):
         try:
             self._raw.flush()
-        except StreamError:
-            raise
         except OSError as exc:
             self._failed(exc)
+
+    def check(self) -> None:
+        """Raise :class:`StreamError` if a write failed (not after SIGHUP: the
+        terminal is gone, nobody reads it)."""
+        self.flush()
+        exc = self._error
+        if exc is not None and not hung_up():
+            raise StreamError(exc.errno, exc.strerror or str(exc), f"<{self._name}>")
 
     def __getattr__(self, name):
         return getattr(self._raw, name)
