@@ -29,7 +29,8 @@ class _Named:
     command (whose files come first) and raises it, named, at :meth:`check`."""
 
     def __init__(self, raw, name: str):
-        self._raw, self._name, self._error = raw, name, None
+        self._raw, self._name = raw, name
+        self._error: OSError | None = None
 
     def _failed(self, exc: OSError) -> None:
         if isinstance(exc, BrokenPipeError) and not hung_up():
