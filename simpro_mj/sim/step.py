@@ -338,28 +338,24 @@ def _cache_dir() -> str:
     numba invalidates a cached function when its own file changes, not when
     a function it calls does (the callee's code is linked into the caller's
     cache entry): a cache keyed by all the step's source files is never
-    stale. Under ``NUMBA_CACHE_DIR`` if set, else next to this package (or
-    the user's cache directory when that is not writable).
+    stale. Under ``NUMBA_CACHE_DIR`` if it is a writable folder (else said),
+    else next to this package, else the user's cache directory
+    (:mod:`simpro_mj.sim.numba_cache`); damaged files are deleted first.
     """
     import os
     import sys
-    import tempfile
 
     from simpro_mj.core.cache import source_digest
+    from simpro_mj.sim.numba_cache import cache_base, heal
 
     # the modules of every compiled function, and the callback's
     files = {sys.modules[f.__module__].__file__ for f in _PLAIN}
     files.add(os.path.join(os.path.dirname(__file__), "callback.py"))
     digest = source_digest(files)
-    base = os.environ.get("NUMBA_CACHE_DIR")
-    if not base:
-        here = os.path.join(os.path.dirname(__file__), "__pycache__")
-        if os.access(os.path.dirname(here), os.W_OK):
-            base = here
-        else:
-            user = os.environ.get("XDG_CACHE_HOME") or os.path.expanduser("~/.cache")
-            base = user if os.access(user, os.W_OK) else tempfile.gettempdir()
-    return os.path.join(base, "simpro-step-" + digest[:16])
+    base = cache_base(os.path.join(os.path.dirname(__file__), "__pycache__"))
+    folder = os.path.join(base, "simpro-step-" + digest[:16])
+    heal(folder)  # a truncated file is deleted (said) and its function compiled again
+    return folder
 
 
 def _module_view(module, env):
