@@ -52,7 +52,7 @@ from .design import (
     printed_design,
     redesigned_design,
 )
-from .step_functions import joint_step
+from .step_functions import JC, joint_step
 
 __all__ = [
     "JointControllers",
@@ -252,8 +252,10 @@ class JointControllers:
             a, b, c, d = leg_state_space(des, self.dt, method)
             blocks.append(np.block([[a, b], [c, d]]))
         aw = ANTI_WINDUP.index(anti_windup)
-        limits = [u_offset, u_min, u_max, aw, self.dt / self.tracking_time]
-        self.step_constants = np.concatenate([limits, self._int_gain, db, np.ravel(blocks)])
+        self.step_constants = JC.pack(
+            off=u_offset, lo=u_min, hi=u_max, kind=aw, aw=self.dt / self.tracking_time,
+            gain=self._int_gain, band=db, m=blocks,
+        )  # fmt: skip
         self._x = np.zeros(3 * _NX)
 
     @property

@@ -35,7 +35,7 @@ import math
 
 import numpy as np
 
-from .step_functions import FS_HEAD, FS_LEN, FS_SUM, FS_Y, filter_step
+from .step_functions import FC, FS, filter_step
 
 __all__ = ["KINDS", "SetpointFilter", "filter_state_space", "leg_times"]
 
@@ -113,8 +113,9 @@ class SetpointFilter:
         # the per-step function's arrays (controllers.step_functions.filter_step): the
         # constants, the state (y, running sums, ring heads) and the ramp's ring
         code = {"none": 0.0, "first_order": 1.0, "zero_cancel": 1.0, "ramp": 2.0}[kind]
-        self.step_constants = np.array([code, *self.n, *np.transpose(self._ab).ravel()])
-        self.step_state = np.zeros(FS_LEN)
+        a, b = np.transpose(self._ab)
+        self.step_constants = FC.pack(kind=code, n=self.n, a=a, b=b)
+        self.step_state = np.zeros(FS.LEN)
         self.ring = np.zeros((3, max(self.n)))
         self._ready = False
 
@@ -122,9 +123,9 @@ class SetpointFilter:
         """At rest at ``q`` (3 floats): the filter's output and memory are ``q``."""
         q = [float(x) for x in q]
         fs = self.step_state
-        fs[FS_Y : FS_Y + 3] = q
-        fs[FS_SUM : FS_SUM + 3] = [x * n for x, n in zip(q, self.n, strict=True)]
-        fs[FS_HEAD : FS_HEAD + 3] = 0.0
+        fs[FS.y : FS.y + 3] = q
+        fs[FS.sum : FS.sum + 3] = [x * n for x, n in zip(q, self.n, strict=True)]
+        fs[FS.head : FS.head + 3] = 0.0
         for i, n in enumerate(self.n):
             self.ring[i, :n] = q[i]
         self._ready = True

@@ -232,25 +232,25 @@ class TaskSpaceController:
         if not (np.all(np.isfinite(db)) and np.all(db >= 0)):
             raise ValueError(f"dead_band must be 1 or 3 finite widths >= 0, got {dead_band!r}")
         self.dead_band = db.copy()
-        # in the order of controllers.step_functions.TC_*
-        flags = [_MODE_CODES[mode], 2.0 if outer_law == "PI" else 1.0, self.clamp, lag == "joints"]
-        tg = self.period * self.gains  # T K K_I per axis
-        scalars = [self.average, self.model_tau, self._beta, self.pi_zero]
-        tail = [*tg, self.margin, *self.geometry.home, *db]
-        self.step_constants = np.array([*flags, *scalars, *tail], dtype=float)
-        self.step_state = np.zeros(sf.T_LEN)
+        self.step_constants = sf.TC.pack(
+            mode=_MODE_CODES[mode], law=2.0 if outer_law == "PI" else 1.0, clamp=self.clamp,
+            lagj=lag == "joints", avg=self.average, tau=self.model_tau, beta=self._beta,
+            piz=self.pi_zero, tg=self.period * self.gains, margin=self.margin,
+            home=self.geometry.home, db=db,
+        )  # fmt: skip
+        self.step_state = np.zeros(sf.TS.LEN)
         self.reset()  # raises if home is not reachable
 
     # ------------------------------------------------------------------
     @property
     def pose_command(self) -> np.ndarray:
         """The integrated pose ``x_c`` (roll rad, pitch rad, h m) whose IK is ``q_d`` (copy)."""
-        return self.step_state[sf.T_XC : sf.T_XC + 3].copy()
+        return self.step_state[sf.TS.xc : sf.TS.xc + 3].copy()
 
     @property
     def correction(self) -> np.ndarray:
         """The integrated pose correction ``c`` of ``mode="feedforward"`` (copy)."""
-        return self.step_state[sf.T_CORR : sf.T_CORR + 3].copy()
+        return self.step_state[sf.TS.corr : sf.TS.corr + 3].copy()
 
     def is_due(self, inner_step: int) -> bool:
         """True on the inner steps at which the outer loop runs (every ``ratio`` steps)."""
@@ -266,10 +266,10 @@ class TaskSpaceController:
         q = check_reachable(pose0, self.geometry, self.margin)
         ts = self.step_state
         ts[:] = 0.0
-        ts[sf.T_XC : sf.T_XC + 3] = pose0
-        ts[sf.T_QD : sf.T_QD + 3] = q
-        ts[sf.T_MODEL : sf.T_MODEL + 3] = pose0
-        ts[sf.T_REFCMD : sf.T_REFCMD + 3] = pose0
+        ts[sf.TS.xc : sf.TS.xc + 3] = pose0
+        ts[sf.TS.qd : sf.TS.qd + 3] = q
+        ts[sf.TS.model : sf.TS.model + 3] = pose0
+        ts[sf.TS.refcmd : sf.TS.refcmd + 3] = pose0
         return q
 
     def update(self, pose_ref, pose_meas, hold: bool = False, q_meas=None) -> np.ndarray:
@@ -287,7 +287,7 @@ class TaskSpaceController:
         args = (*_floats(pose_ref, pose_meas, qm), bool(hold), ts, tc, g)
         err = sf.outer_update(*args)
         raise_step_error(err, pose_ref, pose_meas, self.geometry, self.margin)
-        return ts[sf.T_QD : sf.T_QD + 3].copy()
+        return ts[sf.TS.qd : sf.TS.qd + 3].copy()
 
     def feedforward(self, pose_ref, pose_meas=None, q_meas=None) -> np.ndarray:
         """``q_d = IK(y_d + c)`` of ``mode="feedforward"`` for this inner step (new array).
@@ -306,7 +306,7 @@ class TaskSpaceController:
         args = (*_floats(pose_ref, y, qm), acc, ts, tc, g)
         err = sf.ff_inner(*args)
         raise_step_error(err, pose_ref, pose_meas, self.geometry, self.margin)
-        return ts[sf.T_QD : sf.T_QD + 3].copy()
+        return ts[sf.TS.qd : sf.TS.qd + 3].copy()
 
 
 def raise_step_error(err: int, pose_ref, pose_meas, geometry, margin: float = 0.0) -> None:

@@ -53,10 +53,10 @@ YQ, YP = 27, 30  # what the controllers see (faults act here)
 QDES, QR, U, UA, F, PCMD = 33, 36, 39, 42, 45, 48  # q_d, q_ref, volts (own, applied), N, x_c
 SAT = 51  # feed-forward: a valve at its rail since the last outer step
 SS = 52  # the sensors' own state (plant.step_functions.SS_*)
-TS = SS + ps.SS_LEN  # the outer loop's state (controllers.step_functions.T_*)
-JX = TS + cs.T_LEN  # the joint controllers' 9 states
-FS = JX + 9  # the set-point filter's state (controllers.step_functions.FS_*)
-AST = FS + cs.FS_LEN  # the actuators' state (plant.step_functions.A_*)
+TS = SS + ps.SS_LEN  # the outer loop's state (controllers.step_functions.TS)
+JX = TS + cs.TS.LEN  # the joint controllers' 9 states
+FS = JX + 9  # the set-point filter's state (controllers.step_functions.FS)
+AST = FS + cs.FS.LEN  # the actuators' state (plant.step_functions.A_*)
 RING = AST + ps.A_LEN  # the ramp filter's ring (3 x n_max)
 
 #: STATUS values: registered but not stepping, stepping, stopped on an error
@@ -66,17 +66,17 @@ ERR_FORCE, ERR_LOOP, ERR_WARNING = 5, 6, 7
 
 # ------------------------------------------------------------ constants C
 DT, NSTEPS, DEC, OUTER, HOLD_SAT, HAS_UFF, HEAD, LOOP_BOUND = range(8)
-FC = 8  # the set-point filter's constants (controllers.step_functions.FC_*)
-JC = FC + cs.FC_LEN  # the joint controllers' (controllers.step_functions.J_*)
+FC = 8  # the set-point filter's constants (controllers.step_functions.FC)
+JC = FC + cs.FC.LEN  # the joint controllers' (controllers.step_functions.JC)
 # the state read: the slides' qpos and dof, the platform site's xmat and xpos (z), the
 # closed loops' site pairs (8 at most), the head sensors, the slides' motors
-IQ = JC + cs.J_LEN
+IQ = JC + cs.JC.LEN
 IV, IMAT, IH, NPAIR, PAIRS = IQ + 3, IQ + 6, IQ + 7, IQ + 8, IQ + 9
 IHA, IHG, ICTRL = PAIRS + 16, PAIRS + 17, PAIRS + 18
 SC = ICTRL + 3
 TC = SC + ps.SC_LEN
-GEOM = TC + cs.TC_LEN
-AC = GEOM + cs.GEOM_LEN  # the actuators' constants (plant.step_functions.AC_*)
+GEOM = TC + cs.TC.LEN
+AC = GEOM + cs.GEOM.LEN  # the actuators' constants (plant.step_functions.AC_*)
 MAX_PAIRS = 8
 
 #: the log's columns (simpro_mj.sim.result.COLUMNS), in order
@@ -109,8 +109,8 @@ def control(k, S, C, ref, qj, uff):
     and the applied ``UA``, equal unless a fault overrides them) and the
     commanded pose.
     """
-    ts, tc, g = S[TS : TS + cs.T_LEN], C[TC : TC + cs.TC_LEN], C[GEOM : GEOM + cs.GEOM_LEN]
-    mode = tc[cs.TC_MODE]
+    ts, tc, g = S[TS : TS + cs.TS.LEN], C[TC : TC + cs.TC.LEN], C[GEOM : GEOM + cs.GEOM.LEN]
+    mode = tc[cs.TC.mode]
     y0, y1, y2 = S[YP], S[YP + 1], S[YP + 2]
     m0, m1, m2 = S[YQ], S[YQ + 1], S[YQ + 2]
     err = 0
@@ -125,20 +125,20 @@ def control(k, S, C, ref, qj, uff):
             S[SAT] = 0.0
         elif mode == cs.MODE_FF:
             err = cs.ff_inner(ref[k, 0], ref[k, 1], ref[k, 2], y0, y1, y2, m0, m1, m2, 2, ts, tc, g)
-        S[QDES : QDES + 3] = ts[cs.T_QD : cs.T_QD + 3]
-        S[PCMD : PCMD + 3] = ts[cs.T_XC : cs.T_XC + 3]
+        S[QDES : QDES + 3] = ts[cs.TS.qd : cs.TS.qd + 3]
+        S[PCMD : PCMD + 3] = ts[cs.TS.xc : cs.TS.xc + 3]
     if err:
         return err
     qr, ring = S[QR : QR + 3], S[RING:].reshape(3, -1)
     cs.filter_step(
-        C[FC : FC + cs.FC_LEN], S[QDES], S[QDES + 1], S[QDES + 2], S[FS : FS + 9], ring, qr
+        C[FC : FC + cs.FC.LEN], S[QDES], S[QDES + 1], S[QDES + 2], S[FS : FS + cs.FS.LEN], ring, qr
     )
     f0 = f1 = f2 = 0.0
     if C[HAS_UFF] != 0.0:
         f0, f1, f2 = uff[k, 0], uff[k, 1], uff[k, 2]
-    jc = C[JC : JC + cs.J_LEN]
+    jc = C[JC : JC + cs.JC.LEN]
     cs.joint_step(S[JX : JX + 9], jc, qr[0] - m0, qr[1] - m1, qr[2] - m2, f0, f1, f2, S[U : U + 3])
-    lo, hi = jc[1], jc[2]
+    lo, hi = jc[cs.JC.lo], jc[cs.JC.hi]
     S[UA : UA + 3] = S[U : U + 3]
     if C[HOLD_SAT] != 0.0 and S[SAT] == 0.0:
         for i in range(3):
@@ -252,8 +252,8 @@ def build(sim, loop_bound: float, noise_row, walk_row) -> tuple[np.ndarray, np.n
     C[HOLD_SAT] = 1.0 if sim.mode == "feedforward" and sim.hold_on_saturation else 0.0
     C[HAS_UFF] = 1.0 if sim.u_ff is not None else 0.0
     C[LOOP_BOUND] = loop_bound
-    C[FC : FC + cs.FC_LEN] = filt.step_constants
-    C[JC : JC + cs.J_LEN] = joint.step_constants
+    C[FC : FC + cs.FC.LEN] = filt.step_constants
+    C[JC : JC + cs.JC.LEN] = joint.step_constants
     C[IQ : IQ + 3], C[IV : IV + 3] = idx.slide_qpos, idx.slide_dof
     C[IMAT], C[IH] = 9 * int(idx.site_p), 3 * int(idx.site_p) + 2
     pairs = [(3 * int(a), 3 * int(b)) for a, b in idx.connect_sites]
@@ -265,8 +265,8 @@ def build(sim, loop_bound: float, noise_row, walk_row) -> tuple[np.ndarray, np.n
         C[HEAD], C[IHA], C[IHG] = 1.0, idx.sensor["head_accel"].start, idx.sensor["head_gyro"].start
     C[ICTRL : ICTRL + 3] = idx.actuators
     C[SC : SC + ps.SC_LEN] = sim.sensor_cfg.step_constants
-    C[TC : TC + cs.TC_LEN] = task.step_constants
-    C[GEOM : GEOM + cs.GEOM_LEN] = task.step_geometry
+    C[TC : TC + cs.TC.LEN] = task.step_constants
+    C[GEOM : GEOM + cs.GEOM.LEN] = task.step_geometry
     C[AC:] = act.step_constants
     S = np.zeros(RING + 3 * max(filt.n))
     S[STATUS], S[SUPPLY_LOG] = IDLE, act.params.p_supply
@@ -279,10 +279,10 @@ def build(sim, loop_bound: float, noise_row, walk_row) -> tuple[np.ndarray, np.n
     ss[ps.SS_IMU : ps.SS_IMU + 2] = pose[:2]
     # no acceleration at the first reading (no IMU site positions)
     S[WALK_M] += ps.sample_sensors(0, True, q, pose, None, noise_row, walk_row, sc, ss, qm, pm)
-    S[TS : TS + cs.T_LEN] = task.step_state
-    S[PCMD : PCMD + 3] = task.step_state[cs.T_XC : cs.T_XC + 3]
+    S[TS : TS + cs.TS.LEN] = task.step_state
+    S[PCMD : PCMD + 3] = task.step_state[cs.TS.xc : cs.TS.xc + 3]
     S[JX : JX + 9] = joint._x
-    S[FS : FS + cs.FS_LEN] = filt.step_state
+    S[FS : FS + cs.FS.LEN] = filt.step_state
     S[RING:].reshape(3, -1)[:] = filt.ring
     return S, C
 
