@@ -5,13 +5,10 @@ results. Every refusal leaves every file byte-identical."""
 
 from __future__ import annotations
 
-import os
-import subprocess
-import sys
-import time
 from pathlib import Path
 
 import pytest
+from test_nothing_lost import _lock_held  # another process holding a lock
 
 from simpro_mj.commands.main import main
 from simpro_mj.core.errors import UserInputError
@@ -60,19 +57,7 @@ def test_a_users_hidden_files_in_a_result_are_not_taken_for_ours(tmp_path):
 
 def test_a_folder_another_process_writes_inside_is_busy(tmp_path):
     q = tmp_path / "q"
-    ready = tmp_path / "ready"
-    code = (
-        "import sys; from pathlib import Path; from simpro_mj.report import folders\n"
-        f"with folders.locked({str(q / 'sub')!r}):\n"
-        f"    Path({str(ready)!r}).touch()\n"
-        "    sys.stdin.readline()\n"
-    )
-    env = dict(os.environ, PYTHONPATH=str(ROOT))
-    holder = subprocess.Popen([sys.executable, "-c", code], stdin=subprocess.PIPE, env=env)
-    try:
-        while not ready.exists():  # readiness signal, no fixed sleep
-            assert holder.poll() is None, "lock holder died"
-            time.sleep(0.01)
+    with _lock_held(q / "sub", tmp_path / "ready") as holder:
         (q / "sub").mkdir()
         (q / "sub" / "timeseries.csv").write_text("time_s\n0\n")
         for out in (q, q / "sub"):
@@ -80,9 +65,6 @@ def test_a_folder_another_process_writes_inside_is_busy(tmp_path):
                 with folders.claim(out):
                     pass
         assert (q / "sub" / "timeseries.csv").exists()
-    finally:
-        holder.communicate(b"\n", timeout=30)
-    assert holder.returncode == 0
 
 
 def test_a_complete_result_named_partial_is_kept(tmp_path):
