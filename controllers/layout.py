@@ -26,6 +26,7 @@ with it.
 from __future__ import annotations
 
 from collections import namedtuple
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -43,6 +44,11 @@ class Layout(tuple):
 
     __slots__ = ()
     sizes: dict = {}
+
+    if TYPE_CHECKING:  # the fields are made by layout() at import: each one an offset
+        LEN: int
+
+        def __getattr__(self, name: str) -> int: ...
 
     def pack(self, out=None, **values) -> np.ndarray:
         """The block as a new float64 array (or into ``out``) from every field's value.
@@ -98,6 +104,6 @@ def layout(name: str, **fields) -> Layout:
             raise ValueError(f"layout {name}.{f}: size {n!r}; allowed: an int >= 1 or None")
         offsets.append(off)
         off += n or 0
-    base = namedtuple(name, [*names, "LEN"])
+    base = namedtuple(name, [*names, "LEN"])  # type: ignore[misc]  # a name made at run time
     cls = type(name, (base, Layout), {"__slots__": (), "sizes": dict(fields)})
     return cls(*offsets, off)

@@ -38,7 +38,8 @@ _body = st.compiled().callback_step
 
 @intrinsic
 def _as_ptr(typingctx, addr):
-    """An int64 address as a ``void*``."""
+    """An int64 address as a ``void*`` (called with the address alone: numba supplies
+    ``typingctx``, which the type checker cannot know, hence the calls' ignores)."""
 
     def codegen(context, builder, signature, args):
         return builder.inttoptr(args[0], context.get_value_type(types.voidptr))
@@ -49,14 +50,14 @@ def _as_ptr(typingctx, addr):
 @njit(cache=True)
 def _flat(a, i):
     """Array ``i`` of a slot (``a``: its (address, size, columns) triples) as 1-D float64."""
-    return carray(_as_ptr(a[3 * i]), (a[3 * i + 1],), np.float64)
+    return carray(_as_ptr(a[3 * i]), (a[3 * i + 1],), np.float64)  # type: ignore[call-arg]
 
 
 @njit(cache=True)
 def _rows(a, i):
     """Array ``i`` of a slot as rows of float64."""
     n = a[3 * i + 2]
-    return carray(_as_ptr(a[3 * i]), (a[3 * i + 1] // n, n), np.float64)
+    return carray(_as_ptr(a[3 * i]), (a[3 * i + 1] // n, n), np.float64)  # type: ignore[call-arg]
 
 
 @cfunc(types.void(types.int64, types.voidptr), cache=True)
@@ -68,7 +69,7 @@ def entry(key, registry):
             a = reg[s * st.SLOT + 1 : (s + 1) * st.SLOT]
             S, C, qpos, qvel = _flat(a, 0), _flat(a, 1), _flat(a, 2), _flat(a, 3)
             xpos, xmat, sd, ctrl = _flat(a, 4), _flat(a, 5), _flat(a, 6), _flat(a, 7)
-            warn = carray(_as_ptr(a[24]), (a[25],), np.int32)
+            warn = carray(_as_ptr(a[24]), (a[25],), np.int32)  # type: ignore[call-arg]
             ref, qj, uff, noise = _rows(a, 9), _rows(a, 10), _rows(a, 11), _rows(a, 12)
             walk, log, qlog, hlog = _rows(a, 13), _rows(a, 14), _rows(a, 15), _rows(a, 16)
             _body(S, C, qpos, qvel, xpos, xmat, sd, ctrl, warn, ref, qj, uff, noise, walk, log,

@@ -10,6 +10,7 @@ kept), so another model stepping in this process meanwhile reads zero timers.
 from __future__ import annotations
 
 import threading
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -19,7 +20,7 @@ from simpro_mj.sim import step as st
 __all__ = ["Registration"]
 
 _reg_lock = threading.Lock()
-_installed = {"cb": None, "count": 0, "previous": None, "previous_time": None}
+_installed: dict[str, Any] = {"cb": None, "count": 0, "previous": None, "previous_time": None}
 
 
 def _make_callback():
@@ -62,7 +63,7 @@ class Registration:
         i = st.SLOT_ARRAYS.index("warn")
         slot[2 + 3 * i] = 2 * warn.size  # the pairs, as int32
         self.slot = slot
-        self.index = None
+        self.index: int | None = None
 
     def __enter__(self):
         with _reg_lock:
@@ -89,6 +90,7 @@ class Registration:
     def __exit__(self, *exc):
         with _reg_lock:
             s = self.index
+            assert s is not None  # entered
             st.REGISTRY[s * st.SLOT : (s + 1) * st.SLOT] = 0
             self.index = None
             _installed["count"] -= 1

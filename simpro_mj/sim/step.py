@@ -317,7 +317,7 @@ def compiled():
         if _compiled is None:
             import numba  # the optional extra: imported on first use
 
-            numba.config.CACHE_DIR = _cache_dir()
+            numba.config.CACHE_DIR = _cache_dir()  # type: ignore[attr-defined]
             env: dict = {}
             for f in _PLAIN:
                 glob = dict(f.__globals__)

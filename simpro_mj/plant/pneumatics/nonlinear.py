@@ -59,6 +59,7 @@ chambers, forces), the co-simulation's step; this class configures it.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 
@@ -72,7 +73,15 @@ __all__ = ["NonlinearActuators"]
 class ArrayStep:
     """The actuator classes' :meth:`step`: their per-step function on (3,) arrays."""
 
-    _dt = None
+    _dt: float | None = None
+    #: the class's per-step function and the arrays it reads and updates
+    step_function: Callable[..., None]
+    step_state: np.ndarray
+    step_constants: np.ndarray
+
+    def set_timestep(self, dt: float) -> None:
+        """The step's constants that depend on ``dt`` (s): each class's own."""
+        raise NotImplementedError
 
     def step(self, u_volts, q, qdot, dt: float) -> np.ndarray:
         """Advance the actuators by ``dt`` (s); return the slide forces (N).

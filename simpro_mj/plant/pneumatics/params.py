@@ -14,6 +14,7 @@ import copy
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 
@@ -217,7 +218,7 @@ def _scalar(
 ) -> float:
     if not why:
         lo, hi, open_lo, why = _PLAUSIBLE.get(path, (lo, hi, open_lo, why))
-    node = tree
+    node: Any = tree
     for part in path.split("."):
         node = node[part]
     try:
@@ -477,7 +478,7 @@ def fill_linear(P: PneumaticParams, linear_plants=None) -> PneumaticParams:
     caller's eqs. 34-35 under its units reading). Raises
     :class:`UserInputError` if a coefficient stays undefined.
     """
-    have = {"lin_b": P.lin_b, "lin_a1": P.lin_a1, "lin_a0": P.lin_a0}
+    have: dict[str, Any] = {"lin_b": P.lin_b, "lin_a1": P.lin_a1, "lin_a0": P.lin_a0}
     keys = {"lin_b": "b_m_per_s3_v", "lin_a1": "a1_per_s", "lin_a0": "a0_per_s2"}
     for i, name in enumerate(have):
         if have[name] is None:
