@@ -35,7 +35,8 @@ def test_scenario_values_override_the_preset():
     sc = load_scenario("step_pitch", ["plant.payload.mass_kg=40"])
     assert sc["plant"]["payload"]["mass_kg"] == 40.0
     sc = load_scenario("step_pitch", ["actuator.pneumatics.valve.underlap_fraction=0.03"])
-    assert sc["actuator"]["pneumatics"]["valve"]["underlap_fraction"] == 0.03
+    # one number for a per-leg value: every leg's (the scenario's --set broadcast)
+    assert sc["actuator"]["pneumatics"]["valve"]["underlap_fraction"] == [0.03, 0.03, 0.03]
     assert sc["actuator"]["pneumatics"]["valve"]["sonic_conductance_dm3_per_s_bar"] == 2.85
 
 

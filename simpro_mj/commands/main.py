@@ -66,6 +66,7 @@ COMMANDS = {
     "live": "simpro_mj.commands.live",
     "send": "simpro_mj.commands.send",
     "list": "simpro_mj.commands.listing",
+    "show": "simpro_mj.commands.show",
 }
 
 

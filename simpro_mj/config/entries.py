@@ -10,7 +10,7 @@ What they mean: :mod:`simpro_mj.config.scenario` (module docstring) and
 
 from __future__ import annotations
 
-from typing import Annotated, Any, Literal
+from typing import Annotated, ClassVar, Literal
 
 from pydantic import BeforeValidator, Field, model_validator
 
@@ -21,12 +21,9 @@ from simpro_mj.config.rules import (
     SINE_PERIOD_RANGE_S,
     Entry,
     Problem,
-    below,
-    closest,
-    integer,
-    number,
-    tagged,
-    tagged_list,
+    Real,
+    Whole,
+    none_as_empty,
 )
 
 __all__ = ["COMPONENTS", "FAULTS", "COMPONENT_TYPES", "FAULT_TYPES", "Components", "Faults"]
@@ -34,77 +31,65 @@ __all__ = ["COMPONENTS", "FAULTS", "COMPONENT_TYPES", "FAULT_TYPES", "Components
 #: Largest sensor bias of a fault: 90 deg (imu), 500 mm (a whole stroke).
 _BIAS_BOUND = {"bias_deg": 90.0, "bias_mm": 500.0}
 
-Number = Annotated[float, BeforeValidator(number)]
-OptionalNumber = Annotated[float | None, BeforeValidator(lambda v: v if v is None else number(v))]
-
-
-def _numbers(value: Any) -> list[float]:
-    if not isinstance(value, (list, tuple)) or not value:
-        raise Problem.wrong_type(value, "a non-empty list of numbers")
-    return [below(number, v, f"[{i}]") for i, v in enumerate(value)]
+Time = Annotated[Real, Field(ge=0, json_schema_extra={"unit": "s"})]
+NumberList = Annotated[list[Real], Field(min_length=1)]
 
 
 # ------------------------------------------------------------------ set-point components
 
 
-class Step(Entry):
+class ComponentEntry(Entry):
+    """A set-point component (summed on its axis)."""
+
+    noun: ClassVar[str] = "component"
+
+
+class Step(ComponentEntry):
     """``value`` from ``time_s`` on (t >= time_s)."""
 
     type: Literal["step"]
-    time_s: Number
-    value: Number
-
-    @model_validator(mode="after")
-    def _times(self):
-        if self.time_s < 0:
-            raise Problem.invalid(self.time_s, ">= 0 s", ".time_s")
-        return self
+    time_s: Time
+    value: Real
 
 
-class Ramp(Entry):
+class Ramp(ComponentEntry):
     """0 before ``start_s``, linear to ``value`` at ``end_s``, held after."""
 
     type: Literal["ramp"]
-    start_s: Number
-    end_s: Number
-    value: Number
+    start_s: Time
+    end_s: Real
+    value: Real
 
     @model_validator(mode="after")
     def _times(self):
-        if self.start_s < 0:
-            raise Problem.invalid(self.start_s, ">= 0 s", ".start_s")
         if self.end_s <= self.start_s:
             raise Problem.invalid(self.end_s, f"> start_s = {self.start_s} s", ".end_s")
         return self
 
 
-class Sine(Entry):
+class Sine(ComponentEntry):
     """``amplitude sin(2 pi (t - start_s) / period_s + phase)`` for ``start_s <= t < end_s``."""
 
     type: Literal["sine"]
-    amplitude: Number
-    period_s: Number
-    phase_deg: Number = 0.0
-    start_s: Number = 0.0
-    end_s: OptionalNumber = None
+    amplitude: Real
+    period_s: Real = Field(
+        ge=SINE_PERIOD_RANGE_S[0],
+        le=SINE_PERIOD_RANGE_S[1],
+        description="two physics steps (the 1 ms grid's Nyquist limit) at least",
+        json_schema_extra={"unit": "s"},
+    )
+    phase_deg: Real = 0.0
+    start_s: Time = 0.0
+    end_s: Real | None = None
 
     @model_validator(mode="after")
     def _times(self):
-        lo, hi = SINE_PERIOD_RANGE_S
-        if not lo <= self.period_s <= hi:
-            allowed = f"> 0 s: {lo:g} s (two physics steps) .. {hi:g} s"
-            raise Problem.invalid(self.period_s, allowed, ".period_s")
-        if self.start_s < 0:
-            raise Problem.invalid(self.start_s, ">= 0 s", ".start_s")
         if self.end_s is not None and self.end_s <= self.start_s:
             raise Problem.invalid(self.end_s, f"null or > start_s = {self.start_s} s", ".end_s")
         return self
 
 
-NumberList = Annotated[list[float], BeforeValidator(_numbers)]
-
-
-class Table(Entry):
+class Table(ComponentEntry):
     """Piecewise linear through the points, the first/last value held outside."""
 
     type: Literal["table"]
@@ -127,48 +112,24 @@ class Table(Entry):
 
 
 COMPONENTS: dict[str, type[Entry]] = {"step": Step, "ramp": Ramp, "sine": Sine, "table": Table}
-_COMPONENT_EXAMPLE = "[{type: step, time_s: 1.0, value: 3.0}]"
-Component = Annotated[
-    Annotated[Step | Ramp | Sine | Table, Field(discriminator="type")],
-    tagged(COMPONENTS, "component", _COMPONENT_EXAMPLE),
-]
-Components = Annotated[list[Component], tagged_list("component", _COMPONENT_EXAMPLE)]
+Component = Annotated[Step | Ramp | Sine | Table, Field(discriminator="type")]
+#: A set-point axis: components such as [{type: step, time_s: 1.0, value: 3.0}] (null: none).
+Components = Annotated[list[Component], BeforeValidator(none_as_empty)]
 
 
 # ------------------------------------------------------------------ faults
 
-
-def _leg(value: Any) -> int:
-    leg = integer(value)
-    if not 1 <= leg <= 3:
-        raise Problem.invalid(value, "a leg number 1, 2 or 3")
-    return leg
-
-
-Leg = Annotated[int, BeforeValidator(_leg)]
-OptionalLeg = Annotated[int | None, BeforeValidator(lambda v: v if v is None else _leg(v))]
-
-
-def _choice(choices: tuple, nullable: bool):
-    def check(value):
-        if value is None and nullable:
-            return None
-        if value not in choices:
-            raise Problem.invalid(value, f"one of {list(choices)}{closest(str(value), choices)}")
-        return value
-
-    return BeforeValidator(check)
+Leg = Annotated[Whole, Field(ge=1, le=3, description="a leg number 1, 2 or 3")]
 
 
 class Fault(Entry):
     """A scheduled event from ``time_s`` (>= 0) on (:mod:`simpro_mj.plant.faults`)."""
 
-    time_s: Number
+    noun: ClassVar[str] = "fault"
+    time_s: Time
 
     @model_validator(mode="after")
     def _window(self):
-        if self.time_s < 0:
-            raise Problem.invalid(self.time_s, ">= 0 s", ".time_s")
         end = getattr(self, "end_s", None)
         if end is not None and end <= self.time_s:
             raise Problem.invalid(end, f"null or > time_s = {self.time_s} s", ".end_s")
@@ -177,34 +138,23 @@ class Fault(Entry):
 
 class SupplyDrop(Fault):
     type: Literal["supply_drop"]
-    pressure_bar_gauge: Number
-    ramp_s: Number = 0.0
-
-    @model_validator(mode="after")
-    def _ramp(self):
-        if self.ramp_s < 0:
-            raise Problem.invalid(self.ramp_s, ">= 0 s", ".ramp_s")
-        return self
+    pressure_bar_gauge: Real
+    ramp_s: Time = 0.0
 
 
 class ValveStuck(Fault):
     type: Literal["valve_stuck"]
     leg: Leg
-    voltage_v: Number
-    end_s: OptionalNumber = None
-
-    @model_validator(mode="after")
-    def _voltage(self):
-        if not 0.0 <= self.voltage_v <= 10.0:
-            raise Problem.invalid(self.voltage_v, "0..10 V (the MPYE's input range)", ".voltage_v")
-        return self
+    voltage_v: Real = Field(ge=0, le=10, description="the MPYE's input range",
+                            json_schema_extra={"unit": "V"})  # fmt: skip
+    end_s: Real | None = None
 
 
 class SensorFault(Fault):
-    sensor: Annotated[str, _choice(FAULT_SENSORS, nullable=False)]
-    leg: OptionalLeg = None
-    axis: Annotated[str | None, _choice(FAULT_AXES, nullable=True)] = None
-    end_s: OptionalNumber = None
+    sensor: Literal[FAULT_SENSORS]
+    leg: Leg | None = None
+    axis: Literal[FAULT_AXES] | None = None
+    end_s: Real | None = None
 
     @model_validator(mode="after")
     def _which(self):
@@ -222,19 +172,13 @@ class SensorFrozen(SensorFault):
 
 class SensorDropout(SensorFault):
     type: Literal["sensor_dropout"]
-    probability: Number = 1.0
-
-    @model_validator(mode="after")
-    def _probability(self):
-        if not 0.0 < self.probability <= 1.0:
-            raise Problem.invalid(self.probability, "0 < probability <= 1", ".probability")
-        return self
+    probability: Real = Field(1.0, gt=0, le=1, description="that a sample is lost")
 
 
 class SensorBias(SensorFault):
     type: Literal["sensor_bias"]
-    bias_mm: OptionalNumber = None
-    bias_deg: OptionalNumber = None
+    bias_mm: Real | None = None
+    bias_deg: Real | None = None
 
     @model_validator(mode="after")
     def _bias(self):
@@ -253,8 +197,8 @@ class SensorBias(SensorFault):
 class PotentiometerFailure(Fault):
     type: Literal["potentiometer_failure"]
     leg: Leg
-    mode: Annotated[str, _choice(POT_MODES, nullable=False)] = "open"
-    end_s: OptionalNumber = None
+    mode: Literal[POT_MODES] = "open"
+    end_s: Real | None = None
 
 
 FAULTS: dict[str, type[Entry]] = {
@@ -265,15 +209,12 @@ FAULTS: dict[str, type[Entry]] = {
     "sensor_bias": SensorBias,
     "potentiometer_failure": PotentiometerFailure,
 }
-_FAULT_EXAMPLE = "[{type: supply_drop, time_s: 5.0, pressure_bar_gauge: 2.0}]"
 AnyFault = Annotated[
-    Annotated[
-        SupplyDrop | ValveStuck | SensorFrozen | SensorDropout | SensorBias | PotentiometerFailure,
-        Field(discriminator="type"),
-    ],
-    tagged(FAULTS, "fault", _FAULT_EXAMPLE),
+    SupplyDrop | ValveStuck | SensorFrozen | SensorDropout | SensorBias | PotentiometerFailure,
+    Field(discriminator="type"),
 ]
-Faults = Annotated[list[AnyFault], tagged_list("fault", _FAULT_EXAMPLE)]
+#: Scheduled faults such as [{type: supply_drop, time_s: 5.0, pressure_bar_gauge: 2.0}].
+Faults = Annotated[list[AnyFault], BeforeValidator(none_as_empty)]
 
 #: Set-point component and fault types: required keys, optional keys with their defaults.
 COMPONENT_TYPES = {k: (m.required(), m.optional()) for k, m in COMPONENTS.items()}

@@ -1,42 +1,32 @@
 """Typed scenario models (pydantic v2): one model per block, validated once at the edge.
 
-The models hold the scenario: every key is a field with its default (the one
-source of every default and of every leaf's type, :class:`~simpro_mj.config.rules.Block`;
-the plant's blocks, :mod:`simpro_mj.config.plant_blocks`, take theirs from the
-plant), its range or enumeration (one tuple each, imported from the module
-that uses it: ``controllers``, ``simpro_mj.plant.pneumatics``), the tagged
-unions (:mod:`simpro_mj.config.entries`) and the cross-field rules.
-:func:`simpro_mj.config.scenario.load_scenario` merges a file and its ``--set``
-overrides over the defaults as a plain tree
-(:data:`~simpro_mj.config.defaults.DEFAULT_SCENARIO`, ``Scenario.defaults()``)
-and validates the result with :class:`Scenario`; the ``setpoint.cueing``
-block (:class:`Cueing`), present or not, lists its own keys and defaults.
-``Scenario.model_validate(tree).model_dump()`` is the resolved scenario, the
-plain dict the other rooms read and ``scenario_hash`` hashes.
+Every key of a scenario is a field here (or in :mod:`~simpro_mj.config.plant_blocks`,
+:mod:`~simpro_mj.config.pneumatics`, :mod:`~simpro_mj.config.entries`,
+:mod:`~simpro_mj.config.cue_models`), declared with :func:`~simpro_mj.config.rules.param`:
+its default, unit, allowed range (pydantic's own constraints) and one line of
+meaning, which are what ``simpro-sim show`` prints and what a refusal says.
+Choices are ``Literal`` over the tuple of the module that uses them
+(``controllers``, ``simpro_mj.plant``); the set-point components and faults
+are discriminated unions; the rules across fields are model validators.
 
-About 720 lines, over the project's ~500: the scenario's schema in one place
-(controller blocks, the cueing block's models, the cross-field rules); the
-cueing models are the piece to move out next if it grows.
+:func:`simpro_mj.config.scenario.load_scenario` merges a file and its ``--set``
+overrides over the defaults (``Scenario.defaults()``) and validates the result
+with :class:`Scenario`; ``model_dump()`` of it is the resolved scenario, the
+plain dict that ``scenario.yaml`` holds and ``scenario_hash`` hashes.
 """
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
-from typing import Annotated, Any, ClassVar
+from typing import Annotated, Any, Literal
 
 from pydantic import (
     AfterValidator,
-    BaseModel,
     BeforeValidator,
-    ConfigDict,
     Field,
-    SerializeAsAny,
-    SkipValidation,
+    StrictBool,
+    StrictStr,
     ValidationError,
-    ValidationInfo,
-    create_model,
-    field_validator,
     model_serializer,
     model_validator,
 )
@@ -46,26 +36,13 @@ from controllers.design import READINGS as PAPER_UNITS
 from controllers.design import VARIANTS as INNER_VARIANTS
 from controllers.errors import DesignError
 from controllers.joint import METHODS as DISCRETISATIONS
-from controllers.mpc_cueing import MpcParamError
 from controllers.setpoint_filter import KINDS as SETPOINT_FILTERS
 from controllers.task_space import INTEGRATORS
 from controllers.task_space import LAGS as FEEDFORWARD_LAGS
-from controllers.washout import WashoutParamError
-from simpro_mj.config.cueing import (
-    ALGORITHMS,
-    SINE_CHANNELS,
-    default_parameters,
-    manoeuvre_spec,
-    washout_params,
-)
+from simpro_mj.config.cue_models import Cueing, check_cueing
 from simpro_mj.config.entries import Components, Faults
-from simpro_mj.config.plant_blocks import (
-    ACTUATOR_MODELS,
-    Actuator,
-    PlantBlock,
-    SensorsBlock,
-    check_pneumatics,
-)
+from simpro_mj.config.plant_blocks import Actuator, PlantBlock, SensorsBlock
+from simpro_mj.config.pneumatics import check_pneumatics
 from simpro_mj.config.presets import DEFAULT_PRESET
 from simpro_mj.config.rules import (
     DELAY_SAMPLES,
@@ -78,73 +55,66 @@ from simpro_mj.config.rules import (
     NAME_RE,
     OUTER_TYPES,
     PHYSICS_DT_MS,
-    SETPOINT_AXES,
     Block,
+    Period,
     Problem,
-    listed,
-    one_of,
-    rule,
+    Real,
+    Whole,
+    block,
+    integral,
+    numbers,
+    param,
     user_error,
 )
 from simpro_mj.core.errors import UserInputError
-from simpro_mj.core.keys import key_text, value_text
+from simpro_mj.core.keys import value_text
 from simpro_mj.core.rates import whole_steps
-from simpro_mj.plant.pneumatics.params import DEFAULT_PNEUMATIC_PARAMS
 
-__all__ = [
-    "Scenario",
-    "Cueing",
-    "scenario_model",
-    "check_cueing",
-    "check_pneumatics",
-    "PAPER_UNITS",
-    "INNER_VARIANTS",
-    "DISCRETISATIONS",
-    "SETPOINT_FILTERS",
-    "FEEDFORWARD_LAGS",
-    "ACTUATOR_MODELS",
-]
+__all__ = ["Scenario", "Cueing", "scenario_model", "check_cueing", "check_pneumatics"]
 
 #: Largest K K_I times the outer period: ten times the delay-free integrator's limit 2.
 MAX_GAIN_PERIOD = 20.0
 
-Gains = Annotated[list[float], rule(lambda v: v >= 0, "3 numbers >= 0 (K K_I, 1/s)")]
-
-
-Width = Annotated[float, rule(lambda v: 0 <= v <= 10, "0..10")]
+Gains = numbers(3, ge=0)
+Width = Annotated[Real, Field(ge=0, le=10)]
 
 
 class OuterDeadBand(Block):
     """Dead band of the task-space loop per axis (0: none; docs/paper-notes.md, dead bands)."""
 
-    _path = "controller.outer.dead_band"
-    roll_deg: Width = 0.0
-    pitch_deg: Width = 0.0
-    heave_mm: Width = 0.0
+    roll_deg: Width = param(0.0, "deg", "dead band on the roll error")
+    pitch_deg: Width = param(0.0, "deg", "dead band on the pitch error")
+    heave_mm: Width = param(0.0, "mm", "dead band on the heave error")
 
 
 class Outer(Block):
     """The task-space loop (eqs. 21-27, Fig. 7)."""
 
-    _path = "controller.outer"
-    type: Annotated[str, one_of(OUTER_TYPES)] = "I"  # I (eq. 22) | PI (section 4)
-    # K * K_I per axis (roll, pitch, heave), 1/s: section 5.2.3's 3 (the analysed
-    # limit on the default plant is 11.8; docs/paper-notes.md)
-    gains: Gains = [3.0, 3.0, 3.0]
-    # c of the PI law T (z + c)/(z - 1), section 4; used with type PI only
-    pi_zero: Annotated[float, rule(lambda v: -1 < v < 1, "-1 < c < 1")] = 0.2
-    # discretisation of eq. (22)'s integral (I law): backward T z/(z - 1), the newest
-    # error reaches q_d at once and Fig. 13's ramp filter spreads it over T | forward
-    # T/(z - 1), Fig. 7 as printed (one more period of delay: 23.8 % vs 8 % pitch
-    # overshoot at K K_I = 3; docs/paper-notes.md)
-    integrator: Annotated[str, one_of(INTEGRATORS)] = "backward"
-    # outer sampling period T, an integer multiple of the 1 ms physics step
-    period_ms: int = 60
-    # inner loop as a delay in the analysis: 1 sample (60 ms, eq. 21) or 2
-    delay_samples: Annotated[int, one_of(DELAY_SAMPLES)] = 1
-    # dead band on the task error the law integrates (controllers.dead_band): within
-    # it the integrated pose holds, so the loop stops hunting against seal friction
-    dead_band: OuterDeadBand = Field(default_factory=OuterDeadBand)
+    type: Literal[OUTER_TYPES] = param("I", "", "the outer law: I (eq. 22) or PI (section 4)")
+    gains: Gains = param(
+        [3.0, 3.0, 3.0],
+        "1/s",
+        "K K_I per axis (roll, pitch, heave): section 5.2.3's 3; the analysed limit "
+        "on the default plant is 11.8 (docs/paper-notes.md)",
+    )
+    pi_zero: Real = param(
+        0.2, "", "c of the PI law T (z + c)/(z - 1), section 4 (type PI only)", gt=-1, lt=1
+    )
+    integrator: Literal[INTEGRATORS] = param(
+        "backward",
+        "",
+        "eq. (22)'s integral: backward T z/(z - 1) (the newest error at once) or forward "
+        "T/(z - 1), Fig. 7 as printed (one more period of delay; docs/paper-notes.md)",
+    )
+    period_ms: Period = param(60, "ms", "outer sampling period T (a whole number of 1 ms steps)")
+    delay_samples: Annotated[Literal[DELAY_SAMPLES], BeforeValidator(integral)] = param(
+        1, "samples", "the inner loop as a delay in the analysis: 1 (eq. 21) or 2"
+    )
+    dead_band: OuterDeadBand = block(
+        OuterDeadBand,
+        "dead band on the task error the law integrates (controllers.dead_band): within it "
+        "the integrated pose holds, so the loop stops hunting against seal friction",
+    )
 
     @model_validator(mode="after")
     def _gain_bound(self):
@@ -167,10 +137,9 @@ class Outer(Block):
 class JointModel(Block):
     """``b / (s (s^2 + a1 s + a0))``, SI (m/V): one identified actuator."""
 
-    _path = "controller.inner.identified.actuator1"  # the three have the same keys
-    b: Annotated[float, rule(lambda v: v > 0, "> 0 m/V")] = 12.51
-    a1: Annotated[float, rule(lambda v: v >= 0, ">= 0 1/s")] = 15.78
-    a0: Annotated[float, rule(lambda v: v > 0, "> 0 1/s^2")] = 78.92
+    b: Real = param(12.51, "m/(s^3 V)", "gain b of the identified joint model", gt=0)
+    a1: Real = param(15.78, "1/s", "a1 of the identified joint model", ge=0)
+    a0: Real = param(78.92, "1/s^2", "a0 of the identified joint model", gt=0)
 
 
 def _legs_2_3() -> JointModel:
@@ -182,45 +151,60 @@ class Identified(Block):
     (plant.preset: what ``simpro-sim identify`` measures on it); the numbers here
     are the schema's only."""
 
-    _path = "controller.inner.identified"
-    actuator1: JointModel = Field(default_factory=JointModel)
-    actuator2: JointModel = Field(default_factory=_legs_2_3)
-    actuator3: JointModel = Field(default_factory=_legs_2_3)
+    actuator1: JointModel = block(JointModel, "leg 1's identified model (eq. 34's form)")
+    actuator2: JointModel = Field(
+        default_factory=_legs_2_3, description="leg 2's identified model (eq. 35's form)"
+    )
+    actuator3: JointModel = Field(
+        default_factory=_legs_2_3, description="leg 3's identified model (eq. 35's form)"
+    )
+
+
+def _even_steps(value: float) -> float:
+    if value != int(value) or int(value) % 2:
+        raise Problem.invalid(value, "an even number >= 2 ms")
+    return value
 
 
 class Inner(Block):
     """The joint controllers (eqs. 28-29, 36-37)."""
 
-    _path = "controller.inner"
-    # joint controllers: eqs. (36)-(37) printed | corrected | redesigned
-    variant: Annotated[str, one_of(INNER_VARIANTS)] = "corrected"
-    discretisation: Annotated[str, one_of(DISCRETISATIONS)] = "tustin"  # tustin | zoh
-    # plant the joint controllers are designed on: "paper" (eqs. 34-35) or
-    # "identified" (the model this simulation identifies, `simpro-sim identify`,
-    # which is what the paper's procedure - identify, then place poles - gives)
-    # "auto": eqs. 34-35 on the paper preset, the identified models on any other
-    # (resolved at load: scenario.yaml names the one used)
-    design_plant: Annotated[str, one_of(DESIGN_PLANTS)] = "auto"
-    # with design_plant identified: "auto" identifies the scenario's own plant when
-    # it is not its preset's (Fig. 12's experiment, cached by the plant's hash:
-    # simpro_mj.identification.auto) | "preset": the identified models as given
-    identify: Annotated[str, one_of(IDENTIFY_CHOICES)] = "auto"
-    identified: Identified = Field(default_factory=Identified)
-    # dominant pair of the "redesigned" pole placement (section 5.2.2)
-    zeta: Annotated[float, rule(lambda v: 0 < v < 2, "0 < zeta < 2")] = 0.7
-    wn_rad_s: Annotated[float, rule(lambda v: v > 0, "> 0 rad/s")] = 10.0
-    # dead band on each leg's error (controllers.dead_band), mm: one for every leg or 3
-    dead_band_mm: Annotated[list[float], rule(lambda v: 0 <= v <= 50, "0..50 mm")] = [
+    variant: Literal[INNER_VARIANTS] = param(
+        "corrected", "", "joint controllers: eqs. (36)-(37) printed, corrected or redesigned"
+    )
+    discretisation: Literal[DISCRETISATIONS] = param(
+        "tustin", "", "discretisation of the joint controllers"
+    )
+    design_plant: Literal[DESIGN_PLANTS] = param(
+        "auto",
+        "",
+        "plant the joint controllers are placed on: paper (eqs. 34-35), identified (this "
+        "plant's, `simpro-sim identify`), auto (paper on the paper preset, else identified; "
+        "scenario.yaml names the one used)",
+    )
+    identify: Literal[IDENTIFY_CHOICES] = param(
+        "auto",
+        "",
+        "with design_plant identified: auto identifies the scenario's own plant when it is "
+        "not its preset's (cached); preset takes the identified models as given",
+    )
+    identified: Identified = block(Identified)
+    zeta: Real = param(0.7, "", "damping of the redesigned pole placement (5.2.2)", gt=0, lt=2)
+    wn_rad_s: Real = param(10.0, "rad/s", "natural frequency of the redesigned poles", gt=0)
+    dead_band_mm: numbers(3, one=True, ge=0, le=50) = param(
+        [0.0, 0.0, 0.0], "mm", "dead band on each leg's error (controllers.dead_band)"
+    )
+    dither_v: Real = param(
         0.0,
-        0.0,
-        0.0,
-    ]
-    # valve dither (controllers.dither): a square wave of +-dither_v volts added to
-    # every valve command, period dither_period_ms (an even number of 1 ms steps); 0: off
-    dither_v: Annotated[float, rule(lambda v: 0 <= v <= 5, "0..5 V")] = 0.0
-    dither_period_ms: Annotated[
-        float, rule(lambda v: v >= 2 and v == int(v) and int(v) % 2 == 0, "an even number >= 2 ms")
-    ] = 40.0
+        "V",
+        "valve dither (controllers.dither): a square wave of +-dither_v added to every valve "
+        "command; 0: off",
+        ge=0,
+        le=5,
+    )
+    dither_period_ms: Annotated[Real, AfterValidator(_even_steps)] = param(
+        40.0, "ms", "the dither's period: an even number of 1 ms steps", ge=2
+    )
 
 
 class Feedforward(Block):
@@ -233,30 +217,33 @@ class Feedforward(Block):
     valve was at its rail (``hold_on_saturation``).
     """
 
-    _path = "controller.feedforward"
-    gains: Gains = [1.0, 1.0, 1.0]
-    model_tau_ms: Annotated[float, rule(lambda v: 0 <= v <= 10_000, "0..10000 ms")] = 200.0
-    hold_on_saturation: bool = True
-    # the joint loops' lag taken out of the error: joints (measured: J^-1 (q_d -
-    # q_meas)) | model (M y_d, above); average: the correction uses the means over the
-    # outer period instead of one sample. Chosen by measurement (docs/feedforward.md):
-    # the steady-state error after a step below the sensor floor, overshoot 0.4 %
-    lag: Annotated[str, one_of(FEEDFORWARD_LAGS)] = "joints"
-    average: bool = True
-    # leg velocity feed-forward (controllers.velocity_feedforward): a valve voltage
-    # (a0/b) J dy_d/dt per leg from the set-point's rate and the identified plants
-    # (controller.inner.identified), through the set-point filter when there is one;
-    # clipped to the valve's 5 V span. Chosen by measurement (docs/feedforward.md):
-    # phase at 1 Hz -40 -> -10 deg, track_cues RMS error halved, steps unchanged
-    leg_velocity: bool = True
+    gains: Gains = param([1.0, 1.0, 1.0], "1/s", "K K_I of the correction per axis")
+    model_tau_ms: Real = param(
+        200.0, "ms", "time constant of M, the joint loops' lag (lag: model)", ge=0, le=10_000
+    )
+    hold_on_saturation: StrictBool = param(
+        True, "", "skip an outer step after which a valve was at its rail"
+    )
+    lag: Literal[FEEDFORWARD_LAGS] = param(
+        "joints",
+        "",
+        "the joint loops' lag taken out of the error: joints (measured) or model (M y_d); "
+        "chosen by measurement (docs/feedforward.md)",
+    )
+    average: StrictBool = param(
+        True, "", "the correction uses the means over the outer period, not one sample"
+    )
+    leg_velocity: StrictBool = param(
+        True,
+        "",
+        "leg velocity feed-forward (a0/b) J dy_d/dt per leg (controllers.velocity_feedforward)",
+    )
 
 
 def _per_leg_steps(times: list[float]) -> list[float]:
-    """One time for every leg or three (controllers.setpoint_filter.leg_times), each
-    an integer multiple of the 1 ms step (the ramp averages whole steps)."""
-    # 0 is allowed (no ramp): whole_steps asks for at least one step
-    ok = len(times) in (1, 3) and all(v == 0 or whole_steps(v * 1e-3) is not None for v in times)
-    if not ok:
+    """Each time an integer multiple of the 1 ms step (the ramp averages whole steps)."""
+    # 0 is refused by the range; whole_steps asks for at least one step
+    if not all(whole_steps(v * 1e-3) is not None for v in times):
         allowed = f"one or 3 (per leg) multiples of the {PHYSICS_DT_MS:g} ms physics step"
         raise Problem.invalid(times, allowed)
     return times
@@ -275,357 +262,49 @@ class SetpointFilter(Block):
     overshoot 11.4 % -> 7.9 %).
     """
 
-    _path = "controller.setpoint_filter"
-    type: Annotated[str, one_of(SETPOINT_FILTERS)] = "ramp"
-    time_ms: Annotated[
-        list[float], rule(lambda v: 0 < v <= 1e4, "0 < ms <= 1e4"), AfterValidator(_per_leg_steps)
-    ] = [60.0, 30.0, 30.0]
+    type: Literal[SETPOINT_FILTERS] = param(
+        "ramp", "", "Fig. 13's filter: ramp, first_order, zero_cancel or none"
+    )
+    time_ms: Annotated[numbers(3, one=True, gt=0, le=1e4), AfterValidator(_per_leg_steps)] = param(
+        [60.0, 30.0, 30.0], "ms", "the filter's time per leg (one number: every leg's)"
+    )
 
 
 class Controller(Block):
-    _path = "controller"
-    # joint_only (Fig. 15a) | task_space (Fig. 15b) | feedforward (the set-point
-    # through the IK every 1 ms, the outer law adding a correction: docs/feedforward.md)
-    mode: Annotated[str, one_of(MODES)] = "task_space"
-    outer: Outer = Field(default_factory=Outer)
-    inner: Inner = Field(default_factory=Inner)
-    feedforward: Feedforward = Field(default_factory=Feedforward)
-    setpoint_filter: SetpointFilter = Field(default_factory=SetpointFilter)
-    # unreachable set-points: reject at load time (false) or clamp (true)
-    clamp_setpoints: bool = False
+    """The controllers: the mode, the task-space and joint loops, the feed-forward, the filter."""
+
+    mode: Literal[MODES] = param(
+        "task_space",
+        "",
+        "joint_only (Fig. 15a), task_space (Fig. 15b) or feedforward (the set-point through "
+        "the IK every 1 ms, the outer law adding a correction: docs/feedforward.md)",
+    )
+    outer: Outer = block(Outer)
+    inner: Inner = block(Inner)
+    feedforward: Feedforward = block(Feedforward)
+    setpoint_filter: SetpointFilter = block(SetpointFilter)
+    clamp_setpoints: StrictBool = param(
+        False, "", "unreachable set-points: refused at load (false) or clamped (true)"
+    )
 
 
 class Logging(Block):
-    _path = "logging"
-    decimation: Annotated[
-        int, rule(lambda v: 1 <= v <= MAX_DECIMATION, f"an integer 1..{MAX_DECIMATION}")
-    ] = 1
+    """What a run logs."""
 
-
-# ------------------------------------------------------------------ setpoint.cueing
-# (simpro_mj.config.cueing). A scenario has the block or not (it is not in the
-# default tree), so these models list their own keys; their messages
-# keep the contract of docs/robustness.md (tests/data/scenario_messages.json, the
-# cue_braking cases).
-
-#: A cueing ``sine``'s period (s): 20 physics steps .. 10 minutes, on the 1 ms grid.
-CUE_SINE_PERIOD_S = (0.02, 600.0)
-
-
-def _is_number(value: Any) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool)
-
-
-class CueBlock(BaseModel):
-    """A mapping of the cueing block: a mapping with its own keys, checked before its fields.
-
-    ``_expected`` completes "expected ..." for a value that is not a mapping;
-    ``_listed`` is the allowed keys in the order an unknown key's message
-    lists them (default: sorted). A field left out takes its default, which
-    is validated too (``None`` for a required value: its message says what
-    is allowed).
-    """
-
-    model_config = ConfigDict(extra="forbid", validate_default=True)
-    _expected: ClassVar[str] = "a mapping"
-    _listed: ClassVar[tuple[str, ...]] = ()
-
-    @model_validator(mode="before")
-    @classmethod
-    def _known_keys(cls, data: Any) -> Any:
-        if not isinstance(data, Mapping):
-            raise Problem("invalid value", f": expected {cls._expected}")
-        allowed = list(cls._listed or sorted(cls.model_fields))
-        for key in data:
-            if key not in cls.model_fields:
-                raise Problem("unknown key", f": allowed keys are {allowed}", f".{key_text(key)}")
-        return cls._whole(data)
-
-    @classmethod
-    def _whole(cls, data: Mapping) -> Mapping:
-        """A rule across the given keys, before the fields (none by default)."""
-        return data
-
-
-def _finite(value: Any) -> float:
-    # not rules.number: a washout parameter is a YAML number; a string such as '5e-3' is refused
-    if not _is_number(value) or not math.isfinite(value):
-        raise Problem.invalid(value, "a finite number")
-    return float(value)
-
-
-def _whole_as_int(value: Any) -> int | float:
-    # rot_order: an int when whole, as its default (the shipped scenarios' hashes)
-    x = _finite(value)
-    return int(x) if x == int(x) else x
-
-
-class _WashoutCheck(CueBlock):
-    """The washout's own ranges (:class:`controllers.washout.WashoutParams`), once every
-    parameter is a number."""
-
-    _algorithm: ClassVar[str] = "classical_washout"
-
-    @model_validator(mode="after")
-    def _washout(self):
-        try:
-            washout_params({"algorithm": self._algorithm, "parameters": dict(self)})
-        except (WashoutParamError, MpcParamError) as exc:
-            raise Problem("invalid value", f": {exc}") from None
-        return self
-
-
-class _MpcCheck(_WashoutCheck):
-    """The MPC's own ranges (:class:`controllers.mpc_cueing.MpcParams`)."""
-
-    _algorithm: ClassVar[str] = "mpc"
-
-
-def _parameters_model(name: str, base: type, algorithm: str):
-    return create_model(
-        name,
-        __base__=base,
-        __module__=__name__,
-        **{
-            key: (
-                Annotated[int | float, BeforeValidator(_whole_as_int)]
-                if isinstance(default, int)
-                else Annotated[float, BeforeValidator(_finite)],
-                default,
-            )
-            for key, default in default_parameters(algorithm).items()
-        },
-    )
-
-
-#: ``setpoint.cueing.parameters``: the keys of :data:`~simpro_mj.config.cueing.PARAMETER_KEYS`
-#: (YAML units), each a finite number, the defaults those of the washout.
-WashoutParameters = _parameters_model("WashoutParameters", _WashoutCheck, "classical_washout")
-#: ``setpoint.cueing.parameters`` of ``algorithm: mpc``: the keys of
-#: :data:`~simpro_mj.config.cueing.MPC_PARAMETER_KEYS`, the defaults those of the MPC.
-MpcParameters = _parameters_model("MpcParameters", _MpcCheck, "mpc")
-
-
-class CueManoeuvre(CueBlock):
-    """A generated vehicle input (:mod:`simpro_mj.config.manoeuvres`): its
-    ``ManoeuvreSpec``'s fields and defaults; ``type`` and ``speed_kmh`` required.
-
-    The values are kept as given (an integral speed stays an int, as it always
-    did: the scenario's hash) and checked by ``ManoeuvreSpec.check``, the one
-    statement of their ranges.
-    """
-
-    _expected = "a mapping with type and speed_kmh"
-    type: SkipValidation[str | None] = None
-    speed_kmh: SkipValidation[int | float | None] = None
-    vehicle: SkipValidation[str] = "bmw_320i"
-    deceleration_mps2: SkipValidation[int | float] = 5.0
-    bump_height_m: SkipValidation[int | float] = 0.06
-    bump_length_m: SkipValidation[int | float] = 0.5
-    lead_s: SkipValidation[int | float] = 1.0
-    tyre_offsets: SkipValidation[str] = "none"
-
-    @model_validator(mode="after")
-    def _spec(self):
-        # imported on use: manoeuvres loads scipy.signal and scipy.integrate (about
-        # 1.5 s), which only a scenario with a manoeuvre needs
-        from simpro_mj.config.manoeuvres import MANOEUVRES, ManoeuvreError
-
-        if self.type not in MANOEUVRES:
-            raise Problem.invalid(self.type, str(list(MANOEUVRES)), ".type")
-        if self.speed_kmh is None:
-            raise Problem("invalid value", ": missing; allowed: 10..180", ".speed_kmh")
-        try:
-            manoeuvre_spec(dict(self)).check()
-        except ManoeuvreError as exc:
-            # the spec names its field alone ("invalid value at lead_s: ..."): put it below
-            key, _, rest = str(exc).removeprefix("invalid value at ").partition(":")
-            raise Problem("invalid value", f":{rest}", f".{key}") from None
-        return self
-
-
-def _sine_period(value: Any) -> float:
-    lo, hi = CUE_SINE_PERIOD_S
-    if not (_is_number(value) and lo <= value <= hi) or whole_steps(value) is None:
-        raise Problem.invalid(value, f"{lo:g}..{hi:g} s on the {PHYSICS_DT_MS:g} ms grid")
-    return float(value)
-
-
-class CueSine(CueBlock):
-    """A synthetic vehicle input: the vehicle at rest plus ``amplitude sin(2 pi t /
-    period_s)`` (SI) on one ``channel`` (:data:`~simpro_mj.config.cueing.SINE_CHANNELS`)."""
-
-    _listed = ("channel", "amplitude", "period_s")
-    _expected = f"a mapping with keys {list(_listed)}"
-    channel: Annotated[str, listed(SINE_CHANNELS)] = None
-    amplitude: float = None
-    period_s: Annotated[float, BeforeValidator(_sine_period)] = None
-
-    @field_validator("amplitude", mode="before")
-    @classmethod
-    def _up_to_the_channel(cls, value: Any, info: ValidationInfo) -> Any:
-        """0 < amplitude <= the channel's limit (1 g, 90 deg/s)."""
-        channel = info.data.get("channel")
-        if channel is None:  # the channel's own error is the one reported
-            return value
-        top = SINE_CHANNELS[channel]
-        if not (_is_number(value) and 0 < value <= top):
-            unit = channel.split("_", 1)[1].replace("mps2", "m/s^2").replace("rad_s", "rad/s")
-            raise Problem.invalid(value, f"0 < amplitude <= {top:.4g} ({unit})")
-        return float(value)
-
-
-class CueStep(CueBlock):
-    """A large-signal vehicle input: the vehicle at rest plus ``amplitude`` (SI, signed)
-    on one ``channel`` from ``start_s``, reached over ``ramp_s`` (0: a step), back from
-    ``end_s`` (null: held) (:func:`~simpro_mj.config.cueing.step_input`)."""
-
-    _listed = ("channel", "amplitude", "start_s", "ramp_s", "end_s")
-    _expected = f"a mapping with keys {list(_listed)}"
-    channel: Annotated[str, listed(SINE_CHANNELS)] = None
-    amplitude: float = None
-    start_s: Annotated[float, BeforeValidator(_finite)] = 1.0
-    ramp_s: Annotated[float, BeforeValidator(_finite)] = 0.0
-    end_s: float | None = None
-
-    @field_validator("amplitude", mode="before")
-    @classmethod
-    def _up_to_the_channel(cls, value: Any, info: ValidationInfo) -> Any:
-        """0 < |amplitude| <= the channel's limit (1 g, 90 deg/s)."""
-        channel = info.data.get("channel")
-        if channel is None:
-            return value
-        top = SINE_CHANNELS[channel]
-        if not (_is_number(value) and 0 < abs(value) <= top):
-            raise Problem.invalid(value, f"0 < |amplitude| <= {top:.4g}")
-        return float(value)
-
-    @model_validator(mode="after")
-    def _times(self):
-        if self.start_s < 0:
-            raise Problem.invalid(self.start_s, ">= 0 s", ".start_s")
-        if self.ramp_s < 0:
-            raise Problem.invalid(self.ramp_s, ">= 0 s (0: a step)", ".ramp_s")
-        if self.end_s is not None and not self.end_s >= self.start_s + self.ramp_s:
-            raise Problem.invalid(self.end_s, "null or >= start_s + ramp_s", ".end_s")
-        return self
-
-
-def _file_name(value: Any) -> str | None:
-    # its existence is checked once the scenario's folder is known (cueing.resolve_paths)
-    if value is not None and (not isinstance(value, str) or not value.strip()):
-        raise Problem.invalid(value, "a file name")
-    return value
-
-
-class Cueing(CueBlock):
-    """``setpoint.cueing``: a vehicle input, exactly one of ``telemetry`` (a CSV file),
-    ``manoeuvre`` (generated) or ``sine``, through a motion-cueing ``algorithm`` and
-    its ``parameters`` (:mod:`simpro_mj.config.cueing`)."""
-
-    _expected = "a mapping with telemetry or manoeuvre"
-    _listed = ("telemetry", "manoeuvre", "sine", "step", "algorithm", "parameters", "columns")
-    # declared in the order they are checked (the first error is the one reported)
-    telemetry: Annotated[str | None, BeforeValidator(_file_name)] = None
-    algorithm: Annotated[str, listed(ALGORITHMS)] = "classical_washout"
-    # null (or empty) parameters: every default
-    parameters: SerializeAsAny[Annotated[WashoutParameters, BeforeValidator(lambda v: v or {})]] = (
-        None
-    )
-    manoeuvre: CueManoeuvre | None = None
-    sine: CueSine | None = None
-    step: CueStep | None = None
-    #: telemetry column mapping (:data:`~simpro_mj.config.telemetry.MAPPING_HELP`)
-    columns: dict | None = None
-
-    @field_validator("parameters", mode="wrap")
-    @classmethod
-    def _of_the_algorithm(cls, value: Any, handler, info: ValidationInfo) -> Any:
-        """``parameters`` of the chosen ``algorithm``: the washout's, or the MPC's."""
-        if info.data.get("algorithm") != "mpc":
-            return handler(value)
-        try:
-            return MpcParameters.model_validate(value or {})
-        except ValidationError as exc:
-            err = exc.errors()[0]
-            loc = "".join(f".{key_text(k)}" for k in err["loc"])
-            msg = str(err.get("msg", "")).removeprefix("Value error, ")
-            head, _, rest = msg.partition(" at <here>")
-            raise Problem(head or "invalid value", rest, loc) from None
-
-    @field_validator("columns", mode="before")
-    @classmethod
-    def _mapping(cls, value: Any) -> Any:
-        from simpro_mj.config.telemetry import check_mapping
-
-        if value is None or value == {}:
-            return None
-        try:
-            return check_mapping(value)
-        except ValueError as exc:
-            raise Problem("invalid value", f": {exc}") from None
-
-    @classmethod
-    def _whole(cls, data: Mapping) -> Mapping:
-        if sum(data.get(k) is not None for k in ("telemetry", "manoeuvre", "sine", "step")) != 1:
-            raise Problem(
-                "invalid value",
-                ": give exactly one of telemetry (a CSV file), manoeuvre, sine or step",
-            )
-        return data
-
-    @model_serializer(mode="wrap")
-    def _as_resolved(self, handler):
-        """Every key spelled out (``manoeuvre: null`` when absent), ``sine`` only when given:
-        the block the rest of the code reads and the scenario's hash has always seen."""
-        out = handler(self)
-        resolved = {k: out[k] for k in ("telemetry", "manoeuvre", "algorithm", "parameters")}
-        if self.sine is not None:
-            resolved["sine"] = out["sine"]
-        if self.step is not None:
-            resolved["step"] = out["step"]
-        if self.columns is not None:
-            resolved["columns"] = out["columns"]
-        return resolved
-
-
-def check_cueing(value: Any, path: str = "setpoint.cueing") -> dict:
-    """A ``cueing`` block on its own, validated by :class:`Cueing` and spelled out.
-
-    Parameters
-    ----------
-    value : Any
-        The block as written (``{"sine": {...}}``).
-    path : str
-        Its dotted path, for the messages.
-
-    Returns
-    -------
-    dict
-        The block as the resolved scenario holds it (every parameter given).
-
-    Raises
-    ------
-    UserInputError
-        One line naming the dotted key and what is allowed.
-    """
-    try:
-        return Cueing.model_validate(value).model_dump()
-    except ValidationError as exc:
-        raise user_error(exc, path) from None
+    decimation: Whole = param(1, "", "log every n-th 1 ms step", ge=1, le=MAX_DECIMATION)
 
 
 class Setpoint(Block):
     """Per axis a list of components summed on top of the home pose; or a cueing block."""
 
-    _path = "setpoint"
-    _own = frozenset({*SETPOINT_AXES, "cueing"})
-    roll_deg: Components = []
-    pitch_deg: Components = []
-    heave_mm: Components = []
-    # (simpro_mj.config.cueing); only in the resolved scenario when given, so
-    # that the scenarios without it keep their hash
-    cueing: Cueing | None = None
+    roll_deg: Components = param([], "deg", "roll set-point: components on top of home")
+    pitch_deg: Components = param([], "deg", "pitch set-point: components on top of home")
+    heave_mm: Components = param([], "mm", "heave set-point: components on top of home")
+    # only in the resolved scenario when given, so that the scenarios without it
+    # keep their hash
+    cueing: Cueing | None = param(
+        None, "", "set-points from vehicle motion through a cueing law (config.cueing)"
+    )
 
     @model_serializer(mode="wrap")
     def _cueing_when_given(self, handler):
@@ -646,37 +325,34 @@ class Scenario(Block):
     read and :func:`~simpro_mj.config.scenario.scenario_hash` hashes.
     """
 
-    _own = frozenset({"faults"})
-    name: Annotated[
-        str,
-        rule(
-            lambda v: bool(NAME_RE.match(v)) and len(v) <= 100,
-            "letters, digits, '_', '-', '.' (a file-name-safe word of at most 100 characters)",
-        ),
-    ] = ""  # a name for the run (file stem if empty)
-    # Unit of Y in the paper's eqs. (34)-(37) (controllers.design.READINGS): "volts"
-    # (the joint potentiometer's signal, 10 V over the 500 mm stroke = 20 V/m, as the
-    # rig reads it through the MF624, section 5) or "metres". Sets the SI gains of
-    # the printed joint controllers, the paper's design plants and the linear
-    # actuators' default coefficients (docs/paper-notes.md, section 3).
-    paper_units: Annotated[str, one_of(PAPER_UNITS)] = "volts"
-    description: str = ""
-    duration_s: Annotated[
-        float,
-        rule(lambda v: v > 0, "> 0 s"),
-        rule(lambda v: v >= MIN_DURATION_S, f">= {MIN_DURATION_S:g} s"),
-        rule(lambda v: v <= MAX_DURATION_S, f"<= {MAX_DURATION_S:g} s (one hour)"),
-    ] = 15.0
-    # seed of every random draw of the run (sensor noise)
-    seed: Annotated[int, rule(lambda v: 0 <= v < 2**63, "an integer >= 0")] = 1
-    controller: Controller = Field(default_factory=Controller)
-    actuator: Actuator = Field(default_factory=Actuator)
-    plant: PlantBlock = Field(default_factory=PlantBlock)
-    sensors: SensorsBlock = Field(default_factory=SensorsBlock)
-    setpoint: Setpoint = Field(default_factory=Setpoint)
-    # scheduled faults (simpro_mj.plant.faults)
-    faults: Faults = []
-    logging: Logging = Field(default_factory=Logging)
+    name: StrictStr = param(
+        "",
+        "",
+        "the run's name (the file's stem if empty): letters, digits, '_', '-', '.' "
+        "(a file-name-safe word of at most 100 characters)",
+        pattern=NAME_RE.pattern,
+        max_length=100,
+    )
+    paper_units: Literal[PAPER_UNITS] = param(
+        "volts",
+        "",
+        "unit of Y in eqs. (34)-(37): volts (the potentiometer's 20 V/m, as the rig reads "
+        "it) or metres; sets the printed joint gains and the paper's design plants "
+        "(docs/paper-notes.md, section 3)",
+    )
+    description: StrictStr = param("", "", "one line saying what the scenario is for")
+    duration_s: Real = param(
+        15.0, "s", "simulated time (at most one hour)", ge=MIN_DURATION_S, le=MAX_DURATION_S
+    )
+    seed: Whole = param(1, "", "seed of every random draw of the run (sensor noise)", ge=0,
+                        lt=2**63)  # fmt: skip
+    controller: Controller = block(Controller)
+    actuator: Actuator = block(Actuator)
+    plant: PlantBlock = block(PlantBlock)
+    sensors: SensorsBlock = block(SensorsBlock)
+    setpoint: Setpoint = block(Setpoint)
+    faults: Faults = param([], "", "scheduled faults (simpro_mj.plant.faults)")
+    logging: Logging = block(Logging)
 
     @model_validator(mode="after")
     def _across_blocks(self):
@@ -686,11 +362,8 @@ class Scenario(Block):
         return self
 
     def supply_bar_gauge(self) -> float:
-        """The supply pressure (bar gauge): the scenario's or the plant's default."""
-        value = self.actuator.pneumatics.get("supply_pressure_bar_gauge")
-        if value is None:
-            value = DEFAULT_PNEUMATIC_PARAMS["supply_pressure_bar_gauge"]
-        return float(value)
+        """The supply pressure (bar gauge)."""
+        return self.actuator.pneumatics.supply_pressure_bar_gauge
 
 
 def _resolve_design_plant(s: Scenario) -> None:
@@ -757,4 +430,4 @@ def scenario_model(tree: Mapping) -> Scenario:
     try:
         return Scenario.model_validate(tree)
     except ValidationError as exc:
-        raise user_error(exc) from None
+        raise user_error(exc, Scenario) from None

@@ -1,41 +1,49 @@
-"""The vocabulary of the typed scenario: limits, one-line messages, checked leaves, rules.
+"""The vocabulary of the typed scenario: leaf types, parameters, the one error formatter.
 
-The scenario's models (:mod:`simpro_mj.config.models`, :mod:`simpro_mj.config.entries`)
-are pydantic v2 models built from these pieces:
+A block of the scenario is a pydantic v2 model (:class:`Block`: unknown keys
+refused) whose fields are declared with :func:`param`: default, unit, allowed
+range (pydantic's own ``ge``, ``gt``, ``le``, ``lt``, ``min_length``, ...) and
+one line of meaning. The leaf types say what a value is:
 
-* :class:`Block`: a block that holds its keys and their defaults as its fields
-  (the one source of every default and of every leaf's type: a float default
-  takes any finite number, an int default an integral one, a list default that
-  many numbers), unknown keys refused with the closest valid one;
-* :class:`Entry`: a tagged mapping (``{type: step, ...}``) whose fields without
-  a default are required, checked by :func:`tagged` before its model sees it;
-* :func:`rule` and :func:`one_of`: ranges and enumerations with the text of
-  what is allowed.
+* :data:`Real`: a finite number; an integer is taken, a boolean or a string
+  refused, except the exponent form ``5e-3`` (no dot), which YAML 1.1 reads as a
+  string (the one number policy of the scenario and its sweeps);
+* :data:`Whole`: an integer (``60.0`` taken as 60, ``2.5`` refused);
+* :data:`Period`: a whole number of 1 ms physics steps (ms);
+* :func:`numbers`: a list of numbers of fixed length, each in a range
+  (``one=True``: one number stands for all);
+* ``StrictBool``, ``StrictStr`` and ``Literal`` choices from pydantic.
 
-Messages keep the contract of ``docs/robustness.md``: one line,
-``<what> at <dotted.path>: <what is allowed>``. A rule raises :class:`Problem`
-(its text relative to where it sits) or a
-:class:`~simpro_mj.core.errors.UserInputError` (an absolute message, for rules
-that name another field); :func:`user_error` turns pydantic's first error into
-the one line.
+:func:`user_error` maps pydantic's first error onto the one-line contract of
+``docs/robustness.md``: ``<what> at <dotted.path>: <value>; allowed: <what is
+allowed>``, the range, unit and meaning read from the field that refused the
+value, the choices of a ``Literal`` or a tagged union listed, the closest key
+or choice suggested. A rule across fields raises :class:`Problem` (its text
+relative to where the rule sits) or a :class:`~simpro_mj.core.errors.UserInputError`
+(an absolute message, for rules that name another field).
 """
 
 from __future__ import annotations
 
+import copy
 import math
 import re
-from collections.abc import Callable, Mapping
-from typing import Any, ClassVar
+import types
+from collections.abc import Mapping
+from typing import Annotated, Any, ClassVar, Literal, Union, get_args, get_origin
 
+import annotated_types as at
 from pydantic import (
     AfterValidator,
+    AllowInfNan,
     BaseModel,
     BeforeValidator,
     ConfigDict,
+    Field,
+    Strict,
     ValidationError,
-    field_validator,
-    model_validator,
 )
+from pydantic.fields import FieldInfo
 
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.keys import closest, key_text, value_text
@@ -69,7 +77,7 @@ NAME_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
 _EXP_RE = re.compile(r"^[-+]?(\d+\.?\d*|\.\d+)[eE][-+]?\d+$")
 
 
-# ------------------------------------------------------------------ messages
+# ------------------------------------------------------------------ a rule's refusal
 
 
 class Problem(ValueError):
@@ -94,77 +102,29 @@ class Problem(ValueError):
         return cls("invalid value", f": {value_text(value)}; allowed: {allowed}", suffix)
 
 
-def _dotted(loc: tuple) -> str:
-    out = ""
-    for i, part in enumerate(loc):
-        if isinstance(part, int):
-            out += f"[{part}]"
-        elif i and isinstance(loc[i - 1], int):
-            # a key after a list index is the tag pydantic adds inside a tagged union
-            # (the only lists of mappings are the tagged ones): not a key of the file
-            continue
-        else:
-            out += f".{part}" if out else str(part)
-    return out
+# ------------------------------------------------------------------ leaf types
 
 
-def user_error(exc: ValidationError, prefix: str = "") -> UserInputError:
-    """The one-line :class:`UserInputError` for pydantic's first error.
-
-    ``prefix``: the dotted path of what was validated, when that is a block on
-    its own rather than the whole scenario (``setpoint.cueing``).
-    """
-    err = exc.errors(include_url=False)[0]
-    path = ".".join(p for p in (prefix, _dotted(err["loc"])) if p)
-    cause = (err.get("ctx") or {}).get("error")
-    if isinstance(cause, UserInputError):  # an absolute message (names its own path)
-        return UserInputError(str(cause))
-    if isinstance(cause, Problem):
-        where = f"{path}{cause.suffix}" if path else cause.suffix.lstrip(".") or "top level"
-        return UserInputError(f"{cause.head} at {where}{cause.rest}")
-    # not expected from these models (every rule raises Problem): still one line
-    msg = " ".join(str(err["msg"]).split())
-    return UserInputError(
-        f"invalid value at {path or 'top level'}: {value_text(err.get('input'))}; allowed: {msg}"
-    )
-
-
-# ------------------------------------------------------------------ leaves
-
-
-def number(value: Any) -> float:
-    """A finite number (booleans refused; ``'5e-3'``, which YAML 1.1 reads as a string, taken)."""
+def yaml_number(value: Any) -> Any:
+    """``'5e-3'`` (a string to YAML 1.1) as the number it means; anything else as given."""
     if isinstance(value, str) and _EXP_RE.match(value.strip()):
-        value = float(value)
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise Problem.wrong_type(value, "a number")
-    x = float(value)
-    if not math.isfinite(x):
-        raise Problem.invalid(value, "a finite number")
-    return x
+        return float(value)
+    return value
 
 
-def integer(value: Any) -> int:
-    x = number(value)
-    if x != int(x):
-        raise Problem.invalid(value, "an integer")
-    return int(x)
+def integral(value: Any) -> Any:
+    """An integral float as its int (``60.0`` -> 60); ``2.5`` refused; anything else as given."""
+    value = yaml_number(value)
+    if isinstance(value, float) and math.isfinite(value):
+        if value != int(value):
+            raise Problem.invalid(value, "an integer")
+        return int(value)
+    return value
 
 
-def below(check: Callable, value: Any, suffix: str) -> Any:
-    """``check(value)`` with a :class:`Problem` moved down to ``suffix``."""
-    try:
-        return check(value)
-    except Problem as p:
-        raise Problem(p.head, p.rest, suffix + p.suffix) from None
-
-
-def multiple_of_step(value: Any) -> Any:
-    """A period (ms): a positive integer multiple of the 1 ms physics step, <= MAX_PERIOD_MS.
-
-    The one check of a period or sampling rate; ``2.5`` says so, not "integer".
-    """
-    if whole_steps(float(value) * 1e-3, PHYSICS_DT_S) is None or float(value) > MAX_PERIOD_MS:
+def check_period(value: int) -> int:
+    """A period (ms): a positive integer multiple of the 1 ms physics step, <= MAX_PERIOD_MS."""
+    if whole_steps(value * 1e-3, PHYSICS_DT_S) is None or value > MAX_PERIOD_MS:
         raise Problem.invalid(
             value,
             f"a positive integer multiple of the {PHYSICS_DT_MS} ms physics step, "
@@ -173,74 +133,73 @@ def multiple_of_step(value: Any) -> Any:
     return value
 
 
-def _leaf(value: Any, default: Any, name: str) -> Any:
-    """``value`` checked against the type of its default (the block's field), normalised."""
-    if isinstance(default, list):
-        n = len(default)
-        one = name in _ONE_FOR_ALL
-        if one and not isinstance(value, (list, tuple, Mapping, str)):
-            value = [number(value)] * n  # one number: every leg's
-        if not isinstance(value, (list, tuple)) or len(value) != n:
-            raise Problem.wrong_type(
-                value, f"{'one number or ' if one else ''}a list of {n} numbers like {default}"
-            )
-        return [below(number, v, f"[{i}]") for i, v in enumerate(value)]
-    if isinstance(default, bool):
-        if not isinstance(value, bool):
-            raise Problem.wrong_type(value, "true or false")
-        return value
-    if isinstance(default, int):
-        if name.endswith(("period_ms", "rate_ms")) and isinstance(value, (int, float)):
-            if not isinstance(value, bool):
-                multiple_of_step(value)
-        return integer(value)
-    if isinstance(default, float):
-        return number(value)
-    if isinstance(default, str):
-        if not isinstance(value, str):
-            raise Problem.wrong_type(value, "a string")
-        return value
-    raise TypeError(f"unsupported default for {name}: {default!r}")  # pragma: no cover
+def period_before(value: Any) -> Any:
+    # 2.5 ms is "not a multiple of the step", not "not an integer"
+    value = yaml_number(value)
+    if isinstance(value, float) and math.isfinite(value) and value != int(value):
+        check_period(value)
+    return integral(value)
 
 
-#: Per-leg lists that also take one number for all legs.
-_ONE_FOR_ALL = frozenset({"time_ms", "dead_band_mm"})
+#: A finite number (an int is taken and becomes a float; booleans, strings refused).
+Real = Annotated[float, BeforeValidator(yaml_number), Strict(), AllowInfNan(False)]
+#: An integer (an integral float is taken; booleans, strings refused).
+Whole = Annotated[int, BeforeValidator(integral), Strict()]
+#: A period in ms: a positive whole number of physics steps, at most MAX_PERIOD_MS.
+Period = Annotated[int, BeforeValidator(period_before), Strict(), AfterValidator(check_period)]
 
 
-def rule(ok: Callable[[Any], bool], allowed: str) -> AfterValidator:
-    """A range rule: every value (a list's elements) must pass ``ok``; else ``allowed``."""
-
-    def check(value):
-        if not all(ok(v) for v in (value if isinstance(value, list) else [value])):
-            raise Problem.invalid(value, allowed)
-        return value
-
-    return AfterValidator(check)
+class _OneForAll:
+    """Marks a list that also takes one number for all its items (:func:`numbers`)."""
 
 
-def one_of(choices: tuple) -> AfterValidator:
-    """An enumeration rule: the allowed values listed, the closest one suggested."""
-
-    def check(value):
-        if value not in choices:
-            hint = closest(str(value), map(str, choices))
-            raise Problem.invalid(value, f"one of {list(choices)}{hint}")
-        return value
-
-    return AfterValidator(check)
+ONE_FOR_ALL = _OneForAll()
 
 
-def listed(choices) -> BeforeValidator:
-    """An enumeration checked before any type coercion, ``allowed: [...]`` (the words of
-    the ``setpoint.cueing`` block; :func:`one_of` elsewhere)."""
-    names = list(choices)
-
-    def check(value):
-        if value not in names:
-            raise Problem.invalid(value, str(names))
+def _broadcast(n: int):
+    def check(value: Any) -> Any:
+        value = yaml_number(value)
+        if isinstance(value, int | float) and not isinstance(value, bool):
+            return [value] * n
         return value
 
     return BeforeValidator(check)
+
+
+def numbers(n: int, *, one: bool = False, **each: Any) -> Any:
+    """A list of ``n`` numbers, each within ``each`` (``ge=0``, ...); ``one``: one number
+    stands for all ``n`` (a per-leg value given once)."""
+    item = Annotated[Real, Field(**each)] if each else Real
+    meta: list = [Field(min_length=n, max_length=n)]
+    if one:
+        meta[:0] = [_broadcast(n), ONE_FOR_ALL]
+    return Annotated[(list[item], *meta)]
+
+
+def param(
+    default: Any, unit: str = "", doc: str = "", *, note: str = "", **constraints: Any
+) -> Any:
+    """A field of a block: its default, unit, one line of meaning and pydantic's constraints.
+
+    ``unit`` and ``doc`` are what ``simpro-sim show`` prints and what a refusal's
+    "allowed" says beside the range (``ge``, ``gt``, ``le``, ``lt``); ``note``: the
+    allowed range in words where another module checks it (the plant's pneumatics).
+    """
+    extra = {k: v for k, v in (("unit", unit), ("range", note)) if v} or None
+    if isinstance(default, list | dict):
+        return Field(
+            default_factory=lambda d=default: copy.deepcopy(d),
+            description=doc or None,
+            json_schema_extra=extra,
+            **constraints,
+        )
+    return Field(default, description=doc or None, json_schema_extra=extra, **constraints)
+
+
+def block(model: type, doc: str = "") -> Any:
+    """A sub-block field: the model's defaults, ``doc`` (default: the model's first line)."""
+    line = doc or (model.__doc__ or "").strip().split("\n\n")[0].replace("\n", " ")
+    return Field(default_factory=model, description=line or None)
 
 
 # ------------------------------------------------------------------ blocks
@@ -250,17 +209,10 @@ _DEFAULTS: dict[type, dict] = {}
 
 
 class Block(BaseModel):
-    """A block of the scenario: its fields are its keys, each with its default.
-
-    ``_path`` is where the block sits in a scenario; a key the block does not
-    have is refused with the closest valid one, every leaf is checked against
-    the type of its default and normalised by :func:`_leaf` (so that ``15`` and
-    ``15.0`` hash alike). Fields in ``_own`` check themselves.
-    """
+    """A block of the scenario: its fields are its keys, each with its default;
+    a key it does not have is refused (``extra="forbid"``)."""
 
     model_config = ConfigDict(extra="forbid", protected_namespaces=(), validate_assignment=False)
-    _path: ClassVar[str] = ""
-    _own: ClassVar[frozenset] = frozenset()
 
     @classmethod
     def defaults(cls) -> Mapping:
@@ -270,37 +222,14 @@ class Block(BaseModel):
             tree = _DEFAULTS[cls] = cls.model_construct().model_dump()
         return tree
 
-    @model_validator(mode="before")
-    @classmethod
-    def _known_keys(cls, data: Any) -> Any:
-        if not isinstance(data, Mapping):
-            raise Problem.wrong_type(data, "a mapping")
-        ref = cls.defaults()
-        for key in data:
-            if key not in cls.model_fields:
-                raise Problem(
-                    "unknown key",
-                    f": allowed keys are {sorted(ref)}{closest(str(key), ref)}",
-                    f".{key_text(key)}",
-                )
-        return data
-
-    @field_validator("*", mode="before")
-    @classmethod
-    def _typed_leaf(cls, value: Any, info) -> Any:
-        default = cls.defaults().get(info.field_name)
-        if info.field_name in cls._own or isinstance(default, Mapping) or default is None:
-            return value
-        return _leaf(value, default, info.field_name)
-
-
-# ------------------------------------------------------------------ tagged entries
-
 
 class Entry(BaseModel):
-    """A tagged mapping (``{type: step, ...}``): fields without a default are required."""
+    """A tagged mapping (``{type: step, ...}``) of a discriminated union: fields
+    without a default are required."""
 
     model_config = ConfigDict(extra="forbid")
+    #: what one entry is called in a message ("a list of components")
+    noun: ClassVar[str] = "entry"
 
     @classmethod
     def required(cls) -> tuple[str, ...]:
@@ -311,41 +240,309 @@ class Entry(BaseModel):
         return {k: f.default for k, f in cls.model_fields.items() if not f.is_required()}
 
 
-def tagged(kinds: Mapping[str, type[Entry]], noun: str, example: str) -> BeforeValidator:
-    """The tag, the keys and the required keys of one entry, before its model sees it
-    (the messages of :func:`simpro_mj.core.keys.check_tagged`)."""
-    names = list(kinds)
-
-    def check(entry: Any) -> Any:
-        if not isinstance(entry, Mapping):
-            raise Problem.wrong_type(entry, f"a {noun} mapping like {example[1:-1]}")
-        kind = entry.get("type")
-        if not isinstance(kind, str) or kind not in kinds:
-            if "type" not in entry:
-                raise Problem("missing key", f": allowed: one of {names}", ".type")
-            raise Problem.invalid(kind, f"one of {names}{closest(str(kind), names)}", ".type")
-        model = kinds[kind]
-        allowed = ["type", *model.required(), *model.optional()]
-        for key in entry:
-            if key not in allowed:
-                rest = f": allowed keys of a {kind} are {allowed}{closest(str(key), allowed)}"
-                raise Problem("unknown key", rest, f".{key_text(key)}")
-        for key in model.required():
-            if key not in entry:
-                raise Problem(
-                    "missing key", f": a {kind} needs {list(model.required())}", f".{key}"
-                )
-        return entry
-
-    return BeforeValidator(check)
+def none_as_empty(value: Any) -> Any:
+    """``null`` for a list of entries: none."""
+    return [] if value is None else value
 
 
-def tagged_list(noun: str, example: str) -> BeforeValidator:
-    def check(value: Any) -> list:
-        if value is None:
-            return []
-        if not isinstance(value, (list, tuple)):
-            raise Problem.wrong_type(value, f"a list of {noun}s like {example}")
-        return list(value)
+# ------------------------------------------------------------------ walking the models
 
-    return BeforeValidator(check)
+
+def strip(tp: Any) -> tuple[Any, list]:
+    """An annotation without its ``Annotated`` and ``| None`` layers, and their metadata."""
+    meta: list = []
+    while True:
+        if get_origin(tp) is Annotated:
+            tp, *more = get_args(tp)
+            meta += more
+        elif get_origin(tp) in (Union, types.UnionType):
+            args = [a for a in get_args(tp) if a is not type(None)]
+            if len(args) != 1:
+                return tp, meta
+            tp = args[0]
+        else:
+            return tp, meta
+
+
+def is_model(tp: Any) -> bool:
+    return isinstance(tp, type) and issubclass(tp, BaseModel)
+
+
+#: The keys that tag an entry of a discriminated union.
+TAGS = ("type", "distribution")
+
+
+def tag_of(model: type) -> str | None:
+    """The key that tags ``model`` in its union (``type``), or None."""
+    return next((t for t in TAGS if t in model.model_fields), None)
+
+
+def tagged_members(tp: Any) -> dict[str, type]:
+    """The models of a tagged union by their tag ({} for anything else)."""
+    tp, _ = strip(tp)
+    out = {}
+    if get_origin(tp) in (Union, types.UnionType):
+        for member in get_args(tp):
+            member, _ = strip(member)
+            if is_model(member) and tag_of(member):
+                (tag,) = get_args(member.model_fields[tag_of(member)].annotation)
+                out[tag] = member
+    return out
+
+
+def locate(model: type, loc: tuple) -> tuple[Any, FieldInfo | None, list, set]:
+    """What lies at ``loc`` below ``model``: its annotation, the last field crossed, the
+    metadata (constraints) there and the positions in ``loc`` that are a union's tags
+    (no key of the file); ``(None, None, [], tags)`` for a key no model has."""
+    tp: Any = model
+    field: FieldInfo | None = None
+    meta: list = []
+    tags: set = set()
+    for i, part in enumerate(loc):
+        tp, _ = strip(tp)
+        origin = get_origin(tp)
+        if isinstance(part, int) and origin is list:
+            tp, meta = strip(get_args(tp)[0])
+            continue
+        if isinstance(part, str) and origin is dict:  # a mapping's key: its value's type
+            tp, meta = strip(get_args(tp)[1])
+            continue
+        members = tagged_members(tp)
+        if part in members:
+            tp, meta = members[part], []
+            tags.add(i)
+            continue
+        if not is_model(tp) or part not in tp.model_fields:
+            return None, None, [], tags
+        field = tp.model_fields[part]
+        tp, meta = field.annotation, list(field.metadata)
+    return tp, field, meta, tags
+
+
+# ------------------------------------------------------------------ what is allowed
+
+
+def unit_of(field: FieldInfo | None) -> str:
+    extra = field.json_schema_extra if field is not None else None
+    return str(extra.get("unit", "")) if isinstance(extra, dict) else ""
+
+
+def _num(x: float) -> str:
+    return str(x) if isinstance(x, int) else f"{x:g}"
+
+
+def range_text(meta: list, unit: str = "") -> str:
+    """``0..5000 kg``, ``> 0 s``, ``> -1 and < 1`` from the constraints in ``meta``."""
+    lo = hi = None
+    for m in meta:
+        for c in getattr(m, "metadata", None) or [m]:  # a FieldInfo in Annotated holds its own
+            if isinstance(c, at.Ge):
+                lo = (">=", c.ge)
+            elif isinstance(c, at.Gt):
+                lo = (">", c.gt)
+            elif isinstance(c, at.Le):
+                hi = ("<=", c.le)
+            elif isinstance(c, at.Lt):
+                hi = ("<", c.lt)
+    if lo is None and hi is None:
+        return ""
+    if lo and hi and lo[0] == ">=" and hi[0] == "<=":
+        text = f"{_num(lo[1])}..{_num(hi[1])}"
+    else:
+        text = " and ".join(f"{part[0]} {_num(part[1])}" for part in (lo, hi) if part)
+    return f"{text} {unit}".strip()
+
+
+def item_meta(tp: Any) -> list:
+    """The constraints of a list's items (``numbers(3, ge=0)``)."""
+    tp, _ = strip(tp)
+    if get_origin(tp) is list:
+        return strip(get_args(tp)[0])[1]
+    return []
+
+
+def allowed_text(
+    field: FieldInfo | None, tp: Any = None, meta: list | None = None, bound: str = ""
+) -> str:
+    """What a field allows: its range and unit (``bound`` first, the one a value
+    crossed), its meaning in brackets."""
+    if tp is None and field is not None:
+        tp = field.annotation
+    if meta is None:
+        meta = list(field.metadata) if field is not None else []
+    rng = range_text(meta + strip(tp)[1] + item_meta(tp), unit_of(field))
+    extra = field.json_schema_extra if field is not None else None
+    if not rng and isinstance(extra, dict) and extra.get("range"):  # a range the plant states
+        return f"{extra['range']}, {unit_of(field)}".rstrip(", ")
+    if bound:
+        unit = unit_of(field)
+        first = f"{bound} {unit}".strip()
+        rng = first if rng in ("", first) else f"{first}, within {rng}"
+    doc = (field.description or "") if field is not None else ""
+    if rng and doc:
+        return f"{rng} ({doc})"
+    return rng or doc or "see simpro-sim show"
+
+
+def _choices(tp: Any) -> list:
+    tp, _ = strip(tp)
+    return list(get_args(tp)) if get_origin(tp) is Literal else []
+
+
+def _kind_text(kind: str, tp: Any, field: FieldInfo | None) -> str:
+    """What a value of the field's type is, for a "wrong type"."""
+    base, _ = strip(tp)
+    if base is list:
+        return "a non-empty list of values, e.g. [1, 2, 4]"
+    if base is dict or get_origin(base) is dict:
+        return "a non-empty mapping"
+    if get_origin(base) is list:
+        default = field.get_default(call_default_factory=True) if field is not None else None
+        n = len(default) if isinstance(default, list) else None
+        item, _ = strip(get_args(base)[0])
+        members = tagged_members(item)
+        if members:
+            noun = getattr(next(iter(members.values())), "noun", "entry")
+            return f"a list of {noun}s, mappings with a type: one of {list(members)}"
+        if n is not None and n and item is float:
+            one = field is not None and any(m is ONE_FOR_ALL for m in field.metadata)
+            return f"{'one number or ' if one else ''}a list of {n} numbers like {default}"
+        return "a non-empty list of numbers"
+    return {
+        "float_type": "a number",
+        "int_type": "an integer",
+        "bool_type": "true or false",
+        "string_type": "a string",
+        "model_type": "a mapping",
+        "dict_type": "a mapping",
+        "model_attributes_type": f"a mapping with a {_tag_key(tp)}: one of "
+        f"{list(tagged_members(tp))}",
+    }.get(kind, "a value of the right type")
+
+
+def _tag_key(tp: Any) -> str:
+    members = list(tagged_members(tp).values())
+    return (tag_of(members[0]) if members else None) or "type"
+
+
+def _dotted(loc: tuple) -> str:
+    out = ""
+    for part in loc:
+        if isinstance(part, int):
+            out += f"[{part}]"
+        else:
+            out += f".{key_text(part)}" if out else key_text(part)
+    return out
+
+
+#: pydantic's bound errors: the operator and its context key
+_BOUNDS = {
+    "greater_than": (">", "gt"),
+    "greater_than_equal": (">=", "ge"),
+    "less_than": ("<", "lt"),
+    "less_than_equal": ("<=", "le"),
+}
+_RANGE_ERRORS = {
+    "string_too_long",
+    "greater_than",
+    "greater_than_equal",
+    "less_than",
+    "less_than_equal",
+    "finite_number",
+    "string_pattern_mismatch",
+}
+_TYPE_ERRORS = {
+    "float_type",
+    "int_type",
+    "bool_type",
+    "string_type",
+    "list_type",
+    "too_short",
+    "too_long",
+    "model_type",
+    "dict_type",
+    "model_attributes_type",
+}
+
+
+def user_error(exc: ValidationError, model: type, prefix: str = "") -> UserInputError:
+    """The one-line :class:`UserInputError` for pydantic's first error (an unknown key first).
+
+    Parameters
+    ----------
+    exc : ValidationError
+        What ``model.model_validate`` raised.
+    model : type
+        The model validated (the scenario, or a block of it): where the field that
+        refused the value is looked up for its range, unit, meaning and choices.
+    prefix : str
+        The dotted path of what was validated, when that is a block on its own
+        rather than the whole scenario (``setpoint.cueing``).
+    """
+    errors = exc.errors(include_url=False)
+    err = next((e for e in errors if e["type"] == "extra_forbidden"), errors[0])
+    kind, value = err["type"], err.get("input")
+    loc = tuple(err["loc"])
+    tp, field, meta, tags = locate(model, loc)
+    # the tag pydantic adds inside a tagged union is no key of the file
+    keys = tuple(p for i, p in enumerate(loc) if i not in tags)
+    path = ".".join(p for p in (prefix, _dotted(keys)) if p) or "top level"
+
+    def line(head: str, rest: str, at: str | None = None) -> UserInputError:
+        return UserInputError(f"{head} at {at or path}{rest}")
+
+    cause = (err.get("ctx") or {}).get("error")
+    if isinstance(cause, UserInputError):  # an absolute message (names its own path)
+        return UserInputError(str(cause))
+    if isinstance(cause, Problem):
+        where = f"{path}{cause.suffix}" if keys or prefix else cause.suffix.lstrip(".") or path
+        return line(cause.head, cause.rest, where)
+    if kind == "extra_forbidden":
+        parent = locate(model, loc[:-1])[0]
+        names = sorted(strip(parent)[0].model_fields) if is_model(strip(parent)[0]) else []
+        key = str(loc[-1])
+        return line("unknown key", f": allowed keys are {names}{closest(key, names)}")
+    if kind == "missing":
+        parent = strip(locate(model, loc[:-1])[0])[0]
+        fields = parent.model_fields.items() if is_model(parent) else ()
+        need = [k for k, f in fields if f.is_required() and k not in TAGS]
+        tag = loc[-2] if len(loc) > 1 and isinstance(loc[-2], str) else "block"
+        return line("missing key", f": a {tag} needs {need}")
+    if kind in ("union_tag_not_found", "union_tag_invalid"):
+        members = tagged_members(tp)
+        names = list(members)
+        key = tag_of(next(iter(members.values()))) if members else "type"
+        if kind == "union_tag_not_found":
+            return line("missing key", f": allowed: one of {names}", f"{path}.{key}")
+        tag = value.get(key) if isinstance(value, Mapping) else value
+        rest = f": {value_text(tag)}; allowed: one of {names}{closest(str(tag), names)}"
+        return line("invalid value", rest, f"{path}.{key}")
+    if kind == "literal_error":
+        choices = _choices(tp)
+        head = "invalid value"
+        if value is not None and choices and not isinstance(value, type(choices[0])):
+            return line("wrong type", f": got {type(value).__name__} {value_text(value)}; "
+                        f"allowed: one of {choices}")  # fmt: skip
+        hint = closest(str(value), [str(c) for c in choices])
+        return line(head, f": {value_text(value)}; allowed: one of {choices}{hint}")
+    index = ""
+    if keys and isinstance(keys[-1], int) and strip(tp)[0] in (float, int, str):
+        # an item of a list of numbers: the list's field says what is allowed
+        index = f" (item [{keys[-1]}])"
+        path = path[: path.rindex("[")]
+        tp, field, meta, _ = locate(model, loc[:-1])
+        meta = item_meta(tp)
+    if kind in _TYPE_ERRORS:
+        got = "null" if value is None else f"{type(value).__name__} {value_text(value)}"
+        allowed = _kind_text(kind, tp, field)
+        return line("wrong type", f": got {got}{index}; allowed: {allowed}")
+    if kind in _RANGE_ERRORS:
+        ctx = err.get("ctx") or {}
+        op = _BOUNDS.get(kind)
+        bound = f"{op[0]} {_num(ctx[op[1]])}" if op and op[1] in ctx else ""
+        allowed = allowed_text(field, tp, meta, bound)
+        if kind == "finite_number" or (isinstance(value, float) and not math.isfinite(value)):
+            allowed = f"a finite number, {allowed}"
+        return line("invalid value", f": {value_text(value)}{index}; allowed: {allowed}")
+    msg = " ".join(str(err["msg"]).split())  # not expected from these models: still one line
+    return line("invalid value", f": {value_text(value)}{index}; allowed: {msg}")

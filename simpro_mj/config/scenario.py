@@ -91,14 +91,8 @@ from simpro_mj.config.cueing import resolve_paths
 from simpro_mj.config.defaults import DEFAULT_SCENARIO
 from simpro_mj.config.defaults import merge as _merge
 from simpro_mj.config.entries import COMPONENT_TYPES, FAULT_TYPES
-from simpro_mj.config.models import (
-    ACTUATOR_MODELS,
-    DISCRETISATIONS,
-    INNER_VARIANTS,
-    Scenario,
-    scenario_model,
-)
-from simpro_mj.config.models import check_pneumatics as _check_pneumatics
+from simpro_mj.config.models import Scenario, scenario_model
+from simpro_mj.config.pneumatics import check_pneumatics as _check_pneumatics
 from simpro_mj.config.presets import scenario_overlay
 from simpro_mj.config.reference import SetpointError, check_setpoints, late_setpoints, reference
 from simpro_mj.config.rules import (
@@ -127,9 +121,6 @@ __all__ = [
     "PHYSICS_DT_S",
     "MODES",
     "OUTER_TYPES",
-    "INNER_VARIANTS",
-    "DISCRETISATIONS",
-    "ACTUATOR_MODELS",
     "COMPONENT_TYPES",
     "FAULT_TYPES",
     "FAULT_SENSORS",
