@@ -18,10 +18,10 @@ A scenario file may carry a ``sweep:`` block next to its scenario keys::
 Rules
 -----
 * **Paths** are the dotted paths of ``--set`` (``controller.outer.gains``),
-  checked against :data:`simpro_mj.config.defaults.DEFAULT_SCENARIO` (and, below
-  ``actuator.pneumatics``, :data:`simpro_mj.plant.pneumatics.params.DEFAULT_PNEUMATIC_PARAMS`);
-  an unknown one is refused with the closest valid key. ``name`` and
-  ``sweep`` cannot be swept.
+  checked against :data:`simpro_mj.config.defaults.DEFAULT_SCENARIO`; an
+  unknown one is refused with the closest valid key. ``name`` and ``sweep``
+  cannot be swept. The block itself is the typed :class:`Sweep` (pydantic:
+  its numbers are the scenario's :data:`~simpro_mj.config.rules.Real`).
 * **Grid**: every path maps to a non-empty list of values; the variants are
   the cartesian product in the order of the file (first path slowest). A
   number given where the scenario has a list of numbers (``gains``,
@@ -71,15 +71,23 @@ import re
 import zlib
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Annotated, Any, Literal
 
 import numpy as np
+from pydantic import (
+    BeforeValidator,
+    Field,
+    TypeAdapter,
+    ValidationError,
+    ValidationInfo,
+    model_validator,
+)
 
 from simpro_mj.config.cueing import sweep_defaults
 from simpro_mj.config.defaults import DEFAULT_SCENARIO
+from simpro_mj.config.rules import Block, Entry, Problem, Real, Whole, param, user_error
 from simpro_mj.core.errors import UserInputError
-from simpro_mj.core.keys import check_keys, check_tagged, closest, key_text
-from simpro_mj.plant.pneumatics.params import DEFAULT_PNEUMATIC_PARAMS
+from simpro_mj.core.keys import closest, key_text
 
 __all__ = [
     "DISTRIBUTIONS",
@@ -100,14 +108,13 @@ DISTRIBUTIONS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
     "normal": (("mean", "std"), ("low", "high")),
     "choice": (("values",), ()),
 }
-_SWEEP_KEYS = ("grid", "monte_carlo")
-_MC_KEYS = ("samples", "seed", "parameters")
 _NOT_SWEPT = ("name", "sweep")
 #: Most variants of one file (grid product times samples) and of one batch.
 MAX_VARIANTS = 10_000
 _MAX_SAMPLES = MAX_VARIANTS
 _MAX_NAME = 80
 _UNSAFE = re.compile(r"[^A-Za-z0-9.,+=_-]")
+_REAL = TypeAdapter(Real)
 
 
 # ------------------------------------------------------------------ spec
@@ -172,8 +179,6 @@ def _defaults_at(path: str, where: str) -> Any:
     node: Any = DEFAULT_SCENARIO
     done: list[str] = []
     for part in parts:
-        if done == ["actuator", "pneumatics"]:
-            node = DEFAULT_PNEUMATIC_PARAMS
         if done == ["setpoint"] and part == "cueing":  # the washout parameters
             node = {"cueing": sweep_defaults()}
         if not isinstance(node, Mapping):
@@ -215,83 +220,127 @@ def _numeric_list_len(default: Any) -> int | None:
     return None
 
 
-def _check_path(path: Any, where: str) -> str:
-    if not isinstance(path, str) or not path or any(not p for p in path.split(".")):
+def _number_or_list(value: Any) -> Any:
+    """A distribution's number: a finite number, or a list of them (its length is checked
+    against the swept leaf once the path is known)."""
+    try:
+        if isinstance(value, list | tuple):
+            return [_REAL.validate_python(v) for v in value]
+        return _REAL.validate_python(value)
+    except ValidationError:
+        raise Problem.wrong_type(value, "a finite number or a list of them") from None
+
+
+def _not_negative(value: Any) -> Any:
+    if (
+        _is_number(value)
+        and value < 0
+        or isinstance(value, list)
+        and any(_is_number(v) and v < 0 for v in value)
+    ):
+        raise Problem.invalid(value, ">= 0")
+    return value
+
+
+Bound = Annotated[float | list[float], BeforeValidator(_number_or_list)]
+
+
+class Uniform(Entry):
+    """Uniform between ``low`` and ``high`` (``low <= high``)."""
+
+    distribution: Literal["uniform"]
+    low: Bound
+    high: Bound
+
+
+class Normal(Entry):
+    """Normal of ``mean`` and ``std`` (>= 0), clipped to ``low``/``high`` when given."""
+
+    distribution: Literal["normal"]
+    mean: Bound
+    std: Annotated[Bound, BeforeValidator(_not_negative)]
+    low: Bound | None = None
+    high: Bound | None = None
+
+
+class Choice(Entry):
+    """One of ``values``, with equal weights."""
+
+    distribution: Literal["choice"]
+    values: Annotated[list, Field(min_length=1)]
+
+
+Draw = Annotated[Uniform | Normal | Choice, Field(discriminator="distribution")]
+
+
+class MonteCarlo(Block):
+    """``samples`` draws of every listed parameter, crossed with the grid."""
+
+    samples: Whole = Field(ge=1, le=_MAX_SAMPLES, description="draws of every parameter")
+    seed: Whole = param(0, "", "base seed of the draws", ge=0, le=2**63 - 1)
+    parameters: Annotated[dict[str, Draw], Field(min_length=1)]
+
+
+class Sweep(Block):
+    """A ``sweep:`` block: a grid (dotted path -> values) and/or Monte Carlo draws."""
+
+    grid: dict[str, Annotated[list, Field(min_length=1)]] = param({}, "", "path -> values")
+    monte_carlo: MonteCarlo | None = None
+
+    @model_validator(mode="after")
+    def _paths(self, info: ValidationInfo):
+        """Every path a scenario value, in one of grid or monte_carlo; sizes; the count."""
+        where = (info.context or {}).get("where", "sweep")
+        if not self.grid and self.monte_carlo is None:
+            raise UserInputError(
+                f"missing key at {where}: allowed: a non-empty 'grid' and/or 'monte_carlo'"
+            )
+        for path in self.grid:
+            here = f"{where}.grid.{key_text(path)}"
+            _defaults_at(_checked_path(path, here), here)
+        for path, draw in (self.monte_carlo.parameters if self.monte_carlo else {}).items():
+            here = f"{where}.monte_carlo.parameters.{key_text(path)}"
+            _checked_path(path, here)
+            if path in self.grid:
+                raise UserInputError(
+                    f"invalid key at {here}: also swept in {where}.grid; allowed: each path "
+                    "in one of grid or monte_carlo"
+                )
+            _check_draw(path, draw, here)
+        return self
+
+
+def _checked_path(path: str, where: str) -> str:
+    if not path or any(not p for p in path.split(".")):
         raise UserInputError(
             f"invalid key at {where}: {path!r}; allowed: a dotted path like controller.outer.gains"
         )
     return path
 
 
-def _number(value: Any, where: str) -> float:
-    if _is_number(value) and math.isfinite(float(value)):
-        return float(value)
-    if isinstance(value, str):
-        try:
-            x = float(value)  # YAML 1.1 reads 5e-3 as a string
-        except ValueError:
-            pass
-        else:
-            if math.isfinite(x):
-                return x
-    raise UserInputError(
-        f"wrong type at {where}: got {type(value).__name__} {value!r}; allowed: a finite number"
-    )
-
-
-def _dist_number(value: Any, size: int | None, where: str) -> float | list[float]:
-    """A distribution's number: a scalar, or (list leaf) a list of ``size`` numbers."""
-    if isinstance(value, (list, tuple)):
-        if size is None or len(value) != size:
-            n = "a number" if size is None else f"a number or a list of {size} numbers"
-            raise UserInputError(f"wrong type at {where}: got a list of {len(value)}; allowed: {n}")
-        return [_number(v, f"{where}[{i}]") for i, v in enumerate(value)]
-    return _number(value, where)
-
-
-def _parse_distribution(path: str, spec: Any, where: str) -> Distribution:
-    example = "{distribution: uniform, low: 200, high: 300}"
-    if not isinstance(spec, Mapping):
-        raise UserInputError(
-            f"wrong type at {where}: got {type(spec).__name__} {spec!r}; allowed: a mapping "
-            f"like {example}"
-        )
-    kind, required, optional = check_tagged(
-        spec, where, "distribution", DISTRIBUTIONS, "distribution"
-    )
+def _check_draw(path: str, draw: Entry, where: str) -> None:
+    """A draw's numbers against the swept leaf: scalars, or lists of the leaf's length."""
     size = _numeric_list_len(_defaults_at(path, where))
-    args: dict = {}
-    if kind == "choice":
-        values = spec["values"]
-        if not isinstance(values, list) or not values:
+    for key in ("low", "high", "mean", "std"):
+        value = getattr(draw, key, None)
+        if isinstance(value, list) and (size is None or len(value) != size):
+            n = "a number" if size is None else f"a number or a list of {size} numbers"
             raise UserInputError(
-                f"wrong type at {where}.values: got {values!r}; allowed: a non-empty list"
+                f"wrong type at {where}.{key}: got a list of {len(value)}; allowed: {n}"
             )
-        args["values"] = copy.deepcopy(values)
-    else:
-        for key in (*required, *optional):
-            if key in spec:
-                args[key] = _dist_number(spec[key], size, f"{where}.{key}")
-    lo = np.asarray(args.get("low", -np.inf), float)
-    hi = np.asarray(args.get("high", np.inf), float)
-    if np.any(lo > hi):
-        raise UserInputError(
-            f"invalid value at {where}.high: {spec.get('high')!r}; allowed: >= low "
-            f"({spec.get('low')!r})"
-        )
-    if kind == "normal" and np.any(np.asarray(args["std"], float) < 0):
-        raise UserInputError(f"invalid value at {where}.std: {spec['std']!r}; allowed: >= 0")
-    return Distribution(path=path, kind=kind, args=args, size=size)
+    low, high = getattr(draw, "low", None), getattr(draw, "high", None)
+    if low is not None and high is not None and np.any(np.asarray(low) > np.asarray(high)):
+        raise UserInputError(f"invalid value at {where}.high: {high!r}; allowed: >= low ({low!r})")
 
 
-def _integer(value: Any, where: str, lo: int, hi: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, int) or not lo <= value <= hi:
-        raise UserInputError(f"invalid value at {where}: {value!r}; allowed: an integer {lo}..{hi}")
-    return int(value)
+def _distribution(path: str, draw: Entry) -> Distribution:
+    args = draw.model_dump(exclude={"distribution"}, exclude_none=True)
+    size = _numeric_list_len(_defaults_at(path, path))
+    return Distribution(path=path, kind=draw.distribution, args=args, size=size)
 
 
 def parse_sweep(block: Any, where: str = "sweep") -> SweepSpec:
-    """Validate a ``sweep:`` block.
+    """Validate a ``sweep:`` block (:class:`Sweep`).
 
     Parameters
     ----------
@@ -309,65 +358,20 @@ def parse_sweep(block: Any, where: str = "sweep") -> SweepSpec:
     UserInputError
         ``<what> at sweep.<...>: <what is allowed>`` for the first problem.
     """
-    if not isinstance(block, Mapping):
-        raise UserInputError(
-            f"wrong type at {where}: got {type(block).__name__} {block!r}; allowed: a mapping "
-            f"with {list(_SWEEP_KEYS)}"
-        )
-    check_keys(block, dict.fromkeys(_SWEEP_KEYS), where)
-    if not any(block.get(k) for k in _SWEEP_KEYS):
-        raise UserInputError(
-            f"missing key at {where}: allowed: a non-empty 'grid' and/or 'monte_carlo'"
-        )
-    grid: dict = {}
-    raw_grid = block.get("grid") or {}
-    if not isinstance(raw_grid, Mapping):
-        raise UserInputError(
-            f"wrong type at {where}.grid: got {type(raw_grid).__name__}; allowed: a mapping "
-            "of dotted paths to lists of values"
-        )
-    for path, values in raw_grid.items():
-        here = f"{where}.grid.{key_text(path)}"
-        _defaults_at(_check_path(path, here), here)
-        if not isinstance(values, list) or not values:
-            raise UserInputError(
-                f"wrong type at {here}: got {type(values).__name__} {values!r}; allowed: a "
-                "non-empty list of values, e.g. [1, 2, 4]"
-            )
-        grid[path] = copy.deepcopy(values)
-    samples, seed, params = 0, 0, []
-    mc = block.get("monte_carlo")
-    if mc:
-        w = f"{where}.monte_carlo"
-        if not isinstance(mc, Mapping):
-            raise UserInputError(
-                f"wrong type at {w}: got {type(mc).__name__}; allowed: a mapping with "
-                f"{list(_MC_KEYS)}"
-            )
-        check_keys(mc, dict.fromkeys(_MC_KEYS), w)
-        for key in ("samples", "parameters"):
-            if key not in mc:
-                raise UserInputError(f"missing key at {w}.{key}: allowed: {list(_MC_KEYS)}")
-        samples = _integer(mc["samples"], f"{w}.samples", 1, _MAX_SAMPLES)
-        seed = _integer(mc.get("seed", 0), f"{w}.seed", 0, 2**63 - 1)
-        raw = mc["parameters"]
-        if not isinstance(raw, Mapping) or not raw:
-            raise UserInputError(
-                f"wrong type at {w}.parameters: got {raw!r}; allowed: a non-empty mapping of "
-                "dotted paths to distributions"
-            )
-        for path, spec in raw.items():
-            here = f"{w}.parameters.{key_text(path)}"
-            _check_path(path, here)
-            if path in grid:
-                raise UserInputError(
-                    f"invalid key at {here}: also swept in {where}.grid; allowed: each path "
-                    "in one of grid or monte_carlo"
-                )
-            params.append(_parse_distribution(path, spec, here))
-    spec = SweepSpec(grid=grid, samples=samples, seed=seed, parameters=tuple(params))
+    try:
+        sweep = Sweep.model_validate(block, context={"where": where})
+    except ValidationError as exc:
+        raise user_error(exc, Sweep, where) from None
+    mc = sweep.monte_carlo
+    params = tuple(_distribution(p, d) for p, d in (mc.parameters if mc else {}).items())
+    spec = SweepSpec(
+        grid=copy.deepcopy(sweep.grid),
+        samples=mc.samples if mc else 0,
+        seed=mc.seed if mc else 0,
+        parameters=params,
+    )
     if spec.count > MAX_VARIANTS:  # counted, not expanded
-        factors = [str(len(v)) for v in grid.values()] + ([str(samples)] if samples else [])
+        factors = [str(len(v)) for v in spec.grid.values()] + ([str(spec.samples)] if mc else [])
         raise UserInputError(
             f"too many variants at {where}: {' x '.join(factors)} = {spec.count:,}; allowed: "
             f"at most {MAX_VARIANTS:,} variants per file"
