@@ -35,16 +35,17 @@ def test_a_bad_period_is_one_line_naming_the_key():
 
 @pytest.mark.slow
 def test_dither_settles_the_cabin_whose_seals_stick():
-    """step_pitch, 10 s, the cabin with seals that stick and the preset's loops:
-    without dither the pose hunts (a limit cycle), with +-2 V at 25 Hz it settles,
-    overshoot within 10 %."""
+    """step_pitch (its 20 s) on the cabin with seals that stick and the preset's
+    loops: without dither the pose hunts (a limit cycle), with +-2 V at 25 Hz it
+    settles, overshoot within 10 %. At 10 s the dithered pitch still creeps by
+    0.03 deg over the last 2 s, above the verdict's 0.02 deg: the run's own length
+    is what the floors are judged on."""
     import simpro_mj as s
 
     base = {
         "plant.preset": "heavy_cabin",
         "actuator.pneumatics.cylinder.friction_model": "stick",
         "controller.inner.identify": "preset",
-        "duration_s": 10,
     }
     hunting = s.run("step_pitch", base)
     assert hunting.status == "limit_cycle"
