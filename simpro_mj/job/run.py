@@ -267,7 +267,7 @@ class Run:
         res.sim.update(loaded)
         metrics = compute_metrics(res.columns, res.scenario)
         if res.status == "ok":  # ran to its end: does the pose settle? (analysis.verdict)
-            judged = verdict(res.columns, res.noise_floor or res.sensor_floor)
+            judged = verdict(res.columns, res.noise_floor)
             res.status, res.reason = judged["status"], judged["reason"]
             metrics["verdict"] = judged
         metrics["status"] = res.status

@@ -245,6 +245,30 @@ def valve_spool(u, ast, ac):
             ast[A_RATE + i] = rate
 
 
+def _chamber(c, q, ast, ac):
+    """Chamber ``c`` (0-2 cap sides, 3-5 rod sides) now: its supply and exhaust
+    edges' openings, its volume ``V`` (m^3) and ``dV/dq``.
+
+    Metering edges (Rubio 2009): ``a_P1 = a_2R = clip(δ + s, ε, 1)``,
+    ``a_1R = a_P2 = clip(δ - s, ε, 1)``; ``V = V0 + dV/dq q``, kept above
+    ``V_min`` (overtravel must not empty a chamber).
+    """
+    i = c % 3
+    sp = ast[A_SPOOL + i]
+    d = ac[AC_DELTA + i]
+    eps = ac[AC_EPS]
+    ap, am = clip(sp + d, eps, 1.0), clip(d - sp, eps, 1.0)
+    if c < 3:  # cap side: supply edge P->1, exhaust edge 1->R
+        a_s, a_e = ap, am
+    else:  # rod side: P->2, 2->R
+        a_s, a_e = am, ap
+    dv = ac[AC_CH + 3 * c + 1]
+    V = ac[AC_CH + 3 * c] + dv * q[i]
+    if V < ac[AC_CH + 3 * c + 2]:
+        V = ac[AC_CH + 3 * c + 2]
+    return a_s, a_e, V, dv
+
+
 def chamber_pressures(q, qd, ast, ac):
     """The six chamber pressures over the step (linearly implicit Euler, frozen conductances).
 
@@ -256,7 +280,6 @@ def chamber_pressures(q, qd, ast, ac):
     (a chamber above the supply flows back to it, one below the atmosphere
     draws air in).
     """
-    eps = ac[AC_EPS]
     draw = 0.0
     ps, pa, hn, rtk = ast[A_PS], ac[AC_PA], ac[AC_HN], ac[AC_RTK]
     ips = 1.0 / ps
@@ -264,18 +287,7 @@ def chamber_pressures(q, qd, ast, ac):
     n = int(ac[AC_NTAB])
     for c in range(6):
         i = c % 3
-        sp = ast[A_SPOOL + i]
-        d = ac[AC_DELTA + i]
-        ap, am = clip(sp + d, eps, 1.0), clip(d - sp, eps, 1.0)
-        if c < 3:  # cap side: supply edge P->1, exhaust edge 1->R
-            a_s, a_e = ap, am
-        else:  # rod side: P->2, 2->R
-            a_s, a_e = am, ap
-        v0 = ac[AC_CH + 3 * c]
-        dv = ac[AC_CH + 3 * c + 1]
-        V = v0 + dv * q[i]
-        if V < ac[AC_CH + 3 * c + 2]:  # overtravel must not empty a chamber
-            V = ac[AC_CH + 3 * c + 2]
+        a_s, a_e, V, dv = _chamber(c, q, ast, ac)
         hnV = hn / V
         den0 = (dv * qd[i]) * hnV + 1.0
         hc = hnV * rtk
@@ -310,7 +322,6 @@ def chamber_energy(q, qd, ast, ac):
     cools the gas and the wall warms it back: the polytropic index of the
     other model emerges instead of being chosen.
     """
-    eps = ac[AC_EPS]
     draw = 0.0
     ps, pa = ast[A_PS], ac[AC_PA]
     ips = 1.0 / ps
@@ -322,18 +333,7 @@ def chamber_energy(q, qd, ast, ac):
     h = ac[th + TH_H]
     for c in range(6):
         i = c % 3
-        sp = ast[A_SPOOL + i]
-        d = ac[AC_DELTA + i]
-        ap, am = clip(sp + d, eps, 1.0), clip(d - sp, eps, 1.0)
-        if c < 3:
-            a_s, a_e = ap, am
-        else:
-            a_s, a_e = am, ap
-        v0 = ac[AC_CH + 3 * c]
-        dv = ac[AC_CH + 3 * c + 1]
-        V = v0 + dv * q[i]
-        if V < ac[AC_CH + 3 * c + 2]:
-            V = ac[AC_CH + 3 * c + 2]
+        a_s, a_e, V, dv = _chamber(c, q, ast, ac)
         vdot = dv * qd[i]
         aw = ac[AC_AW + 2 * c] + ac[AC_AW + 2 * c + 1] * V
         pc = ast[A_P + c]

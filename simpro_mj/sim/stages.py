@@ -92,8 +92,7 @@ class FaultHooks:
         s, S = self.schedule, self.S
         ch = s.at_event(k)
         if ch.supply_pa is not None:
-            S[step.AST + ps.A_PS] = ch.supply_pa
-            S[step.SUPPLY_LOG] = ch.supply_pa
+            S[step.AST + ps.A_PS] = ch.supply_pa  # what the log's supply_pa shows
             if self.actuators.kind == "linear":
                 lo, hi = self.actuators.params.force_range_at(ch.supply_pa)
                 S[step.AST + ps.A_FMIN], S[step.AST + ps.A_FMAX] = lo, hi

@@ -45,14 +45,14 @@ from simpro_mj.plant.sensor_errors import accel_tilt, pot_nonlinearity
 __all__ = ["sense", "control", "actuate", "record", "callback_step", "build", "compiled"]
 
 # ---------------------------------------------------------------- state S
-K, STATUS, ERR, ERR_K, ROWS, WORST, FLAGS, SUPPLY_LOG, NOISE_K0 = range(9)
+K, STATUS, ERR, ERR_K, ROWS, WORST, FLAGS, NOISE_K0 = range(8)
 # the bias walk: its draws used so far, the stream index of its block's first row
-WALK_M, WALK_M0 = 9, 10
-Q, QD, POSE, QM, PM, LOOP = 11, 14, 17, 20, 23, 26
-YQ, YP = 27, 30  # what the controllers see (faults act here)
-QDES, QR, U, UA, F, PCMD = 33, 36, 39, 42, 45, 48  # q_d, q_ref, volts (own, applied), N, x_c
-SAT = 51  # feed-forward: a valve at its rail since the last outer step
-SS = 52  # the sensors' own state (plant.step_functions.SS_*)
+WALK_M, WALK_M0 = 8, 9
+Q, QD, POSE, QM, PM, LOOP = 10, 13, 16, 19, 22, 25
+YQ, YP = 26, 29  # what the controllers see (faults act here)
+QDES, QR, U, UA, F, PCMD = 32, 35, 38, 41, 44, 47  # q_d, q_ref, volts (own, applied), N, x_c
+SAT = 50  # feed-forward: a valve at its rail since the last outer step
+SS = 51  # the sensors' own state (plant.step_functions.SS_*)
 TS = SS + ps.SS_LEN  # the outer loop's state (controllers.step_functions.TS)
 JX = TS + cs.TS.LEN  # the joint controllers' 9 states
 FS = JX + 9  # the set-point filter's state (controllers.step_functions.FS)
@@ -269,7 +269,7 @@ def build(sim, loop_bound: float, noise_row, walk_row) -> tuple[np.ndarray, np.n
     C[GEOM : GEOM + cs.GEOM.LEN] = task.step_geometry
     C[AC:] = act.step_constants
     S = np.zeros(RING + 3 * max(filt.n))
-    S[STATUS], S[SUPPLY_LOG] = IDLE, act.params.p_supply
+    S[STATUS] = IDLE
     S[AST : AST + ps.A_LEN] = act.step_state
     d = sim.data
     q, pose, qm, pm = S[Q : Q + 3], S[POSE : POSE + 3], S[QM : QM + 3], S[PM : PM + 3]
@@ -295,7 +295,7 @@ _PLAIN = [
     cs.outer_update, cs.ff_inner,
     ps.slide_states, ps.platform_pose, ps.loop_closure, ps.clip, ps.quantise, accel_tilt,
     pot_nonlinearity, ps.imu_input, ps.sample_sensors,
-    seal_friction, ps._psi, ps.valve_spool, ps.chamber_pressures, ps.chamber_energy,
+    seal_friction, ps._psi, ps.valve_spool, ps._chamber, ps.chamber_pressures, ps.chamber_energy,
     ps.supply_step, ps.slide_forces,
     ps.nonlinear_step, ps.linear_step,
     sense, control, actuate, record, apply_forces, callback_step,

@@ -20,6 +20,7 @@ import numpy as np
 
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.keys import apply_overrides, check_keys
+from simpro_mj.plant.pneumatics.flow import RHO_REF  # ISO 6358's reference = ANR
 
 __all__ = [
     "DEFAULT_PNEUMATIC_PARAMS",
@@ -44,8 +45,6 @@ FRICTION_MODELS = ("stick", "regularised")
 
 #: ``supply.model``'s values (:func:`simpro_mj.plant.step_functions.supply_step`)
 SUPPLY_MODELS = ("ideal", "receiver")
-#: density of air at ISO 8778's reference (ANR: 20 deg C, 1 bar), kg/m^3
-RHO_ANR = 1.185
 
 #: ``thermal.model``'s values (:func:`simpro_mj.plant.step_functions.chamber_energy`)
 THERMAL_MODELS = ("polytropic", "energy")
@@ -392,9 +391,9 @@ class PneumaticParams:
                     f"{t['cylinder']['breakaway_friction_n']!r}; allowed: null or, per leg, at "
                     f"least pneumatics.cylinder.coulomb_friction_n ({coulomb.tolist()})"
                 )
-        if _scalar(t, "supply.cut_out_bar_gauge", 0.0, 16.0) <= _scalar(
-            t, "supply.cut_in_bar_gauge", 0.0, 16.0
-        ):
+        cut_in = _scalar(t, "supply.cut_in_bar_gauge", 0.0, 16.0)
+        cut_out = _scalar(t, "supply.cut_out_bar_gauge", 0.0, 16.0)
+        if cut_out <= cut_in:
             raise UserInputError(
                 f"invalid value at pneumatics.supply.cut_out_bar_gauge: "
                 f"{t['supply']['cut_out_bar_gauge']!r}; allowed: above "
@@ -424,14 +423,14 @@ class PneumaticParams:
             thermal_model=_choice(t, "thermal.model", THERMAL_MODELS),
             supply_model=_choice(t, "supply.model", SUPPLY_MODELS),
             compressor_flow=_scalar(t, "supply.compressor_flow_l_per_min", 0.0, 1e5, False)
-            * RHO_ANR
+            * RHO_REF
             / 60e3,
             receiver_volume=_scalar(t, "supply.receiver_volume_l", 0.0, 1e5) * 1e-3,
             line_volume=_scalar(t, "supply.line_volume_l", 0.0, 1e3) * 1e-3,
-            cut_in=_scalar(t, "supply.cut_in_bar_gauge", 0.0, 16.0) * 1e5 + p_atm,
-            cut_out=_scalar(t, "supply.cut_out_bar_gauge", 0.0, 16.0) * 1e5 + p_atm,
+            cut_in=cut_in * 1e5 + p_atm,
+            cut_out=cut_out * 1e5 + p_atm,
             regulator_conductance=_scalar(t, "supply.regulator_flow_l_per_min_per_bar", 0.0, 1e6)
-            * RHO_ANR
+            * RHO_REF
             / 60e3
             / 1e5,
             gamma=_scalar(t, "thermal.ratio_of_specific_heats", 1.0, 1.67, open_lo=True),
