@@ -56,6 +56,7 @@ Only numpy is imported here.
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from typing import Literal, get_args
 
 import numpy as np
 
@@ -88,10 +89,13 @@ __all__ = [
 ]
 
 ACTUATORS = ("actuator1", "actuator2", "actuator3")
-VARIANTS = ("printed", "corrected", "redesigned")
+#: The inner loop's design (module docstring).
+Variant = Literal["printed", "corrected", "redesigned"]
+VARIANTS: tuple[Variant, ...] = get_args(Variant)
 
 #: Readings of the unit of Y in eqs. (34)-(37) (module docstring).
-READINGS = ("volts", "metres")
+Reading = Literal["volts", "metres"]
+READINGS: tuple[Reading, ...] = get_args(Reading)
 DEFAULT_READING = "volts"
 #: Joint potentiometer: 10 V over the 500 mm stroke of the DNC-125-500 (section 5).
 POTENTIOMETER_V_PER_M = 10.0 / 0.5

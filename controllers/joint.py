@@ -37,6 +37,7 @@ function for its :meth:`JointControllers.update`).
 from __future__ import annotations
 
 from collections.abc import Mapping
+from typing import Literal, get_args
 
 import numpy as np
 
@@ -63,7 +64,9 @@ __all__ = [
     "ANTI_WINDUP",
 ]
 
-METHODS = ("tustin", "zoh")
+#: Discretisations of the joint controller.
+Method = Literal["tustin", "zoh"]
+METHODS: tuple[Method, ...] = get_args(Method)
 ANTI_WINDUP = ("back_calculation", "conditional", "none")
 _NX = 3  # states per leg: two of C_r, one integrator (last)
 

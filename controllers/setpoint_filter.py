@@ -32,6 +32,7 @@ Only numpy (and scipy for the ZOH) are imported here.
 from __future__ import annotations
 
 import math
+from typing import Literal, get_args
 
 import numpy as np
 
@@ -39,7 +40,8 @@ from .step_functions import FC, FS, filter_step
 
 __all__ = ["KINDS", "SetpointFilter", "filter_state_space", "leg_times"]
 
-KINDS = ("none", "first_order", "ramp", "zero_cancel")
+Kind = Literal["none", "first_order", "ramp", "zero_cancel"]
+KINDS: tuple[Kind, ...] = get_args(Kind)
 #: k_i of eqs. (36)-(37) (rad/s): the zero of eq. (29) that "zero_cancel" cancels.
 PAPER_KI = 3.03
 

@@ -75,6 +75,7 @@ on it (conditional integration, the outer loop's anti-windup).
 from __future__ import annotations
 
 import math
+from typing import Literal, get_args
 
 import numpy as np
 
@@ -87,7 +88,8 @@ __all__ = ["TaskSpaceController", "SamplingError", "MODES", "LAGS", "INTEGRATORS
 
 #: Discretisations of eq. (22)'s integral for the I law (docs/paper-notes.md,
 #: closed loop): "forward" ``T/(z - 1)`` as Fig. 7 prints it, "backward" ``T z/(z - 1)``.
-INTEGRATORS = ("forward", "backward")
+Integrator = Literal["forward", "backward"]
+INTEGRATORS: tuple[Integrator, ...] = get_args(Integrator)
 
 
 def outer_law(kind: str, integrator: str = "forward", pi_zero: float = 0.2) -> tuple[str, float]:
@@ -118,7 +120,8 @@ MODES = ("I", "PI", "joint_only", "feedforward")
 _MODE_CODES = dict(joint_only=sf.MODE_JOINT, I=sf.MODE_I, PI=sf.MODE_PI, feedforward=sf.MODE_FF)
 
 #: How ``mode="feedforward"`` removes the joint loops' lag from the error it integrates.
-LAGS = ("model", "joints")
+Lag = Literal["model", "joints"]
+LAGS: tuple[Lag, ...] = get_args(Lag)
 
 
 class SamplingError(ValueError):

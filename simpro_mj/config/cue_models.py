@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from typing import Annotated, Any, ClassVar
+from typing import TYPE_CHECKING, Annotated, Any, ClassVar
 
 from pydantic import (
     BaseModel,
@@ -63,6 +63,11 @@ CUE_SINE_PERIOD_S = (0.02, 600.0)
 
 def _is_number(value: Any) -> bool:
     return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+#: The default of a value a block requires: ``None``, validated (``validate_default``)
+#: and refused by the field's own check, whose message says what is allowed.
+REQUIRED: Any = None
 
 
 class CueBlock(BaseModel):
@@ -130,26 +135,25 @@ class _MpcCheck(_WashoutCheck):
     _algorithm: ClassVar[str] = "mpc"
 
 
-def _parameters_model(name: str, base: type, algorithm: str):
-    return create_model(
-        name,
-        __base__=base,
-        __module__=__name__,
-        **{
-            key: (
-                Annotated[int | float, BeforeValidator(_whole_as_int)]
-                if isinstance(default, int)
-                else Annotated[float, BeforeValidator(_finite)],
-                default,
-            )
-            for key, default in default_parameters(algorithm).items()
-        },
-    )
+def _parameters_model(name: str, base: type[_WashoutCheck], algorithm: str) -> type[_WashoutCheck]:
+    fields: dict[str, Any] = {
+        key: (
+            Annotated[int | float, BeforeValidator(_whole_as_int)]
+            if isinstance(default, int)
+            else Annotated[float, BeforeValidator(_finite)],
+            default,
+        )
+        for key, default in default_parameters(algorithm).items()
+    }
+    return create_model(name, __base__=base, __module__=__name__, **fields)
 
 
 #: ``setpoint.cueing.parameters``: the keys of :data:`~simpro_mj.config.cueing.PARAMETER_KEYS`
 #: (YAML units), each a finite number, the defaults those of the washout.
-WashoutParameters = _parameters_model("WashoutParameters", _WashoutCheck, "classical_washout")
+if TYPE_CHECKING:  # built from the algorithm's defaults: the type checker sees its base
+    WashoutParameters = _WashoutCheck
+else:
+    WashoutParameters = _parameters_model("WashoutParameters", _WashoutCheck, "classical_washout")
 #: ``setpoint.cueing.parameters`` of ``algorithm: mpc``: the keys of
 #: :data:`~simpro_mj.config.cueing.MPC_PARAMETER_KEYS`, the defaults those of the MPC.
 MpcParameters = _parameters_model("MpcParameters", _MpcCheck, "mpc")
@@ -206,9 +210,9 @@ class CueSine(CueBlock):
 
     _listed = ("channel", "amplitude", "period_s")
     _expected = f"a mapping with keys {list(_listed)}"
-    channel: Annotated[str, listed(SINE_CHANNELS)] = None
-    amplitude: float = None
-    period_s: Annotated[float, BeforeValidator(_sine_period)] = None
+    channel: Annotated[str, listed(SINE_CHANNELS)] = REQUIRED
+    amplitude: float = REQUIRED
+    period_s: Annotated[float, BeforeValidator(_sine_period)] = REQUIRED
 
     @field_validator("amplitude", mode="before")
     @classmethod
@@ -231,8 +235,8 @@ class CueStep(CueBlock):
 
     _listed = ("channel", "amplitude", "start_s", "ramp_s", "end_s")
     _expected = f"a mapping with keys {list(_listed)}"
-    channel: Annotated[str, listed(SINE_CHANNELS)] = None
-    amplitude: float = None
+    channel: Annotated[str, listed(SINE_CHANNELS)] = REQUIRED
+    amplitude: float = REQUIRED
     start_s: Annotated[float, BeforeValidator(_finite)] = 1.0
     ramp_s: Annotated[float, BeforeValidator(_finite)] = 0.0
     end_s: float | None = None
@@ -277,9 +281,9 @@ class Cueing(CueBlock):
     # declared in the order they are checked (the first error is the one reported)
     telemetry: Annotated[str | None, BeforeValidator(_file_name)] = None
     algorithm: Annotated[str, listed(ALGORITHMS)] = "classical_washout"
-    # null (or empty) parameters: every default
+    # null (or empty) parameters: every default (the default is validated too)
     parameters: SerializeAsAny[Annotated[WashoutParameters, BeforeValidator(lambda v: v or {})]] = (
-        None
+        None  # type: ignore[assignment]
     )
     manoeuvre: CueManoeuvre | None = None
     sine: CueSine | None = None

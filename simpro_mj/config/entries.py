@@ -15,11 +15,11 @@ from typing import Annotated, ClassVar, Literal
 from pydantic import BeforeValidator, Field, model_validator
 
 from simpro_mj.config.rules import (
-    FAULT_AXES,
-    FAULT_SENSORS,
-    POT_MODES,
     SINE_PERIOD_RANGE_S,
     Entry,
+    FaultAxis,
+    FaultSensor,
+    PotMode,
     Problem,
     Real,
     Whole,
@@ -151,9 +151,9 @@ class ValveStuck(Fault):
 
 
 class SensorFault(Fault):
-    sensor: Literal[FAULT_SENSORS]
+    sensor: FaultSensor
     leg: Leg | None = None
-    axis: Literal[FAULT_AXES] | None = None
+    axis: FaultAxis | None = None
     end_s: Real | None = None
 
     @model_validator(mode="after")
@@ -197,7 +197,7 @@ class SensorBias(SensorFault):
 class PotentiometerFailure(Fault):
     type: Literal["potentiometer_failure"]
     leg: Leg
-    mode: Literal[POT_MODES] = "open"
+    mode: PotMode = "open"
     end_s: Real | None = None
 
 

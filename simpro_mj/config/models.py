@@ -18,7 +18,7 @@ plain dict that ``scenario.yaml`` holds and ``scenario_hash`` hashes.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any
 
 from pydantic import (
     AfterValidator,
@@ -31,38 +31,36 @@ from pydantic import (
     model_validator,
 )
 
-from controllers.design import ACTUATORS, Plant, paper_plant, redesigned_design
-from controllers.design import READINGS as PAPER_UNITS
-from controllers.design import VARIANTS as INNER_VARIANTS
+from controllers.design import ACTUATORS, Plant, Reading, Variant, paper_plant, redesigned_design
 from controllers.errors import DesignError
-from controllers.joint import METHODS as DISCRETISATIONS
-from controllers.setpoint_filter import KINDS as SETPOINT_FILTERS
-from controllers.task_space import INTEGRATORS
-from controllers.task_space import LAGS as FEEDFORWARD_LAGS
+from controllers.joint import Method
+from controllers.setpoint_filter import Kind
+from controllers.task_space import Integrator, Lag
 from simpro_mj.config.cue_models import Cueing, check_cueing
 from simpro_mj.config.entries import Components, Faults
 from simpro_mj.config.plant_blocks import Actuator, PlantBlock, SensorsBlock
 from simpro_mj.config.pneumatics import check_pneumatics
 from simpro_mj.config.presets import DEFAULT_PRESET
 from simpro_mj.config.rules import (
-    DELAY_SAMPLES,
-    DESIGN_PLANTS,
-    IDENTIFY_CHOICES,
     MAX_DECIMATION,
     MAX_DURATION_S,
     MIN_DURATION_S,
-    MODES,
     NAME_RE,
-    OUTER_TYPES,
     PHYSICS_DT_MS,
     Block,
+    DelaySamples,
+    DesignPlant,
+    Each,
+    IdentifyChoice,
+    Mode,
+    Numbers,
+    OuterType,
     Period,
     Problem,
     Real,
     Whole,
     block,
     integral,
-    numbers,
     param,
     user_error,
 )
@@ -75,7 +73,7 @@ __all__ = ["Scenario", "Cueing", "scenario_model", "check_cueing", "check_pneuma
 #: Largest K K_I times the outer period: ten times the delay-free integrator's limit 2.
 MAX_GAIN_PERIOD = 20.0
 
-Gains = numbers(3, ge=0)
+Gains = Numbers[list[float], Each(3, ge=0)]
 Width = Annotated[Real, Field(ge=0, le=10)]
 
 
@@ -90,7 +88,7 @@ class OuterDeadBand(Block):
 class Outer(Block):
     """The task-space loop (eqs. 21-27, Fig. 7)."""
 
-    type: Literal[OUTER_TYPES] = param("I", "", "the outer law: I (eq. 22) or PI (section 4)")
+    type: OuterType = param("I", "", "the outer law: I (eq. 22) or PI (section 4)")
     gains: Gains = param(
         [3.0, 3.0, 3.0],
         "1/s",
@@ -100,14 +98,14 @@ class Outer(Block):
     pi_zero: Real = param(
         0.2, "", "c of the PI law T (z + c)/(z - 1), section 4 (type PI only)", gt=-1, lt=1
     )
-    integrator: Literal[INTEGRATORS] = param(
+    integrator: Integrator = param(
         "backward",
         "",
         "eq. (22)'s integral: backward T z/(z - 1) (the newest error at once) or forward "
         "T/(z - 1), Fig. 7 as printed (one more period of delay; docs/paper-notes.md)",
     )
     period_ms: Period = param(60, "ms", "outer sampling period T (a whole number of 1 ms steps)")
-    delay_samples: Annotated[Literal[DELAY_SAMPLES], BeforeValidator(integral)] = param(
+    delay_samples: Annotated[DelaySamples, BeforeValidator(integral)] = param(
         1, "samples", "the inner loop as a delay in the analysis: 1 (eq. 21) or 2"
     )
     dead_band: OuterDeadBand = block(
@@ -169,20 +167,18 @@ def _even_steps(value: float) -> float:
 class Inner(Block):
     """The joint controllers (eqs. 28-29, 36-37)."""
 
-    variant: Literal[INNER_VARIANTS] = param(
+    variant: Variant = param(
         "corrected", "", "joint controllers: eqs. (36)-(37) printed, corrected or redesigned"
     )
-    discretisation: Literal[DISCRETISATIONS] = param(
-        "tustin", "", "discretisation of the joint controllers"
-    )
-    design_plant: Literal[DESIGN_PLANTS] = param(
+    discretisation: Method = param("tustin", "", "discretisation of the joint controllers")
+    design_plant: DesignPlant = param(
         "auto",
         "",
         "plant the joint controllers are placed on: paper (eqs. 34-35), identified (this "
         "plant's, `simpro-sim identify`), auto (paper on the paper preset, else identified; "
         "scenario.yaml names the one used)",
     )
-    identify: Literal[IDENTIFY_CHOICES] = param(
+    identify: IdentifyChoice = param(
         "auto",
         "",
         "with design_plant identified: auto identifies the scenario's own plant when it is "
@@ -191,7 +187,7 @@ class Inner(Block):
     identified: Identified = block(Identified)
     zeta: Real = param(0.7, "", "damping of the redesigned pole placement (5.2.2)", gt=0, lt=2)
     wn_rad_s: Real = param(10.0, "rad/s", "natural frequency of the redesigned poles", gt=0)
-    dead_band_mm: numbers(3, one=True, ge=0, le=50) = param(
+    dead_band_mm: Numbers[list[float], Each(3, one=True, ge=0, le=50)] = param(
         [0.0, 0.0, 0.0], "mm", "dead band on each leg's error (controllers.dead_band)"
     )
     dither_v: Real = param(
@@ -224,7 +220,7 @@ class Feedforward(Block):
     hold_on_saturation: StrictBool = param(
         True, "", "skip an outer step after which a valve was at its rail"
     )
-    lag: Literal[FEEDFORWARD_LAGS] = param(
+    lag: Lag = param(
         "joints",
         "",
         "the joint loops' lag taken out of the error: joints (measured) or model (M y_d); "
@@ -262,18 +258,16 @@ class SetpointFilter(Block):
     overshoot 11.4 % -> 7.9 %).
     """
 
-    type: Literal[SETPOINT_FILTERS] = param(
-        "ramp", "", "Fig. 13's filter: ramp, first_order, zero_cancel or none"
-    )
-    time_ms: Annotated[numbers(3, one=True, gt=0, le=1e4), AfterValidator(_per_leg_steps)] = param(
-        [60.0, 30.0, 30.0], "ms", "the filter's time per leg (one number: every leg's)"
-    )
+    type: Kind = param("ramp", "", "Fig. 13's filter: ramp, first_order, zero_cancel or none")
+    time_ms: Annotated[
+        Numbers[list[float], Each(3, one=True, gt=0, le=1e4)], AfterValidator(_per_leg_steps)
+    ] = param([60.0, 30.0, 30.0], "ms", "the filter's time per leg (one number: every leg's)")
 
 
 class Controller(Block):
     """The controllers: the mode, the task-space and joint loops, the feed-forward, the filter."""
 
-    mode: Literal[MODES] = param(
+    mode: Mode = param(
         "task_space",
         "",
         "joint_only (Fig. 15a), task_space (Fig. 15b) or feedforward (the set-point through "
@@ -333,7 +327,7 @@ class Scenario(Block):
         pattern=NAME_RE.pattern,
         max_length=100,
     )
-    paper_units: Literal[PAPER_UNITS] = param(
+    paper_units: Reading = param(
         "volts",
         "",
         "unit of Y in eqs. (34)-(37): volts (the potentiometer's 20 V/m, as the rig reads "

@@ -10,16 +10,17 @@ holds them.
 
 from __future__ import annotations
 
-from typing import Annotated, Literal
+from typing import Annotated
 
 from pydantic import AfterValidator, StrictStr
 
 from simpro_mj.config.pneumatics import Pneumatics
 from simpro_mj.config.presets import DEFAULT_PRESET
-from simpro_mj.config.rules import Block, Period, Problem, Real, Whole, block, numbers, param
+from simpro_mj.config.rules import Block, Each, Numbers, Period, Problem, Real, Whole, block, param
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.plant.model_params import DEFAULT_MODEL_PARAMS, inertia_tensor
 from simpro_mj.plant.pneumatics.params import ACTUATOR_KINDS as ACTUATOR_MODELS
+from simpro_mj.plant.pneumatics.params import ActuatorKind
 from simpro_mj.plant.sensors import DEFAULT_SENSORS, POT_BITS, POT_BITS_TEXT
 
 __all__ = ["ACTUATOR_MODELS", "Actuator", "PlantBlock", "SensorsBlock"]
@@ -28,9 +29,7 @@ __all__ = ["ACTUATOR_MODELS", "Actuator", "PlantBlock", "SensorsBlock"]
 class Actuator(Block):
     """The valve + cylinder model of every leg and its parameters."""
 
-    model: Literal[ACTUATOR_MODELS] = param(
-        "nonlinear", "", "nonlinear (Richer & Hurmuzlu) or linear (eq. 19)"
-    )
+    model: ActuatorKind = param("nonlinear", "", "nonlinear (Richer & Hurmuzlu) or linear (eq. 19)")
     pneumatics: Pneumatics = block(Pneumatics)
 
 
@@ -60,7 +59,7 @@ _OFFSET_WHY = (
     "as-built error (assumption): the defaults are <= 4 mm; beyond a few centimetres the "
     "closed chain does not assemble"
 )
-Offset3 = numbers(3, ge=-MAX_OFFSET_MM, le=MAX_OFFSET_MM)
+Offset3 = Numbers[list[float], Each(3, ge=-MAX_OFFSET_MM, le=MAX_OFFSET_MM)]
 
 
 def _in_plane(value: list) -> list:
@@ -95,17 +94,19 @@ class Payload(Block):
         ge=0,
         le=MAX_PAYLOAD_KG,
     )
-    com_mm: numbers(3, ge=-MAX_COM_MM, le=MAX_COM_MM) = param(
+    com_mm: Numbers[list[float], Each(3, ge=-MAX_COM_MM, le=MAX_COM_MM)] = param(
         [60.0, 0.0, 400.0],
         "mm",
         "payload centre of mass in the platform frame; as built: the plant's (0, 0, 400) "
         "moved 60 mm along x (assumption)",
     )
-    inertia_kg_m2: Annotated[numbers(6) | None, AfterValidator(_inertia)] = param(
-        _MODEL["payload"]["inertia_kg_m2"],
-        "kg m^2",
-        "[Ixx, Iyy, Izz, Ixy, Ixz, Iyz] about the centre of mass; null: the MJCF's uniform "
-        "box of the payload's mass",
+    inertia_kg_m2: Annotated[Numbers[list[float], Each(6)] | None, AfterValidator(_inertia)] = (
+        param(
+            _MODEL["payload"]["inertia_kg_m2"],
+            "kg m^2",
+            "[Ixx, Iyy, Izz, Ixy, Ixz, Iyz] about the centre of mass; null: the MJCF's uniform "
+            "box of the payload's mass",
+        )
     )
     inertia_mass_kg: Real | None = param(
         None,
@@ -137,7 +138,7 @@ class Guide(Block):
     radius_offset_mm: Real = param(
         4.0, "mm", f"guide radius error: {_OFFSET_WHY}", ge=-MAX_OFFSET_MM, le=MAX_OFFSET_MM
     )
-    centre_offset_mm: numbers(2, ge=-MAX_OFFSET_MM, le=MAX_OFFSET_MM) = param(
+    centre_offset_mm: Numbers[list[float], Each(2, ge=-MAX_OFFSET_MM, le=MAX_OFFSET_MM)] = param(
         [3.0, -2.0], "mm", f"guide centre error: {_OFFSET_WHY}"
     )
 
@@ -183,8 +184,10 @@ class Potentiometer(Block):
     range_v: Real = param(_POT["range_v"], "V", "ADC input range", gt=0)
     volts_per_mm: Real = param(_POT["volts_per_mm"], "V/mm", "potentiometer gain", gt=0)
     noise_lsb: Real = param(_POT["noise_lsb"], "LSB", "noise per sample", ge=0)
-    offset_mm: numbers(3) = param([1.5, -1.0, 2.0], "mm", "calibration offset per leg")
-    gain_error_pct: numbers(3, gt=-100) = param(
+    offset_mm: Numbers[list[float], Each(3)] = param(
+        [1.5, -1.0, 2.0], "mm", "calibration offset per leg"
+    )
+    gain_error_pct: Numbers[list[float], Each(3, gt=-100)] = param(
         [0.8, -0.6, 0.5], "%", "calibration gain error per leg"
     )
     nonlinearity_pct_fs: Real = param(
@@ -212,7 +215,9 @@ class Imu(Block):
     noise_density_deg_per_sqrt_hz: Real = param(
         _IMU["noise_density_deg_per_sqrt_hz"], "deg/sqrt(Hz)", "attitude noise density", ge=0
     )
-    bias_deg: numbers(2) = param(list(_IMU["bias_deg"]), "deg", "bias (roll, pitch)")
+    bias_deg: Numbers[list[float], Each(2)] = param(
+        list(_IMU["bias_deg"]), "deg", "bias (roll, pitch)"
+    )
     bias_walk_deg_per_sqrt_s: Real = param(
         _IMU["bias_walk_deg_per_sqrt_s"], "deg/sqrt(s)", "bias random walk", ge=0
     )

@@ -14,7 +14,7 @@ A new plant parameter: its default (and range) in the plant's tree, then one
 from __future__ import annotations
 
 import math
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any
 
 from pydantic import BeforeValidator, StrictBool, TypeAdapter, ValidationError, model_validator
 
@@ -24,10 +24,10 @@ from simpro_mj.core.keys import value_text
 from simpro_mj.plant.pneumatics.params import (
     _PLAUSIBLE,
     DEFAULT_PNEUMATIC_PARAMS,
-    FRICTION_MODELS,
-    SUPPLY_MODELS,
-    THERMAL_MODELS,
+    FrictionModel,
     PneumaticParams,
+    SupplyModel,
+    ThermalModel,
 )
 
 __all__ = ["Pneumatics", "check_pneumatics"]
@@ -78,7 +78,7 @@ def _p(path: str, unit: str, doc: str) -> Any:
 class Thermal(Block):
     """The chamber gas: polytropic, or each chamber's energy equation with wall heat."""
 
-    model: Literal[THERMAL_MODELS] = _p(
+    model: ThermalModel = _p(
         "thermal.model",
         "",
         "polytropic: p V^n with polytropic_index at temperature_c; energy: each chamber's "
@@ -97,7 +97,7 @@ class Thermal(Block):
 class Supply(Block):
     """The compressed-air supply at the valves: ideal, or compressor, receiver, regulator."""
 
-    model: Literal[SUPPLY_MODELS] = _p(
+    model: SupplyModel = _p(
         "supply.model",
         "",
         "ideal: held at supply_pressure_bar_gauge; receiver: a compressor with a pressure "
@@ -150,7 +150,7 @@ class Cylinder(Block):
     stribeck_velocity_mm_per_s: Real = _p(
         "cylinder.stribeck_velocity_mm_per_s", "mm/s", "where the breakaway peak has fallen to 1/e"
     )
-    friction_model: Literal[FRICTION_MODELS] = _p(
+    friction_model: FrictionModel = _p(
         "cylinder.friction_model",
         "",
         "stick: MuJoCo's joint dry friction carries the breakaway (a seal under a smaller "

@@ -10,8 +10,8 @@ one line of meaning. The leaf types say what a value is:
   string (the one number policy of the scenario and its sweeps);
 * :data:`Whole`: an integer (``60.0`` taken as 60, ``2.5`` refused);
 * :data:`Period`: a whole number of 1 ms physics steps (ms);
-* :func:`numbers`: a list of numbers of fixed length, each in a range
-  (``one=True``: one number stands for all);
+* :data:`Numbers` (``Numbers[list[float], Each(3, ge=0)]``): a list of numbers of
+  fixed length, each in a range (``one=True``: one number stands for all);
 * ``StrictBool``, ``StrictStr`` and ``Literal`` choices from pydantic.
 
 :func:`user_error` maps pydantic's first error onto the one-line contract of
@@ -30,7 +30,7 @@ import math
 import re
 import types
 from collections.abc import Mapping
-from typing import Annotated, Any, ClassVar, Literal, Union, get_args, get_origin
+from typing import TYPE_CHECKING, Annotated, Any, ClassVar, Literal, Union, get_args, get_origin
 
 import annotated_types as at
 from pydantic import (
@@ -49,17 +49,26 @@ from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.keys import closest, key_text, value_text
 from simpro_mj.core.rates import PHYSICS_DT_MS, PHYSICS_DT_S, whole_steps
 
-MODES = ("joint_only", "task_space", "feedforward")
-OUTER_TYPES = ("I", "PI")
+Mode = Literal["joint_only", "task_space", "feedforward"]
+MODES: tuple[Mode, ...] = get_args(Mode)
+OuterType = Literal["I", "PI"]
+OUTER_TYPES: tuple[OuterType, ...] = get_args(OuterType)
 # controller.inner.design_plant: "auto" is "paper" on the paper preset and
 # "identified" on any other (config.models.Scenario resolves it at load)
-DESIGN_PLANTS = ("auto", "paper", "identified")
-IDENTIFY_CHOICES = ("auto", "preset")  # controller.inner.identify (simpro_mj.identification.auto)
-DELAY_SAMPLES = (1, 2)
+DesignPlant = Literal["auto", "paper", "identified"]
+DESIGN_PLANTS: tuple[DesignPlant, ...] = get_args(DesignPlant)
+# controller.inner.identify (simpro_mj.identification.auto)
+IdentifyChoice = Literal["auto", "preset"]
+IDENTIFY_CHOICES: tuple[IdentifyChoice, ...] = get_args(IdentifyChoice)
+DelaySamples = Literal[1, 2]
+DELAY_SAMPLES: tuple[DelaySamples, ...] = get_args(DelaySamples)
 SETPOINT_AXES = ("roll_deg", "pitch_deg", "heave_mm")
-FAULT_SENSORS = ("potentiometer", "height_encoder", "imu")
-FAULT_AXES = ("roll", "pitch")
-POT_MODES = ("open", "short")
+FaultSensor = Literal["potentiometer", "height_encoder", "imu"]
+FAULT_SENSORS: tuple[FaultSensor, ...] = get_args(FaultSensor)
+FaultAxis = Literal["roll", "pitch"]
+FAULT_AXES: tuple[FaultAxis, ...] = get_args(FaultAxis)
+PotMode = Literal["open", "short"]
+POT_MODES: tuple[PotMode, ...] = get_args(PotMode)
 
 #: Longest run accepted (s): the 1 ms log of one hour is about 1 GB of memory.
 MAX_DURATION_S = 3600.0
@@ -122,7 +131,7 @@ def integral(value: Any) -> Any:
     return value
 
 
-def check_period(value: int) -> int:
+def check_period(value: float) -> Any:
     """A period (ms): a positive integer multiple of the 1 ms physics step, <= MAX_PERIOD_MS."""
     if whole_steps(value * 1e-3, PHYSICS_DT_S) is None or value > MAX_PERIOD_MS:
         raise Problem.invalid(
@@ -150,7 +159,7 @@ Period = Annotated[int, BeforeValidator(period_before), Strict(), AfterValidator
 
 
 class _OneForAll:
-    """Marks a list that also takes one number for all its items (:func:`numbers`)."""
+    """Marks a list that also takes one number for all its items (:class:`Each`)."""
 
 
 ONE_FOR_ALL = _OneForAll()
@@ -166,14 +175,35 @@ def _broadcast(n: int):
     return BeforeValidator(check)
 
 
-def numbers(n: int, *, one: bool = False, **each: Any) -> Any:
-    """A list of ``n`` numbers, each within ``each`` (``ge=0``, ...); ``one``: one number
-    stands for all ``n`` (a per-leg value given once)."""
-    item = Annotated[Real, Field(**each)] if each else Real
-    meta: list = [Field(min_length=n, max_length=n)]
-    if one:
-        meta[:0] = [_broadcast(n), ONE_FOR_ALL]
-    return Annotated[(list[item], *meta)]
+class Each:
+    """The shape of a list of numbers (:data:`Numbers`): ``n`` numbers, each within
+    ``bounds`` (``ge=0``, ...); ``one``: one number stands for all ``n`` (a per-leg
+    value given once)."""
+
+    def __init__(self, n: int, *, one: bool = False, **bounds: Any) -> None:
+        self.n, self.one, self.bounds = n, one, bounds
+
+    def annotation(self) -> Any:
+        """The pydantic annotation: ``list[Real]`` of length ``n``, each item in range."""
+        annotated: Any = Annotated  # built at run time: a value to the type checker
+        item = annotated[Real, Field(**self.bounds)] if self.bounds else Real
+        meta: list = [Field(min_length=self.n, max_length=self.n)]
+        if self.one:
+            meta[:0] = [_broadcast(self.n), ONE_FOR_ALL]
+        return annotated[tuple([types.GenericAlias(list, (item,)), *meta])]
+
+
+if TYPE_CHECKING:
+    from typing import Annotated as Numbers
+else:
+
+    class Numbers:
+        """``Numbers[list[float], Each(3, ge=0)]``: a list of numbers of the shape
+        :class:`Each` says. The type checker reads it as ``Annotated`` (a
+        ``list[float]``); pydantic reads the list, its length and its items' ranges."""
+
+        def __class_getitem__(cls, args: tuple[Any, Each]) -> Any:
+            return args[1].annotation()
 
 
 def param(
@@ -185,7 +215,8 @@ def param(
     "allowed" says beside the range (``ge``, ``gt``, ``le``, ``lt``); ``note``: the
     allowed range in words where another module checks it (the plant's pneumatics).
     """
-    extra = {k: v for k, v in (("unit", unit), ("range", note)) if v} or None
+    extra: dict[str, Any] | None = {k: v for k, v in (("unit", unit), ("range", note)) if v}
+    extra = extra or None
     if isinstance(default, list | dict):
         return Field(
             default_factory=lambda d=default: copy.deepcopy(d),
@@ -272,7 +303,7 @@ def is_model(tp: Any) -> bool:
 TAGS = ("type", "distribution")
 
 
-def tag_of(model: type) -> str | None:
+def tag_of(model: type[BaseModel]) -> str | None:
     """The key that tags ``model`` in its union (``type``), or None."""
     return next((t for t in TAGS if t in model.model_fields), None)
 
@@ -327,13 +358,14 @@ def unit_of(field: FieldInfo | None) -> str:
     return str(extra.get("unit", "")) if isinstance(extra, dict) else ""
 
 
-def _num(x: float) -> str:
+def _num(x: Any) -> str:
     return str(x) if isinstance(x, int) else f"{x:g}"
 
 
 def range_text(meta: list, unit: str = "") -> str:
     """``0..5000 kg``, ``> 0 s``, ``> -1 and < 1`` from the constraints in ``meta``."""
-    lo = hi = None
+    lo: tuple[str, Any] | None = None
+    hi: tuple[str, Any] | None = None
     for m in meta:
         for c in getattr(m, "metadata", None) or [m]:  # a FieldInfo in Annotated holds its own
             if isinstance(c, at.Ge):
@@ -354,7 +386,7 @@ def range_text(meta: list, unit: str = "") -> str:
 
 
 def item_meta(tp: Any) -> list:
-    """The constraints of a list's items (``numbers(3, ge=0)``)."""
+    """The constraints of a list's items (``Each(3, ge=0)``)."""
     tp, _ = strip(tp)
     if get_origin(tp) is list:
         return strip(get_args(tp)[0])[1]
@@ -511,11 +543,11 @@ def user_error(exc: ValidationError, model: type, prefix: str = "") -> UserInput
     if kind in ("union_tag_not_found", "union_tag_invalid"):
         members = tagged_members(tp)
         names = list(members)
-        key = tag_of(next(iter(members.values()))) if members else "type"
+        key = (tag_of(next(iter(members.values()))) if members else None) or "type"
         if kind == "union_tag_not_found":
             return line("missing key", f": allowed: one of {names}", f"{path}.{key}")
-        tag = value.get(key) if isinstance(value, Mapping) else value
-        rest = f": {value_text(tag)}; allowed: one of {names}{closest(str(tag), names)}"
+        given = value.get(key) if isinstance(value, Mapping) else value
+        rest = f": {value_text(given)}; allowed: one of {names}{closest(str(given), names)}"
         return line("invalid value", rest, f"{path}.{key}")
     if kind == "literal_error":
         choices = _choices(tp)

@@ -333,7 +333,7 @@ def _check_draw(path: str, draw: Entry, where: str) -> None:
         raise UserInputError(f"invalid value at {where}.high: {high!r}; allowed: >= low ({low!r})")
 
 
-def _distribution(path: str, draw: Entry) -> Distribution:
+def _distribution(path: str, draw: Uniform | Normal | Choice) -> Distribution:
     args = draw.model_dump(exclude={"distribution"}, exclude_none=True)
     size = _numeric_list_len(_defaults_at(path, path))
     return Distribution(path=path, kind=draw.distribution, args=args, size=size)

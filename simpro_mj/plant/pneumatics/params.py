@@ -14,7 +14,7 @@ import copy
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, replace
-from typing import Any
+from typing import Any, Literal, get_args
 
 import numpy as np
 
@@ -38,16 +38,20 @@ __all__ = [
 U_CENTRE = 5.0  # V, closed centre of the MPYE
 U_MAX = 10.0  # V
 
-ACTUATOR_KINDS = ("nonlinear", "linear")
+ActuatorKind = Literal["nonlinear", "linear"]
+ACTUATOR_KINDS: tuple[ActuatorKind, ...] = get_args(ActuatorKind)
 
 #: ``cylinder.friction_model``'s values (:mod:`simpro_mj.plant.friction`)
-FRICTION_MODELS = ("stick", "regularised")
+FrictionModel = Literal["stick", "regularised"]
+FRICTION_MODELS: tuple[FrictionModel, ...] = get_args(FrictionModel)
 
 #: ``supply.model``'s values (:func:`simpro_mj.plant.step_functions.supply_step`)
-SUPPLY_MODELS = ("ideal", "receiver")
+SupplyModel = Literal["ideal", "receiver"]
+SUPPLY_MODELS: tuple[SupplyModel, ...] = get_args(SupplyModel)
 
 #: ``thermal.model``'s values (:func:`simpro_mj.plant.step_functions.chamber_energy`)
-THERMAL_MODELS = ("polytropic", "energy")
+ThermalModel = Literal["polytropic", "energy"]
+THERMAL_MODELS: tuple[ThermalModel, ...] = get_args(ThermalModel)
 
 #: Parameters of the actuators, edge units in the key names. Per-leg values
 #: are lists [leg1, leg2, leg3]; a scalar applies to all three legs.
