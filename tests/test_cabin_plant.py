@@ -224,7 +224,7 @@ def _sensor_arrays(tree_changes):
     for key, value in tree_changes.items():
         group, name = key.split(".")
         tree[group][name] = value
-    return SensorConfig.from_tree(tree, DT).step_constants, np.zeros(ps.SS_LEN)
+    return SensorConfig.from_tree(tree, DT).step_constants, np.zeros(ps.SS.LEN)
 
 
 def _walk_end_deg(seed):
@@ -294,7 +294,7 @@ def test_sensor_errors_compiled_equal_interpreted():
         assert np.array_equal(out[0], out[2]) and np.array_equal(out[1], out[3]), k
     samples = sum(1 for k in range(3000) if k % 5 == 0 or k % 101 == 0)  # 200 Hz + forced
     assert ma == mb == samples and np.array_equal(ss_a, ss_b)
-    assert ss_a[ps.SS_WALK] != 0.0 and ss_a[ps.SS_HN] == 2.0  # the walk and the history ran
+    assert ss_a[ps.SS.walk] != 0.0 and ss_a[ps.SS.hn] == 2.0  # the walk and the history ran
 
 
 def _pitch_error_deg(sets):
@@ -390,7 +390,7 @@ def test_the_complementary_filter_passes_the_accelerometer_below_its_crossover()
 
     sc, _ = _sensor_arrays({"imu.accel_crossover_hz": 0.1})
     for f_hz in (2.0, 7.0):
-        ss = np.zeros(ps.SS_LEN)
+        ss = np.zeros(ps.SS.LEN)
         amp = 1.0  # m/s^2 of fore-aft acceleration
         peaks = []
         n = int(round(20.0 / DT))

@@ -73,4 +73,4 @@ def test_the_controllers_blocks_pack_to_their_lengths():
     g = cs.geometry_constants(geom)
     assert g.size == cs.GEOM.LEN and g[cs.GEOM.stroke] == geom.stroke
     assert g[cs.GEOM.base + 3] == geom.base_points[1][0]  # A_2's x
-    assert step.TS - step.SS == step.ps.SS_LEN and step.JX - step.TS == cs.TS.LEN
+    assert step.ST.ts - step.ST.ss == step.ps.SS.LEN and step.ST.jx - step.ST.ts == cs.TS.LEN

@@ -8,11 +8,13 @@
   model stepped while a run is registered moves exactly as without it, and
   the callback is gone after the run (also after an error).
 * The plain functions: the ADC's rounding, the IK against the batched IK.
+* Every function the stages call is in the list the compiled form compiles.
 """
 
 from __future__ import annotations
 
 import math
+import sys
 
 import mujoco
 import numpy as np
@@ -165,3 +167,53 @@ def test_pose_ik_equals_the_batched_ik():
         if want_ok:
             np.testing.assert_allclose(q, inverse_kinematics(pose, g), rtol=0, atol=1e-12)
     assert 50 < ok.sum() < 400  # both outcomes are exercised
+
+
+def _called_by_the_stages(cases, monkeypatch):
+    """The code of every project function the stages call in short interpreted runs."""
+    from simpro_mj.sim import step
+
+    stages = {f.__code__ for f in (step.sense, step.control, step.actuate, step.record)}
+    roots = (str(step.__file__).rsplit("simpro_mj", 1)[0],)
+    seen, depth = set(), [0]
+
+    def profile(frame, event, arg):
+        code = frame.f_code
+        if event == "call":
+            if code in stages:
+                depth[0] += 1
+            elif depth[0] and code.co_filename.startswith(roots):
+                seen.add(code)
+        elif event == "return" and code in stages:
+            depth[0] -= 1
+
+    monkeypatch.setenv("SIMPRO_KERNEL", "python")
+    for case in cases:
+        name, sets = CASES[case]
+        sim = CoSimulation(load_scenario(name, [*sets, "duration_s=0.05"]))
+        sys.setprofile(profile)
+        try:
+            sim.run()
+        finally:
+            sys.setprofile(None)
+    return seen
+
+
+def test_the_compiled_list_holds_every_function_the_stages_call(monkeypatch):
+    """The compile list is read from the code: a run calls nothing outside it.
+
+    Traced in interpreted runs of both actuator models and the outer loop's
+    modes; a list without the seal friction law is caught naming it.
+    """
+    from simpro_mj.sim import step
+
+    called = _called_by_the_stages(
+        ["task_space", "feedforward_joints_average", "feedforward_model_PI", "linear_plant"],
+        monkeypatch,
+    )
+    names = {c.co_name for c in called}
+    assert {"seal_friction", "joint_step", "outer_update", "linear_step", "ik_pose"} <= names
+    compiled = {f.__code__ for f in step._PLAIN}
+    assert called <= compiled, sorted(c.co_name for c in called - compiled)
+    without = {c for c in compiled if c.co_name != "seal_friction"}
+    assert [c.co_name for c in called - without] == ["seal_friction"]

@@ -41,7 +41,7 @@ from simpro_mj.plant.model import load_model
 from simpro_mj.plant.platform import Platform
 from simpro_mj.plant.pneumatics.factory import make_actuators
 from simpro_mj.plant.pneumatics.flow import RHO_REF, iso6358_mass_flow
-from simpro_mj.plant.step_functions import A_COMP, A_DRAW, A_PR, A_PS, A_T, AC_AW
+from simpro_mj.plant.step_functions import AC, ACT, CH
 
 __all__ = ["Check", "check_plant", "table"]
 
@@ -181,7 +181,7 @@ def sealed_chamber_energy(scenario: dict, amplitude: float = 0.1, hz: float = 1.
     act.spool[:] = 0.0
     energy = P.thermal_model == "energy"
     gamma = P.gamma if energy else P.n_poly
-    aw0, awv = float(ac[AC_AW]), float(ac[AC_AW + 1])
+    aw0, awv = float(ac[AC.ch + CH.a0]), float(ac[AC.ch + CH.av])  # chamber 1
     w = 2.0 * math.pi * hz
     n = int(round(1.0 / (hz * dt)))
     v_start = float(P.dead_cap[0] + P.area_cap * q_mid)
@@ -191,13 +191,13 @@ def sealed_chamber_energy(scenario: dict, amplitude: float = 0.1, hz: float = 1.
         t = k * dt
         q = q_mid + amplitude * math.sin(w * t)
         qd = amplitude * w * math.cos(w * t)
-        p1, t1 = float(act.p1[0]), float(st[A_T])
+        p1, t1 = float(act.p1[0]), float(st[ACT.t])
         act.step([5.0] * 3, [q] * 3, [qd] * 3, dt)
         dvol = P.area_cap * (amplitude * math.sin(w * (t + dt)) - (q - q_mid))
         work += -0.5 * (p1 + float(act.p1[0])) * dvol  # on the gas
         if energy:  # heat from the wall over the step, at the step's mean temperature
             vol = P.dead_cap[0] + P.area_cap * (q + 0.5 * dvol / P.area_cap)
-            t_mean = 0.5 * (t1 + float(st[A_T]))
+            t_mean = 0.5 * (t1 + float(st[ACT.t]))
             heat += P.heat_transfer * (aw0 + awv * vol) * (P.temperature - t_mean) * dt
         stored = max(stored, abs(work))
     du = float(act.p1[0]) * v_start / (gamma - 1.0) - u_start
@@ -228,7 +228,7 @@ def null_leakage(scenario: dict) -> Check:
         for p in (act.p1.copy(), act.p2.copy())
     )
     act.step(act.u_hold.copy(), q, np.zeros(3), 1e-3)
-    measured = float(act.step_state[A_DRAW])
+    measured = float(act.step_state[ACT.draw])
     per_min = 60e3 / RHO_REF  # kg/s -> l/min ANR (ISO 6358's reference density)
     return Check(
         "null leakage (three valves, pistons held at mid-stroke)",
@@ -284,7 +284,7 @@ def _fast_move(plat: Platform, seconds: float = 0.4):
 
 def _supply_pa(plat: Platform) -> float:
     """The supply pressure at the valves now (Pa absolute)."""
-    return float(plat.actuators.step_state[A_PS])
+    return float(plat.actuators.step_state[ACT.ps])
 
 
 def _loop_gap(plat: Platform) -> float:
@@ -303,13 +303,13 @@ def supply_sag(scenario: dict, seconds: float = 0.4) -> Check:
     rt = P.gas_constant * P.temperature
 
     def stored() -> float:
-        return (st[A_PR] * P.receiver_volume + st[A_PS] * P.line_volume) / rt
+        return (st[ACT.pr] * P.receiver_volume + st[ACT.ps] * P.line_volume) / rt
 
     ps0, m0, drawn, delivered, low = _supply_pa(plat), stored(), 0.0, 0.0, _supply_pa(plat)
     for _ in range(int(round(seconds / dt))):
         _step(plat, [8.0, 8.0, 8.0])
-        drawn += float(st[A_DRAW]) * dt
-        delivered += float(st[A_COMP]) * P.compressor_flow * dt
+        drawn += float(st[ACT.draw]) * dt
+        delivered += float(st[ACT.comp]) * P.compressor_flow * dt
         low = min(low, _supply_pa(plat))
     sag = (ps0 - low) / 1e5
     if P.supply_model == "ideal":

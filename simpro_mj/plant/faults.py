@@ -65,7 +65,7 @@ controllers saw (``q*_meas_m``, ``*_meas_*``) and the two columns of
 :data:`FAULT_COLUMNS`: ``fault_flags`` and ``supply_pa``.
 
 *Supply pressure at run time.* The step's actuator state holds p_s
-(:data:`simpro_mj.plant.step_functions.A_PS`, set at an event by
+(``ps`` of :data:`simpro_mj.plant.step_functions.ACT`, set at an event by
 :class:`simpro_mj.sim.stages.FaultHooks`), which the nonlinear chamber update
 reads every step (supply term of the implicit pressure update, the supply
 edge's pressure ratio); ``params.p_supply`` (a frozen dataclass) is not read

@@ -13,13 +13,14 @@ such a sensor reports.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 
 import numpy as np
 
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.rates import steps_per_period
 from simpro_mj.plant.sensor_errors import bias_walk_sigma, noise_sigma
+from simpro_mj.plant.step_functions import SC
 
 __all__ = ["DEFAULT_SENSORS", "POT_BITS", "POT_BITS_TEXT", "SensorConfig"]
 
@@ -168,10 +169,17 @@ class SensorConfig:
 
     @property
     def step_constants(self) -> np.ndarray:
-        """``sc`` of :func:`~simpro_mj.plant.step_functions.sample_sensors`: the fields
-        in their order (its ``SC_*`` offsets), then ``1 / dt^2``."""
-        sc = [np.ravel(getattr(self, f.name)) for f in fields(self)]
-        return np.concatenate([*sc, [1.0 / (self.dt * self.dt)]])
+        """``sc`` of :func:`~simpro_mj.plant.step_functions.sample_sensors`, packed by
+        name (:data:`~simpro_mj.plant.step_functions.SC`)."""
+        return SC.pack(
+            lsb=self.pot_lsb_m, sigma=self.pot_noise_m, lo=self.pot_range_m[0],
+            hi=self.pot_range_m[1], off=self.pot_offset_m, gain=self.pot_gain,
+            fs=self.pot_full_scale_m, nl=self.pot_nonlinearity, pot_every=self.pot_every,
+            res=self.enc_res_m, enc_noise=self.enc_noise_m, enc_every=self.enc_every,
+            sigma_imu=self.imu_noise_rad, bias=self.imu_bias_rad, walk=self.imu_walk_rad,
+            accw=self.imu_accel_alpha, alpha=self.imu_alpha, imu_every=self.imu_every,
+            idt2=1.0 / (self.dt * self.dt),
+        )  # fmt: skip
 
     def resolution_floor(self, with_bias: bool = True) -> dict:
         """Smallest steady-state error the task loop can be asked to remove, SI.

@@ -5,13 +5,16 @@ actuator models per step (:class:`~simpro_mj.plant.sensors.SensorConfig` and
 the actuator classes configure them), in the subset numba compiles:
 :mod:`simpro_mj.sim.step` runs them interpreted or compiled. Each stage is a
 small named function so that a plant change (a friction law, a sensor
-error) is made in one place.
+error) is made in one place; each array it reads has a declared layout
+(:func:`controllers.layout.layout`, below), so a function reads
+``ast[ACT.spool + i]`` and a class packs its block by field name.
 """
 
 from __future__ import annotations
 
 import math
 
+from controllers.layout import layout
 from simpro_mj.plant.friction import seal_friction
 from simpro_mj.plant.sensor_errors import accel_tilt, pot_nonlinearity
 
@@ -28,44 +31,72 @@ __all__ = [
     "linear_step",
 ]
 
-# sensor constants sc: SensorConfig's fields in their order (SensorConfig.step_constants),
-# then 1 / dt^2; the sensor errors (simpro_mj.plant.sensor_errors) are the track's full
-# scale and linearity, the bias walk's step per IMU sample (0: off), the accelerometer's weight
-SC_LSB, SC_SIGMA, SC_LO, SC_HI, SC_OFF, SC_GAIN, SC_FS, SC_NL = 0, 1, 2, 3, 4, 7, 10, 11
-SC_POT_EVERY, SC_RES, SC_ENC_NOISE, SC_ENC_EVERY, SC_SIGMA_IMU, SC_BIAS = 12, 13, 14, 15, 16, 17
-SC_WALK, SC_ACCW, SC_ALPHA, SC_IMU_EVERY, SC_IDT2, SC_LEN = 19, 20, 21, 22, 24, 25
-# the sensors' own state (an array ``ss``): the IMU filter (2), the bias walk (2), the
-# IMU site's last two positions (6) and how many are known, the complementary filter's
-# low-passed accelerometer tilt error (2)
-SS_IMU, SS_WALK, SS_HIST, SS_HN, SS_ACC, SS_LEN = 0, 2, 4, 10, 11, 13
+# Each block's layout (controllers.layout.layout), declared once: the offsets the
+# functions below read and the packing of the classes that build the blocks.
 
-# actuator state ast: chamber pressures p1 (3), p2 (3), spool (3), spool rate (3), each
-# ψ-table edge's last cell (12), the supply pressure, the linear model's φ (3), force bounds,
-# the chamber gas temperatures (6; the energy model's, 0: the wall's)
-A_P, A_SPOOL, A_RATE, A_CELL, A_PS, A_PHI, A_FMIN, A_FMAX, A_T = 0, 6, 9, 12, 24, 25, 28, 29, 30
-# the supply's state: the receiver's pressure, this step's draw through the valves'
-# supply edges (kg/s), the compressor running (1) or not
-A_PR, A_DRAW, A_COMP, A_LEN = 36, 37, 38, 39
-# actuator constants ac (the actuator classes' step_constants): both kinds', then the kind's own
-AC_KIND, AC_PA, AC_A1, AC_A2, AC_AR = 0, 1, 2, 3, 4
-# nonlinear
-AC_RTK, AC_EPS, AC_HN, AC_ALPHA, AC_ORDER, AC_NSUB, AC_NTAB = 5, 6, 7, 8, 9, 10, 11
-# per leg the seal friction (breakaway, Coulomb, Stribeck velocity, viscous, v_reg: 5 x 3),
-# the second-order spool (6), the underlaps (3), per chamber V0, dV/dq, V_min (6 x 3),
-# the energy model (TH_*: 7), per chamber the wall
-# area's constant and volume terms (6 x 2), the ψ table (grid, values, slopes)
-AC_FRIC, AC_AD, AC_DELTA, AC_CH, AC_TH, AC_AW, AC_SUP, AC_TAB = 12, 27, 33, 36, 54, 61, 73, 83
-# the energy model's constants: on (1) or polytropic (0), γ, R, k (kg/(s Pa)), the wall's
-# temperature (K; the supply's and the atmosphere's too), h_w (W/(m^2 K)), the sub-step (s)
-TH_ON, TH_GAMMA, TH_R, TH_K, TH_TW, TH_HW, TH_H = 0, 1, 2, 3, 4, 5, 6
-# the supply as built (supply_step): on (1) or an ideal source (0), R T / V of the
-# receiver and of the line (Pa/kg), the regulator's conductance (kg/(s Pa)) and set
-# point (Pa), the compressor's delivery (kg/s), cut-in and cut-out (Pa), the step (s)
-SUP_ON, SUP_RTV_R, SUP_RTV_L, SUP_KREG, SUP_PSET, SUP_QC, SUP_PON, SUP_POFF, SUP_H = range(9)
-# linear (eq. 19): b, a0, exp(-a1 dt), its integral, u_hold, F_hold, q_0, M_q, D_q, K_q,
-# saturate, the display pressures at rest p10, p20
-AC_LB, AC_LA0, AC_EA, AC_IA, AC_UHOLD, AC_FHOLD, AC_Q0 = 5, 8, 11, 14, 17, 20, 23
-AC_MQ, AC_DQ, AC_KQ, AC_SAT, AC_P10, AC_P20, AC_LIN_LEN = 26, 35, 44, 53, 54, 57, 60
+#: the sensor constants ``sc`` (SensorConfig.step_constants, packed by name): the
+#: potentiometers' LSB, noise, range, offsets and gains (3 each), the track's full scale
+#: and linearity, their period (steps); the height encoder's resolution, noise, period;
+#: the IMU's noise, bias (roll, pitch), the bias walk's step per sample (0: off), the
+#: complementary filter's accelerometer weight, the output filter's coefficient, the
+#: period; 1 / dt^2 (simpro_mj.plant.sensor_errors: the track's errors, the tilt)
+SC = layout(
+    "SensorConstants", lsb=1, sigma=1, lo=1, hi=1, off=3, gain=3, fs=1, nl=1, pot_every=1,
+    res=1, enc_noise=1, enc_every=1, sigma_imu=1, bias=2, walk=1, accw=1, alpha=1,
+    imu_every=1, idt2=1,
+)  # fmt: skip
+#: the sensors' own state ``ss``: the IMU filter (roll, pitch), the bias walk, the IMU
+#: site's last two positions and how many are known, the complementary filter's
+#: low-passed accelerometer tilt error
+SS = layout("SensorState", imu=2, walk=2, hist=6, hn=1, acc=2)
+
+#: the actuators' state ``ast``: chamber pressures p1 (3) then p2 (3), spool, spool rate,
+#: each ψ-table edge's last cell (6 supply, 6 exhaust edges), the supply pressure at the
+#: valves, the linear model's φ, its force bounds, the chamber gas temperatures (the
+#: energy model's; 0: the wall's), the receiver's pressure, this step's draw through the
+#: valves' supply edges (kg/s), the compressor running (1) or not
+ACT = layout(
+    "ActuatorState", p=6, spool=3, rate=3, cell=12, ps=1, phi=3, fmin=1, fmax=1, t=6, pr=1,
+    draw=1, comp=1,
+)  # fmt: skip
+
+#: one leg's seal friction (seal_friction's arguments): breakaway, Coulomb, Stribeck
+#: velocity, viscous, v_reg (0: the stick model)
+FRIC = layout("SealFriction", breakaway=1, coulomb=1, v_stribeck=1, viscous=1, v_reg=1)
+#: the second-order spool's exact ZOH (spool, rate) <- (spool, rate, command)
+SPOOL = layout("SpoolZoh", s_s=1, s_r=1, r_s=1, r_r=1, s_c=1, r_c=1)
+#: one chamber's volume ``V = V0 + dV/dq q``, kept above V_min; its wall area
+#: ``A_w = A_0 + A_V V`` (the energy model's)
+CH = layout("Chamber", v0=1, dvdq=1, vmin=1, a0=1, av=1)
+#: the energy model's constants: on (1) or polytropic (0), γ, R, k (kg/(s Pa)), the
+#: wall's temperature (K; the supply's and the atmosphere's too), h_w (W/(m^2 K)), the
+#: sub-step (s)
+TH = layout("Thermal", on=1, gamma=1, r=1, k=1, tw=1, hw=1, h=1)
+#: the supply as built (supply_step): on (1) or an ideal source (0), R T / V of the
+#: receiver and of the line (Pa/kg), the regulator's conductance (kg/(s Pa)) and set
+#: point (Pa), the compressor's delivery (kg/s), cut-in and cut-out (Pa), the step (s)
+SUP = layout("Supply", on=1, rtv_r=1, rtv_l=1, kreg=1, pset=1, qc=1, pon=1, poff=1, h=1)
+
+#: the fields both actuator kinds' constants start with (actuate reads ``kind``):
+#: kind (0 nonlinear, 1 linear), p_a, A1, A2, A_r
+_COMMON = dict(kind=1, pa=1, a1=1, a2=1, ar=1)
+#: the nonlinear actuators' constants ``ac`` (NonlinearActuators.step_constants): R T k,
+#: the leakage ε, h n, the first-order spool's coefficient, the spool's order, the
+#: sub-steps, the ψ table's length; per leg the seal friction, the second-order spool,
+#: the underlaps, per chamber (0-2 cap sides, 3-5 rod sides) its volume and wall, the
+#: energy model, the supply; the ψ table (grid, values, slopes: 3 x its length)
+AC = layout(
+    "NonlinearConstants", **_COMMON, rtk=1, eps=1, hn=1, alpha=1, order=1, nsub=1, ntab=1,
+    fric=3 * FRIC.LEN, spool=SPOOL.LEN, delta=3, ch=6 * CH.LEN, th=TH.LEN, sup=SUP.LEN,
+    tab=None,
+)  # fmt: skip
+#: the linear actuators' constants (eq. 19; LinearActuators.step_constants): b, a0,
+#: exp(-a1 dt), its integral, u_hold, F_hold, q_0, M_q, D_q, K_q (3 x 3, row-major),
+#: saturate, the display pressures at rest p10, p20
+ACL = layout(
+    "LinearConstants", **_COMMON, b=3, a0=3, ea=3, ia=3, uhold=3, fhold=3, q0=3, mq=9, dq=9,
+    kq=9, sat=1, p10=3, p20=3,
+)  # fmt: skip
 
 
 def slide_states(qpos, qvel, iq, iv, q, qd):
@@ -128,30 +159,30 @@ def imu_input(roll, pitch, site, sc, ss):
     :func:`simpro_mj.plant.sensor_errors.accel_tilt`); a complementary filter
     trusts it below its crossover f_c and the gyro above, so the attitude it
     gives is the true one plus the accelerometer's error low-passed at f_c
-    (``sc[SC_ACCW]`` = 1 - exp(-2 π f_c dt); 0: the gyro alone). A 7 Hz cycle
+    (``sc[SC.accw]`` = 1 - exp(-2 π f_c dt); 0: the gyro alone). A 7 Hz cycle
     passes 1.4 % of its acceleration's tilt at f_c = 0.1 Hz, a sustained tilt
     error all of it.
     """
-    w = sc[SC_ACCW]
+    w = sc[SC.accw]
     if not w > 0.0:
         return roll, pitch
     x, y, z = site[0], site[1], site[2]
-    h = SS_HIST
+    h = SS.hist
     x1, y1, z1 = ss[h], ss[h + 1], ss[h + 2]
     x2, y2, z2 = ss[h + 3], ss[h + 4], ss[h + 5]
     ss[h + 3], ss[h + 4], ss[h + 5] = x1, y1, z1
     ss[h], ss[h + 1], ss[h + 2] = x, y, z
-    if ss[SS_HN] < 2.0:  # the first two positions of a run: no acceleration yet
-        ss[SS_HN] += 1.0
+    if ss[SS.hn] < 2.0:  # the first two positions of a run: no acceleration yet
+        ss[SS.hn] += 1.0
         return roll, pitch
-    idt2 = sc[SC_IDT2]
+    idt2 = sc[SC.idt2]
     ax = ((x - x2) - 2.0 * (x1 - x2)) * idt2
     ay = ((y - y2) - 2.0 * (y1 - y2)) * idt2
     az = ((z - z2) - 2.0 * (z1 - z2)) * idt2
     ra, pa = accel_tilt(ax, ay, az, roll, pitch)
-    ss[SS_ACC] += w * ((ra - roll) - ss[SS_ACC])
-    ss[SS_ACC + 1] += w * ((pa - pitch) - ss[SS_ACC + 1])
-    return roll + ss[SS_ACC], pitch + ss[SS_ACC + 1]
+    ss[SS.acc] += w * ((ra - roll) - ss[SS.acc])
+    ss[SS.acc + 1] += w * ((pa - pitch) - ss[SS.acc + 1])
+    return roll + ss[SS.acc], pitch + ss[SS.acc + 1]
 
 
 def sample_sensors(k, force, q, pose, site, noise, walk, sc, ss, qm, pm):
@@ -166,46 +197,46 @@ def sample_sensors(k, force, q, pose, site, noise, walk, sc, ss, qm, pm):
     :class:`~simpro_mj.plant.sensors.SensorConfig` states. Returns 1 when the
     IMU sampled (a walk row used), else 0.
     """
-    alpha = sc[SC_ALPHA]
+    alpha = sc[SC.alpha]
     r_in, p_in = pose[0], pose[1]
     if site is not None:
         r_in, p_in = imu_input(r_in, p_in, site, sc, ss)
-    ss[SS_IMU] = ss[SS_IMU] + alpha * (r_in - ss[SS_IMU])
-    ss[SS_IMU + 1] = ss[SS_IMU + 1] + alpha * (p_in - ss[SS_IMU + 1])
-    if force or k % int(sc[SC_POT_EVERY]) == 0:
-        sigma, lsb, lo, hi = sc[SC_SIGMA], sc[SC_LSB], sc[SC_LO], sc[SC_HI]
-        fs, nl = sc[SC_FS], sc[SC_NL]
+    ss[SS.imu] = ss[SS.imu] + alpha * (r_in - ss[SS.imu])
+    ss[SS.imu + 1] = ss[SS.imu + 1] + alpha * (p_in - ss[SS.imu + 1])
+    if force or k % int(sc[SC.pot_every]) == 0:
+        sigma, lsb, lo, hi = sc[SC.sigma], sc[SC.lsb], sc[SC.lo], sc[SC.hi]
+        fs, nl = sc[SC.fs], sc[SC.nl]
         for j in range(3):
             if nl > 0.0:
                 e = pot_nonlinearity(q[j], fs, nl)
-                v = sc[SC_GAIN + j] * q[j] + sc[SC_OFF + j] + e + sigma * noise[j]
+                v = sc[SC.gain + j] * q[j] + sc[SC.off + j] + e + sigma * noise[j]
             else:
-                v = sc[SC_GAIN + j] * q[j] + sc[SC_OFF + j] + sigma * noise[j]
+                v = sc[SC.gain + j] * q[j] + sc[SC.off + j] + sigma * noise[j]
             qm[j] = clip(quantise(v, lsb), lo, hi)
-    if force or k % int(sc[SC_ENC_EVERY]) == 0:
-        h = pose[2] + sc[SC_ENC_NOISE] * noise[3]
-        if sc[SC_RES] > 0.0:
-            h = quantise(h, sc[SC_RES])
+    if force or k % int(sc[SC.enc_every]) == 0:
+        h = pose[2] + sc[SC.enc_noise] * noise[3]
+        if sc[SC.res] > 0.0:
+            h = quantise(h, sc[SC.res])
         pm[2] = h
-    if force or k % int(sc[SC_IMU_EVERY]) == 0:
-        s = sc[SC_SIGMA_IMU]
+    if force or k % int(sc[SC.imu_every]) == 0:
+        s = sc[SC.sigma_imu]
         used = 0
-        if sc[SC_WALK] > 0.0:
-            ss[SS_WALK] = ss[SS_WALK] + sc[SC_WALK] * walk[0]
-            ss[SS_WALK + 1] = ss[SS_WALK + 1] + sc[SC_WALK] * walk[1]
+        if sc[SC.walk] > 0.0:
+            ss[SS.walk] = ss[SS.walk] + sc[SC.walk] * walk[0]
+            ss[SS.walk + 1] = ss[SS.walk + 1] + sc[SC.walk] * walk[1]
             used = 1
-        pm[0] = ss[SS_IMU] + (sc[SC_BIAS] + ss[SS_WALK]) + s * noise[4]
-        pm[1] = ss[SS_IMU + 1] + (sc[SC_BIAS + 1] + ss[SS_WALK + 1]) + s * noise[5]
+        pm[0] = ss[SS.imu] + (sc[SC.bias] + ss[SS.walk]) + s * noise[4]
+        pm[1] = ss[SS.imu + 1] + (sc[SC.bias + 1] + ss[SS.walk + 1]) + s * noise[5]
         return used
     return 0
 
 
 def _psi(r, e, ast, ac, n):
     """ψ(r) of edge ``e`` by linear interpolation in the table, the edge's last cell first."""
-    xp = AC_TAB
+    xp = AC.tab
     fp = xp + n
     sl = fp + n
-    j = int(ast[A_CELL + e])
+    j = int(ast[ACT.cell + e])
     if ac[xp + j] <= r < ac[xp + j + 1]:
         return ac[sl + j] * (r - ac[xp + j]) + ac[fp + j]
     if r != r:
@@ -222,7 +253,7 @@ def _psi(r, e, ast, ac, n):
         else:
             lo = mid + 1
     j = lo - 1
-    ast[A_CELL + e] = j
+    ast[ACT.cell + e] = j
     return ac[sl + j] * (r - ac[xp + j]) + ac[fp + j]
 
 
@@ -234,15 +265,17 @@ def valve_spool(u, ast, ac):
     """
     for i in range(3):
         c = clip(u[i] * 0.2 - 1.0, -1.0, 1.0)
-        sp = ast[A_SPOOL + i]
-        if ac[AC_ORDER] == 1.0:
-            ast[A_SPOOL + i] = sp + (c - sp) * ac[AC_ALPHA]
+        sp = ast[ACT.spool + i]
+        if ac[AC.order] == 1.0:
+            ast[ACT.spool + i] = sp + (c - sp) * ac[AC.alpha]
         else:
-            a = AC_AD
-            sr = ast[A_RATE + i]
-            rate = ac[a + 2] * sp + ac[a + 3] * sr + ac[a + 5] * c
-            ast[A_SPOOL + i] = sp * ac[a] + (ac[a + 1] * sr + ac[a + 4] * c)
-            ast[A_RATE + i] = rate
+            a = AC.spool
+            sr = ast[ACT.rate + i]
+            rate = ac[a + SPOOL.r_s] * sp + ac[a + SPOOL.r_r] * sr + ac[a + SPOOL.r_c] * c
+            ast[ACT.spool + i] = sp * ac[a + SPOOL.s_s] + (
+                ac[a + SPOOL.s_r] * sr + ac[a + SPOOL.s_c] * c
+            )
+            ast[ACT.rate + i] = rate
 
 
 def _chamber(c, q, ast, ac):
@@ -254,18 +287,19 @@ def _chamber(c, q, ast, ac):
     ``V_min`` (overtravel must not empty a chamber).
     """
     i = c % 3
-    sp = ast[A_SPOOL + i]
-    d = ac[AC_DELTA + i]
-    eps = ac[AC_EPS]
+    sp = ast[ACT.spool + i]
+    d = ac[AC.delta + i]
+    eps = ac[AC.eps]
     ap, am = clip(sp + d, eps, 1.0), clip(d - sp, eps, 1.0)
     if c < 3:  # cap side: supply edge P->1, exhaust edge 1->R
         a_s, a_e = ap, am
     else:  # rod side: P->2, 2->R
         a_s, a_e = am, ap
-    dv = ac[AC_CH + 3 * c + 1]
-    V = ac[AC_CH + 3 * c] + dv * q[i]
-    if V < ac[AC_CH + 3 * c + 2]:
-        V = ac[AC_CH + 3 * c + 2]
+    ch = AC.ch + CH.LEN * c
+    dv = ac[ch + CH.dvdq]
+    V = ac[ch + CH.v0] + dv * q[i]
+    if V < ac[ch + CH.vmin]:
+        V = ac[ch + CH.vmin]
     return a_s, a_e, V, dv
 
 
@@ -281,17 +315,17 @@ def chamber_pressures(q, qd, ast, ac):
     draws air in).
     """
     draw = 0.0
-    ps, pa, hn, rtk = ast[A_PS], ac[AC_PA], ac[AC_HN], ac[AC_RTK]
+    ps, pa, hn, rtk = ast[ACT.ps], ac[AC.pa], ac[AC.hn], ac[AC.rtk]
     ips = 1.0 / ps
-    nsub = int(ac[AC_NSUB])
-    n = int(ac[AC_NTAB])
+    nsub = int(ac[AC.nsub])
+    n = int(ac[AC.ntab])
     for c in range(6):
         i = c % 3
         a_s, a_e, V, dv = _chamber(c, q, ast, ac)
         hnV = hn / V
         den0 = (dv * qd[i]) * hnV + 1.0
         hc = hnV * rtk
-        pc = ast[A_P + c]
+        pc = ast[ACT.p + c]
         for _ in range(nsub):
             psi_s = _psi(pc * ips if pc <= ps else ps / pc, c, ast, ac, n)
             psi_e = _psi(pa / pc if pc >= pa else pc / pa, c + 6, ast, ac, n)
@@ -302,8 +336,8 @@ def chamber_pressures(q, qd, ast, ac):
                 den = 0.5
             pc = ((g_s * ps + g_e * pa) * hc + pc) / den
             draw += g_s * (ps - pc)
-        ast[A_P + c] = pc
-    ast[A_DRAW] = draw * ac[AC_TH + TH_K] / nsub
+        ast[ACT.p + c] = pc
+    ast[ACT.draw] = draw * ac[AC.th + TH.k] / nsub
 
 
 def chamber_energy(q, qd, ast, ac):
@@ -323,21 +357,22 @@ def chamber_energy(q, qd, ast, ac):
     other model emerges instead of being chosen.
     """
     draw = 0.0
-    ps, pa = ast[A_PS], ac[AC_PA]
+    ps, pa = ast[ACT.ps], ac[AC.pa]
     ips = 1.0 / ps
-    nsub = int(ac[AC_NSUB])
-    n = int(ac[AC_NTAB])
-    th = AC_TH
-    gam, rg, kk = ac[th + TH_GAMMA], ac[th + TH_R], ac[th + TH_K]
-    tw, hw = ac[th + TH_TW], ac[th + TH_HW]
-    h = ac[th + TH_H]
+    nsub = int(ac[AC.nsub])
+    n = int(ac[AC.ntab])
+    th = AC.th
+    gam, rg, kk = ac[th + TH.gamma], ac[th + TH.r], ac[th + TH.k]
+    tw, hw = ac[th + TH.tw], ac[th + TH.hw]
+    h = ac[th + TH.h]
     for c in range(6):
         i = c % 3
         a_s, a_e, V, dv = _chamber(c, q, ast, ac)
         vdot = dv * qd[i]
-        aw = ac[AC_AW + 2 * c] + ac[AC_AW + 2 * c + 1] * V
-        pc = ast[A_P + c]
-        tc = ast[A_T + c]
+        ch = AC.ch + CH.LEN * c
+        aw = ac[ch + CH.a0] + ac[ch + CH.av] * V
+        pc = ast[ACT.p + c]
+        tc = ast[ACT.t + c]
         if not tc > 0.0:
             tc = tw
         for _ in range(nsub):
@@ -359,40 +394,40 @@ def chamber_energy(q, qd, ast, ac):
             V = V + h * vdot
             pc = p_new
             tc = pc * V / (rg * m) if m > 0.0 else tw
-        ast[A_P + c] = pc
-        ast[A_T + c] = tc
-    ast[A_DRAW] = draw / nsub
+        ast[ACT.p + c] = pc
+        ast[ACT.t + c] = tc
+    ast[ACT.draw] = draw / nsub
 
 
 def supply_step(ast, ac):
     """The supply as built over the step: compressor, receiver, regulator, line.
 
-    The valves draw ``ast[A_DRAW]`` (kg/s) from the line at the supply pressure
+    The valves draw ``ast[ACT.draw]`` (kg/s) from the line at the supply pressure
     ``p_s``; a regulator refills it from the receiver towards its set point,
     ``ṁ_reg = k_reg (min(p_set, p_r) - p_s)`` (a linear droop, no back-flow);
     a compressor delivers its free-air flow into the receiver while its
     pressure switch is on (on below cut-in, off above cut-out). Each volume is
     isothermal at the supply's temperature: ``ṗ = (R T / V) Σ ṁ`` (explicit:
     ``h R T k_reg / V_line`` is about 0.03 with the defaults). Nothing moves
-    with the ideal source (``SUP_ON`` 0).
+    with the ideal source (``SUP.on`` 0).
     """
-    sup = AC_SUP
-    if ac[sup + SUP_ON] == 0.0:
+    sup = AC.sup
+    if ac[sup + SUP.on] == 0.0:
         return
-    h, ps, pr = ac[sup + SUP_H], ast[A_PS], ast[A_PR]
-    preg = pr if pr < ac[sup + SUP_PSET] else ac[sup + SUP_PSET]
-    m_reg = ac[sup + SUP_KREG] * (preg - ps)
+    h, ps, pr = ac[sup + SUP.h], ast[ACT.ps], ast[ACT.pr]
+    preg = pr if pr < ac[sup + SUP.pset] else ac[sup + SUP.pset]
+    m_reg = ac[sup + SUP.kreg] * (preg - ps)
     if m_reg < 0.0:
         m_reg = 0.0
-    if pr < ac[sup + SUP_PON]:
-        ast[A_COMP] = 1.0
-    elif pr > ac[sup + SUP_POFF]:
-        ast[A_COMP] = 0.0
-    ps = ps + h * ac[sup + SUP_RTV_L] * (m_reg - ast[A_DRAW])
-    if ps < ac[AC_PA]:
-        ps = ac[AC_PA]
-    ast[A_PS] = ps
-    ast[A_PR] = pr + h * ac[sup + SUP_RTV_R] * (ast[A_COMP] * ac[sup + SUP_QC] - m_reg)
+    if pr < ac[sup + SUP.pon]:
+        ast[ACT.comp] = 1.0
+    elif pr > ac[sup + SUP.poff]:
+        ast[ACT.comp] = 0.0
+    ps = ps + h * ac[sup + SUP.rtv_l] * (m_reg - ast[ACT.draw])
+    if ps < ac[AC.pa]:
+        ps = ac[AC.pa]
+    ast[ACT.ps] = ps
+    ast[ACT.pr] = pr + h * ac[sup + SUP.rtv_r] * (ast[ACT.comp] * ac[sup + SUP.qc] - m_reg)
 
 
 def nonlinear_step(u, q, qd, ast, ac, f):
@@ -403,7 +438,7 @@ def nonlinear_step(u, q, qd, ast, ac, f):
     (:func:`chamber_pressures`) or with the energy equation (:func:`chamber_energy`).
     """
     valve_spool(u, ast, ac)
-    if ac[AC_TH + TH_ON] != 0.0:
+    if ac[AC.th + TH.on] != 0.0:
         chamber_energy(q, qd, ast, ac)
     else:
         chamber_pressures(q, qd, ast, ac)
@@ -413,11 +448,14 @@ def nonlinear_step(u, q, qd, ast, ac, f):
 
 def slide_forces(qd, ast, ac, f):
     """Net force on each slide ``f`` (3,) N of the present pressures at speeds ``qd``."""
-    a1, a2, par = ac[AC_A1], ac[AC_A2], ac[AC_PA] * ac[AC_AR]
+    a1, a2, par = ac[AC.a1], ac[AC.a2], ac[AC.pa] * ac[AC.ar]
     for i in range(3):
-        c = AC_FRIC + 5 * i
-        fr = seal_friction(qd[i], ac[c], ac[c + 1], ac[c + 2], ac[c + 3], ac[c + 4])
-        f[i] = a1 * ast[A_P + i] - a2 * ast[A_P + 3 + i] - par - fr
+        c = AC.fric + FRIC.LEN * i
+        fr = seal_friction(
+            qd[i], ac[c + FRIC.breakaway], ac[c + FRIC.coulomb], ac[c + FRIC.v_stribeck],
+            ac[c + FRIC.viscous], ac[c + FRIC.v_reg],
+        )  # fmt: skip
+        f[i] = a1 * ast[ACT.p + i] - a2 * ast[ACT.p + 3 + i] - par - fr
 
 
 def linear_step(u, q, qd, ast, ac, f):
@@ -429,19 +467,19 @@ def linear_step(u, q, qd, ast, ac, f):
     """
     for i in range(3):
         ui = clip(u[i], 0.0, 10.0)
-        ast[A_SPOOL + i] = (ui - 5.0) / 5.0
-        drive = ac[AC_LB + i] * (ui - ac[AC_UHOLD + i]) - ac[AC_LA0 + i] * qd[i]
-        ast[A_PHI + i] = ast[A_PHI + i] * ac[AC_EA + i] + ac[AC_IA + i] * drive
+        ast[ACT.spool + i] = (ui - 5.0) / 5.0
+        drive = ac[ACL.b + i] * (ui - ac[ACL.uhold + i]) - ac[ACL.a0 + i] * qd[i]
+        ast[ACT.phi + i] = ast[ACT.phi + i] * ac[ACL.ea + i] + ac[ACL.ia + i] * drive
     for i in range(3):
         df = dd = dk = 0.0
         for j in range(3):
-            df += ac[AC_MQ + 3 * i + j] * ast[A_PHI + j]
-            dd += ac[AC_DQ + 3 * i + j] * qd[j]
-            dk += ac[AC_KQ + 3 * i + j] * (q[j] - ac[AC_Q0 + j])
-        fi = ac[AC_FHOLD + i] + (df + dd + dk)
-        if ac[AC_SAT] != 0.0:
-            fi = clip(fi, ast[A_FMIN], ast[A_FMAX])
+            df += ac[ACL.mq + 3 * i + j] * ast[ACT.phi + j]
+            dd += ac[ACL.dq + 3 * i + j] * qd[j]
+            dk += ac[ACL.kq + 3 * i + j] * (q[j] - ac[ACL.q0 + j])
+        fi = ac[ACL.fhold + i] + (df + dd + dk)
+        if ac[ACL.sat] != 0.0:
+            fi = clip(fi, ast[ACT.fmin], ast[ACT.fmax])
         f[i] = fi
-        dfi = fi - ac[AC_FHOLD + i]
-        ast[A_P + i] = ac[AC_P10 + i] + 0.5 * dfi / ac[AC_A1]
-        ast[A_P + 3 + i] = ac[AC_P20 + i] - 0.5 * dfi / ac[AC_A2]
+        dfi = fi - ac[ACL.fhold + i]
+        ast[ACT.p + i] = ac[ACL.p10 + i] + 0.5 * dfi / ac[ACL.a1]
+        ast[ACT.p + 3 + i] = ac[ACL.p20 + i] - 0.5 * dfi / ac[ACL.a2]

@@ -294,7 +294,7 @@ class CoSimulation:
         spec = mujoco.mjtState.mjSTATE_INTEGRATION
         state = np.empty(mujoco.mj_stateSize(m, spec))
         mujoco.mj_getState(m, d, state, spec)
-        rows = int(S[step.ROWS])
+        rows = int(S[step.ST.rows])
         setpoints = None
         if self.external:  # written while the run went
             arrays = [getattr(self, name) for name in _SETPOINTS]
@@ -440,8 +440,8 @@ class CoSimulation:
         except KeyboardInterrupt as exc:
             # SIGINT, or SIGTERM/SIGHUP turned into KeyboardInterrupt by the CLI: keep
             # what was computed so the caller can still write it (a compiled chunk
-            # may have run past the step Python last saw: S[K] is the next step)
-            k = max(self._k, int(self.S[step.K]) - 1)
+            # may have run past the step Python last saw: S[ST.k] is the next step)
+            k = max(self._k, int(self.S[step.ST.k]) - 1)
             status = "interrupted"
             which = str(exc).removeprefix("signal ") or "SIGINT"
             reason = f"interrupted by signal ({which}) at t = {k * self.dt:.3f} s"
@@ -469,7 +469,7 @@ class CoSimulation:
         k = self._k = k0
         while True:
             if k == next_pace:
-                next_pace = pace(k, log.log[: int(S[step.ROWS])])
+                next_pace = pace(k, log.log[: int(S[step.ST.rows])])
             stop = min(n, (k // CHUNK + 1) * CHUNK)
             if k < next_pace < stop:
                 stop = next_pace
@@ -535,17 +535,17 @@ class CoSimulation:
         m, d, S = self.model, self.data, self.S
 
         def advance(k: int, stop: int) -> None:
-            S[step.K], S[step.STATUS] = k, step.RUNNING
+            S[step.ST.k], S[step.ST.status] = k, step.RUNNING
             if stop > k:
                 mujoco.mj_step(m, d, stop - k)
             else:  # the last step: its stages without integrating (mj_step1's work)
                 mujoco.mj_forward(m, d)
-            if S[step.STATUS] == step.STOPPED:
-                self._raise(int(S[step.ERR]), int(S[step.ERR_K]))
-            S[step.STATUS] = step.IDLE
-            if int(S[step.K]) != max(stop, k + 1):
+            if S[step.ST.status] == step.STOPPED:
+                self._raise(int(S[step.ST.err]), int(S[step.ST.err_k]))
+            S[step.ST.status] = step.IDLE
+            if int(S[step.ST.k]) != max(stop, k + 1):
                 raise RuntimeError(
-                    f"the control callback ran {int(S[step.K]) - k} of "
+                    f"the control callback ran {int(S[step.ST.k]) - k} of "
                     f"{max(stop - k, 1)} steps: another callback replaced it"
                 )
 
@@ -554,9 +554,9 @@ class CoSimulation:
     def _draws(self, k0: int, k1: int) -> None:
         """The sensors' and the bias walk's draws for steps ``k0 .. k1 - 1`` in their blocks."""
         S = self.S
-        S[step.NOISE_K0] = self.noise.ensure(k0, k1)
-        m = int(S[step.WALK_M])  # an IMU sample at most every step
-        S[step.WALK_M0] = self.walk.ensure(m, m + (k1 - k0))
+        S[step.ST.noise_k0] = self.noise.ensure(k0, k1)
+        m = int(S[step.ST.walk_m])  # an IMU sample at most every step
+        S[step.ST.walk_m0] = self.walk.ensure(m, m + (k1 - k0))
 
     def _raise(self, err: int, k: int):
         """The exception of a step's error code (:mod:`simpro_mj.sim.step`); none for 0."""
@@ -570,13 +570,13 @@ class CoSimulation:
             )
             raise PhysicsError(f"MuJoCo warning at t = {t:.3f} s")
         if err == step.ERR_FORCE:
-            f = S[step.F : step.F + 3]
-            p = S[step.AST : step.AST + 6]
+            f = S[step.ST.f : step.ST.f + 3]
+            p = S[step.ST.ast + step.ps.ACT.p :][:6]
             raise PhysicsError(
                 f"non-finite actuator force {f} at t = {t:.3f} s (pressures {p[:3]}, {p[3:]})"
             )
         if err == step.ERR_LOOP:
-            row = int(S[step.ROWS]) - 1
+            row = int(S[step.ST.rows]) - 1
             scratch = mujoco.MjData(self.model)
             scratch.qpos[:] = self._log.qlog[row]
             scratch.time = t
@@ -585,13 +585,13 @@ class CoSimulation:
             raise PhysicsError(f"kinematic loop opened at t = {t:.3f} s")
         # the controllers' codes, named as TaskSpaceController names them
         raise_step_error(
-            err, self.ref[k], S[step.YP : step.YP + 3], self.geometry, self.task.margin
+            err, self.ref[k], S[step.ST.yp : step.ST.yp + 3], self.geometry, self.task.margin
         )
         raise RuntimeError(f"step error {err} at t = {t:.3f} s")
 
     def _result(self, rec: Log, steps: int, status: str, reason, wall: float) -> SimResult:
         """The log as columns (copies), the cueing columns, the run's figures."""
-        row, dt = int(self.S[step.ROWS]), self.dt
+        row, dt = int(self.S[step.ST.rows]), self.dt
         log = rec.log[:row]
         columns = {name: log[:, j].copy() for j, name in enumerate(COLUMNS)}
         if self.cueing:
@@ -614,7 +614,7 @@ class CoSimulation:
                 "steps": int(steps),
                 "timestep_s": dt,
                 "simulated_s": float(steps * dt),
-                "max_loop_closure_error_m": float(self.S[step.WORST]),
+                "max_loop_closure_error_m": float(self.S[step.ST.worst]),
                 "wall_s": wall,
                 "realtime_factor": float(steps * dt / wall) if wall > 0 else None,
             },

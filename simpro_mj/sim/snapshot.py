@@ -62,7 +62,7 @@ class Snapshot:
     S, C : ndarray
         The step's state and constants (:mod:`simpro_mj.sim.step`).
     log, qlog, hlog : ndarray
-        The log rows written so far (``S[ROWS]`` of them).
+        The log rows written so far (``S[ST.rows]`` of them).
     noise, walk : NoiseState
         The sensors' draws and the IMU bias walk's draws.
     setpoints : tuple of ndarray or None

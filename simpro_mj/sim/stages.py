@@ -27,7 +27,7 @@ class Log:
 
     The step's ``record`` stage fills one row every ``logging.decimation``
     steps (``hlog``, the head sensors, in cueing runs only); the step's state
-    counts the rows written (``S[ROWS]``).
+    counts the rows written (``S[ST.rows]``).
     """
 
     def __init__(self, n_rows: int, nq: int, head: bool):
@@ -78,9 +78,9 @@ class FaultHooks:
     At an event step :meth:`at` brings the schedule to it: a supply change
     goes to the actuators' state (and the log's ``supply_pa``), the flags to
     the log. While a sensor fault acts, :meth:`apply_sensors` replaces what
-    the controllers see (``S[YQ]``, ``S[YP]``; the sensors' own readings are
+    the controllers see (``S[ST.yq]``, ``S[ST.yp]``; the sensors' own readings are
     untouched); while a valve is stuck, :meth:`apply_valves` replaces the
-    applied volts (``S[UA]``; the controllers keep their own command).
+    applied volts (``S[ST.ua]``; the controllers keep their own command).
     """
 
     def __init__(self, schedule: FaultSchedule, S: np.ndarray, actuators):
@@ -92,23 +92,25 @@ class FaultHooks:
         s, S = self.schedule, self.S
         ch = s.at_event(k)
         if ch.supply_pa is not None:
-            S[step.AST + ps.A_PS] = ch.supply_pa  # what the log's supply_pa shows
+            S[step.ST.ast + ps.ACT.ps] = ch.supply_pa  # what the log's supply_pa shows
             if self.actuators.kind == "linear":
                 lo, hi = self.actuators.params.force_range_at(ch.supply_pa)
-                S[step.AST + ps.A_FMIN], S[step.AST + ps.A_FMAX] = lo, hi
-        S[step.FLAGS] = s.flags
+                S[step.ST.ast + ps.ACT.fmin], S[step.ST.ast + ps.ACT.fmax] = lo, hi
+        S[step.ST.flags] = s.flags
         self.sensors, self.valves = s.sensor_active, s.valve_active
         return s.next_event
 
     def apply_sensors(self, k: int) -> None:
         S = self.S
-        q, p = self.schedule.apply_sensors(k, S[step.QM : step.QM + 3], S[step.PM : step.PM + 3])
-        S[step.YQ : step.YQ + 3] = q
-        S[step.YP : step.YP + 3] = p
+        q, p = self.schedule.apply_sensors(
+            k, S[step.ST.qm : step.ST.qm + 3], S[step.ST.pm : step.ST.pm + 3]
+        )
+        S[step.ST.yq : step.ST.yq + 3] = q
+        S[step.ST.yp : step.ST.yp + 3] = p
 
     def apply_valves(self) -> None:
         S = self.S
-        S[step.UA : step.UA + 3] = self.schedule.apply_valves(S[step.U : step.U + 3])
+        S[step.ST.ua : step.ST.ua + 3] = self.schedule.apply_valves(S[step.ST.u : step.ST.u + 3])
 
 
 class Profile:

@@ -14,14 +14,19 @@ plain functions on two flat float64 arrays, the state ``S`` (every discrete
 state, counter and the set-point filter's ring: saving ``S`` with MuJoCo's
 state resumes a run exactly) and the constants ``C``, calling the
 controllers' (:mod:`controllers.step_functions`) and the plant's
-(:mod:`simpro_mj.plant.step_functions`) per-step functions. Two ways to run
-them, the same source:
+(:mod:`simpro_mj.plant.step_functions`) per-step functions. Each array is
+read by name through its declared layout (:func:`controllers.layout.layout`):
+:data:`ST` and :data:`CT`, whose fields include the controllers' and the
+plant's blocks at their own layouts' lengths, so a stage reads
+``S[ST.q + i]`` and the plant ``ac[AC.fric + ...]``. Two ways to run them,
+the same source:
 
 * interpreted (``SIMPRO_KERNEL=python``, the readable reference):
   :class:`~simpro_mj.sim.loop.CoSimulation` calls ``mj_step1``, the stages,
   ``mj_step2`` from Python every step;
 * compiled (numba, the default when it is installed): :func:`compiled` turns
-  every function into machine code and :func:`callback_step` runs inside
+  every function the stages reach (:data:`_PLAIN`, read from the code) into
+  machine code and :func:`callback_step` runs inside
   ``mj_step`` as MuJoCo's control callback (:mod:`simpro_mj.sim.callback`,
   acting only on the runs registered in :data:`REGISTRY`), exactly where the
   split step runs the stages (after the position and velocity stages, before
@@ -31,33 +36,38 @@ them, the same source:
 from __future__ import annotations
 
 import math
+import sys
 import threading
 import types as pytypes
 
 import numpy as np
 
 from controllers import step_functions as cs
-from controllers.dead_band import dead_band
+from controllers.layout import layout
 from simpro_mj.plant import step_functions as ps
-from simpro_mj.plant.friction import seal_friction
-from simpro_mj.plant.sensor_errors import accel_tilt, pot_nonlinearity
 
 __all__ = ["sense", "control", "actuate", "record", "callback_step", "build", "compiled"]
 
+#: the closed loops' site pairs the step reads (at most)
+MAX_PAIRS = 8
+
 # ---------------------------------------------------------------- state S
-K, STATUS, ERR, ERR_K, ROWS, WORST, FLAGS, NOISE_K0 = range(8)
-# the bias walk: its draws used so far, the stream index of its block's first row
-WALK_M, WALK_M0 = 8, 9
-Q, QD, POSE, QM, PM, LOOP = 10, 13, 16, 19, 22, 25
-YQ, YP = 26, 29  # what the controllers see (faults act here)
-QDES, QR, U, UA, F, PCMD = 32, 35, 38, 41, 44, 47  # q_d, q_ref, volts (own, applied), N, x_c
-SAT = 50  # feed-forward: a valve at its rail since the last outer step
-SS = 51  # the sensors' own state (plant.step_functions.SS_*)
-TS = SS + ps.SS_LEN  # the outer loop's state (controllers.step_functions.TS)
-JX = TS + cs.TS.LEN  # the joint controllers' 9 states
-FS = JX + 9  # the set-point filter's state (controllers.step_functions.FS)
-AST = FS + cs.FS.LEN  # the actuators' state (plant.step_functions.A_*)
-RING = AST + ps.A_LEN  # the ramp filter's ring (3 x n_max)
+#: The state ``S``: the step counter, the run's status (IDLE ...), its error and the
+#: step of it, the log rows written, the worst loop closure, the faults' flags, the
+#: noise block's first step; the bias walk's draws used so far and the stream index of
+#: its block's first row; the slides, their speeds, the pose, the sensors' readings, the
+#: loop closure; what the controllers see (faults act here); q_d, q_ref, the volts (the
+#: controllers' own and the applied), the slide forces (N), the commanded pose x_c;
+#: feed-forward: a valve at its rail since the last outer step; then the blocks of the
+#: sensors (plant.step_functions.SS), the outer loop (controllers.step_functions.TS),
+#: the joint controllers (3 states per leg), the set-point filter (FS), the actuators
+#: (plant.step_functions.ACT) and the ramp filter's ring (3 x n_max, open)
+ST = layout(
+    "StepState", k=1, status=1, err=1, err_k=1, rows=1, worst=1, flags=1, noise_k0=1,
+    walk_m=1, walk_m0=1, q=3, qd=3, pose=3, qm=3, pm=3, loop=1, yq=3, yp=3, qdes=3, qr=3,
+    u=3, ua=3, f=3, pcmd=3, sat=1, ss=ps.SS.LEN, ts=cs.TS.LEN, jx=9, fs=cs.FS.LEN,
+    ast=ps.ACT.LEN, ring=None,
+)  # fmt: skip
 
 #: STATUS values: registered but not stepping, stepping, stopped on an error
 IDLE, RUNNING, STOPPED = 0.0, 1.0, 2.0
@@ -65,93 +75,106 @@ IDLE, RUNNING, STOPPED = 0.0, 1.0, 2.0
 ERR_FORCE, ERR_LOOP, ERR_WARNING = 5, 6, 7
 
 # ------------------------------------------------------------ constants C
-DT, NSTEPS, DEC, OUTER, HOLD_SAT, HAS_UFF, HEAD, LOOP_BOUND = range(8)
-FC = 8  # the set-point filter's constants (controllers.step_functions.FC)
-JC = FC + cs.FC.LEN  # the joint controllers' (controllers.step_functions.JC)
-# the state read: the slides' qpos and dof, the platform site's xmat and xpos (z), the
-# closed loops' site pairs (8 at most), the head sensors, the slides' motors
-IQ = JC + cs.JC.LEN
-IV, IMAT, IH, NPAIR, PAIRS = IQ + 3, IQ + 6, IQ + 7, IQ + 8, IQ + 9
-IHA, IHG, ICTRL = PAIRS + 16, PAIRS + 17, PAIRS + 18
-SC = ICTRL + 3
-TC = SC + ps.SC_LEN
-GEOM = TC + cs.TC.LEN
-AC = GEOM + cs.GEOM.LEN  # the actuators' constants (plant.step_functions.AC_*)
-MAX_PAIRS = 8
+#: The constants ``C``: dt, the run's steps, the log's decimation, the outer period
+#: (steps), hold on saturation (feed-forward), a feed-forward force given, the head
+#: sensors logged, the loop-closure bound (m); the blocks of the set-point filter
+#: (controllers.step_functions.FC) and the joint loops (JC); the state read: the slides'
+#: qpos and dof, the platform site's xmat and xpos (z), the closed loops' site pairs, the
+#: head sensors, the slides' motors; the blocks of the sensors (plant.step_functions.SC),
+#: the outer loop (TC), the geometry (GEOM) and the actuators (plant.step_functions.AC
+#: or ACL by their kind, open)
+CT = layout(
+    "StepConstants", dt=1, nsteps=1, dec=1, outer=1, hold_sat=1, has_uff=1, head=1,
+    loop_bound=1, fc=cs.FC.LEN, jc=cs.JC.LEN, iq=3, iv=3, imat=1, ih=1, npair=1,
+    pairs=2 * MAX_PAIRS, iha=1, ihg=1, ictrl=3, sc=ps.SC.LEN, tc=cs.TC.LEN, geom=cs.GEOM.LEN,
+    ac=None,
+)  # fmt: skip
 
-#: the log's columns (simpro_mj.sim.result.COLUMNS), in order
-N_COLS = 1 + 3 * 9 + 6 + 1 + 2
+#: One log row (simpro_mj.sim.result.COLUMNS, in order): the time, the set-point, the
+#: pose, its measurement, the command, q_ref, the slides, their measurement, the applied
+#: volts, the forces, per leg the two chamber pressures, the loop closure, the faults'
+#: flags, the supply at the valves
+ROW = layout(
+    "LogRow", t=1, ref=3, pose=3, meas=3, cmd=3, qref=3, q=3, qm=3, u=3, f=3, p=6, loop=1,
+    flags=1, ps=1,
+)  # fmt: skip
+#: the log's columns
+N_COLS = ROW.LEN
 
 
 # ---------------------------------------------------------------- the stages
 def sense(k, S, C, qpos, qvel, xpos, xmat, noise, walk):
     """The state and the sensors' readings at step ``k`` into ``S``.
 
-    ``noise``: the block of the sensors' draws (row ``k - S[NOISE_K0]``);
-    ``walk``: the block of the IMU bias walk's draws (row ``S[WALK_M] - S[WALK_M0]``).
+    ``noise``: the block of the sensors' draws (row ``k - S[ST.noise_k0]``);
+    ``walk``: the block of the IMU bias walk's draws (row ``S[ST.walk_m] - S[ST.walk_m0]``).
     """
-    q, pose, qm, pm = S[Q : Q + 3], S[POSE : POSE + 3], S[QM : QM + 3], S[PM : PM + 3]
-    ps.slide_states(qpos, qvel, C[IQ : IQ + 3], C[IV : IV + 3], q, S[QD : QD + 3])
-    ps.platform_pose(xmat, xpos, C[IMAT], C[IH], pose)
-    S[LOOP] = ps.loop_closure(xpos, C[PAIRS : PAIRS + 2 * MAX_PAIRS], C[NPAIR])
-    site = int(C[IH]) - 2  # the platform frame's origin: the IMU site
-    draws, steps = noise[k - int(S[NOISE_K0])], walk[int(S[WALK_M]) - int(S[WALK_M0])]
-    sc, ss = C[SC : SC + ps.SC_LEN], S[SS : SS + ps.SS_LEN]
+    q, pose = S[ST.q : ST.q + 3], S[ST.pose : ST.pose + 3]
+    qm, pm = S[ST.qm : ST.qm + 3], S[ST.pm : ST.pm + 3]
+    iq, iv = C[CT.iq : CT.iq + 3], C[CT.iv : CT.iv + 3]
+    ps.slide_states(qpos, qvel, iq, iv, q, S[ST.qd : ST.qd + 3])
+    ps.platform_pose(xmat, xpos, C[CT.imat], C[CT.ih], pose)
+    S[ST.loop] = ps.loop_closure(xpos, C[CT.pairs : CT.pairs + 2 * MAX_PAIRS], C[CT.npair])
+    site = int(C[CT.ih]) - 2  # the platform frame's origin (x of its z): the IMU site
+    draws = noise[k - int(S[ST.noise_k0])]
+    steps = walk[int(S[ST.walk_m]) - int(S[ST.walk_m0])]
+    sc, ss = C[CT.sc : CT.sc + ps.SC.LEN], S[ST.ss : ST.ss + ps.SS.LEN]
     imu = xpos[site : site + 3]
-    S[WALK_M] += ps.sample_sensors(k, False, q, pose, imu, draws, steps, sc, ss, qm, pm)
-    S[YQ : YQ + 3], S[YP : YP + 3] = qm, pm
+    S[ST.walk_m] += ps.sample_sensors(k, False, q, pose, imu, draws, steps, sc, ss, qm, pm)
+    S[ST.yq : ST.yq + 3], S[ST.yp : ST.yp + 3] = qm, pm
 
 
 def control(k, S, C, ref, qj, uff):
     """The controllers at step ``k``: q_d, the filter, the joint loops; returns an error code.
 
-    Writes q_d (``S[QDES]``), q_ref, the volts (the controllers' own ``U``
-    and the applied ``UA``, equal unless a fault overrides them) and the
+    Writes q_d (``S[ST.qdes]``), q_ref, the volts (the controllers' own ``u``
+    and the applied ``ua``, equal unless a fault overrides them) and the
     commanded pose.
     """
-    ts, tc, g = S[TS : TS + cs.TS.LEN], C[TC : TC + cs.TC.LEN], C[GEOM : GEOM + cs.GEOM.LEN]
+    ts = S[ST.ts : ST.ts + cs.TS.LEN]
+    tc, g = C[CT.tc : CT.tc + cs.TC.LEN], C[CT.geom : CT.geom + cs.GEOM.LEN]
     mode = tc[cs.TC.mode]
-    y0, y1, y2 = S[YP], S[YP + 1], S[YP + 2]
-    m0, m1, m2 = S[YQ], S[YQ + 1], S[YQ + 2]
+    y0, y1, y2 = S[ST.yp], S[ST.yp + 1], S[ST.yp + 2]
+    m0, m1, m2 = S[ST.yq], S[ST.yq + 1], S[ST.yq + 2]
     err = 0
     if mode == cs.MODE_JOINT:  # q_d = IK(y_d), precomputed
-        S[QDES : QDES + 3], S[PCMD : PCMD + 3] = qj[k], ref[k]
+        S[ST.qdes : ST.qdes + 3], S[ST.pcmd : ST.pcmd + 3] = qj[k], ref[k]
     else:
-        if k % int(C[OUTER]) == 0:
-            hold = S[SAT] != 0.0
+        if k % int(C[CT.outer]) == 0:
+            hold = S[ST.sat] != 0.0
             err = cs.outer_update(
                 ref[k, 0], ref[k, 1], ref[k, 2], y0, y1, y2, m0, m1, m2, hold, ts, tc, g
             )
-            S[SAT] = 0.0
+            S[ST.sat] = 0.0
         elif mode == cs.MODE_FF:
             err = cs.ff_inner(ref[k, 0], ref[k, 1], ref[k, 2], y0, y1, y2, m0, m1, m2, 2, ts, tc, g)
-        S[QDES : QDES + 3] = ts[cs.TS.qd : cs.TS.qd + 3]
-        S[PCMD : PCMD + 3] = ts[cs.TS.xc : cs.TS.xc + 3]
+        S[ST.qdes : ST.qdes + 3] = ts[cs.TS.qd : cs.TS.qd + 3]
+        S[ST.pcmd : ST.pcmd + 3] = ts[cs.TS.xc : cs.TS.xc + 3]
     if err:
         return err
-    qr, ring = S[QR : QR + 3], S[RING:].reshape(3, -1)
-    cs.filter_step(
-        C[FC : FC + cs.FC.LEN], S[QDES], S[QDES + 1], S[QDES + 2], S[FS : FS + cs.FS.LEN], ring, qr
-    )
+    qr, ring = S[ST.qr : ST.qr + 3], S[ST.ring :].reshape(3, -1)
+    qd0, qd1, qd2 = S[ST.qdes], S[ST.qdes + 1], S[ST.qdes + 2]
+    fc, fs = C[CT.fc : CT.fc + cs.FC.LEN], S[ST.fs : ST.fs + cs.FS.LEN]
+    cs.filter_step(fc, qd0, qd1, qd2, fs, ring, qr)
     f0 = f1 = f2 = 0.0
-    if C[HAS_UFF] != 0.0:
+    if C[CT.has_uff] != 0.0:
         f0, f1, f2 = uff[k, 0], uff[k, 1], uff[k, 2]
-    jc = C[JC : JC + cs.JC.LEN]
-    cs.joint_step(S[JX : JX + 9], jc, qr[0] - m0, qr[1] - m1, qr[2] - m2, f0, f1, f2, S[U : U + 3])
+    jc, u = C[CT.jc : CT.jc + cs.JC.LEN], S[ST.u : ST.u + 3]
+    cs.joint_step(S[ST.jx : ST.jx + 9], jc, qr[0] - m0, qr[1] - m1, qr[2] - m2, f0, f1, f2, u)
     lo, hi = jc[cs.JC.lo], jc[cs.JC.hi]
-    S[UA : UA + 3] = S[U : U + 3]
-    if C[HOLD_SAT] != 0.0 and S[SAT] == 0.0:
+    S[ST.ua : ST.ua + 3] = u
+    if C[CT.hold_sat] != 0.0 and S[ST.sat] == 0.0:
         for i in range(3):
-            if not (lo < S[U + i] < hi):
-                S[SAT] = 1.0
+            if not (lo < S[ST.u + i] < hi):
+                S[ST.sat] = 1.0
     return 0
 
 
 def actuate(S, C):
-    """The actuators over the step for the applied volts: forces into ``S[F]``; error code."""
-    ast, ac = S[AST : AST + ps.A_LEN], C[AC:]
-    u, q, qd, f = S[UA : UA + 3], S[Q : Q + 3], S[QD : QD + 3], S[F : F + 3]
-    if ac[ps.AC_KIND] == 0.0:
+    """The actuators over the step for the applied volts: forces into ``S[ST.f]``; error code."""
+    ast, ac = S[ST.ast : ST.ast + ps.ACT.LEN], C[CT.ac :]
+    u, q, qd, f = S[ST.ua : ST.ua + 3], S[ST.q : ST.q + 3], S[ST.qd : ST.qd + 3], S[ST.f : ST.f + 3]
+    if ac[ps.AC.kind] == 0.0:
         ps.nonlinear_step(u, q, qd, ast, ac, f)
     else:
         ps.linear_step(u, q, qd, ast, ac, f)
@@ -162,33 +185,34 @@ def actuate(S, C):
 
 def record(k, S, C, ref, qpos, sd, log, qlog, hlog):
     """The log row of step ``k`` (every ``decimation`` steps); error code (loop opened)."""
-    if k % int(C[DEC]) != 0:
+    if k % int(C[CT.dec]) != 0:
         return 0
-    row = int(S[ROWS])
+    row = int(S[ST.rows])
     out = log[row]
-    out[0] = k * C[DT]
+    out[ROW.t] = k * C[CT.dt]
     for i in range(3):
-        out[1 + i] = ref[k, i]
-        out[4 + i] = S[POSE + i]
-        out[7 + i] = S[YP + i]
-        out[10 + i] = S[PCMD + i]
-        out[13 + i] = S[QR + i]
-        out[16 + i] = S[Q + i]
-        out[19 + i] = S[YQ + i]
-        out[22 + i] = S[UA + i]
-        out[25 + i] = S[F + i]
-        out[28 + 2 * i] = S[AST + ps.A_P + i]
-        out[29 + 2 * i] = S[AST + ps.A_P + 3 + i]
-    loop = S[LOOP]
-    out[34], out[35], out[36] = loop, S[FLAGS], S[AST + ps.A_PS]  # the supply at the valves
+        out[ROW.ref + i] = ref[k, i]
+        out[ROW.pose + i] = S[ST.pose + i]
+        out[ROW.meas + i] = S[ST.yp + i]
+        out[ROW.cmd + i] = S[ST.pcmd + i]
+        out[ROW.qref + i] = S[ST.qr + i]
+        out[ROW.q + i] = S[ST.q + i]
+        out[ROW.qm + i] = S[ST.yq + i]
+        out[ROW.u + i] = S[ST.ua + i]
+        out[ROW.f + i] = S[ST.f + i]
+        out[ROW.p + 2 * i] = S[ST.ast + ps.ACT.p + i]  # cap side
+        out[ROW.p + 2 * i + 1] = S[ST.ast + ps.ACT.p + 3 + i]  # rod side
+    loop = S[ST.loop]
+    out[ROW.loop], out[ROW.flags] = loop, S[ST.flags]
+    out[ROW.ps] = S[ST.ast + ps.ACT.ps]  # the supply at the valves
     qlog[row] = qpos
-    if C[HEAD] != 0.0:
-        a, g = int(C[IHA]), int(C[IHG])
+    if C[CT.head] != 0.0:
+        a, g = int(C[CT.iha]), int(C[CT.ihg])
         hlog[row, :3], hlog[row, 3:] = sd[a : a + 3], sd[g : g + 3]
-    S[ROWS] = row + 1
-    if loop > S[WORST]:
-        S[WORST] = loop
-    if loop > C[LOOP_BOUND]:
+    S[ST.rows] = row + 1
+    if loop > S[ST.worst]:
+        S[ST.worst] = loop
+    if loop > C[CT.loop_bound]:
         return ERR_LOOP
     return 0
 
@@ -196,13 +220,13 @@ def record(k, S, C, ref, qpos, sd, log, qlog, hlog):
 def apply_forces(S, C, ctrl):
     """The slide forces into MuJoCo's ``ctrl`` (the slides' motors)."""
     for i in range(3):
-        ctrl[int(C[ICTRL + i])] = S[F + i]
+        ctrl[int(C[CT.ictrl + i])] = S[ST.f + i]
 
 
 def callback_step(
     S, C, qpos, qvel, xpos, xmat, sd, ctrl, warn, ref, qj, uff, noise, walk, log, qlog, hlog
 ):
-    """Step ``S[K]`` whole (sense, control, actuate, apply, record), then ``K + 1``.
+    """Step ``S[ST.k]`` whole (sense, control, actuate, apply, record), then ``k + 1``.
 
     The body of MuJoCo's control callback for one registered run. Does
     nothing unless the run is stepping; stops it (before the step) when a
@@ -210,19 +234,19 @@ def callback_step(
     of ``mjWarningStat``) or the step is past the run's end or the noise
     rows Python drew. On an error ``S`` records it and the step.
     """
-    if S[STATUS] != RUNNING:
+    if S[ST.status] != RUNNING:
         return
-    k = int(S[K])
+    k = int(S[ST.k])
     for i in range(warn.shape[0] // 2):
         if warn[2 * i + 1] != 0:
-            S[ERR], S[ERR_K], S[STATUS] = ERR_WARNING, k - 1, STOPPED
+            S[ST.err], S[ST.err_k], S[ST.status] = ERR_WARNING, k - 1, STOPPED
             return
     if (
-        k > int(C[NSTEPS])
-        or k - int(S[NOISE_K0]) >= noise.shape[0]
-        or int(S[WALK_M]) - int(S[WALK_M0]) >= walk.shape[0]
+        k > int(C[CT.nsteps])
+        or k - int(S[ST.noise_k0]) >= noise.shape[0]
+        or int(S[ST.walk_m]) - int(S[ST.walk_m0]) >= walk.shape[0]
     ):
-        S[STATUS] = IDLE
+        S[ST.status] = IDLE
         return
     sense(k, S, C, qpos, qvel, xpos, xmat, noise, walk)
     err = control(k, S, C, ref, qj, uff)
@@ -232,8 +256,8 @@ def callback_step(
         apply_forces(S, C, ctrl)
         err = record(k, S, C, ref, qpos, sd, log, qlog, hlog)
     if err:
-        S[ERR], S[ERR_K], S[STATUS] = err, k, STOPPED
-    S[K] = k + 1
+        S[ST.err], S[ST.err_k], S[ST.status] = err, k, STOPPED
+    S[ST.k] = k + 1
 
 
 # ------------------------------------------------------------ the run's arrays
@@ -241,65 +265,96 @@ def build(sim, loop_bound: float, noise_row, walk_row) -> tuple[np.ndarray, np.n
     """``(S, C)`` of a :class:`~simpro_mj.sim.loop.CoSimulation` from its objects.
 
     The controllers, the sensors' configuration and the actuators are built,
-    validated and reset as objects; their numbers go into ``C`` and their
-    states (run through the same per-step functions) into ``S``. The sensors
-    take a first reading at the true state, the IMU's filter starting there.
+    validated and reset as objects; their numbers go into ``C`` (packed by
+    name, :data:`CT`) and their states (run through the same per-step
+    functions) into ``S``. The sensors take a first reading at the true state,
+    the IMU's filter starting there.
     """
     filt, joint, task, idx, act = sim.setpoint_filter, sim.joint, sim.task, sim.idx, sim.actuators
     act.set_timestep(sim.dt)
-    C = np.zeros(AC + act.step_constants.size)
-    C[DT : OUTER + 1] = sim.dt, sim.n_steps, sim.decimation, sim.outer_every
-    C[HOLD_SAT] = 1.0 if sim.mode == "feedforward" and sim.hold_on_saturation else 0.0
-    C[HAS_UFF] = 1.0 if sim.u_ff is not None else 0.0
-    C[LOOP_BOUND] = loop_bound
-    C[FC : FC + cs.FC.LEN] = filt.step_constants
-    C[JC : JC + cs.JC.LEN] = joint.step_constants
-    C[IQ : IQ + 3], C[IV : IV + 3] = idx.slide_qpos, idx.slide_dof
-    C[IMAT], C[IH] = 9 * int(idx.site_p), 3 * int(idx.site_p) + 2
     pairs = [(3 * int(a), 3 * int(b)) for a, b in idx.connect_sites]
     if len(pairs) > MAX_PAIRS:
         raise ValueError(f"the model has {len(pairs)} closed loops; the step reads {MAX_PAIRS}")
-    C[NPAIR] = len(pairs)
-    C[PAIRS : PAIRS + 2 * len(pairs)] = [i for p in pairs for i in p]
+    flat_pairs = np.zeros(2 * MAX_PAIRS)
+    flat_pairs[: 2 * len(pairs)] = [i for p in pairs for i in p]
+    head = {"head": 0.0, "iha": 0.0, "ihg": 0.0}
     if sim.cueing:  # the first sensordata index of each (a slice)
-        C[HEAD], C[IHA], C[IHG] = 1.0, idx.sensor["head_accel"].start, idx.sensor["head_gyro"].start
-    C[ICTRL : ICTRL + 3] = idx.actuators
-    C[SC : SC + ps.SC_LEN] = sim.sensor_cfg.step_constants
-    C[TC : TC + cs.TC.LEN] = task.step_constants
-    C[GEOM : GEOM + cs.GEOM.LEN] = task.step_geometry
-    C[AC:] = act.step_constants
-    S = np.zeros(RING + 3 * max(filt.n))
-    S[STATUS] = IDLE
-    S[AST : AST + ps.A_LEN] = act.step_state
+        a, g = idx.sensor["head_accel"].start, idx.sensor["head_gyro"].start
+        head = {"head": 1.0, "iha": a, "ihg": g}
+    C = CT.pack(
+        dt=sim.dt, nsteps=sim.n_steps, dec=sim.decimation, outer=sim.outer_every,
+        hold_sat=1.0 if sim.mode == "feedforward" and sim.hold_on_saturation else 0.0,
+        has_uff=1.0 if sim.u_ff is not None else 0.0, loop_bound=loop_bound,
+        fc=filt.step_constants, jc=joint.step_constants, iq=idx.slide_qpos, iv=idx.slide_dof,
+        imat=9 * int(idx.site_p), ih=3 * int(idx.site_p) + 2, npair=len(pairs),
+        pairs=flat_pairs, ictrl=idx.actuators, sc=sim.sensor_cfg.step_constants,
+        tc=task.step_constants, geom=task.step_geometry, ac=act.step_constants, **head,
+    )  # fmt: skip
+    S = np.zeros(ST.LEN + 3 * max(filt.n))
+    v = ST.views(S)
+    v["status"][:] = IDLE
+    v["ast"][:] = act.step_state
     d = sim.data
-    q, pose, qm, pm = S[Q : Q + 3], S[POSE : POSE + 3], S[QM : QM + 3], S[PM : PM + 3]
-    ps.slide_states(d.qpos, d.qvel, C[IQ : IQ + 3], C[IV : IV + 3], q, S[QD : QD + 3])
-    ps.platform_pose(d.site_xmat.reshape(-1), d.site_xpos.reshape(-1), C[IMAT], C[IH], pose)
-    ss, sc = S[SS : SS + ps.SS_LEN], C[SC : SC + ps.SC_LEN]
-    ss[ps.SS_IMU : ps.SS_IMU + 2] = pose[:2]
+    ps.slide_states(d.qpos, d.qvel, C[CT.iq : CT.iq + 3], C[CT.iv : CT.iv + 3], v["q"], v["qd"])
+    xmat, xpos = d.site_xmat.reshape(-1), d.site_xpos.reshape(-1)
+    ps.platform_pose(xmat, xpos, C[CT.imat], C[CT.ih], v["pose"])
+    ss, sc = v["ss"], C[CT.sc : CT.sc + ps.SC.LEN]
+    ss[ps.SS.imu : ps.SS.imu + 2] = v["pose"][:2]
     # no acceleration at the first reading (no IMU site positions)
-    S[WALK_M] += ps.sample_sensors(0, True, q, pose, None, noise_row, walk_row, sc, ss, qm, pm)
-    S[TS : TS + cs.TS.LEN] = task.step_state
-    S[PCMD : PCMD + 3] = task.step_state[cs.TS.xc : cs.TS.xc + 3]
-    S[JX : JX + 9] = joint._x
-    S[FS : FS + cs.FS.LEN] = filt.step_state
-    S[RING:].reshape(3, -1)[:] = filt.ring
+    v["walk_m"][:] += ps.sample_sensors(
+        0, True, v["q"], v["pose"], None, noise_row, walk_row, sc, ss, v["qm"], v["pm"]
+    )
+    v["ts"][:] = task.step_state
+    v["pcmd"][:] = task.step_state[cs.TS.xc : cs.TS.xc + 3]
+    v["jx"][:] = joint._x
+    v["fs"][:] = filt.step_state
+    v["ring"].reshape(3, -1)[:] = filt.ring
     return S, C
 
 
 # ------------------------------------------------------------ compiled form
-_PLAIN = [
-    dead_band,
-    cs.ik_pose, cs.ik_lag, cs.segment_limit, cs.filter_step, cs.joint_step, cs.outer_setpoint,
-    cs._ik_xc, cs._integrate, cs._accumulate, cs._ff_error, cs._correct, cs.ff_step,
-    cs.outer_update, cs.ff_inner,
-    ps.slide_states, ps.platform_pose, ps.loop_closure, ps.clip, ps.quantise, accel_tilt,
-    pot_nonlinearity, ps.imu_input, ps.sample_sensors,
-    seal_friction, ps._psi, ps.valve_spool, ps._chamber, ps.chamber_pressures, ps.chamber_energy,
-    ps.supply_step, ps.slide_forces,
-    ps.nonlinear_step, ps.linear_step,
-    sense, control, actuate, record, apply_forces, callback_step,
-]  # fmt: skip
+#: the packages whose functions make up the step
+_OWN = ("controllers.", "simpro_mj.")
+
+
+def _own_module(v) -> bool:
+    """Whether ``v`` is one of the project's modules (``ps``, ``cs``)."""
+    return isinstance(v, pytypes.ModuleType) and v.__name__.startswith(_OWN)
+
+
+def _reached(root) -> list:
+    """Every function of the project that ``root`` calls, directly or not, then ``root``:
+    callees first (the order :func:`compiled` compiles them in).
+
+    Read from the code: each name a function's code uses, looked up in its module
+    and in the project's modules it refers to (``ps.slide_states``), that is a plain
+    function of the project. So the compiled list follows the source: a stage
+    calling a new function compiles it without a list to edit.
+    """
+    order: list = []
+
+    def visit(f):
+        if f in order:
+            return
+        glob = f.__globals__
+        spaces = [glob] + [vars(m) for m in glob.values() if _own_module(m)]
+        codes = [f.__code__]
+        while codes:  # the function's code and any nested code in it
+            code = codes.pop()
+            codes.extend(c for c in code.co_consts if isinstance(c, pytypes.CodeType))
+            for name in code.co_names:
+                for space in spaces:
+                    g = space.get(name)
+                    if isinstance(g, pytypes.FunctionType) and g.__module__.startswith(_OWN):
+                        visit(g)
+        order.append(f)
+
+    visit(root)
+    return order
+
+
+#: the functions :func:`compiled` compiles, callees first: all that the step calls
+_PLAIN = _reached(callback_step)
 
 _compiled = None
 _compile_lock = threading.Lock()
@@ -321,9 +376,8 @@ def compiled():
             env: dict = {}
             for f in _PLAIN:
                 glob = dict(f.__globals__)
-                glob.update(
-                    {k: _module_view(v, env) for k, v in glob.items() if v is cs or v is ps}
-                )
+                views = {k: _module_view(v, env) for k, v in glob.items() if _own_module(v)}
+                glob.update(views)
                 glob.update(env)
                 clone = pytypes.FunctionType(f.__code__, glob, f.__name__, f.__defaults__)
                 clone.__qualname__, clone.__module__ = f.__qualname__, f.__module__
@@ -343,14 +397,15 @@ def _cache_dir() -> str:
     (:mod:`simpro_mj.sim.numba_cache`); damaged files are deleted first.
     """
     import os
-    import sys
 
     from simpro_mj.core.cache import source_digest
     from simpro_mj.sim.numba_cache import cache_base, heal
 
-    # the modules of every compiled function, and the callback's
+    # the modules of every compiled function, the callback's, and the layouts' helper
+    # (the offsets compiled in as constants)
     files = {sys.modules[f.__module__].__file__ for f in _PLAIN}
     files.add(os.path.join(os.path.dirname(__file__), "callback.py"))
+    files.add(sys.modules[layout.__module__].__file__)
     digest = source_digest(files)
     base = cache_base(os.path.join(os.path.dirname(__file__), "__pycache__"))
     folder = os.path.join(base, "simpro-step-" + digest[:16])

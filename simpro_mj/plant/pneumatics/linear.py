@@ -83,25 +83,25 @@ class LinearActuators(ArrayStep):
         self._nl = NonlinearActuators(P)  # static pressures for display
         # the per-step function's arrays (simpro_mj.plant.step_functions.linear_step): the
         # state (phi, spool and the display pressures are views of it) and the constants
-        self.step_state = np.zeros(sf.A_LEN)
-        ast = self.step_state
-        ast[sf.A_PS] = P.p_supply  # the supply the log shows (a fault changes it)
-        self.phi = ast[sf.A_PHI : sf.A_PHI + 3]
-        self.spool = ast[sf.A_SPOOL : sf.A_SPOOL + 3]
-        self.p1, self.p2 = ast[sf.A_P : sf.A_P + 3], ast[sf.A_P + 3 : sf.A_P + 6]
-        ast[sf.A_PS] = P.p_supply
-        ast[sf.A_FMIN], ast[sf.A_FMAX] = P.force_range
-        ac = np.zeros(sf.AC_LIN_LEN)
-        ac[: sf.AC_LB] = 1.0, P.p_atm, P.area_cap, P.area_rod_side, P.area_rod
-        ac[sf.AC_LB : sf.AC_LB + 3] = P.lin_b
-        ac[sf.AC_LA0 : sf.AC_LA0 + 3] = P.lin_a0
-        matrices = (self.mass_matrix, self.damping_matrix, self.stiffness_matrix)
-        ac[sf.AC_MQ : sf.AC_SAT] = np.ravel(matrices)
-        ac[sf.AC_SAT] = 1.0 if P.lin_saturate else 0.0
-        self.step_constants = ac
-        self.u_hold = ac[sf.AC_UHOLD : sf.AC_UHOLD + 3]  # views of the constants
-        self.force_hold = ac[sf.AC_FHOLD : sf.AC_FHOLD + 3]
-        self.q_ref = ac[sf.AC_Q0 : sf.AC_Q0 + 3]
+        ast = self.step_state = np.zeros(sf.ACT.LEN)
+        self.phi = ast[sf.ACT.phi : sf.ACT.phi + 3]
+        self.spool = ast[sf.ACT.spool : sf.ACT.spool + 3]
+        self.p1, self.p2 = ast[sf.ACT.p : sf.ACT.p + 3], ast[sf.ACT.p + 3 : sf.ACT.p + 6]
+        ast[sf.ACT.ps] = P.p_supply  # the supply the log shows (a fault changes it)
+        ast[sf.ACT.fmin], ast[sf.ACT.fmax] = P.force_range
+        # exp(-a1 dt) and its integral: set_timestep's; u_hold, F_hold, q_0 and the
+        # display pressures: reset's
+        z = np.zeros(3)
+        self.step_constants = sf.ACL.pack(
+            kind=1.0, pa=P.p_atm, a1=P.area_cap, a2=P.area_rod_side, ar=P.area_rod, b=P.lin_b,
+            a0=P.lin_a0, ea=z, ia=z, uhold=z, fhold=z, q0=z, mq=self.mass_matrix,
+            dq=self.damping_matrix, kq=self.stiffness_matrix, sat=1.0 if P.lin_saturate else 0.0,
+            p10=z, p20=z,
+        )  # fmt: skip
+        ac = self.step_constants
+        self.u_hold = ac[sf.ACL.uhold : sf.ACL.uhold + 3]  # views of the constants
+        self.force_hold = ac[sf.ACL.fhold : sf.ACL.fhold + 3]
+        self.q_ref = ac[sf.ACL.q0 : sf.ACL.q0 + 3]
 
     def reset(self, q, qdot, force=None) -> None:
         """At rest holding ``force`` (N) with the valve at the nonlinear model's
@@ -114,7 +114,7 @@ class LinearActuators(ArrayStep):
         self.u_hold[:] = self._nl.u_hold
         self.q_ref[:] = q
         ac = self.step_constants
-        ac[sf.AC_P10 : sf.AC_P10 + 3], ac[sf.AC_P20 : sf.AC_P20 + 3] = self._nl.p1, self._nl.p2
+        ac[sf.ACL.p10 : sf.ACL.p10 + 3], ac[sf.ACL.p20 : sf.ACL.p20 + 3] = self._nl.p1, self._nl.p2
         self.phi[:] = 0.0
         self.spool[:] = (self.u_hold - U_CENTRE) / 5.0
         self.p1[:], self.p2[:] = self._nl.p1, self._nl.p2
@@ -125,6 +125,6 @@ class LinearActuators(ArrayStep):
             raise ValueError(f"dt must be > 0, got {dt}")
         self._dt = dt
         a1, ac = self._a1, self.step_constants
-        ac[sf.AC_EA : sf.AC_EA + 3] = np.exp(-a1 * dt)
+        ac[sf.ACL.ea : sf.ACL.ea + 3] = np.exp(-a1 * dt)
         safe = np.where(a1 > 0, a1, 1.0)
-        ac[sf.AC_IA : sf.AC_IA + 3] = np.where(a1 > 0, -np.expm1(-a1 * dt) / safe, dt)
+        ac[sf.ACL.ia : sf.ACL.ia + 3] = np.where(a1 > 0, -np.expm1(-a1 * dt) / safe, dt)

@@ -136,29 +136,24 @@ class NonlinearActuators(ArrayStep):
         vmin = 0.5 * np.concatenate([P.dead_cap, P.dead_rod])
         # the per-step function's arrays (simpro_mj.plant.step_functions.nonlinear_step):
         # the state (p1, p2, spool, spool rate are views of it) and the constants
-        ast = self.step_state = np.zeros(sf.A_LEN)
-        self.p1, self.p2 = ast[sf.A_P : sf.A_P + 3], ast[sf.A_P + 3 : sf.A_P + 6]
-        self.spool = ast[sf.A_SPOOL : sf.A_SPOOL + 3]
-        self.spool_rate = ast[sf.A_RATE : sf.A_RATE + 3]
-        ast[sf.A_PS] = P.p_supply
-        n = len(self._xp)
-        ac = np.zeros(sf.AC_TAB + 3 * n)
-        rtk = P.gas_constant * P.temperature * self._kc
-        ac[: sf.AC_HN] = 0.0, P.p_atm, P.area_cap, P.area_rod_side, P.area_rod, rtk, P.leakage
-        ac[sf.AC_ORDER], ac[sf.AC_NSUB], ac[sf.AC_NTAB] = P.spool_order, int(P.substeps), n
-        # per leg the seal friction: breakaway, Coulomb, Stribeck velocity, viscous, v_reg
-        # (0: the stick model, MuJoCo's dry friction holds F_S; Platform sets it)
+        ast = self.step_state = np.zeros(sf.ACT.LEN)
+        self.p1, self.p2 = ast[sf.ACT.p : sf.ACT.p + 3], ast[sf.ACT.p + 3 : sf.ACT.p + 6]
+        self.spool = ast[sf.ACT.spool : sf.ACT.spool + 3]
+        self.spool_rate = ast[sf.ACT.rate : sf.ACT.rate + 3]
+        ast[sf.ACT.ps] = P.p_supply
+        ast[sf.ACT.pr], ast[sf.ACT.comp] = P.cut_out, 0.0  # a full receiver, the switch off
+        # per leg the seal friction (v_reg 0: the stick model, MuJoCo's dry friction holds
+        # F_S; Platform sets it)
         v_reg = P.v_smooth if P.friction_model == "regularised" else 0.0
-        fric = [P.breakaway, P.coulomb, np.full(3, P.v_stribeck), P.viscous, np.full(3, v_reg)]
-        ac[sf.AC_FRIC : sf.AC_AD] = np.transpose(fric).ravel()
-        ac[sf.AC_DELTA : sf.AC_DELTA + 3] = P.underlap
-        ac[sf.AC_CH : sf.AC_TH] = np.transpose([v0, dvdq, vmin]).ravel()
+        fric = [
+            sf.FRIC.pack(
+                breakaway=P.breakaway[i], coulomb=P.coulomb[i], v_stribeck=P.v_stribeck,
+                viscous=P.viscous[i], v_reg=v_reg,
+            )
+            for i in range(3)
+        ]  # fmt: skip
         # the energy model (sf.chamber_energy): wall area A_0 + A_V V per chamber, both
         # ends plus the barrel (and, rod side, the rod) wetted over the length V / A
-        th = sf.AC_TH
-        ac[th + sf.TH_ON] = 1.0 if P.thermal_model == "energy" else 0.0
-        ac[th + sf.TH_GAMMA], ac[th + sf.TH_R], ac[th + sf.TH_K] = P.gamma, P.gas_constant, self._kc
-        ac[th + sf.TH_TW], ac[th + sf.TH_HW] = P.temperature, P.heat_transfer
         bore = 2.0 * math.sqrt(P.area_cap / math.pi)
         rod = 2.0 * math.sqrt(P.area_rod / math.pi)
         a0 = np.concatenate([np.full(3, 2 * P.area_cap), np.full(3, 2 * P.area_rod_side)])
@@ -168,24 +163,34 @@ class NonlinearActuators(ArrayStep):
                 np.full(3, math.pi * (bore + rod) / P.area_rod_side),
             ]
         )
-        ac[sf.AC_AW : sf.AC_SUP] = np.transpose([a0, av]).ravel()
-        # the supply as built (sf.supply_step): isothermal receiver and line at T
-        sup, rt = sf.AC_SUP, P.gas_constant * P.temperature
-        ac[sup + sf.SUP_ON] = 1.0 if P.supply_model == "receiver" else 0.0
-        ac[sup + sf.SUP_RTV_R], ac[sup + sf.SUP_RTV_L] = rt / P.receiver_volume, rt / P.line_volume
-        ac[sup + sf.SUP_KREG], ac[sup + sf.SUP_PSET] = P.regulator_conductance, P.p_supply
-        ac[sup + sf.SUP_QC] = P.compressor_flow
-        ac[sup + sf.SUP_PON], ac[sup + sf.SUP_POFF] = P.cut_in, P.cut_out
-        ast[sf.A_PR], ast[sf.A_COMP] = P.cut_out, 0.0  # a full receiver, the switch off
-        # the ψ table: grid, values and the slope of each cell (np.interp's)
-        ac[sf.AC_TAB : sf.AC_TAB + n] = self._xp
-        ac[sf.AC_TAB + n : sf.AC_TAB + 2 * n] = self._fp
-        xl, fl = self._xp.tolist(), self._fp.tolist()
-        ac[sf.AC_TAB + 2 * n : sf.AC_TAB + 3 * n - 1] = [
-            (fl[j + 1] - fl[j]) / (xl[j + 1] - xl[j]) for j in range(n - 1)
+        chambers = [
+            sf.CH.pack(v0=v0[c], dvdq=dvdq[c], vmin=vmin[c], a0=a0[c], av=av[c]) for c in range(6)
         ]
+        thermal = sf.TH.pack(
+            on=1.0 if P.thermal_model == "energy" else 0.0, gamma=P.gamma, r=P.gas_constant,
+            k=self._kc, tw=P.temperature, hw=P.heat_transfer, h=0.0,
+        )  # fmt: skip
+        # the supply as built (sf.supply_step): isothermal receiver and line at T
+        rt = P.gas_constant * P.temperature
+        supply = sf.SUP.pack(
+            on=1.0 if P.supply_model == "receiver" else 0.0, rtv_r=rt / P.receiver_volume,
+            rtv_l=rt / P.line_volume, kreg=P.regulator_conductance, pset=P.p_supply,
+            qc=P.compressor_flow, pon=P.cut_in, poff=P.cut_out, h=0.0,
+        )  # fmt: skip
+        # the ψ table: grid, values and the slope of each cell (np.interp's)
+        n = len(self._xp)
+        xl, fl = self._xp.tolist(), self._fp.tolist()
+        slopes = [(fl[j + 1] - fl[j]) / (xl[j + 1] - xl[j]) for j in range(n - 1)] + [0.0]
+        # h n, the spool's coefficients and the sub-steps' h: set_timestep's
+        ac = sf.AC.pack(
+            kind=0.0, pa=P.p_atm, a1=P.area_cap, a2=P.area_rod_side, ar=P.area_rod,
+            rtk=P.gas_constant * P.temperature * self._kc, eps=P.leakage, hn=0.0, alpha=0.0,
+            order=P.spool_order, nsub=int(P.substeps), ntab=n, fric=fric,
+            spool=np.zeros(sf.SPOOL.LEN), delta=self._delta, ch=chambers, th=thermal,
+            sup=supply, tab=[self._xp, self._fp, slopes],
+        )  # fmt: skip
         self.step_constants = ac
-        self._table = ([0.0] * sf.A_LEN, ac.tolist(), n)  # the ψ table for the static solve
+        self._table = ([0.0] * sf.ACT.LEN, ac.tolist(), n)  # the ψ table for the static solve
         self.u_hold = np.full(3, U_CENTRE)
         self.reset(np.full(3, 0.5 * P.stroke), np.zeros(3))
 
@@ -196,12 +201,12 @@ class NonlinearActuators(ArrayStep):
             raise ValueError(f"dt must be > 0, got {dt}")
         P, ac = self.params, self.step_constants
         self._dt = dt
-        ac[sf.AC_HN] = dt / P.substeps * P.n_poly
-        ac[sf.AC_TH + sf.TH_H] = dt / P.substeps
-        ac[sf.AC_SUP + sf.SUP_H] = dt
+        ac[sf.AC.hn] = dt / P.substeps * P.n_poly
+        ac[sf.AC.th + sf.TH.h] = dt / P.substeps
+        ac[sf.AC.sup + sf.SUP.h] = dt
         w = P.spool_omega
         if P.spool_order == 1:
-            ac[sf.AC_ALPHA] = -math.expm1(-w * dt)
+            ac[sf.AC.alpha] = -math.expm1(-w * dt)
         else:  # exact ZOH discretisation of s'' + 2 z w s' + w^2 s = w^2 c
             # scipy on use (a second-order spool only): scipy.linalg and scipy.optimize
             # cost 0.5-2 s to import, and every command that runs a scenario imports
@@ -210,8 +215,10 @@ class NonlinearActuators(ArrayStep):
 
             a = np.array([[0.0, 1.0, 0.0], [-(w**2), -2 * P.spool_zeta * w, w**2], [0, 0, 0]])
             e = expm(a * dt)
-            ac[sf.AC_AD : sf.AC_AD + 4] = e[:2, :2].reshape(4)
-            ac[sf.AC_AD + 4 : sf.AC_AD + 6] = e[:2, 2]
+            sf.SPOOL.pack(
+                ac[sf.AC.spool : sf.AC.spool + sf.SPOOL.LEN], s_s=e[0, 0], s_r=e[0, 1],
+                r_s=e[1, 0], r_r=e[1, 1], s_c=e[0, 2], r_c=e[1, 2],
+            )  # fmt: skip
 
     def psi(self, r):
         """ψ(r) = φ(r)/(1 - r) as used in :meth:`step` (table interpolation)."""
@@ -300,7 +307,7 @@ class NonlinearActuators(ArrayStep):
         self.p2[:] = p2
         self.spool[:] = s
         self.spool_rate[:] = 0.0
-        self.step_state[sf.A_T : sf.A_T + 6] = self.params.temperature  # at the wall's
+        self.step_state[sf.ACT.t : sf.ACT.t + 6] = self.params.temperature  # at the wall's
         self.u_hold[:] = U_CENTRE + 5.0 * s
 
     def force_now(self, qdot) -> np.ndarray:
