@@ -74,3 +74,29 @@ def test_the_controllers_blocks_pack_to_their_lengths():
     assert g.size == cs.GEOM.LEN and g[cs.GEOM.stroke] == geom.stroke
     assert g[cs.GEOM.base + 3] == geom.base_points[1][0]  # A_2's x
     assert step.ST.ts - step.ST.ss == step.ps.SS.LEN and step.ST.jx - step.ST.ts == cs.TS.LEN
+
+
+def test_the_plants_blocks_pack_by_name_where_the_step_reads():
+    """Each leg's seal friction, a chamber and the supply sit where the step reads them."""
+    from simpro_mj.plant import step_functions as ps
+    from simpro_mj.plant.pneumatics.nonlinear import NonlinearActuators
+    from simpro_mj.plant.sensors import DEFAULT_SENSORS, SensorConfig
+
+    act = NonlinearActuators()
+    P, ac = act.params, act.step_constants
+    n = int(ac[ps.AC.ntab])
+    assert ac.size == ps.AC.LEN + 3 * n and ac[ps.AC.kind] == 0.0
+    leg2 = ps.AC.fric + ps.FRIC.LEN
+    assert ac[leg2 + ps.FRIC.coulomb] == P.coulomb[1]
+    assert ac[leg2 + ps.FRIC.breakaway] == P.breakaway[1]
+    rod1 = ps.AC.ch + 3 * ps.CH.LEN  # chamber 3: leg 1's rod side
+    assert ac[rod1 + ps.CH.dvdq] == -P.area_rod_side
+    assert ac[ps.AC.sup + ps.SUP.pset] == P.p_supply
+    assert act.step_state.size == ps.ACT.LEN and act.step_state[ps.ACT.ps] == P.p_supply
+    sc = SensorConfig.from_tree(DEFAULT_SENSORS, 1e-3).step_constants
+    assert sc.size == ps.SC.LEN and sc[ps.SC.idt2] == pytest.approx(1e6)
+    # the step's own blocks hold the plant's at their lengths
+    assert step.ST.ring - step.ST.ast == ps.ACT.LEN and step.CT.tc - step.CT.sc == ps.SC.LEN
+    from simpro_mj.sim.result import COLUMNS
+
+    assert step.ROW.LEN == len(COLUMNS)  # the log row's fields, one column each
