@@ -1,6 +1,6 @@
 """Build glue: the top-level data folders go into the package.
 
-``models/`` and ``scenarios/`` (with ``telemetry/`` and ``presets/``) sit at
+``models/`` and ``scenarios/`` (with ``telemetry/``, ``presets/`` and ``rigs/``) sit at
 the repository's top level; the wheel carries them as ``simpro_mj/models``
 and ``simpro_mj/scenarios`` (:mod:`simpro_mj.core.shipped` finds either).
 Everything else is in ``pyproject.toml``.
@@ -14,6 +14,7 @@ DATA = {
     "simpro_mj.scenarios": "scenarios",
     "simpro_mj.scenarios.telemetry": "scenarios/telemetry",
     "simpro_mj.scenarios.presets": "scenarios/presets",
+    "simpro_mj.scenarios.rigs": "scenarios/rigs",
 }
 
 setup(
@@ -25,5 +26,6 @@ setup(
         "simpro_mj.scenarios": ["*.yaml"],
         "simpro_mj.scenarios.telemetry": ["*.csv"],
         "simpro_mj.scenarios.presets": ["*.yaml"],
+        "simpro_mj.scenarios.rigs": ["*.yaml"],
     },
 )

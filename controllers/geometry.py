@@ -43,7 +43,14 @@ import numpy as np
 HEAD_HEIGHT_ROLL = 0.75
 HEAD_HEIGHT_PITCH = 1.21
 
-__all__ = ["PlatformGeometry", "PAPER_POINTS_MM", "H0", "nominal_geometry"]
+__all__ = [
+    "PlatformGeometry",
+    "PAPER_POINTS_MM",
+    "PAPER_RIG_MM",
+    "H0",
+    "nominal_geometry",
+    "geometry_from_rig",
+]
 
 #: Initial elevation of the platform (paper section 5.2.1), m.
 H0 = 1265.0 * 1e-3
@@ -61,8 +68,23 @@ PAPER_POINTS_MM: dict[str, tuple[float, float, float]] = {
 }
 
 
-def _pt(name: str) -> np.ndarray:
-    return np.asarray(PAPER_POINTS_MM[name], dtype=float) * 1e-3
+#: The paper's rig as a rig record (millimetres, base frame, home pose): the keys of a
+#: rig file (``simpro_mj.config.rig``), from which the MJCF (``simpro_mj.plant.model``)
+#: and :func:`geometry_from_rig` both follow. ``guide_centre_from_b1_mm`` is (x, z) of
+#: the guide arc's centre from B1: eq. (30)'s lambda_0 = sqrt(1672^2 - 1720 h - h^2)
+#: = sqrt(R^2 - (h + 860)^2), a centre 1672 mm behind and 860 mm below B1.
+PAPER_RIG_MM: dict = {
+    "base_anchors_mm": {k: list(PAPER_POINTS_MM[k]) for k in ("A1", "A2", "A3")},
+    "platform_anchors_mm": {k: list(PAPER_POINTS_MM[k]) for k in ("B1", "B2", "B3")},
+    "bracket_mm": {k: list(PAPER_POINTS_MM[k]) for k in ("C1", "C2")},
+    "guide_centre_from_b1_mm": [1672.0, -860.0],
+    "stroke_mm": 500.0,
+    "home_stroke_mm": 250.0,
+}
+
+
+def _m(points: dict, name: str) -> np.ndarray:
+    return np.asarray(points[name], dtype=float) * 1e-3
 
 
 @dataclass(frozen=True)
@@ -119,15 +141,30 @@ def nominal_geometry(home_stroke: float = 0.25) -> PlatformGeometry:
         Slide position q_i (m) of every leg at the home pose; sets L0_i.
         Default 0.25 m: mid-stroke, so the platform can move both ways.
     """
-    a = np.stack([_pt("A1"), _pt("A2"), _pt("A3")])
-    b = np.stack([_pt("B1"), _pt("B2"), _pt("B3")])
-    p_home = np.array([0.0, 0.0, b[0, 2]])  # P at x = 0 in the B_i plane (our choice)
-    c1, c2 = _pt("C1"), _pt("C2")
-    # eq. (30): lambda_0 = sqrt(1672^2 - 1720 h - h^2) = sqrt(R^2 - (h + 860)^2)
-    dx, dz = 1.672, 0.860
-    centre = np.array([b[0, 0] + dx, b[0, 2] - dz])
+    return geometry_from_rig(PAPER_RIG_MM, home_stroke=home_stroke)
+
+
+def geometry_from_rig(rig: dict | None, home_stroke: float | None = None) -> PlatformGeometry:
+    """The geometry of a rig record (:data:`PAPER_RIG_MM`'s keys, millimetres).
+
+    ``None`` is the paper's rig. The platform reference point P is at x = y = 0 at
+    B1's height (h = B1_z); PB_i = B_i - P; the bracket offsets are C1 - B1 and
+    C2 - B1; the guide's centre is B1 + ``guide_centre_from_b1_mm`` and its radius
+    the distance from there to B1; L0_i = |A_i attach_i| - the home stroke (the
+    attachment C1, B2, B3 at home). ``home_stroke`` (m) overrides the record's.
+    """
+    r = PAPER_RIG_MM if rig is None else rig
+    base, plat, brk = r["base_anchors_mm"], r["platform_anchors_mm"], r["bracket_mm"]
+    a = np.stack([_m(base, k) for k in ("A1", "A2", "A3")])
+    b = np.stack([_m(plat, k) for k in ("B1", "B2", "B3")])
+    h = b[0, 2]
+    p_home = np.array([0.0, 0.0, h])  # P at x = 0 in B1's plane (our choice)
+    c1, c2 = _m(brk, "C1"), _m(brk, "C2")
+    dx, dz = (float(v) * 1e-3 for v in r["guide_centre_from_b1_mm"])
+    centre = np.array([b[0, 0] + dx, b[0, 2] + dz])
     attach = np.stack([c1, b[1], b[2]])
     home_len = np.linalg.norm(attach - a, axis=1)
+    q_home = float(r["home_stroke_mm"]) * 1e-3 if home_stroke is None else home_stroke
     return PlatformGeometry(
         base_points=a,
         platform_points=b - p_home,
@@ -135,8 +172,8 @@ def nominal_geometry(home_stroke: float = 0.25) -> PlatformGeometry:
         bracket_c2=c2 - b[0],
         guide_centre=centre,
         guide_radius=float(np.hypot(dx, dz)),
-        guide_side=-1,
-        retracted_length=home_len - home_stroke,
-        stroke=0.5,
-        home=np.array([0.0, 0.0, H0]),
+        guide_side=-1 if b[0, 0] < centre[0] else 1,
+        retracted_length=home_len - q_home,
+        stroke=float(r["stroke_mm"]) * 1e-3,
+        home=np.array([0.0, 0.0, h]),
     )

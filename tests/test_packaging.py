@@ -54,12 +54,13 @@ def test_the_wheel_holds_the_model_and_every_shipped_scenario(wheel):
     # the top-level data folders, mapped into the package by setup.py
     shipped = [
         p.relative_to(ROOT).as_posix()
-        for folder in ("scenarios", "scenarios/telemetry", "scenarios/presets")
+        for folder in ("scenarios", "scenarios/telemetry", "scenarios/presets", "scenarios/rigs")
         for p in (ROOT / folder).iterdir()
         if p.suffix in (".yaml", ".csv")
     ]
     assert "scenarios/step_pitch.yaml" in shipped
     assert "scenarios/presets/paper.yaml" in shipped
+    assert "scenarios/rigs/wide_base.yaml" in shipped
     assert "scenarios/telemetry/braking_100kmh.csv" in shipped
     missing = [s for s in shipped if f"simpro_mj/{s}" not in names]
     assert not missing, missing

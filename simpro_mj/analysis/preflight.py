@@ -33,7 +33,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from controllers.geometry import nominal_geometry
+from controllers.geometry import geometry_from_rig
 from controllers.kinematics import inverse_kinematics
 from simpro_mj.analysis.sanity import unit_warnings
 from simpro_mj.analysis.stability import outer_loop
@@ -145,7 +145,7 @@ def check_payload(scenario: Mapping, model=None, setpoints=None) -> dict:
     idx = PlantIndex.of(m)
     probe = mass if mass > 0 else 1.0
     times, poses = _poses(scenario, setpoints)
-    q_all = inverse_kinematics(poses, nominal_geometry(), check=False)
+    q_all = inverse_kinematics(poses, geometry_from_rig(scenario["plant"].get("rig")), check=False)
 
     worst = None  # (utilisation, leg, t, force)
     hold_max = np.zeros(3)

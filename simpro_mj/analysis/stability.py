@@ -47,7 +47,7 @@ import numpy as np
 
 from controllers import analysis as an
 from controllers.design import ACTUATORS, Plant, design_for, paper_coefficients, paper_plant
-from controllers.geometry import nominal_geometry
+from controllers.geometry import geometry_from_rig
 from controllers.kinematics import jacobian
 from controllers.setpoint_filter import filter_state_space, leg_times
 from controllers.task_space import outer_law
@@ -112,6 +112,7 @@ def _key(scenario: Mapping, plant: str, dt: float) -> tuple:
         float(pi_zero),
         outer["period_ms"] * 1e-3,
         int(outer["delay_samples"]),
+        _jacobian_home(json.dumps(scenario["plant"].get("rig"), sort_keys=True)),
     )
 
 
@@ -133,9 +134,11 @@ def _legs_of(key: tuple) -> tuple[list, str]:
     return legs, basis
 
 
-@lru_cache(maxsize=1)
-def _jacobian_home() -> np.ndarray:
-    return jacobian(nominal_geometry().home)
+@lru_cache(maxsize=8)
+def _jacobian_home(rig: str) -> tuple:
+    """J at home of the rig (its JSON; ``null``: the paper's), as nested tuples (a key)."""
+    g = geometry_from_rig(json.loads(rig))
+    return tuple(map(tuple, jacobian(g.home, g).tolist()))
 
 
 @lru_cache(maxsize=1)
@@ -165,8 +168,8 @@ def _limits(key: tuple, legs: list) -> tuple[float, float]:
     if found is not None:
         return found
     dt = key[0]
-    mode, pi_zero, period, delay = key[11:]
-    jac = _jacobian_home()
+    mode, pi_zero, period, delay, jac = key[11:]
+    jac = np.asarray(jac)
     limit = an.real_inner_limit(mode, period, dt=dt, jac=jac, pi_zero=pi_zero, legs=legs)
     try:  # eq. (21)'s model: the closed form where there is one, else the crossing search
         delay_limit = an.closed_form_limit(mode, period, delay, pi_zero)
@@ -217,7 +220,7 @@ def outer_loop(scenario: Mapping, plant: str = "actuator", dt: float = 1e-3) -> 
     limit, delay_limit, lifted, basis = _analysed(key)
     mode, pi_zero, period = key[11:14]
     gains = np.asarray(scenario["controller"]["outer"]["gains"], float)
-    f = an.outer_closed_loop(mode, gains, period, lifted, _jacobian_home(), pi_zero)[0]
+    f = an.outer_closed_loop(mode, gains, period, lifted, np.asarray(key[15]), pi_zero)[0]
     rho = an.spectral_radius(f)
     return {
         "limit": limit,

@@ -43,6 +43,7 @@ from typing import Any
 
 import numpy as np
 
+from controllers.geometry import geometry_from_rig
 from controllers.mpc_cueing import MpcParams
 from controllers.washout import ClassicalWashout, WashoutParams
 from simpro_mj.config.telemetry import read_telemetry, resample
@@ -276,14 +277,15 @@ def washout_params(cue: Mapping) -> WashoutParams | MpcParams:
     return MpcParams(**kw) if algorithm == "mpc" else WashoutParams(**kw)
 
 
-def _key(cue: Mapping, duration: float) -> str:
-    return json.dumps({"cue": cue, "duration": duration}, sort_keys=True, default=str)
+def _key(cue: Mapping, duration: float, rig: Mapping | None = None) -> str:
+    return json.dumps({"cue": cue, "duration": duration, "rig": rig}, sort_keys=True, default=str)
 
 
 @lru_cache(maxsize=8)
 def _chain(key: str):
     d = json.loads(key)
     cue, duration = d["cue"], d["duration"]
+    geometry = geometry_from_rig(d["rig"])  # the workspace box of the scenario's rig
     n = int(round(duration / PHYSICS_DT_S))
     t = np.arange(n + 1) * PHYSICS_DT_S
     if cue.get("sine"):
@@ -323,7 +325,7 @@ def _chain(key: str):
         from controllers.mpc_cueing import ModelPredictiveCueing  # on use: imports osqp
 
         assert isinstance(params, MpcParams)
-        mpc = ModelPredictiveCueing(params)
+        mpc = ModelPredictiveCueing(params, geometry=geometry)
         law: ModelPredictiveCueing | ClassicalWashout = mpc
         # the model's own trajectory between solves: a set-point every 1 ms
         planned = mpc.run(f, w, PHYSICS_DT_S)
@@ -338,7 +340,7 @@ def _chain(key: str):
         }
     else:
         assert isinstance(params, WashoutParams)
-        law = washout = ClassicalWashout(params)
+        law = washout = ClassicalWashout(params, geometry=geometry)
         res = washout.run(f[::every], w[::every])
         pose = np.repeat(res.pose, every, axis=0)[: t.size]  # zero-order hold
         info = {
@@ -361,7 +363,7 @@ def _chain(key: str):
 def vehicle_input(scenario: Mapping):
     """(t, f, w, pose, info) of a cueing scenario on the 1 ms grid (cached, read-only arrays)."""
     cue = scenario["setpoint"]["cueing"]
-    return _chain(_key(cue, float(scenario["duration_s"])))
+    return _chain(_key(cue, float(scenario["duration_s"]), scenario["plant"].get("rig")))
 
 
 def cue_poses(scenario: Mapping, t) -> np.ndarray:

@@ -12,10 +12,11 @@ from __future__ import annotations
 
 from typing import Annotated
 
-from pydantic import AfterValidator, StrictStr
+from pydantic import AfterValidator, BeforeValidator, StrictStr
 
 from simpro_mj.config.pneumatics import Pneumatics
 from simpro_mj.config.presets import DEFAULT_PRESET
+from simpro_mj.config.rig import Rig, rig_value
 from simpro_mj.config.rules import Block, Each, Numbers, Period, Problem, Real, Whole, block, param
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.plant.model_params import DEFAULT_MODEL_PARAMS, inertia_tensor
@@ -146,6 +147,13 @@ class Guide(Block):
 class PlantBlock(Block):
     """The as-built plant (simpro_mj.plant.model_params) and its preset."""
 
+    rig: Annotated[Rig | None, BeforeValidator(rig_value)] = param(
+        None,
+        "",
+        "the platform's geometry: null (the paper's, section 5.2.1), a rig YAML file (beside "
+        "the scenario, here, or a shipped one of scenarios/rigs) or its keys "
+        "(simpro_mj.config.rig); the MJCF and the controllers' kinematics both follow it",
+    )
     payload: Payload = block(Payload)
     platform_mass_kg: Real = param(
         _MODEL["platform_mass_kg"], "kg", "the moving frame (120 kg as built)", ge=1, le=2000

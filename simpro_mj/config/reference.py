@@ -14,7 +14,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from controllers.errors import WorkspaceError
-from controllers.geometry import nominal_geometry
+from controllers.geometry import geometry_from_rig
 from controllers.kinematics import check_reachable, reachable
 from simpro_mj.config.cueing import cue_poses
 from simpro_mj.config.rules import PHYSICS_DT_S, SETPOINT_AXES
@@ -113,7 +113,7 @@ def reference(scenario: Mapping, t, *, clamp: bool | None = None) -> np.ndarray:
         (roll rad, pitch rad, heave m); heave absolute, home height + ``heave_mm``.
     """
     t = np.atleast_1d(np.asarray(t, dtype=float))
-    geometry = nominal_geometry()
+    geometry = geometry_from_rig(scenario["plant"].get("rig"))
     sp = scenario["setpoint"]
     if sp.get("cueing"):  # the washout's set-points, inside its workspace box
         return cue_poses(scenario, t)
@@ -151,7 +151,7 @@ def check_setpoints(scenario: Mapping, t=None) -> None:
         n = int(round(scenario["duration_s"] / PHYSICS_DT_S))
         t = np.arange(n + 1) * PHYSICS_DT_S
     t = np.atleast_1d(np.asarray(t, dtype=float))
-    geometry = nominal_geometry()
+    geometry = geometry_from_rig(scenario["plant"].get("rig"))
     # in blocks: the vectorised IK holds ~350 B of temporaries per pose, which
     # over a whole 600 s grid would be 200 MB for a check that keeps nothing
     for k0 in range(0, t.size, _CHECK_BLOCK):

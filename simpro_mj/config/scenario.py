@@ -95,6 +95,7 @@ from simpro_mj.config.models import Scenario, scenario_model
 from simpro_mj.config.pneumatics import check_pneumatics as _check_pneumatics
 from simpro_mj.config.presets import scenario_overlay
 from simpro_mj.config.reference import SetpointError, check_setpoints, late_setpoints, reference
+from simpro_mj.config.rig import rig_value
 from simpro_mj.config.rules import (
     FAULT_SENSORS,
     IDENTIFY_CHOICES,
@@ -302,6 +303,9 @@ def resolve_scenario(
     if isinstance(preset, str):  # another type is reported by the validation
         # the preset lies between the defaults and the file (simpro_mj.config.presets)
         tree = _overlay(_merge(DEFAULT_SCENARIO, scenario_overlay(preset)), doc, sets)
+    plant = tree.get("plant")
+    if isinstance(plant, dict) and isinstance(plant.get("rig"), str):
+        plant["rig"] = rig_value(plant["rig"], base)  # a rig file beside the scenario first
     if not tree.get("name"):
         tree["name"] = default_name
     resolved = validate_scenario(tree)
@@ -361,6 +365,10 @@ def scenario_hash(resolved: Mapping) -> str:
         if digest is not None:
             resolved = {**resolved, "setpoint": {**resolved["setpoint"],
                         "cueing": {**cue, "telemetry": f"sha256:{digest}"}}}  # fmt: skip
+    plant = resolved.get("plant")
+    if isinstance(plant, Mapping) and "rig" in plant and plant["rig"] is None:
+        # null is the shipped MJCF's rig, which enters by the MJCF's digest below
+        resolved = {**resolved, "plant": {k: v for k, v in plant.items() if k != "rig"}}
     resolved = {**resolved, "mjcf": f"sha256:{model_digest()}"}  # the model it compiles
     text = json.dumps(resolved, sort_keys=True, separators=(",", ":"), allow_nan=False)
     return hashlib.sha256(text.encode("utf-8")).hexdigest()

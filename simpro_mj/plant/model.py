@@ -30,6 +30,7 @@ __all__ = [
     "PlantIndex",
     "load_model",
     "load_spec",
+    "apply_rig",
     "add_slide_drives",
     "model_params",
     "loop_closure_error",
@@ -173,6 +174,8 @@ def load_spec(params: dict | None = None, path: Path | str | None = None) -> muj
             scale = max(float(p["payload"]["mass_kg"]), 1e-6) / float(ref_mass)
         payload.fullinertia = [scale * v for v in inertia_tensor(inertia)]
     spec.geom("platform_frame").mass = float(p["platform_mass_kg"])
+    if p.get("rig") is not None:
+        apply_rig(spec, p["rig"])
 
     for name in BASE_POINTS:
         off = _vec(p, f"anchor_offsets_mm.{name}", 3) * 1e-3
@@ -206,6 +209,78 @@ def load_spec(params: dict | None = None, path: Path | str | None = None) -> muj
     for eq in spec.equalities:
         eq.solref = [tc, 1.0]
     return spec
+
+
+def _rig_point(rig: dict, group: str, name: str) -> np.ndarray:
+    try:
+        arr = np.asarray(rig[group][name], dtype=float) / 1000.0
+    except (KeyError, TypeError, ValueError):
+        arr = np.empty(0)
+    if arr.shape != (3,) or not np.all(np.isfinite(arr)):
+        raise UserInputError(
+            f"invalid value at model.rig.{group}.{name}: expected [x, y, z] mm, finite "
+            "(simpro_mj.config.rig checks a rig file)"
+        )
+    return arr
+
+
+def apply_rig(spec: mujoco.MjSpec, rig: dict) -> None:
+    """Rebuild the MJCF's geometry from a rig record (:mod:`simpro_mj.config.rig`, mm).
+
+    The same record gives the controllers' geometry
+    (:func:`controllers.geometry.geometry_from_rig`), so both follow one source. At the
+    home pose: P = (0, 0, B1_z); the base sites and mounts at A_i; the guide's upper
+    pivot at the arc's centre B1 + ``guide_centre_from_b1_mm``, the lower one at that
+    centre + (C2 - B1) (the parallelogram); the bracket's sites at B1, C1, C2; the
+    platform's B2, B3 at B_i - P; each leg's barrel at A_i along A_i -> its
+    attachment, its rod's tip at the home length, the slide's range the stroke and its
+    reference the home stroke.
+    """
+    if not isinstance(rig, dict):
+        raise UserInputError(
+            f"wrong type at model.rig: got {type(rig).__name__}; allowed: null or a rig "
+            "record (simpro_mj.config.rig reads a rig file)"
+        )
+    a = [_rig_point(rig, "base_anchors_mm", f"A{i}") for i in (1, 2, 3)]
+    b1, b2, b3 = (_rig_point(rig, "platform_anchors_mm", f"B{i}") for i in (1, 2, 3))
+    c1, c2 = (_rig_point(rig, "bracket_mm", k) for k in ("C1", "C2"))
+    dx, dz = (float(v) / 1000.0 for v in rig["guide_centre_from_b1_mm"])
+    stroke, q_home = float(rig["stroke_mm"]) / 1000.0, float(rig["home_stroke_mm"]) / 1000.0
+    p_home = np.array([0.0, 0.0, b1[2]])
+    pivot = b1 + np.array([dx, 0.0, dz])
+    for i, ai in enumerate(a, start=1):
+        spec.site(f"A{i}").pos = ai
+        spec.geom(f"mount_A{i}").pos = ai + np.array([0.0, 0.0, 0.03])
+    link = b1 - pivot  # pivot -> bracket, both links of the parallelogram
+    spec.body("guide_upper").pos = pivot
+    spec.body("guide_lower").pos = pivot + (c2 - b1)
+    spec.body("bracket").pos = link
+    spec.site("guide_lower_tip").pos = link
+    for gname in ("guide_upper", "guide_lower"):
+        spec.geom(gname).fromto = np.concatenate([[0.0, 0.0, 0.0], link])
+    half = max(pivot[2] + 0.015, 0.02) / 2  # the post's top 15 mm above the pivot
+    spec.geom("guide_post").pos = [pivot[0], 0.0, half]
+    spec.geom("guide_post").size = [0.06, 0.08, half]
+    spec.site("C1").pos, spec.site("C2").pos = c1 - b1, c2 - b1
+    spec.geom("bracket_b1c2").fromto = np.concatenate([[0.0, 0.0, 0.0], c2 - b1])
+    spec.geom("bracket_c2c1").fromto = np.concatenate([c2 - b1, c1 - b1])
+    spec.body("platform").pos = p_home - b1
+    for jname in ("pitch", "roll"):
+        spec.joint(jname).pos = b1 - p_home
+    spec.site("B2").pos, spec.site("B3").pos = b2 - p_home, b3 - p_home
+    for i, (ai, attach) in enumerate(zip(a, (c1, b2, b3), strict=True), start=1):
+        leg = attach - ai
+        length = float(np.linalg.norm(leg))
+        barrel = spec.body(f"leg{i}_barrel")
+        barrel.pos = ai
+        barrel.alt.type = mujoco.mjtOrientation.mjORIENTATION_ZAXIS
+        barrel.alt.zaxis = leg / length
+        slide = spec.joint(f"leg{i}")
+        slide.range = [0.0, stroke]
+        slide.ref = q_home
+        # the rod's geom keeps its offset from the tip (the shipped MJCF's 330 mm)
+        spec.geom(f"leg{i}_rod").pos = [0.0, 0.0, length - 0.33]
+        spec.site(f"leg{i}_tip").pos = [0.0, 0.0, length]
 
 
 def add_slide_drives(spec: mujoco.MjSpec) -> None:

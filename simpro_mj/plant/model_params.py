@@ -28,6 +28,10 @@ BASE_POINTS = ("A1", "A2", "A3")
 
 #: Parameters of the plant model, edge units in the key names.
 DEFAULT_MODEL_PARAMS: dict = {
+    # the platform's geometry as a rig record (millimetres; simpro_mj.config.rig reads
+    # and checks a rig file): null, the MJCF as shipped (the paper's section 5.2.1);
+    # given, the MJCF's points, guide, legs and stroke rebuilt from it
+    "rig": None,
     "payload": {
         # cabin, seat, screens and driver (assumption: Table 1 is lost)
         "mass_kg": 250.0,

@@ -42,7 +42,7 @@ import numpy as np
 from controllers.design import Plant, paper_coefficients
 from controllers.dither import dither_signal
 from controllers.frames import GRAVITY
-from controllers.geometry import nominal_geometry
+from controllers.geometry import geometry_from_rig
 from controllers.joint import JointControllers
 from controllers.kinematics import inverse_kinematics
 from controllers.setpoint_filter import SetpointFilter
@@ -130,7 +130,9 @@ class CoSimulation:
         self.decimation = int(scenario["logging"]["decimation"])
         if self.decimation < 1:
             raise UserInputError("invalid value at logging.decimation: allowed: integer >= 1")
-        self.geometry = nominal_geometry()  # the controller's nominal model
+        # the controller's nominal model: the rig's (plant.rig; the paper's when null),
+        # without the plant's as-built errors
+        self.geometry = geometry_from_rig(scenario["plant"].get("rig"))
 
         ctl = scenario["controller"]
         self.mode = ctl["mode"]
