@@ -3,7 +3,9 @@ compiled again; an unusable ``NUMBA_CACHE_DIR`` is said and another folder used.
 
 from __future__ import annotations
 
+import importlib
 import os
+import shutil
 import pickle
 import subprocess
 import sys
@@ -35,6 +37,29 @@ def test_a_truncated_cache_file_is_deleted_and_said(tmp_path):
     assert len(said) == 2 and all(s.startswith("notice: numba cache file ") for s in said)
 
 
+class _ImportsOnLoad:
+    """Unpickles by importing a module, as numba's object files rebuild their environment."""
+
+    def __reduce__(self):
+        return importlib.import_module, ("probe_mod_for_heal",)
+
+
+def test_healing_parses_an_object_file_without_importing_its_module(tmp_path, monkeypatch):
+    """Loading numba's object file imports the module that defined its function; the MuJoCo
+    callback's module asks for the compiled step at import, so a heal that loaded it under
+    the compile lock waited on itself forever. Healing parses the file instead."""
+    (tmp_path / "probe_mod_for_heal.py").write_text("import sys\nsys.probe_imported = 1\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    obj = tmp_path / "nb" / "callback.entry-1.py311.1.nbc"
+    obj.parent.mkdir()
+    obj.write_bytes(pickle.dumps(("object code", _ImportsOnLoad())))
+    pickle.loads(obj.read_bytes())  # loading it imports the module
+    assert sys.modules.pop("probe_mod_for_heal") and sys.__dict__.pop("probe_imported") == 1
+    assert numba_cache.heal(str(tmp_path / "nb"), print) == []
+    assert obj.exists() and "probe_mod_for_heal" not in sys.modules
+    assert not hasattr(sys, "probe_imported")
+
+
 def test_an_unusable_numba_cache_dir_is_said_and_another_used(tmp_path, monkeypatch):
     afile = tmp_path / "afile"
     afile.write_text("x")
@@ -52,17 +77,24 @@ def test_an_unusable_numba_cache_dir_is_said_and_another_used(tmp_path, monkeypa
 
 @pytest.mark.slow
 def test_a_run_after_its_cache_file_was_truncated_heals(tmp_path):
-    """Compiles the step once into a fresh cache (about 25 s of CPU), truncates one
-    object file, and runs again: a notice, then the run, as fresh."""
-    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "nb"))
+    """A run fills (or finds) the step's cache; a copy of it under ``NUMBA_CACHE_DIR``
+    gets one object file truncated, and a run on the copy says so, compiles that
+    function again and gives the first run's time series byte for byte."""
     cmd = [sys.executable, "-m", "simpro_mj.commands.main", "run", "step_pitch.yaml",
            "--no-plots", "--set", "duration_s=0.2"]  # fmt: skip
+    env = {k: v for k, v in os.environ.items() if k != "NUMBA_CACHE_DIR"}
     first = subprocess.run([*cmd, "--out", str(tmp_path / "a")], env=env, capture_output=True,
                            text=True, timeout=900)  # fmt: skip
     assert first.returncode in (0, 1), first.stderr
-    files = sorted(Path(tmp_path / "nb").rglob("*.nbc"))
+    where = [sys.executable, "-c", "from simpro_mj.sim import step; print(step._cache_dir())"]
+    folder = Path(subprocess.run(where, env=env, capture_output=True, text=True,
+                                 check=True).stdout.strip())  # fmt: skip
+    copy = tmp_path / "nb" / folder.name
+    shutil.copytree(folder, copy)
+    files = sorted(copy.rglob("*.nbc"), key=lambda f: f.stat().st_size)
     assert files
-    files[0].write_bytes(files[0].read_bytes()[:64])
+    files[0].write_bytes(files[0].read_bytes()[:64])  # the smallest: little to compile
+    env["NUMBA_CACHE_DIR"] = str(tmp_path / "nb")
     again = subprocess.run([*cmd, "--out", str(tmp_path / "b")], env=env, capture_output=True,
                            text=True, timeout=900)  # fmt: skip
     assert again.returncode == first.returncode, again.stderr

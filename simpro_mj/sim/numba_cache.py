@@ -8,15 +8,19 @@ run (23.8 s instead of 1.4 s) and to writing into the package's folders. So:
 
 * :func:`cache_base` picks the folder: ``NUMBA_CACHE_DIR`` if it is (or can be
   made) a writable folder, else, said in one line, the user's cache folder;
-* :func:`heal` loads every cache file of the step's folder as numba would and
+* :func:`heal` reads every cache file of the step's folder to its end and
   deletes a damaged one with a one-line notice: the function it held is
-  compiled again.
+  compiled again. An object file is parsed, not loaded: loading it rebuilds
+  the function's environment, which imports the module that defined it, and
+  that module (the MuJoCo callback) asks for the compiled step while the
+  caller that heals holds its lock.
 """
 
 from __future__ import annotations
 
 import os
 import pickle
+import pickletools
 import tempfile
 from collections.abc import Callable
 from pathlib import Path
@@ -59,15 +63,24 @@ def cache_base(package_dir: str, say: Callable[[str], None] = notice) -> str:
 
 
 def _loads(path: Path) -> None:
-    """Load a numba cache file as numba does (``caching.IndexDataCacheFile``)."""
+    """Read a numba cache file as numba does (``caching.IndexDataCacheFile``); raises
+    if it is damaged.
+
+    An index (``.nbi``: the version, then the stamp and the table of overloads, numba's
+    own types) is loaded. An object file (``.nbc``) is parsed opcode by opcode to its
+    ``STOP`` (:func:`pickletools.genops`; ``pickle.loads`` also stops there): a
+    truncated or garbled file raises, and no module is imported, no object built.
+    """
     with open(path, "rb") as fh:
         if path.suffix == ".nbi":
             pickle.load(fh)  # the version
             stamp, overloads = pickle.loads(fh.read())
             if not isinstance(overloads, dict):
                 raise ValueError("an index without its table")
-        else:
-            pickle.loads(fh.read())
+            return
+        data = fh.read()
+    if not any(op.name == "STOP" for op, _arg, _pos in pickletools.genops(data)):
+        raise ValueError("a pickle without its end")
 
 
 def heal(folder: str, say: Callable[[str], None] = notice) -> list[Path]:
