@@ -41,6 +41,7 @@ from controllers.washout import WashoutParams
 
 __all__ = [
     "FIDELITY_REGIONS",
+    "FIDELITY_SOURCE",
     "OMCT_TESTS",
     "LAWS",
     "fidelity",
@@ -63,16 +64,27 @@ OMCT_TESTS = {
 }
 
 #: Fidelity regions at 1 rad/s on the plane (gain, phase distortion), as
-#: ``(name, gain_min, gain_max, phase_max_deg)``, first match wins: Sinacori's (1977)
-#: criterion as reproduced by Schroeder (1999, NASA/TP-1999-208766), the same for
-#: rotation and translation. The boundaries are read as rectangles (high: gain 0.8-1.25,
-#: phase within 10 deg; medium: gain 0.4-2.5, within 30 deg); the published ones are
-#: curved and Schroeder's revision widens them, so a law near a boundary is not judged by
-#: this table alone. Gains above 1 are treated as the mirror of those below (a cue
-#: stronger than the car's is no better than one weaker by the same factor).
+#: ``(name, gain_min, gain_max, phase_max_deg)``, first match wins: Sinacori's criterion
+#: (1977, "The determination of some requirements for a helicopter flight research
+#: simulation facility", NASA CR-152066) as reproduced by Schroeder
+#: (1999, NASA/TP-1999-208766, "Helicopter flight simulation motion platform
+#: requirements"), the same for rotation and translation. The reading: the high region
+#: from gain 0.8 with at most 10 deg of phase distortion, the medium one from gain 0.4
+#: within 30 deg, drawn as rectangles. The published boundaries are curves through about
+#: these corners and Schroeder's revision widens them; the report's figures were not in
+#: this project's reach to check the corners against, so this table is a reading, and a law
+#: near a boundary is not judged by it alone. Gains above 1 are the mirror of those below
+#: (a cue stronger than the car's by a factor is no better than one weaker by it): 1.25
+#: and 2.5.
 FIDELITY_REGIONS = (
     ("high", 0.8, 1.25, 10.0),
     ("medium", 0.4, 2.5, 30.0),
+)
+
+#: Where :data:`FIDELITY_REGIONS` comes from, for the figure's legend and ``omct.json``.
+FIDELITY_SOURCE = (
+    "Sinacori (1977) as reproduced by Schroeder (1999, NASA/TP-1999-208766); "
+    "corners read as gain 0.8 / 10 deg (high) and 0.4 / 30 deg (medium), drawn as rectangles"
 )
 
 #: Small-signal amplitudes (SI): 0.3 m/s^2 (specific force) and 1 deg/s (rotation), those
@@ -262,5 +274,12 @@ def omct(laws: Mapping, omegas: Sequence[float] = OMCT_RAD_S, amplitudes=None, p
         "fidelity_at_1_rad_s": verdicts,
         "amplitudes": {"f_mps2": amps["f"], "w_deg_s": math.degrees(amps["w"])},
         "laws": {k: {kk: v for kk, v in b.items()} for k, b in laws.items()},
+        "fidelity_regions": {
+            "source": FIDELITY_SOURCE,
+            "regions": [
+                {"name": n, "gain_min": lo, "gain_max": hi, "phase_max_deg": ph}
+                for n, lo, hi, ph in FIDELITY_REGIONS
+            ],
+        },
         "chain": "law -> platform loop model (5.0 rad/s, 0.72, 0.31 s, 0.03 s) -> rigid cabin",
     }

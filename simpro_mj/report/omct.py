@@ -36,7 +36,7 @@ def plot_omct(doc: dict, folder: Path) -> list[str]:
     import matplotlib.pyplot as plt
     from matplotlib.patches import Rectangle
 
-    from simpro_mj.analysis.omct import FIDELITY_REGIONS
+    from simpro_mj.analysis.omct import FIDELITY_REGIONS, FIDELITY_SOURCE
 
     laws = list(doc["laws"])
     colours = {law: f"C{i}" for i, law in enumerate(laws)}
@@ -81,8 +81,9 @@ def plot_omct(doc: dict, folder: Path) -> list[str]:
     markers = {"surge": "o", "sway": "s", "heave": "^", "pitch": "D", "roll": "v"}
     for ax, (title, names) in zip(axes, groups, strict=True):
         for name, lo, hi, ph in reversed(FIDELITY_REGIONS):
+            label = f"Sinacori {name} fidelity: gain {lo:g}-{hi:g}, phase within {ph:g} deg"
             ax.add_patch(Rectangle((lo, 0), min(hi, 1.6) - lo, ph, color=_REGION_COLOURS[name],
-                                   alpha=0.8, label=f"{name} fidelity", zorder=0))  # fmt: skip
+                                   alpha=0.8, label=label, zorder=0))  # fmt: skip
         for law in laws:
             v = doc["fidelity_at_1_rad_s"][law]
             for test in names:
@@ -98,9 +99,9 @@ def plot_omct(doc: dict, folder: Path) -> list[str]:
         ax.grid(True, lw=0.3)
         ax.legend(fontsize=6, loc="upper right", ncol=1)
     fig.suptitle(
-        "Fidelity at 1 rad/s: Sinacori (1977) as reproduced by Schroeder (1999), "
-        "boundaries as rectangles",
-        fontsize=9,
+        "Each law's direct OMCT responses at 1 rad/s (ICAO 9625) in the fidelity regions of\n"
+        + FIDELITY_SOURCE.replace("; ", ";\n"),
+        fontsize=8,
     )
     fig.tight_layout()
     files.append(save(fig, folder / "omct_fidelity.png", 100).name)
