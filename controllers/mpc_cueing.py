@@ -25,7 +25,11 @@ the vestibular models are those of the head against the scaled vehicle::
 with OTO the otolith model and SCC the canal model of :mod:`controllers.vestibular`
 without its two fastest terms (``tau_s`` = 5 ms and the neural lead ``tau_n`` = 60 ms
 are above the period's Nyquist frequency; the lead enters as ``tau_n a''``). Heave:
-``(z, z', z'')``, ``f_z - g = z''``, ``e_f = OTO(z'' - k_z (f_vz - g))``.
+``(z, z', z'')``, ``f_z - g = z''``, ``e_f = OTO(z'' - k_z HP(f_vz - g))`` with ``HP`` the
+first-order high-pass ``s / (s + w_hp)`` (``heave_washout``): a heave cannot hold a
+sustained specific force (a real accelerometer's bias, a slope's ``g cos``), so the
+target keeps only what a stroke can make, and a biased or held ``f_z`` neither drifts the
+platform nor keeps it off home.
 
 Cost over the horizon, each error in units of its perception threshold::
 
@@ -128,6 +132,19 @@ class MpcParams:
         Where the car's surge or sway specific force is past the otoliths'
         threshold, the planned head's may not point the other way by more than this
         (m/s^2), 0.01 (a constraint; 0 turns it off).
+    heave_washout : float
+        Corner (rad/s) of the first-order high-pass on the heave target, 0.5 (a 2 s
+        time constant; 0 turns it off): a constant offset of ``f_z`` (a biased
+        accelerometer: 9.6 instead of 9.81 m/s^2) fades from the target instead of
+        holding the platform off home, or drifting it when the offset ends.
+    weight_heave, weight_heave_rate : float
+        Cost weights of the heave's position (in units of its box half-range) and rate
+        (in units of ``heave_rate_max``), 1 and 0.1: without them and the high-pass (the
+        position weighted as the tilt's, 0.01, no rate) the otoliths' slow error (5.33 s)
+        lets the plan coast, 42 mm off home 4 s after a biased input fades; with them
+        0.1 mm. They cost the heave cue (OMCT, 0.3 m/s^2: with 1 s of preview 0.45 to
+        0.33 at 4 rad/s, 0.37 at 10 rad/s either way; without preview 0.17 to 0.12 and
+        0.15).
     """
 
     period: float = 0.06
@@ -161,6 +178,9 @@ class MpcParams:
     loop_filter: float = 0.05
     knee: float = 0.0
     jolt_limit: float = 0.01
+    heave_washout: float = 0.5
+    weight_heave_rate: float = 0.1
+    weight_heave: float = 1.0
 
     def __post_init__(self):
         checks = {
@@ -195,6 +215,9 @@ class MpcParams:
             "loop_filter": (lambda v: 0 <= v <= 0.5, "0..0.5 s"),
             "knee": (lambda v: 0 <= v <= 5, "0 (linear) or up to 5 m/s^2"),
             "jolt_limit": (lambda v: 0 <= v <= 5, "0 (off) or up to 5 m/s^2"),
+            "heave_washout": (lambda v: 0 <= v <= 10, "0 (off) or up to 10 rad/s"),
+            "weight_heave_rate": (lambda v: v >= 0, ">= 0"),
+            "weight_heave": (lambda v: v >= 0, ">= 0"),
         }
         for name, (ok, allowed) in checks.items():
             v = getattr(self, name)
@@ -342,11 +365,18 @@ class _Axis:
             kf, kw = (p.gain_x, p.gain_rot) if kind == "pitch" else (p.gain_y, p.gain_rot)
             thr_f = oto.thresholds[0 if kind == "pitch" else 1]
             thr_w = scc.thresholds[1 if kind == "pitch" else 0]
-        n = 3 + no_ + 2 * nc  # platform, otolith error, canal error, vehicle's canal
+        # heave: one more state, the low-passed target ``q`` (``q' = w_hp (d - q)``); the
+        # target seen by the cost is ``d - q``, the high-pass of the vehicle's
+        wash = p.heave_washout if kind == "heave" else 0.0
+        nq = 1 if wash > 0 else 0
+        n = 3 + no_ + 2 * nc + nq  # platform, otolith error, canal error, vehicle's canal, q
         a = np.zeros((n, n))
         b = np.zeros((n, 3))  # inputs: jerk, vehicle f (scaled), vehicle w (scaled)
         a[0, 1] = a[1, 2] = 1.0
         b[2, 0] = 1.0
+        if nq:
+            a[n - 1, n - 1] = -wash
+            b[n - 1, 1] = wash
         # head specific force (heave: change from g) as a row over the platform states
         fh = np.zeros(n)
         if kind == "heave":
@@ -357,11 +387,15 @@ class _Axis:
         a[o, o] = oa
         a[o, :] += ob @ fh[None, :]
         b[o, 1] = -ob[:, 0]
+        raw = fh.copy()
+        if nq:  # the target d - q: q enters with the head's sign
+            a[o, n - 1] += ob[:, 0]
+            raw[n - 1] = 1.0
         rows = {}
         e_f = np.zeros(n)
         e_f[o] = oc[0]
         rows["f"] = (e_f, np.zeros(3))
-        rows["raw"] = (fh.copy(), np.array([0.0, -1.0, 0.0]))
+        rows["raw"] = (raw, np.array([0.0, -1.0, 0.0]))
         if nc:
             assert ca is not None and cb is not None and cc is not None and cd is not None
             c = slice(3 + no_, 3 + no_ + nc)
@@ -497,7 +531,11 @@ class ModelPredictiveCueing:
                 ww = math.sqrt(p.weight_w) / ax.thr_w
                 outs.append((ww * ax.rows["w"][0], ww * ax.rows["w"][1][1:]))
             tilt = np.zeros(n)
-            tilt[0] = math.sqrt(p.weight_tilt) / ax.amax
+            tilt[0] = math.sqrt(p.weight_heave if ax.kind == "heave" else p.weight_tilt) / ax.amax
+            if ax.kind == "heave":
+                # the stroke's rate, in units of its limit: the heave comes back home
+                # instead of coasting on the otoliths' slow error
+                tilt[1] = math.sqrt(p.weight_heave_rate) / ax.rate_max
             outs.append((tilt, np.zeros(2)))
             cy = np.array([o[0] for o in outs])
             dy = np.array([o[1] for o in outs])

@@ -604,8 +604,9 @@ def test_send_takes_the_shipped_telemetry_names_that_list_shows(capsys):
 
 def test_after_the_feed_stops_the_set_point_goes_home_and_stays_for_the_mpc():
     """A biased drive (fz 9.6 m/s^2, as a real accelerometer's bias) for 6 s, then nothing:
-    the MPC alone keeps moving the heave for seconds after the fade (its felt-force error
-    state), the pacer's set-point is home exactly from HOME_S after the fade on, and stays."""
+    the pacer's set-point is home exactly from HOME_S after the fade on, and stays; the MPC
+    alone is within 1 mm of home by then too (its heave's high-passed target and its rate
+    and position weights: the otoliths' slow error no longer lets it coast)."""
     from controllers.geometry import nominal_geometry
     from controllers.mpc_cueing import ModelPredictiveCueing
     from simpro_mj.config.cueing import washout_params
@@ -647,12 +648,12 @@ def test_after_the_feed_stops_the_set_point_goes_home_and_stays_for_the_mpc():
     t_home = 6.0 + 0.5 + 1.0 + HOME_S  # the last sample, held, faded, blended home
     after = [k for k in poses if k * 1e-3 >= t_home + 0.011]
     assert after and all(np.array_equal(poses[k], home) for k in after)
-    # the law alone is not home then: its heave moves by tens of millimetres
+    # the law alone: its heave within 1 mm of home from then on
     late = law_out[int(t_home / 0.01) :]
-    assert np.abs(late[:, 2] - home[2]).max() > 0.010
+    assert np.abs(late[:, 2] - home[2]).max() < 0.001
     # while the drive came, the law's set-points were played (after the soft start)
     mid = [k for k in poses if 3.0 <= k * 1e-3 < 6.0]
-    assert max(abs(poses[k][2] - home[2]) for k in mid) > 0.005
+    assert max(abs(poses[k][0] - home[0]) for k in mid) > math.radians(0.5)  # roll: the sway
     assert all(np.array_equal(poses[k], law_out[k // 10]) for k in mid)
 
 

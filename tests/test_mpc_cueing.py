@@ -173,3 +173,31 @@ def test_stream_is_the_run_sample_by_sample():
     assert np.array_equal(ran, streamed)
     with pytest.raises(ValueError, match="preview must be 0"):
         ModelPredictiveCueing(preview=0.5).stream(DT)
+
+
+def _biased_then_faded(law: ModelPredictiveCueing, dt: float = 0.02):
+    """A real accelerometer's bias (f_z 9.6 instead of g) for 15 s, then the input faded
+    to rest over 1 s (a live session's fade after the feed stops): heave from home (mm)
+    during the bias, and from 3 s after the fade on."""
+    n = int(round(30.0 / dt))
+    k0, k1 = int(round(15.0 / dt)), int(round(16.0 / dt))
+    f = np.zeros((n, 3))
+    f[:, 2] = 9.6 + (GRAVITY - 9.6) * np.clip((np.arange(n) - k0) / (k1 - k0), 0.0, 1.0)
+    z = (law.run(f, np.zeros((n, 3)), dt).pose[:, 2] - law.geometry.home[2]) * 1e3
+    return np.abs(z[:k0]).max(), np.abs(z[k1 + int(round(3.0 / dt)) :]).max()
+
+
+def test_heave_holds_home_under_a_biased_vertical_force():
+    """A constant offset of f_z is not a cue a stroke can give: the high-passed target,
+    the heave's rate and position in the cost keep the platform near home through the
+    bias and bring it within 1 mm of home 3 s after the input fades to rest (the live
+    session's rest). Without them (the heave's position weight that of the tilt, no rate
+    weight, no high-pass) the same input drives it tens of mm off home and past it after
+    the fade, coasting on the otoliths' slow error."""
+    during, after = _biased_then_faded(ModelPredictiveCueing())
+    assert during < 3.0
+    assert after < 1.0
+    old = {"heave_washout": 0.0, "weight_heave_rate": 0.0, "weight_heave": 0.01}
+    during0, after0 = _biased_then_faded(ModelPredictiveCueing(**old))
+    assert during0 > 10.0
+    assert after0 > 10.0

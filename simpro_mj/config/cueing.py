@@ -137,6 +137,9 @@ MPC_PARAMETER_KEYS = {
     "loop_filter_s": ("loop_filter", 1.0),
     "knee_mps2": ("knee", 1.0),
     "jolt_limit_mps2": ("jolt_limit", 1.0),
+    "heave_washout_rad_s": ("heave_washout", 1.0),
+    "weight_heave": ("weight_heave", 1.0),
+    "weight_heave_rate": ("weight_heave_rate", 1.0),
 }
 #: Whole-number parameters (an int in the resolved scenario).
 _INTEGERS = ("rot_order", "horizon")
