@@ -53,7 +53,7 @@ from .design import (
     printed_design,
     redesigned_design,
 )
-from .step_functions import JC, joint_step
+from .step_functions import JC, JX, joint_step
 
 __all__ = [
     "JointControllers",
@@ -68,7 +68,7 @@ __all__ = [
 Method = Literal["tustin", "zoh"]
 METHODS: tuple[Method, ...] = get_args(Method)
 ANTI_WINDUP = ("back_calculation", "conditional", "none")
-_NX = 3  # states per leg: two of C_r, one integrator (last)
+_NX = JX.LEN  # states per leg: two of C_r, one integrator (last)
 
 
 def discretise(a, b, c, d, dt: float, method: str = "tustin"):
@@ -259,12 +259,12 @@ class JointControllers:
             off=u_offset, lo=u_min, hi=u_max, kind=aw, aw=self.dt / self.tracking_time,
             gain=self._int_gain, band=db, m=blocks,
         )  # fmt: skip
-        self._x = np.zeros(3 * _NX)
+        self._x = np.zeros(3 * JX.LEN)
 
     @property
     def integrator(self) -> np.ndarray:
         """The integrator state of each leg, volts (copy)."""
-        return self._x[_NX - 1 :: _NX].copy()
+        return self._x[JX.i :: JX.LEN].copy()
 
     def reset(self) -> None:
         """Zero every state: the next command is ``u_offset`` for zero error."""

@@ -230,17 +230,22 @@ def filter_step(fc, q0, q1, q2, fs, ring, out):
             out[i] = fs[FS.sum + i] / ni
 
 
+# One leg's joint controller state (``x`` holds the three legs'): two states of the
+# remainder C_r, the integrator last
+JX = layout("JointLegState", r1=1, r2=1, i=1)
+#: one leg's [[A, B], [C, D]] (the state and the error in, the state and the volts out)
+JM = (JX.LEN + 1) ** 2
 # The joint controllers' constants ``jc``: u_offset, u_min, u_max, the anti-windup kind
 # (0 back-calculation, 1 conditional, 2 none), T / T_t; per leg r0 T of the integrator
-# and its dead band (m; 0: none); per leg [[A, B], [C, D]] (4 x 4, row-major)
-JC = layout("JointConstants", off=1, lo=1, hi=1, kind=1, aw=1, gain=3, band=3, m=48)
+# and its dead band (m; 0: none); per leg [[A, B], [C, D]] (JM entries, row-major)
+JC = layout("JointConstants", off=1, lo=1, hi=1, kind=1, aw=1, gain=3, band=3, m=3 * JM)
 
 
 def joint_step(x, jc, e0, e1, e2, f0, f1, f2, v_out):
     """The three joint controllers (eq. 28) for one step; valve volts into ``v_out``.
 
-    ``x`` (9,): states of legs 1-3 (two of the remainder, the integrator
-    last), updated in place; ``jc`` their constants (:data:`JC.m` ...). An
+    ``x`` (9,): states of legs 1-3 (each a :data:`JX`: two of the remainder,
+    the integrator last), updated in place; ``jc`` their constants (:data:`JC`). An
     integrator with a dead band ``w`` takes ``e -+ w`` outside ``[-w, w]``
     and holds inside (:func:`controllers.dead_band.dead_band`). ``f`` is the
     velocity feed-forward added before saturation.
@@ -249,8 +254,9 @@ def joint_step(x, jc, e0, e1, e2, f0, f1, f2, v_out):
     for i in range(3):
         e = e0 if i == 0 else (e1 if i == 1 else e2)
         f = f0 if i == 0 else (f1 if i == 1 else f2)
-        a, b, c = x[3 * i], x[3 * i + 1], x[3 * i + 2]
-        m = JC.m + 16 * i
+        o = JX.LEN * i
+        a, b, c = x[o + JX.r1], x[o + JX.r2], x[o + JX.i]
+        m = JC.m + JM * i
         n0 = jc[m] * a + jc[m + 1] * b + jc[m + 2] * c + jc[m + 3] * e
         n1 = jc[m + 4] * a + jc[m + 5] * b + jc[m + 6] * c + jc[m + 7] * e
         n2 = jc[m + 8] * a + jc[m + 9] * b + jc[m + 10] * c + jc[m + 11] * e
@@ -270,7 +276,7 @@ def joint_step(x, jc, e0, e1, e2, f0, f1, f2, v_out):
             push = gain * e
             if (v > hi and push > 0.0) or (v < lo and push < 0.0):
                 n2 = n2 - push
-        x[3 * i], x[3 * i + 1], x[3 * i + 2] = n0, n1, n2
+        x[o + JX.r1], x[o + JX.r2], x[o + JX.i] = n0, n1, n2
         v_out[i] = vs
 
 

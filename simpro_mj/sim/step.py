@@ -60,12 +60,12 @@ MAX_PAIRS = 8
 #: controllers' own and the applied), the slide forces (N), the commanded pose x_c;
 #: feed-forward: a valve at its rail since the last outer step; then the blocks of the
 #: sensors (plant.step_functions.SS), the outer loop (controllers.step_functions.TS),
-#: the joint controllers (3 states per leg), the set-point filter (FS), the actuators
+#: the joint controllers (a JX per leg), the set-point filter (FS), the actuators
 #: (plant.step_functions.ACT) and the ramp filter's ring (3 x n_max, open)
 ST = layout(
     "StepState", k=1, status=1, err=1, err_k=1, rows=1, worst=1, flags=1, noise_k0=1,
     walk_m=1, walk_m0=1, q=3, qd=3, pose=3, qm=3, pm=3, loop=1, yq=3, yp=3, qdes=3, qr=3,
-    u=3, ua=3, f=3, pcmd=3, sat=1, ss=ps.SS.LEN, ts=cs.TS.LEN, jx=9, fs=cs.FS.LEN,
+    u=3, ua=3, f=3, pcmd=3, sat=1, ss=ps.SS.LEN, ts=cs.TS.LEN, jx=3 * cs.JX.LEN, fs=cs.FS.LEN,
     ast=ps.ACT.LEN, ring=None,
 )  # fmt: skip
 
@@ -79,13 +79,13 @@ ERR_FORCE, ERR_LOOP, ERR_WARNING = 5, 6, 7
 #: (steps), hold on saturation (feed-forward), a feed-forward force given, the head
 #: sensors logged, the loop-closure bound (m); the blocks of the set-point filter
 #: (controllers.step_functions.FC) and the joint loops (JC); the state read: the slides'
-#: qpos and dof, the platform site's xmat and xpos (z), the closed loops' site pairs, the
-#: head sensors, the slides' motors; the blocks of the sensors (plant.step_functions.SC),
-#: the outer loop (TC), the geometry (GEOM) and the actuators (plant.step_functions.AC
-#: or ACL by their kind, open)
+#: qpos and dof, the platform site's xmat, its z and its position (the IMU's) in xpos,
+#: the closed loops' site pairs, the head sensors, the slides' motors; the blocks of the
+#: sensors (plant.step_functions.SC), the outer loop (TC), the geometry (GEOM) and the
+#: actuators (plant.step_functions.AC or ACL by their kind, open)
 CT = layout(
     "StepConstants", dt=1, nsteps=1, dec=1, outer=1, hold_sat=1, has_uff=1, head=1,
-    loop_bound=1, fc=cs.FC.LEN, jc=cs.JC.LEN, iq=3, iv=3, imat=1, ih=1, npair=1,
+    loop_bound=1, fc=cs.FC.LEN, jc=cs.JC.LEN, iq=3, iv=3, imat=1, ih=1, isite=1, npair=1,
     pairs=2 * MAX_PAIRS, iha=1, ihg=1, ictrl=3, sc=ps.SC.LEN, tc=cs.TC.LEN, geom=cs.GEOM.LEN,
     ac=None,
 )  # fmt: skip
@@ -115,7 +115,7 @@ def sense(k, S, C, qpos, qvel, xpos, xmat, noise, walk):
     ps.slide_states(qpos, qvel, iq, iv, q, S[ST.qd : ST.qd + 3])
     ps.platform_pose(xmat, xpos, C[CT.imat], C[CT.ih], pose)
     S[ST.loop] = ps.loop_closure(xpos, C[CT.pairs : CT.pairs + 2 * MAX_PAIRS], C[CT.npair])
-    site = int(C[CT.ih]) - 2  # the platform frame's origin (x of its z): the IMU site
+    site = int(C[CT.isite])  # the platform frame's origin: the IMU site
     draws = noise[k - int(S[ST.noise_k0])]
     steps = walk[int(S[ST.walk_m]) - int(S[ST.walk_m0])]
     sc, ss = C[CT.sc : CT.sc + ps.SC.LEN], S[ST.ss : ST.ss + ps.SS.LEN]
@@ -160,7 +160,9 @@ def control(k, S, C, ref, qj, uff):
     if C[CT.has_uff] != 0.0:
         f0, f1, f2 = uff[k, 0], uff[k, 1], uff[k, 2]
     jc, u = C[CT.jc : CT.jc + cs.JC.LEN], S[ST.u : ST.u + 3]
-    cs.joint_step(S[ST.jx : ST.jx + 9], jc, qr[0] - m0, qr[1] - m1, qr[2] - m2, f0, f1, f2, u)
+    cs.joint_step(
+        S[ST.jx : ST.jx + 3 * cs.JX.LEN], jc, qr[0] - m0, qr[1] - m1, qr[2] - m2, f0, f1, f2, u
+    )
     lo, hi = jc[cs.JC.lo], jc[cs.JC.hi]
     S[ST.ua : ST.ua + 3] = u
     if C[CT.hold_sat] != 0.0 and S[ST.sat] == 0.0:
@@ -286,8 +288,8 @@ def build(sim, loop_bound: float, noise_row, walk_row) -> tuple[np.ndarray, np.n
         hold_sat=1.0 if sim.mode == "feedforward" and sim.hold_on_saturation else 0.0,
         has_uff=1.0 if sim.u_ff is not None else 0.0, loop_bound=loop_bound,
         fc=filt.step_constants, jc=joint.step_constants, iq=idx.slide_qpos, iv=idx.slide_dof,
-        imat=9 * int(idx.site_p), ih=3 * int(idx.site_p) + 2, npair=len(pairs),
-        pairs=flat_pairs, ictrl=idx.actuators, sc=sim.sensor_cfg.step_constants,
+        imat=9 * int(idx.site_p), ih=3 * int(idx.site_p) + 2, isite=3 * int(idx.site_p),
+        npair=len(pairs), pairs=flat_pairs, ictrl=idx.actuators, sc=sim.sensor_cfg.step_constants,
         tc=task.step_constants, geom=task.step_geometry, ac=act.step_constants, **head,
     )  # fmt: skip
     S = np.zeros(ST.LEN + 3 * max(filt.n))
