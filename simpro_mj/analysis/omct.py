@@ -47,6 +47,7 @@ __all__ = [
     "fidelity",
     "law_blocks",
     "law_response",
+    "model_chain_metrics",
     "omct",
 ]
 
@@ -283,3 +284,41 @@ def omct(laws: Mapping, omegas: Sequence[float] = OMCT_RAD_S, amplitudes=None, p
         },
         "chain": "law -> platform loop model (5.0 rad/s, 0.72, 0.31 s, 0.03 s) -> rigid cabin",
     }
+
+
+def model_chain_metrics(block: Mapping, t: np.ndarray, f: np.ndarray, w: np.ndarray) -> dict:
+    """The cueing metrics (:func:`simpro_mj.analysis.cue_metrics.cue_metrics`, without the
+    bound) of a vehicle input ``t``, ``f``, ``w`` (V frame, SI, a uniform grid whose step
+    divides into ``_DT``) through the same chain as the OMCT: the law of ``block`` (with
+    its preview), the platform loop's model, a rigid cabin's head. The loop's valves and
+    strokes are not modelled: the block's ``workspace`` is the set-points' and its
+    ``valves`` say nothing (a run through the plant has them)."""
+    from simpro_mj.analysis.cue_metrics import cue_metrics
+
+    t = np.asarray(t, float)
+    step = float(np.median(np.diff(t)))
+    every = int(round(_DT / step))
+    if every < 1 or abs(every * step - _DT) > 1e-9:
+        raise ValueError(f"the input's step {step!r} s must divide {_DT} s")
+    t, f, w = t[::every], np.asarray(f, float)[::every], np.asarray(w, float)[::every]
+    law, _ = _law(block)
+    pose, home = _poses(block, f, w)
+    loop = _loop(pose, _DT)
+    head = _head(loop, home, _DT)
+    n = t.size
+    cols: dict[str, np.ndarray] = {"time_s": t - t[0]}
+    for k, a in enumerate("xyz"):
+        cols[f"veh_f{a}_mps2"], cols[f"veh_w{a}_rad_s"] = f[:, k], w[:, k]
+        cols[f"head_f{a}_mps2"] = head[f"f{a}"]
+        cols[f"head_w{a}_rad_s"] = head[f"w{a}"] if a != "z" else np.zeros(n)
+    cols["roll_rad"], cols["pitch_rad"], cols["heave_m"] = loop[:, 0], loop[:, 1], loop[:, 2]
+    for i in (1, 2, 3):
+        cols[f"q{i}_m"], cols[f"u{i}_v"] = np.full(n, 0.25), np.full(n, 5.0)
+    info = {
+        "box": law.box,
+        "softened_fraction": 0.0,
+        "rate_limited_fraction": 0.0,
+        "source": "model chain",
+        "algorithm": block["algorithm"],
+    }
+    return cue_metrics(cols, {}, info=info, bound=False)
