@@ -29,7 +29,7 @@ def _cli(*args):
 
 @pytest.mark.parametrize(
     "preset, sets",
-    [("paper", []), ("heavy_cabin", ["actuator.pneumatics.cylinder.friction_model=stick"])],
+    [("paper", []), ("heavy_cabin", [])],
 )
 def test_every_check_holds_on_a_plant_whose_seals_stick(preset, sets):
     checks = check_plant(resolve_scenario({"plant": {"preset": preset}}, sets))
@@ -56,7 +56,8 @@ def test_the_command_prints_the_table_and_exits_by_the_checks():
         "stiction", "breakaway force", "sealed chamber energy", "null leakage",
         "chamber filling", "supply sag", "loop closure",
     }  # fmt: skip
-    bad = _cli("--preset", "heavy_cabin")  # the preset's seals are the tanh law
+    tanh = ["--set", "actuator.pneumatics.cylinder.friction_model=regularised"]
+    bad = _cli("--preset", "heavy_cabin", *tanh)  # the tanh law creeps under a held load
     assert bad.returncode == 1 and "NO" in bad.stdout
     wrong = _cli("--preset", "nope")
     assert wrong.returncode == 2 and wrong.stderr.count("\n") == 1 and "allowed" in wrong.stderr

@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import importlib
 import os
-import shutil
 import pickle
+import shutil
 import subprocess
 import sys
 from pathlib import Path

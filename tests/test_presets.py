@@ -28,7 +28,7 @@ def test_shipped_presets_and_the_default():
     heavy = load_scenario("step_pitch", ["plant.preset=heavy_cabin"])
     assert heavy["plant"]["payload"]["mass_kg"] == pytest.approx(230.0)
     assert heavy["actuator"]["pneumatics"]["valve"]["sonic_conductance_dm3_per_s_bar"] == 7.87
-    assert heavy["controller"]["inner"]["identified"]["actuator1"]["b"] == pytest.approx(8.558)
+    assert heavy["controller"]["inner"]["identified"]["actuator1"]["b"] == pytest.approx(4.899)
 
 
 def test_scenario_values_override_the_preset():

@@ -489,7 +489,8 @@ def test_divergence_through_the_cli_exits_1_and_stops_early(tmp_path, capsys):
     rc = main(
         ["run", "step_pitch", "--out", str(out), "--no-plots", "--set", "duration_s=30",
          "--set", "plant.loop_timeconst_s=0.5", "--set", "plant.preset=heavy_cabin",
-         "--set", "paper_units=metres", "--set", "controller.inner.design_plant=paper"]
+         "--set", "paper_units=metres", "--set", "controller.inner.design_plant=paper",
+         "--set", "controller.outer.gains=2"]  # within 10x the analysed limit (0.3)
     )  # fmt: skip
     captured = capsys.readouterr()
     assert rc == 1

@@ -153,9 +153,12 @@ def scenario_overlay(name_or_path: str) -> dict:
 
 
 def identify_overlay(name_or_path: str) -> dict:
-    """The preset as a partial ``identify`` tree (model, pneumatics)."""
+    """The preset as a partial ``identify`` tree (model, pneumatics, and the joint
+    loops' valve dither, under which the experiment identifies the plant)."""
     p = load_preset(name_or_path)
+    inner = dict((p.get("controller") or {}).get("inner") or {})
     return {
         "model": copy.deepcopy(dict(p.get("plant") or {})),
         "pneumatics": copy.deepcopy(dict(p.get("pneumatics") or {})),
+        "identify": {k: float(inner[k]) for k in ("dither_v", "dither_period_ms") if k in inner},
     }

@@ -87,6 +87,10 @@ def plant_tree(scenario: Mapping) -> dict:
     tree["model"] = _merge(tree["model"], model)
     tree["pneumatics"] = _merge(tree["pneumatics"], scenario["actuator"].get("pneumatics") or {})
     tree["paper_units"] = scenario["paper_units"]
+    # the plant as the joint loops drive it: with their valve dither (controllers.dither)
+    inner = scenario["controller"]["inner"]
+    tree["identify"]["dither_v"] = float(inner["dither_v"])
+    tree["identify"]["dither_period_ms"] = float(inner["dither_period_ms"])
     return tree
 
 

@@ -45,6 +45,7 @@ from controllers.design import (
     paper_plant,
     paper_units_info,
 )
+from controllers.dither import dither_signal
 from simpro_mj.core.errors import PhysicsError, UserInputError
 from simpro_mj.identification.settings import (
     DEFAULT_IDENTIFY_PARAMS,
@@ -193,6 +194,10 @@ def run_experiment(tree: dict, leg: int, model=None) -> dict:
         raise UserInputError("invalid value at identify.duration_s: allowed >= 0.5 s")
     clock = max(1, int(round(float(ip["prbs_clock_ms"]) * 1e-3 / dt)))
     prbs = amp * _prbs(n_exc, clock, int(ip["prbs_bits"]), int(ip["seed"]))
+    # the joint loops' dither on every valve, from the settling on (controllers.dither)
+    dither = dither_signal(
+        n_settle + n_exc, dt, float(ip["dither_v"]), float(ip["dither_period_ms"]) * 1e-3
+    )
     loop_bound = float(ip["loop_bound_mm"]) * 1e-3
 
     j = leg - 1
@@ -213,6 +218,7 @@ def run_experiment(tree: dict, leg: int, model=None) -> dict:
         np.subtract(q_ref, q, out=u)
         u *= kp
         u += u_hold
+        u += dither[k]
         e = k - n_settle
         if e >= 0:
             u[j] += prbs[e]

@@ -35,6 +35,11 @@ DEFAULT_IDENTIFY_PARAMS: dict = {
     "prbs_amplitude_v": [0.3, 0.3, 0.3],
     "prbs_clock_ms": 20.0,
     "prbs_bits": 10,  # sequence period 1023 bits = 20.5 s
+    # the valves' dither during the experiment (controllers.dither), V and ms: a run
+    # identifies its plant with its own joint loops' dither (plant_tree), so that the
+    # model is of the plant the loops drive; 0: none
+    "dither_v": 0.0,
+    "dither_period_ms": 40.0,
     "seed": 1,  # shift of the sequence
     "actuator_kind": "nonlinear",
     # discard the first part of the record in the fit (initial transient), s
@@ -57,7 +62,7 @@ def default_tree(preset: str | None = None) -> dict:
         "preset": preset,
         "model": _merge(DEFAULT_MODEL_PARAMS, over["model"]),
         "pneumatics": _merge(DEFAULT_PNEUMATIC_PARAMS, over["pneumatics"]),
-        "identify": copy.deepcopy(DEFAULT_IDENTIFY_PARAMS),
+        "identify": _merge(DEFAULT_IDENTIFY_PARAMS, over.get("identify") or {}),
     }
 
 
@@ -109,4 +114,11 @@ def check_tree(tree: dict) -> dict:
             "allowed: <= 5 V (the valve's half range)"
         )
     leg_values(tree[i]["kp_v_per_m"], "kp_v_per_m")
+    check_number(tree, f"{i}.dither_v", 0.0, 5.0, unit=" V")
+    period = check_number(tree, f"{i}.dither_period_ms", 2.0, 10**6, unit=" ms")
+    if period != round(period) or round(period) % 2:
+        raise UserInputError(
+            f"invalid value at {i}.dither_period_ms: {period:g}; allowed: an even number of "
+            "1 ms physics steps"
+        )
     return tree
