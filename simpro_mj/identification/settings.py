@@ -8,8 +8,6 @@ before either is imported.
 
 from __future__ import annotations
 
-import copy
-
 import numpy as np
 
 from controllers.design import READINGS
