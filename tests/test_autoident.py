@@ -173,3 +173,18 @@ def test_threads_needing_one_new_plant_run_one_experiment(cache, monkeypatch):
     b.join(30.0)
     assert calls == ["a"]
     assert got["a"] == (got["b"][0], "identified") and got["b"][1] == "cache"
+
+
+def test_far_out_gains_on_a_changed_plant_are_refused_before_the_experiment(cache, fake_identify):
+    """The refusal at 10 times the stability limit costs no identification: it is
+    checked on the preset's models first (heavy_cabin: limit 14.0, so 150 is refused)."""
+    from simpro_mj.job.run import Run
+
+    sc = load_scenario(
+        "step_pitch",
+        ["plant.preset=heavy_cabin", "plant.payload.mass_kg=231.5", "controller.outer.gains=150"],
+    )
+    assert ai.experiment_s(sc) > 0  # a changed plant: an experiment would run
+    with pytest.raises(UserInputError, match=r"at controller.outer.gains: 150 is 11 times .* 14"):
+        Run(sc).preflight()
+    assert fake_identify == []  # refused first

@@ -241,6 +241,36 @@ def check_gains_move(gains, duration_s: float) -> None:
             )
 
 
+def refuse_far_gains(scenario: Mapping, lim: float, basis: str = "") -> None:
+    """Refuse outer gains above :data:`GAIN_REFUSE_FACTOR` times the limit ``lim``;
+    ``basis`` says what the limit was analysed on when not the run's design plants."""
+    outer = scenario["controller"]["outer"]
+    top = max(outer["gains"])
+    if math.isfinite(lim) and lim > 0.0 and top > GAIN_REFUSE_FACTOR * lim:
+        raise UserInputError(
+            f"invalid value at controller.outer.gains: {top:g} is {top / lim:,.0f} times the "
+            f"analysed stability limit {lim:.3g} ({outer['type']}, T = {outer['period_ms']:g} "
+            f"ms{basis}); allowed: <= {GAIN_REFUSE_FACTOR * lim:.3g} ({GAIN_REFUSE_FACTOR:g} "
+            "times the limit: far beyond it each outer step asks more than the joints can do, "
+            "the anti-windup rejects it and the platform never moves; gains up to that are "
+            "allowed to study instability)"
+        )
+
+
+def check_gains_before_identifying(scenario: Mapping) -> None:
+    """Refuse far-out outer gains before a plant's identification experiment runs.
+
+    The limit is analysed on the models the scenario holds before it (its preset's
+    ``controller.inner.identified``), as the preflight analyses a changed plant under
+    ``design_plant: paper``; after the experiment :func:`gain_warnings` checks the
+    same rule on the plant's own models. A refusal so costs no identification.
+    """
+    if scenario["controller"]["mode"] != "task_space":
+        return
+    lim = stability_limit(scenario)["limit"]
+    refuse_far_gains(scenario, lim, ", on the preset's models: this plant is not identified yet")
+
+
 def gain_warnings(scenario: Mapping) -> tuple[list[str], dict]:
     """Warnings for outer gains above the analysed limit, and the analysis figures.
 
@@ -253,22 +283,13 @@ def gain_warnings(scenario: Mapping) -> tuple[list[str], dict]:
     info = stability_limit(scenario)
     lim = info["limit"]
     label = f"{outer['type']}, T = {outer['period_ms']:g} ms, {info['basis']}"
-    top = max(outer["gains"])
     if lim <= 0.0:  # unstable at every gain: the joint loops, not the outer gains
         return [
             f"the task-space loop is unstable at any outer gain in the analysis ({label}): "
             "its joint loops do not hold the plant (controller.inner: variant, design_plant); "
             "the run may diverge"
         ], info
-    if math.isfinite(lim) and top > GAIN_REFUSE_FACTOR * lim:
-        raise UserInputError(
-            f"invalid value at controller.outer.gains: {top:g} is {top / lim:,.0f} times the "
-            f"analysed stability limit {lim:.3g} ({outer['type']}, T = {outer['period_ms']:g} "
-            f"ms); allowed: <= {GAIN_REFUSE_FACTOR * lim:.3g} ({GAIN_REFUSE_FACTOR:g} times "
-            "the limit: far beyond it each outer step asks more than the joints can do, the "
-            "anti-windup rejects it and the platform never moves; gains up to that are "
-            "allowed to study instability)"
-        )
+    refuse_far_gains(scenario, lim)
     out = []
     over = [i for i, g in enumerate(outer["gains"]) if g > lim]
     if len(over) == len(outer["gains"]) and len(set(outer["gains"])) == 1:

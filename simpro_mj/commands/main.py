@@ -37,7 +37,7 @@ import sys
 from pathlib import Path
 
 from controllers.errors import DesignError, KinematicsError
-from simpro_mj.core.environment import environment_problem
+from simpro_mj.core.environment import environment_problem, matplotlib_home
 from simpro_mj.core.errors import PhysicsError, UserInputError
 from simpro_mj.core.interrupts import Interrupted, held_signals, import_module, interruptible
 from simpro_mj.core.messages import MAX_MESSAGE_CHARS, one_line
@@ -193,6 +193,7 @@ def _check_gl_backend() -> str | None:
 
 def main(argv=None) -> int:
     os.environ.setdefault("MPLBACKEND", "Agg")
+    matplotlib_home()  # HOME a file or read-only: no warnings from matplotlib
     # One BLAS thread: the analyses' matrices are small (the preflight's lifted outer
     # loop has at most 65 states) and BLAS threads only contend for the cores. step_all's
     # preflight on a loaded 2-core machine (load average 9): 54.8 s with OpenBLAS's

@@ -28,7 +28,12 @@ from typing import TYPE_CHECKING, cast
 import numpy as np
 
 from simpro_mj.analysis.metrics import compute_metrics
-from simpro_mj.analysis.preflight import check_gains_move, check_payload, preflight
+from simpro_mj.analysis.preflight import (
+    check_gains_before_identifying,
+    check_gains_move,
+    check_payload,
+    preflight,
+)
 from simpro_mj.analysis.verdict import verdict
 from simpro_mj.config.reference import reference
 from simpro_mj.core.interrupts import held_signals
@@ -217,6 +222,11 @@ class Run:
             check_gains_move(self.scenario["controller"]["outer"]["gains"],
                              self.scenario["duration_s"])  # fmt: skip
         payload = check_payload(self.scenario, self.model, setpoints)
+        if self.identified_source is None:
+            from simpro_mj.identification.auto import experiment_s
+
+            if experiment_s(self.scenario) > 0:  # an experiment to come: refuse first
+                check_gains_before_identifying(self.scenario)
         self.design_plants()
         return preflight(self.scenario, self.model, setpoints=setpoints, payload=payload)
 
