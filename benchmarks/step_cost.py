@@ -99,7 +99,7 @@ from simpro_mj.report.machine import describe_machine
 from simpro_mj.report.render import render_video, require_video
 from simpro_mj.report.results import write_timeseries
 from simpro_mj.report.runner import execute
-from simpro_mj.sim.loop import CoSimulation
+from simpro_mj.sim.build import Build
 from simpro_mj.sim.readiness import signal_ready
 
 STAGES = ("sensors", "controllers", "pneumatics", "physics", "logging")
@@ -116,7 +116,7 @@ def _record(scenario: dict, model):
     """
     sc = copy.deepcopy(scenario)
     sc["logging"]["decimation"] = 1
-    cs = CoSimulation(sc, model=model)
+    cs = Build(sc, model=model).simulation()
     cs._initial_state()
     spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
     state0 = np.empty(mujoco.mj_stateSize(model, spec))
@@ -175,7 +175,7 @@ def _bare_python(model, state0, warm0, ctrl, final_qpos) -> tuple[float, bool]:
 def _threaded(scenario: dict, model, workers: int, runs: int, serial) -> tuple[float, bool]:
     """Simulated seconds per wall second of ``runs`` copies stepped by ``workers`` threads;
     and whether each equals ``serial`` (a :class:`SimResult`) bit for bit."""
-    sims = [CoSimulation(scenario, model=model) for _ in range(runs)]
+    sims = [Build(scenario, model=model).simulation() for _ in range(runs)]
     t0 = time.perf_counter()
     with ThreadPoolExecutor(max_workers=workers) as pool:
         results = list(pool.map(lambda s: s.run(), sims))
@@ -231,7 +231,7 @@ def _interpreted(scenario: dict, model) -> float:
     before = os.environ.get("SIMPRO_KERNEL")
     os.environ["SIMPRO_KERNEL"] = "python"
     try:
-        res = CoSimulation(scenario, model=model).run()
+        res = Build(scenario, model=model).simulation().run()
     finally:
         if before is None:
             del os.environ["SIMPRO_KERNEL"]
@@ -366,7 +366,7 @@ def measure(
     same = True
     for r in range(repeats):
         say(f"repeat {r + 1}/{repeats}")
-        res = CoSimulation(scenario, model=model).run()
+        res = Build(scenario, model=model).simulation().run()
         full.append(res.sim["wall_s"] / res.sim["steps"] * 1e6)
         with tempfile.TemporaryDirectory(prefix="simpro-bench-") as tmp:
             t0 = time.perf_counter()
@@ -384,7 +384,7 @@ def measure(
         interp.append(_interpreted(scenario, model))
         command.append(_run_command(scenario, model, run_durations))
         prof: dict = {}
-        res = CoSimulation(scenario, model=model).run(profile=prof)
+        res = Build(scenario, model=model).simulation().run(profile=prof)
         instr.append(res.sim["wall_s"] / res.sim["steps"] * 1e6)
         for s in STAGES:
             stages[s].append(prof[s] / prof["steps"] / 1e3)
@@ -426,7 +426,7 @@ def measure(
         "machine": describe_machine(),
     }
     if batch:
-        serial = CoSimulation(scenario, model=model).run()
+        serial = Build(scenario, model=model).simulation().run()
         signal_ready("throughput")
         tput, bare_t, others, same = {1: [], 2: []}, {1: [], 2: []}, [], True
         for r in range(repeats):

@@ -14,7 +14,7 @@ import pytest
 
 import simpro_mj as s
 from simpro_mj.config.scenario import load_scenario
-from simpro_mj.sim.loop import simulate
+from simpro_mj.sim.build import simulate
 
 ROOT = Path(__file__).resolve().parents[1]
 

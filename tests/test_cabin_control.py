@@ -18,7 +18,7 @@ from simpro_mj.analysis.verdict import verdict
 from simpro_mj.config.presets import load_preset
 from simpro_mj.config.scenario import load_scenario
 from simpro_mj.core.errors import UserInputError
-from simpro_mj.sim.loop import simulate
+from simpro_mj.sim.build import simulate
 
 HOME = TaskSpaceController().geometry.home
 HEAVY = "plant.preset=heavy_cabin"

@@ -15,7 +15,7 @@ import pytest
 
 from simpro_mj.config.scenario import load_scenario
 from simpro_mj.plant.faults import FLAG_BITS, flag_series
-from simpro_mj.sim.loop import simulate
+from simpro_mj.sim.build import simulate
 
 PA = 101325.0
 

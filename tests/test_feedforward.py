@@ -136,7 +136,7 @@ def test_model_tau_is_validated(capsys):
 def ff_step():
     """Fig. 15's pitch step on the default plant with the feed-forward scheme, 8 s."""
     from simpro_mj.analysis.metrics import compute_metrics
-    from simpro_mj.sim.loop import simulate
+    from simpro_mj.sim.build import simulate
 
     sc = load_scenario("step_pitch", ["controller.mode=feedforward", "duration_s=8.0"])
     res = simulate(sc)

@@ -13,7 +13,7 @@ import pytest
 from controllers.task_space import outer_law
 from simpro_mj.analysis.metrics import compute_metrics
 from simpro_mj.config.scenario import load_scenario
-from simpro_mj.sim.loop import simulate
+from simpro_mj.sim.build import simulate
 
 
 def _axes(name, *sets, duration=6.0):

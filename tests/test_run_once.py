@@ -37,11 +37,8 @@ for name in ("from_xml_path", "from_xml_string", "from_binary_path"):
     setattr(mujoco.MjModel, name, counted(getattr(mujoco.MjModel, name), "from_xml", True))
 import simpro_mj.config.reference as ref
 import simpro_mj.identification.auto as auto
-import simpro_mj.job.run as job
-import simpro_mj.sim.loop as loop
-ref_fn = ref.reference
-job.reference = counted(ref_fn, "setpoints")
-loop.reference = job.reference
+import simpro_mj.sim.build as build
+build.reference = counted(ref.reference, "setpoints")
 auto_fn = auto.with_identified
 auto.with_identified = counted(auto_fn, "with_identified")
 from simpro_mj.commands.main import main

@@ -16,7 +16,7 @@ from controllers.setpoint_filter import (
 )
 from simpro_mj.config.scenario import load_scenario
 from simpro_mj.core.errors import UserInputError
-from simpro_mj.sim.loop import simulate
+from simpro_mj.sim.build import simulate
 
 DT = 1e-3
 

@@ -20,7 +20,7 @@ from controllers.kinematics import jacobian
 from controllers.task_space import outer_law
 from simpro_mj.config.scenario import load_scenario
 from simpro_mj.report.compare import compare
-from simpro_mj.sim.loop import simulate
+from simpro_mj.sim.build import simulate
 
 AXES = ("roll", "pitch", "heave")
 

@@ -64,7 +64,7 @@ from simpro_mj.config.models import check_cueing
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.messages import one_line
 from simpro_mj.plant.model import assemble
-from simpro_mj.sim.loop import CoSimulation
+from simpro_mj.sim.build import Build, simulate
 
 __all__ = [
     "CHANNELS",
@@ -277,7 +277,7 @@ def measure_chain_point(task: Mapping) -> dict:
     tilt rate limit or the workspace soft limit acted).
     """
     try:
-        res = CoSimulation(task["scenario"]).run(stop=task.get("stop"))
+        res = simulate(task["scenario"], stop=task.get("stop"))
         if res.status != "ok":
             return {"status": res.status, "reason": res.reason}
         c = res.columns
@@ -326,7 +326,7 @@ def head_jacobian(scenario: Mapping, step: float = 1e-4) -> np.ndarray:
     moves the head by more than a rigid rotation about P: P itself moves back and
     forth on the guide's arc (0.43 m per rad of pitch, 0.50 m per m of heave).
     """
-    cs = CoSimulation(dict(scenario))
+    cs = Build(dict(scenario)).simulation()
     m, d, idx, c = cs.model, cs.data, cs.idx, cs.sensor_cfg
     home = np.asarray(cs.geometry.home, float)
 

@@ -280,10 +280,10 @@ def measure_point(task: Mapping) -> dict:
     """
     # MuJoCo with the loop, when a point runs: analysis.analyze imports this room's
     # figures without running anything
-    from simpro_mj.sim.loop import CoSimulation
+    from simpro_mj.sim.build import simulate
 
     try:
-        res = CoSimulation(task["scenario"]).run(stop=task.get("stop"))
+        res = simulate(task["scenario"], stop=task.get("stop"))
         if res.status != "ok":
             return {"status": res.status, "reason": res.reason}
         c = res.columns

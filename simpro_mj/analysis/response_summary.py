@@ -37,9 +37,9 @@ def loop_model(scenario: Mapping) -> LoopModel:
     """The scenario's linearised loop for :func:`controllers.frequency.predict`."""
     # the loop as built (MuJoCo): not loaded by the analyze command, which only
     # uses figures()
-    from simpro_mj.sim.loop import CoSimulation
+    from simpro_mj.sim.build import Build
 
-    cs = CoSimulation(dict(scenario))
+    cs = Build(dict(scenario)).simulation()
     ctl = scenario["controller"]
     if cs.actuators.kind == "linear":
         p = cs.actuators.params

@@ -1,16 +1,8 @@
 """A scenario's run, each piece of work done once (see the package docstring).
 
-The pieces, in the order :class:`Run` builds them:
-
-1. the plant: the MJCF compiled once (:func:`~simpro_mj.plant.model.load_model`),
-   shared by the preflight's static solves (which change the payload mass
-   and restore it) and the loop;
-2. the set-points on the 1 ms grid (:func:`~simpro_mj.config.reference.reference`),
-   shared by the preflight's pose checks and the loop;
-3. the design plants, after the preflight's payload check: with
-   ``controller.inner.design_plant: identified`` the joint loops are placed
-   (eqs. 36-37) on the scenario's own plant's models, Fig. 12's experiment run
-   once and cached (:func:`~simpro_mj.identification.auto.with_identified`).
+:class:`Run` builds the scenario as every simulation does
+(:class:`~simpro_mj.sim.build.Build`: the plant compiled once, the set-points on
+the 1 ms grid, the design plants after the preflight's payload check).
 
 :meth:`Run.execute` then runs the preflight (:func:`~simpro_mj.analysis.preflight.preflight`:
 a payload the cylinders cannot hold is refused, exit 2; gains above the
@@ -21,9 +13,8 @@ analysed limit are warned about), steps the co-simulation and measures it
 from __future__ import annotations
 
 import sys
-from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, cast
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -35,10 +26,8 @@ from simpro_mj.analysis.preflight import (
     preflight,
 )
 from simpro_mj.analysis.verdict import verdict
-from simpro_mj.config.reference import reference
-from simpro_mj.core.interrupts import held_signals
 from simpro_mj.plant.faults import flag_series
-from simpro_mj.plant.model_params import MAX_MODEL_PAYLOAD_KG
+from simpro_mj.sim.build import Build
 from simpro_mj.sim.compiling import note, prepare_step
 from simpro_mj.sim.readiness import signal_ready
 
@@ -53,10 +42,6 @@ def warn(lines, quiet: bool) -> None:
     if not quiet:
         for line in lines:
             sys.stderr.write(f"warning: {line}\n")
-
-
-def _say(message: str) -> None:
-    print(message, file=sys.stderr, flush=True)
 
 
 def _stepping(k: int) -> None:
@@ -154,65 +139,13 @@ def end_stop_warnings(columns, scenario, stroke) -> tuple[list[str], list[dict]]
     return lines, hits
 
 
-class Run:
-    """One scenario, built once: design plants, compiled plant, set-points.
+class Run(Build):
+    """One scenario's run: the scenario built once (:class:`~simpro_mj.sim.build.Build`:
+    compiled plant, set-points, design plants), checked, stepped and measured.
 
-    Parameters
-    ----------
-    scenario : mapping
-        A resolved scenario (:func:`simpro_mj.config.scenario.load_scenario`).
-    model : mujoco.MjModel, optional
-        A compiled plant of this scenario's ``plant`` (a comparison shares one
-        between its two runs); compiled here when omitted.
-    say : callable(str), optional
-        Where one-line progress notes go (the identification's); stderr by default.
-
-    Notes
-    -----
-    A payload above what the MJCF builder accepts
-    (:data:`~simpro_mj.plant.model_params.MAX_MODEL_PAYLOAD_KG`) is compiled
-    empty, so that the preflight refuses it with its own message and limit
-    (``payload too heavy at plant.payload.mass_kg``).
+    Its parameters are :class:`~simpro_mj.sim.build.Build`'s (``scenario``, ``model``,
+    ``say``), with the set-points of the scenario.
     """
-
-    def __init__(self, scenario: dict, *, model=None, say: Callable[[str], None] = _say):
-        # the run's simulation modules (MuJoCo's bindings among them): loaded when a run
-        # is built, not when a command that refuses bad input within a second imports
-        # this module; a signal meanwhile is raised once they are in (core.interrupts)
-        with held_signals():
-            from simpro_mj.identification.auto import with_identified  # noqa: F401
-            from simpro_mj.plant.model import load_model
-            from simpro_mj.sim.loop import CoSimulation  # noqa: F401
-
-        self.scenario = scenario
-        self._say = say
-        #: where the design plants came from, once :meth:`design_plants` ran
-        self.identified_source: str | None = None
-        plant = self.scenario["plant"]
-        self.payload_too_heavy = float(plant["payload"]["mass_kg"]) > MAX_MODEL_PAYLOAD_KG
-        if model is None:
-            if self.payload_too_heavy:
-                plant = dict(plant, payload=dict(plant["payload"], mass_kg=0.0))
-            model = load_model(plant)
-        self.model = model
-        dt = float(model.opt.timestep)
-        n = int(round(self.scenario["duration_s"] / dt))
-        #: the 1 ms grid and the set-point poses on it (SI), evaluated once
-        self.t = np.arange(n + 1) * dt
-        self.ref = np.ascontiguousarray(reference(self.scenario, self.t))
-
-    def stroke(self) -> list[tuple[float, float]]:
-        """Each slide's range (m): the model's joint limits (the DNC-125-500 stroke)."""
-        ranges = [self.model.joint(f"leg{i}").range for i in (1, 2, 3)]
-        return [(float(lo), float(hi)) for lo, hi in ranges]
-
-    def design_plants(self) -> None:
-        """The scenario with its design plants (identified once when it asks; step 1)."""
-        if self.identified_source is None:
-            from simpro_mj.identification.auto import with_identified
-
-            designed, self.identified_source = with_identified(self.scenario, self._say)
-            self.scenario = cast(dict, designed)  # the resolved scenario, a dict
 
     def preflight(self) -> tuple[list[str], dict]:
         """The checks before stepping, on this run's plant and set-points: the payload
@@ -229,21 +162,6 @@ class Run:
                 check_gains_before_identifying(self.scenario)
         self.design_plants()
         return preflight(self.scenario, self.model, setpoints=setpoints, payload=payload)
-
-    def simulation(self):
-        """The co-simulation of this run (:class:`~simpro_mj.sim.loop.CoSimulation`)."""
-        from simpro_mj.plant.model import load_model
-        from simpro_mj.sim.loop import CoSimulation
-
-        if self.payload_too_heavy:  # the preflight refuses it first; never stepped empty
-            load_model(self.scenario["plant"])  # raises the builder's own message
-        self.design_plants()
-        return CoSimulation(
-            self.scenario,
-            self.model,
-            poses=self.ref,
-            identified_source=self.identified_source,
-        )
 
     def execute(
         self,

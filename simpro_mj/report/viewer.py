@@ -117,7 +117,7 @@ def recording_for(target: str, sets):
         return load_recording(runs[0])
     scenario = load_scenario(target, sets)
     # the loop (and MuJoCo) is loaded only when a scenario is to be simulated
-    from simpro_mj.sim.loop import simulate
+    from simpro_mj.sim.build import simulate
 
     result = simulate(scenario)
     if result.status != "ok":

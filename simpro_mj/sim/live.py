@@ -8,7 +8,7 @@ wall clock, and the platform's pose goes out as UDP text lines.
 
 The session talks to the co-simulation through its live interface only
 (:mod:`simpro_mj.sim.loop`, "Set-points from outside"): a
-``CoSimulation(scenario, setpoints="external")``, whose set-point rows
+``Build(scenario, setpoints="external").simulation()``, whose set-point rows
 :class:`Pacer` writes with ``write_setpoints`` and whose ``run(pace=...)``
 calls :class:`Pacer` between chunks.
 
@@ -680,7 +680,7 @@ def run_session(scenario: dict, options: LiveOptions, say=None, checks=None):
         # on use, once the port is ours: scipy's filter design and MuJoCo take seconds
         from simpro_mj.config.cueing import washout_params
         from simpro_mj.core.rates import steps_per_period
-        from simpro_mj.sim.loop import CoSimulation
+        from simpro_mj.sim.build import Build
 
         if checks is not None:
             checks()
@@ -696,7 +696,7 @@ def run_session(scenario: dict, options: LiveOptions, say=None, checks=None):
         period = 0.01 if mpc else params.period
         wash_every = steps_per_period(period * 1e3, 1e-3, "setpoint.cueing.parameters.period_ms")
         send_every = steps_per_period(1e3 / options.send_rate_hz, 1e-3, "--send-rate")
-        sim = CoSimulation(scenario, setpoints="external")
+        sim = Build(scenario, setpoints="external").simulation()
         if mpc:  # its solves in a child process, one period late (sim/cue_worker.py)
             assert isinstance(params, MpcParams)
             law = CueWorker(params.replace(preview=0.0), sim.geometry, period)

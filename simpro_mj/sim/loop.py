@@ -65,7 +65,7 @@ from simpro_mj.sim.result import COLUMNS, SimResult, qpos_names
 from simpro_mj.sim.snapshot import NoiseState, Snapshot, model_digest, scenario_digest
 from simpro_mj.sim.stages import CHUNK, FaultHooks, Log, NoiseBlock, Profile
 
-__all__ = ["LOOP_OPEN_BOUND", "CoSimulation", "simulate"]
+__all__ = ["LOOP_OPEN_BOUND", "CoSimulation"]
 
 #: Divergence bound on the loop-closure error (m): far above the 0.5 mm of
 #: normal motion, well below anything physical.
@@ -626,8 +626,3 @@ class CoSimulation:
             qpos=rec.qlog[:row].copy(),
             qpos_names=qpos_names(self.model),
         )
-
-
-def simulate(scenario: dict, progress=None) -> SimResult:
-    """Build and run a scenario (convenience)."""
-    return CoSimulation(scenario).run(progress)

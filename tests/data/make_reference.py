@@ -204,7 +204,7 @@ def run_scenario(name: str):
     from simpro_mj.analysis.metrics import compute_metrics
     from simpro_mj.analysis.verdict import verdict
     from simpro_mj.config.scenario import load_scenario
-    from simpro_mj.sim.loop import simulate
+    from simpro_mj.sim.build import simulate
 
     scenario = load_scenario(name)
     res = simulate(scenario)
