@@ -38,7 +38,8 @@ from simpro_mj.config.cueing import (
     manoeuvre_spec,
     washout_params,
 )
-from simpro_mj.config.rules import Problem, user_error
+from simpro_mj.config.messages import user_error
+from simpro_mj.config.rules import Problem
 from simpro_mj.core.keys import key_text
 from simpro_mj.core.rates import PHYSICS_DT_MS, whole_steps
 

@@ -38,6 +38,7 @@ from controllers.setpoint_filter import Kind
 from controllers.task_space import Integrator, Lag
 from simpro_mj.config.cue_models import Cueing, check_cueing
 from simpro_mj.config.entries import Components, Faults
+from simpro_mj.config.messages import user_error
 from simpro_mj.config.plant_blocks import Actuator, PlantBlock, SensorsBlock
 from simpro_mj.config.pneumatics import check_pneumatics
 from simpro_mj.config.presets import DEFAULT_PRESET
@@ -62,7 +63,6 @@ from simpro_mj.config.rules import (
     block,
     integral,
     param,
-    user_error,
 )
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.keys import value_text

@@ -15,12 +15,7 @@ from typing import Any, Literal, get_args, get_origin
 
 from pydantic.fields import FieldInfo
 
-from simpro_mj.config.models import Scenario
-from simpro_mj.config.rules import (
-    ONE_FOR_ALL,
-    PHYSICS_DT_MS,
-    Block,
-    check_period,
+from simpro_mj.config.messages import (
     is_model,
     item_meta,
     range_text,
@@ -28,6 +23,8 @@ from simpro_mj.config.rules import (
     tagged_members,
     unit_of,
 )
+from simpro_mj.config.models import Scenario
+from simpro_mj.config.rules import ONE_FOR_ALL, PHYSICS_DT_MS, Block, check_period
 
 __all__ = ["Parameter", "parameters"]
 

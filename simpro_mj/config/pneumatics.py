@@ -18,6 +18,7 @@ from typing import Annotated, Any
 
 from pydantic import BeforeValidator, StrictBool, TypeAdapter, ValidationError, model_validator
 
+from simpro_mj.config.messages import user_error
 from simpro_mj.config.rules import Block, Problem, Real, Whole, block, param, yaml_number
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.keys import value_text
@@ -255,8 +256,6 @@ def check_pneumatics(value: Any, path: str = "actuator.pneumatics") -> dict:
     UserInputError
         One line naming the dotted key and what is allowed.
     """
-    from simpro_mj.config.rules import user_error
-
     try:
         return Pneumatics.model_validate(value).model_dump()
     except ValidationError as exc:

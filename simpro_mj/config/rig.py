@@ -45,7 +45,8 @@ from typing import Any
 from pydantic import ValidationError
 
 from controllers.geometry import H0, PAPER_RIG_MM
-from simpro_mj.config.rules import Block, Each, Numbers, Real, block, param, user_error
+from simpro_mj.config.messages import user_error
+from simpro_mj.config.rules import Block, Each, Numbers, Real, block, param
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.keys import read_yaml, value_text
 from simpro_mj.core.shipped import SCENARIOS_DIR, user_path

@@ -85,7 +85,8 @@ from pydantic import (
 
 from simpro_mj.config.cueing import sweep_defaults
 from simpro_mj.config.defaults import DEFAULT_SCENARIO
-from simpro_mj.config.rules import Block, Entry, Problem, Real, Whole, param, user_error
+from simpro_mj.config.messages import user_error
+from simpro_mj.config.rules import Block, Entry, Problem, Real, Whole, param
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.keys import closest, key_text
 
