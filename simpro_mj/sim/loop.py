@@ -62,7 +62,7 @@ from simpro_mj.sim import step
 from simpro_mj.sim.compiling import prepare_step
 from simpro_mj.sim.registration import Registration
 from simpro_mj.sim.result import COLUMNS, SimResult, qpos_names
-from simpro_mj.sim.snapshot import NoiseState, Snapshot, model_digest, scenario_digest
+from simpro_mj.sim.snapshot import Snapshot, model_digest, put_back, take
 from simpro_mj.sim.stages import CHUNK, FaultHooks, Log, NoiseBlock, Profile
 
 __all__ = ["LOOP_OPEN_BOUND", "CoSimulation"]
@@ -70,10 +70,6 @@ __all__ = ["LOOP_OPEN_BOUND", "CoSimulation"]
 #: Divergence bound on the loop-closure error (m): far above the 0.5 mm of
 #: normal motion, well below anything physical.
 LOOP_OPEN_BOUND = 5e-3
-
-
-#: the set-point arrays a live run writes (a snapshot of it keeps them)
-_SETPOINTS = ("ref", "q_joint_only", "veh_f", "veh_w")
 
 
 def _say(message: str) -> None:
@@ -99,9 +95,8 @@ class CoSimulation:
         grid (:func:`reference`), when the caller has them; evaluated here when
         omitted.
     identified_source : str, optional
-        Given when ``scenario`` already carries its design plants
-        (:func:`~simpro_mj.identification.auto.with_identified` ran, as
-        :class:`simpro_mj.job.run.Run` does); resolved here when omitted.
+        Given when ``scenario`` carries its design plants (as
+        :class:`~simpro_mj.sim.build.Build` makes it); resolved here when omitted.
     """
 
     def __init__(
@@ -273,85 +268,14 @@ class CoSimulation:
 
     # ------------------------------------------------------------- snapshot
     def snapshot(self) -> Snapshot:
-        """The run as it stands before step ``k``, to resume exactly (:meth:`restore`).
-
-        Taken between two steps: from a ``pace`` callback of :meth:`run`
-        (before step ``k``) or after a run returned. Everything in it is a
-        copy (:class:`~simpro_mj.sim.snapshot.Snapshot`): MuJoCo's integration
-        state and sensor values, the step's flat state and constants, the step
-        number, the log rows written so far, the noise blocks and their
-        generators' states.
-
-        Raises
-        ------
-        ValueError
-            No run has started, or the scenario has ``faults`` (their
-            schedule lives outside the step's state).
-        """
-        if self.scenario.get("faults"):
-            raise ValueError("snapshot: invalid value at faults: allowed: none in a snapshot run")
-        if getattr(self, "_log", None) is None:
-            raise ValueError("snapshot: no run has started; take it from run(pace=...)")
-        m, d, S, log = self.model, self.data, self.S, self._log
-        spec = mujoco.mjtState.mjSTATE_INTEGRATION
-        state = np.empty(mujoco.mj_stateSize(m, spec))
-        mujoco.mj_getState(m, d, state, spec)
-        rows = int(S[step.ST.rows])
-        setpoints = None
-        if self.external:  # written while the run went
-            arrays = [getattr(self, name) for name in _SETPOINTS]
-            setpoints = tuple(None if a is None else a.copy() for a in arrays)
-        return Snapshot(
-            model=self._model_digest,
-            scenario=scenario_digest(self.scenario),
-            k=int(self._k),
-            mj_state=state,
-            sensordata=d.sensordata.copy(),
-            S=S.copy(),
-            C=self.C.copy(),
-            log=log.log[:rows].copy(),
-            qlog=log.qlog[:rows].copy(),
-            hlog=log.hlog[: rows if log.head else 1].copy(),
-            noise=NoiseState.of(self.noise),
-            walk=NoiseState.of(self.walk),
-            setpoints=setpoints,
-        )
+        """The run as it stands before step ``k``, to resume exactly (:meth:`restore`;
+        :func:`simpro_mj.sim.snapshot.take`)."""
+        return take(self)
 
     def restore(self, snap: Snapshot) -> None:
-        """Put the run back where :meth:`snapshot` took it; the next :meth:`run` goes on from there.
-
-        Works on the simulation that took it or on a fresh one of the same
-        model and scenario; the run resumed gives the same bits as the run
-        that was never stopped.
-
-        Raises
-        ------
-        ValueError
-            ``snap`` is not a Snapshot, or comes from another model or
-            scenario (the message names the field).
-        """
-        if not isinstance(snap, Snapshot):
-            raise ValueError(f"restore: {type(snap).__name__} given; allowed: a Snapshot")
-        if snap.model != self._model_digest:
-            raise ValueError("restore: snapshot field 'model' is from another model")
-        if snap.scenario != scenario_digest(self.scenario):
-            raise ValueError("restore: snapshot field 'scenario' is from another scenario")
-        self._initial_state()  # the objects and buffers, then their contents
-        if snap.S.shape != self.S.shape or snap.C.shape != self.C.shape:
-            raise ValueError("restore: snapshot field 'S' has another layout")
-        m, d = self.model, self.data
-        mujoco.mj_setState(m, d, snap.mj_state, mujoco.mjtState.mjSTATE_INTEGRATION)
-        d.sensordata[:] = snap.sensordata
-        self.S[:], self.C[:] = snap.S, snap.C
-        snap.noise.into(self.noise)
-        snap.walk.into(self.walk)
-        log, rows = self._log, snap.log.shape[0]
-        log.log[:rows], log.qlog[:rows] = snap.log, snap.qlog
-        log.hlog[: snap.hlog.shape[0]] = snap.hlog
-        for name, a in zip(_SETPOINTS, snap.setpoints or [None] * 4, strict=True):
-            if a is not None:
-                getattr(self, name)[:] = a
-        self._k = self._resume = snap.k
+        """Put the run back where :meth:`snapshot` took it; the next :meth:`run` goes on
+        from there (:func:`simpro_mj.sim.snapshot.put_back`)."""
+        put_back(self, snap)
 
     @functools.cached_property
     def _model_digest(self) -> str:
