@@ -262,7 +262,7 @@ def test_failing_variant_and_invalid_file_reported_others_complete(tmp_path, mon
 
 def test_resume_skips_complete_and_recomputes_incomplete(tmp_path, monkeypatch):
     import simpro_mj.sim.loop as sim_mod
-    from simpro_mj.report.folders import record
+    from simpro_mj.report.marker import record
 
     real, calls = sim_mod.CoSimulation.run, []
 

@@ -22,7 +22,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from simpro_mj.report import folders
+from simpro_mj.report import marker
 
 ROOT = Path(__file__).resolve().parents[1]
 LONG = 600.0  # s simulated: the variants are still running when the signal comes
@@ -133,7 +133,7 @@ def test_a_signal_stops_the_pool_writes_the_summary_and_exits_130(tmp_path, sig)
     partial = [out / v["folder"] for v in doc["variants"] if (out / v["folder"]).exists()]
     assert len(partial) == 2
     for folder in partial:
-        assert (folder / folders.PARTIAL_MARKER).is_file() and not folders.is_complete(folder)
+        assert (folder / marker.PARTIAL_MARKER).is_file() and not marker.is_complete(folder)
     assert _no_temp_folders(tmp_path)
 
 

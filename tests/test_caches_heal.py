@@ -23,7 +23,7 @@ from simpro_mj.analysis.preflight import stability_limit
 from simpro_mj.config.scenario import load_scenario, scenario_hash
 from simpro_mj.core import cache
 from simpro_mj.core.shipped import MODEL_DIR
-from simpro_mj.report import folders
+from simpro_mj.report import marker
 
 IDENT = ["controller.inner.design_plant=identified", "plant.payload.mass_kg=80"]
 DAMAGES = {
@@ -124,9 +124,9 @@ def test_the_mjcf_is_in_the_identification_key_and_the_scenario_hash(
 def test_nested_json_in_a_result_is_not_ours_and_not_complete(tmp_path):
     r = tmp_path / "r"
     r.mkdir()
-    (r / folders.RESULT_MARKER).write_text("[" * 100_000)
-    assert folders.result_kind(r) is None and not folders.is_complete(r)
-    assert folders.result_hash(r) is None
+    (r / marker.RESULT_MARKER).write_text("[" * 100_000)
+    assert marker.result_kind(r) is None and not marker.is_complete(r)
+    assert marker.result_hash(r) is None
 
 
 def _cpu() -> float:

@@ -12,7 +12,7 @@ from simpro_mj.analysis.metrics import SETTLING_FLOOR, compute_metrics
 from simpro_mj.config.scenario import load_scenario, reference, scenario_hash
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.report import results as results_mod
-from simpro_mj.report.folders import record
+from simpro_mj.report.marker import record
 from simpro_mj.report.results import print_summary, read_timeseries, write_results
 
 DT = 0.001

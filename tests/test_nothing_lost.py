@@ -9,7 +9,7 @@
 * an interrupted re-run keeps the previous complete result and writes the
   partial one beside it;
 * a failing write names the user's folder, never the hidden temporary one;
-* ``--resume`` uses :func:`simpro_mj.report.folders.is_complete` only.
+* ``--resume`` uses :func:`simpro_mj.report.marker.is_complete` only.
 """
 
 from __future__ import annotations
@@ -28,7 +28,7 @@ import pytest
 
 from simpro_mj.commands.main import main
 from simpro_mj.config.scenario import load_scenario, scenarios_dir
-from simpro_mj.report import folders, results
+from simpro_mj.report import marker, results
 
 ROOT = Path(__file__).resolve().parents[1]
 SHORT = ["--set", "duration_s=1.1", "--no-plots"]
@@ -104,7 +104,7 @@ def test_a_result_folder_is_replaced_and_an_empty_one_used(tmp_path, capsys):
     empty = tmp_path / "empty"
     empty.mkdir()
     assert main(["run", "step_pitch", "--out", str(empty), *SHORT]) == _exit_of(empty)
-    assert folders.result_kind(empty) == "run" and folders.is_complete(empty)
+    assert marker.result_kind(empty) == "run" and marker.is_complete(empty)
     mask = os.umask(0o022)
     os.umask(mask)
     assert (empty.stat().st_mode & 0o777) == 0o777 & ~mask  # not mkdtemp's 0700
@@ -116,7 +116,7 @@ def test_a_result_folder_is_replaced_and_an_empty_one_used(tmp_path, capsys):
     batch = tmp_path / "b"
     assert main(["batch", "step_pitch", "--jobs", "1", "--out", str(batch), *SHORT]) == 0
     capsys.readouterr()
-    assert folders.result_kind(batch) == "batch"
+    assert marker.result_kind(batch) == "batch"
     assert main(["run", "step_pitch", "--out", str(batch), *SHORT]) == 2
     assert "simpro-sim batch result" in _one_error_line(capsys.readouterr().err)
     assert main(["batch", "step_pitch", "--jobs", "1", "--out", str(empty), *SHORT]) == 2
@@ -168,7 +168,7 @@ def test_a_batch_does_not_run_a_variant_another_process_writes(tmp_path):
 
     out = tmp_path / "b"
     out.mkdir()
-    folders.record(out, [], "batch")  # an earlier batch's folder
+    marker.record(out, [], "batch")  # an earlier batch's folder
     variant = out / "step_pitch" / "base"
     with _lock_held(variant, tmp_path / "ready") as holder:
         rows = run_batch(["step_pitch"], out, sets=["duration_s=1.1"], jobs=1, resume=True,
@@ -187,8 +187,8 @@ def test_an_interrupted_rerun_keeps_the_complete_result(tmp_path):
     extra = {"status": "interrupted", "reason": "SIGINT", "plots": False}
     where = results.write_results(out, short, {}, sc, dict(extra))
     assert where == tmp_path / "r.partial"
-    assert _snapshot(out) == before and folders.is_complete(out)
-    assert (where / folders.PARTIAL_MARKER).is_file() and not folders.is_complete(where)
+    assert _snapshot(out) == before and marker.is_complete(out)
+    assert (where / marker.PARTIAL_MARKER).is_file() and not marker.is_complete(where)
     # a second interrupted run replaces the partial one, not the complete one
     assert results.write_results(out, short, {}, sc, dict(extra)) == where
     # a partial result is replaced in place by the next one (nothing complete lost)
@@ -228,27 +228,27 @@ def test_is_complete_is_the_one_check_and_resume_uses_it(tmp_path):
     argv = dict(sets=["duration_s=1.1"], jobs=1, plots=False, summary_plots=False)
     first = run_batch(["step_pitch"], out, **argv)
     folder = out / first.rows[0]["folder"]
-    assert folders.is_complete(folder)
+    assert marker.is_complete(folder)
     # a PARTIAL marker and a 0-byte time series written by hand: not complete, and
     # not simpro-sim's to replace either (a changed file may be the user's edit)
-    (folder / folders.PARTIAL_MARKER).write_text("partial\n")
+    (folder / marker.PARTIAL_MARKER).write_text("partial\n")
     (folder / "timeseries.csv").write_bytes(b"")
-    assert not folders.is_complete(folder)
+    assert not marker.is_complete(folder)
     before = _snapshot(folder)
     row = run_batch(["step_pitch"], out, resume=True, **argv).rows[0]
     assert row["status"] == "invalid" and "timeseries.csv (changed since" in row["reason"]
     assert "PARTIAL" in row["reason"] and _snapshot(folder) == before
     # the same state as simpro-sim leaves it (listed in its marker): re-run
-    folders.record(folder, ["PARTIAL", "timeseries.csv"], "run")
+    marker.record(folder, ["PARTIAL", "timeseries.csv"], "run")
     again = run_batch(["step_pitch"], out, resume=True, **argv)
     assert again.skipped == 0 and again.rows[0]["status"] == "ok"
-    assert folders.is_complete(folder)
+    assert marker.is_complete(folder)
     assert run_batch(["step_pitch"], out, resume=True, **argv).skipped == 1  # intact: skipped
     # each condition alone makes a folder incomplete
     for breaking in ("empty", "status", "blocks", "marker"):
         run_batch(["step_pitch"], out, **argv)
         if breaking == "marker":
-            (folder / folders.RESULT_MARKER).unlink()
+            (folder / marker.RESULT_MARKER).unlink()
         elif breaking == "empty":
             (folder / "timeseries.csv").write_bytes(b"")
         else:
@@ -258,10 +258,10 @@ def test_is_complete_is_the_one_check_and_resume_uses_it(tmp_path):
             else:  # only status and hash: no row can be built from it
                 doc = {"status": "ok", "scenario": doc["scenario"]}
             (folder / "metrics.json").write_text(json.dumps(doc))
-        assert not folders.is_complete(folder), breaking
+        assert not marker.is_complete(folder), breaking
         if breaking != "marker":
-            folders.record(folder, ["timeseries.csv", "metrics.json"], "run")
-            assert not folders.is_complete(folder), breaking
+            marker.record(folder, ["timeseries.csv", "metrics.json"], "run")
+            assert not marker.is_complete(folder), breaking
     # a variant folder without the marker is not simpro-sim's: reported, not replaced
     before = _snapshot(folder)
     row = run_batch(["step_pitch"], out, resume=True, **argv).rows[0]
@@ -298,5 +298,5 @@ def test_ctrl_c_during_a_rerun_keeps_the_complete_result(tmp_path):
     last = stderr.strip().splitlines()[-1]
     assert f"partial results in {partial}" in last
     assert f"the complete result in {out} is kept" in last
-    assert _snapshot(out) == before and folders.is_complete(out)
-    assert (partial / folders.PARTIAL_MARKER).is_file() and not folders.is_complete(partial)
+    assert _snapshot(out) == before and marker.is_complete(out)
+    assert (partial / marker.PARTIAL_MARKER).is_file() and not marker.is_complete(partial)

@@ -12,7 +12,7 @@ from test_nothing_lost import _lock_held  # another process holding a lock
 
 from simpro_mj.commands.main import main
 from simpro_mj.core.errors import UserInputError
-from simpro_mj.report import folders
+from simpro_mj.report import folders, marker
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -25,7 +25,7 @@ def _result(folder: Path, kind: str = "run", files=("metrics.json",)) -> Path:
     folder.mkdir(parents=True)
     for name in files:
         (folder / name).write_text(f"{name} of {folder.name}\n")
-    folders.write_marker(folder, kind)
+    marker.write_marker(folder, kind)
     return folder
 
 
@@ -39,8 +39,8 @@ def test_a_result_inside_a_result_is_refused_both_ways(tmp_path):
     before = _snapshot(tmp_path)
     with pytest.raises(UserInputError, match=r"sub/ \(a simpro-sim result of its own\)"):
         folders.check_out(outer)
-    assert not folders.is_complete(outer)
-    assert _snapshot(tmp_path) == before and folders.result_kind(inner) == "run"
+    assert not marker.is_complete(outer)
+    assert _snapshot(tmp_path) == before and marker.result_kind(inner) == "run"
 
 
 def test_a_users_hidden_files_in_a_result_are_not_taken_for_ours(tmp_path):
@@ -71,9 +71,9 @@ def test_a_complete_result_named_partial_is_kept(tmp_path):
     r = _result(tmp_path / "r")
     mine = _result(tmp_path / "r.partial")  # a user's complete run named so
     assert folders.partial_sibling(r) == tmp_path / "r.partial-2"
-    ours = _result(tmp_path / "s.partial", files=("metrics.json", folders.PARTIAL_MARKER))
+    ours = _result(tmp_path / "s.partial", files=("metrics.json", marker.PARTIAL_MARKER))
     assert folders.partial_sibling(tmp_path / "s") == ours
-    assert folders.result_kind(mine) == "run"
+    assert marker.result_kind(mine) == "run"
 
 
 def test_a_long_legal_name_leaves_room_for_our_temporaries(tmp_path):
@@ -92,7 +92,7 @@ def test_two_runs_with_different_overrides_keep_both_results(tmp_path, monkeypat
     main([*args, "duration_s=0.4"])
     second = capsys.readouterr()
     a, b = (tmp_path / "results" / f"step_pitch+duration_s={d}" for d in ("0.3", "0.4"))
-    assert folders.result_kind(a) == folders.result_kind(b) == "run"
+    assert marker.result_kind(a) == marker.result_kind(b) == "run"
     assert f"results: {a}" in first.out and f"results: {b}" in second.out
     assert "replacing" not in second.err
     main([*args, "duration_s=0.4"])  # the same parameters again: replaced, said in one line

@@ -43,7 +43,7 @@ from simpro_mj.config.scenario import (
     shipped_scenarios,
 )
 from simpro_mj.core.errors import UserInputError
-from simpro_mj.report import folders, results
+from simpro_mj.report import marker, results
 
 ROOT = Path(__file__).resolve().parents[1]
 SHORT = ["--set", "duration_s=0.2", "--no-plots"]
@@ -550,7 +550,7 @@ def test_an_interrupt_while_writing_keeps_the_previous_folder(tmp_path, monkeypa
     monkeypatch.undo()
     assert (out / "timeseries.csv").read_bytes() == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["run"]
-    assert folders.is_complete(out)
+    assert marker.is_complete(out)
 
 
 def test_partial_marker_and_is_complete(tmp_path):
@@ -559,11 +559,11 @@ def test_partial_marker_and_is_complete(tmp_path):
     results.write_results(
         tmp_path / "p", cols, {}, sc, {"status": "interrupted", "reason": "SIGINT", "plots": False}
     )
-    assert (tmp_path / "p" / folders.PARTIAL_MARKER).read_text().startswith("partial results")
-    assert not folders.is_complete(tmp_path / "p")
+    assert (tmp_path / "p" / marker.PARTIAL_MARKER).read_text().startswith("partial results")
+    assert not marker.is_complete(tmp_path / "p")
     results.write_results(tmp_path / "d", cols, {}, sc, {"status": "diverged", "plots": False})
-    assert folders.is_complete(tmp_path / "d")
-    assert not folders.is_complete(tmp_path / "missing")
+    assert marker.is_complete(tmp_path / "d")
+    assert not marker.is_complete(tmp_path / "missing")
 
 
 def _wait_ready(proc, ready: Path) -> bool:
@@ -612,7 +612,7 @@ def test_interrupted_run_leaves_a_marked_partial_folder(tmp_path, sig):
     assert doc["status"] == "interrupted" and doc["reason"]
     if sig != signal.SIGINT:  # the reason names the signal (a closed terminal: SIGHUP)
         assert f"signal ({sig.name})" in doc["reason"], doc["reason"]
-    assert (out / folders.PARTIAL_MARKER).is_file() and not folders.is_complete(out)
+    assert (out / marker.PARTIAL_MARKER).is_file() and not marker.is_complete(out)
     lines = (out / "timeseries.csv").read_text().splitlines()
     width = len(lines[0].split(","))
     assert all(len(line.split(",")) == width for line in lines[1:])  # nothing truncated

@@ -19,7 +19,7 @@ import pytest
 
 from simpro_mj.commands.main import main
 from simpro_mj.config.scenario import load_scenario
-from simpro_mj.report import folders, results
+from simpro_mj.report import folders, marker, results, single_files
 
 SHORT = ["--set", "duration_s=1.1", "--no-plots"]
 
@@ -75,16 +75,16 @@ def test_a_result_folder_the_user_added_to_is_refused_by_run(tmp_path, capsys):
 
 def test_a_folder_of_ours_is_replaced_whole(tmp_path):
     out = _result(tmp_path / "r")
-    assert folders.foreign(out) == []
+    assert marker.foreign(out) == []
     _result(out, "step_roll")  # ours: replaced, no hidden folder left
     assert sorted(p.name for p in tmp_path.iterdir()) == ["r"]
-    assert folders.is_complete(out)
+    assert marker.is_complete(out)
 
 
 def test_batch_resume_never_deletes_a_file_it_did_not_write(tmp_path, capsys):
     out = tmp_path / "b"
     out.mkdir()
-    folders.record(out, [], "batch")
+    marker.record(out, [], "batch")
     variant = _result(out / "step_pitch" / "base")
     (variant / "my_comment.txt").write_text("keep me\n")
     before = _hashes(tmp_path)
@@ -103,7 +103,7 @@ def test_a_summary_the_user_edited_is_not_overwritten(tmp_path, capsys):
     out = tmp_path / "b"
     out.mkdir()
     (out / "summary.csv").write_text("mine\n")
-    folders.record(out, [], "batch")
+    marker.record(out, [], "batch")
     before = _hashes(tmp_path)
     assert main(["batch", "step_pitch", "--jobs", "1", "--out", str(out), *SHORT]) == 2
     assert "summary.csv" in _one_line(capsys.readouterr().err)
@@ -138,7 +138,7 @@ def test_every_folder_writer_refuses_a_users_folder_before_working(tmp_path, cap
 def test_compare_checks_its_run_folders_before_running(tmp_path, capsys):
     out = tmp_path / "c"
     out.mkdir()
-    folders.record(out, [], "compare")
+    marker.record(out, [], "compare")
     _result(out / "joint_only")
     (out / "joint_only" / "notes.txt").write_text("mine\n")
     before = _hashes(tmp_path)
@@ -175,18 +175,18 @@ def test_single_files_calibrate_render_manoeuvre(tmp_path, capsys, monkeypatch):
 
 def test_a_file_we_wrote_is_ours_to_replace_and_listed(tmp_path):
     path = tmp_path / "new" / "cal.yaml"
-    folders.write_file(path, "a: 1\n")
-    assert folders.result_kind(path.parent) == "files"
-    folders.write_file(path, "a: 2\n")  # ours, unchanged: replaced
+    single_files.write_file(path, "a: 1\n")
+    assert marker.result_kind(path.parent) == "files"
+    single_files.write_file(path, "a: 2\n")  # ours, unchanged: replaced
     path.write_text("a: 3\n")  # the user's edit
     with pytest.raises(folders.UserInputError, match="did not write it"):
-        folders.write_file(path, "a: 4\n")
+        single_files.write_file(path, "a: 4\n")
     assert path.read_text() == "a: 3\n"
-    folders.write_file(path, "a: 4\n", overwrite=True)
+    single_files.write_file(path, "a: 4\n", overwrite=True)
     # a user's folder is never given a marker
     user = tmp_path / "user"
     user.mkdir()
-    folders.write_file(user / "x.yaml", "a: 1\n")
+    single_files.write_file(user / "x.yaml", "a: 1\n")
     assert sorted(p.name for p in user.iterdir()) == ["x.yaml"]
 
 
@@ -202,5 +202,5 @@ def test_out_links(tmp_path, capsys):
     link = tmp_path / "link"
     os.symlink(target, link)
     _result(link, "step_roll")
-    assert link.is_symlink() and folders.is_complete(target)
+    assert link.is_symlink() and marker.is_complete(target)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["dangling", "link", "target"]

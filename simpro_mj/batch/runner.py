@@ -78,7 +78,7 @@ worker for :data:`NO_WORKERS_S` seconds ends the batch the same way with
 handlers are installed and the variants submitted.
 
 ``--resume`` skips a variant whose folder is complete
-(:func:`simpro_mj.report.folders.is_complete`: the result marker, ``metrics.json``
+(:func:`simpro_mj.report.marker.is_complete`: the result marker, ``metrics.json``
 with status ``ok`` or ``diverged``, a non-empty ``timeseries.csv``, no
 ``PARTIAL``) and whose ``scenario.hash`` equals the variant's
 :func:`~simpro_mj.config.scenario.scenario_hash`. Anything else is recomputed.
@@ -117,14 +117,8 @@ from simpro_mj.batch.worker import ACTIVITY, install, run_variant
 from simpro_mj.config.scenario import scenario_hash
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.safe_files import read_text
-from simpro_mj.report.folders import (
-    MAX_METRICS_BYTES,
-    check_free,
-    check_out,
-    claim,
-    is_complete,
-    record,
-)
+from simpro_mj.report.folders import check_free, check_out, claim
+from simpro_mj.report.marker import MAX_METRICS_BYTES, is_complete, record
 from simpro_mj.sim import executors as _executors
 from simpro_mj.sim.executors import (
     MAX_JOBS,
@@ -347,7 +341,7 @@ def _finished_row(job, out: Path) -> dict:
 def _complete(folder: Path, scenario: Mapping) -> dict | None:
     """The metrics.json document of a complete result folder for ``scenario``, else None.
 
-    Complete is :func:`simpro_mj.report.folders.is_complete` (the one documented
+    Complete is :func:`simpro_mj.report.marker.is_complete` (the one documented
     check), and the folder's scenario hash must be the variant's.
     """
 

@@ -15,7 +15,7 @@ from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.jsonout import emit_json
 from simpro_mj.core.keys import apply_overrides
 from simpro_mj.core.progress import show_progress
-from simpro_mj.report.folders import check_file, write_file
+from simpro_mj.report.single_files import check_file, write_file
 
 HELP = "fit masses, friction and valve flow so that identify reproduces target models"
 

@@ -33,7 +33,8 @@ def run(args) -> int:
     from simpro_mj.config.scenario import find_scenario, load_scenario
     from simpro_mj.core.jsonout import emit_json
     from simpro_mj.report.compare import compare, table
-    from simpro_mj.report.folders import claim, record
+    from simpro_mj.report.folders import claim
+    from simpro_mj.report.marker import record
     from simpro_mj.report.runner import EXIT_INTERRUPTED, interrupted_message, show_progress
     from simpro_mj.report.video_options import video_after_run
 

@@ -20,7 +20,8 @@ from simpro_mj.config.telemetry import write_telemetry
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.jsonout import emit_json
 from simpro_mj.core.keys import apply_overrides
-from simpro_mj.report.folders import check_file, hidden, record_file
+from simpro_mj.report.marker import hidden
+from simpro_mj.report.single_files import check_file, record_file
 
 HELP = (
     "generate a vehicle manoeuvre (braking, lane_change, slalom, bump, braking_turn) as "

@@ -11,9 +11,10 @@ from pathlib import Path
 
 from simpro_mj.core.jsonout import emit_json
 from simpro_mj.core.progress import show_progress
-from simpro_mj.report.folders import locked, record_file
+from simpro_mj.report.folders import locked
 from simpro_mj.report.recording import find_runs
 from simpro_mj.report.render import render_video
+from simpro_mj.report.single_files import record_file
 from simpro_mj.report.video_options import add_video_options, said, video_options
 
 HELP = "render a result folder (or each run of a compare folder, side by side) to MP4"

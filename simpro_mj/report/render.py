@@ -32,7 +32,7 @@ from tqdm import tqdm
 
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.messages import one_line
-from simpro_mj.report.folders import hidden
+from simpro_mj.report.marker import hidden
 from simpro_mj.report.recording import frame_times, ghost_poses, load_recording, nearest_rows
 from simpro_mj.report.scene import (
     CAMERAS,

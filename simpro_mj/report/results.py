@@ -48,14 +48,9 @@ from simpro_mj.config.scenario import scenario_hash
 from simpro_mj.core.cache import file_digest
 from simpro_mj.core.shipped import model_path
 from simpro_mj.plant import kernels
-from simpro_mj.report.folders import (
-    PARTIAL_MARKER,
-    install_folder,
-    is_complete,
-    locked,
-    partial_sibling,
-)
+from simpro_mj.report.folders import install_folder, locked, partial_sibling
 from simpro_mj.report.machine import fingerprint_id
+from simpro_mj.report.marker import PARTIAL_MARKER, is_complete
 
 __all__ = [
     "RowText",

@@ -134,7 +134,7 @@ def _out_path(value, default: Path, overwrite: bool = False) -> Path:
         raise UserInputError(
             f"cannot write at --out: {out}: permission denied; allowed: a writable .mp4 path"
         )
-    from simpro_mj.report.folders import check_file  # on use: not for a --help
+    from simpro_mj.report.single_files import check_file  # on use: not for a --help
 
     return check_file(out, overwrite)
 
@@ -187,9 +187,9 @@ def video_options(args, default_out: Path) -> dict:
 def video_after_run(folder, quiet: bool) -> dict:
     """Render a finished run or compare folder to ``folder/replay.mp4``."""
     # on use: none of them is needed for a --help
-    from simpro_mj.report.folders import check_file, record_file
     from simpro_mj.report.recording import find_runs
     from simpro_mj.report.render import render_video
+    from simpro_mj.report.single_files import check_file, record_file
 
     folder = Path(folder)
     out = check_file(folder / "replay.mp4")
