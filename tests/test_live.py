@@ -38,14 +38,8 @@ from simpro_mj.config.telemetry import Telemetry, read_telemetry, resample, writ
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.shipped import TELEMETRY_DIR
 from simpro_mj.plant.faults import NEVER
-from simpro_mj.sim.live import (
-    MAX_BEHIND_S,
-    MAX_DRAIN,
-    Pacer,
-    Receiver,
-    pose_template,
-    request_realtime,
-)
+from simpro_mj.sim.live import MAX_BEHIND_S, Pacer, request_realtime
+from simpro_mj.sim.udp import MAX_DRAIN, Receiver, pose_template
 
 ROOT = Path(__file__).resolve().parents[1]
 BRAKING = TELEMETRY_DIR / "braking_100kmh.csv"

@@ -28,7 +28,7 @@ from simpro_mj.config.datagrams import (
 from simpro_mj.config.games import beamng, codemasters, forza
 from simpro_mj.config.telemetry import read_telemetry, resample
 from simpro_mj.core.shipped import TELEMETRY_DIR
-from simpro_mj.sim.live import Receiver
+from simpro_mj.sim.udp import Receiver
 
 LANE = TELEMETRY_DIR / "lane_change_80kmh.csv"
 GAMES = ("forza_sled", "forza_dash", "forza_horizon", "codemasters", "beamng")

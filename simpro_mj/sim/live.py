@@ -22,7 +22,7 @@ the send period: 10 ms by default) the pacer, called before step ``k``:
    woke: ``lateness(k) = max(0, woke - D(k))``. A chunk that finished after
    ``D(k)`` (the state at ``t_k`` was not ready at wall time ``t_k``) is a
    missed deadline, and the next chunk starts at once;
-2. reads every datagram waiting (at most :data:`MAX_DRAIN` a chunk, the rest
+2. reads every datagram waiting (at most :data:`~simpro_mj.sim.udp.MAX_DRAIN` a chunk, the rest
    stays for the next one), skipping and counting the bad and the late ones;
 3. every washout period, steps the washout once with the newest sample
    (held; faded to rest when stale, :class:`Receiver`) and writes the
@@ -49,25 +49,19 @@ import ctypes.util
 import gc
 import math
 import os
-import re
-import socket
-import string
 import time
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
 
-from controllers.frames import GRAVITY
 from controllers.mpc_cueing import MpcParams, MpcStream  # the module loads osqp on use
 from controllers.washout import ClassicalWashout, WashoutParams
-from simpro_mj.config.datagrams import AutoDecoder, DatagramError, make_decoder
 from simpro_mj.core.errors import UserInputError
-from simpro_mj.core.interrupts import held_signals
 from simpro_mj.plant.faults import NEVER
-from simpro_mj.sim.addresses import parse_address, resolve_address
 from simpro_mj.sim.cue_worker import CueWorker
 from simpro_mj.sim.readiness import signal_ready
+from simpro_mj.sim.udp import DEFAULT_POSE_FORMAT, PoseSender, Receiver, column_index
 
 if TYPE_CHECKING:
     from simpro_mj.sim.rig_output import RigTemplate
@@ -75,119 +69,17 @@ if TYPE_CHECKING:
 __all__ = [
     "HOME_S",
     "MAX_BEHIND_S",
-    "MAX_DRAIN",
-    "POSE_FIELDS",
-    "DEFAULT_POSE_FORMAT",
     "LiveOptions",
-    "check_listen",
-    "Receiver",
-    "PoseSender",
     "Pacer",
-    "parse_address",
-    "pose_template",
     "request_realtime",
-    "resolve_address",
     "run_session",
-    "send_datagrams",
 ]
 
 #: Behind the wall clock by more than this (s), the session re-anchors its clock.
 MAX_BEHIND_S = 0.1
-#: Most datagrams read at one chunk boundary (a burst never stalls the loop).
-MAX_DRAIN = 256
-#: A game's time going back by more than this (s) is a new stream (a restart), not disorder.
-RESTART_S = 1.0
-#: Receive buffer asked of the kernel (bytes): a second of 1 kB datagrams at 1 kHz.
-RCVBUF_BYTES = 1 << 20
 #: Once the input has faded to rest, the set-point is blended to home over this (s),
 #: and back to the law's when samples come again (:class:`Pacer`).
 HOME_S = 1.5
-#: Largest datagram read whole; anything longer is oversized in both formats.
-_RECV_BYTES = 2048
-
-#: The fields a pose line may hold (``--send-format``), degrees and millimetres.
-POSE_FIELDS = (
-    "t_s",
-    "roll_deg",
-    "pitch_deg",
-    "heave_mm",
-    "q1_mm",
-    "q2_mm",
-    "q3_mm",
-    "roll_ref_deg",
-    "pitch_ref_deg",
-    "heave_ref_mm",
-)
-#: The pose line sent by default: the platform's pose and the leg set-points.
-DEFAULT_POSE_FORMAT = (
-    "{t_s:.3f},{roll_deg:.4f},{pitch_deg:.4f},{heave_mm:.3f},{q1_mm:.3f},{q2_mm:.3f},{q3_mm:.3f}\n"
-)
-
-
-def _columns() -> dict:
-    """Column name -> index of a logged row (on use: ``sim.result`` loads MuJoCo)."""
-    from simpro_mj.sim.result import COLUMNS
-
-    return {name: j for j, name in enumerate(COLUMNS)}
-
-
-#: Longest ``--send-format`` template (characters), and the widest field and most digits.
-MAX_TEMPLATE_CHARS = 512
-MAX_FIELD_WIDTH = 32
-MAX_PRECISION = 12
-#: What a field's format may be: ``[[fill]align][sign][0][width][,|_][.precision][type]``,
-#: types ``f e g`` (and their capitals, ``%``): a number, bounded by the two maxima above.
-_SPEC = re.compile(r"^(?:.?[<>=^])?[+\- ]?0?(\d{1,2})?[,_]?(?:\.(\d{1,2}))?[eEfFgG%]?$")
-
-
-def pose_template(text: str | None) -> str:
-    """The pose line template, checked at start: one-line :class:`UserInputError` naming
-    ``--send-format`` for anything but the fields :data:`POSE_FIELDS` with a plain number
-    format (no attribute or index access, no conversion, no nested field, widths up to
-    :data:`MAX_FIELD_WIDTH`, precisions up to :data:`MAX_PRECISION`), ASCII, at most
-    :data:`MAX_TEMPLATE_CHARS` characters. A line is then at most a few kB, whatever the
-    values: it always fits one datagram and is formatted in microseconds."""
-    if text is None:
-        return DEFAULT_POSE_FORMAT
-    allowed = (
-        f"allowed: an ASCII template of at most {MAX_TEMPLATE_CHARS} characters with fields "
-        f"{', '.join(POSE_FIELDS)}, each with a number format of width <= {MAX_FIELD_WIDTH} "
-        f"and precision <= {MAX_PRECISION}, e.g. 'P{{pitch_deg:.2f}}R{{roll_deg:.2f}}\\n'"
-    )
-
-    def refuse(why: str):
-        return UserInputError(f"invalid value at --send-format: {text[:60]!r}: {why}; {allowed}")
-
-    if len(text) > MAX_TEMPLATE_CHARS or not text.isascii():
-        raise refuse("too long" if len(text) > MAX_TEMPLATE_CHARS else "not ASCII")
-    tpl = text.replace("\\n", "\n").replace("\\r", "\r").replace("\\t", "\t")
-    try:
-        parts = list(string.Formatter().parse(tpl))
-    except ValueError as exc:
-        raise refuse(str(exc)) from None
-    for _, name, spec, conversion in parts:
-        if name is None:
-            continue
-        if name not in POSE_FIELDS:
-            if name.split(".")[0].split("[")[0] in POSE_FIELDS:
-                raise refuse(f"field {name!r}: attribute or index access")
-            raise UserInputError(
-                f"invalid value at --send-format: unknown field {name!r}; allowed: "
-                f"{', '.join(POSE_FIELDS)}"
-            )
-        if conversion is not None:
-            raise refuse(f"field {name!r}: conversion !{conversion}")
-        m = _SPEC.match(spec or "")
-        if m is None or "{" in (spec or ""):
-            raise refuse(f"field {name!r}: format {spec!r}")
-        width, precision = int(m.group(1) or 0), int(m.group(2) or 0)
-        if width > MAX_FIELD_WIDTH or precision > MAX_PRECISION:
-            raise refuse(f"field {name!r}: width {width}, precision {precision}")
-    try:
-        tpl.format(**dict.fromkeys(POSE_FIELDS, -1e9))
-    except (ValueError, IndexError, KeyError) as exc:
-        raise refuse(str(exc)) from None
-    return tpl
 
 
 def request_realtime(priority: int = 50) -> str:
@@ -231,189 +123,6 @@ class LiveOptions:
     #: corner (Hz); 0 leaves the stage out
     bias_tau_s: float = 0.0
     vibration_hz: float = 0.0
-
-
-def _bound_socket(address: tuple[str, int]) -> socket.socket:
-    """A UDP socket bound to ``address``; a one-line error naming ``--listen`` if it cannot be."""
-    family = socket.AF_INET6 if ":" in address[0] else socket.AF_INET
-    sock = socket.socket(family, socket.SOCK_DGRAM)
-    try:
-        with contextlib.suppress(OSError):
-            sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, RCVBUF_BYTES)
-        sock.bind(address)
-    except OSError as exc:
-        sock.close()
-        raise UserInputError(
-            f"cannot listen at --listen {address[0]}:{address[1]}: "
-            f"{exc.strerror or exc}; allowed: a local address and a free UDP port"
-        ) from None
-    return sock
-
-
-def check_listen(address: tuple[str, int]) -> None:
-    """Refuse at once an address that cannot be bound (busy, not local), before the
-    seconds a session takes to build; the session binds it again for good."""
-    _bound_socket(address).close()
-
-
-class Receiver:
-    """The UDP input: a non-blocking socket, the newest sample, the counts.
-
-    The newest valid sample is held; once it is older than ``stale_after_s``
-    it fades linearly, over ``fade_s``, to the vehicle at rest
-    (``f = (0, 0, g)``, ``w = 0``), so that the washout brings the platform
-    back to neutral when the game pauses or the link drops. Before the first
-    sample the input is at rest.
-
-    Attributes
-    ----------
-    received, bad, idle, late, restarts : int
-        Datagrams read; of them, not a sample (``bad_kinds``: short,
-        oversized, malformed); well-formed but saying the game is not driving
-        (Forza's ``IsRaceOn = 0``: skipped, the input goes stale); older than
-        the newest sample (out of order or repeated, skipped); game times that
-        jumped back by more than :data:`RESTART_S` (taken as a new stream).
-        A format without a game clock (BeamNG's) is ordered by arrival.
-    format : str
-        The format read: ``fmt``, or for ``auto`` the one the first good
-        datagram showed (``on_choose(name)`` is called then).
-    """
-
-    REST_F = (0.0, 0.0, GRAVITY)
-    REST_W = (0.0, 0.0, 0.0)
-
-    def __init__(self, address: tuple[str, int], fmt: str, stale_after_s: float, fade_s: float,
-                 on_choose=None):  # fmt: skip
-        self.fmt = fmt
-        self.decode = make_decoder(fmt)
-        if isinstance(self.decode, AutoDecoder):
-            self.decode.on_choose = on_choose
-        self.stale_after, self.fade = float(stale_after_s), float(fade_s)
-        self.sock = _bound_socket(address)
-        self.sock.setblocking(False)
-        self.address = self.sock.getsockname()[:2]
-        self._buf = bytearray(_RECV_BYTES)
-        self.received = self.bad = self.idle = self.late = self.restarts = 0
-        self.bad_kinds = {"short": 0, "oversized": 0, "malformed": 0}
-        self.last_time: float | None = None  # the game's time of the newest sample
-        self.last_wall: float | None = None  # when it arrived
-        self.f, self.w = self.REST_F, self.REST_W
-
-    def poll(self, now: float) -> int:
-        """Read the datagrams waiting (at most :data:`MAX_DRAIN`); returns how many."""
-        recv, buf, decode = self.sock.recv_into, self._buf, self.decode
-        n = 0
-        for _ in range(MAX_DRAIN):
-            try:
-                size = recv(buf)
-            except (BlockingIOError, InterruptedError):
-                break
-            except OSError:  # e.g. an ICMP error surfacing on the socket: not data
-                continue
-            n += 1
-            try:
-                if size >= len(buf):  # filled the buffer: cut short by the read
-                    raise DatagramError("oversized", f">= {size} bytes")
-                t, f, w = decode(bytes(buf[:size]))
-            except DatagramError as exc:
-                if exc.kind == "idle":
-                    self.idle += 1
-                else:
-                    self.bad += 1
-                    self.bad_kinds[exc.kind] += 1
-                continue
-            if t is None:  # no game clock in the packet: its arrival orders it
-                t = now
-            if self.last_time is not None and t <= self.last_time:
-                if self.last_time - t <= RESTART_S:
-                    self.late += 1
-                    continue
-                self.restarts += 1
-            self.last_time, self.last_wall, self.f, self.w = t, now, f, w
-        self.received += n
-        return n
-
-    def sample(self, now: float) -> tuple[tuple, tuple, bool]:
-        """``(f, w, stale)``: the input to use now (held, or faded to rest)."""
-        if self.last_wall is None:
-            return self.REST_F, self.REST_W, True
-        age = now - self.last_wall
-        if age <= self.stale_after:
-            return self.f, self.w, False
-        a = min(1.0, (age - self.stale_after) / self.fade) if self.fade > 0 else 1.0
-        f = tuple((1.0 - a) * v + a * r for v, r in zip(self.f, self.REST_F, strict=True))
-        w = tuple((1.0 - a) * v for v in self.w)
-        return f, w, True
-
-    @property
-    def format(self) -> str:
-        chosen = getattr(self.decode, "chosen", None)
-        return chosen or self.fmt
-
-    def at_rest(self, now: float) -> bool:
-        """True once the input has faded all the way to rest (or before any sample)."""
-        if self.last_wall is None:
-            return True
-        return now - self.last_wall >= self.stale_after + self.fade
-
-    def counts(self) -> dict:
-        return {
-            "format": self.format,
-            "received": self.received,
-            "bad": self.bad,
-            "late": self.late,
-            "idle": self.idle,
-            "bad_kinds": dict(self.bad_kinds),
-            "restarts": self.restarts,
-        }
-
-    def close(self) -> None:
-        self.sock.close()
-
-
-class PoseSender:
-    """The pose out: one ASCII datagram of :data:`POSE_FIELDS` per send period.
-
-    ``roll_deg``, ``pitch_deg``, ``heave_mm``: the simulated platform's pose
-    (base frame, heave from the home height); ``q1_mm``..``q3_mm``: the leg
-    set-points the joint loops follow (slide positions from the bottom of the
-    stroke, what a real rig's controller takes); ``*_ref_*``: the cueing's
-    set-point pose. Send errors are counted, never fatal.
-    """
-
-    def __init__(self, address: tuple[str, int], template: str, home_heave_m: float):
-        family = socket.AF_INET6 if ":" in address[0] else socket.AF_INET
-        self.sock = socket.socket(family, socket.SOCK_DGRAM)
-        self.sock.setblocking(False)
-        self.address, self.template, self.home = address, template, float(home_heave_m)
-        self.sent = self.errors = 0
-        self._col = _columns()
-
-    def send(self, row) -> None:
-        """Send the pose of one logged row (``simpro_mj.sim.result.COLUMNS`` order)."""
-        d = math.degrees
-        c = self._col
-        line = self.template.format(
-            t_s=row[c["time_s"]],
-            roll_deg=d(row[c["roll_rad"]]),
-            pitch_deg=d(row[c["pitch_rad"]]),
-            heave_mm=(row[c["heave_m"]] - self.home) * 1e3,
-            q1_mm=row[c["q1_ref_m"]] * 1e3,
-            q2_mm=row[c["q2_ref_m"]] * 1e3,
-            q3_mm=row[c["q3_ref_m"]] * 1e3,
-            roll_ref_deg=d(row[c["roll_ref_rad"]]),
-            pitch_ref_deg=d(row[c["pitch_ref_rad"]]),
-            heave_ref_mm=(row[c["heave_ref_m"]] - self.home) * 1e3,
-        )
-        with held_signals():  # a signal never falls between the send and its count
-            try:
-                self.sock.sendto(line.encode("ascii"), self.address)
-                self.sent += 1
-            except OSError:
-                self.errors += 1
-
-    def close(self) -> None:
-        self.sock.close()
 
 
 @dataclass
@@ -469,7 +178,7 @@ class Pacer:
         self.home = np.asarray(washout.geometry.home, float)
         self._home_weight = 1.0  # at home until samples come (a soft start)
         self._last_console = 0
-        self._col = _columns()
+        self._col = column_index()
 
     # the callback ---------------------------------------------------------
     def __call__(self, k: int, log) -> int:
@@ -755,57 +464,3 @@ def run_session(scenario: dict, options: LiveOptions, say=None, checks=None):
             rig.close()
         if law is not None:
             law.close()  # a second close does nothing
-
-
-def send_datagrams(grams, times, address: tuple[str, int], *, say=None,
-                   clock=time.perf_counter, sleep=time.sleep) -> dict:  # fmt: skip
-    """Send ``grams[i]`` at ``start + times[i]`` (absolute deadlines) to ``address``.
-
-    The stand-in for a game (``simpro-sim send``). Returns the figures:
-    ``sent``, ``errors`` (refused sends, counted), ``duration_s``,
-    ``lateness_us`` {p50, p99, max} of the sends. The host is resolved first;
-    a first send that fails other than by a refusal from the other end (a
-    broadcast address without permission, no route) ends it at once with a
-    one-line :class:`UserInputError` naming ``--to``: nothing could be sent.
-    """
-    family, sockaddr = resolve_address(address, "--to")
-    sock = socket.socket(family, socket.SOCK_DGRAM)
-    late = np.zeros(len(grams))
-    sent = errors = 0
-    start = clock()
-    try:
-        for i, (g, t) in enumerate(zip(grams, times, strict=True)):
-            deadline = start + float(t)
-            now = clock()
-            if now < deadline:
-                sleep(deadline - now)
-                now = clock()
-            late[i] = max(0.0, now - deadline)
-            try:
-                sock.sendto(g, sockaddr)
-                sent += 1
-            except ConnectionRefusedError:  # the other end said no to an earlier one
-                errors += 1
-            except OSError as exc:
-                errors += 1
-                if sent == 0:
-                    raise UserInputError(
-                        f"invalid value at --to: {address[0]}:{address[1]}: nothing could be "
-                        f"sent ({exc.strerror or exc}); allowed: a unicast HOST:PORT this "
-                        "machine can send to"
-                    ) from None
-            if say is not None and i and i % 1000 == 0:
-                say(f"send t {float(t):7.2f} s | sent {sent} errors {errors}")
-    finally:
-        sock.close()
-    lat = late[: sent + errors] * 1e6
-    return {
-        "sent": sent,
-        "errors": errors,
-        "duration_s": clock() - start,
-        "lateness_us": {
-            "p50": float(np.percentile(lat, 50)) if lat.size else None,
-            "p99": float(np.percentile(lat, 99)) if lat.size else None,
-            "max": float(lat.max()) if lat.size else None,
-        },
-    }
