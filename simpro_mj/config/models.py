@@ -157,6 +157,12 @@ class Identified(Block):
         default_factory=_legs_2_3, description="leg 3's identified model (eq. 35's form)"
     )
 
+    def plants(self) -> list[Plant]:
+        """The three models as :class:`~controllers.design.Plant` (actuator 1, 2, 3)."""
+        return [
+            Plant(b=j.b, a1=j.a1, a0=j.a0) for j in (self.actuator1, self.actuator2, self.actuator3)
+        ]
+
 
 def _even_steps(value: float) -> float:
     if value != int(value) or int(value) % 2:
@@ -374,9 +380,10 @@ def _check_redesign(s: Scenario) -> None:
     inner = s.controller.inner
     if inner.variant != "redesigned":
         return
-    for act in ACTUATORS:
+    identified = inner.identified.plants()
+    for i, act in enumerate(ACTUATORS):
         if inner.design_plant == "identified":
-            plant = Plant(**getattr(inner.identified, act).model_dump())
+            plant = identified[i]
         else:
             plant = paper_plant(act, s.paper_units)
         try:

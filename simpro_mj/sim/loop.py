@@ -39,7 +39,7 @@ from typing import cast
 import mujoco
 import numpy as np
 
-from controllers.design import Plant, paper_coefficients
+from controllers.design import paper_coefficients
 from controllers.dither import dither_signal
 from controllers.frames import GRAVITY
 from controllers.geometry import geometry_from_rig
@@ -48,6 +48,7 @@ from controllers.kinematics import inverse_kinematics
 from controllers.setpoint_filter import SetpointFilter
 from controllers.task_space import TaskSpaceController, outer_law, raise_step_error
 from controllers.velocity_feedforward import leg_velocity_feedforward
+from simpro_mj.config.models import scenario_model
 from simpro_mj.config.scenario import reference
 from simpro_mj.core.errors import PhysicsError, UserInputError
 from simpro_mj.core.rates import steps_per_period
@@ -121,67 +122,63 @@ class CoSimulation:
         m = load_model(scenario["plant"]) if model is None else model
         self.model, self.idx = m, PlantIndex.of(m)
         self.dt = dt = float(m.opt.timestep)
-        self.n_steps = int(round(scenario["duration_s"] / dt))
-        self.decimation = int(scenario["logging"]["decimation"])
-        if self.decimation < 1:
-            raise UserInputError("invalid value at logging.decimation: allowed: integer >= 1")
+        # the typed view of the resolved scenario: read by attribute below
+        sc = scenario_model(scenario)
+        self.n_steps = int(round(sc.duration_s / dt))
+        self.decimation = sc.logging.decimation
         # the controller's nominal model: the rig's (plant.rig; the paper's when null),
         # without the plant's as-built errors
         self.geometry = geometry_from_rig(scenario["plant"].get("rig"))
 
-        ctl = scenario["controller"]
-        self.mode = ctl["mode"]
-        outer = ctl["outer"]
-        self.outer_every = steps_per_period(outer["period_ms"], dt, "controller.outer.period_ms")
-        law, pi_zero = outer_law(outer["type"], outer["integrator"], outer["pi_zero"])
-        db = outer["dead_band"]  # degrees and millimetres at the edge
-        band = [np.radians(db["roll_deg"]), np.radians(db["pitch_deg"]), db["heave_mm"] * 1e-3]
+        ctl = sc.controller
+        self.mode = ctl.mode
+        outer, ff, inner = ctl.outer, ctl.feedforward, ctl.inner
+        self.outer_every = steps_per_period(outer.period_ms, dt, "controller.outer.period_ms")
+        law, pi_zero = outer_law(outer.type, outer.integrator, outer.pi_zero)
+        db = outer.dead_band  # degrees and millimetres at the edge
+        band = [np.radians(db.roll_deg), np.radians(db.pitch_deg), db.heave_mm * 1e-3]
         self.task = TaskSpaceController(
             mode={"task_space": law, "feedforward": "feedforward"}.get(self.mode, "joint_only"),
             # feedforward: the correction's own K K_I (controller.feedforward.gains)
-            gains=ctl["feedforward"]["gains"] if self.mode == "feedforward" else outer["gains"],
+            gains=ff.gains if self.mode == "feedforward" else outer.gains,
             period=self.outer_every * dt,
             geometry=self.geometry,
-            clamp=bool(ctl.get("clamp_setpoints", False)),
+            clamp=ctl.clamp_setpoints,
             inner_dt=dt,
             pi_zero=pi_zero,
             outer_law=law,
-            model_tau=ctl["feedforward"]["model_tau_ms"] * 1e-3,
-            lag=ctl["feedforward"]["lag"],
-            average=bool(ctl["feedforward"]["average"]),
+            model_tau=ff.model_tau_ms * 1e-3,
+            lag=ff.lag,
+            average=ff.average,
             dead_band=band,
         )
-        self.hold_on_saturation = bool(ctl["feedforward"]["hold_on_saturation"])
-        inner = ctl["inner"]
-        identified = [Plant(**inner["identified"][f"actuator{i}"]) for i in (1, 2, 3)]
+        self.hold_on_saturation = ff.hold_on_saturation
+        identified = inner.identified.plants()
         # design_plant paper: eqs. (34)-(35) in SI under the paper_units reading
-        plants = identified if inner["design_plant"] == "identified" else None
+        plants = identified if inner.design_plant == "identified" else None
         spec = None
-        if inner["variant"] == "redesigned":
-            spec = {"zeta": inner["zeta"], "wn": inner["wn_rad_s"]}
+        if inner.variant == "redesigned":
+            spec = {"zeta": inner.zeta, "wn": inner.wn_rad_s}
         self.joint = JointControllers(
-            variant=inner["variant"],
+            variant=inner.variant,
             dt=dt,
-            method=inner["discretisation"],
+            method=inner.discretisation,
             plants=plants,
             spec=spec,
-            reading=scenario["paper_units"],
-            dead_band=[w * 1e-3 for w in inner["dead_band_mm"]],
+            reading=sc.paper_units,
+            dead_band=[w * 1e-3 for w in inner.dead_band_mm],
         )
-        sf = ctl["setpoint_filter"]
+        sf = ctl.setpoint_filter
         # Fig. 13's "Filter": q_d (outer loop every T, or the IK every 1 ms in
         # joint-only mode) -> joint references (controllers.setpoint_filter)
-        self.setpoint_filter = SetpointFilter(
-            sf["type"], dt=dt, time=(np.asarray(sf["time_ms"], float) * 1e-3).tolist()
-        )
-        act = scenario["actuator"]
+        self.setpoint_filter = SetpointFilter(sf.type, dt=dt, time=[t * 1e-3 for t in sf.time_ms])
         self.actuators = make_actuators(
-            act["model"],
-            act.get("pneumatics") or {},
+            sc.actuator.model,
+            scenario["actuator"].get("pneumatics") or {},  # the plant's tree, passed whole
             model=m,
-            linear_plants=paper_coefficients(scenario["paper_units"]),
+            linear_plants=paper_coefficients(sc.paper_units),
         )
-        self.rng = np.random.default_rng(int(scenario["seed"]))
+        self.rng = np.random.default_rng(sc.seed)
         self.sensor_cfg = SensorConfig.from_tree(scenario["sensors"], dt)
         # the IMU bias's random walk draws from a generator of its own
         self.walk_rng = self.rng.spawn(1)[0] if self.sensor_cfg.imu_walk_rad > 0 else None
@@ -197,7 +194,7 @@ class CoSimulation:
                 poses = reference(scenario, self.t)
             self.ref = np.ascontiguousarray(poses)
         # motion cueing: the vehicle side, and the head sensors to log
-        self.cueing = bool(scenario["setpoint"].get("cueing"))
+        self.cueing = sc.setpoint.cueing is not None
         self.veh_f = self.veh_w = None
         if self.cueing and external:  # the vehicle at rest: f = (0, 0, g), w = 0
             self.veh_f = np.tile([0.0, 0.0, GRAVITY], (self.n_steps + 1, 1))
@@ -215,7 +212,7 @@ class CoSimulation:
                 )
         # leg velocity feed-forward (feedforward mode): (a0/b) J dy_d/dt per leg
         self.u_ff = None  # (n + 1, 3) volts
-        if self.mode == "feedforward" and ctl["feedforward"]["leg_velocity"]:
+        if self.mode == "feedforward" and ff.leg_velocity:
             if external:  # it differentiates the whole set-point in advance
                 raise UserInputError(
                     "invalid value at controller.feedforward.leg_velocity: true needs the "
@@ -228,9 +225,9 @@ class CoSimulation:
             self.u_ff = leg_velocity_feedforward(
                 self.ref, dt, identified, self.geometry, span, setpoint_filter=vfilt
             )
-        if inner["dither_v"] > 0.0:  # added to the joint loops' output like the feed-forward
+        if inner.dither_v > 0.0:  # added to the joint loops' output like the feed-forward
             wave = dither_signal(
-                self.n_steps + 1, dt, inner["dither_v"], inner["dither_period_ms"] * 1e-3
+                self.n_steps + 1, dt, inner.dither_v, inner.dither_period_ms * 1e-3
             )
             self.u_ff = wave if self.u_ff is None else self.u_ff + wave
         self.q_joint_only = None
