@@ -92,11 +92,11 @@ def test_the_simulation_designs_on_the_scenarios_own_plant(cache, monkeypatch):
         ["plant.preset=heavy_cabin", IDENT, "plant.payload.mass_kg=60", "duration_s=0.2"],
     )
     import simpro_mj.identification.identify as ident
-    from simpro_mj.sim.loop import CoSimulation
+    from simpro_mj.sim.build import Build
 
     monkeypatch.setitem(ident.DEFAULT_IDENTIFY_PARAMS, "duration_s", 4.0)  # short PRBS
     preset_a0 = sc["controller"]["inner"]["identified"]["actuator1"]["a0"]
-    cs = CoSimulation(sc)
+    cs = Build(sc).simulation()
     assert cs.identified_source == "identified"
     own = cs.scenario["controller"]["inner"]["identified"]
     assert own["actuator1"]["a0"] > 1.2 * preset_a0  # lighter: stiffer per kg

@@ -248,10 +248,10 @@ def test_bias_walk_grows_as_its_density_says():
     ends = [v for seed in range(60) for v in _walk_end_deg(seed)]
     assert float(np.std(ends)) == pytest.approx(0.04, rel=0.2)
     from simpro_mj.config.scenario import load_scenario
-    from simpro_mj.sim.loop import CoSimulation
+    from simpro_mj.sim.build import Build
 
     sims = [
-        CoSimulation(load_scenario("step_pitch", ["duration_s=0.1", *sets]))
+        Build(load_scenario("step_pitch", ["duration_s=0.1", *sets])).simulation()
         for sets in (["sensors.imu.bias_walk_deg_per_sqrt_s=0.02"], [])
     ]
     for sim in sims:

@@ -185,11 +185,11 @@ def test_shipped_cue_scenarios_load():
 
 @pytest.fixture(scope="module")
 def braking_run(tmp_path_factory):
-    from simpro_mj.sim.loop import CoSimulation
+    from simpro_mj.sim.build import Build
 
     csv = _braking_csv(tmp_path_factory.mktemp("cue") / "b.csv")
     sc = _scenario(csv)
-    return sc, CoSimulation(sc).run()
+    return sc, Build(sc).simulation().run()
 
 
 def test_head_sensors_feel_gravity_then_the_braking_cue(braking_run):

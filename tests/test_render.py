@@ -21,7 +21,7 @@ from simpro_mj.commands.main import main
 from simpro_mj.config.scenario import load_scenario
 from simpro_mj.plant.model import MODEL_PATH, load_spec
 from simpro_mj.report.runner import execute
-from simpro_mj.sim.loop import CoSimulation
+from simpro_mj.sim.build import Build
 
 PITCH_STEP_S = 1.0  # step_pitch.yaml: 3 deg at t = 1 s
 
@@ -99,8 +99,8 @@ def test_ghost_changes_nothing_in_the_dynamics():
     without = spec.compile()
     assert without.nbody == with_ghost.nbody - 1 and without.nq == with_ghost.nq
 
-    a = CoSimulation(scenario, model=with_ghost).run()
-    b = CoSimulation(scenario, model=without).run()
+    a = Build(scenario, model=with_ghost).simulation().run()
+    b = Build(scenario, model=without).simulation().run()
     assert a.status == b.status == "ok"
     assert a.columns.keys() == b.columns.keys()
     for name in a.columns:

@@ -164,13 +164,13 @@ def test_a_stop_token_stops_its_own_run_only():
     import threading
     from concurrent.futures import ThreadPoolExecutor
 
-    from simpro_mj.sim.loop import CoSimulation
+    from simpro_mj.sim.build import Build
     from simpro_mj.sim.stages import CHUNK
 
     scenario = load_scenario("step_pitch", ["duration_s=0.4", "controller.mode=joint_only"])
     stopped, running = threading.Event(), threading.Event()
     stopped.set()
-    sims = [CoSimulation(scenario), CoSimulation(scenario)]
+    sims = [Build(scenario).simulation(), Build(scenario).simulation()]
     with ThreadPoolExecutor(max_workers=2) as pool:
         a, b = pool.map(lambda sim, token: sim.run(stop=token), sims, (stopped, running))
     assert a.status == "interrupted" and "t = " in a.reason

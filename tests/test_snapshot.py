@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from simpro_mj.config.scenario import load_scenario
-from simpro_mj.sim.loop import CoSimulation
+from simpro_mj.sim.build import Build
 from simpro_mj.sim.snapshot import NoiseState
 from simpro_mj.sim.stages import NoiseBlock
 
@@ -52,15 +52,15 @@ def test_resumed_run_equals_uninterrupted(case, kernel, monkeypatch):
         pytest.importorskip("numba")
     monkeypatch.setenv("SIMPRO_KERNEL", kernel)
     scenario = _scenario(case)
-    whole = CoSimulation(scenario).run()
-    sim = CoSimulation(scenario)
+    whole = Build(scenario).simulation().run()
+    sim = Build(scenario).simulation()
     snaps = []
     a = sim.run(pace=_snap_at(sim, SNAP_K, snaps))
     (snap,) = snaps
     assert snap.k == SNAP_K and snap.log.shape[0] == SNAP_K // sim.decimation
     sim.restore(snap)
     b = sim.run()
-    fresh = CoSimulation(scenario)
+    fresh = Build(scenario).simulation()
     fresh.restore(snap)
     c = fresh.run()
     for res in (a, b, c):
@@ -73,7 +73,7 @@ def test_resumed_run_equals_uninterrupted(case, kernel, monkeypatch):
 
 def test_snapshot_holds_copies(monkeypatch):
     monkeypatch.setenv("SIMPRO_KERNEL", "python")
-    sim = CoSimulation(_scenario("heavy_cabin"))
+    sim = Build(_scenario("heavy_cabin")).simulation()
     snaps = []
     sim.run(pace=_snap_at(sim, 300, snaps))
     (snap,) = snaps
@@ -85,19 +85,19 @@ def test_snapshot_holds_copies(monkeypatch):
 
 def test_restore_refuses_another_scenario_or_model(monkeypatch):
     monkeypatch.setenv("SIMPRO_KERNEL", "python")
-    sim = CoSimulation(load_scenario("step_pitch.yaml", ["duration_s=0.2"]))
+    sim = Build(load_scenario("step_pitch.yaml", ["duration_s=0.2"])).simulation()
     snaps = []
     sim.run(pace=_snap_at(sim, 100, snaps))
-    other = CoSimulation(load_scenario("step_pitch.yaml", ["duration_s=0.2", "seed=7"]))
+    other = Build(load_scenario("step_pitch.yaml", ["duration_s=0.2", "seed=7"])).simulation()
     with pytest.raises(ValueError, match="field 'scenario'"):
         other.restore(snaps[0])
     heavy = load_scenario("step_pitch.yaml", ["duration_s=0.2", "plant.preset=heavy_cabin"])
-    heavy = CoSimulation(heavy)
+    heavy = Build(heavy).simulation()
     with pytest.raises(ValueError, match="field 'model'"):
         heavy.restore(snaps[0])
     with pytest.raises(ValueError, match="no run has started"):
         other.snapshot()
-    faulty = CoSimulation(load_scenario("fault_supply_drop.yaml"))
+    faulty = Build(load_scenario("fault_supply_drop.yaml")).simulation()
     with pytest.raises(ValueError, match="at faults"):
         faulty.snapshot()
 
@@ -115,11 +115,11 @@ def test_restored_into_a_fresh_simulation(case, monkeypatch):
     pytest.importorskip("numba")
     monkeypatch.setenv("SIMPRO_KERNEL", "numba")
     scenario = load_scenario(*LONG[case])
-    whole = CoSimulation(scenario).run()
-    sim = CoSimulation(scenario)
+    whole = Build(scenario).simulation().run()
+    sim = Build(scenario).simulation()
     snaps = []
     sim.run(pace=_snap_at(sim, SNAP_K, snaps))
-    fresh = CoSimulation(scenario)
+    fresh = Build(scenario).simulation()
     fresh.restore(snaps[0])
     _same(whole, fresh.run())
     assert whole.sim["steps"] == fresh.n_steps

@@ -27,14 +27,14 @@ from simpro_mj.config.scenario import load_scenario
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.plant.kernels import kernel_choice
 from simpro_mj.plant.step_functions import quantise
-from simpro_mj.sim.loop import CoSimulation
+from simpro_mj.sim.build import Build
 
 numba = pytest.importorskip("numba")
 
 
 def _run(name, sets, kernel, monkeypatch):
     monkeypatch.setenv("SIMPRO_KERNEL", kernel)
-    res = CoSimulation(load_scenario(name, sets)).run()
+    res = Build(load_scenario(name, sets)).simulation().run()
     return res
 
 
@@ -74,7 +74,7 @@ def test_interpreted_and_compiled_agree_bit_for_bit(case, monkeypatch):
 def test_callback_leaves_other_data_alone(monkeypatch):
     """A second MjData of the same model, stepped while a run is registered, is untouched."""
     monkeypatch.setenv("SIMPRO_KERNEL", "numba")
-    sim = CoSimulation(load_scenario("step_pitch.yaml", ["duration_s=0.3"]))
+    sim = Build(load_scenario("step_pitch.yaml", ["duration_s=0.3"])).simulation()
     m = sim.model
     other = mujoco.MjData(m)
     other.ctrl[:] = 7.0
@@ -103,7 +103,7 @@ def test_callback_keeps_a_clock_set_before(monkeypatch):
     import ctypes
 
     monkeypatch.setenv("SIMPRO_KERNEL", "numba")
-    sim = CoSimulation(load_scenario("step_pitch.yaml", ["duration_s=0.3"]))
+    sim = Build(load_scenario("step_pitch.yaml", ["duration_s=0.3"])).simulation()
     ticks = [0.0]
 
     def clock():
@@ -123,7 +123,7 @@ def test_callback_keeps_a_clock_set_before(monkeypatch):
 
 def test_callback_removed_after_an_error(monkeypatch):
     monkeypatch.setenv("SIMPRO_KERNEL", "numba")
-    sim = CoSimulation(load_scenario("step_pitch.yaml", ["duration_s=0.3"]))
+    sim = Build(load_scenario("step_pitch.yaml", ["duration_s=0.3"])).simulation()
 
     def pace(k, log):
         raise KeyboardInterrupt
@@ -190,7 +190,7 @@ def _called_by_the_stages(cases, monkeypatch):
     monkeypatch.setenv("SIMPRO_KERNEL", "python")
     for case in cases:
         name, sets = CASES[case]
-        sim = CoSimulation(load_scenario(name, [*sets, "duration_s=0.05"]))
+        sim = Build(load_scenario(name, [*sets, "duration_s=0.05"])).simulation()
         sys.setprofile(profile)
         try:
             sim.run()

@@ -113,13 +113,15 @@ class Build:
         ranges = [self.model.joint(f"leg{i}").range for i in (1, 2, 3)]
         return [(float(lo), float(hi)) for lo, hi in ranges]
 
-    def design_plants(self) -> None:
-        """The scenario with its design plants (identified once when it asks)."""
+    def design_plants(self) -> str:
+        """The scenario with its design plants (identified once when it asks); where
+        they came from."""
         if self.identified_source is None:
             from simpro_mj.identification.auto import with_identified
 
             designed, self.identified_source = with_identified(self.scenario, self._say)
             self.scenario = cast(dict, designed)  # the resolved scenario, a dict
+        return self.identified_source
 
     def simulation(self) -> CoSimulation:
         """The co-simulation of this scenario (:class:`~simpro_mj.sim.loop.CoSimulation`),
@@ -129,13 +131,13 @@ class Build:
 
         if self.payload_too_heavy:  # the preflight refuses it first; never stepped empty
             load_model(self.scenario["plant"])  # raises the builder's own message
-        self.design_plants()
+        source = self.design_plants()
         return CoSimulation(
             self.scenario,
             self.model,
             setpoints=self.setpoints,
             poses=self.ref,
-            identified_source=self.identified_source,
+            identified_source=source,
         )
 
 

@@ -16,7 +16,8 @@ computed for the whole run at once.
 
 Set-points from outside (the live interface)
 --------------------------------------------
-``CoSimulation(scenario, setpoints="external")`` starts every row of the
+A co-simulation with ``setpoints="external"`` (``Build(scenario,
+setpoints="external").simulation()``, :mod:`simpro_mj.sim.build`) starts every row of the
 set-point buffer at the neutral pose (home; for a cueing scenario the
 vehicle at rest) and lets a driver (:mod:`simpro_mj.sim.live`) fill it while
 the loop runs, through :meth:`CoSimulation.write_setpoints` and
@@ -31,10 +32,8 @@ from __future__ import annotations
 
 import copy
 import functools
-import sys
 import threading
 import time
-from typing import cast
 
 import mujoco
 import numpy as np
@@ -49,13 +48,11 @@ from controllers.setpoint_filter import SetpointFilter
 from controllers.task_space import TaskSpaceController, outer_law, raise_step_error
 from controllers.velocity_feedforward import leg_velocity_feedforward
 from simpro_mj.config.models import scenario_model
-from simpro_mj.config.scenario import reference
 from simpro_mj.core.errors import PhysicsError, UserInputError
 from simpro_mj.core.rates import steps_per_period
-from simpro_mj.identification.auto import with_identified
 from simpro_mj.plant.faults import NEVER, FaultSchedule
 from simpro_mj.plant.kernels import kernel_choice
-from simpro_mj.plant.model import PlantIndex, check_physics, load_model
+from simpro_mj.plant.model import PlantIndex, check_physics
 from simpro_mj.plant.platform import Platform
 from simpro_mj.plant.pneumatics.factory import make_actuators
 from simpro_mj.plant.sensors import SensorConfig
@@ -73,10 +70,6 @@ __all__ = ["LOOP_OPEN_BOUND", "CoSimulation"]
 LOOP_OPEN_BOUND = 5e-3
 
 
-def _say(message: str) -> None:
-    print(message, file=sys.stderr, flush=True)
-
-
 class CoSimulation:
     """A scenario's plant, sensors and controllers, ready to run.
 
@@ -84,42 +77,39 @@ class CoSimulation:
     ----------
     scenario : dict
         A resolved scenario (:func:`simpro_mj.config.scenario.load_scenario`).
-    model : mujoco.MjModel, optional
-        A compiled plant; built from ``scenario["plant"]`` when omitted.
+    model : mujoco.MjModel
+        The compiled plant of ``scenario["plant"]``.
     setpoints : {"scenario", "external"}
         ``scenario``: the set-points (and a cueing scenario's vehicle input)
         computed from the scenario for the whole run. ``external``: every row
         starts at the neutral pose and the vehicle at rest, to be written
         while the run goes (:meth:`write_setpoints`, ``run(pace=...)``).
-    poses : ndarray, (n + 1, 3), optional
+    poses : ndarray, (n + 1, 3) or None
         With ``setpoints="scenario"``: the set-point poses on this run's 1 ms
-        grid (:func:`reference`), when the caller has them; evaluated here when
-        omitted.
-    identified_source : str, optional
-        Given when ``scenario`` carries its design plants (as
-        :class:`~simpro_mj.sim.build.Build` makes it); resolved here when omitted.
+        grid (:func:`~simpro_mj.config.reference.reference`).
+    identified_source : str
+        Where ``scenario``'s design plants came from.
+
+    :class:`~simpro_mj.sim.build.Build` makes each of these once and is the
+    one maker of a co-simulation.
     """
 
     def __init__(
         self,
         scenario: dict,
-        model: mujoco.MjModel | None = None,
+        model: mujoco.MjModel,
         *,
         setpoints: str = "scenario",
         poses: np.ndarray | None = None,
-        identified_source: str | None = None,
+        identified_source: str,
     ):
         if setpoints not in ("scenario", "external"):
             raise ValueError(f"setpoints={setpoints!r}; allowed: 'scenario' or 'external'")
         self.external = external = setpoints == "external"
         self._resume: int | None = None
-        if identified_source is None:
-            # design_plant identified: the scenario's own plant's models (cached)
-            designed, identified_source = with_identified(scenario, _say)
-            scenario = cast(dict, designed)  # the resolved scenario, a dict
         self.identified_source = identified_source
         self.scenario = scenario
-        m = load_model(scenario["plant"]) if model is None else model
+        m = model
         self.model, self.idx = m, PlantIndex.of(m)
         self.dt = dt = float(m.opt.timestep)
         # the typed view of the resolved scenario: read by attribute below
@@ -191,7 +181,7 @@ class CoSimulation:
             self.ref = np.tile(np.asarray(self.geometry.home, float), (self.n_steps + 1, 1))
         else:
             if poses is None:
-                poses = reference(scenario, self.t)
+                raise ValueError("poses=None; allowed: the set-points of setpoints='scenario'")
             self.ref = np.ascontiguousarray(poses)
         # motion cueing: the vehicle side, and the head sensors to log
         self.cueing = sc.setpoint.cueing is not None
