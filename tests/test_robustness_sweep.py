@@ -63,6 +63,21 @@ def test_table_counts_the_floors_per_payload_and_friction_cell():
     assert robustness_table([{**_row(), "values": {}}], "rob") is None
 
 
+def test_the_table_and_map_extend_to_the_catalogue_seals():
+    """Seals up to 450 N running (the catalogue's top) and payloads past 400 kg get
+    cells of the same width, and the map's axes hold every point."""
+    rows = [_row(payload=p, coulomb=[c] * 3) for p in (0.0, 450.0) for c in (75.0, 450.0)]
+    t = robustness_table(rows, "rob")
+    assert t["coulomb_edges"][-1] == 450.0 and t["coulomb_edges"][-2] == 400.0
+    assert t["payload_edges"][-1] == 500.0
+    assert sum(c["n"] for c in t["cells"]) == 4
+    assert {tuple(c["coulomb_n"]) for c in t["cells"] if c["n"]} == {(50.0, 100.0), (400.0, 450.0)}
+    fig = map_figure(rows, t)
+    lo, hi = fig.axes[0].get_ylim()
+    assert lo < 75.0 and hi > 450.0
+    assert "400-450" in "\n".join(table_lines(t))
+
+
 def test_map_draws_every_variant_with_a_true_legend():
     rng = np.random.default_rng(0)
     rows = [

@@ -38,6 +38,7 @@ SHIPPED = [
     "sweep_monte_carlo",
     "sweep_outer_gain",
     "sweep_robustness",
+    "sweep_seal_friction",
     "track_cues",
     "track_sines",
 ]

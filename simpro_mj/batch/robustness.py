@@ -44,7 +44,8 @@ SETTLING_S = 4.0
 #: The swept paths the map is drawn over.
 PAYLOAD = "plant.payload.mass_kg"
 COULOMB = "actuator.pneumatics.cylinder.coulomb_friction_n"
-#: Cell edges of the table: payload (kg) and the smallest leg's Coulomb friction (N).
+#: Cell edges of the table: payload (kg) and the smallest leg's Coulomb friction (N),
+#: extended by whole cells to the largest drawn value (:func:`_edges`).
 PAYLOAD_EDGES = (0.0, 100.0, 200.0, 300.0, 400.0)
 COULOMB_EDGES = (0.0, 50.0, 100.0, 150.0, 200.0, 250.0)
 _AXES = ("roll", "pitch", "heave")
@@ -86,6 +87,15 @@ def _point(row: Mapping) -> tuple[float, float] | None:
     return float(values[PAYLOAD]), float(np.min(values[COULOMB]))
 
 
+def _edges(base: tuple, values) -> tuple:
+    """``base`` extended by cells of its last width until it holds every value: a map
+    over the catalogue's seals (up to 450 N) is drawn whole, not cut at 250 N."""
+    edges, width = list(base), base[-1] - base[-2]
+    while max(values, default=edges[-1]) > edges[-1]:
+        edges.append(edges[-1] + width)
+    return tuple(edges)
+
+
 def _cell(edges, x: float) -> int:
     return int(np.clip(np.searchsorted(edges, x, side="right") - 1, 0, len(edges) - 2))
 
@@ -106,17 +116,19 @@ def robustness_table(rows: list[dict], name: str) -> dict | None:
     for r, _ in pts:
         statuses[r["status"]] = statuses.get(r["status"], 0) + 1
     cells = []
-    for i in range(len(PAYLOAD_EDGES) - 1):
-        for j in range(len(COULOMB_EDGES) - 1):
+    pay_edges = _edges(PAYLOAD_EDGES, [p[0] for _, p in drawn])
+    cou_edges = _edges(COULOMB_EDGES, [p[1] for _, p in drawn])
+    for i in range(len(pay_edges) - 1):
+        for j in range(len(cou_edges) - 1):
             inside = [
                 m
                 for (_, (pay, cou)), m in zip(pts, met, strict=True)
-                if _cell(PAYLOAD_EDGES, pay) == i and _cell(COULOMB_EDGES, cou) == j
+                if _cell(pay_edges, pay) == i and _cell(cou_edges, cou) == j
             ]
             cells.append(
                 {
-                    "payload_kg": [PAYLOAD_EDGES[i], PAYLOAD_EDGES[i + 1]],
-                    "coulomb_n": [COULOMB_EDGES[j], COULOMB_EDGES[j + 1]],
+                    "payload_kg": [pay_edges[i], pay_edges[i + 1]],
+                    "coulomb_n": [cou_edges[j], cou_edges[j + 1]],
                     "n": len(inside),
                     "met": sum(inside),
                     "fraction": sum(inside) / len(inside) if inside else None,
@@ -131,25 +143,28 @@ def robustness_table(rows: list[dict], name: str) -> dict | None:
         "floors": {"overshoot_pct": OVERSHOOT_PCT, "settling_s": SETTLING_S, "status": "ok"},
         "statuses": statuses,
         "cells": cells,
+        "payload_edges": list(pay_edges),
+        "coulomb_edges": list(cou_edges),
     }
 
 
 def table_lines(table: Mapping) -> list[str]:
     """The table as text: the fraction, then one row per payload band."""
     f = table["floors"]
-    per_row = len(COULOMB_EDGES) - 1
+    pay_edges, cou_edges = table["payload_edges"], table["coulomb_edges"]
+    per_row = len(cou_edges) - 1
     lines = [
         f"\nRobustness {table['scenario']}: {fraction_text(table)} meet overshoot <= "
         f"{f['overshoot_pct']:g} %, settling <= {f['settling_s']:g} s, status ok; statuses "
         + (", ".join(f"{k} {v}" for k, v in sorted(table["statuses"].items())) or "none"),
         "  met / n per cell (n: finished variants): payload (kg) rows, smallest Coulomb "
         "friction of a leg (N) columns",
-        "  " + " " * 10 + "".join(f"{_band(COULOMB_EDGES, j):>10}" for j in range(per_row)),
+        "  " + " " * 10 + "".join(f"{_band(cou_edges, j):>10}" for j in range(per_row)),
     ]
-    for i in range(len(PAYLOAD_EDGES) - 1):
+    for i in range(len(pay_edges) - 1):
         cells = table["cells"][i * per_row : (i + 1) * per_row]
         text = "".join(f"{str(c['met']) + '/' + str(c['n']):>10}" for c in cells)
-        lines.append(f"  {_band(PAYLOAD_EDGES, i):<10}{text}")
+        lines.append(f"  {_band(pay_edges, i):<10}{text}")
     return lines
 
 
@@ -225,8 +240,8 @@ def map_figure(rows: list[dict], table: Mapping):
                      fontsize=10)  # fmt: skip
     for ax in axes:
         ax.set_xlabel("payload [kg]")
-        ax.set_xlim(PAYLOAD_EDGES[0] - 10, PAYLOAD_EDGES[-1] + 10)
-        ax.set_ylim(COULOMB_EDGES[0] - 5, COULOMB_EDGES[-1] + 5)
+        ax.set_xlim(table["payload_edges"][0] - 10, table["payload_edges"][-1] + 10)
+        ax.set_ylim(table["coulomb_edges"][0] - 5, table["coulomb_edges"][-1] + 5)
         ax.grid(alpha=0.3)
     axes[0].set_ylabel("smallest Coulomb friction of a leg [N]")
     f = table["floors"]
