@@ -188,7 +188,9 @@ class Inner(Block):
         "auto",
         "",
         "with design_plant identified: auto identifies the scenario's own plant when it is "
-        "not its preset's (cached); preset takes the identified models as given",
+        "not its preset's (cached); preset takes the identified models as given; linearised "
+        "takes the plant model's own linearisation instead of the experiment "
+        "(simpro_mj.identification.linearised)",
     )
     identified: Identified = block(Identified)
     zeta: Real = param(0.7, "", "damping of the redesigned pole placement (5.2.2)", gt=0, lt=2)

@@ -156,7 +156,8 @@ def _read(path: Path) -> dict | None:
 def identified_models(scenario: Mapping, progress=None) -> tuple[dict, str]:
     """``({actuator: {b, a1, a0}}, source)`` for the scenario (module docstring).
 
-    ``source`` is ``"preset"`` (the scenario's ``controller.inner.identified``),
+    ``source`` is ``"preset"`` (the scenario's ``controller.inner.identified``), ``"linearised"``
+    (the model's linearisation, :mod:`simpro_mj.identification.linearised`),
     ``"cache"`` or ``"identified"`` (the experiment ran now). ``progress``, when
     given, is called with a one-line message before an experiment.
     """
@@ -164,6 +165,11 @@ def identified_models(scenario: Mapping, progress=None) -> tuple[dict, str]:
     given = {a: dict(inner["identified"][a]) for a in _ACTS}
     if inner.get("identify", "auto") == "preset":
         return given, "preset"
+    if inner.get("identify") == "linearised":  # the model's own, no experiment
+        from simpro_mj.identification.linearised import linearise
+
+        got = linearise(plant_tree(scenario))
+        return {a: {k: float(got[a][k]) for k in ("b", "a1", "a0")} for a in _ACTS}, "linearised"
     if _is_presets_plant(scenario):
         return given, "preset"
     tree = plant_tree(scenario)
@@ -197,7 +203,7 @@ def experiment_s(scenario: Mapping) -> float:
     plant, ``identify: preset``, or the plant's models in the cache), else per leg the
     settling time and the excitation."""
     inner = scenario["controller"]["inner"]
-    if inner["design_plant"] != "identified" or inner.get("identify", "auto") == "preset":
+    if inner["design_plant"] != "identified" or inner.get("identify", "auto") != "auto":
         return 0.0
     if _is_presets_plant(scenario):
         return 0.0
