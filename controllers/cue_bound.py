@@ -65,7 +65,8 @@ class CueBound:
 
 def _bound_params(params: MpcParams | None, **changes) -> MpcParams:
     p = MpcParams() if params is None else params
-    full = {"gain_x": 1.0, "gain_y": 1.0, "gain_z": 1.0, "gain_rot": 1.0, "knee": 0.0}
+    full = {"gain_x": 1.0, "gain_y": 1.0, "gain_z": 1.0, "gain_rot": 1.0, "knee": 0.0,
+            "gain_y_sustained": 0.0}  # fmt: skip
     return p.replace(**{"horizon": 2, "preview": 0.0, "lead": 0.0, **full, **changes})
 
 

@@ -145,6 +145,13 @@ class MpcParams:
         0.1 mm. They cost the heave cue (OMCT, 0.3 m/s^2: with 1 s of preview 0.45 to
         0.33 at 4 rad/s, 0.37 at 10 rad/s either way; without preview 0.17 to 0.12 and
         0.15).
+    gain_y_sustained, sustained_tau : float
+        A sway gain for the sustained part of the car's lateral force: the roll target
+        is ``gain_y f + (gain_y_sustained - gain_y) LP(f)`` with ``LP`` a first-order
+        low-pass of time constant ``sustained_tau`` (s), 1.0; ``gain_y_sustained`` 0 (the
+        default) turns it off. A turn's held force asks for more than a lane change's
+        quick reversal (docs/cueing.md: 0.4 lifts the braking in a turn's sway to 0.80 of
+        the bound and leaves the lane change's at 0.75, its onset at 0.30 s).
     """
 
     period: float = 0.06
@@ -181,6 +188,8 @@ class MpcParams:
     heave_washout: float = 0.5
     weight_heave_rate: float = 0.1
     weight_heave: float = 1.0
+    gain_y_sustained: float = 0.0
+    sustained_tau: float = 1.0
 
     def __post_init__(self):
         checks = {
@@ -218,6 +227,8 @@ class MpcParams:
             "heave_washout": (lambda v: 0 <= v <= 10, "0 (off) or up to 10 rad/s"),
             "weight_heave_rate": (lambda v: v >= 0, ">= 0"),
             "weight_heave": (lambda v: v >= 0, ">= 0"),
+            "gain_y_sustained": (lambda v: 0 <= v <= 2, "0 (off) or up to 2"),
+            "sustained_tau": (lambda v: 0.05 <= v <= 20, "0.05..20 s"),
         }
         for name, (ok, allowed) in checks.items():
             v = getattr(self, name)
@@ -365,9 +376,15 @@ class _Axis:
             kf, kw = (p.gain_x, p.gain_rot) if kind == "pitch" else (p.gain_y, p.gain_rot)
             thr_f = oto.thresholds[0 if kind == "pitch" else 1]
             thr_w = scc.thresholds[1 if kind == "pitch" else 0]
-        # heave: one more state, the low-passed target ``q`` (``q' = w_hp (d - q)``); the
-        # target seen by the cost is ``d - q``, the high-pass of the vehicle's
-        wash = p.heave_washout if kind == "heave" else 0.0
+        # one more state, the low-passed target ``q`` (``q' = w_q (d - q)``), and the target
+        # seen by the cost ``d + c q``: heave ``c = -1`` (the high-pass of the vehicle's,
+        # ``w_q`` = heave_washout); roll with gain_y_sustained, ``c`` the sustained gain's
+        # excess over gain_y (``w_q = 1 / sustained_tau``)
+        wash, cq = 0.0, 0.0
+        if kind == "heave" and p.heave_washout > 0:
+            wash, cq = p.heave_washout, -1.0
+        elif kind == "roll" and p.gain_y_sustained > 0 and p.gain_y > 0:
+            wash, cq = 1.0 / p.sustained_tau, p.gain_y_sustained / p.gain_y - 1.0
         nq = 1 if wash > 0 else 0
         n = 3 + no_ + 2 * nc + nq  # platform, otolith error, canal error, vehicle's canal, q
         a = np.zeros((n, n))
@@ -388,9 +405,9 @@ class _Axis:
         a[o, :] += ob @ fh[None, :]
         b[o, 1] = -ob[:, 0]
         raw = fh.copy()
-        if nq:  # the target d - q: q enters with the head's sign
-            a[o, n - 1] += ob[:, 0]
-            raw[n - 1] = 1.0
+        if nq:  # the target d + c q: c q enters against the head
+            a[o, n - 1] -= cq * ob[:, 0]
+            raw[n - 1] = -cq
         rows = {}
         e_f = np.zeros(n)
         e_f[o] = oc[0]
@@ -399,7 +416,7 @@ class _Axis:
         if nc:
             assert ca is not None and cb is not None and cc is not None and cd is not None
             c = slice(3 + no_, 3 + no_ + nc)
-            v = slice(3 + no_ + nc, n)
+            v = slice(3 + no_ + nc, 3 + no_ + 2 * nc)
             rate = np.zeros(n)
             rate[1], rate[2] = sigma, sigma * scc.tau_n
             a[c, c] = ca

@@ -201,3 +201,18 @@ def test_heave_holds_home_under_a_biased_vertical_force():
     during0, after0 = _biased_then_faded(ModelPredictiveCueing(**old))
     assert during0 > 10.0
     assert after0 > 10.0
+
+
+def test_sustained_sway_gain_holds_a_turn_at_its_own_scale():
+    """A held lateral force of 2 m/s^2: the roll settles near asin(gain_y 2 / g) = 3.5 deg,
+    and with gain_y_sustained 0.45 near asin(0.45 * 2 / g) = 5.3 deg (the low-passed
+    target's excess over gain_y)."""
+    dt = 0.02
+    n = int(round(10.0 / dt))
+    f = np.zeros((n, 3))
+    f[:, 2] = GRAVITY
+    f[int(round(1.0 / dt)) :, 1] = 2.0
+    for extra, gain in (({}, 0.3), ({"gain_y_sustained": 0.45}, 0.45)):
+        law = ModelPredictiveCueing(**PLAN, **extra)
+        roll = law.run(f, np.zeros((n, 3)), dt).pose[-1, 0]
+        assert abs(roll) == pytest.approx(math.asin(gain * 2.0 / GRAVITY), abs=math.radians(0.2))

@@ -140,6 +140,8 @@ MPC_PARAMETER_KEYS = {
     "heave_washout_rad_s": ("heave_washout", 1.0),
     "weight_heave": ("weight_heave", 1.0),
     "weight_heave_rate": ("weight_heave_rate", 1.0),
+    "gain_y_sustained": ("gain_y_sustained", 1.0),
+    "sustained_tau_s": ("sustained_tau", 1.0),
 }
 #: Whole-number parameters (an int in the resolved scenario).
 _INTEGERS = ("rot_order", "horizon")
