@@ -38,7 +38,7 @@ from simpro_mj.config.cueing import (
     manoeuvre_spec,
     washout_params,
 )
-from simpro_mj.config.messages import user_error
+from simpro_mj.config.messages import validated
 from simpro_mj.config.rules import Problem
 from simpro_mj.core.keys import key_text
 from simpro_mj.core.rates import PHYSICS_DT_MS, whole_steps
@@ -363,7 +363,4 @@ def check_cueing(value: Any, path: str = "setpoint.cueing") -> dict:
     UserInputError
         One line naming the dotted key and what is allowed.
     """
-    try:
-        return Cueing.model_validate(value).model_dump()
-    except ValidationError as exc:
-        raise user_error(exc, Cueing, path) from None
+    return validated(Cueing, value, path).model_dump()

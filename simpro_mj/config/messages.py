@@ -15,7 +15,7 @@ from __future__ import annotations
 import math
 import types
 from collections.abc import Mapping
-from typing import Annotated, Any, Literal, Union, get_args, get_origin
+from typing import Annotated, Any, Literal, TypeVar, Union, get_args, get_origin
 
 import annotated_types as at
 from pydantic import BaseModel, ValidationError
@@ -244,6 +244,21 @@ _TYPE_ERRORS = {
     "dict_type",
     "model_attributes_type",
 }
+
+
+_M = TypeVar("_M", bound=BaseModel)
+
+
+def validated(model: type[_M], value: Any, prefix: str = "", context: Any = None) -> _M:
+    """``model.model_validate(value)``; its first error raised as :func:`user_error`'s line.
+
+    ``prefix``: the dotted path of ``value`` when it is a block on its own
+    (``setpoint.cueing``); ``context``: pydantic's validation context.
+    """
+    try:
+        return model.model_validate(value, context=context)
+    except ValidationError as exc:
+        raise user_error(exc, model, prefix) from None
 
 
 def user_error(exc: ValidationError, model: type, prefix: str = "") -> UserInputError:

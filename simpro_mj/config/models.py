@@ -26,7 +26,6 @@ from pydantic import (
     Field,
     StrictBool,
     StrictStr,
-    ValidationError,
     model_serializer,
     model_validator,
 )
@@ -38,7 +37,7 @@ from controllers.setpoint_filter import Kind
 from controllers.task_space import Integrator, Lag
 from simpro_mj.config.cue_models import Cueing, check_cueing
 from simpro_mj.config.entries import Components, Faults
-from simpro_mj.config.messages import user_error
+from simpro_mj.config.messages import validated
 from simpro_mj.config.plant_blocks import Actuator, PlantBlock, SensorsBlock
 from simpro_mj.config.pneumatics import check_pneumatics
 from simpro_mj.config.presets import DEFAULT_PRESET
@@ -430,7 +429,4 @@ def scenario_model(tree: Mapping) -> Scenario:
         One line naming the dotted path of the first offending field and what
         is allowed.
     """
-    try:
-        return Scenario.model_validate(tree)
-    except ValidationError as exc:
-        raise user_error(exc, Scenario) from None
+    return validated(Scenario, tree)

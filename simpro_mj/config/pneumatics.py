@@ -18,7 +18,7 @@ from typing import Annotated, Any
 
 from pydantic import BeforeValidator, StrictBool, TypeAdapter, ValidationError, model_validator
 
-from simpro_mj.config.messages import user_error
+from simpro_mj.config.messages import validated
 from simpro_mj.config.rules import Block, Problem, Real, Whole, block, param, yaml_number
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.keys import value_text
@@ -257,9 +257,9 @@ def check_pneumatics(value: Any, path: str = "actuator.pneumatics") -> dict:
         One line naming the dotted key and what is allowed.
     """
     try:
-        return Pneumatics.model_validate(value).model_dump()
-    except ValidationError as exc:
-        raise user_error(exc, Pneumatics, path) from None
+        return validated(Pneumatics, value, path).model_dump()
+    except UserInputError:
+        raise
     except (ValueError, TypeError, ArithmeticError) as exc:  # pragma: no cover - a plant bug
         raise UserInputError(
             f"invalid value at {path}: {value_text(value)}: {exc}; allowed: see "

@@ -85,7 +85,7 @@ from pydantic import (
 
 from simpro_mj.config.cueing import sweep_defaults
 from simpro_mj.config.defaults import DEFAULT_SCENARIO
-from simpro_mj.config.messages import user_error
+from simpro_mj.config.messages import validated
 from simpro_mj.config.rules import Block, Entry, Problem, Real, Whole, param
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.keys import closest, key_text
@@ -359,10 +359,7 @@ def parse_sweep(block: Any, where: str = "sweep") -> SweepSpec:
     UserInputError
         ``<what> at sweep.<...>: <what is allowed>`` for the first problem.
     """
-    try:
-        sweep = Sweep.model_validate(block, context={"where": where})
-    except ValidationError as exc:
-        raise user_error(exc, Sweep, where) from None
+    sweep = validated(Sweep, block, where, context={"where": where})
     mc = sweep.monte_carlo
     params = tuple(_distribution(p, d) for p, d in (mc.parameters if mc else {}).items())
     spec = SweepSpec(
