@@ -49,3 +49,21 @@ def _recorded_run(folder, rows: int = 50):
 def recorded_run():
     """``recorded_run(folder, rows=50)``: a replayable result folder (no simulation)."""
     return _recorded_run
+
+
+@pytest.fixture
+def fake_identify(monkeypatch):
+    """The identification experiment replaced: each call recorded (its tree), models
+    scaled by the payload returned (the real experiment is tested in
+    tests/test_autoident.py)."""
+    import simpro_mj.identification.identify as ident
+
+    calls = []
+
+    def fake(tree, legs=(1, 2, 3), records=None):
+        calls.append(tree)
+        m = tree["model"]["payload"]["mass_kg"]
+        return {f"actuator{i}": {"b": 10.0 + i, "a1": 20.0, "a0": 100.0 + m} for i in legs}
+
+    monkeypatch.setattr(ident, "identify", fake)
+    return calls

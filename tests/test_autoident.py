@@ -23,23 +23,6 @@ def cache(tmp_path, monkeypatch):
     return tmp_path / "identified"
 
 
-@pytest.fixture
-def fake_identify(monkeypatch):
-    """Counts the experiments and returns models scaled by the payload (the real
-    experiment is tested below, once)."""
-    import simpro_mj.identification.identify as ident
-
-    calls = []
-
-    def fake(tree, legs=(1, 2, 3), records=None):
-        calls.append(tree)
-        m = tree["model"]["payload"]["mass_kg"]
-        return {f"actuator{i}": {"b": 10.0 + i, "a1": 20.0, "a0": 100.0 + m} for i in legs}
-
-    monkeypatch.setattr(ident, "identify", fake)
-    return calls
-
-
 def test_the_presets_own_plant_needs_no_experiment(cache, fake_identify):
     sc = load_scenario("step_pitch", [IDENT])
     models, source = ai.identified_models(sc)

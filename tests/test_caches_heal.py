@@ -37,20 +37,11 @@ DAMAGES = {
 
 
 @pytest.fixture
-def fake_identify(tmp_path, monkeypatch):
-    import simpro_mj.identification.identify as ident
-
+def fake_identify(fake_identify, tmp_path, monkeypatch):
+    """The shared fake experiment, in an empty cache of its own."""
     monkeypatch.setenv("SIMPRO_CACHE_DIR", str(tmp_path / "cache"))
     monkeypatch.setattr(ai, "_memo", {})
-    calls = []
-
-    def fake(tree, legs=(1, 2, 3), records=None):
-        calls.append(tree)
-        m = tree["model"]["payload"]["mass_kg"]
-        return {f"actuator{i}": {"b": 10.0 + i, "a1": 20.0, "a0": 100.0 + m} for i in legs}
-
-    monkeypatch.setattr(ident, "identify", fake)
-    return calls
+    return fake_identify
 
 
 @pytest.mark.parametrize("damage", DAMAGES)
