@@ -60,7 +60,7 @@ def default_tree(preset: str | None = None) -> dict:
         "preset": preset,
         "model": _merge(DEFAULT_MODEL_PARAMS, over["model"]),
         "pneumatics": _merge(DEFAULT_PNEUMATIC_PARAMS, over["pneumatics"]),
-        "identify": _merge(DEFAULT_IDENTIFY_PARAMS, over.get("identify") or {}),
+        "identify": _merge(DEFAULT_IDENTIFY_PARAMS, over["identify"]),
     }
 
 
