@@ -75,6 +75,27 @@ def test_an_unusable_numba_cache_dir_is_said_and_another_used(tmp_path, monkeypa
     assert len(said) == 1
 
 
+def test_functions_are_cached_in_the_folder_passed_to_them(tmp_path, monkeypatch):
+    """The step's functions get their cache folder passed: numba's process-wide
+    ``config.CACHE_DIR`` stays as it was, and a second compile loads from the folder."""
+    numba = pytest.importorskip("numba")
+    (tmp_path / "probe_mod_for_jit.py").write_text(
+        "def twice(x):\n    return 2.0 * x\n\ndef one():\n    return 1.0\n"
+    )
+    monkeypatch.syspath_prepend(str(tmp_path))
+    probe = importlib.import_module("probe_mod_for_jit")
+    before = numba.config.CACHE_DIR
+    folder = str(tmp_path / "nb")
+    assert numba_cache.jit(folder)(probe.twice)(3.0) == 6.0
+    assert numba_cache.cfunc(numba.types.float64(), folder)(probe.one).ctypes() == 1.0
+    assert numba.config.CACHE_DIR == before
+    names = sorted(p.name for p in Path(folder).rglob("*.nbi"))
+    assert [n.split("-")[0] for n in names] == ["probe_mod_for_jit.one", "probe_mod_for_jit.twice"]
+    again = numba_cache.jit(folder)(probe.twice)
+    assert again(4.0) == 8.0 and sum(again.stats.cache_hits.values()) == 1
+    sys.modules.pop("probe_mod_for_jit")
+
+
 @pytest.mark.slow
 def test_a_run_after_its_cache_file_was_truncated_heals(tmp_path):
     """A run fills (or finds) the step's cache; a copy of it under ``NUMBA_CACHE_DIR``

@@ -26,14 +26,16 @@ import ctypes
 
 import llvmlite.binding as llvm
 import numpy as np
-from numba import carray, cfunc, njit, types
+from numba import carray, types
 from numba.extending import intrinsic
 
 from simpro_mj.sim import step as st
+from simpro_mj.sim.numba_cache import cfunc, jit
 
 __all__ = ["entry", "frozen_clock", "install_pointer"]
 
 _body = st.compiled().callback_step
+_FOLDER = st.compiled().cache_folder  # the step's cache, passed to each function below
 
 
 @intrinsic
@@ -47,20 +49,20 @@ def _as_ptr(typingctx, addr):
     return types.voidptr(types.int64), codegen
 
 
-@njit(cache=True)
+@jit(_FOLDER)
 def _flat(a, i):
     """Array ``i`` of a slot (``a``: its (address, size, columns) triples) as 1-D float64."""
     return carray(_as_ptr(a[3 * i]), (a[3 * i + 1],), np.float64)  # type: ignore[call-arg]
 
 
-@njit(cache=True)
+@jit(_FOLDER)
 def _rows(a, i):
     """Array ``i`` of a slot as rows of float64."""
     n = a[3 * i + 2]
     return carray(_as_ptr(a[3 * i]), (a[3 * i + 1] // n, n), np.float64)  # type: ignore[call-arg]
 
 
-@cfunc(types.void(types.int64, types.voidptr), cache=True)
+@cfunc(types.void(types.int64, types.voidptr), _FOLDER)
 def entry(key, registry):
     """The step of the run registered for the ``mjData`` at ``key``, if any (module docstring)."""
     reg = carray(registry, (st.N_SLOTS * st.SLOT,), np.int64)
@@ -77,7 +79,7 @@ def entry(key, registry):
             return
 
 
-@cfunc(types.float64(), cache=True)
+@cfunc(types.float64(), _FOLDER)
 def frozen_clock():
     """``mjcb_time`` while a run steps: 0, so MuJoCo's timers never read the clock."""
     return 0.0

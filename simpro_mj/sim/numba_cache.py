@@ -8,6 +8,9 @@ run (23.8 s instead of 1.4 s) and to writing into the package's folders. So:
 
 * :func:`cache_base` picks the folder: ``NUMBA_CACHE_DIR`` if it is (or can be
   made) a writable folder, else, said in one line, the user's cache folder;
+* :func:`jit` and :func:`cfunc` compile a function with its cache in a folder
+  passed to them, not in ``numba.config.CACHE_DIR`` (which every function of
+  the process would share);
 * :func:`heal` reads every cache file of the step's folder to its end and
   deletes a damaged one with a one-line notice: the function it held is
   compiled again. An object file is parsed, not loaded: loading it rebuilds
@@ -18,6 +21,7 @@ run (23.8 s instead of 1.4 s) and to writing into the package's folders. So:
 
 from __future__ import annotations
 
+import functools
 import os
 import pickle
 import pickletools
@@ -27,7 +31,7 @@ from pathlib import Path
 
 from simpro_mj.core.cache import notice
 
-__all__ = ["cache_base", "heal"]
+__all__ = ["cache_base", "cfunc", "heal", "jit"]
 
 
 def _writable(folder: str) -> bool:
@@ -100,3 +104,56 @@ def heal(folder: str, say: Callable[[str], None] = notice) -> list[Path]:
             why = type(exc).__name__
             say(f"notice: numba cache file {path} is damaged ({why}); the step is compiled again")
     return removed
+
+
+@functools.cache
+def _cache_class(folder: str):
+    """numba's function cache with its files under ``folder`` (one class per folder:
+    numba asks a locator *class* for the place)."""
+    from numba.core import caching
+
+    class Locator(caching._SourceFileBackedLocatorMixin, caching._CacheLocator):
+        # numba's UserProvidedCacheLocator with the folder given, not config.CACHE_DIR:
+        # the same sub-path per source folder, so the files are where numba puts them
+        def __init__(self, py_func, py_file):
+            self._py_file = py_file
+            self._lineno = py_func.__code__.co_firstlineno
+            self._cache_path = os.path.join(folder, self.get_suitable_cache_subpath(py_file))
+
+        def get_cache_path(self):
+            return self._cache_path
+
+    class Impl(caching.CompileResultCacheImpl):
+        _locator_classes = [Locator]
+
+    class FolderCache(caching.FunctionCache):
+        _impl_class = Impl
+
+    return FolderCache
+
+
+def jit(folder: str) -> Callable:
+    """The decorator ``numba.njit(cache=True)`` with the cache under ``folder``."""
+    import numba
+
+    def wrap(func: Callable):
+        dispatcher = numba.njit(func)
+        # what numba's enable_caching() sets, with the folder: numba has no public way
+        dispatcher._cache = _cache_class(folder)(func)  # type: ignore[attr-defined]
+        return dispatcher
+
+    return wrap
+
+
+def cfunc(signature, folder: str) -> Callable:
+    """The decorator ``numba.cfunc(signature, cache=True)`` with the cache under ``folder``."""
+    from numba.core import sigutils
+    from numba.core.ccallback import CFunc
+
+    def wrap(func: Callable):
+        compiled = CFunc(func, sigutils.normalize_signature(signature), locals={}, options={})
+        compiled._cache = _cache_class(folder)(func)  # type: ignore[attr-defined]
+        compiled.compile()
+        return compiled
+
+    return wrap

@@ -363,7 +363,8 @@ _compile_lock = threading.Lock()
 
 
 def compiled():
-    """The stages compiled by numba (``njit(cache=True)``), as a namespace of functions.
+    """The stages compiled by numba (``njit(cache=True)``), as a namespace of functions
+    (and ``cache_folder``, the folder of their on-disk cache).
 
     Each plain function is compiled with the names it calls bound to their
     compiled forms (callees first), so the source above is the only copy.
@@ -372,9 +373,9 @@ def compiled():
     global _compiled
     with _compile_lock:
         if _compiled is None:
-            import numba  # the optional extra: imported on first use
+            from simpro_mj.sim.numba_cache import jit  # numba: imported on first use
 
-            numba.config.CACHE_DIR = _cache_dir()  # type: ignore[attr-defined]
+            folder = _cache_dir()
             env: dict = {}
             for f in _PLAIN:
                 glob = dict(f.__globals__)
@@ -383,8 +384,8 @@ def compiled():
                 glob.update(env)
                 clone = pytypes.FunctionType(f.__code__, glob, f.__name__, f.__defaults__)
                 clone.__qualname__, clone.__module__ = f.__qualname__, f.__module__
-                env[f.__name__] = numba.njit(cache=True)(clone)
-            _compiled = pytypes.SimpleNamespace(**env)
+                env[f.__name__] = jit(folder)(clone)
+            _compiled = pytypes.SimpleNamespace(**env, cache_folder=folder)
         return _compiled
 
 
