@@ -306,11 +306,10 @@ def _captured(monkeypatch) -> list:
 
 
 def test_analyze_figures_legends_name_their_series(tmp_path, monkeypatch):
-    from simpro_mj.analysis.analyze import DEFAULTS, compute
-    from simpro_mj.core.keys import apply_overrides
+    from simpro_mj.analysis.analyze import compute, params
     from simpro_mj.report.analyze import plot
 
-    p = apply_overrides(DEFAULTS, [])
+    p = params()
     saved = _captured(monkeypatch)
     files = plot(compute(p), p, tmp_path)
     assert len(saved) == len(files) >= 3

@@ -205,7 +205,7 @@ BAD_INPUTS = [
     (["analyze", "--set", "outer.period_s=0.0605", "--no-plots"], "outer.period_s", ["multiple"]),
     (["analyze", "--set", "outer.gain=-1", "--no-plots"], "outer.gain", [">= 0"]),
     (["analyze", "--set", "inner.zeta=-1", "--no-plots"], "inner.zeta", ["> 0"]),
-    (["analyze", "--set", "sweep.wn_rad_s=[0]", "--no-plots"], "sweep.wn_rad_s[0]", []),
+    (["analyze", "--set", "sweep.wn_rad_s=[0]", "--no-plots"], "sweep.wn_rad_s", ["item [0]"]),
     (["analyze", "--set", "outer.step_duration_s=-1", "--no-plots"], "step_duration_s", ["> 0"]),
     (["analyze", "--set", "outer.delay_samples=null", "--no-plots"], "outer.delay_samples", []),
     (["analyze", "--set", "outer.delay_samples=1.5", "--no-plots"], "outer.delay_samples", []),

@@ -20,17 +20,21 @@ Computes (numbers from :mod:`controllers.analysis`, plots here):
   mapped to the task space with the IK Jacobian at home, and a sweep of the
   inner bandwidth showing when the delay assumption holds.
 
-Parameters (``--set KEY=VALUE``): see :data:`DEFAULTS`.
+Parameters (``--set KEY=VALUE``): :class:`AnalyzeParams`.
 """
 
 from __future__ import annotations
 
+from collections.abc import Iterable
+from typing import Annotated, Any, Literal, get_args
+
 import numpy as np
+from pydantic import Field, StrictBool, model_validator
 
 from controllers import analysis as an
 from controllers.design import (
     PAPER_SPEC,
-    READINGS,
+    Reading,
     design_for,
     paper_plant,
     paper_units_info,
@@ -40,10 +44,13 @@ from controllers.errors import DesignError
 from controllers.frequency import LoopModel, predict
 from controllers.geometry import nominal_geometry
 from controllers.kinematics import jacobian
+from controllers.task_space import Lag
 from controllers.velocity_feedforward import velocity_gains
 from simpro_mj.analysis.response_summary import figures
+from simpro_mj.config.messages import validated
+from simpro_mj.config.rules import Block, Real, Whole, block, param
 from simpro_mj.core.errors import UserInputError
-from simpro_mj.core.keys import check_number
+from simpro_mj.core.keys import apply_overrides
 
 #: The paper's statements, for comparison.
 PAPER = {
@@ -55,124 +62,125 @@ PAPER = {
     "inner_wn_rad_s": PAPER_SPEC["wn"],
 }
 
-DEFAULTS: dict = {
-    # unit of Y in eqs. (34)-(37) (controllers.design.READINGS): "volts" (the joint
-    # potentiometer, 20 V/m) or "metres"; sets the SI gains of the printed controllers
-    "paper_units": "volts",
-    "outer": {
-        "gain": 3.0,  # K K_I of the I law (section 5.2.3)
-        "pi_gain": 20.0,  # K K_I at which Fig. 9 marks the PI poles
-        "period_s": 0.06,
-        "delay_samples": 1,  # eq. (21)
-        "pi_zero": 0.2,  # C = T (z + 0.2)/(z - 1)
-        "alt_period_s": 0.03,  # section 5.1: 30 ms with q(k) = q_d(k - 2)
-        "alt_delay_samples": 2,
-        "locus_gain_max": 60.0,
-        "step_duration_s": 3.0,
-    },
-    "inner": {
-        "variant": "corrected",  # joint controller used in the real-inner-loop analysis
-        "dt_s": 0.001,
-        "method": "tustin",
-        "zeta": PAPER_SPEC["zeta"],  # redesign spec
-        "wn_rad_s": PAPER_SPEC["wn"],
-        "p1_rad_s": None,  # None: from the printed denominator (76.0)
-        "p2_rad_s": None,  # None: from the printed denominator (56.7)
-        "step_duration_s": 3.0,
-    },
-    "feedforward": {
-        # controller.mode = feedforward (docs/feedforward.md): the correction's I law
-        # gain (controller.feedforward.gains) and its reference model's time constant
-        "gain": 1.0,
-        "model_tau_s": 0.2,
-        # the joint loops' lag taken out of the correction's error: joints (measured,
-        # controller.feedforward.lag's default) | model (the reference model above)
-        "lag": "joints",
-        # leg velocity feed-forward (a0/b) J dy_d/dt in the frequency response
-        # (controller.feedforward.leg_velocity; not in the linear step, where a
-        # step's rate is one clipped sample)
-        "leg_velocity": True,
-        "step_duration_s": 4.0,
-    },
-    "sweep": {
-        # redesigned inner loops with wn scaled, p1, p2 = (7.6, 5.67) wn
-        "wn_rad_s": [5.0, 10.0, 20.0, 40.0, 80.0, 160.0],
-    },
-}
-
+Variant = Literal["printed", "corrected", "redesigned"]
+VARIANTS: tuple[Variant, ...] = get_args(Variant)
 ACTUATORS = ("actuator1", "actuator2")
-VARIANTS = ("printed", "corrected", "redesigned")
+Seconds = Annotated[Real, Field(ge=1e-5, le=10.0)]  # normal numbers: finite ratios
+StepDuration = Annotated[Real, Field(gt=0, le=600)]
+Gain = Annotated[Real, Field(ge=0, le=1e4)]
+Samples = Annotated[Whole, Field(ge=1, le=100)]
+
+
+class OuterParams(Block):
+    """The outer loop with the inner loop as a delay (eqs. 21, 24-27)."""
+
+    gain: Gain = param(3.0, "1/s", "K K_I of the I law (section 5.2.3)")
+    pi_gain: Gain = param(20.0, "1/s", "K K_I at which Fig. 9 marks the PI poles")
+    period_s: Seconds = param(0.06, "s", "outer period T")
+    delay_samples: Samples = param(1, "samples", "the inner loop's delay (eq. 21)")
+    pi_zero: Real = param(0.2, "", "c of the PI law T (z + c)/(z - 1)", gt=-1, lt=1)
+    alt_period_s: Seconds = param(0.03, "s", "section 5.1's 30 ms period")
+    alt_delay_samples: Samples = param(2, "samples", "its delay: q(k) = q_d(k - 2)")
+    locus_gain_max: Real = param(60.0, "1/s", "largest gain of the root loci", gt=0, le=1e4)
+    step_duration_s: StepDuration = param(3.0, "s", "the step responses' length")
+
+
+class InnerParams(Block):
+    """The joint loops of the real-inner-loop analysis, and the redesign's spec."""
+
+    variant: Variant = param("corrected", "", "joint controller of the real-inner analysis")
+    dt_s: Annotated[Real, Field(ge=1e-5, le=1.0)] = param(0.001, "s", "the joint loops' step")
+    method: Literal["tustin", "zoh"] = param("tustin", "", "the joint loops' discretisation")
+    zeta: Real = param(PAPER_SPEC["zeta"], "", "redesign spec: damping", gt=0, lt=2)
+    wn_rad_s: Real = param(PAPER_SPEC["wn"], "rad/s", "redesign spec: wn", gt=0, le=1e4)
+    p1_rad_s: Real | None = param(
+        None, "rad/s", "null: from the printed denominator (76.0)", gt=0, le=1e5
+    )
+    p2_rad_s: Real | None = param(
+        None, "rad/s", "null: from the printed denominator (56.7)", gt=0, le=1e5
+    )
+    step_duration_s: StepDuration = param(3.0, "s", "the step responses' length")
+
+    def spec(self) -> dict:
+        """The redesign's spec (:func:`controllers.design.redesigned_design`'s keywords)."""
+        spec = {"zeta": self.zeta, "wn": self.wn_rad_s}
+        for key, value in (("p1", self.p1_rad_s), ("p2", self.p2_rad_s)):
+            if value is not None:
+                spec[key] = value
+        return spec
+
+    @model_validator(mode="after")
+    def _feasible(self):
+        for act in ACTUATORS:  # the redesign must be feasible before anything is computed
+            try:
+                redesigned_design(act, **self.spec())
+            except DesignError as exc:
+                raise UserInputError(
+                    f"infeasible joint design at inner.wn_rad_s: {exc}; allowed: a zeta, "
+                    "wn_rad_s (and p1_rad_s, p2_rad_s) the pole placement can meet, e.g. 0.7, 10"
+                ) from exc
+        return self
+
+
+class FeedforwardParams(Block):
+    """``controller.mode = feedforward`` (docs/feedforward.md): the correction's I law."""
+
+    gain: Gain = param(1.0, "1/s", "K K_I of the correction (controller.feedforward.gains)")
+    model_tau_s: Real = param(0.2, "s", "the reference model's time constant", ge=0, le=10)
+    lag: Lag = param("joints", "", "the joint loops' lag taken out of the error")
+    leg_velocity: StrictBool = param(
+        True, "", "leg velocity feed-forward (a0/b) J dy_d/dt in the frequency response"
+    )
+    step_duration_s: StepDuration = param(4.0, "s", "the step response's length")
+
+
+class SweepParams(Block):
+    """Redesigned inner loops with wn scaled, p1, p2 = (7.6, 5.67) wn."""
+
+    wn_rad_s: list[Annotated[Real, Field(gt=0, le=1e4)]] = param(
+        [5.0, 10.0, 20.0, 40.0, 80.0, 160.0], "rad/s", "the inner bandwidths", min_length=1
+    )
+
+
+class AnalyzeParams(Block):
+    """The parameters of ``simpro-sim analyze`` (``--set outer.gain=2``)."""
+
+    paper_units: Reading = param(
+        "volts", "", "unit of Y in eqs. (34)-(37): volts (20 V/m) or metres"
+    )
+    outer: OuterParams = block(OuterParams)
+    inner: InnerParams = block(InnerParams)
+    feedforward: FeedforwardParams = block(FeedforwardParams)
+    sweep: SweepParams = block(SweepParams)
+
+    @model_validator(mode="after")
+    def _whole_inner_steps(self):
+        dt = self.inner.dt_s
+        for key in ("period_s", "alt_period_s"):
+            value = getattr(self.outer, key)
+            ratio = value / dt
+            if abs(ratio - round(ratio)) > 1e-9 * max(1.0, ratio):
+                raise UserInputError(
+                    f"invalid value at outer.{key}: {value} s; allowed: a positive integer "
+                    f"multiple of inner.dt_s = {dt} s"
+                )
+        return self
+
+
+def params(sets: Iterable[str] = ()) -> AnalyzeParams:
+    """The analysis' parameters: the defaults with the ``--set KEY=VALUE`` overrides.
+
+    Raises
+    ------
+    UserInputError
+        An unknown key, or a value of the wrong type or out of range (one line).
+    """
+    return validated(AnalyzeParams, apply_overrides(AnalyzeParams.defaults(), sets))
 
 
 def _pairs(z) -> list:
     z = np.atleast_1d(np.asarray(z, dtype=complex))
     return [[float(v.real), float(v.imag)] for v in z]
-
-
-def _check(p: dict) -> None:
-    o, i = p["outer"], p["inner"]
-    # sampling periods: normal numbers, so that their ratios stay finite (1e-320 overflowed)
-    check_number(p, "inner.dt_s", 1e-5, 1.0, unit=" s")
-    for key in ("period_s", "alt_period_s"):
-        check_number(p, f"outer.{key}", 1e-5, 10.0, unit=" s")
-    for key in ("gain", "pi_gain"):
-        check_number(p, f"outer.{key}", 0.0, 1e4)
-    check_number(p, "outer.pi_zero", -1.0, 1.0, lo_open=True, hi_open=True)
-    check_number(p, "outer.locus_gain_max", 0.0, 1e4, lo_open=True)
-    check_number(p, "feedforward.model_tau_s", 0.0, 10.0, unit=" s")
-    check_number(p, "feedforward.gain", 0.0, 1e4)
-    if not isinstance(p["feedforward"]["leg_velocity"], bool):
-        raise UserInputError(
-            f"wrong type at feedforward.leg_velocity: {p['feedforward']['leg_velocity']!r}; "
-            "allowed: true or false"
-        )
-    if p["feedforward"]["lag"] not in ("model", "joints"):
-        raise UserInputError(
-            f"invalid value at feedforward.lag: {p['feedforward']['lag']!r}; "
-            "allowed: ['model', 'joints']"
-        )
-    check_number(p, "feedforward.step_duration_s", 0.0, 600.0, lo_open=True, unit=" s")
-    for key in ("outer.step_duration_s", "inner.step_duration_s"):
-        check_number(p, key, 0.0, 600.0, lo_open=True, unit=" s")
-    check_number(p, "inner.zeta", 0.0, 2.0, lo_open=True, hi_open=True)
-    check_number(p, "inner.wn_rad_s", 0.0, 1e4, lo_open=True, unit=" rad/s")
-    for key in ("p1_rad_s", "p2_rad_s"):
-        if i[key] is not None:
-            check_number(p, f"inner.{key}", 0.0, 1e5, lo_open=True, unit=" rad/s")
-    wn = p["sweep"]["wn_rad_s"]
-    if not isinstance(wn, list) or not wn:
-        raise UserInputError(
-            f"wrong type at sweep.wn_rad_s: {wn!r}; allowed: a non-empty list of numbers"
-        )
-    for k in range(len(wn)):
-        if isinstance(wn[k], bool) or not isinstance(wn[k], (int, float)):
-            raise UserInputError(f"wrong type at sweep.wn_rad_s[{k}]: {wn[k]!r}; allowed: a number")
-        if not (np.isfinite(wn[k]) and 0 < wn[k] <= 1e4):
-            raise UserInputError(
-                f"invalid value at sweep.wn_rad_s[{k}]: {wn[k]!r}; allowed: 0 < wn <= 1e4 rad/s"
-            )
-
-    if p["paper_units"] not in READINGS:
-        raise UserInputError(
-            f"invalid value at paper_units: {p['paper_units']!r}; allowed: {list(READINGS)}"
-        )
-    if i["variant"] not in VARIANTS:
-        raise UserInputError(
-            f"invalid value at inner.variant: {i['variant']!r}; allowed: one of {list(VARIANTS)}"
-        )
-    if i["method"] not in ("tustin", "zoh"):
-        raise UserInputError(
-            f"invalid value at inner.method: {i['method']!r}; allowed: one of ['tustin', 'zoh']"
-        )
-    for key in ("period_s", "alt_period_s"):
-        ratio = o[key] / i["dt_s"]
-        if abs(ratio - round(ratio)) > 1e-9 * max(1.0, ratio):
-            raise UserInputError(
-                f"invalid value at outer.{key}: {o[key]} s; allowed: a positive integer multiple "
-                f"of inner.dt_s = {i['dt_s']} s"
-            )
-    for key in ("delay_samples", "alt_delay_samples"):
-        check_number(p, f"outer.{key}", 1, 100, integer=True, unit=" samples")
 
 
 def _outer_delay(mode, gain, period, delay, pi_zero, duration) -> dict:
@@ -203,24 +211,22 @@ def _outer_delay(mode, gain, period, delay, pi_zero, duration) -> dict:
     }
 
 
-def _real(mode, gain, period, p, spec, jac, duration) -> dict:
-    i = p["inner"]
-    kw = dict(variant=i["variant"], dt=i["dt_s"], method=i["method"], spec=spec)
+def _real(mode, gain, period, p: AnalyzeParams, spec, jac, duration) -> dict:
+    i = p.inner
+    kw: dict[str, Any] = dict(variant=i.variant, dt=i.dt_s, method=i.method, spec=spec)
     lifted = an.lifted_inner(period, **kw)
-    f = an.outer_closed_loop(mode, gain, period, lifted, jac, p["outer"]["pi_zero"])[0]
+    f = an.outer_closed_loop(mode, gain, period, lifted, jac, p.outer.pi_zero)[0]
     rho = an.spectral_radius(f)
-    lim = an.real_inner_limit(mode, period, jac=jac, pi_zero=p["outer"]["pi_zero"], **kw)
+    lim = an.real_inner_limit(mode, period, jac=jac, pi_zero=p.outer.pi_zero, **kw)
     per_leg = {
-        act: an.real_inner_limit(
-            mode, period, actuators=(act,), pi_zero=p["outer"]["pi_zero"], **kw
-        )
+        act: an.real_inner_limit(mode, period, actuators=(act,), pi_zero=p.outer.pi_zero, **kw)
         for act in ACTUATORS
     }
     t, y = an.real_inner_step(
-        mode, gain, period, duration, jac=jac, pi_zero=p["outer"]["pi_zero"], axis=2, **kw
+        mode, gain, period, duration, jac=jac, pi_zero=p.outer.pi_zero, axis=2, **kw
     )
     return {
-        "variant": i["variant"],
+        "variant": i.variant,
         "period_s": period,
         "gain": gain,
         "stability_limit": lim,
@@ -233,7 +239,7 @@ def _real(mode, gain, period, p, spec, jac, duration) -> dict:
     }
 
 
-def _feedforward(p: dict, spec: dict, jac, real_i: dict) -> dict:
+def _feedforward(p: AnalyzeParams, spec: dict, jac, real_i: dict) -> dict:
     """The feed-forward scheme (``controller.mode = feedforward``) on the paper's plants.
 
     Its correction closes the same loop as the I law around the real inner
@@ -245,29 +251,29 @@ def _feedforward(p: dict, spec: dict, jac, real_i: dict) -> dict:
     the I law at ``outer.gain``.
     """
 
-    o, i, ff = p["outer"], p["inner"], p["feedforward"]
-    reading = p["paper_units"]
+    o, i, ff = p.outer, p.inner, p.feedforward
+    reading = p.paper_units
     acts = ("actuator1", "actuator2", "actuator3")
     plants = [paper_plant(a, reading) for a in acts]
-    sp = dict(spec) if i["variant"] == "redesigned" else {}
+    sp = dict(spec) if i.variant == "redesigned" else {}
     designs = [
-        design_for(a, i["variant"], plant=pl, reading=reading, **sp)
+        design_for(a, i.variant, plant=pl, reading=reading, **sp)
         for a, pl in zip(acts, plants, strict=True)
     ]
-    kw = dict(variant=i["variant"], dt=i["dt_s"], method=i["method"], spec=spec)
+    kw: dict[str, Any] = dict(variant=i.variant, dt=i.dt_s, method=i.method, spec=spec)
     t, y = an.real_inner_step(
-        "feedforward", ff["gain"], o["period_s"], ff["step_duration_s"], jac=jac, axis=1,
-        model_tau=ff["model_tau_s"], lag=ff["lag"], **kw,
+        "feedforward", ff.gain, o.period_s, ff.step_duration_s, jac=jac, axis=1,
+        model_tau=ff.model_tau_s, lag=ff.lag, **kw,
     )  # fmt: skip
     f_hz = np.geomspace(0.02, 5.0, 240)
     freq = {}
     for mode in ("joint_only", "I", "feedforward"):
         model = LoopModel(
             plants=plants, designs=designs, jac=jac, mode=mode,
-            gains=ff["gain"] if mode == "feedforward" else o["gain"],
-            period=o["period_s"], dt=i["dt_s"], method=i["method"], pi_zero=o["pi_zero"],
-            model_tau=ff["model_tau_s"], lag=ff["lag"], velocity_ff=(
-                velocity_gains(plants) if mode == "feedforward" and ff["leg_velocity"]
+            gains=np.full(3, ff.gain if mode == "feedforward" else o.gain),
+            period=o.period_s, dt=i.dt_s, method=i.method, pi_zero=o.pi_zero,
+            model_tau=ff.model_tau_s, lag=ff.lag, velocity_ff=(
+                velocity_gains(plants) if mode == "feedforward" and ff.leg_velocity
                 else np.zeros(3)
             ),
         )  # fmt: skip
@@ -277,22 +283,22 @@ def _feedforward(p: dict, spec: dict, jac, real_i: dict) -> dict:
             ax: figures(f_hz, h[:, j, j], ph[:, j, j])
             for j, ax in enumerate(("roll", "pitch", "heave"))
         }
-    if ff["lag"] == "joints":
+    if ff.lag == "joints":
         # e = y_d - y - J^-1 (q_d - q) = -c[k-1] in the linear loop: z^2 - z + T g,
         # stable (Jury) for 0 < T g < 1
-        limit = 1.0 / o["period_s"]
+        limit = 1.0 / o.period_s
         note = ("the correction sees its own last value, z^2 - z + T K K_I: stable "
                 "below 1/T (the IMU filter's lag, not in this model, adds a little)")  # fmt: skip
     else:
         limit = real_i["stability_limit"]
         note = ("the correction closes the I loop around the real inner loops: same "
                 "characteristic polynomial, same limit")  # fmt: skip
-    stable = ff["gain"] < limit
+    stable = ff.gain < limit
     return {
-        "gain": ff["gain"],
-        "model_tau_s": ff["model_tau_s"],
-        "lag": ff["lag"],
-        "leg_velocity": ff["leg_velocity"],
+        "gain": ff.gain,
+        "model_tau_s": ff.model_tau_s,
+        "lag": ff.lag,
+        "leg_velocity": ff.leg_velocity,
         "stability_limit": limit,
         "stability_limit_note": note,
         "stable_at_gain": stable,
@@ -351,27 +357,13 @@ def shipped(scenario: dict) -> dict:
     return out
 
 
-def compute(p: dict, scenario: dict | None = None) -> dict:
-    """All numbers of the analysis for the parameter tree ``p`` (see :data:`DEFAULTS`),
+def compute(p: AnalyzeParams | None = None, scenario: dict | None = None) -> dict:
+    """All numbers of the analysis for the parameters ``p`` (default: :class:`AnalyzeParams`'s),
     the loop ``scenario`` ships first (:func:`shipped`) when one is given."""
-    _check(p)
-    o, i = p["outer"], p["inner"]
-    spec = {"zeta": i["zeta"], "wn": i["wn_rad_s"]}
-    if i["p1_rad_s"] is not None:
-        spec["p1"] = i["p1_rad_s"]
-    if i["p2_rad_s"] is not None:
-        spec["p2"] = i["p2_rad_s"]
-
-    for act in ACTUATORS:  # the redesign must be feasible before anything is computed
-        try:
-            redesigned_design(act, **spec)
-        except DesignError as exc:
-            raise UserInputError(
-                f"infeasible joint design at inner.wn_rad_s: {exc}; allowed: a zeta, wn_rad_s "
-                "(and p1_rad_s, p2_rad_s) the pole placement can meet, e.g. 0.7, 10"
-            ) from exc
-
-    units = paper_units_info(p["paper_units"])
+    p = p or AnalyzeParams()
+    o, i = p.outer, p.inner
+    spec = i.spec()
+    units = paper_units_info(p.paper_units)
     res: dict = {"paper": PAPER, "paper_units": units, "inner": {}, "outer": {}}
     if scenario is not None:
         res = {"shipped": shipped(scenario), **res}
@@ -379,7 +371,7 @@ def compute(p: dict, scenario: dict | None = None) -> dict:
         res["inner"][act] = {}
         for var in VARIANTS:
             s = an.inner_summary(
-                act, var, t_end=i["step_duration_s"], spec=spec, reading=p["paper_units"]
+                act, var, t_end=i.step_duration_s, spec=spec, reading=p.paper_units
             )
             wn, zeta = s["wn_rad_s"], s["zeta"]
             dom = int(np.argmin(np.where(np.abs(s["closed_loop_poles"].imag) > 0, wn, np.inf)))
@@ -390,41 +382,39 @@ def compute(p: dict, scenario: dict | None = None) -> dict:
                 "zeta": zeta.tolist(),
                 "slowest_complex_pair": {"wn_rad_s": float(wn[dom]), "zeta": float(zeta[dom])},
                 "step": s["step"],
-                "fraction_at_outer_period": float(np.interp(o["period_s"], s["t"], s["y"])),
+                "fraction_at_outer_period": float(np.interp(o.period_s, s["t"], s["y"])),
                 "_t": s["t"],
                 "_y": s["y"],
             }
-    dur = o["step_duration_s"]
-    res["outer"]["I"] = _outer_delay(
-        "I", o["gain"], o["period_s"], o["delay_samples"], o["pi_zero"], dur
-    )
-    res["outer"]["PI"] = _outer_delay(
-        "PI", o["pi_gain"], o["period_s"], o["delay_samples"], o["pi_zero"], dur
-    )
+    dur = o.step_duration_s
+    res["outer"]["I"] = _outer_delay("I", o.gain, o.period_s, o.delay_samples, o.pi_zero, dur)
+    res["outer"]["PI"] = _outer_delay("PI", o.pi_gain, o.period_s, o.delay_samples, o.pi_zero, dur)
     res["outer"]["I"]["paper_stability_limit"] = PAPER["I_stability_limit"]
     res["outer"]["PI"]["paper_stability_limit"] = PAPER["PI_stability_limit"]
     res["outer"]["alt_period"] = {
-        m: _outer_delay(m, g, o["alt_period_s"], o["alt_delay_samples"], o["pi_zero"], dur)
-        for m, g in (("I", o["gain"]), ("PI", o["pi_gain"]))
+        m: _outer_delay(m, g, o.alt_period_s, o.alt_delay_samples, o.pi_zero, dur)
+        for m, g in (("I", o.gain), ("PI", o.pi_gain))
     }
     jac = jacobian(nominal_geometry().home)
     res["outer"]["real_inner"] = {
         "jacobian_at_home": jac,
-        "I": _real("I", o["gain"], o["period_s"], p, spec, jac, dur),
-        "PI": _real("PI", o["pi_gain"], o["period_s"], p, spec, jac, dur),
+        "I": _real("I", o.gain, o.period_s, p, spec, jac, dur),
+        "PI": _real("PI", o.pi_gain, o.period_s, p, spec, jac, dur),
         "alt_period": {
-            "I": _real("I", o["gain"], o["alt_period_s"], p, spec, jac, dur),
-            "PI": _real("PI", o["pi_gain"], o["alt_period_s"], p, spec, jac, dur),
+            "I": _real("I", o.gain, o.alt_period_s, p, spec, jac, dur),
+            "PI": _real("PI", o.pi_gain, o.alt_period_s, p, spec, jac, dur),
         },
     }
     by_variant = {}
     for var in VARIANTS:
-        kw = dict(variant=var, dt=i["dt_s"], method=i["method"], spec=spec, pi_zero=o["pi_zero"])
+        kw: dict[str, Any] = dict(
+            variant=var, dt=i.dt_s, method=i.method, spec=spec, pi_zero=o.pi_zero
+        )
         by_variant[var] = {
             m: {
-                "stability_limit": an.real_inner_limit(m, o["period_s"], jac=jac, **kw),
+                "stability_limit": an.real_inner_limit(m, o.period_s, jac=jac, **kw),
                 "per_leg": {
-                    act: an.real_inner_limit(m, o["period_s"], actuators=(act,), **kw)
+                    act: an.real_inner_limit(m, o.period_s, actuators=(act,), **kw)
                     for act in ACTUATORS
                 },
             }
@@ -432,17 +422,19 @@ def compute(p: dict, scenario: dict | None = None) -> dict:
         }
     res["outer"]["real_inner"]["by_variant"] = by_variant
     sweep = []
-    for wn in p["sweep"]["wn_rad_s"]:
-        sp = {"zeta": i["zeta"], "wn": float(wn), "p1": 7.6 * wn, "p2": 5.67 * wn}
-        s = an.inner_summary("actuator2", "redesigned", t_end=i["step_duration_s"], spec=sp)
-        kw = dict(variant="redesigned", dt=i["dt_s"], method=i["method"], spec=sp, jac=jac)
+    for wn in p.sweep.wn_rad_s:
+        sp = {"zeta": i.zeta, "wn": float(wn), "p1": 7.6 * wn, "p2": 5.67 * wn}
+        s = an.inner_summary("actuator2", "redesigned", t_end=i.step_duration_s, spec=sp)
+        kw = dict(
+            variant="redesigned", dt=i.dt_s, method=i.method, spec=sp, jac=jac
+        )
         sweep.append(
             {
                 "wn_rad_s": float(wn),
-                "inner_fraction_at_T": float(np.interp(o["period_s"], s["t"], s["y"])),
+                "inner_fraction_at_T": float(np.interp(o.period_s, s["t"], s["y"])),
                 "inner_settling_time_s": s["step"]["settling_time_s"],
-                "I_stability_limit": an.real_inner_limit("I", o["period_s"], **kw),
-                "PI_stability_limit": an.real_inner_limit("PI", o["period_s"], **kw),
+                "I_stability_limit": an.real_inner_limit("I", o.period_s, **kw),
+                "PI_stability_limit": an.real_inner_limit("PI", o.period_s, **kw),
             }
         )
     res["outer"]["feedforward"] = _feedforward(p, spec, jac, res["outer"]["real_inner"]["I"])
@@ -467,10 +459,10 @@ def _strip(obj):
     return obj
 
 
-def document(res: dict, p: dict, files: list[str]) -> dict:
+def document(res: dict, p: AnalyzeParams, files: list[str]) -> dict:
     """The ``--json`` document: the results without the plotting arrays, the
     parameters and the plots written."""
     out = _strip(res)
-    out["params"] = p
+    out["params"] = p.model_dump()
     out["plots"] = files
     return out

@@ -1,7 +1,7 @@
 """``simpro-sim analyze``: stability analysis of the joint and task-space loops.
 
 The numbers and plots are :mod:`simpro_mj.analysis.analyze`; parameters by
-``--set KEY=VALUE`` (see :data:`simpro_mj.analysis.analyze.DEFAULTS`)."""
+``--set KEY=VALUE`` (:class:`simpro_mj.analysis.analyze.AnalyzeParams`)."""
 
 from __future__ import annotations
 
@@ -10,9 +10,8 @@ import sys
 from pathlib import Path
 from typing import cast
 
-from simpro_mj.analysis.analyze import DEFAULTS, compute, document
+from simpro_mj.analysis.analyze import AnalyzeParams, compute, document, params
 from simpro_mj.core.jsonout import emit_json
-from simpro_mj.core.keys import apply_overrides
 from simpro_mj.core.progress import Phases, show_progress
 from simpro_mj.report.analyze import plot, summary
 from simpro_mj.report.folders import claim, install_figures
@@ -43,9 +42,9 @@ def _split_sets(sets) -> tuple[list, list]:
     own, scenario = [], []
     for expr in sets or ():
         top = expr.split("=", 1)[0].split(".", 1)[0].strip()
-        if top in DEFAULTS:
+        if top in AnalyzeParams.model_fields:
             own.append(expr)
-        if top not in DEFAULTS or top == "paper_units":
+        if top not in AnalyzeParams.model_fields or top == "paper_units":
             scenario.append(expr)
     return own, scenario
 
@@ -64,7 +63,7 @@ def _scenario(name: str, sets: list, say) -> dict:
 
 def run(args) -> int:
     own, scenario_sets = _split_sets(args.sets)
-    p = apply_overrides(DEFAULTS, own)
+    p = params(own)
     with Phases("analyze", ["loops and limits", "plots"], show_progress(args)) as phase:
         sc = _scenario(args.scenario, scenario_sets, None if args.quiet else _say)
         phase.start("loops and limits")

@@ -185,7 +185,7 @@ def _kind_text(kind: str, tp: Any, field: FieldInfo | None) -> str:
         if members:
             noun = getattr(next(iter(members.values())), "noun", "entry")
             return f"a list of {noun}s, mappings with a type: one of {list(members)}"
-        if n is not None and n and item is float:
+        if n and item is float and _fixed_length(tp, field) == n:
             one = field is not None and any(m is ONE_FOR_ALL for m in field.metadata)
             return f"{'one number or ' if one else ''}a list of {n} numbers like {default}"
         return "a non-empty list of numbers"
@@ -199,6 +199,16 @@ def _kind_text(kind: str, tp: Any, field: FieldInfo | None) -> str:
         "model_attributes_type": f"a mapping with a {_tag_key(tp)}: one of "
         f"{list(tagged_members(tp))}",
     }.get(kind, "a value of the right type")
+
+
+def _fixed_length(tp: Any, field: FieldInfo | None) -> int | None:
+    """The length a list must have (its ``max_length``), None when it may vary."""
+    meta = strip(tp)[1] + (list(field.metadata) if field is not None else [])
+    for m in meta:
+        for c in getattr(m, "metadata", None) or [m]:  # a FieldInfo in Annotated holds its own
+            if isinstance(c, at.MaxLen):
+                return c.max_length
+    return None
 
 
 def _tag_key(tp: Any) -> str:

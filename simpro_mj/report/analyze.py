@@ -12,12 +12,12 @@ from pathlib import Path
 import numpy as np
 
 from controllers import analysis as an
-from simpro_mj.analysis.analyze import ACTUATORS, VARIANTS
+from simpro_mj.analysis.analyze import ACTUATORS, VARIANTS, AnalyzeParams
 
 __all__ = ["plot", "summary"]
 
 
-def plot(res: dict, p: dict, out: Path) -> list[str]:
+def plot(res: dict, p: AnalyzeParams, out: Path) -> list[str]:
     """Root loci (Figs. 8-9), step responses and the delay-assumption plot as PNG."""
     # matplotlib when a figure is drawn, not when the analyze command starts
     import matplotlib
@@ -27,12 +27,12 @@ def plot(res: dict, p: dict, out: Path) -> list[str]:
 
     out.mkdir(parents=True, exist_ok=True)
     files = []
-    o = p["outer"]
+    o = p.outer
     th = np.linspace(0, 2 * np.pi, 400)
     for mode, fig_no in (("I", 8), ("PI", 9)):
         r = res["outer"][mode]
         a, b = r["_ab"]
-        gains = np.linspace(0.0, o["locus_gain_max"], 1201)
+        gains = np.linspace(0.0, o.locus_gain_max, 1201)
         loc = an.root_locus(a, b, gains)
         fig, ax = plt.subplots(figsize=(6, 6))
         ax.plot(np.cos(th), np.sin(th), "k:", lw=0.8, label="unit circle")
@@ -41,7 +41,7 @@ def plot(res: dict, p: dict, out: Path) -> list[str]:
         pz = np.array([complex(*v) for v in r["poles"]])
         ax.plot(pz.real, pz.imag, "rs", label=f"poles at K K_I = {r['gain']:g}")
         lim = r["stability_limit"]
-        pl = an.outer_poles(mode, lim, o["period_s"], o["delay_samples"], o["pi_zero"])
+        pl = an.outer_poles(mode, lim, o.period_s, o.delay_samples, o.pi_zero)
         ax.plot(
             pl.real,
             pl.imag,
@@ -53,8 +53,7 @@ def plot(res: dict, p: dict, out: Path) -> list[str]:
         ax.set_xlabel("Re z")
         ax.set_ylabel("Im z")
         ax.set_title(
-            f"{mode} law, T = {o['period_s'] * 1e3:g} ms, one-sample inner delay "
-            f"(cf. Fig. {fig_no})",
+            f"{mode} law, T = {o.period_s * 1e3:g} ms, one-sample inner delay (cf. Fig. {fig_no})",
             fontsize=9,
         )
         ax.legend(fontsize=8, loc="lower left")
@@ -105,7 +104,7 @@ def plot(res: dict, p: dict, out: Path) -> list[str]:
         for var in VARIANTS:
             r = res["inner"][act][var]
             ax.plot(r["_t"], r["_y"], label=f"{var} (OS {r['step']['overshoot_pct']:.0f} %)")
-        ax.axvline(o["period_s"], color="k", ls=":", lw=0.8, label="outer period")
+        ax.axvline(o.period_s, color="k", ls=":", lw=0.8, label="outer period")
         ax.set_title(f"{act}: joint-loop step (continuous)", fontsize=9)
         ax.set_xlabel("t (s)")
         ax.grid(alpha=0.3)
@@ -128,7 +127,7 @@ def plot(res: dict, p: dict, out: Path) -> list[str]:
         ax.set_xlabel("inner-loop wn (rad/s), zeta = 0.7, redesigned")
         ax.set_ylabel("largest stable K K_I")
         ax.set_title(
-            f"When is the inner loop a one-sample delay? T = {o['period_s'] * 1e3:g} ms", fontsize=9
+            f"When is the inner loop a one-sample delay? T = {o.period_s * 1e3:g} ms", fontsize=9
         )
         ax.grid(alpha=0.3, which="both")
         ax.legend(fontsize=8)
