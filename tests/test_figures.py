@@ -318,11 +318,10 @@ def test_analyze_figures_legends_name_their_series(tmp_path, monkeypatch):
 
 
 def test_validate_ik_figure_legend_names_its_series(tmp_path, monkeypatch):
-    from simpro_mj.analysis.validate_ik import DEFAULTS, plot, validate
-    from simpro_mj.core.keys import apply_overrides
+    from simpro_mj.analysis.validate_ik import params, plot, validate
 
     saved = _captured(monkeypatch)
-    plot(validate(apply_overrides(DEFAULTS, [])), tmp_path)
+    plot(validate(params([])), tmp_path)
     assert len(saved) == 1
     assert legend_mismatches(saved[0]) == []
 

@@ -13,12 +13,12 @@ import pytest
 import simpro_mj as s
 from controllers.geometry import PAPER_RIG_MM, geometry_from_rig, nominal_geometry
 from controllers.kinematics import inverse_kinematics
-from simpro_mj.analysis.validate_ik import DEFAULTS, validate
+from simpro_mj.analysis.validate_ik import params, validate
 from simpro_mj.commands.main import main
 from simpro_mj.config.rig import RIGS_DIR, rig_value
 from simpro_mj.config.scenario import load_scenario
 from simpro_mj.core.errors import UserInputError
-from simpro_mj.core.keys import apply_overrides, read_yaml
+from simpro_mj.core.keys import read_yaml
 from simpro_mj.plant.model import DEFAULT_MODEL_PARAMS, assemble, load_spec, measured_pose
 
 WIDE = "wide_base"  # the shipped example: every base anchor moved by 100 mm
@@ -65,13 +65,9 @@ def test_the_rebuilt_model_assembles_where_the_controllers_ik_says():
 
 
 def test_validate_ik_passes_on_the_moved_rig_within_the_paper_rigs_bounds():
-    kin = validate(
-        apply_overrides(
-            DEFAULTS, [f"model.rig={WIDE}", "drive=kinematic", "trajectory.duration_s=5"]
-        )
-    )
+    kin = validate(params([f"model.rig={WIDE}", "drive=kinematic", "trajectory.duration_s=5"]))
     assert kin["max_position_error_m"] < 1e-8 and kin["max_angle_error_rad"] < 1e-8
-    dyn = validate(apply_overrides(DEFAULTS, [f"model.rig={WIDE}", "trajectory.duration_s=8"]))
+    dyn = validate(params([f"model.rig={WIDE}", "trajectory.duration_s=8"]))
     # the bounds of the paper rig's own test (tests/test_validate_ik.py)
     assert dyn["max_position_error_m"] < 1e-4
     assert dyn["max_angle_error_rad"] < np.radians(0.01)

@@ -22,17 +22,22 @@ kinematic simulation, which isolates geometry from compliance.
 from __future__ import annotations
 
 import time
+from collections.abc import Iterable
 from pathlib import Path
+from typing import Annotated, Any, Literal, get_args
 
 import mujoco
 import numpy as np
+from pydantic import Field
 
 from controllers.errors import WorkspaceError
 from controllers.geometry import geometry_from_rig
 from controllers.kinematics import check_reachable, inverse_kinematics, paper_inverse_kinematics
+from simpro_mj.config.messages import validated
 from simpro_mj.config.rig import rig_value
+from simpro_mj.config.rules import Block, Real, Whole, block, param
 from simpro_mj.core.errors import UserInputError
-from simpro_mj.core.keys import apply_overrides, check_number
+from simpro_mj.core.keys import apply_overrides
 from simpro_mj.plant.model import (
     DEFAULT_MODEL_PARAMS,
     PlantIndex,
@@ -44,65 +49,69 @@ from simpro_mj.plant.model import (
     measured_pose,
 )
 
-DEFAULTS = {
-    "drive": "dynamic",
-    "trajectory": {
-        "duration_s": 60.0,
-        "roll_deg": 10.0,
-        "pitch_deg": 8.0,
-        "heave_mm": 120.0,
-        # periods of the three sines; incommensurate so the Lissajous covers combinations
-        "roll_period_s": 17.0,
-        "pitch_period_s": 13.0,
-        "heave_period_s": 23.0,
-        "log_every_ms": 10,
-    },
-    "paper_ik_reading": "corrected",
-    # dynamic drive: the slide targets lead the IK by this time. A soft joint
-    # equality tracks a moving target with a constant time lag; a fit of the
-    # slide error against the slide speed gives 3.0 ms for solref timeconst
-    # 2 ms at a 1 ms step (residual 2e-7 m), so 3 ms cancels it.
-    "drive_lead_s": 0.003,
-    "model": DEFAULT_MODEL_PARAMS,
-}
-DRIVES = ("dynamic", "kinematic")
-READINGS = ("corrected", "printed")
+Drive = Literal["dynamic", "kinematic"]
+DRIVES: tuple[Drive, ...] = get_args(Drive)
+Positive = Annotated[Real, Field(gt=0)]
 
 
-def trajectory(t: np.ndarray, params: dict, home: np.ndarray) -> np.ndarray:
+class Trajectory(Block):
+    """Sines that start at home; incommensurate periods, so that the Lissajous figure
+    covers the combinations of the three axes."""
+
+    duration_s: Real = param(60.0, "s", "the trajectory's length", gt=0, le=3600)
+    roll_deg: Real = param(10.0, "deg", "roll amplitude")
+    pitch_deg: Real = param(8.0, "deg", "pitch amplitude")
+    heave_mm: Real = param(120.0, "mm", "heave amplitude")
+    roll_period_s: Positive = param(17.0, "s", "period of the roll sine")
+    pitch_period_s: Positive = param(13.0, "s", "period of the pitch sine")
+    heave_period_s: Positive = param(23.0, "s", "period of the heave sine")
+    log_every_ms: Whole = param(10, "ms", "log every n ms", ge=1, le=10**6)
+
+
+class IkParams(Block):
+    """The parameters of ``simpro-sim validate-ik`` (``--set drive=kinematic``)."""
+
+    drive: Drive = param("dynamic", "", "how q(t) is imposed on the slides (module docstring)")
+    trajectory: Trajectory = block(Trajectory)
+    paper_ik_reading: Literal["corrected", "printed"] = param(
+        "corrected", "", "reading of the paper's closed-form IK (eqs. 30-33)"
+    )
+    # a soft joint equality tracks a moving target with a constant time lag; a fit
+    # of the slide error against the slide speed gives 3.0 ms for solref timeconst
+    # 2 ms at a 1 ms step (residual 2e-7 m), so 3 ms cancels it
+    drive_lead_s: Real = param(
+        0.003, "s", "dynamic drive: the slide targets lead the IK by this time", ge=0, le=1
+    )
+    model: dict[str, Any] = param(
+        DEFAULT_MODEL_PARAMS, "", "the plant model's parameters (simpro_mj.plant.model)"
+    )
+
+
+def params(sets: Iterable[str] = ()) -> IkParams:
+    """The validation's parameters: the defaults with the ``--set KEY=VALUE`` overrides.
+
+    Raises
+    ------
+    UserInputError
+        An unknown key, or a value of the wrong type or out of range (one line).
+    """
+    return validated(IkParams, apply_overrides(IkParams.defaults(), sets))
+
+
+def trajectory(t: np.ndarray, tr: Trajectory, home: np.ndarray) -> np.ndarray:
     """Desired pose (n, 3) at times t: sines that start at home and cover the workspace."""
-    tr = params["trajectory"]
-    amp = np.array([np.radians(tr["roll_deg"]), np.radians(tr["pitch_deg"]), tr["heave_mm"] * 1e-3])
-    period = np.array([tr["roll_period_s"], tr["pitch_period_s"], tr["heave_period_s"]])
+    amp = np.array([np.radians(tr.roll_deg), np.radians(tr.pitch_deg), tr.heave_mm * 1e-3])
+    period = np.array([tr.roll_period_s, tr.pitch_period_s, tr.heave_period_s])
     return home + amp * np.sin(2 * np.pi * t[:, None] / period)
 
 
-def _validate(params: dict) -> None:
-    if params["drive"] not in DRIVES:
-        raise UserInputError(f"invalid value at drive: {params['drive']!r}; allowed: {DRIVES}")
-    if params["paper_ik_reading"] not in READINGS:
-        raise UserInputError(
-            f"invalid value at paper_ik_reading: {params['paper_ik_reading']!r}; "
-            f"allowed: {READINGS}"
-        )
-    check_number(params, "trajectory.duration_s", 0.0, 3600.0, lo_open=True, unit=" s")
-    for k in ("roll_period_s", "pitch_period_s", "heave_period_s"):
-        check_number(params, f"trajectory.{k}", 0.0, lo_open=True, unit=" s")
-    for k in ("roll_deg", "pitch_deg", "heave_mm"):
-        check_number(params, f"trajectory.{k}")
-    check_number(params, "trajectory.log_every_ms", 1, 10**6, integer=True, unit=" ms")
-    check_number(params, "drive_lead_s", 0.0, 1.0, unit=" s")
-
-
-def validate(params: dict | None = None) -> dict:
+def validate(p: IkParams | None = None) -> dict:
     """Run the validation; returns a dict of results (SI) and time series."""
-    p = apply_overrides(DEFAULTS, []) if params is None else params
-    _validate(p)
+    p = p or IkParams()
     # the rig (model.rig: a file or its keys) gives the MJCF and the IK alike
-    rig = rig_value(p["model"].get("rig"), where="model.rig")
-    p = {**p, "model": {**p["model"], "rig": rig}}
+    rig = rig_value(p.model.get("rig"), where="model.rig")
     geometry = geometry_from_rig(rig)
-    spec = load_spec(p["model"])
+    spec = load_spec({**p.model, "rig": rig})
     add_slide_drives(spec)  # impose q on the slides (dynamic drive)
     model = spec.compile()
     data = mujoco.MjData(model)
@@ -112,10 +121,10 @@ def validate(params: dict | None = None) -> dict:
 
     home = geometry.home
     dt = model.opt.timestep
-    n = int(round(p["trajectory"]["duration_s"] / dt))
-    every = int(p["trajectory"]["log_every_ms"] * 1e-3 / dt + 0.5) or 1
+    n = int(round(p.trajectory.duration_s / dt))
+    every = int(p.trajectory.log_every_ms * 1e-3 / dt + 0.5) or 1
     t = np.arange(n + 1) * dt
-    x_des = trajectory(t, p, home)
+    x_des = trajectory(t, p.trajectory, home)
     try:
         check_reachable(x_des, geometry)  # names the violated stroke limit
     except WorkspaceError as exc:
@@ -124,8 +133,8 @@ def validate(params: dict | None = None) -> dict:
             "amplitudes inside the workspace (see simpro-sim workspace)"
         ) from exc
     q_des = inverse_kinematics(x_des, geometry)
-    lead = p["drive_lead_s"] if p["drive"] == "dynamic" else 0.0
-    q_cmd = inverse_kinematics(trajectory(t + lead, p, home), geometry, check=False)
+    lead = p.drive_lead_s if p.drive == "dynamic" else 0.0
+    q_cmd = inverse_kinematics(trajectory(t + lead, p.trajectory, home), geometry, check=False)
 
     data.qpos[:] = model.qpos0
     assemble(model, data, q_des[0], index=idx)
@@ -137,7 +146,7 @@ def validate(params: dict | None = None) -> dict:
     wall = time.perf_counter()
     k_log = 0
     for k in range(n + 1):
-        if p["drive"] == "dynamic":
+        if p.drive == "dynamic":
             if k > 0:
                 model.eq_data[drive_ids, 0] = q_cmd[k] - q_ref0
                 mujoco.mj_step(model, data)
@@ -158,7 +167,7 @@ def validate(params: dict | None = None) -> dict:
     # paper IK: displacement from the home pose, compared with ours
     dq_ours = q_des[logged] - inverse_kinematics(home, geometry)
     # eqs. 30-33 hold the paper's numbers: compared on the paper's rig only
-    dq_paper = paper_inverse_kinematics(xd, reading=p["paper_ik_reading"])
+    dq_paper = paper_inverse_kinematics(xd, reading=p.paper_ik_reading)
     paper_err = dq_paper - dq_ours
     paper = rig is None
     return {
@@ -178,8 +187,8 @@ def validate(params: dict | None = None) -> dict:
         "paper_ik_max_leg_error_per_leg_m": (
             np.abs(paper_err).max(axis=0).tolist() if paper else None
         ),
-        "paper_ik_reading": p["paper_ik_reading"],
-        "drive": p["drive"],
+        "paper_ik_reading": p.paper_ik_reading,
+        "drive": p.drive,
         "rig": rig,
         "samples": int(logged.size),
         "wall_s": wall,

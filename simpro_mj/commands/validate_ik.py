@@ -7,7 +7,6 @@ from __future__ import annotations
 from pathlib import Path
 
 from simpro_mj.core.jsonout import emit_json
-from simpro_mj.core.keys import apply_overrides
 from simpro_mj.core.progress import Phases, show_progress
 from simpro_mj.report.folders import claim, install_figures
 
@@ -21,16 +20,16 @@ def add_arguments(parser) -> None:
 
 def run(args) -> int:
     # the validation loads MuJoCo: after argparse has checked the options
-    from simpro_mj.analysis.validate_ik import DEFAULTS, SUMMARY_KEYS, plot, summary, validate
+    from simpro_mj.analysis.validate_ik import SUMMARY_KEYS, params, plot, summary, validate
 
-    params = apply_overrides(DEFAULTS, args.sets)
+    p = params(args.sets)
     with Phases("validate-ik", ["IK against MuJoCo", "plot"], show_progress(args)) as phase:
         phase.start("IK against MuJoCo")
         if args.no_plots:
-            res, plot_path = validate(params), None
+            res, plot_path = validate(p), None
         else:  # --out checked before the validation; the figure installed as one folder
             with claim(Path(args.out), "validate-ik") as out:
-                res = validate(params)
+                res = validate(p)
                 phase.start("plot")
                 (plot_path,) = install_figures(out, lambda tmp: [plot(res, tmp)], "validate-ik")
     doc = {k: res[k] for k in SUMMARY_KEYS}
