@@ -46,6 +46,21 @@ from controllers.geometry import nominal_geometry
 from controllers.kinematics import jacobian
 from controllers.task_space import Lag
 from controllers.velocity_feedforward import velocity_gains
+from simpro_mj.analysis.loop_records import (
+    Analysis,
+    DelayLoop,
+    DelaySweep,
+    FeedforwardLoop,
+    InnerLoop,
+    Limits,
+    OuterLoops,
+    PlantLimit,
+    RealLoop,
+    RealLoops,
+    Shipped,
+    ShippedLoop,
+    SweepRow,
+)
 from simpro_mj.analysis.response_summary import figures
 from simpro_mj.config.messages import validated
 from simpro_mj.config.rules import Block, Real, Whole, block, param
@@ -183,7 +198,7 @@ def _pairs(z) -> list:
     return [[float(v.real), float(v.imag)] for v in z]
 
 
-def _outer_delay(mode, gain, period, delay, pi_zero, duration) -> dict:
+def _outer_delay(mode, gain, period, delay, pi_zero, duration, paper=None) -> DelayLoop:
     a, b = an.outer_polynomials(mode, period, delay, pi_zero)
     lim = an.stability_limit(a, b)
     try:
@@ -194,24 +209,24 @@ def _outer_delay(mode, gain, period, delay, pi_zero, duration) -> dict:
     n = int(round(duration / period)) + 1
     y = an.outer_step(mode, gain, period, n, delay, pi_zero)
     t = np.arange(n) * period
-    return {
-        "period_s": period,
-        "delay_samples": delay,
-        "gain": gain,
-        "stability_limit": lim,
-        "stability_limit_closed_form": closed,
-        # the name of the --json contract; decided by the poles (schur_stable)
-        "jury_stable_at_gain": an.schur_stable(np.polyadd(a, gain * b)),
-        "poles": _pairs(poles),
-        "pole_magnitudes": [float(abs(p)) for p in poles],
-        "step": an.step_metrics(t, y, final=1.0) if max(abs(poles)) < 1 else None,
-        "_t": t,
-        "_y": y,
-        "_ab": (a, b),
-    }
+    return DelayLoop(
+        period_s=period,
+        delay_samples=delay,
+        gain=gain,
+        stability_limit=lim,
+        stability_limit_closed_form=closed,
+        jury_stable_at_gain=an.schur_stable(np.polyadd(a, gain * b)),
+        poles=_pairs(poles),
+        pole_magnitudes=[float(abs(p)) for p in poles],
+        step=an.step_metrics(t, y, final=1.0) if max(abs(poles)) < 1 else None,
+        _t=t,
+        _y=y,
+        _ab=(a, b),
+        paper_stability_limit=paper,
+    )
 
 
-def _real(mode, gain, period, p: AnalyzeParams, spec, jac, duration) -> dict:
+def _real(mode, gain, period, p: AnalyzeParams, spec, jac, duration) -> RealLoop:
     i = p.inner
     kw: dict[str, Any] = dict(variant=i.variant, dt=i.dt_s, method=i.method, spec=spec)
     lifted = an.lifted_inner(period, **kw)
@@ -225,21 +240,21 @@ def _real(mode, gain, period, p: AnalyzeParams, spec, jac, duration) -> dict:
     t, y = an.real_inner_step(
         mode, gain, period, duration, jac=jac, pi_zero=p.outer.pi_zero, axis=2, **kw
     )
-    return {
-        "variant": i.variant,
-        "period_s": period,
-        "gain": gain,
-        "stability_limit": lim,
-        "stability_limit_per_leg": per_leg,
-        "spectral_radius_at_gain": rho,
-        "stable_at_gain": rho < 1.0,
-        "step_heave": an.step_metrics(t, y[:, 2], final=1.0) if rho < 1.0 else None,
-        "_t": t,
-        "_y": y,
-    }
+    return RealLoop(
+        variant=i.variant,
+        period_s=period,
+        gain=gain,
+        stability_limit=lim,
+        stability_limit_per_leg=per_leg,
+        spectral_radius_at_gain=rho,
+        stable_at_gain=rho < 1.0,
+        step_heave=an.step_metrics(t, y[:, 2], final=1.0) if rho < 1.0 else None,
+        _t=t,
+        _y=y,
+    )
 
 
-def _feedforward(p: AnalyzeParams, spec: dict, jac, real_i: dict) -> dict:
+def _feedforward(p: AnalyzeParams, spec: dict, jac, real_i: RealLoop) -> FeedforwardLoop:
     """The feed-forward scheme (``controller.mode = feedforward``) on the paper's plants.
 
     Its correction closes the same loop as the I law around the real inner
@@ -290,23 +305,23 @@ def _feedforward(p: AnalyzeParams, spec: dict, jac, real_i: dict) -> dict:
         note = ("the correction sees its own last value, z^2 - z + T K K_I: stable "
                 "below 1/T (the IMU filter's lag, not in this model, adds a little)")  # fmt: skip
     else:
-        limit = real_i["stability_limit"]
+        limit = real_i.stability_limit
         note = ("the correction closes the I loop around the real inner loops: same "
                 "characteristic polynomial, same limit")  # fmt: skip
     stable = ff.gain < limit
-    return {
-        "gain": ff.gain,
-        "model_tau_s": ff.model_tau_s,
-        "lag": ff.lag,
-        "leg_velocity": ff.leg_velocity,
-        "stability_limit": limit,
-        "stability_limit_note": note,
-        "stable_at_gain": stable,
-        "step_pitch": an.step_metrics(t, y[:, 1], final=1.0) if stable else None,
-        "frequency_response": freq,
-        "_t": t,
-        "_y": y,
-    }
+    return FeedforwardLoop(
+        gain=ff.gain,
+        model_tau_s=ff.model_tau_s,
+        lag=ff.lag,
+        leg_velocity=ff.leg_velocity,
+        stability_limit=limit,
+        stability_limit_note=note,
+        stable_at_gain=stable,
+        step_pitch=an.step_metrics(t, y[:, 1], final=1.0) if stable else None,
+        frequency_response=freq,
+        _t=t,
+        _y=y,
+    )
 
 
 def _law_text(outer: dict) -> str:
@@ -318,7 +333,7 @@ def _law_text(outer: dict) -> str:
     return "I law by forward Euler, T/(z - 1) (Fig. 7 as printed)"
 
 
-def shipped(scenario: dict) -> dict:
+def shipped(scenario: dict) -> Shipped:
     """The loop ``scenario`` ships, analysed as the preflight does (module docstring).
 
     ``scenario`` is resolved and carries its design plants
@@ -332,137 +347,131 @@ def shipped(scenario: dict) -> dict:
     c = scenario["controller"]
     outer, inner, sf = c["outer"], c["inner"], c["setpoint_filter"]
     times = "/".join(f"{t:g}" for t in sf["time_ms"])
-    loop = {
-        "scenario": scenario["name"],
-        "preset": scenario["plant"]["preset"],
-        "mode": c["mode"],
-        "law": _law_text(outer),
-        "period_ms": outer["period_ms"],
-        "gains": list(outer["gains"]),
-        "setpoint_filter": f"{sf['type']} {times} ms" if sf["type"] != "none" else "none",
-        "joint_controllers": f"{inner['variant']} joint controllers designed on the "
+    loop = ShippedLoop(
+        scenario=scenario["name"],
+        preset=scenario["plant"]["preset"],
+        mode=c["mode"],
+        law=_law_text(outer),
+        period_ms=outer["period_ms"],
+        gains=list(outer["gains"]),
+        setpoint_filter=f"{sf['type']} {times} ms" if sf["type"] != "none" else "none",
+        joint_controllers=f"{inner['variant']} joint controllers designed on the "
         f"{inner['design_plant']} plant",
-        "dead_band": dict(outer["dead_band"]),
-        "joint_integrator_dead_band_mm": list(inner["dead_band_mm"]),
-    }
-    out = {"loop": loop}
+        dead_band=dict(outer["dead_band"]),
+        joint_integrator_dead_band_mm=list(inner["dead_band_mm"]),
+    )
+    limits = {}
     for plant in ("actuator", "paper"):
         r = outer_loop(scenario, plant)
-        out[plant] = {
-            "stability_limit": r["limit"],
-            "spectral_radius_at_gains": r["spectral_radius"],
-            "stable_at_gains": r["spectral_radius"] < 1.0,
-            "basis": r["basis"],
-        }
-    return out
+        limits[plant] = PlantLimit(
+            stability_limit=r["limit"],
+            spectral_radius_at_gains=r["spectral_radius"],
+            stable_at_gains=r["spectral_radius"] < 1.0,
+            basis=r["basis"],
+        )
+    return Shipped(loop=loop, **limits)
 
 
-def compute(p: AnalyzeParams | None = None, scenario: dict | None = None) -> dict:
+def compute(p: AnalyzeParams | None = None, scenario: dict | None = None) -> Analysis:
     """All numbers of the analysis for the parameters ``p`` (default: :class:`AnalyzeParams`'s),
     the loop ``scenario`` ships first (:func:`shipped`) when one is given."""
     p = p or AnalyzeParams()
     o, i = p.outer, p.inner
     spec = i.spec()
-    units = paper_units_info(p.paper_units)
-    res: dict = {"paper": PAPER, "paper_units": units, "inner": {}, "outer": {}}
-    if scenario is not None:
-        res = {"shipped": shipped(scenario), **res}
+    inner: dict[str, dict[str, InnerLoop]] = {}
     for act in ACTUATORS:
-        res["inner"][act] = {}
+        inner[act] = {}
         for var in VARIANTS:
             s = an.inner_summary(
                 act, var, t_end=i.step_duration_s, spec=spec, reading=p.paper_units
             )
             wn, zeta = s["wn_rad_s"], s["zeta"]
             dom = int(np.argmin(np.where(np.abs(s["closed_loop_poles"].imag) > 0, wn, np.inf)))
-            res["inner"][act][var] = {
-                "controller": s["controller"],
-                "closed_loop_poles": _pairs(s["closed_loop_poles"]),
-                "wn_rad_s": wn.tolist(),
-                "zeta": zeta.tolist(),
-                "slowest_complex_pair": {"wn_rad_s": float(wn[dom]), "zeta": float(zeta[dom])},
-                "step": s["step"],
-                "fraction_at_outer_period": float(np.interp(o.period_s, s["t"], s["y"])),
-                "_t": s["t"],
-                "_y": s["y"],
-            }
+            inner[act][var] = InnerLoop(
+                controller=s["controller"],
+                closed_loop_poles=_pairs(s["closed_loop_poles"]),
+                wn_rad_s=wn.tolist(),
+                zeta=zeta.tolist(),
+                slowest_complex_pair={"wn_rad_s": float(wn[dom]), "zeta": float(zeta[dom])},
+                step=s["step"],
+                fraction_at_outer_period=float(np.interp(o.period_s, s["t"], s["y"])),
+                _t=s["t"],
+                _y=s["y"],
+            )
     dur = o.step_duration_s
-    res["outer"]["I"] = _outer_delay("I", o.gain, o.period_s, o.delay_samples, o.pi_zero, dur)
-    res["outer"]["PI"] = _outer_delay("PI", o.pi_gain, o.period_s, o.delay_samples, o.pi_zero, dur)
-    res["outer"]["I"]["paper_stability_limit"] = PAPER["I_stability_limit"]
-    res["outer"]["PI"]["paper_stability_limit"] = PAPER["PI_stability_limit"]
-    res["outer"]["alt_period"] = {
+    laws = {"I": o.gain, "PI": o.pi_gain}
+    delay = {
+        m: _outer_delay(
+            m, g, o.period_s, o.delay_samples, o.pi_zero, dur, PAPER[f"{m}_stability_limit"]
+        )
+        for m, g in laws.items()
+    }
+    alt = {
         m: _outer_delay(m, g, o.alt_period_s, o.alt_delay_samples, o.pi_zero, dur)
-        for m, g in (("I", o.gain), ("PI", o.pi_gain))
+        for m, g in laws.items()
     }
     jac = jacobian(nominal_geometry().home)
-    res["outer"]["real_inner"] = {
-        "jacobian_at_home": jac,
-        "I": _real("I", o.gain, o.period_s, p, spec, jac, dur),
-        "PI": _real("PI", o.pi_gain, o.period_s, p, spec, jac, dur),
-        "alt_period": {
-            "I": _real("I", o.gain, o.alt_period_s, p, spec, jac, dur),
-            "PI": _real("PI", o.pi_gain, o.alt_period_s, p, spec, jac, dur),
-        },
-    }
-    by_variant = {}
+    real = {m: _real(m, g, o.period_s, p, spec, jac, dur) for m, g in laws.items()}
+    real_alt = {m: _real(m, g, o.alt_period_s, p, spec, jac, dur) for m, g in laws.items()}
+    by_variant: dict[str, dict[str, Limits]] = {}
     for var in VARIANTS:
         kw: dict[str, Any] = dict(
             variant=var, dt=i.dt_s, method=i.method, spec=spec, pi_zero=o.pi_zero
         )
         by_variant[var] = {
-            m: {
-                "stability_limit": an.real_inner_limit(m, o.period_s, jac=jac, **kw),
-                "per_leg": {
+            m: Limits(
+                stability_limit=an.real_inner_limit(m, o.period_s, jac=jac, **kw),
+                per_leg={
                     act: an.real_inner_limit(m, o.period_s, actuators=(act,), **kw)
                     for act in ACTUATORS
                 },
-            }
-            for m in ("I", "PI")
+            )
+            for m in laws
         }
-    res["outer"]["real_inner"]["by_variant"] = by_variant
-    sweep = []
+    rows = []
     for wn in p.sweep.wn_rad_s:
         sp = {"zeta": i.zeta, "wn": float(wn), "p1": 7.6 * wn, "p2": 5.67 * wn}
         s = an.inner_summary("actuator2", "redesigned", t_end=i.step_duration_s, spec=sp)
-        kw = dict(
-            variant="redesigned", dt=i.dt_s, method=i.method, spec=sp, jac=jac
+        kw = dict(variant="redesigned", dt=i.dt_s, method=i.method, spec=sp, jac=jac)
+        rows.append(
+            SweepRow(
+                wn_rad_s=float(wn),
+                inner_fraction_at_T=float(np.interp(o.period_s, s["t"], s["y"])),
+                inner_settling_time_s=s["step"]["settling_time_s"],
+                I_stability_limit=an.real_inner_limit("I", o.period_s, **kw),
+                PI_stability_limit=an.real_inner_limit("PI", o.period_s, **kw),
+            )
         )
-        sweep.append(
-            {
-                "wn_rad_s": float(wn),
-                "inner_fraction_at_T": float(np.interp(o.period_s, s["t"], s["y"])),
-                "inner_settling_time_s": s["step"]["settling_time_s"],
-                "I_stability_limit": an.real_inner_limit("I", o.period_s, **kw),
-                "PI_stability_limit": an.real_inner_limit("PI", o.period_s, **kw),
-            }
-        )
-    res["outer"]["feedforward"] = _feedforward(p, spec, jac, res["outer"]["real_inner"]["I"])
-    res["outer"]["delay_assumption_sweep"] = {
-        "delay_model": {
-            "I_stability_limit": res["outer"]["I"]["stability_limit"],
-            "PI_stability_limit": res["outer"]["PI"]["stability_limit"],
-        },
-        "rows": sweep,
-    }
-    return res
+    outer = OuterLoops(
+        I=delay["I"],
+        PI=delay["PI"],
+        alt_period=alt,
+        real_inner=RealLoops(
+            jacobian_at_home=jac,
+            I=real["I"],
+            PI=real["PI"],
+            alt_period=real_alt,
+            by_variant=by_variant,
+        ),  # fmt: skip
+        feedforward=_feedforward(p, spec, jac, real["I"]),
+        delay_assumption_sweep=DelaySweep(
+            delay_model={f"{m}_stability_limit": delay[m].stability_limit for m in laws},
+            rows=rows,
+        ),
+    )
+    return Analysis(
+        shipped=shipped(scenario) if scenario is not None else None,
+        paper=PAPER,
+        paper_units=paper_units_info(p.paper_units),
+        inner=inner,
+        outer=outer,
+    )
 
 
-def _strip(obj):
-    """Drop private ``_`` entries (arrays for plotting) before JSON output."""
-    if isinstance(obj, dict):
-        return {k: _strip(v) for k, v in obj.items() if not str(k).startswith("_")}
-    if isinstance(obj, list | tuple):
-        return [_strip(v) for v in obj]
-    if isinstance(obj, float) and not np.isfinite(obj):
-        return None if np.isnan(obj) else ("inf" if obj > 0 else "-inf")
-    return obj
-
-
-def document(res: dict, p: AnalyzeParams, files: list[str]) -> dict:
+def document(res: Analysis, p: AnalyzeParams, files: list[str]) -> dict:
     """The ``--json`` document: the results without the plotting arrays, the
     parameters and the plots written."""
-    out = _strip(res)
+    out = res.to_json()
     out["params"] = p.model_dump()
     out["plots"] = files
     return out

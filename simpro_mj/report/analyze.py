@@ -13,11 +13,12 @@ import numpy as np
 
 from controllers import analysis as an
 from simpro_mj.analysis.analyze import ACTUATORS, VARIANTS, AnalyzeParams
+from simpro_mj.analysis.loop_records import Analysis, Shipped
 
 __all__ = ["plot", "summary"]
 
 
-def plot(res: dict, p: AnalyzeParams, out: Path) -> list[str]:
+def plot(res: Analysis, p: AnalyzeParams, out: Path) -> list[str]:
     """Root loci (Figs. 8-9), step responses and the delay-assumption plot as PNG."""
     # matplotlib when a figure is drawn, not when the analyze command starts
     import matplotlib
@@ -29,25 +30,24 @@ def plot(res: dict, p: AnalyzeParams, out: Path) -> list[str]:
     files = []
     o = p.outer
     th = np.linspace(0, 2 * np.pi, 400)
-    for mode, fig_no in (("I", 8), ("PI", 9)):
-        r = res["outer"][mode]
-        a, b = r["_ab"]
+    for mode, r, fig_no in (("I", res.outer.I, 8), ("PI", res.outer.PI, 9)):
+        a, b = r._ab
         gains = np.linspace(0.0, o.locus_gain_max, 1201)
         loc = an.root_locus(a, b, gains)
         fig, ax = plt.subplots(figsize=(6, 6))
         ax.plot(np.cos(th), np.sin(th), "k:", lw=0.8, label="unit circle")
         for j in range(loc.shape[1]):
             ax.plot(loc[:, j].real, loc[:, j].imag, ".", ms=1.5, color="C0")
-        pz = np.array([complex(*v) for v in r["poles"]])
-        ax.plot(pz.real, pz.imag, "rs", label=f"poles at K K_I = {r['gain']:g}")
-        lim = r["stability_limit"]
+        pz = np.array([complex(*v) for v in r.poles])
+        ax.plot(pz.real, pz.imag, "rs", label=f"poles at K K_I = {r.gain:g}")
+        lim = r.stability_limit
         pl = an.outer_poles(mode, lim, o.period_s, o.delay_samples, o.pi_zero)
         ax.plot(
             pl.real,
             pl.imag,
             "kx",
             ms=9,
-            label=f"limit K K_I = {lim:.2f} (paper {r['paper_stability_limit']:g})",
+            label=f"limit K K_I = {lim:.2f} (paper {r.paper_stability_limit:g})",
         )
         ax.set_aspect("equal")
         ax.set_xlabel("Re z")
@@ -64,29 +64,26 @@ def plot(res: dict, p: AnalyzeParams, out: Path) -> list[str]:
         files.append(str(f))
 
     fig, ax = plt.subplots(figsize=(8, 4.5))
-    for mode, c in (("I", "C0"), ("PI", "C1")):
-        r = res["outer"][mode]
+    ri = res.outer.real_inner
+    for mode, c, r, rr in (("I", "C0", res.outer.I, ri.I), ("PI", "C1", res.outer.PI, ri.PI)):
         ax.step(
-            r["_t"],
-            r["_y"],
+            r._t,
+            r._y,
             where="post",
             color=c,
-            label=f"{mode}, K K_I={r['gain']:g}, delay model",
+            label=f"{mode}, K K_I={r.gain:g}, delay model",
         )
-        rr = res["outer"]["real_inner"][mode]
         ax.plot(
-            rr["_t"],
-            rr["_y"][:, 2],
+            rr._t,
+            rr._y[:, 2],
             color=c,
             ls="--",
-            label=f"{mode}, real inner loops ({rr['variant']}), heave",
+            label=f"{mode}, real inner loops ({rr.variant}), heave",
         )
-    ff = res["outer"]["feedforward"]
-    lag = (
-        "lag from the joints" if ff["lag"] == "joints" else f"model {ff['model_tau_s'] * 1e3:g} ms"
-    )
-    label = f"feedforward, K K_I={ff['gain']:g}, {lag}, pitch"
-    ax.plot(ff["_t"], ff["_y"][:, 1], color="C2", label=label)
+    ff = res.outer.feedforward
+    lag = "lag from the joints" if ff.lag == "joints" else f"model {ff.model_tau_s * 1e3:g} ms"
+    label = f"feedforward, K K_I={ff.gain:g}, {lag}, pitch"
+    ax.plot(ff._t, ff._y[:, 1], color="C2", label=label)
     ax.axhline(1.0, color="k", lw=0.6)
     ax.set_ylim(-0.5, 2.0)
     ax.set_xlabel("t (s)")
@@ -102,8 +99,8 @@ def plot(res: dict, p: AnalyzeParams, out: Path) -> list[str]:
     fig, axes = plt.subplots(1, 2, figsize=(10, 4), sharey=True)
     for ax, act in zip(axes, ACTUATORS, strict=True):
         for var in VARIANTS:
-            r = res["inner"][act][var]
-            ax.plot(r["_t"], r["_y"], label=f"{var} (OS {r['step']['overshoot_pct']:.0f} %)")
+            loop = res.inner[act][var]
+            ax.plot(loop._t, loop._y, label=f"{var} (OS {loop.step['overshoot_pct']:.0f} %)")
         ax.axvline(o.period_s, color="k", ls=":", lw=0.8, label="outer period")
         ax.set_title(f"{act}: joint-loop step (continuous)", fontsize=9)
         ax.set_xlabel("t (s)")
@@ -115,13 +112,13 @@ def plot(res: dict, p: AnalyzeParams, out: Path) -> list[str]:
     plt.close(fig)
     files.append(str(f))
 
-    rows = res["outer"]["delay_assumption_sweep"]["rows"]
+    rows = res.outer.delay_assumption_sweep.rows
     if rows:
         fig, ax = plt.subplots(figsize=(7, 4))
-        wn = [r["wn_rad_s"] for r in rows]
-        ax.semilogx(wn, [r["I_stability_limit"] for r in rows], "o-", label="I, real inner")
-        ax.semilogx(wn, [r["PI_stability_limit"] for r in rows], "s-", label="PI, real inner")
-        dm = res["outer"]["delay_assumption_sweep"]["delay_model"]
+        wn = [r.wn_rad_s for r in rows]
+        ax.semilogx(wn, [r.I_stability_limit for r in rows], "o-", label="I, real inner")
+        ax.semilogx(wn, [r.PI_stability_limit for r in rows], "s-", label="PI, real inner")
+        dm = res.outer.delay_assumption_sweep.delay_model
         ax.axhline(dm["I_stability_limit"], color="C0", ls=":", label="I, delay model")
         ax.axhline(dm["PI_stability_limit"], color="C1", ls=":", label="PI, delay model")
         ax.set_xlabel("inner-loop wn (rad/s), zeta = 0.7, redesigned")
@@ -138,32 +135,31 @@ def plot(res: dict, p: AnalyzeParams, out: Path) -> list[str]:
     return files
 
 
-def _shipped_lines(sh: dict) -> list[str]:
+def _shipped_lines(sh: Shipped) -> list[str]:
     """The scenario's own loop, first: which loop, and its limits."""
-    lo = sh["loop"]
-    db = lo["dead_band"]
+    lo = sh.loop
+    db = lo.dead_band
     band = (
         f"; dead band {db['roll_deg']:g} deg / {db['pitch_deg']:g} deg / {db['heave_mm']:g} mm"
         if any(db.values())
         else ""
     )
-    joints = lo["joint_integrator_dead_band_mm"]
+    joints = lo.joint_integrator_dead_band_mm
     if any(joints):
         band += f"; joint integrators hold within {'/'.join(f'{w:g}' for w in joints)} mm"
     if band:
         band += " (dead bands: outside the linear analysis)"
     lines = [
-        f"Shipped loop of {lo['scenario']} (preset {lo['preset']}, mode {lo['mode']}): "
-        f"{lo['law']}, T = {lo['period_ms']:g} ms, {lo['setpoint_filter']} set-point filter, "
-        f"{lo['joint_controllers']}{band}"
+        f"Shipped loop of {lo.scenario} (preset {lo.preset}, mode {lo.mode}): "
+        f"{lo.law}, T = {lo.period_ms:g} ms, {lo.setpoint_filter} set-point filter, "
+        f"{lo.joint_controllers}{band}"
     ]
-    gains = ", ".join(f"{g:g}" for g in lo["gains"])
-    for plant, what in (("actuator", "its plant"), ("paper", "eqs. (34)-(35)")):
-        r = sh[plant]
+    gains = ", ".join(f"{g:g}" for g in lo.gains)
+    for r, what in ((sh.actuator, "its plant"), (sh.paper, "eqs. (34)-(35)")):
         lines.append(
-            f"  on {what}: limit K K_I < {r['stability_limit']:.2f}; at [{gains}] rho = "
-            f"{r['spectral_radius_at_gains']:.4f} "
-            f"{'stable' if r['stable_at_gains'] else 'UNSTABLE'} ({r['basis']})"
+            f"  on {what}: limit K K_I < {r.stability_limit:.2f}; at [{gains}] rho = "
+            f"{r.spectral_radius_at_gains:.4f} "
+            f"{'stable' if r.stable_at_gains else 'UNSTABLE'} ({r.basis})"
         )
     lines.append(
         "The paper's loops (Fig. 7 as printed: I law by forward Euler, no set-point filter):"
@@ -171,79 +167,72 @@ def _shipped_lines(sh: dict) -> list[str]:
     return lines
 
 
-def summary(res: dict, files: list[str]) -> str:
-    u = res["paper_units"]
-    lines = _shipped_lines(res["shipped"]) if "shipped" in res else []
+def summary(res: Analysis, files: list[str]) -> str:
+    u = res.paper_units
+    lines = _shipped_lines(res.shipped) if res.shipped is not None else []
     lines.append(
         f"Inner (joint) loops, continuous, plants eqs. (34)-(35); paper_units = {u['reading']} "
         f"(Y in {u['y_unit']}, {u['y_per_metre']:g} per m): k_p in V/m"
     )
     for act in ACTUATORS:
         for var in VARIANTS:
-            r = res["inner"][act][var]
-            d = r["slowest_complex_pair"]
-            st = r["step"]
+            loop = res.inner[act][var]
+            d = loop.slowest_complex_pair
+            st = loop.step
             lines.append(
-                f"  {act:9s} {var:10s} k_p={r['controller']['kp']:7.1f} slowest pair "
+                f"  {act:9s} {var:10s} k_p={loop.controller['kp']:7.1f} slowest pair "
                 f"zeta={d['zeta']:.3f} wn={d['wn_rad_s']:.2f} "
                 f"rad/s | rise {st['rise_time_s']:.3f} s, settle {st['settling_time_s']:.3f} s, "
-                f"OS {st['overshoot_pct']:.1f} %, q(T)/q_d={r['fraction_at_outer_period']:.2f}"
+                f"OS {st['overshoot_pct']:.1f} %, q(T)/q_d={loop.fraction_at_outer_period:.2f}"
             )
-    o = res["outer"]
+    o = res.outer
     lines.append("Outer loop, inner loop = delay (eqs. 21, 24):")
-    for m in ("I", "PI"):
-        r = o[m]
+    for m, r in (("I", o.I), ("PI", o.PI)):
         lines.append(
-            f"  {m:2s} T={r['period_s'] * 1e3:g} ms d={r['delay_samples']}: limit K K_I < "
-            f"{r['stability_limit']:.3f} (paper {r['paper_stability_limit']:g}); "
-            f"poles at {r['gain']:g}: " + ", ".join(f"{complex(*z):.4f}" for z in r["poles"])
+            f"  {m:2s} T={r.period_s * 1e3:g} ms d={r.delay_samples}: limit K K_I < "
+            f"{r.stability_limit:.3f} (paper {r.paper_stability_limit:g}); "
+            f"poles at {r.gain:g}: " + ", ".join(f"{complex(*z):.4f}" for z in r.poles)
         )
-    for m in ("I", "PI"):
-        r = o["alt_period"][m]
+    for m, r in o.alt_period.items():
         lines.append(
-            f"  {m:2s} T={r['period_s'] * 1e3:g} ms d={r['delay_samples']}: limit K K_I < "
-            f"{r['stability_limit']:.3f}"
+            f"  {m:2s} T={r.period_s * 1e3:g} ms d={r.delay_samples}: limit K K_I < "
+            f"{r.stability_limit:.3f}"
         )
-    ri = o["real_inner"]
-    lines.append(f"Outer loop around the real inner loops ({ri['I']['variant']}, J at home):")
-    for key, r in (
-        ("I", ri["I"]),
-        ("PI", ri["PI"]),
-        ("I", ri["alt_period"]["I"]),
-        ("PI", ri["alt_period"]["PI"]),
-    ):
-        legs = ", ".join(f"{k} {v:.2f}" for k, v in r["stability_limit_per_leg"].items())
+    ri = o.real_inner
+    lines.append(f"Outer loop around the real inner loops ({ri.I.variant}, J at home):")
+    for key, real in (("I", ri.I), ("PI", ri.PI), *ri.alt_period.items()):
+        legs = ", ".join(f"{k} {v:.2f}" for k, v in real.stability_limit_per_leg.items())
         lines.append(
-            f"  {key:2s} T={r['period_s'] * 1e3:g} ms: limit {r['stability_limit']:.3f} "
-            f"(per leg: {legs}); at K K_I={r['gain']:g}: rho={r['spectral_radius_at_gain']:.4f}"
-            f" {'stable' if r['stable_at_gain'] else 'UNSTABLE'}"
+            f"  {key:2s} T={real.period_s * 1e3:g} ms: limit {real.stability_limit:.3f} "
+            f"(per leg: {legs}); at K K_I={real.gain:g}: rho={real.spectral_radius_at_gain:.4f}"
+            f" {'stable' if real.stable_at_gain else 'UNSTABLE'}"
         )
-    for var, r in ri["by_variant"].items():
+    for variant, lim in ri.by_variant.items():
         lines.append(
-            f"  {var:10s} T={res['outer']['I']['period_s'] * 1e3:g} ms: "
+            f"  {variant:10s} T={res.outer.I.period_s * 1e3:g} ms: "
             + "; ".join(
-                f"{m} limit {r[m]['stability_limit']:.3f} (per leg "
-                + ", ".join(f"{k} {v:.2f}" for k, v in r[m]["per_leg"].items())
+                f"{m} limit {lim[m].stability_limit:.3f} (per leg "
+                + ", ".join(f"{k} {v:.2f}" for k, v in lim[m].per_leg.items())
                 + ")"
                 for m in ("I", "PI")
             )
         )
-    ff = o["feedforward"]
-    st = ff["step_pitch"]
+    ff = o.feedforward
+    pitch = ff.step_pitch
     lines.append(
-        f"Feed-forward scheme (lag {ff['lag']}"
-        + (f", model tau {ff['model_tau_s'] * 1e3:g} ms" if ff["lag"] == "model" else "")
-        + f", K K_I = {ff['gain']:g}): limit {ff['stability_limit']:.3f}"
-        + (" (1/T)" if ff["lag"] == "joints" else " (the I loop's)")
+        f"Feed-forward scheme (lag {ff.lag}"
+        + (f", model tau {ff.model_tau_s * 1e3:g} ms" if ff.lag == "model" else "")
+        + f", K K_I = {ff.gain:g}): limit {ff.stability_limit:.3f}"
+        + (" (1/T)" if ff.lag == "joints" else " (the I loop's)")
         + "; pitch step "
         + (
-            f"rise {st['rise_time_s']:.3f} s, OS {st['overshoot_pct']:.1f} %, "
-            f"settle {st['settling_time_s']:.3f} s"
-            if st
+            f"rise {pitch['rise_time_s']:.3f} s, OS {pitch['overshoot_pct']:.1f} %, "
+            f"settle {pitch['settling_time_s']:.3f} s"
+            if pitch
             else "unstable"
         )
     )
-    for mode, axes in ff["frequency_response"].items():
+    for mode, axes in ff.frequency_response.items():
         v = axes["pitch"]
         bw = v["bandwidth_3db_hz"]
         bw_text = f">{v['bandwidth_above_hz']:.2f}" if bw is None else f"{bw:.2f}"
@@ -253,10 +242,10 @@ def summary(res: dict, files: list[str]) -> str:
             f"delay {v['equivalent_delay_ms']:.0f} ms"
         )
     lines.append("Delay assumption (redesigned inner loops, wn swept):")
-    for r in o["delay_assumption_sweep"]["rows"]:
+    for row in o.delay_assumption_sweep.rows:
         lines.append(
-            f"  wn={r['wn_rad_s']:6.1f} rad/s: q(T)/q_d={r['inner_fraction_at_T']:.2f}, "
-            f"limits I {r['I_stability_limit']:.2f}, PI {r['PI_stability_limit']:.2f}"
+            f"  wn={row.wn_rad_s:6.1f} rad/s: q(T)/q_d={row.inner_fraction_at_T:.2f}, "
+            f"limits I {row.I_stability_limit:.2f}, PI {row.PI_stability_limit:.2f}"
         )
     if files:
         lines.append("Plots: " + ", ".join(files))
