@@ -22,7 +22,8 @@ a period ``T``::
 ``C``, ``D``, ``r`` and ``S`` are the MPC's own rows (:meth:`ModelPredictiveCueing._build`),
 so the QP has ``(n + 1) N`` variables and its matrices grow linearly with the drive (OSQP,
 Stellato et al. 2020). Where the felt-rotation or jolt limits cannot be met the QP is
-solved again without them, as the MPC does (``status`` says so).
+solved again without the jolt limit, then without both, as the MPC does (``status`` says
+so).
 
 The platform is ideal here: it follows the plan exactly (the loop's lag, the valves and
 the pneumatics are the run's, not the bound's).
@@ -36,7 +37,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .frames import GRAVITY
-from .mpc_cueing import ModelPredictiveCueing, MpcParams
+from .mpc_cueing import WITHOUT, ModelPredictiveCueing, MpcParams
 
 __all__ = ["CueBound", "cue_bound"]
 
@@ -67,7 +68,9 @@ def _bound_params(params: MpcParams | None, **changes) -> MpcParams:
     p = MpcParams() if params is None else params
     full = {"gain_x": 1.0, "gain_y": 1.0, "gain_z": 1.0, "gain_rot": 1.0, "knee": 0.0,
             "gain_y_sustained": 0.0}  # fmt: skip
-    return p.replace(**{"horizon": 2, "preview": 0.0, "lead": 0.0, **full, **changes})
+    return p.replace(
+        **{"horizon": 2, "preview": 0.0, "lead": 0.0, "lead_x": 0.0, **full, **changes}
+    )
 
 
 def _axis_qp(law: ModelPredictiveCueing, k: int, d: np.ndarray, N: int):
@@ -120,10 +123,14 @@ def _axis_qp(law: ModelPredictiveCueing, k: int, d: np.ndarray, N: int):
         [sparse.kron(sparse.eye(N), sparse.csc_matrix(sel)), sparse.csc_matrix((N * rows, N))]
     )
     A_all = sparse.vstack([Aeq, Ain], format="csc")
-    soft = np.zeros((N, rows), bool)
-    for c in (pr["felt"], pr["jolt"]):
-        if c is not None:
-            soft[:, c] = True
+    # the rows given up in turn: the jolt limit's, then the felt rotation's too
+    soft: list[np.ndarray] = []
+    for cols in ((pr["jolt"],), (pr["felt"], pr["jolt"])):
+        mask = np.zeros((N, rows), bool)
+        for c in cols:
+            if c is not None:
+                mask[:, c] = True
+        soft.append(nx + mask.ravel().nonzero()[0])
     return (
         P,
         q,
@@ -131,7 +138,7 @@ def _axis_qp(law: ModelPredictiveCueing, k: int, d: np.ndarray, N: int):
         np.r_[beq, lo.ravel()],
         np.r_[beq, hi.ravel()],
         nx,
-        nx + soft.ravel().nonzero()[0],
+        soft,
     )
 
 
@@ -149,11 +156,13 @@ def _solve(P, q, A, lo, hi, soft_rows):
 
     res = run(lo, hi)
     status = str(res.info.status)
-    if "infeasible" in status and soft_rows.size:
-        lo, hi = lo.copy(), hi.copy()
-        lo[soft_rows], hi[soft_rows] = -np.inf, np.inf
+    lo, hi = lo.copy(), hi.copy()
+    for rows, without in zip(soft_rows, WITHOUT, strict=True):
+        if "infeasible" not in status or not rows.size:
+            break
+        lo[rows], hi[rows] = -np.inf, np.inf
         res = run(lo, hi)
-        status = str(res.info.status) + " without the rotation and jolt limits"
+        status = str(res.info.status) + without
     return res, status
 
 

@@ -38,7 +38,11 @@ Cost over the horizon, each error in units of its perception threshold::
 
 Constraints at every predicted sample: ``|a| <= a_max`` (the workspace box,
 :func:`controllers.workspace.inscribed_box`), ``|a'| <= rate_max``,
-``|a''| <= accel_max`` (the platform's reach: :class:`MpcParams`), and the same for heave.
+``|a''| <= accel_max`` (the platform's reach: :class:`MpcParams`), and the same for heave;
+the felt-rotation and wrong-way-jolt limits (:class:`MpcParams`). Where those two cannot
+both be met from the current state, the jolt limit gives way first (the QP is solved
+again without it) and the felt rotation only if that is still infeasible: at a braking's
+release the tilt coming back would otherwise lose both and be felt as a false pitch.
 
 Information: at time ``t`` the solve knows the vehicle input up to ``t`` and assumes
 it is held over the horizon; ``preview`` > 0 (an explicit option, named so) lets it see
@@ -70,6 +74,9 @@ from .vestibular import CanalModel, OtolithModel
 from .workspace import inscribed_box
 
 __all__ = ["MpcParams", "ModelPredictiveCueing", "MpcParamError", "MpcResult", "MpcStream"]
+
+#: What a solve's status adds when the QP was solved again with limits given up, in turn.
+WITHOUT = (" without the jolt limit", " without the rotation and jolt limits")
 
 
 class MpcParamError(ValueError):
@@ -117,6 +124,12 @@ class MpcParams:
         The specific-force cue is planned ``lead`` (s) ahead of the recording, as far
         as ``preview`` reaches (0 without preview); the car's rotation stays on time.
         It makes up for the otoliths' lag behind a scaled cue.
+    lead_x : float
+        The surge cue's lead (s), at least ``lead``: 0 (the default) leaves it at
+        ``lead``. A sustained surge is carried by a pitch tilt that may come only as
+        fast as the canals do not feel it; planning it earlier than the sway (whose
+        quick reversals a larger lead spoils: docs/cueing.md) lets a car that does not
+        pitch when it brakes be cued within the lag floor.
     loop_omega, loop_zeta, loop_zero, loop_delay : float
         The platform loop from set-point to pose, ``(T_z s + 1) w^2 / (s^2 + 2 zeta
         w s + w^2) e^(-s T_d)``: 5.0 rad/s, 0.72, 0.31 s, 0.03 s, fitted on the
@@ -178,6 +191,7 @@ class MpcParams:
     rotation_limit: float = 0.7
     rotation_limit_pitch: float = 0.8
     lead: float = 0.0
+    lead_x: float = 0.0
     loop_omega: float = 5.0
     loop_zeta: float = 0.72
     loop_zero: float = 0.31
@@ -217,6 +231,7 @@ class MpcParams:
             "rotation_limit": (lambda v: v >= 0, ">= 0 (0: off)"),
             "rotation_limit_pitch": (lambda v: v >= 0, ">= 0 (0: off)"),
             "lead": (lambda v: 0 <= v <= 0.5, "0..0.5 s"),
+            "lead_x": (lambda v: 0 <= v <= 0.5, "0..0.5 s"),
             "loop_omega": (lambda v: v == 0 or 0.5 <= v <= 500, "0 (off) or 0.5..500 rad/s"),
             "loop_zeta": (lambda v: 0.05 <= v <= 5, "0.05..5"),
             "loop_zero": (lambda v: 0 <= v <= 5, "0..5 s"),
@@ -602,14 +617,18 @@ class ModelPredictiveCueing:
 
         self._P = block_diag(*blocks_p)
         self._A = block_diag(*blocks_a)
-        felt_rows = []
+        # the rows given up, in turn, where the QP is infeasible: the jolt limit's, then
+        # the felt rotation's as well
+        jolt_rows: list[np.ndarray] = []
+        felt_rows: list[np.ndarray] = []
         for pr in self._pred:
-            mask = np.zeros((N, pr["rows"]), bool)
-            for r in (pr["felt"], pr["jolt"]):
-                if r is not None:
-                    mask[:, r] = True
-            felt_rows.append(mask.ravel())
-        self._felt_rows = np.concatenate(felt_rows)
+            for cols, out in (((pr["jolt"],), jolt_rows), ((pr["felt"], pr["jolt"]), felt_rows)):
+                mask = np.zeros((N, pr["rows"]), bool)
+                for r in cols:
+                    if r is not None:
+                        mask[:, r] = True
+                out.append(mask.ravel())
+        self._soft_rows = (np.concatenate(jolt_rows), np.concatenate(felt_rows))
 
     def reset(self) -> None:
         """Back to rest: the platform at home, the perception errors at zero."""
@@ -690,12 +709,14 @@ class ModelPredictiveCueing:
         t0 = time.perf_counter()
         res = self._solver.solve(raise_error=False)
         status = str(res.info.status)
-        if "infeasible" in status and self._felt_rows.any():
-            # the felt-rotation or jolt limit cannot be met from here: solved again without
-            lo[self._felt_rows], hi[self._felt_rows] = -np.inf, np.inf
+        for rows, without in zip(self._soft_rows, WITHOUT, strict=True):
+            if "infeasible" not in status or not rows.any():
+                break
+            # the jolt limit (then the felt rotation's too) cannot be met from here
+            lo[rows], hi[rows] = -np.inf, np.inf
             self._solver.update(l=lo, u=hi)
             res = self._solver.solve(raise_error=False)
-            status = str(res.info.status) + " without the rotation and jolt limits"
+            status = str(res.info.status) + without
         self.solve_times.append(time.perf_counter() - t0)
         self.status.append(status)
         self.iterations.append(int(res.info.iter))
@@ -788,18 +809,22 @@ class ModelPredictiveCueing:
         N = self.N
         pose = np.empty((n, 3))
         ahead = int(round(p.preview / dt))
-        # the cue planned ``lead`` ahead of the recording, as far as the preview reaches
+        # the cue planned ``lead`` (the surge's ``lead_x``) ahead of the recording, as far
+        # as the preview reaches
         adv = min(int(round(p.lead / dt)), ahead)
+        adv_x = min(int(round(max(p.lead, p.lead_x) / dt)), ahead)
         tau = dt * np.arange(every)
         for s in range(0, n, every):
             # known up to t + preview, held after
             # (the specific force only: the car's rotation is matched in time)
             idx = np.minimum(s + np.minimum(np.arange(N) * every, ahead), n - 1)
             fdx = np.minimum(s + np.minimum(np.arange(N) * every + adv, ahead), n - 1)
-            u = self.solve(f[fdx], w[idx])
+            xdx = np.minimum(s + np.minimum(np.arange(N) * every + adv_x, ahead), n - 1)
+            ff = np.column_stack([f[xdx, 0], f[fdx, 1:]])
+            u = self.solve(ff, w[idx])
             m = min(every, n - s)
             pose[s : s + m] = self._pose(u, tau[:m], dt)
-            self._advance(u, f[fdx[0]], w[s])
+            self._advance(u, ff[0], w[s])
         st = self.solve_times
         return MpcResult(
             t=dt * np.arange(n),

@@ -302,7 +302,12 @@ def test_sweep_variants_get_the_preset_like_a_run():
             "setpoint.cueing.telemetry": "braking_100kmh.csv",
             "setpoint.cueing": {
                 "algorithm": "mpc",
-                "parameters": {"preview_s": 1.0, "lead_s": 0.17},
+                "parameters": {
+                    "preview_s": 1.0,
+                    "lead_s": 0.17,
+                    "lead_x_s": 0.4,
+                    "rotation_limit_pitch": 0.9,
+                },
             },
         }
     ]

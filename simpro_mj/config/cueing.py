@@ -130,6 +130,7 @@ MPC_PARAMETER_KEYS = {
     "rotation_limit": ("rotation_limit", 1.0),
     "rotation_limit_pitch": ("rotation_limit_pitch", 1.0),
     "lead_s": ("lead", 1.0),
+    "lead_x_s": ("lead_x", 1.0),
     "loop_omega_rad_s": ("loop_omega", 1.0),
     "loop_zeta": ("loop_zeta", 1.0),
     "loop_zero_s": ("loop_zero", 1.0),
