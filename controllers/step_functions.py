@@ -294,10 +294,11 @@ TS = layout(
 # Its constants ``tc``: mode (0 joint-only, 1 I, 2 PI, 3 feed-forward), the
 # feed-forward correction's law (1 I, 2 PI), clamp, lag "joints", average,
 # model_tau (s), the model's beta, the PI zero c, T K K_I (3), margin, home (3), the
-# dead band of the integrated task error (3: rad, rad, m; 0: none)
+# dead band of the integrated task error (3: rad, rad, m; 0: none); the I/PI law's
+# joint lag (0 none, 1 joints) and the joint dead bands it leaves in the error (3, m)
 TC = layout(
     "TaskConstants", mode=1, law=1, clamp=1, lagj=1, avg=1, tau=1, beta=1, piz=1, tg=3,
-    margin=1, home=3, db=3,
+    margin=1, home=3, db=3, jlag=1, jband=3,
 )  # fmt: skip
 MODE_JOINT, MODE_I, MODE_PI, MODE_FF = 0, 1, 2, 3
 
@@ -409,6 +410,22 @@ def _correct(ref, e, hold, ts, tc, g, q):
             ts[TS.pend_ok] = 1.0
 
 
+def _less_joint_lag(qm0, qm1, qm2, ts, tc, g, e):
+    """``e -= J(x_c)^-1 db(q_d - q_meas)``: the task error less what the joint loops
+    are still delivering (the I/PI law's ``joint_lag: joints``).
+
+    ``q_d = IK(x_c)`` is the joint set-point the legs have been given, ``db`` each
+    leg's dead band (``TC.jband``): a leg that its seals hold within its band is not
+    catching up, and its error stays in ``e`` for the law to remove.
+    """
+    lag = np.empty(3)
+    d0 = dead_band(ts[TS.qd] - qm0, tc[TC.jband])
+    d1 = dead_band(ts[TS.qd + 1] - qm1, tc[TC.jband + 1])
+    d2 = dead_band(ts[TS.qd + 2] - qm2, tc[TC.jband + 2])
+    ik_lag(ts[TS.xc], ts[TS.xc + 1], ts[TS.xc + 2], g, d0, d1, d2, lag)
+    e[0], e[1], e[2] = e[0] - lag[0], e[1] - lag[1], e[2] - lag[2]
+
+
 def ff_step(ref, ts, tc, g):
     """This inner step's ``q_d = IK(y_d + c)`` into ``ts[TS.qd]``, the reference model advanced."""
     b = tc[TC.beta]
@@ -436,7 +453,8 @@ def outer_update(r0, r1, r2, y0, y1, y2, qm0, qm1, qm2, hold, ts, tc, g):
     Joint-only: ``IK(y_d)``. Mode I (eq. 22, Fig. 7): output ``IK(x_c[k])``,
     then integrate ``T K K_I e[k]``; PI (section 4): integrate
     ``T K K_I (e[k] + c e[k-1])`` first; feed-forward: integrate the correction
-    (held while ``hold``) and output ``IK(y_d + c)``.
+    (held while ``hold``) and output ``IK(y_d + c)``. With ``TC.jlag`` the I and
+    PI laws integrate ``e`` less the joint loops' lag (:func:`_less_joint_lag`).
     Returns an error code (0: none).
     """
     ref, q = ts[TS.scr_ref : TS.scr_ref + 3], ts[TS.scr_q : TS.scr_q + 3]
@@ -457,6 +475,8 @@ def outer_update(r0, r1, r2, y0, y1, y2, qm0, qm1, qm2, hold, ts, tc, g):
             _ff_error(y0, y1, y2, qm0, qm1, qm2, ts, tc, g, e)
         elif tc[TC.tau] > 0.0:
             e[0], e[1], e[2] = ts[TS.model] - y0, ts[TS.model + 1] - y1, ts[TS.model + 2] - y2
+    if mode != MODE_FF and tc[TC.jlag] != 0.0:
+        _less_joint_lag(qm0, qm1, qm2, ts, tc, g, e)
     for j in range(3):  # the dead band: within it the integrated pose holds
         if tc[TC.db + j] > 0.0:
             e[j] = dead_band(e[j], tc[TC.db + j])

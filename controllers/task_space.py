@@ -122,6 +122,10 @@ _MODE_CODES = dict(joint_only=sf.MODE_JOINT, I=sf.MODE_I, PI=sf.MODE_PI, feedfor
 #: How ``mode="feedforward"`` removes the joint loops' lag from the error it integrates.
 Lag = Literal["model", "joints"]
 LAGS: tuple[Lag, ...] = get_args(Lag)
+#: What the I and PI laws integrate: the whole task error (the paper) or the error less
+#: the joint loops' lag beyond their dead bands (``joint_lag``).
+JointLag = Literal["none", "joints"]
+JOINT_LAGS: tuple[JointLag, ...] = get_args(JointLag)
 
 
 class SamplingError(ValueError):
@@ -165,6 +169,17 @@ class TaskSpaceController:
         Width per axis (rad, rad, m) of the dead band on the task error the
         law integrates (:func:`controllers.dead_band.dead_band`): within it the
         integrated pose holds. Default 0 (none).
+    joint_lag : {"none", "joints"}
+        Modes I and PI: ``"none"`` (the paper) integrates the whole task error
+        ``y_d - y``; ``"joints"`` integrates it less the joint loops' lag
+        ``J(x_c)^-1 db(q_d - q_meas)``, what the legs are still delivering (``db``
+        the joint dead band ``joint_band``). While the legs travel the law then
+        drives ``x_c`` towards ``y_d`` at its own rate instead of winding up
+        on their lag; at rest ``q_d - q_meas`` is within the bands and the law
+        removes the whole error. :meth:`update` needs ``q_meas``.
+    joint_band : float or (3,) array_like
+        Each leg's dead band (m) left out of the lag (``joint_lag="joints"``):
+        the joint loops' own (``controller.inner.dead_band_mm``).
 
     Raises
     ------
@@ -190,6 +205,8 @@ class TaskSpaceController:
         lag: str = "model",
         average: bool = False,
         dead_band=0.0,
+        joint_lag: str = "none",
+        joint_band=0.0,
     ):
         if mode not in MODES:
             raise ValueError(f"unknown mode {mode!r}; allowed: {list(MODES)}")
@@ -197,6 +214,8 @@ class TaskSpaceController:
             raise ValueError(f"unknown outer_law {outer_law!r}; allowed: ['I', 'PI']")
         if lag not in LAGS:
             raise ValueError(f"unknown lag {lag!r}; allowed: {list(LAGS)}")
+        if joint_lag not in JOINT_LAGS:
+            raise ValueError(f"unknown joint_lag {joint_lag!r}; allowed: {list(JOINT_LAGS)}")
         if not (np.isfinite(inner_dt) and inner_dt > 0):
             raise SamplingError(f"inner_dt must be > 0 s, got {inner_dt!r}")
         ratio = period / inner_dt
@@ -235,11 +254,15 @@ class TaskSpaceController:
         if not (np.all(np.isfinite(db)) and np.all(db >= 0)):
             raise ValueError(f"dead_band must be 1 or 3 finite widths >= 0, got {dead_band!r}")
         self.dead_band = db.copy()
+        jb = np.broadcast_to(np.asarray(joint_band, dtype=float), (3,))
+        if not (np.all(np.isfinite(jb)) and np.all(jb >= 0)):
+            raise ValueError(f"joint_band must be 1 or 3 finite widths >= 0, got {joint_band!r}")
+        self.joint_lag = joint_lag
         self.step_constants = sf.TC.pack(
             mode=_MODE_CODES[mode], law=2.0 if outer_law == "PI" else 1.0, clamp=self.clamp,
             lagj=lag == "joints", avg=self.average, tau=self.model_tau, beta=self._beta,
             piz=self.pi_zero, tg=self.period * self.gains, margin=self.margin,
-            home=self.geometry.home, db=db,
+            home=self.geometry.home, db=db, jlag=joint_lag == "joints", jband=jb,
         )  # fmt: skip
         self.step_state = np.zeros(sf.TS.LEN)
         self.reset()  # raises if home is not reachable
@@ -278,14 +301,16 @@ class TaskSpaceController:
     def update(self, pose_ref, pose_meas, hold: bool = False, q_meas=None) -> np.ndarray:
         """One outer step: set-point and measured pose -> joint reference ``q_d`` (3,), m.
 
-        ``pose_ref``, ``pose_meas``: (roll rad, pitch rad, heave m). ``hold`` and
-        ``q_meas`` (the measured joints, needed with ``lag="joints"``) are used by
-        ``mode="feedforward"`` only. The arithmetic is
+        ``pose_ref``, ``pose_meas``: (roll rad, pitch rad, heave m). ``hold`` is used by
+        ``mode="feedforward"`` only; ``q_meas`` (the measured joints) by its
+        ``lag="joints"`` and by ``joint_lag="joints"``. The arithmetic is
         :func:`controllers.step_functions.outer_update`, the co-simulation's step.
         """
         ts, tc, g = self.step_state, self.step_constants, self.step_geometry
         if self.mode == "feedforward" and self.lag == "joints" and q_meas is None:
             raise ValueError("lag='joints' needs the measured joints q_meas")
+        if self.mode in ("I", "PI") and self.joint_lag == "joints" and q_meas is None:
+            raise ValueError("joint_lag='joints' needs the measured joints q_meas")
         qm = (0.0, 0.0, 0.0) if q_meas is None else q_meas
         args = (*_floats(pose_ref, pose_meas, qm), bool(hold), ts, tc, g)
         err = sf.outer_update(*args)

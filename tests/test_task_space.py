@@ -117,3 +117,37 @@ def test_reset_and_bad_arguments():
         TaskSpaceController(gains=(-1, 3, 3))
     with pytest.raises(TypeError):
         TaskSpaceController(bogus=True)
+
+
+def _lagging_legs(ctrl, ref, n, plant_geometry=GEOM, alpha=0.25):
+    """Legs that close a fraction ``alpha`` of their lag each outer period (a first-order
+    joint loop of time constant -T / ln(1 - alpha), about 0.2 s at T = 60 ms), as the
+    cabin's slow leg 1 does: returns the true pose of every period."""
+    ctrl.reset(HOME)
+    q_d = q = inverse_kinematics(HOME, GEOM)
+    ys = []
+    for _ in range(n):
+        q = q + alpha * (q_d - q)
+        y = forward_kinematics(q, plant_geometry, initial_pose=HOME)
+        ys.append(y)
+        q_d = ctrl.update(ref, y, q_meas=q)
+    return np.array(ys)
+
+
+def test_joint_lag_stops_the_wind_up_and_keeps_the_integral_action():
+    """I law K K_I = 3 around legs that lag: integrating the whole error overshoots a
+    3 deg pitch step (the law winds up on the legs' lag); less the lag it does not,
+    and both remove a 5 mm as-built error in leg 1."""
+    true = GEOM.replace(retracted_length=GEOM.retracted_length + np.array([0.005, 0, 0]))
+    ref = HOME + [0.0, np.radians(3.0), 0.0]
+    none = _lagging_legs(TaskSpaceController("I"), ref, 300, true)
+    lag = _lagging_legs(TaskSpaceController("I", joint_lag="joints"), ref, 300, true)
+    step = ref[1] - none[0, 1]
+    assert (none[:, 1].max() - ref[1]) / step > 0.05  # the paper's law: > 5 % overshoot
+    assert (lag[:, 1].max() - ref[1]) / step < 0.005  # less the lag: none to speak of
+    np.testing.assert_allclose(none[-1], ref, atol=1e-6)
+    np.testing.assert_allclose(lag[-1], ref, atol=1e-6)
+    with pytest.raises(ValueError, match="q_meas"):
+        TaskSpaceController("I", joint_lag="joints").update(ref, HOME)
+    with pytest.raises(ValueError, match="allowed"):
+        TaskSpaceController("I", joint_lag="model")

@@ -34,7 +34,7 @@ from controllers.design import ACTUATORS, Plant, Reading, Variant, paper_plant, 
 from controllers.errors import DesignError
 from controllers.joint import Method
 from controllers.setpoint_filter import Kind
-from controllers.task_space import Integrator, Lag
+from controllers.task_space import Integrator, JointLag, Lag
 from simpro_mj.config.cue_models import Cueing, check_cueing
 from simpro_mj.config.entries import Components, Faults
 from simpro_mj.config.messages import validated
@@ -106,6 +106,13 @@ class Outer(Block):
     period_ms: Period = param(60, "ms", "outer sampling period T (a whole number of 1 ms steps)")
     delay_samples: Annotated[DelaySamples, BeforeValidator(integral)] = param(
         1, "samples", "the inner loop as a delay in the analysis: 1 (eq. 21) or 2"
+    )
+    joint_lag: JointLag = param(
+        "none",
+        "",
+        "what the law integrates: none (the paper: the whole task error) or joints (less "
+        "the joint loops' lag beyond their dead bands, J^-1 (q_d - q_meas): no wind-up "
+        "while the legs travel; docs/paper-notes.md, controllers for the heavy cabin)",
     )
     dead_band: OuterDeadBand = block(
         OuterDeadBand,

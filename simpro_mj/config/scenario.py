@@ -369,6 +369,12 @@ def scenario_hash(resolved: Mapping) -> str:
     if isinstance(plant, Mapping) and "rig" in plant and plant["rig"] is None:
         # null is the shipped MJCF's rig, which enters by the MJCF's digest below
         resolved = {**resolved, "plant": {k: v for k, v in plant.items() if k != "rig"}}
+    ctl = resolved.get("controller")
+    outer = ctl.get("outer") if isinstance(ctl, Mapping) else None
+    if isinstance(ctl, Mapping) and isinstance(outer, Mapping) and outer.get("joint_lag") == "none":
+        # the paper's law (the default) hashes as a scenario without the key
+        outer = {k: v for k, v in outer.items() if k != "joint_lag"}
+        resolved = {**resolved, "controller": {**ctl, "outer": outer}}
     resolved = {**resolved, "mjcf": f"sha256:{model_digest()}"}  # the model it compiles
     text = json.dumps(resolved, sort_keys=True, separators=(",", ":"), allow_nan=False)
     return hashlib.sha256(text.encode("utf-8")).hexdigest()

@@ -141,6 +141,8 @@ class CoSimulation:
             lag=ff.lag,
             average=ff.average,
             dead_band=band,
+            joint_lag=outer.joint_lag,
+            joint_band=np.asarray(inner.dead_band_mm) * 1e-3,
         )
         self.hold_on_saturation = ff.hold_on_saturation
         identified = inner.identified.plants()
