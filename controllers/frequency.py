@@ -236,8 +236,19 @@ def _imu_filter(model: LoopModel):
 
 
 def _eval(sys, z) -> complex:
-    """A SISO ``control`` system's value at ``z``."""
-    return complex(np.asarray(sys(z, squeeze=False)).reshape(-1)[0])
+    """A SISO ``control`` system's value at ``z``; a state space as ``C (zI - A)^-1 B + D``.
+
+    That is python-control's own evaluation, which first tries slycot's and, with
+    slycot not installed, pays a failed import on every call (a quarter of ``analyze``).
+    """
+    if not hasattr(sys, "A"):
+        return complex(np.asarray(sys(z, squeeze=False)).reshape(-1)[0])
+    a, b = np.asarray(sys.A), np.asarray(sys.B)
+    try:
+        x = np.linalg.solve(z * np.eye(a.shape[0]) - a, b)
+    except np.linalg.LinAlgError:  # z on a pole
+        return complex(np.inf)
+    return complex((np.asarray(sys.C) @ x + np.asarray(sys.D))[0, 0])
 
 
 def _lifted(sys, n: int, period: float):
