@@ -227,13 +227,25 @@ def test_inner_summary_corrected_cancels_plant():
         assert np.min(np.abs(poles - p)) < 1e-9  # the cancelled mode stays in the loop
 
 
-def test_cli_json_contract(capsys, tmp_path):
+@pytest.fixture(scope="module")
+def analyzed(tmp_path_factory):
+    """``analyze --json --out DIR`` with the defaults, run once for the tests that read
+    it: ``(exit code, the JSON document, DIR)``."""
+    import contextlib
+    import io
+
     from simpro_mj.commands.main import main
 
-    rc = main(["analyze", "--json", "--out", str(tmp_path)])
-    out = capsys.readouterr().out
+    folder = tmp_path_factory.mktemp("analyze")
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out):
+        rc = main(["analyze", "--json", "--out", str(folder)])
+    return rc, json.loads(out.getvalue()), folder
+
+
+def test_cli_json_contract(analyzed):
+    rc, d, tmp_path = analyzed
     assert rc == 0
-    d = json.loads(out)
     assert d["outer"]["I"]["stability_limit"] == pytest.approx(1 / T)
     assert d["outer"]["PI"]["stability_limit"] == pytest.approx(2 / (0.8 * T))
     for act in ("actuator1", "actuator2"):
@@ -259,14 +271,14 @@ def test_cli_set_and_bad_set(capsys):
     assert "inner.varaint" in capsys.readouterr().err
 
 
-def test_analyze_reports_the_shipped_loop_first_and_says_which(capsys):
+def test_analyze_reports_the_shipped_loop_first_and_says_which(analyzed, capsys):
     """The scenario's own loop (backward Euler, ramps 60/30/30 ms, corrected joint
     loops on the identified plant of preset paper: limit 11.84; on eqs. 34-35 14.08)
     comes before Fig. 7 as printed (forward Euler, no filter: 9.46 on eqs. 34-35)."""
     from simpro_mj.commands.main import main
 
-    assert main(["analyze", "--json", "--no-plots"]) == 0
-    d = json.loads(capsys.readouterr().out)
+    rc, d, _ = analyzed
+    assert rc == 0
     assert list(d)[0] == "shipped"
     sh = d["shipped"]
     assert sh["loop"]["scenario"] == "step_pitch"
