@@ -207,6 +207,31 @@ def test_real_inner_loop_lowers_limit_unless_inner_is_fast():
     assert fast == pytest.approx(delay_lim, rel=0.01)
 
 
+@pytest.mark.parametrize("times", [(0.06, 0.03, 0.03), (0.09, 0.06, 0.02)])
+@pytest.mark.parametrize("mode", ["I", "PI"])
+def test_reduced_lifted_loop_keeps_the_closed_loops_eigenvalues(mode, times):
+    """The ramp filters' shift registers (rows of Phi that are zero) folded into the held
+    input: the closed loop keeps its eigenvalues, so its spectral radius and limit.
+
+    Compared above modulus 0.6 only: the full loop's nilpotent block (up to 59 states)
+    comes out of LAPACK as a ring of radius eps^(1/59) ~ 0.54 instead of zeros."""
+    from controllers.analysis.lifted import lifted_inner, outer_closed_loop, reduced
+
+    full = lifted_inner(T, setpoint_filter=("ramp", times))
+    small = reduced(full)
+    folded = sum(min(round(t / 1e-3) - 1, round(T / 1e-3)) for t in times)
+    assert small[0].shape[0] == full[0].shape[0] - folded + 3
+    for gain in (0.5, 3.0, 12.0, 40.0):
+        big, few = (
+            np.linalg.eigvals(outer_closed_loop(mode, gain, T, lifted)[0])
+            for lifted in (full, small)
+        )
+        big, few = big[np.abs(big) > 0.6], few[np.abs(few) > 0.6]
+        assert big.size == few.size > 0
+        assert np.max(np.min(np.abs(big[:, None] - few[None, :]), axis=1)) < 1e-9
+        assert np.max(np.abs(few)) == pytest.approx(np.max(np.abs(big)), abs=1e-12)
+
+
 def test_step_metrics_second_order():
     zeta, wn = 0.5, 4.0
     t = np.arange(0, 6, 1e-3)

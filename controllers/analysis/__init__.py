@@ -44,6 +44,7 @@ from controllers.analysis.lifted import (
     real_inner_closed_loop,
     real_inner_limit,
     real_inner_step,
+    reduced,
     spectral_radius,
     with_setpoint_filter,
 )
@@ -77,4 +78,5 @@ __all__ = [
     "real_inner_closed_loop",
     "real_inner_limit",
     "real_inner_step",
+    "reduced",
 ]

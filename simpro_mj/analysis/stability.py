@@ -186,7 +186,7 @@ def _analysed(key: tuple):
     dt, period = key[0], key[13]
     legs, basis = _legs_of(key)
     limit, delay_limit = _limits(key, legs)
-    lifted = an.lifted_inner(period, dt=dt, legs=legs)
+    lifted = an.reduced(an.lifted_inner(period, dt=dt, legs=legs))  # same eigenvalues
     return limit, delay_limit, lifted, basis
 
 
