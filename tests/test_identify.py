@@ -66,6 +66,27 @@ def test_fit_recovers_a_known_model():
     assert r["offset_v"] == pytest.approx(0.03, abs=2e-3)
 
 
+@pytest.mark.parametrize(
+    "b, a1, a0", [(10.6, 26.3, 217.7), (100.4, 11.6, 1450.0), (0.5, 0.9, 19.2), (25.0, 44.0, 1.7e4)]
+)
+def test_zoh_filter_is_scipys_and_settles_at_the_velocity_gain(b, a1, a0):
+    """The fit's discretisation against scipy's (cont2discrete, ZOH) and against physics:
+    a held 1 V step ends at the velocity gain b / a0, and the first sample of the
+    response is the exact ZOH one, b dt^2 / 2 to second order."""
+    from scipy.signal import cont2discrete, lfilter
+
+    from simpro_mj.identification.identify import zoh_velocity_filter
+
+    dt = 1e-3
+    num, den = zoh_velocity_filter(b, a1, a0, dt)
+    ref_num, ref_den, _ = cont2discrete(([b], [1.0, a1, a0]), dt, method="zoh")
+    np.testing.assert_allclose(den, ref_den, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(num, np.ravel(ref_num), rtol=1e-6, atol=1e-12 * abs(num).max())
+    v = lfilter(num, den, np.ones(80_000))  # 80 s: e^(-a1 t / 2) < 1e-15
+    assert v[-1] == pytest.approx(b / a0, rel=1e-9)
+    assert v[1] == pytest.approx(b * dt**2 / 2, rel=a1 * dt)
+
+
 def test_identification_of_the_linear_option_returns_the_paper_models():
     """The linear option is eqs. (34)-(35) in SI under the volts reading (b / 20): the
     procedure returns them (amplitudes x 20 keep the slide motion of the metres reading)."""
