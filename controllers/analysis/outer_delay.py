@@ -64,10 +64,6 @@ def closed_form_limit(mode: str, period: float, delay: int = 1, pi_zero: float =
     raise NotImplementedError("closed form only for delay 1 (I, PI) and delay 2 (I)")
 
 
-def _spectral_radius_poly(a, b, g) -> float:
-    return float(np.max(np.abs(np.roots(np.polyadd(a, g * b)))))
-
-
 def stability_limit(a, b, g_max: float = 1e4) -> float:
     """Largest ``g > 0`` such that ``A + g' B`` is Schur for every ``0 < g' < g``.
 

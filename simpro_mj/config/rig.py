@@ -108,7 +108,7 @@ class Rig(Block):
     )
 
 
-def check_rig(rig: Mapping, where: str = "plant.rig") -> None:
+def check_rig(rig: Rig, where: str = "plant.rig") -> None:
     """The rules across a rig's fields (module docstring); one-line ``UserInputError``."""
 
     def refuse(key: str, value: Any, allowed: str) -> None:
@@ -116,40 +116,39 @@ def check_rig(rig: Mapping, where: str = "plant.rig") -> None:
             f"invalid value at {where}.{key}: {value_text(value)}; allowed: {allowed}"
         )
 
-    base, plat, brk = rig["base_anchors_mm"], rig["platform_anchors_mm"], rig["bracket_mm"]
+    base, plat, brk = rig.base_anchors_mm, rig.platform_anchors_mm, rig.bracket_mm
     for key, point in (
-        ("base_anchors_mm.A1", base["A1"]),
-        ("platform_anchors_mm.B1", plat["B1"]),
-        ("bracket_mm.C1", brk["C1"]),
-        ("bracket_mm.C2", brk["C2"]),
+        ("base_anchors_mm.A1", base.A1),
+        ("platform_anchors_mm.B1", plat.B1),
+        ("bracket_mm.C1", brk.C1),
+        ("bracket_mm.C2", brk.C2),
     ):
         if point[1] != 0:
             refuse(key, point, "[x, 0, z]: leg 1 (R-P-S-U) and the guide move in the x-z plane")
-    if abs(plat["B1"][2] - H0 * 1e3) > 1e-9:
+    if abs(plat.B1[2] - H0 * 1e3) > 1e-9:
         refuse(
             "platform_anchors_mm.B1",
-            plat["B1"],
+            plat.B1,
             f"z = {H0 * 1e3:.0f} mm, the home height the set-points, plots and cueing frames "
             "measure heave from",
         )
-    if rig["home_stroke_mm"] >= rig["stroke_mm"]:
-        refuse("home_stroke_mm", rig["home_stroke_mm"], f"< stroke_mm ({rig['stroke_mm']:g} mm)")
-    radius = math.hypot(*rig["guide_centre_from_b1_mm"])
-    if radius < MIN_GUIDE_RADIUS_MM:
+    if rig.home_stroke_mm >= rig.stroke_mm:
+        refuse("home_stroke_mm", rig.home_stroke_mm, f"< stroke_mm ({rig.stroke_mm:g} mm)")
+    if math.hypot(*rig.guide_centre_from_b1_mm) < MIN_GUIDE_RADIUS_MM:
         refuse(
             "guide_centre_from_b1_mm",
-            rig["guide_centre_from_b1_mm"],
+            rig.guide_centre_from_b1_mm,
             f"a guide radius >= {MIN_GUIDE_RADIUS_MM:g} mm",
         )
-    legs = (("A1", brk["C1"]), ("A2", plat["B2"]), ("A3", plat["B3"]))
-    for name, attach in legs:
-        length = math.dist(base[name], attach)
-        if length <= rig["home_stroke_mm"]:
+    legs = (("A1", base.A1, brk.C1), ("A2", base.A2, plat.B2), ("A3", base.A3, plat.B3))
+    for name, anchor, attach in legs:
+        length = math.dist(anchor, attach)
+        if length <= rig.home_stroke_mm:
             refuse(
                 f"base_anchors_mm.{name}",
-                base[name],
+                anchor,
                 f"a leg longer at home ({length:.1f} mm) than home_stroke_mm "
-                f"({rig['home_stroke_mm']:g} mm): a positive retracted length",
+                f"({rig.home_stroke_mm:g} mm): a positive retracted length",
             )
 
 
@@ -209,10 +208,10 @@ def rig_value(value: Any, base: Path | None = None, where: str = "plant.rig") ->
             "null (the paper's rig), a rig YAML path or a mapping of rig keys"
         )
     try:
-        rig = Rig.model_validate(copy.deepcopy(dict(value))).model_dump()
+        rig = Rig.model_validate(copy.deepcopy(dict(value)))
         check_rig(rig, where)
     except ValidationError as exc:
         raise UserInputError(f"{user_error(exc, Rig, where)}{source}") from None
     except UserInputError as exc:
         raise UserInputError(f"{exc}{source}") from None
-    return rig
+    return rig.model_dump()
