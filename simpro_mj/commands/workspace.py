@@ -6,12 +6,21 @@ import numpy as np
 
 from controllers.geometry import nominal_geometry
 from controllers.workspace import combined_ranges, workspace_ranges
+from simpro_mj.config.messages import validated
+from simpro_mj.config.rules import Block, Real, Whole, param
 from simpro_mj.core.jsonout import emit_json
-from simpro_mj.core.keys import apply_overrides, check_number
+from simpro_mj.core.keys import apply_overrides
 
 HELP = "print the reachable workspace (single-axis ranges and their combinations)"
 
-DEFAULTS = {"margin_mm": 0.0, "heights": 5}
+
+class WorkspaceParams(Block):
+    """``--set`` keys of ``simpro-sim workspace``."""
+
+    margin_mm: Real = param(
+        0.0, "mm", "stroke margin kept at both ends (below half the 500 mm stroke)", ge=0, lt=250
+    )
+    heights: Whole = param(5, "", "heave levels of the combined ranges", ge=1, le=1000)
 
 
 def add_arguments(parser) -> None:
@@ -19,40 +28,35 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
-    p = apply_overrides(DEFAULTS, args.sets)
-    # stroke margin below half the 500 mm stroke; heights bounded to keep it quick
-    check_number(p, "margin_mm", 0.0, 250.0, hi_open=True, unit=" mm")
-    check_number(p, "heights", 1, 1000, integer=True)
-    margin = p["margin_mm"] * 1e-3
+    p = validated(WorkspaceParams, apply_overrides(WorkspaceParams.defaults(), args.sets))
+    margin = p.margin_mm * 1e-3
     g = nominal_geometry()
     single = workspace_ranges(g, margin)
-    combo = combined_ranges(g, int(p["heights"]), margin)
-    out = {
-        "home": {"roll_deg": 0.0, "pitch_deg": 0.0, "heave_mm": g.home[2] * 1e3},
-        "roll_deg": np.degrees(single["roll"]).tolist(),
-        "pitch_deg": np.degrees(single["pitch"]).tolist(),
-        "heave_mm": (np.asarray(single["heave"]) * 1e3).tolist(),
-        "at_heights": [
-            {
-                "heave_mm": r["heave"] * 1e3,
-                "roll_deg": np.degrees(r["roll"]).tolist(),
-                "pitch_deg": np.degrees(r["pitch"]).tolist(),
-            }
-            for r in combo
-        ],
-    }
+    combo = combined_ranges(g, p.heights, margin)
+    roll, pitch = np.degrees(single["roll"]).tolist(), np.degrees(single["pitch"]).tolist()
+    heave = (np.asarray(single["heave"]) * 1e3).tolist()
+    levels = [
+        {
+            "heave_mm": r["heave"] * 1e3,
+            "roll_deg": np.degrees(r["roll"]).tolist(),
+            "pitch_deg": np.degrees(r["pitch"]).tolist(),
+        }
+        for r in combo
+    ]
     if args.json:
-        emit_json(out)
+        home = {"roll_deg": 0.0, "pitch_deg": 0.0, "heave_mm": g.home[2] * 1e3}
+        emit_json({"home": home, "roll_deg": roll, "pitch_deg": pitch, "heave_mm": heave,
+                   "at_heights": levels})  # fmt: skip
         return 0
-    print(f"Reachable workspace (stroke 0..500 mm, margin {p['margin_mm']} mm), about home:")
-    print(f"  roll   {out['roll_deg'][0]:8.2f} .. {out['roll_deg'][1]:7.2f} deg")
-    print(f"  pitch  {out['pitch_deg'][0]:8.2f} .. {out['pitch_deg'][1]:7.2f} deg")
-    print(f"  heave  {out['heave_mm'][0]:8.1f} .. {out['heave_mm'][1]:7.1f} mm")
+    print(f"Reachable workspace (stroke 0..500 mm, margin {p.margin_mm} mm), about home:")
+    print(f"  roll   {roll[0]:8.2f} .. {roll[1]:7.2f} deg")
+    print(f"  pitch  {pitch[0]:8.2f} .. {pitch[1]:7.2f} deg")
+    print(f"  heave  {heave[0]:8.1f} .. {heave[1]:7.1f} mm")
     print("  at other heights (roll and pitch with the other angle zero):")
-    for r in out["at_heights"]:
+    for level in levels:
+        (r0, r1), (p0, p1) = level["roll_deg"], level["pitch_deg"]
         print(
-            f"    h = {r['heave_mm']:7.1f} mm: "
-            f"roll {r['roll_deg'][0]:7.2f}..{r['roll_deg'][1]:6.2f}"
-            f" deg, pitch {r['pitch_deg'][0]:7.2f}..{r['pitch_deg'][1]:6.2f} deg"
+            f"    h = {level['heave_mm']:7.1f} mm: roll {r0:7.2f}..{r1:6.2f} deg, "
+            f"pitch {p0:7.2f}..{p1:6.2f} deg"
         )
     return 0
