@@ -62,10 +62,9 @@ from simpro_mj.analysis.loop_records import (
     SweepRow,
 )
 from simpro_mj.analysis.response_summary import figures
-from simpro_mj.config.messages import validated
+from simpro_mj.config.messages import from_sets
 from simpro_mj.config.rules import Block, Real, Whole, block, param
 from simpro_mj.core.errors import UserInputError
-from simpro_mj.core.keys import apply_overrides
 
 #: The paper's statements, for comparison.
 PAPER = {
@@ -183,14 +182,8 @@ class AnalyzeParams(Block):
 
 
 def params(sets: Iterable[str] = ()) -> AnalyzeParams:
-    """The analysis' parameters: the defaults with the ``--set KEY=VALUE`` overrides.
-
-    Raises
-    ------
-    UserInputError
-        An unknown key, or a value of the wrong type or out of range (one line).
-    """
-    return validated(AnalyzeParams, apply_overrides(AnalyzeParams.defaults(), sets))
+    """The parameters: the defaults with the ``--set`` overrides (:func:`from_sets`)."""
+    return from_sets(AnalyzeParams, sets)
 
 
 def _pairs(z) -> list:

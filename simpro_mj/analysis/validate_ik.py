@@ -33,11 +33,10 @@ from pydantic import Field
 from controllers.errors import WorkspaceError
 from controllers.geometry import geometry_from_rig
 from controllers.kinematics import check_reachable, inverse_kinematics, paper_inverse_kinematics
-from simpro_mj.config.messages import validated
+from simpro_mj.config.messages import from_sets
 from simpro_mj.config.rig import rig_value
 from simpro_mj.config.rules import Block, Real, Whole, block, param
 from simpro_mj.core.errors import UserInputError
-from simpro_mj.core.keys import apply_overrides
 from simpro_mj.plant.model import (
     DEFAULT_MODEL_PARAMS,
     PlantIndex,
@@ -88,14 +87,8 @@ class IkParams(Block):
 
 
 def params(sets: Iterable[str] = ()) -> IkParams:
-    """The validation's parameters: the defaults with the ``--set KEY=VALUE`` overrides.
-
-    Raises
-    ------
-    UserInputError
-        An unknown key, or a value of the wrong type or out of range (one line).
-    """
-    return validated(IkParams, apply_overrides(IkParams.defaults(), sets))
+    """The parameters: the defaults with the ``--set`` overrides (:func:`from_sets`)."""
+    return from_sets(IkParams, sets)
 
 
 def trajectory(t: np.ndarray, tr: Trajectory, home: np.ndarray) -> np.ndarray:

@@ -6,10 +6,9 @@ import numpy as np
 
 from controllers.geometry import nominal_geometry
 from controllers.workspace import combined_ranges, workspace_ranges
-from simpro_mj.config.messages import validated
+from simpro_mj.config.messages import from_sets
 from simpro_mj.config.rules import Block, Real, Whole, param
 from simpro_mj.core.jsonout import emit_json
-from simpro_mj.core.keys import apply_overrides
 
 HELP = "print the reachable workspace (single-axis ranges and their combinations)"
 
@@ -28,7 +27,7 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
-    p = validated(WorkspaceParams, apply_overrides(WorkspaceParams.defaults(), args.sets))
+    p = from_sets(WorkspaceParams, args.sets)
     margin = p.margin_mm * 1e-3
     g = nominal_geometry()
     single = workspace_ranges(g, margin)

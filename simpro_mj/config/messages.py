@@ -14,16 +14,16 @@ from __future__ import annotations
 
 import math
 import types
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from typing import Annotated, Any, Literal, TypeVar, Union, get_args, get_origin
 
 import annotated_types as at
 from pydantic import BaseModel, ValidationError
 from pydantic.fields import FieldInfo
 
-from simpro_mj.config.rules import ONE_FOR_ALL, Problem
+from simpro_mj.config.rules import ONE_FOR_ALL, Block, Problem
 from simpro_mj.core.errors import UserInputError
-from simpro_mj.core.keys import closest, key_text, value_text
+from simpro_mj.core.keys import apply_overrides, closest, key_text, value_text
 
 # ------------------------------------------------------------------ walking the models
 
@@ -257,6 +257,7 @@ _TYPE_ERRORS = {
 
 
 _M = TypeVar("_M", bound=BaseModel)
+_B = TypeVar("_B", bound=Block)
 
 
 def validated(model: type[_M], value: Any, prefix: str = "", context: Any = None) -> _M:
@@ -269,6 +270,18 @@ def validated(model: type[_M], value: Any, prefix: str = "", context: Any = None
         return model.model_validate(value, context=context)
     except ValidationError as exc:
         raise user_error(exc, model, prefix) from None
+
+
+def from_sets(model: type[_B], sets: Iterable[str] = ()) -> _B:
+    """A model of a command's parameters: its defaults with the ``--set KEY=VALUE``
+    overrides, validated (:func:`validated`).
+
+    Raises
+    ------
+    UserInputError
+        An unknown key, or a value of the wrong type or out of range (one line).
+    """
+    return validated(model, apply_overrides(model.defaults(), sets))
 
 
 def user_error(exc: ValidationError, model: type, prefix: str = "") -> UserInputError:
