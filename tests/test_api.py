@@ -234,21 +234,23 @@ def test_no_command_loads_mujoco_before_it_runs(tmp_path):
     assert proc.stdout.strip() == "False"
 
 
-@pytest.mark.parametrize(
-    "argv",
-    [
+def test_identify_and_calibrate_refuse_their_settings_before_loading_mujoco(tmp_path):
+    """The identification tree is built and checked without MuJoCo or SciPy's optimiser,
+    so a mistyped preset or key is refused (exit 2) before the experiment's imports.
+
+    The three refusals run one after the other in one process: modules only accumulate,
+    so after each one neither import has happened yet."""
+    argvs = [
         ["calibrate", "--start", "nosuch"],
         ["calibrate", "--set", "pneumatics.nosuch=1"],
         ["identify", "--set", "identify.duration_s=-1"],
-    ],
-)
-def test_identify_and_calibrate_refuse_their_settings_before_loading_mujoco(argv, tmp_path):
-    """The identification tree is built and checked without MuJoCo or SciPy's optimiser,
-    so a mistyped preset or key is refused (exit 2) before the experiment's imports."""
+    ]
     code = (
-        "import sys; from simpro_mj.commands.main import main; "
-        f"rc = main({argv!r}); "
-        "print(rc, 'mujoco' in sys.modules, 'scipy.optimize' in sys.modules)"
+        "import sys; from simpro_mj.commands.main import main\n"
+        f"for argv in {argvs!r}:\n"
+        "    rc = main(argv)\n"
+        "    print(rc, 'mujoco' in sys.modules, 'scipy.optimize' in sys.modules, flush=True)\n"
+        "    print('--', file=sys.stderr, flush=True)\n"
     )
     # without MUJOCO_GL: with it set, main() loads MuJoCo first to check the GL backend
     env = {k: v for k, v in os.environ.items() if k != "MUJOCO_GL"}
@@ -256,5 +258,9 @@ def test_identify_and_calibrate_refuse_their_settings_before_loading_mujoco(argv
     proc = subprocess.run(
         [sys.executable, "-c", code], cwd=tmp_path, env=env, capture_output=True, text=True
     )
-    assert proc.stdout.split() == ["2", "False", "False"], proc.stdout + proc.stderr
-    assert len(proc.stderr.strip().splitlines()) == 1
+    said = proc.stdout + proc.stderr
+    assert proc.stdout.splitlines() == ["2 False False"] * len(argvs), said
+    errors = proc.stderr.split("--\n")
+    assert len(errors) == len(argvs) + 1 and errors[-1] == "", said
+    for err in errors[:-1]:  # one line each
+        assert len(err.strip().splitlines()) == 1 and err.startswith("error: "), said
