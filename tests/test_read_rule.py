@@ -29,14 +29,6 @@ ROOT = Path(__file__).resolve().parents[1]
 HEADER = "time_s,fx_mps2,fy_mps2,fz_mps2,wx_rad_s,wy_rad_s,wz_rad_s"
 
 
-def _cli(args, cwd, timeout=60):
-    """The CLI in a child process: (exit code, stderr)."""
-    env = dict(os.environ, PYTHONPATH=str(ROOT), MPLBACKEND="Agg")
-    r = subprocess.run([sys.executable, "-m", "simpro_mj.commands.main", *args], cwd=cwd,
-                       env=env, capture_output=True, text=True, timeout=timeout)  # fmt: skip
-    return r.returncode, r.stderr
-
-
 def _one_line(err: str) -> str:
     lines = err.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("error: "), err
@@ -65,9 +57,26 @@ def test_fifos_and_devices_are_refused_at_once(tmp_path, recorded_run):
         (["run", "step_pitch", "--out", str(marker), "--no-plots"], "not a simpro-sim result"),
         (["run", str(scen), "--out", str(tmp_path / "o")], "not a regular file"),
     ]
-    for argv, said in cases:
-        rc, err = _cli(argv, tmp_path)
-        assert rc == 2 and said in _one_line(err), (argv, err)
+    # one child process runs every case in turn (a child: a refusal that blocked on a FIFO
+    # would end at the timeout, not hang the suite); each case's stderr ends at a "--" line
+    code = (
+        "import sys\n"
+        "from simpro_mj.commands.main import main\n"
+        f"for argv in {[argv for argv, _ in cases]!r}:\n"
+        "    rc = main(argv)\n"
+        "    sys.stdout.flush()\n"
+        "    print(f'rc={rc}', flush=True)\n"
+        "    print('--', file=sys.stderr, flush=True)\n"
+    )
+    env = dict(os.environ, PYTHONPATH=str(ROOT), MPLBACKEND="Agg")
+    r = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, env=env,
+                       capture_output=True, text=True, timeout=300)  # fmt: skip
+    codes = [line for line in r.stdout.splitlines() if line.startswith("rc=")]
+    errors = r.stderr.split("--\n")
+    assert len(codes) == len(cases) and len(errors) == len(cases) + 1, r.stdout + r.stderr
+    assert errors[-1] == "", r.stderr
+    for (argv, said), rc, err in zip(cases, codes, errors[:-1], strict=True):
+        assert rc == "rc=2" and said in _one_line(err), (argv, err)
     assert not (tmp_path / "o").exists()
 
 
