@@ -238,17 +238,25 @@ def _imu_filter(model: LoopModel):
 def _eval(sys, z) -> complex:
     """A SISO ``control`` system's value at ``z``; a state space as ``C (zI - A)^-1 B + D``.
 
-    That is python-control's own evaluation, which first tries slycot's and, with
-    slycot not installed, pays a failed import on every call (a quarter of ``analyze``).
+    That is python-control's own evaluation (the same branches: no state, one state,
+    a solve), which first tries slycot's and, with slycot not installed, pays a failed
+    import on every call (a quarter of ``analyze``).
     """
     if not hasattr(sys, "A"):
         return complex(np.asarray(sys(z, squeeze=False)).reshape(-1)[0])
-    a, b = np.asarray(sys.A), np.asarray(sys.B)
+    a, b, c, d = (np.asarray(m) for m in (sys.A, sys.B, sys.C, sys.D))
+    n = a.shape[0]
+    if n == 0:
+        return complex(d[0, 0])
+    if n == 1:
+        with np.errstate(divide="ignore", invalid="ignore"):
+            value = complex(c[0, 0] / (z - a[0, 0]) * b[0, 0] + d[0, 0])
+        return complex(np.inf, np.nan) if np.isnan(value) else value
     try:
-        x = np.linalg.solve(z * np.eye(a.shape[0]) - a, b)
+        x = np.linalg.solve(z * np.eye(n) - a, b)
     except np.linalg.LinAlgError:  # z on a pole
-        return complex(np.inf)
-    return complex((np.asarray(sys.C) @ x + np.asarray(sys.D))[0, 0])
+        return complex(np.inf, np.nan)
+    return complex((c @ x + d)[0, 0])
 
 
 def _lifted(sys, n: int, period: float):
