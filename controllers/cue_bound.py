@@ -3,7 +3,7 @@
 :class:`~controllers.mpc_cueing.ModelPredictiveCueing` plans 1.2 s at a time with at most
 its preview of the future. The bound plans the whole recording at once: one QP over every
 period of the drive, from rest, knowing every sample, with the MPC's model, cost and
-constraints (:class:`~controllers.mpc_cueing.MpcParams`: the otolith and canal models,
+constraints (:class:`~controllers.cue_mpc_params.MpcParams`: the otolith and canal models,
 each error in units of its threshold; the workspace box, the tilt and heave rates and
 accelerations, the felt-rotation and wrong-way-jolt limits) and the car's sensation at
 full scale (``gain_x = gain_y = gain_z = gain_rot = 1``): the platform chooses its own
@@ -36,8 +36,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .cue_mpc_params import MpcParams
 from .frames import GRAVITY
-from .mpc_cueing import WITHOUT, ModelPredictiveCueing, MpcParams
+from .mpc_cueing import WITHOUT, ModelPredictiveCueing
 
 __all__ = ["CueBound", "cue_bound"]
 

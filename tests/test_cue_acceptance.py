@@ -12,14 +12,9 @@ import pytest
 from controllers.frames import GRAVITY
 from controllers.geometry import HEAD_HEIGHT_PITCH
 from controllers.washout import ClassicalWashout
-from simpro_mj.analysis.cue_metrics import (
-    _onset_block,
-    cue_floors,
-    false_rotation,
-    onsets,
-    print_cue_summary,
-    summary_columns,
-)
+from simpro_mj.analysis.cue_metrics import cue_floors, summary_columns
+from simpro_mj.analysis.cue_signals import false_rotation, onset_block, onsets
+from simpro_mj.analysis.cue_summary import print_cue_summary
 from simpro_mj.config.cueing import step_input, vehicle_input
 from simpro_mj.config.models import check_cueing
 from simpro_mj.config.scenario import load_scenario, resolve_scenario
@@ -80,18 +75,18 @@ def test_onsets_delay_and_raw_wrong_sign():
     raw_head = head.copy()
     raw_head[(t > 1.05) & (t < 1.15)] = 0.4  # the jolt
     assert [(a, b) for a, b in onsets(veh, 0.17)] == [(int(round(1.085 / dt)) + 1, t.size)]
-    out = _onset_block(t, veh, head, raw_veh, raw_head, 0.17)
+    out = onset_block(t, veh, head, raw_veh, raw_head, 0.17)
     assert out["onsets"] == 1 and out["onsets_missed"] == 0
     assert out["onset_delay_s"] == pytest.approx(0.25, abs=2e-3)
     assert out["onset_raw_wrong_sign_peak"] == pytest.approx(0.4)
     assert out["onset_raw_wrong_sign_s"] == pytest.approx(0.065, abs=2e-3)  # from 1.085 s
     assert not out["onset_raw_right_sign"]
     # no head cue at all: the onset is missed, no delay
-    out = _onset_block(t, veh, np.zeros_like(t), raw_veh, np.zeros_like(t), 0.17)
+    out = onset_block(t, veh, np.zeros_like(t), raw_veh, np.zeros_like(t), 0.17)
     assert out["onsets_missed"] == 1 and out["onset_delay_s"] is None
     # an after-effect (the sensation past the threshold while the stimulus is at rest)
     # is no onset
-    out = _onset_block(t, -veh, -veh, np.zeros_like(t), np.zeros_like(t), 0.17)
+    out = onset_block(t, -veh, -veh, np.zeros_like(t), np.zeros_like(t), 0.17)
     assert out["onsets"] == 0
 
 

@@ -11,7 +11,8 @@ import pytest
 from controllers.cue_bound import cue_bound
 from controllers.frames import GRAVITY
 from controllers.vestibular import VestibularModel
-from simpro_mj.analysis.cue_metrics import bound_share, cue_floors, strength
+from simpro_mj.analysis.cue_metrics import cue_floors
+from simpro_mj.analysis.cue_signals import bound_share, strength
 
 
 def test_strength_tells_a_weak_cue_of_the_right_shape():

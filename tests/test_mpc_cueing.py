@@ -7,8 +7,9 @@ import math
 import numpy as np
 import pytest
 
+from controllers.cue_mpc_params import MpcParamError, MpcParams
 from controllers.frames import GRAVITY
-from controllers.mpc_cueing import ModelPredictiveCueing, MpcParamError, MpcParams
+from controllers.mpc_cueing import ModelPredictiveCueing
 
 DT = 0.01
 #: The plan itself as the set-point (no loop inverse, no look-ahead)

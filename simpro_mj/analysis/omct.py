@@ -33,10 +33,10 @@ from typing import Any
 
 import numpy as np
 
+from controllers.cue_mpc_params import MpcParams
 from controllers.frames import GRAVITY
 from controllers.frequency import CHAIN_CHANNELS, OMCT_RAD_S, fit_sine
 from controllers.geometry import HEAD_HEIGHT_PITCH, HEAD_HEIGHT_ROLL
-from controllers.mpc_cueing import MpcParams
 from controllers.washout import WashoutParams
 
 __all__ = [
@@ -155,7 +155,7 @@ def _loop(y: np.ndarray, dt: float) -> np.ndarray:
     """The platform loop's model (module docstring) on each column of set-points."""
     from scipy import signal
 
-    from controllers.mpc_cueing import MpcParams
+    from controllers.cue_mpc_params import MpcParams
 
     p = MpcParams()
     w2 = p.loop_omega**2

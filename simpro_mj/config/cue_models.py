@@ -29,7 +29,7 @@ from pydantic import (
     model_validator,
 )
 
-from controllers.mpc_cueing import MpcParamError
+from controllers.cue_mpc_params import MpcParamError
 from controllers.washout import WashoutParamError
 from simpro_mj.config.cueing import (
     ALGORITHMS,
@@ -131,7 +131,7 @@ class _WashoutCheck(CueBlock):
 
 
 class _MpcCheck(_WashoutCheck):
-    """The MPC's own ranges (:class:`controllers.mpc_cueing.MpcParams`)."""
+    """The MPC's own ranges (:class:`controllers.cue_mpc_params.MpcParams`)."""
 
     _algorithm: ClassVar[str] = "mpc"
 

@@ -43,8 +43,8 @@ from typing import Any
 
 import numpy as np
 
+from controllers.cue_mpc_params import MpcParams
 from controllers.geometry import geometry_from_rig
-from controllers.mpc_cueing import MpcParams
 from controllers.washout import ClassicalWashout, WashoutParams
 from simpro_mj.config.telemetry import read_telemetry, resample
 from simpro_mj.core.errors import UserInputError

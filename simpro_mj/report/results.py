@@ -494,7 +494,7 @@ def print_summary(metrics: Mapping, out_dir=None, file: TextIO | None = None) ->
     cue = metrics.get("cueing") or (metrics.get("metrics") or {}).get("cueing")
     if cue and cue.get("channels"):
         # a cueing run: what the driver perceives, not a step response
-        from simpro_mj.analysis.cue_metrics import print_cue_summary
+        from simpro_mj.analysis.cue_summary import print_cue_summary
 
         print_cue_summary(cue, file=file)
         _list_files(out_dir, file)

@@ -55,7 +55,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from controllers.mpc_cueing import MpcParams, MpcStream  # the module loads osqp on use
+from controllers.cue_mpc_params import MpcParams
+from controllers.mpc_cueing import MpcStream  # the module loads osqp on use
 from controllers.washout import ClassicalWashout, WashoutParams
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.plant.faults import NEVER
