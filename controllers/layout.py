@@ -26,6 +26,7 @@ with it.
 from __future__ import annotations
 
 from collections import namedtuple
+from types import SimpleNamespace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -77,14 +78,16 @@ class Layout(tuple):
             out[off : off + v.size] = v
         return out
 
-    def views(self, arr) -> dict:
-        """Each field of ``arr`` (a block of this layout) as a view, by name."""
-        return {
-            f: arr[getattr(self, f) :]
-            if n is None
-            else arr[getattr(self, f) : getattr(self, f) + n]
-            for f, n in self.sizes.items()
-        }
+    def views(self, arr) -> SimpleNamespace:
+        """Each field of ``arr`` (a block of this layout) as a view, an attribute by name."""
+        return SimpleNamespace(
+            **{
+                f: arr[getattr(self, f) :]
+                if n is None
+                else arr[getattr(self, f) : getattr(self, f) + n]
+                for f, n in self.sizes.items()
+            }
+        )
 
     def size(self, field: str) -> int:
         """The declared size of ``field``."""

@@ -24,8 +24,8 @@ def test_pack_places_every_field_and_views_give_them_back():
     a = L.pack(p=[1.0, 2.0], s=3.0, m=np.arange(4.0).reshape(2, 2), tab=[7.0, 8.0, 9.0])
     assert a.tolist() == [1.0, 2.0, 3.0, 0.0, 1.0, 2.0, 3.0, 7.0, 8.0, 9.0]
     v = L.views(a)
-    v["s"][0] = -1.0  # a view, not a copy
-    assert a[L.s] == -1.0 and v["tab"].tolist() == [7.0, 8.0, 9.0]
+    v.s[0] = -1.0  # a view, not a copy
+    assert a[L.s] == -1.0 and v.tab.tolist() == [7.0, 8.0, 9.0]
 
 
 @pytest.mark.parametrize(

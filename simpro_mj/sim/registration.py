@@ -10,6 +10,7 @@ kept), so another model stepping in this process meanwhile reads zero timers.
 from __future__ import annotations
 
 import threading
+from dataclasses import dataclass
 from typing import Any
 
 import mujoco
@@ -20,7 +21,19 @@ from simpro_mj.sim import step as st
 __all__ = ["Registration"]
 
 _reg_lock = threading.Lock()
-_installed: dict[str, Any] = {"cb": None, "count": 0, "previous": None, "previous_time": None}
+
+
+@dataclass
+class _Installed:
+    """MuJoCo's process-wide callbacks as we found and set them."""
+
+    cb: Any = None  # our (control, clock) cfuncs, made once
+    count: int = 0  # registered runs
+    previous: Any = None  # the control callback installed before ours
+    previous_time: Any = None  # and the clock
+
+
+_installed = _Installed()
 
 
 def _make_callback():
@@ -67,8 +80,8 @@ class Registration:
 
     def __enter__(self):
         with _reg_lock:
-            if _installed["cb"] is None:
-                _installed["cb"] = _make_callback()
+            if _installed.cb is None:
+                _installed.cb = _make_callback()
             free = [s for s in range(st.N_SLOTS) if st.REGISTRY[s * st.SLOT] == 0]
             if not free:
                 raise RuntimeError(f"more than {st.N_SLOTS} runs stepping at once in one process")
@@ -77,14 +90,14 @@ class Registration:
             # the key last: the slot is whole when the callback can find it
             st.REGISTRY[s * st.SLOT] = self.slot[0]
             self.index = s
-            if _installed["count"] == 0:
-                _installed["previous"] = mujoco.get_mjcb_control()
-                _installed["previous_time"] = mujoco.get_mjcb_time()
-                control, clock = _installed["cb"]
+            if _installed.count == 0:
+                _installed.previous = mujoco.get_mjcb_control()
+                _installed.previous_time = mujoco.get_mjcb_time()
+                control, clock = _installed.cb
                 mujoco.set_mjcb_control(control)
-                if _installed["previous_time"] is None:
+                if _installed.previous_time is None:
                     mujoco.set_mjcb_time(clock)
-            _installed["count"] += 1
+            _installed.count += 1
         return self
 
     def __exit__(self, *exc):
@@ -93,9 +106,9 @@ class Registration:
             assert s is not None  # entered
             st.REGISTRY[s * st.SLOT : (s + 1) * st.SLOT] = 0
             self.index = None
-            _installed["count"] -= 1
-            if _installed["count"] == 0:
-                mujoco.set_mjcb_control(_installed["previous"])
-                mujoco.set_mjcb_time(_installed["previous_time"])
-                _installed["previous"] = _installed["previous_time"] = None
+            _installed.count -= 1
+            if _installed.count == 0:
+                mujoco.set_mjcb_control(_installed.previous)
+                mujoco.set_mjcb_time(_installed.previous_time)
+                _installed.previous = _installed.previous_time = None
         return False

@@ -294,23 +294,23 @@ def build(sim, loop_bound: float, noise_row, walk_row) -> tuple[np.ndarray, np.n
     )  # fmt: skip
     S = np.zeros(ST.LEN + 3 * max(filt.n))
     v = ST.views(S)
-    v["status"][:] = IDLE
-    v["ast"][:] = act.step_state
+    v.status[:] = IDLE
+    v.ast[:] = act.step_state
     d = sim.data
-    ps.slide_states(d.qpos, d.qvel, C[CT.iq : CT.iq + 3], C[CT.iv : CT.iv + 3], v["q"], v["qd"])
+    ps.slide_states(d.qpos, d.qvel, C[CT.iq : CT.iq + 3], C[CT.iv : CT.iv + 3], v.q, v.qd)
     xmat, xpos = d.site_xmat.reshape(-1), d.site_xpos.reshape(-1)
-    ps.platform_pose(xmat, xpos, C[CT.imat], C[CT.ih], v["pose"])
-    ss, sc = v["ss"], C[CT.sc : CT.sc + ps.SC.LEN]
-    ss[ps.SS.imu : ps.SS.imu + 2] = v["pose"][:2]
+    ps.platform_pose(xmat, xpos, C[CT.imat], C[CT.ih], v.pose)
+    ss, sc = v.ss, C[CT.sc : CT.sc + ps.SC.LEN]
+    ss[ps.SS.imu : ps.SS.imu + 2] = v.pose[:2]
     # no acceleration at the first reading (no IMU site positions)
-    v["walk_m"][:] += ps.sample_sensors(
-        0, True, v["q"], v["pose"], None, noise_row, walk_row, sc, ss, v["qm"], v["pm"]
+    v.walk_m[:] += ps.sample_sensors(
+        0, True, v.q, v.pose, None, noise_row, walk_row, sc, ss, v.qm, v.pm
     )
-    v["ts"][:] = task.step_state
-    v["pcmd"][:] = task.step_state[cs.TS.xc : cs.TS.xc + 3]
-    v["jx"][:] = joint._x
-    v["fs"][:] = filt.step_state
-    v["ring"].reshape(3, -1)[:] = filt.ring
+    v.ts[:] = task.step_state
+    v.pcmd[:] = task.step_state[cs.TS.xc : cs.TS.xc + 3]
+    v.jx[:] = joint._x
+    v.fs[:] = filt.step_state
+    v.ring.reshape(3, -1)[:] = filt.ring
     return S, C
 
 
