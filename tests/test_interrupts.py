@@ -59,6 +59,13 @@ def _script(body: str) -> str:
     return _TRAP + textwrap.dedent(body)
 
 
+def _default_sigint() -> None:
+    """In the child before exec: SIGINT to its default, so that Python installs its own
+    handler whatever this process inherited (nohup, or a runner that starts its jobs
+    with SIGINT ignored, which Python then keeps ignored)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def _python(tmp_path: Path, body: str, *args: str) -> subprocess.CompletedProcess:
     env = dict(os.environ, MPLBACKEND="Agg", PYTHONPATH=str(ROOT))
     env.pop("MUJOCO_GL", None)  # else main imports MuJoCo to check the backend, first
@@ -66,6 +73,7 @@ def _python(tmp_path: Path, body: str, *args: str) -> subprocess.CompletedProces
         [sys.executable, "-c", _script(body), *args],
         cwd=tmp_path,
         env=env,
+        preexec_fn=_default_sigint,
         capture_output=True,
         text=True,
         timeout=600,  # a bound against a broken build, not a timing assumption
