@@ -8,11 +8,11 @@ The scenario's YAML keys (degrees, millimetres, named units) map onto these fiel
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from dataclasses import dataclass
 
 from .geometry import HEAD_HEIGHT_PITCH, HEAD_HEIGHT_ROLL
+from .law_params import LawParams
 
 __all__ = ["MpcParamError", "MpcParams"]
 
@@ -22,7 +22,7 @@ class MpcParamError(ValueError):
 
 
 @dataclass(frozen=True)
-class MpcParams:
+class MpcParams(LawParams):
     """Parameters of :class:`~controllers.mpc_cueing.ModelPredictiveCueing`, SI (rad, s, m).
 
     Attributes
@@ -105,6 +105,9 @@ class MpcParams:
         the bound and leaves the lane change's at 0.75, its onset at 0.30 s).
     """
 
+    _LABEL = "mpc"
+    _ERROR = MpcParamError
+
     period: float = 0.06
     horizon: int = 20
     gain_x: float = 0.3
@@ -183,21 +186,4 @@ class MpcParams:
             "gain_y_sustained": (lambda v: 0 <= v <= 2, "0 (off) or up to 2"),
             "sustained_tau": (lambda v: 0.05 <= v <= 20, "0.05..20 s"),
         }
-        for name, (ok, allowed) in checks.items():
-            v = getattr(self, name)
-            bad = isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v)
-            if bad or not ok(v):
-                raise MpcParamError(f"mpc parameter {name}={v!r}: allowed {allowed}")
-
-    @classmethod
-    def field_names(cls) -> list[str]:
-        return [f.name for f in dataclasses.fields(cls)]
-
-    def replace(self, **changes) -> MpcParams:
-        """A copy with some fields changed; an unknown name raises, listing the valid ones."""
-        unknown = sorted(set(changes) - set(self.field_names()))
-        if unknown:
-            raise MpcParamError(
-                f"unknown mpc parameter {unknown[0]!r}; allowed: {self.field_names()}"
-            )
-        return dataclasses.replace(self, **changes)
+        self._check(checks)

@@ -62,7 +62,6 @@ than the outer loop's 60 ms.
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -71,6 +70,7 @@ import numpy as np
 from .filters import DiscreteFilter
 from .frames import GRAVITY
 from .geometry import HEAD_HEIGHT_PITCH, HEAD_HEIGHT_ROLL, PlatformGeometry, nominal_geometry
+from .law_params import LawParams
 from .workspace import inscribed_box, soft_limit
 
 __all__ = ["WashoutParams", "ClassicalWashout", "WashoutResult", "WashoutParamError"]
@@ -81,7 +81,7 @@ class WashoutParamError(ValueError):
 
 
 @dataclass(frozen=True)
-class WashoutParams:
+class WashoutParams(LawParams):
     """Parameters of :class:`ClassicalWashout`, SI (rad, s, m, rad/s).
 
     Defaults and where they come from (docs/paper-notes.md, "Motion cueing"):
@@ -137,6 +137,9 @@ class WashoutParams:
         :func:`soft_limit` knee, 0.8 of the half-range.
     """
 
+    _LABEL = "washout"
+    _ERROR = WashoutParamError
+
     period: float = 0.01
     gain_x: float = 0.5
     gain_y: float = 0.5
@@ -185,25 +188,7 @@ class WashoutParams:
             "stroke_margin": (lambda v: 0 <= v < 0.2, "0..0.2 m"),
             "knee": (lambda v: 0 <= v <= 1, "0..1"),
         }
-        for name, (ok, allowed) in checks.items():
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-                raise WashoutParamError(f"washout parameter {name}={v!r}: allowed {allowed}")
-            if not ok(v):
-                raise WashoutParamError(f"washout parameter {name}={v!r}: allowed {allowed}")
-
-    @classmethod
-    def field_names(cls) -> list[str]:
-        return [f.name for f in dataclasses.fields(cls)]
-
-    def replace(self, **changes) -> WashoutParams:
-        """A copy with some fields changed; an unknown name raises, listing the valid ones."""
-        unknown = sorted(set(changes) - set(self.field_names()))
-        if unknown:
-            raise WashoutParamError(
-                f"unknown washout parameter {unknown[0]!r}; allowed: {self.field_names()}"
-            )
-        return dataclasses.replace(self, **changes)
+        self._check(checks)
 
 
 @dataclass
