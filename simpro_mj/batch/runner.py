@@ -140,8 +140,8 @@ __all__ = [
 
 #: Cost of one simulated second of the identification experiment against one of a
 #: run: the experiment steps its plant in an interpreted loop, the run on the
-#: compiled step (a new cabin: about 2.1 s of CPU for the experiment's 3 x 6.1
-#: simulated seconds against 0.37 s for a 15 s run, a ratio near 3; fit excluded).
+#: compiled step (a new heavy-cabin plant: about 7 s for the experiment's 3 x 21
+#: simulated seconds against 0.71 s for a 20 s run, a ratio near 3; fit excluded).
 EXPERIMENT_WEIGHT = 3.0
 
 #: What a batch writes at the top of ``--out`` (its variants are result folders).

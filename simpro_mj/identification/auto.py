@@ -53,7 +53,6 @@ from simpro_mj.identification import identify as identify_module
 
 __all__ = [
     "IDENTIFY_CHOICES",
-    "RUN_EXPERIMENT",
     "cache_dir",
     "plant_tree",
     "plant_hash",
@@ -64,14 +63,6 @@ __all__ = [
 
 _ACTS = ("actuator1", "actuator2", "actuator3")
 
-#: The experiment a scenario's own plant gets (over the preset's ``identify``
-#: settings): per leg 20 s of the 10-bit maximum-length sequence at a 20 ms clock, the
-#: record ``simpro-sim identify`` makes. One period of the 8-bit sequence (5.1 s, the
-#: same clock and spectrum, a quarter of the cost) agrees on light seals but not where
-#: the seals dominate: the 450/750 N cabin's loops placed on its 5.1 s models hold
-#: step_pitch and step_all in a 1.25-1.33 Hz, 7 deg limit cycle at every seed, on its
-#: 20 s models step_pitch settles (2.7 %, 2.7 s; docs/paper-notes.md).
-RUN_EXPERIMENT = {"duration_s": 20.0, "prbs_bits": 10}
 _memo: dict[str, dict] = {}
 _locks: dict[str, threading.Lock] = {}
 _locks_lock = threading.Lock()
@@ -89,8 +80,9 @@ def cache_dir() -> Path:
 
 def plant_tree(scenario: Mapping) -> dict:
     """The ``identify`` tree of the scenario's own plant: its preset's experiment
-    settings, :data:`RUN_EXPERIMENT`'s length, the scenario's ``plant`` and
-    ``actuator.pneumatics`` values."""
+    settings (its 20 s record: a 5.1 s one leaves the 450/750 N cabin in a limit
+    cycle, docs/paper-notes.md), the scenario's ``plant`` and ``actuator.pneumatics``
+    values."""
 
     preset = scenario["plant"]["preset"]
     tree = identify_module.default_tree(preset)
@@ -102,7 +94,6 @@ def plant_tree(scenario: Mapping) -> dict:
     inner = scenario["controller"]["inner"]
     tree["identify"]["dither_v"] = float(inner["dither_v"])
     tree["identify"]["dither_period_ms"] = float(inner["dither_period_ms"])
-    tree["identify"].update(RUN_EXPERIMENT)
     return tree
 
 
