@@ -380,9 +380,7 @@ def _ff_error(y0, y1, y2, qm0, qm1, qm2, ts, tc, g, e):
         d0, d1, d2 = ts[TS.qd], ts[TS.qd + 1], ts[TS.qd + 2]
     e[0], e[1], e[2] = r0 - y0, r1 - y1, r2 - y2
     if joints:  # the joint loops' lag, in task coordinates at the commanded pose
-        lag = np.empty(3)
-        ik_lag(ts[TS.xc], ts[TS.xc + 1], ts[TS.xc + 2], g, d0 - qm0, d1 - qm1, d2 - qm2, lag)
-        e[0], e[1], e[2] = e[0] - lag[0], e[1] - lag[1], e[2] - lag[2]
+        _less_lag(d0 - qm0, d1 - qm1, d2 - qm2, ts, g, e)
 
 
 def _correct(ref, e, hold, ts, tc, g, q):
@@ -410,6 +408,13 @@ def _correct(ref, e, hold, ts, tc, g, q):
             ts[TS.pend_ok] = 1.0
 
 
+def _less_lag(dq0, dq1, dq2, ts, g, e):
+    """``e -= J(x_c)^-1 dq``: the joint deviations ``dq`` taken out of the task error."""
+    lag = np.empty(3)
+    ik_lag(ts[TS.xc], ts[TS.xc + 1], ts[TS.xc + 2], g, dq0, dq1, dq2, lag)
+    e[0], e[1], e[2] = e[0] - lag[0], e[1] - lag[1], e[2] - lag[2]
+
+
 def _less_joint_lag(qm0, qm1, qm2, ts, tc, g, e):
     """``e -= J(x_c)^-1 db(q_d - q_meas)``: the task error less what the joint loops
     are still delivering (the I/PI law's ``joint_lag: joints``).
@@ -418,12 +423,10 @@ def _less_joint_lag(qm0, qm1, qm2, ts, tc, g, e):
     leg's dead band (``TC.jband``): a leg that its seals hold within its band is not
     catching up, and its error stays in ``e`` for the law to remove.
     """
-    lag = np.empty(3)
     d0 = dead_band(ts[TS.qd] - qm0, tc[TC.jband])
     d1 = dead_band(ts[TS.qd + 1] - qm1, tc[TC.jband + 1])
     d2 = dead_band(ts[TS.qd + 2] - qm2, tc[TC.jband + 2])
-    ik_lag(ts[TS.xc], ts[TS.xc + 1], ts[TS.xc + 2], g, d0, d1, d2, lag)
-    e[0], e[1], e[2] = e[0] - lag[0], e[1] - lag[1], e[2] - lag[2]
+    _less_lag(d0, d1, d2, ts, g, e)
 
 
 def ff_step(ref, ts, tc, g):

@@ -128,6 +128,14 @@ JointLag = Literal["none", "joints"]
 JOINT_LAGS: tuple[JointLag, ...] = get_args(JointLag)
 
 
+def _widths(value, name: str) -> np.ndarray:
+    """``value`` as three finite widths >= 0 (one number for all three); else ValueError."""
+    w = np.broadcast_to(np.asarray(value, dtype=float), (3,))
+    if not (np.all(np.isfinite(w)) and np.all(w >= 0)):
+        raise ValueError(f"{name} must be 1 or 3 finite widths >= 0, got {value!r}")
+    return w
+
+
 class SamplingError(ValueError):
     """A sampling period that is not an integer multiple of the inner step."""
 
@@ -250,13 +258,9 @@ class TaskSpaceController:
         # the per-step functions' arrays (controllers.step_functions): the geometry,
         # the constants and the state of the outer loop
         self.step_geometry = sf.geometry_constants(self.geometry)
-        db = np.broadcast_to(np.asarray(dead_band, dtype=float), (3,))
-        if not (np.all(np.isfinite(db)) and np.all(db >= 0)):
-            raise ValueError(f"dead_band must be 1 or 3 finite widths >= 0, got {dead_band!r}")
+        db = _widths(dead_band, "dead_band")
         self.dead_band = db.copy()
-        jb = np.broadcast_to(np.asarray(joint_band, dtype=float), (3,))
-        if not (np.all(np.isfinite(jb)) and np.all(jb >= 0)):
-            raise ValueError(f"joint_band must be 1 or 3 finite widths >= 0, got {joint_band!r}")
+        jb = _widths(joint_band, "joint_band")
         self.joint_lag = joint_lag
         self.step_constants = sf.TC.pack(
             mode=_MODE_CODES[mode], law=2.0 if outer_law == "PI" else 1.0, clamp=self.clamp,
