@@ -63,6 +63,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from simpro_mj.core.roots import brentq  # scipy.optimize's steps, without its import
 from simpro_mj.plant import step_functions as sf
 from simpro_mj.plant.pneumatics.flow import RHO_REF, T_REF, psi_table
 from simpro_mj.plant.pneumatics.params import U_CENTRE, PneumaticParams
@@ -275,8 +276,6 @@ class NonlinearActuators(ArrayStep):
             elif hi <= 0:
                 s = 1.0
             else:
-                from scipy.optimize import brentq  # on use, see set_timestep
-
                 s = brentq(f_of, -1.0, 1.0, xtol=1e-12)
             s_out[i] = s
             p1_out[i] = self._static_pressure(i, s, 1)
@@ -285,8 +284,6 @@ class NonlinearActuators(ArrayStep):
 
     def _static_pressure(self, leg: int, s: float, chamber: int) -> float:
         """Pressure of zero net flow into a chamber at spool ``s`` (Brent)."""
-        from scipy.optimize import brentq  # on use, see set_timestep
-
         P, args = self.params, (s, leg, chamber)
         return brentq(self._net_flow, P.p_atm, P.p_supply, args=args, xtol=1e-7, rtol=1e-14)
 
