@@ -1,4 +1,6 @@
 import os
+import subprocess
+import sys
 
 import pytest
 
@@ -21,6 +23,40 @@ else:
     settings.register_profile("ci", derandomize=True)
     settings.register_profile("explore", derandomize=False)
     settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
+
+
+def pytest_sessionstart(session):
+    """Under xdist, the controller starts compiling the step at once, in a process of
+    its own, while the workers collect and run the tests that do not need it.
+
+    A fresh clone has no compiled step: each worker's first simulation (and each
+    command a test starts) would compile the same half minute of CPU at once. The
+    compile holds the step's cache folder (:func:`simpro_mj.sim.numba_cache.first_compile`),
+    so whoever needs the step meanwhile waits for it and then loads the cache.
+    """
+    config = session.config
+    if hasattr(config, "workerinput") or not getattr(config.option, "numprocesses", 0):
+        return
+    if os.environ.get("SIMPRO_KERNEL", "auto") == "python":
+        return
+    code = (
+        "import os\n"
+        "from simpro_mj.sim import compiling, numba_cache, step\n"
+        "if not os.path.exists(os.path.join(step.compiled().cache_folder, numba_cache.COMPLETE)):\n"
+        "    compiling.prepare_step()\n"
+    )
+    config._simpro_compile = subprocess.Popen(  # noqa: SIM115 - ended in sessionfinish
+        [sys.executable, "-c", code], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
+    )
+
+
+def pytest_sessionfinish(session):
+    """The controller's compile is over by the end (a short selection of tests that
+    never needed the step may end first: it is stopped, and numba keeps no half files)."""
+    proc = getattr(session.config, "_simpro_compile", None)
+    if proc is not None and proc.poll() is None:
+        proc.terminate()
+        proc.wait(60)
 
 
 def _recorded_run(folder, rows: int = 50):

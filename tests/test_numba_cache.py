@@ -122,3 +122,61 @@ def test_a_run_after_its_cache_file_was_truncated_heals(tmp_path):
     assert f"notice: numba cache file {files[0]} is damaged" in again.stderr
     a = (tmp_path / "a" / "timeseries.csv").read_bytes()
     assert (tmp_path / "b" / "timeseries.csv").read_bytes() == a
+
+
+def test_a_second_process_waits_for_the_first_compile_and_says_so(tmp_path):
+    """While one process holds a folder for its first compile, another says it waits
+    and enters only when the first is done; the folder is then marked complete and
+    nobody waits for it again."""
+    import threading
+
+    fcntl = pytest.importorskip("fcntl")
+    folder = tmp_path / "nb"
+    folder.mkdir()
+    holder = open(folder / ".compile-lock", "a")  # another process's open file: its own lock
+    fcntl.flock(holder, fcntl.LOCK_EX)
+    said: list[str] = []
+    waiting, entered = threading.Event(), threading.Event()
+
+    def say(line):
+        said.append(line)
+        waiting.set()
+
+    def second():
+        with numba_cache.first_compile(str(folder), say):
+            entered.set()
+
+    t = threading.Thread(target=second, daemon=True)
+    t.start()
+    assert waiting.wait(60)  # the readiness signal: it said it waits
+    assert not entered.is_set() and not (folder / numba_cache.COMPLETE).exists()
+    holder.close()  # the first one's compile ends (a dead process's lock goes the same way)
+    t.join(60)
+    assert entered.is_set() and said == [numba_cache.WAIT_NOTE]
+    assert (folder / numba_cache.COMPLETE).exists()
+    # complete: entered at once even while someone holds the lock, nothing said
+    holder = open(folder / ".compile-lock", "a")
+    fcntl.flock(holder, fcntl.LOCK_EX)
+    with numba_cache.first_compile(str(folder), say):
+        pass
+    holder.close()
+    assert said == [numba_cache.WAIT_NOTE]
+
+
+def test_a_failed_compile_leaves_the_folder_incomplete(tmp_path):
+    folder = tmp_path / "nb"
+    with pytest.raises(RuntimeError, match="no compile"):
+        with numba_cache.first_compile(str(folder)):
+            raise RuntimeError("no compile")
+    assert folder.is_dir() and not (folder / numba_cache.COMPLETE).exists()
+    with numba_cache.first_compile(str(folder)):  # the lock was released with the failure
+        pass
+    assert (folder / numba_cache.COMPLETE).exists()
+
+
+def test_a_run_marks_the_steps_cache_complete(monkeypatch):
+    from simpro_mj.sim import compiling, step
+
+    monkeypatch.setenv("SIMPRO_KERNEL", "numba")
+    compiling.prepare_step()
+    assert (Path(step.compiled().cache_folder) / numba_cache.COMPLETE).exists()

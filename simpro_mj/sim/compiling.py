@@ -7,9 +7,11 @@ about a second from numba's on-disk cache. :func:`prepare_step` does that
 import ahead of the simulation, so that
 
 * a first run says what it is waiting for (one line, and a bar of the step's
-  functions compiled so far on a terminal) instead of being silent, and
+  functions compiled so far on a terminal) instead of being silent,
 * the compile is kept out of the run's ``wall_s`` and ``realtime_factor``
-  (``metrics.json`` records it apart: ``kernel_load_s``, ``kernel_compiled``).
+  (``metrics.json`` records it apart: ``kernel_load_s``, ``kernel_compiled``), and
+* processes that start at once compile it once: the others wait for the first
+  and load its cache (:func:`simpro_mj.sim.numba_cache.first_compile`).
 
 A compile is recognised by numba's ``numba:compile`` events, which fire only
 for a function that is not in the cache.
@@ -108,8 +110,8 @@ def prepare_step(say: Callable[[str], None] | None = None, bar: bool = False) ->
     Parameters
     ----------
     say : callable(str), optional
-        Where the one-line note of a compile goes (stderr in the commands);
-        None: silent.
+        Where the one-line note of a compile (or of a wait for another
+        process's compile) goes (stderr in the commands); None: silent.
     bar : bool
         A tqdm bar of the step's functions compiled (a terminal only).
 
@@ -117,14 +119,23 @@ def prepare_step(say: Callable[[str], None] | None = None, bar: bool = False) ->
     -------
     dict
         ``kernel_load_s``: the seconds this call waited for the compiled step
-        (a compile, numba's cache loaded, or another thread's compile; 0 when it
-        was loaded before in this process) and ``kernel_compiled``: whether
+        (a compile, numba's cache loaded, or another thread's or process's compile;
+        0 when it was loaded before in this process) and ``kernel_compiled``: whether
         numba compiled anything. Empty when the step runs interpreted
         (``SIMPRO_KERNEL=python``).
     """
     if kernel_choice() != "numba":
         return {}
-    return load_module(CALLBACK_MODULE, say, bar, _expected_functions, _OWN)
+    if CALLBACK_MODULE in sys.modules:
+        return load_module(CALLBACK_MODULE, say, bar, _expected_functions, _OWN)
+    from simpro_mj.sim import numba_cache, step
+
+    t0 = time.perf_counter()
+    # one process compiles a folder not yet complete; others wait, then load its cache
+    with numba_cache.first_compile(step.compiled().cache_folder, say):
+        got = load_module(CALLBACK_MODULE, say, bar, _expected_functions, _OWN)
+    got["kernel_load_s"] = time.perf_counter() - t0  # a wait for another's compile included
+    return got
 
 
 def load_module(name: str, say, bar: bool, expected: Callable[[], int | None], own) -> dict:
