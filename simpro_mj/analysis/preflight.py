@@ -33,14 +33,13 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from controllers.geometry import geometry_from_rig
 from controllers.kinematics import inverse_kinematics
 from simpro_mj.analysis.sanity import unit_warnings
 from simpro_mj.analysis.stability import outer_loop
-from simpro_mj.config.scenario import late_setpoints, reference
+from simpro_mj.config.models import Scenario, as_scenario, as_tree
+from simpro_mj.config.reference import late_setpoints, reference
 from simpro_mj.core.errors import PhysicsError, UserInputError
 from simpro_mj.plant.payload import holding_force_model, max_payload
-from simpro_mj.plant.pneumatics.params import PneumaticParams
 
 __all__ = [
     "GAIN_REFUSE_FACTOR",
@@ -64,13 +63,13 @@ GAIN_REFUSE_FACTOR = 10.0
 _MAX_POSES = 60  # static solves per check (0.5 ms each)
 
 
-def _poses(scenario: Mapping, setpoints=None) -> tuple[np.ndarray, np.ndarray]:
+def _poses(scenario: Scenario, setpoints=None) -> tuple[np.ndarray, np.ndarray]:
     """Set-point poses to check: the start, each axis' extremes, and a spread.
 
     ``setpoints``: ``(t, pose)`` on the run's 1 ms grid, read at the checked
     times (nearest sample) instead of evaluating the profile again.
     """
-    duration = float(scenario["duration_s"])
+    duration = scenario.duration_s
     t = np.linspace(0.0, duration, int(min(2001, duration / 0.05 + 1)))
     if setpoints is None:
         pose = reference(scenario, t)
@@ -87,15 +86,15 @@ def _poses(scenario: Mapping, setpoints=None) -> tuple[np.ndarray, np.ndarray]:
     return t[first], pose[first]
 
 
-def check_payload(scenario: Mapping, model=None, setpoints=None) -> dict:
+def check_payload(scenario: Scenario | Mapping, model=None, setpoints=None) -> dict:
     """Refuse a payload the cylinders cannot hold at the supply pressure.
 
     Parameters
     ----------
-    scenario : mapping
+    scenario : Scenario or mapping
         A resolved scenario.
     model : mujoco.MjModel, optional
-        The compiled plant (built from ``scenario["plant"]`` when omitted; its
+        The compiled plant (built from the scenario's ``plant`` when omitted; its
         payload mass is changed and restored).
     setpoints : (ndarray, ndarray), optional
         ``(t, pose)``: the set-points on the run's 1 ms grid (evaluated here
@@ -122,30 +121,30 @@ def check_payload(scenario: Mapping, model=None, setpoints=None) -> dict:
 
     from simpro_mj.plant.model import PlantIndex, assemble, load_model
 
-    params = PneumaticParams.from_tree(scenario["actuator"].get("pneumatics") or {})
+    sc = as_scenario(scenario)
+    params = sc.actuator.pneumatics.params()
     f_min, f_max = params.force_range
     supply_bar = (params.p_supply - params.p_atm) * 1e-5
     info: dict = {
         "supply_bar_gauge": supply_bar,
         "force_range_n": [f_min, f_max],
     }
-    if scenario["actuator"]["model"] == "linear" and not params.lin_saturate:
+    if sc.actuator.model == "linear" and not params.lin_saturate:
         info["skipped"] = "linear actuator without force saturation"
         return info
 
-    mass = float(scenario["plant"]["payload"]["mass_kg"])
+    mass = sc.plant.payload.mass_kg
     if model is None:
         # the payload mass is set per static solve (holding_force_model): build the
         # plant without it, so that 1e6 kg gets this check's message and limit,
         # not the model builder's
-        plant = dict(scenario["plant"], payload=dict(scenario["plant"]["payload"], mass_kg=0.0))
-        model = load_model(plant)
+        model = load_model(sc.plant.tree(empty=True))
     m = model
     d = mujoco.MjData(m)
     idx = PlantIndex.of(m)
     probe = mass if mass > 0 else 1.0
-    times, poses = _poses(scenario, setpoints)
-    q_all = inverse_kinematics(poses, geometry_from_rig(scenario["plant"].get("rig")), check=False)
+    times, poses = _poses(sc, setpoints)
+    q_all = inverse_kinematics(poses, sc.plant.geometry(), check=False)
 
     worst = None  # (utilisation, leg, t, force)
     hold_max = np.zeros(3)
@@ -202,7 +201,7 @@ def check_payload(scenario: Mapping, model=None, setpoints=None) -> dict:
     )
 
 
-def stability_limit(scenario: Mapping, dt: float = 1e-3) -> dict:
+def stability_limit(scenario: Scenario | Mapping, dt: float = 1e-3) -> dict:
     """The analysed limit of the scenario's outer loop on the plant its actuator model
     stands for (:func:`simpro_mj.analysis.stability.outer_loop`, plant ``"actuator"``).
 
@@ -241,15 +240,15 @@ def check_gains_move(gains, duration_s: float) -> None:
             )
 
 
-def refuse_far_gains(scenario: Mapping, lim: float, basis: str = "") -> None:
+def refuse_far_gains(scenario: Scenario | Mapping, lim: float, basis: str = "") -> None:
     """Refuse outer gains above :data:`GAIN_REFUSE_FACTOR` times the limit ``lim``;
     ``basis`` says what the limit was analysed on when not the run's design plants."""
-    outer = scenario["controller"]["outer"]
-    top = max(outer["gains"])
+    outer = as_scenario(scenario).controller.outer
+    top = max(outer.gains)
     if math.isfinite(lim) and lim > 0.0 and top > GAIN_REFUSE_FACTOR * lim:
         raise UserInputError(
             f"invalid value at controller.outer.gains: {top:g} is {top / lim:,.0f} times the "
-            f"analysed stability limit {lim:.3g} ({outer['type']}, T = {outer['period_ms']:g} "
+            f"analysed stability limit {lim:.3g} ({outer.type}, T = {outer.period_ms:g} "
             f"ms{basis}); allowed: <= {GAIN_REFUSE_FACTOR * lim:.3g} ({GAIN_REFUSE_FACTOR:g} "
             "times the limit: far beyond it each outer step asks more than the joints can do, "
             "the anti-windup rejects it and the platform never moves; gains up to that are "
@@ -257,7 +256,7 @@ def refuse_far_gains(scenario: Mapping, lim: float, basis: str = "") -> None:
         )
 
 
-def check_gains_before_identifying(scenario: Mapping) -> None:
+def check_gains_before_identifying(scenario: Scenario | Mapping) -> None:
     """Refuse far-out outer gains before a plant's identification experiment runs.
 
     The limit is analysed on the models the scenario holds before it (its preset's
@@ -265,48 +264,51 @@ def check_gains_before_identifying(scenario: Mapping) -> None:
     ``design_plant: paper``; after the experiment :func:`gain_warnings` checks the
     same rule on the plant's own models. A refusal so costs no identification.
     """
-    if scenario["controller"]["mode"] != "task_space":
+    sc = as_scenario(scenario)
+    if sc.controller.mode != "task_space":
         return
-    lim = stability_limit(scenario)["limit"]
-    refuse_far_gains(scenario, lim, ", on the preset's models: this plant is not identified yet")
+    lim = stability_limit(sc)["limit"]
+    refuse_far_gains(sc, lim, ", on the preset's models: this plant is not identified yet")
 
 
-def gain_warnings(scenario: Mapping) -> tuple[list[str], dict]:
+def gain_warnings(scenario: Scenario | Mapping) -> tuple[list[str], dict]:
     """Warnings for outer gains above the analysed limit, and the analysis figures.
 
     Returns ``([], {})`` in joint-only mode (no outer loop).
     """
-    if scenario["controller"]["mode"] != "task_space":
+    sc = as_scenario(scenario)
+    if sc.controller.mode != "task_space":
         return [], {}
-    outer = scenario["controller"]["outer"]
-    check_gains_move(outer["gains"], scenario["duration_s"])
-    info = stability_limit(scenario)
+    outer = sc.controller.outer
+    gains = outer.gains
+    check_gains_move(gains, sc.duration_s)
+    info = stability_limit(sc)
     lim = info["limit"]
-    label = f"{outer['type']}, T = {outer['period_ms']:g} ms, {info['basis']}"
+    label = f"{outer.type}, T = {outer.period_ms:g} ms, {info['basis']}"
     if lim <= 0.0:  # unstable at every gain: the joint loops, not the outer gains
         return [
             f"the task-space loop is unstable at any outer gain in the analysis ({label}): "
             "its joint loops do not hold the plant (controller.inner: variant, design_plant); "
             "the run may diverge"
         ], info
-    refuse_far_gains(scenario, lim)
+    refuse_far_gains(sc, lim)
     out = []
-    over = [i for i, g in enumerate(outer["gains"]) if g > lim]
-    if len(over) == len(outer["gains"]) and len(set(outer["gains"])) == 1:
+    over = [i for i, g in enumerate(gains) if g > lim]
+    if len(over) == len(gains) and len(set(gains)) == 1:
         # the usual case (one gain on every axis): one line, not three
         out.append(
-            f"controller.outer.gains = {outer['gains'][0]:g} on every axis exceeds the analysed "
+            f"controller.outer.gains = {gains[0]:g} on every axis exceeds the analysed "
             f"stability limit {lim:.3g} ({label}); the run may diverge"
         )
     else:
         for i in over:
             out.append(
-                f"controller.outer.gains[{i}] = {outer['gains'][i]:g} exceeds the analysed "
+                f"controller.outer.gains[{i}] = {gains[i]:g} exceeds the analysed "
                 f"stability limit {lim:.3g} ({label}); the run may diverge"
             )
     if not out and info["spectral_radius"] >= 1.0:
         out.append(
-            f"controller.outer.gains = {outer['gains']} together are unstable in the analysis "
+            f"controller.outer.gains = {gains} together are unstable in the analysis "
             f"(spectral radius {info['spectral_radius']:.3f} >= 1; {label}); the run may diverge"
         )
     return out, info
@@ -316,13 +318,12 @@ def gain_warnings(scenario: Mapping) -> tuple[list[str], dict]:
 CUE_CHECK_HZ = 0.5
 
 
-def cueing_mode_warnings(scenario: Mapping) -> list[str]:
+def cueing_mode_warnings(scenario: Scenario | Mapping) -> list[str]:
     """A cueing scenario on a loop that cannot follow a moving cue (``task_space``:
     the pose loop alone, ~1 s behind at 0.5 Hz): warned, with the loop's predicted
     gain and delay at :data:`CUE_CHECK_HZ` beside the feed-forward scheme's."""
-    if not (scenario.get("setpoint") or {}).get("cueing"):
-        return []
-    if scenario["controller"]["mode"] != "task_space":
+    sc = as_scenario(scenario)
+    if sc.setpoint.cueing is None or sc.controller.mode != "task_space":
         return []
     from controllers.frequency import predict
     from simpro_mj.analysis.response_summary import loop_model
@@ -330,9 +331,9 @@ def cueing_mode_warnings(scenario: Mapping) -> list[str]:
     omega = 2.0 * math.pi * CUE_CHECK_HZ
     figures = {}
     for mode in ("task_space", "feedforward"):
-        sc = {**scenario, "controller": {**scenario["controller"], "mode": mode}}
+        loop = sc.model_copy(update={"controller": sc.controller.model_copy(update={"mode": mode})})
         try:
-            h = complex(predict(loop_model(sc), [omega])["true"][0, 1, 1])  # pitch
+            h = complex(predict(loop_model(loop), [omega])["true"][0, 1, 1])  # pitch
         except Exception:  # noqa: BLE001 - a warning without its numbers is still a warning
             return [
                 "controller.mode = task_space on a cueing scenario: the pose loop alone lags "
@@ -350,7 +351,7 @@ def cueing_mode_warnings(scenario: Mapping) -> list[str]:
 
 
 def preflight(
-    scenario: Mapping, model=None, *, setpoints=None, payload: dict | None = None
+    scenario: Scenario | Mapping, model=None, *, setpoints=None, payload: dict | None = None
 ) -> tuple[list[str], dict]:
     """Payload check (raises), gain warnings and set-point components that start
     after the run ends (warned: they never act); returns ``(warnings, figures)``.
@@ -361,16 +362,18 @@ def preflight(
     (:class:`simpro_mj.job.run.Run` passes both; built here when omitted);
     ``payload`` is :func:`check_payload`'s result when the caller ran it first.
     """
+    sc = as_scenario(scenario)
     if payload is None:
-        payload = check_payload(scenario, model, setpoints)
-    warnings, stability = gain_warnings(scenario)
-    warnings += late_setpoints(scenario)
-    warnings += cueing_mode_warnings(scenario)
-    warnings += unit_warnings(scenario)  # radians in a _deg key, telemetry without gravity
+        payload = check_payload(sc, model, setpoints)
+    warnings, stability = gain_warnings(sc)
+    warnings += late_setpoints(sc)
+    warnings += cueing_mode_warnings(sc)
+    # radians in a _deg key, telemetry without gravity: read on the scenario's tree
+    warnings += unit_warnings(as_tree(scenario))
     for i, u in enumerate(payload.get("utilisation", [])):
         if u > UTILISATION_WARN:
             warnings.append(
-                f"plant.payload.mass_kg = {scenario['plant']['payload']['mass_kg']:g} kg takes "
+                f"plant.payload.mass_kg = {sc.plant.payload.mass_kg:g} kg takes "
                 f"{u * 100:.0f} % of cylinder {i + 1}'s force at "
                 f"{payload['supply_bar_gauge']:g} bar gauge just to hold it; little is left "
                 "to accelerate"

@@ -29,63 +29,50 @@ from controllers.setpoint_filter import filter_state_space, leg_times
 from controllers.task_space import outer_law
 from controllers.velocity_feedforward import velocity_gains
 from simpro_mj.analysis.response import _UNITS, AXES, ResponsePlan, failures
+from simpro_mj.config.models import Scenario
 
 __all__ = ["figures", "loop_model", "summary"]
 
 
-def loop_model(scenario: Mapping) -> LoopModel:
+def loop_model(scenario: Scenario | Mapping) -> LoopModel:
     """The scenario's linearised loop for :func:`controllers.frequency.predict`."""
     # the loop as built (MuJoCo): not loaded by the analyze command, which only
     # uses figures()
     from simpro_mj.sim.build import Build
 
-    cs = Build(dict(scenario)).simulation()
-    ctl = scenario["controller"]
+    build = Build(scenario)
+    cs = build.simulation()
+    ctl = build.spec.controller
+    identified = ctl.inner.identified.plants()
     if cs.actuators.kind == "linear":
         p = cs.actuators.params
         plants = [Plant(b=p.lin_b[i], a1=p.lin_a1[i], a0=p.lin_a0[i]) for i in range(3)]
     else:
-        ident = ctl["inner"]["identified"]
-        plants = [Plant(**ident[a]) for a in ("actuator1", "actuator2", "actuator3")]
-    o = ctl["outer"]
-    law, pi_zero = outer_law(o["type"], o["integrator"], o["pi_zero"])
+        plants = identified
+    o, ff, sf = ctl.outer, ctl.feedforward, ctl.setpoint_filter
+    law, pi_zero = outer_law(o.type, o.integrator, o.pi_zero)
     mode = {"task_space": law, "feedforward": "feedforward"}.get(cs.mode, "joint_only")
     cfg = cs.sensor_cfg
-    filt = None
-    sf = ctl.get("setpoint_filter")
-    if sf:  # Fig. 13's filter between q_d and the joint loops
-        times = leg_times(np.asarray(sf["time_ms"], float) * 1e-3)
-        filt = [filter_state_space(sf["type"], cs.dt, t) for t in times]
+    # Fig. 13's filter between q_d and the joint loops
+    times = leg_times(np.asarray(sf.time_ms, float) * 1e-3)
     return LoopModel(
         plants=plants,
         designs=cs.joint.designs,
         jac=jacobian(cs.geometry.home),
         mode=mode,
-        gains=np.asarray(
-            ctl["feedforward"]["gains"] if cs.mode == "feedforward" else ctl["outer"]["gains"],
-            float,
-        ),
+        gains=np.asarray(ff.gains if cs.mode == "feedforward" else o.gains, float),
         period=cs.outer_every * cs.dt,
         dt=cs.dt,
-        method=ctl["inner"]["discretisation"],
+        method=ctl.inner.discretisation,
         pi_zero=pi_zero,
         outer_law=law,
         imu_alpha=cfg.imu_alpha,
         imu_every=cfg.imu_every,
-        model_tau=ctl["feedforward"]["model_tau_ms"] * 1e-3,
-        setpoint_filter=filt,
-        lag=ctl["feedforward"]["lag"],
-        velocity_ff=(
-            velocity_gains(
-                [
-                    Plant(**ctl["inner"]["identified"][a])
-                    for a in ("actuator1", "actuator2", "actuator3")
-                ]
-            )
-            if cs.u_ff is not None
-            else np.zeros(3)
-        ),
-        average=bool(ctl["feedforward"]["average"]),
+        model_tau=ff.model_tau_ms * 1e-3,
+        setpoint_filter=[filter_state_space(sf.type, cs.dt, t) for t in times],
+        lag=ff.lag,
+        velocity_ff=velocity_gains(identified) if cs.u_ff is not None else np.zeros(3),
+        average=ff.average,
     )
 
 

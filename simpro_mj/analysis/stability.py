@@ -51,8 +51,9 @@ from controllers.geometry import geometry_from_rig
 from controllers.kinematics import jacobian
 from controllers.setpoint_filter import filter_state_space, leg_times
 from controllers.task_space import outer_law
+from simpro_mj.config.models import Scenario, as_scenario
 from simpro_mj.core import cache
-from simpro_mj.plant.pneumatics.params import PneumaticParams, fill_linear
+from simpro_mj.plant.pneumatics.params import fill_linear
 
 __all__ = ["PLANTS", "inner_legs", "outer_loop"]
 
@@ -64,55 +65,52 @@ def _coefficients(plants: Mapping[str, Plant]) -> tuple:
     return tuple((float(plants[a].b), float(plants[a].a1), float(plants[a].a0)) for a in ACTUATORS)
 
 
-def _loop_plants(scenario: Mapping, plant: str) -> tuple[tuple, str]:
+def _loop_plants(scenario: Scenario, plant: str) -> tuple[tuple, str]:
     """The joint plants under ``plant`` as (b, a1, a0) per actuator, and their description."""
-    reading = scenario["paper_units"]
+    reading = scenario.paper_units
     if plant == "paper":
         plants = {a: paper_plant(a, reading) for a in ACTUATORS}
         return _coefficients(plants), "the paper's eq. (34)-(35) plants"
     if plant != "actuator":
         raise ValueError(f"plant assumption {plant!r}; allowed: {', '.join(PLANTS)}")
-    if scenario["actuator"]["model"] == "linear":
-        p = PneumaticParams.from_tree(scenario["actuator"].get("pneumatics") or {})
-        p = fill_linear(p, paper_coefficients(reading))
+    if scenario.actuator.model == "linear":
+        p = fill_linear(scenario.actuator.pneumatics.params(), paper_coefficients(reading))
         assert p.lin_b is not None and p.lin_a1 is not None and p.lin_a0 is not None
         coeffs = tuple(
             (float(p.lin_b[i]), float(p.lin_a1[i]), float(p.lin_a0[i])) for i in range(3)
         )
         return coeffs, "the linear actuators' eq. (19) plants"
-    identified = scenario["controller"]["inner"]["identified"]
-    plants = {a: Plant(**identified[a]) for a in ACTUATORS}
+    plants = dict(zip(ACTUATORS, scenario.controller.inner.identified.plants(), strict=True))
     return _coefficients(plants), "the identified plant controller.inner.identified"
 
 
-def _key(scenario: Mapping, plant: str, dt: float) -> tuple:
+def _key(scenario: Scenario, plant: str, dt: float) -> tuple:
     """Every number the analysis of the scenario's loop reads, hashable (the cache's key)."""
-    c = scenario["controller"]
-    inner, outer, sf = c["inner"], c["outer"], c["setpoint_filter"]
-    reading = scenario["paper_units"]
+    c = scenario.controller
+    inner, outer, sf = c.inner, c.outer, c.setpoint_filter
     loop, what = _loop_plants(scenario, plant)
-    if inner["design_plant"] == "identified":
-        design = _coefficients({a: Plant(**inner["identified"][a]) for a in ACTUATORS})
+    if inner.design_plant == "identified":
+        design = _coefficients(dict(zip(ACTUATORS, inner.identified.plants(), strict=True)))
     else:
         design = None  # the paper's plants under the reading
-    mode, pi_zero = outer_law(outer["type"], outer["integrator"], outer["pi_zero"])
+    mode, pi_zero = outer_law(outer.type, outer.integrator, outer.pi_zero)
     return (
         float(dt),
-        reading,
-        inner["variant"],
-        inner["discretisation"],
-        float(inner["zeta"]),
-        float(inner["wn_rad_s"]),
+        scenario.paper_units,
+        inner.variant,
+        inner.discretisation,
+        float(inner.zeta),
+        float(inner.wn_rad_s),
         design,
         loop,
         what,
-        sf["type"],
-        tuple(float(t) * 1e-3 for t in sf["time_ms"]),  # validated: 3 per-leg times
+        sf.type,
+        tuple(float(t) * 1e-3 for t in sf.time_ms),  # validated: 3 per-leg times
         mode,
         float(pi_zero),
-        outer["period_ms"] * 1e-3,
-        int(outer["delay_samples"]),
-        _jacobian_home(json.dumps(scenario["plant"].get("rig"), sort_keys=True)),
+        outer.period_ms * 1e-3,
+        int(outer.delay_samples),
+        _jacobian_home(json.dumps(scenario.plant.rig_tree(), sort_keys=True)),
     )
 
 
@@ -190,18 +188,20 @@ def _analysed(key: tuple):
     return limit, delay_limit, lifted, basis
 
 
-def inner_legs(scenario: Mapping, plant: str = "actuator", dt: float = 1e-3) -> tuple[list, str]:
+def inner_legs(
+    scenario: Scenario | Mapping, plant: str = "actuator", dt: float = 1e-3
+) -> tuple[list, str]:
     """The joint loops as the analysis sees them, at ``dt``: fast-rate ``(A, B, C)`` per
     leg behind the set-point filter, and a description of what was analysed."""
-    return _legs_of(_key(scenario, plant, dt))
+    return _legs_of(_key(as_scenario(scenario), plant, dt))
 
 
-def outer_loop(scenario: Mapping, plant: str = "actuator", dt: float = 1e-3) -> dict:
+def outer_loop(scenario: Scenario | Mapping, plant: str = "actuator", dt: float = 1e-3) -> dict:
     """The scenario's outer loop around its joint loops, on the ``plant`` assumption.
 
     Parameters
     ----------
-    scenario : mapping
+    scenario : Scenario or mapping
         A resolved scenario (its ``controller``, ``paper_units`` and ``actuator``).
     plant : {"actuator", "paper"}
         What the joint loops control (module docstring).
@@ -216,10 +216,11 @@ def outer_loop(scenario: Mapping, plant: str = "actuator", dt: float = 1e-3) -> 
         ``growth_rate_1_s`` (``ln(spectral_radius) / T``, ``None`` at radius 0)
         and ``delay_model_limit`` (eq. 21's one-sample delay, for comparison).
     """
-    key = _key(scenario, plant, dt)
+    sc = as_scenario(scenario)
+    key = _key(sc, plant, dt)
     limit, delay_limit, lifted, basis = _analysed(key)
     mode, pi_zero, period = key[11:14]
-    gains = np.asarray(scenario["controller"]["outer"]["gains"], float)
+    gains = np.asarray(sc.controller.outer.gains, float)
     f = an.outer_closed_loop(mode, gains, period, lifted, np.asarray(key[15]), pi_zero)[0]
     rho = an.spectral_radius(f)
     return {

@@ -10,8 +10,10 @@ What they mean: :mod:`simpro_mj.config.scenario` (module docstring) and
 
 from __future__ import annotations
 
+import math
 from typing import Annotated, ClassVar, Literal
 
+import numpy as np
 from pydantic import BeforeValidator, Field, model_validator
 
 from simpro_mj.config.rules import (
@@ -51,6 +53,10 @@ class Step(ComponentEntry):
     time_s: Time
     value: Real
 
+    def at(self, t: np.ndarray) -> np.ndarray:
+        """The component at times ``t`` (s), in its axis' unit."""
+        return np.where(t >= self.time_s, self.value, 0.0)
+
 
 class Ramp(ComponentEntry):
     """0 before ``start_s``, linear to ``value`` at ``end_s``, held after."""
@@ -59,6 +65,10 @@ class Ramp(ComponentEntry):
     start_s: Time
     end_s: Real
     value: Real
+
+    def at(self, t: np.ndarray) -> np.ndarray:
+        """The component at times ``t`` (s), in its axis' unit."""
+        return self.value * np.clip((t - self.start_s) / (self.end_s - self.start_s), 0.0, 1.0)
 
     @model_validator(mode="after")
     def _times(self):
@@ -82,6 +92,13 @@ class Sine(ComponentEntry):
     start_s: Time = 0.0
     end_s: Real | None = None
 
+    def at(self, t: np.ndarray) -> np.ndarray:
+        """The component at times ``t`` (s), in its axis' unit (the phase from ``start_s``)."""
+        end = math.inf if self.end_s is None else self.end_s
+        phase = math.radians(self.phase_deg)
+        wave = self.amplitude * np.sin(2.0 * np.pi * (t - self.start_s) / self.period_s + phase)
+        return np.where((t >= self.start_s) & (t < end), wave, 0.0)
+
     @model_validator(mode="after")
     def _times(self):
         if self.end_s is not None and self.end_s <= self.start_s:
@@ -95,6 +112,10 @@ class Table(ComponentEntry):
     type: Literal["table"]
     times_s: NumberList
     values: NumberList
+
+    def at(self, t: np.ndarray) -> np.ndarray:
+        """The component at times ``t`` (s), in its axis' unit."""
+        return np.interp(t, np.asarray(self.times_s, float), np.asarray(self.values, float))
 
     @model_validator(mode="after")
     def _points(self):

@@ -67,7 +67,15 @@ from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.keys import value_text
 from simpro_mj.core.rates import whole_steps
 
-__all__ = ["Scenario", "Cueing", "scenario_model", "check_cueing", "check_pneumatics"]
+__all__ = [
+    "Scenario",
+    "Cueing",
+    "as_scenario",
+    "as_tree",
+    "scenario_model",
+    "check_cueing",
+    "check_pneumatics",
+]
 
 #: Largest K K_I times the outer period: ten times the delay-free integrator's limit 2.
 MAX_GAIN_PERIOD = 20.0
@@ -437,3 +445,14 @@ def scenario_model(tree: Mapping) -> Scenario:
         is allowed.
     """
     return validated(Scenario, tree)
+
+
+def as_scenario(scenario: Scenario | Mapping) -> Scenario:
+    """The typed scenario of a resolved one: itself when typed, else validated
+    (:func:`scenario_model`); what the run's readers take, a dict or the model."""
+    return scenario if isinstance(scenario, Scenario) else scenario_model(scenario)
+
+
+def as_tree(scenario: Scenario | Mapping) -> Mapping:
+    """The resolved scenario's dict: itself when a mapping, else the model's dump."""
+    return scenario.model_dump() if isinstance(scenario, Scenario) else scenario

@@ -14,6 +14,7 @@ from typing import Annotated
 
 from pydantic import AfterValidator, BeforeValidator, StrictStr
 
+from controllers.geometry import PlatformGeometry, geometry_from_rig
 from simpro_mj.config.pneumatics import Pneumatics
 from simpro_mj.config.presets import DEFAULT_PRESET
 from simpro_mj.config.rig import Rig, rig_value
@@ -174,6 +175,22 @@ class PlantBlock(Block):
         "a shipped preset (paper: calibrated to eqs. 34-35; heavy_cabin: 230 kg) or a preset "
         "YAML path; its plant, pneumatics and identified models lie under the scenario's own",
     )
+
+    def rig_tree(self) -> dict | None:
+        """The rig's record (millimetres; ``None``: the paper's rig)."""
+        return None if self.rig is None else self.rig.model_dump()
+
+    def geometry(self) -> PlatformGeometry:
+        """The controllers' nominal geometry of this rig (:func:`geometry_from_rig`)."""
+        return geometry_from_rig(self.rig_tree())
+
+    def tree(self, *, empty: bool = False) -> dict:
+        """The parameter tree :func:`simpro_mj.plant.model.load_model` compiles;
+        ``empty``: with no payload mass (the preflight's static solves set it)."""
+        out = self.model_dump()
+        if empty:
+            out["payload"]["mass_kg"] = 0.0
+        return out
 
 
 def _pot_bits(value: int) -> int:

@@ -236,6 +236,10 @@ class Pneumatics(Block):
     integration: Integration = block(Integration)
     linear: Linear = block(Linear)
 
+    def params(self) -> PneumaticParams:
+        """The plant's parameter record of this block (SI)."""
+        return PneumaticParams.from_tree(self.model_dump())
+
     @model_validator(mode="after")
     def _plausible(self):
         """The plant's own ranges and rules across its keys (``PneumaticParams.from_tree``)."""

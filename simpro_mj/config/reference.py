@@ -14,9 +14,9 @@ from collections.abc import Mapping
 import numpy as np
 
 from controllers.errors import WorkspaceError
-from controllers.geometry import geometry_from_rig
 from controllers.kinematics import check_reachable, reachable
 from simpro_mj.config.cueing import cue_poses
+from simpro_mj.config.models import Scenario, as_scenario, as_tree
 from simpro_mj.config.rules import PHYSICS_DT_S, SETPOINT_AXES
 from simpro_mj.core.errors import UserInputError
 
@@ -32,45 +32,28 @@ class SetpointError(UserInputError, WorkspaceError):
     """
 
 
-def late_setpoints(s: Mapping) -> list[str]:
+def late_setpoints(scenario: Scenario | Mapping) -> list[str]:
     """Set-point components that start after the run ends: they never act.
 
     Not an error (a short run of a shipped scenario cuts its steps off on
     purpose), but never silent: :func:`simpro_mj.analysis.preflight.preflight` turns
     each into a warning line, recorded in ``metrics.json``.
     """
-    duration = s["duration_s"]
+    sc = as_scenario(scenario)
+    duration = sc.duration_s
     out = []
     for axis in SETPOINT_AXES:  # not setpoint.cueing, which has no components
-        for i, c in enumerate(s["setpoint"].get(axis) or ()):
-            key = {"step": "time_s", "ramp": "start_s", "sine": "start_s"}.get(c["type"])
-            if key is not None and c[key] > duration:
+        for i, c in enumerate(getattr(sc.setpoint, axis)):
+            key = {"step": "time_s", "ramp": "start_s", "sine": "start_s"}.get(c.type)
+            if key is not None and getattr(c, key) > duration:
                 out.append(
-                    f"setpoint.{axis}[{i}].{key} = {c[key]:g} s is after the end of the run "
-                    f"(duration_s = {duration:g} s): this {c['type']} never acts"
+                    f"setpoint.{axis}[{i}].{key} = {getattr(c, key):g} s is after the end of the "
+                    f"run (duration_s = {duration:g} s): this {c.type} never acts"
                 )
     return out
 
 
 # ------------------------------------------------------------------ set-points
-
-
-def _component(c: Mapping, t: np.ndarray) -> np.ndarray:
-    kind = c["type"]
-    if kind == "step":
-        return np.where(t >= c["time_s"], c["value"], 0.0)
-    if kind == "ramp":
-        frac = np.clip((t - c["start_s"]) / (c["end_s"] - c["start_s"]), 0.0, 1.0)
-        return c["value"] * frac
-    if kind == "sine":
-        start = c.get("start_s", 0.0)
-        end = math.inf if c.get("end_s") is None else c["end_s"]
-        phase = math.radians(c.get("phase_deg", 0.0))
-        wave = c["amplitude"] * np.sin(2.0 * np.pi * (t - start) / c["period_s"] + phase)
-        return np.where((t >= start) & (t < end), wave, 0.0)
-    if kind == "table":
-        return np.interp(t, np.asarray(c["times_s"], float), np.asarray(c["values"], float))
-    raise UserInputError(f"invalid value at setpoint: component type {kind!r}")  # pragma: no cover
 
 
 def _clamp(pose: np.ndarray, geometry, iterations: int = 40) -> np.ndarray:
@@ -93,19 +76,19 @@ def _clamp(pose: np.ndarray, geometry, iterations: int = 40) -> np.ndarray:
     return out
 
 
-def reference(scenario: Mapping, t, *, clamp: bool | None = None) -> np.ndarray:
+def reference(scenario: Scenario | Mapping, t, *, clamp: bool | None = None) -> np.ndarray:
     """The set-point pose at times ``t``, SI, vectorised.
 
     Parameters
     ----------
-    scenario : mapping
+    scenario : Scenario or mapping
         A resolved scenario (:func:`load_scenario`).
     t : array_like, (n,)
         Times (s).
     clamp : bool, optional
         Pull unreachable poses back to the workspace boundary along the segment
         from the home pose (40 bisection steps on the nominal geometry).
-        Default: ``scenario["controller"]["clamp_setpoints"]``.
+        Default: the scenario's ``controller.clamp_setpoints``.
 
     Returns
     -------
@@ -113,20 +96,20 @@ def reference(scenario: Mapping, t, *, clamp: bool | None = None) -> np.ndarray:
         (roll rad, pitch rad, heave m); heave absolute, home height + ``heave_mm``.
     """
     t = np.atleast_1d(np.asarray(t, dtype=float))
-    geometry = geometry_from_rig(scenario["plant"].get("rig"))
-    sp = scenario["setpoint"]
-    if sp.get("cueing"):  # the washout's set-points, inside its workspace box
-        return cue_poses(scenario, t)
+    sc = as_scenario(scenario)
+    geometry = sc.plant.geometry()
+    if sc.setpoint.cueing is not None:  # the washout's set-points, inside its workspace box
+        return cue_poses(as_tree(scenario), t)
     out = np.empty((t.size, 3))
     for j, (axis, scale) in enumerate(
         zip(SETPOINT_AXES, (math.pi / 180.0, math.pi / 180.0, 1e-3), strict=True)
     ):
         total = np.zeros(t.size)
-        for c in sp.get(axis) or ():
-            total += _component(c, t)
+        for c in getattr(sc.setpoint, axis):
+            total += c.at(t)
         out[:, j] = geometry.home[j] + scale * total
     if clamp is None:
-        clamp = bool(scenario["controller"]["clamp_setpoints"])
+        clamp = sc.controller.clamp_setpoints
     if clamp:
         out = _clamp(out, geometry)
     return out
@@ -136,7 +119,7 @@ def reference(scenario: Mapping, t, *, clamp: bool | None = None) -> np.ndarray:
 _CHECK_BLOCK = 20_000
 
 
-def check_setpoints(scenario: Mapping, t=None) -> None:
+def check_setpoints(scenario: Scenario | Mapping, t=None) -> None:
     """Raise :class:`SetpointError` if the set-point leaves the reachable workspace.
 
     Parameters
@@ -147,15 +130,16 @@ def check_setpoints(scenario: Mapping, t=None) -> None:
         Times to check; default the 1 ms physics grid over ``[0, duration_s]``
         (every sample the controllers can see).
     """
+    sc = as_scenario(scenario)
     if t is None:
-        n = int(round(scenario["duration_s"] / PHYSICS_DT_S))
+        n = int(round(sc.duration_s / PHYSICS_DT_S))
         t = np.arange(n + 1) * PHYSICS_DT_S
     t = np.atleast_1d(np.asarray(t, dtype=float))
-    geometry = geometry_from_rig(scenario["plant"].get("rig"))
+    geometry = sc.plant.geometry()
     # in blocks: the vectorised IK holds ~350 B of temporaries per pose, which
     # over a whole 600 s grid would be 200 MB for a check that keeps nothing
     for k0 in range(0, t.size, _CHECK_BLOCK):
-        pose = reference(scenario, t[k0 : k0 + _CHECK_BLOCK], clamp=False)
+        pose = reference(sc, t[k0 : k0 + _CHECK_BLOCK], clamp=False)
         # a held pose is checked once, where it starts (a step's 40 000 samples are 2)
         moves = np.flatnonzero(np.r_[True, np.any(pose[1:] != pose[:-1], axis=1)])
         ok = reachable(pose[moves], geometry)

@@ -151,17 +151,16 @@ class Run(Build):
         """The checks before stepping, on this run's plant and set-points: the payload
         first (a refusal costs no identification), then the design plants and the rest."""
         setpoints = (self.t, self.ref)
-        if self.scenario["controller"]["mode"] == "task_space":  # before any analysis
-            check_gains_move(self.scenario["controller"]["outer"]["gains"],
-                             self.scenario["duration_s"])  # fmt: skip
-        payload = check_payload(self.scenario, self.model, setpoints)
+        if self.spec.controller.mode == "task_space":  # before any analysis
+            check_gains_move(self.spec.controller.outer.gains, self.spec.duration_s)
+        payload = check_payload(self.spec, self.model, setpoints)
         if self.identified_source is None:
             from simpro_mj.identification.auto import experiment_s
 
             if experiment_s(self.scenario) > 0:  # an experiment to come: refuse first
-                check_gains_before_identifying(self.scenario)
+                check_gains_before_identifying(self.spec)
         self.design_plants()
-        return preflight(self.scenario, self.model, setpoints=setpoints, payload=payload)
+        return preflight(self.spec, self.model, setpoints=setpoints, payload=payload)
 
     def execute(
         self,

@@ -23,11 +23,12 @@ interface, the frequency and chain responses and the replay all start here.
 from __future__ import annotations
 
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from typing import TYPE_CHECKING, Literal, cast
 
 import numpy as np
 
+from simpro_mj.config.models import Scenario, as_scenario
 from simpro_mj.config.reference import reference
 from simpro_mj.core.interrupts import held_signals
 from simpro_mj.plant.model_params import MAX_MODEL_PAYLOAD_KG
@@ -48,8 +49,10 @@ class Build:
 
     Parameters
     ----------
-    scenario : mapping
-        A resolved scenario (:func:`simpro_mj.config.scenario.load_scenario`).
+    scenario : Scenario or mapping
+        A resolved scenario (:func:`simpro_mj.config.scenario.load_scenario`), typed
+        or its dict; :attr:`spec` is the typed one, :attr:`scenario` the dict
+        the run records.
     model : mujoco.MjModel, optional
         A compiled plant of this scenario's ``plant`` (a comparison shares one
         between its two runs); compiled here when omitted.
@@ -71,7 +74,7 @@ class Build:
 
     def __init__(
         self,
-        scenario: dict,
+        scenario: Scenario | Mapping,
         *,
         model=None,
         setpoints: Literal["scenario", "external"] = "scenario",
@@ -88,20 +91,20 @@ class Build:
 
         if setpoints not in ("scenario", "external"):
             raise ValueError(f"setpoints={setpoints!r}; allowed: 'scenario' or 'external'")
-        self.scenario = scenario
+        #: the typed scenario (:class:`~simpro_mj.config.models.Scenario`)
+        self.spec = spec = as_scenario(scenario)
+        #: the resolved scenario as a dict: what the run records and hashes
+        self.scenario = spec.model_dump() if scenario is spec else cast(dict, scenario)
         self.setpoints = setpoints
         self._say = say
         #: where the design plants came from, once :meth:`design_plants` ran
         self.identified_source: str | None = None
-        plant = self.scenario["plant"]
-        self.payload_too_heavy = float(plant["payload"]["mass_kg"]) > MAX_MODEL_PAYLOAD_KG
+        self.payload_too_heavy = spec.plant.payload.mass_kg > MAX_MODEL_PAYLOAD_KG
         if model is None:
-            if self.payload_too_heavy:
-                plant = dict(plant, payload=dict(plant["payload"], mass_kg=0.0))
-            model = load_model(plant)
+            model = load_model(spec.plant.tree(empty=self.payload_too_heavy))
         self.model = model
         dt = float(model.opt.timestep)
-        n = int(round(self.scenario["duration_s"] / dt))
+        n = int(round(spec.duration_s / dt))
         #: the 1 ms grid and the set-point poses on it (SI), evaluated once
         self.t = np.arange(n + 1) * dt
         self.ref = None
@@ -120,7 +123,9 @@ class Build:
             from simpro_mj.identification.auto import with_identified
 
             designed, self.identified_source = with_identified(self.scenario, self._say)
-            self.scenario = cast(dict, designed)  # the resolved scenario, a dict
+            if designed is not self.scenario:  # the plant's own models
+                self.scenario = cast(dict, designed)
+                self.spec = as_scenario(designed)
         return self.identified_source
 
     def simulation(self) -> CoSimulation:
@@ -130,7 +135,7 @@ class Build:
         from simpro_mj.sim.loop import CoSimulation
 
         if self.payload_too_heavy:  # the preflight refuses it first; never stepped empty
-            load_model(self.scenario["plant"])  # raises the builder's own message
+            load_model(self.spec.plant.tree())  # raises the builder's own message
         source = self.design_plants()
         return CoSimulation(
             self.scenario,
@@ -141,7 +146,7 @@ class Build:
         )
 
 
-def simulate(scenario: dict, progress=None, *, stop=None) -> SimResult:
+def simulate(scenario: Scenario | Mapping, progress=None, *, stop=None) -> SimResult:
     """Build and run a scenario, with no preflight and no measure (the replay, the
     responses' points); :class:`simpro_mj.job.run.Run` is the whole run."""
     return Build(scenario).simulation().run(progress, stop=stop)
