@@ -180,12 +180,15 @@ def test_full_identification_writes_the_plot(tmp_path):
 
 
 def test_experiment_on_the_compiled_step_matches_the_interpreted_one(monkeypatch):
-    # one source run two ways (simpro_mj.plant.step_functions): the records agree to
-    # rounding (1e-9 m/s against slide speeds of ~1e-2 m/s; the arithmetic is the same,
-    # only the compiler's ordering of float operations may differ)
-    from simpro_mj.identification.identify import run_experiment
+    # one source run two ways (simpro_mj.sim.step with controllers.experiment_law): on
+    # one machine the same operations in the same order, so the records are the same
+    # numbers bit for bit (as the runs', tests/test_step.py), and so are the fits
+    from simpro_mj.identification.identify import _prbs, run_experiment
 
-    tree = apply_overrides(default_tree(), ["identify.duration_s=0.6", "identify.settle_s=0.2"])
+    tree = apply_overrides(
+        default_tree(),
+        ["identify.duration_s=0.6", "identify.settle_s=0.2", "identify.dither_v=1.0"],
+    )
     recs = {}
     for kernel in ("python", "numba"):
         monkeypatch.setenv("SIMPRO_KERNEL", kernel)
@@ -193,4 +196,30 @@ def test_experiment_on_the_compiled_step_matches_the_interpreted_one(monkeypatch
     a, b = recs["python"], recs["numba"]
     assert np.abs(a["qdot"]).max() > 1e-3  # the PRBS moved the slide
     for key in ("u", "q", "qdot", "q_all"):
-        np.testing.assert_allclose(b[key], a[key], rtol=0, atol=1e-9)
+        assert np.array_equal(b[key], a[key]), key
+    fits = [fit_eq19(r["u"], r["qdot"], r["dt"], skip=50) for r in (a, b)]
+    assert fits[0] == fits[1]
+    # the law acted on leg 2: its P law on the true slide, the dither, the sequence
+    ip = tree["identify"]
+    n = a["u"].size
+    prbs = ip["prbs_amplitude_v"][1] * _prbs(n, 20, ip["prbs_bits"], ip["seed"])
+    dither = np.where((np.arange(200, 200 + n) // 20) % 2 == 0, 1.0, -1.0)
+    q_ref = float(ip["position_mm"]) * 1e-3
+    law = (q_ref - a["q"]) * ip["kp_v_per_m"][1] + a["u_hold"][1] + dither + prbs
+    assert np.array_equal(a["u"], np.clip(law, 0.0, 10.0))
+    assert np.ptp(a["u"]) > 2.0 * ip["prbs_amplitude_v"][1]  # the sequence and the dither
+
+
+def test_experiment_law_excites_one_leg_and_holds_the_valves_range():
+    from controllers.experiment_law import XC, experiment_volts
+
+    xc = XC.pack(on=1, leg=2, qref=0.25, kp=[10.0, 20.0, 30.0], hold=[5.0, 6.0, 4.0], lo=0, hi=10)
+    exc = np.array([[0.5, 0.3, 0.0], [0.5, 40.0, 0.0]])  # dither, excitation (leg 3)
+    u = np.empty(3)
+    experiment_volts(0, np.array([0.25, 0.20, 0.30]), xc, exc, u)
+    # leg 1 at its reference, leg 2 0.05 m short, leg 3 0.05 m long and excited
+    np.testing.assert_allclose(u, [5.5, 7.5, 4.0 - 1.5 + 0.5 + 0.3], rtol=0, atol=1e-12)
+    experiment_volts(1, np.array([0.25, 0.20, 0.30]), xc, exc, u)
+    assert u[2] == 10.0 and u[0] == 5.5  # the valve's rail; the other legs not excited
+    experiment_volts(0, np.array([0.25, 0.20, 1.0]), xc, exc, u)
+    assert u[2] == 0.0

@@ -99,13 +99,21 @@ def plant_tree(scenario: Mapping) -> dict:
 
 @lru_cache(maxsize=1)
 def _code() -> str:
-    """Digest of the sources the experiment runs: the identification, the plant and
-    the joint design (read as files: nothing imported for it)."""
+    """Digest of the sources the experiment runs: the identification, the plant, the
+    joint design and the 1 ms step with the experiment's law (read as files)."""
     import controllers.design
+    import controllers.experiment_law
+    import controllers.step_functions
 
     here = Path(__file__).parent
     files = [*here.glob("*.py"), *(here.parent / "plant").rglob("*.py")]
-    return cache.source_digest([*files, Path(controllers.design.__file__)])
+    files += [
+        Path(controllers.design.__file__),
+        Path(controllers.experiment_law.__file__),
+        Path(controllers.step_functions.__file__),
+        here.parent / "sim" / "step.py",
+    ]
+    return cache.source_digest(files)
 
 
 def plant_hash(tree: Mapping) -> str:

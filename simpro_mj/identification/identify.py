@@ -7,15 +7,16 @@ Per actuator i, around mid-stroke under the nominal payload:
    (:func:`simpro_mj.plant.pneumatics.statics.holding_forces`), the actuators are reset at
    the matching pneumatic equilibrium (valve voltages ``u_h``);
 2. every leg runs a proportional position loop
-   :math:`u_j = u_{h,j} + K_{p,j}(q_{ref} - q_j)` (our own tiny loop: the
-   plant imports no controller); after a settling time a pseudo-random binary
-   sequence (maximum-length, ``prbs_clock_ms`` per bit, ±``prbs_amplitude_v``)
-   is added to the valve voltage of leg i only;
-3. the co-simulation runs at 1 ms: read q, qdot -> voltages -> actuator
-   ``step`` -> ``data.ctrl`` -> ``mj_step``; MuJoCo warnings and loop closure
-   are checked. The actuators' step is the run's own step function compiled
-   (:func:`simpro_mj.sim.step.compiled`, under ``SIMPRO_KERNEL`` as a run), the
-   same arithmetic interpreted otherwise (:func:`_actuator_step`);
+   :math:`u_j = u_{h,j} + K_{p,j}(q_{ref} - q_j)` on its true position
+   (:mod:`controllers.experiment_law`); after a settling time a pseudo-random
+   binary sequence (maximum-length, ``prbs_clock_ms`` per bit,
+   ±``prbs_amplitude_v``) is added to the valve voltage of leg i only;
+3. the co-simulation runs at 1 ms on the run's own step
+   (:mod:`simpro_mj.sim.step`: sensors, that law in place of the joint
+   controllers, the actuators, the log;
+   :func:`simpro_mj.sim.experiment.step_experiment`), compiled
+   inside ``mj_step`` under ``SIMPRO_KERNEL`` as a run, or interpreted;
+   MuJoCo warnings and loop closure are checked;
 4. eq. (19), :math:`Y/U = b / (s (s^2 + a_1 s + a_0))`, is fitted to the
    recorded valve voltage (deviation from 5 V) and slide motion. Because (19)
    has a pure integrator, it is fitted on the slide velocity
@@ -46,6 +47,7 @@ from controllers.design import (
     paper_units_info,
 )
 from controllers.dither import dither_signal
+from controllers.experiment_law import XC
 from simpro_mj.core.errors import PhysicsError, UserInputError
 from simpro_mj.identification.settings import (
     DEFAULT_IDENTIFY_PARAMS,
@@ -56,7 +58,6 @@ from simpro_mj.identification.settings import (
 from simpro_mj.plant.model import (
     PlantIndex,
     assemble,
-    check_physics,
     load_model,
 )
 from simpro_mj.plant.payload import holding_force_model, max_payload
@@ -107,29 +108,6 @@ def _prbs(n_steps: int, clock: int, bits: int, seed: int) -> np.ndarray:
     n_bits = -(-n_steps // clock)
     reps = -(-n_bits // seq.size)
     return np.repeat(np.tile(seq, reps)[:n_bits], clock)[:n_steps]
-
-
-def _actuator_step(act, dt: float):
-    """``step(u, q, qdot, f)``: the actuators' step function on their own state,
-    writing the slide forces into ``f``; compiled when the run's step is
-    (``SIMPRO_KERNEL``, :func:`simpro_mj.plant.kernels.kernel_choice`). The compiled and
-    the interpreted function are one source
-    (:mod:`simpro_mj.plant.step_functions`); the Python form costs most of the
-    experiment's time (the valve and chamber arithmetic per 1 ms step)."""
-    from simpro_mj.plant.kernels import kernel_choice
-
-    act.set_timestep(dt)
-    fn = act.step_function
-    if kernel_choice() == "numba":
-        from simpro_mj.sim.step import compiled  # the stages' compiled namespace
-
-        fn = getattr(compiled(), fn.__name__)
-    state, constants = act.step_state, act.step_constants
-
-    def step(u, q, qd, f):
-        fn(u, q, qd, state, constants, f)
-
-    return step
 
 
 def run_experiment(tree: dict, leg: int, model=None) -> dict:
@@ -200,41 +178,17 @@ def run_experiment(tree: dict, leg: int, model=None) -> dict:
     )
     loop_bound = float(ip["loop_bound_mm"]) * 1e-3
 
-    j = leg - 1
-    sq, sd, ia = idx.slide_qpos, idx.slide_dof, idx.actuators
-    rec_u = np.empty(n_exc)
-    rec_q = np.empty(n_exc)
-    rec_v = np.empty(n_exc)
-    q_all = np.empty((n_exc, 3))
-    warn0 = d.warning.number.copy()
-    d.ctrl[ia] = f_hold
-    u = np.empty(3)
-    force = np.zeros(3)
-    step = _actuator_step(act, dt)
-    qpos, qvel, ctrl = d.qpos, d.qvel, d.ctrl
-    for k in range(n_settle + n_exc):
-        q = qpos[sq]
-        qd = qvel[sd]
-        np.subtract(q_ref, q, out=u)
-        u *= kp
-        u += u_hold
-        u += dither[k]
-        e = k - n_settle
-        if e >= 0:
-            u[j] += prbs[e]
-        np.clip(u, 0.0, 10.0, out=u)
-        force[:] = 0.0
-        step(u, q, qd, force)
-        ctrl[ia] = force
-        if e >= 0:
-            rec_u[e] = u[j]
-            rec_q[e] = q[j]
-            rec_v[e] = qd[j]
-            q_all[e] = q
-        mujoco.mj_step(m, d)
-        if k % 250 == 0:
-            check_physics(m, d, warn0, loop_bound=loop_bound, index=idx)
-    check_physics(m, d, warn0, loop_bound=loop_bound, index=idx)
+    # the excitation by step (controllers.experiment_law): the dither, the sequence
+    n_all = n_settle + n_exc
+    exc = np.zeros((n_all + 1, 3))
+    exc[:n_all, 0] = dither[:, 0]  # one wave on the three valves (controllers.dither)
+    exc[n_settle:n_all, 1] = prbs
+    xp = XC.pack(on=1.0, leg=leg - 1, qref=q_ref, kp=kp, hold=u_hold, lo=0.0, hi=10.0)
+    from simpro_mj.sim.experiment import step_experiment  # the run's own step
+
+    rec = step_experiment(m, d, idx, act, xp, exc, loop_bound)
+    rows = slice(n_settle, n_all)
+    q_all = rec["q"][rows].copy()
     if np.any(q_all < 0.0) or np.any(q_all > 0.5):
         raise PhysicsError(
             f"identification of actuator {leg} hit an end stop: lower identify.prbs_amplitude_v "
@@ -242,9 +196,9 @@ def run_experiment(tree: dict, leg: int, model=None) -> dict:
         )
     return {
         "t": np.arange(n_exc) * dt,
-        "u": rec_u,
-        "q": rec_q,
-        "qdot": rec_v,
+        "u": rec["u"][rows, leg - 1].copy(),
+        "q": q_all[:, leg - 1].copy(),
+        "qdot": rec["qdot"][rows, leg - 1].copy(),
         "u_hold": u_hold,
         "force_hold": f_hold,
         "q_all": q_all,

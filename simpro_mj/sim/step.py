@@ -42,11 +42,21 @@ import types as pytypes
 
 import numpy as np
 
+from controllers import experiment_law as xl
 from controllers import step_functions as cs
 from controllers.layout import layout
 from simpro_mj.plant import step_functions as ps
 
-__all__ = ["sense", "control", "actuate", "record", "callback_step", "build", "compiled"]
+__all__ = [
+    "sense",
+    "control",
+    "actuate",
+    "record",
+    "callback_step",
+    "plant_reads",
+    "build",
+    "compiled",
+]
 
 #: the closed loops' site pairs the step reads (at most)
 MAX_PAIRS = 8
@@ -77,17 +87,19 @@ ERR_FORCE, ERR_LOOP, ERR_WARNING = 5, 6, 7
 # ------------------------------------------------------------ constants C
 #: The constants ``C``: dt, the run's steps, the log's decimation, the outer period
 #: (steps), hold on saturation (feed-forward), a feed-forward force given, the head
-#: sensors logged, the loop-closure bound (m); the blocks of the set-point filter
-#: (controllers.step_functions.FC) and the joint loops (JC); the state read: the slides'
-#: qpos and dof, the platform site's xmat, its z and its position (the IMU's) in xpos,
-#: the closed loops' site pairs, the head sensors, the slides' motors; the blocks of the
-#: sensors (plant.step_functions.SC), the outer loop (TC), the geometry (GEOM) and the
-#: actuators (plant.step_functions.AC or ACL by their kind, open)
+#: sensors logged (two sensordata triples: in a cueing run the head's), the loop-closure
+#: bound (m); the blocks of the set-point filter (controllers.step_functions.FC) and the
+#: joint loops (JC); the state read: the slides' qpos and dof, the platform site's xmat,
+#: its z and its position (the IMU's) in xpos, the closed loops' site pairs, the head
+#: sensors, the slides' motors; the blocks of the sensors (plant.step_functions.SC), the
+#: outer loop (TC), the geometry (GEOM), the identification experiment's law
+#: (controllers.experiment_law.XC) and the actuators (plant.step_functions.AC or ACL by
+#: their kind, open)
 CT = layout(
     "StepConstants", dt=1, nsteps=1, dec=1, outer=1, hold_sat=1, has_uff=1, head=1,
     loop_bound=1, fc=cs.FC.LEN, jc=cs.JC.LEN, iq=3, iv=3, imat=1, ih=1, isite=1, npair=1,
     pairs=2 * MAX_PAIRS, iha=1, ihg=1, ictrl=3, sc=ps.SC.LEN, tc=cs.TC.LEN, geom=cs.GEOM.LEN,
-    ac=None,
+    xp=xl.XC.LEN, ac=None,
 )  # fmt: skip
 
 #: One log row (simpro_mj.sim.result.COLUMNS, in order): the time, the set-point, the
@@ -129,8 +141,14 @@ def control(k, S, C, ref, qj, uff):
 
     Writes q_d (``S[ST.qdes]``), q_ref, the volts (the controllers' own ``u``
     and the applied ``ua``, equal unless a fault overrides them) and the
-    commanded pose.
+    commanded pose. With the identification experiment's law on (``C[CT.xp]``), that
+    law alone (:func:`controllers.experiment_law.experiment_volts`).
     """
+    xc = C[CT.xp : CT.xp + xl.XC.LEN]
+    if xc[xl.XC.on] != 0.0:  # the P law holding the legs, the excitation by step
+        xl.experiment_volts(k, S[ST.q : ST.q + 3], xc, uff, S[ST.u : ST.u + 3])
+        S[ST.ua : ST.ua + 3] = S[ST.u : ST.u + 3]
+        return 0
     ts = S[ST.ts : ST.ts + cs.TS.LEN]
     tc, g = C[CT.tc : CT.tc + cs.TC.LEN], C[CT.geom : CT.geom + cs.GEOM.LEN]
     mode = tc[cs.TC.mode]
@@ -263,6 +281,21 @@ def callback_step(
 
 
 # ------------------------------------------------------------ the run's arrays
+def plant_reads(idx) -> dict:
+    """The ``C`` fields of where the step reads the plant (:data:`CT`: ``iq`` .. ``pairs``,
+    ``ictrl``) for a model's :class:`~simpro_mj.plant.model.PlantIndex`."""
+    pairs = [(3 * int(a), 3 * int(b)) for a, b in idx.connect_sites]
+    if len(pairs) > MAX_PAIRS:
+        raise ValueError(f"the model has {len(pairs)} closed loops; the step reads {MAX_PAIRS}")
+    flat_pairs = np.zeros(2 * MAX_PAIRS)
+    flat_pairs[: 2 * len(pairs)] = [i for p in pairs for i in p]
+    return dict(
+        iq=idx.slide_qpos, iv=idx.slide_dof, imat=9 * int(idx.site_p),
+        ih=3 * int(idx.site_p) + 2, isite=3 * int(idx.site_p), npair=len(pairs),
+        pairs=flat_pairs, ictrl=idx.actuators,
+    )  # fmt: skip
+
+
 def build(sim, loop_bound: float, noise_row, walk_row) -> tuple[np.ndarray, np.ndarray]:
     """``(S, C)`` of a :class:`~simpro_mj.sim.loop.CoSimulation` from its objects.
 
@@ -274,11 +307,6 @@ def build(sim, loop_bound: float, noise_row, walk_row) -> tuple[np.ndarray, np.n
     """
     filt, joint, task, idx, act = sim.setpoint_filter, sim.joint, sim.task, sim.idx, sim.actuators
     act.set_timestep(sim.dt)
-    pairs = [(3 * int(a), 3 * int(b)) for a, b in idx.connect_sites]
-    if len(pairs) > MAX_PAIRS:
-        raise ValueError(f"the model has {len(pairs)} closed loops; the step reads {MAX_PAIRS}")
-    flat_pairs = np.zeros(2 * MAX_PAIRS)
-    flat_pairs[: 2 * len(pairs)] = [i for p in pairs for i in p]
     head = {"head": 0.0, "iha": 0.0, "ihg": 0.0}
     if sim.cueing:  # the first sensordata index of each (a slice)
         a, g = idx.sensor["head_accel"].start, idx.sensor["head_gyro"].start
@@ -287,10 +315,9 @@ def build(sim, loop_bound: float, noise_row, walk_row) -> tuple[np.ndarray, np.n
         dt=sim.dt, nsteps=sim.n_steps, dec=sim.decimation, outer=sim.outer_every,
         hold_sat=1.0 if sim.mode == "feedforward" and sim.hold_on_saturation else 0.0,
         has_uff=1.0 if sim.u_ff is not None else 0.0, loop_bound=loop_bound,
-        fc=filt.step_constants, jc=joint.step_constants, iq=idx.slide_qpos, iv=idx.slide_dof,
-        imat=9 * int(idx.site_p), ih=3 * int(idx.site_p) + 2, isite=3 * int(idx.site_p),
-        npair=len(pairs), pairs=flat_pairs, ictrl=idx.actuators, sc=sim.sensor_cfg.step_constants,
-        tc=task.step_constants, geom=task.step_geometry, ac=act.step_constants, **head,
+        fc=filt.step_constants, jc=joint.step_constants, sc=sim.sensor_cfg.step_constants,
+        tc=task.step_constants, geom=task.step_geometry, xp=np.zeros(xl.XC.LEN),
+        ac=act.step_constants, **head, **plant_reads(idx),
     )  # fmt: skip
     S = np.zeros(ST.LEN + 3 * max(filt.n))
     v = ST.views(S)
