@@ -23,9 +23,19 @@ integrator state only:
 
 * ``"back_calculation"`` (default): ``x_I += (T / T_t)(v_sat - v)``, the
   tracking time ``T_t`` a parameter (default 0.05 s);
-* ``"conditional"``: the integrator is held while the output is saturated
-  and the error would drive it further into saturation;
+* ``"conditional"`` (conditional integration, or clamping): the integrator is
+  held while the output is saturated and the error would drive it further
+  into saturation;
 * ``"none"``.
+
+Back-calculation reads every sample's excess over a rail. When the command
+carries more than its margin to the rails in fast parts (dither, the
+quantised potentiometer times the controller's high-frequency gain
+``k_p``), the excesses at the nearer rail outweigh those at the farther one
+and the integrator is pulled towards the valve's centre, whatever the mean
+error: the leg then moves far slower than designed. Conditional integration
+only stops the integrator growing into a rail, so it has no such pull
+(docs/paper-notes.md, joint anti-windup).
 
 Per leg one step is ``[x[k+1]; u[k]] = [[A, B], [C, D]] [x[k]; e[k]]``
 (``e = q_ref - q_meas``, m) plus the saturation and the anti-windup on the
@@ -62,12 +72,15 @@ __all__ = [
     "leg_state_space",
     "METHODS",
     "ANTI_WINDUP",
+    "AntiWindup",
 ]
 
 #: Discretisations of the joint controller.
 Method = Literal["tustin", "zoh"]
 METHODS: tuple[Method, ...] = get_args(Method)
-ANTI_WINDUP = ("back_calculation", "conditional", "none")
+#: Anti-windup of the joint integrators (class docstring).
+AntiWindup = Literal["back_calculation", "conditional", "none"]
+ANTI_WINDUP: tuple[AntiWindup, ...] = get_args(AntiWindup)
 _NX = JX.LEN  # states per leg: two of C_r, one integrator (last)
 
 

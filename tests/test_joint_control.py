@@ -257,6 +257,36 @@ def test_anti_windup_bounds_integrator(aw):
     assert np.all(np.abs(jc.integrator - before) < 1e-6)  # settled, not ramping
 
 
+def test_back_calculation_pulls_a_dithered_command_to_the_centre():
+    """A held 10 mm error under a +-4 V, 40 ms square dither (the cabin's leg-1 loop).
+
+    Back-calculation settles where the integrator's input ``r0 T e`` equals the mean
+    excess ``(T / T_t) E[v - v_sat]``; a square of +-a around a mean m exceeds the
+    upper rail by ``(m + a - 10) / 2`` on average, so ``m = 10 - a + 2 T_t r0 e`` and
+    the applied mean is ``(10 + m - a) / 2 = 10 - a + T_t r0 e``: about 6.2 V, far
+    from the open valve the error asks for. Conditional integration only stops
+    while the command grows into a rail, so it climbs until both halves saturate:
+    10 V.
+    """
+    from controllers.design import Plant
+
+    plants = [Plant(4.899, 12.09, 50.21), Plant(21.41, 34.48, 218.7), Plant(21.41, 34.48, 218.7)]
+    e, a, n_half = 0.010, 4.0, 20
+    ref, meas = np.full(3, 0.3), np.full(3, 0.3 - e)
+    means = {}
+    for aw in ("back_calculation", "conditional"):
+        jc = JointControllers("corrected", plants=plants, anti_windup=aw)
+        v = np.zeros((12000, 3))  # the conditional integrator reaches its rail by 6 s
+        for k in range(12000):
+            v[k] = jc.update(ref, meas, np.full(3, a if (k // n_half) % 2 == 0 else -a))
+        means[aw] = v[-4000:].mean(axis=0)  # whole dither periods
+    r0 = np.array([split_integrator(d)[0] for d in jc.designs])
+    expect = 10.0 - a + jc.tracking_time * r0 * e
+    np.testing.assert_allclose(means["back_calculation"], expect, atol=0.05)
+    assert np.all(expect < 6.5)
+    np.testing.assert_allclose(means["conditional"], 10.0, atol=1e-9)
+
+
 def test_rejects_bad_arguments():
     with pytest.raises(TypeError):
         JointControllers(bogus=1)

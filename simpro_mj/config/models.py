@@ -32,7 +32,7 @@ from pydantic import (
 
 from controllers.design import ACTUATORS, Plant, Reading, Variant, paper_plant, redesigned_design
 from controllers.errors import DesignError
-from controllers.joint import Method
+from controllers.joint import AntiWindup, Method
 from controllers.setpoint_filter import Kind
 from controllers.task_space import Integrator, JointLag, Lag
 from simpro_mj.config.cue_models import Cueing, check_cueing
@@ -222,6 +222,17 @@ class Inner(Block):
     )
     dither_period_ms: Annotated[Real, AfterValidator(_even_steps)] = param(
         40.0, "ms", "the dither's period: an even number of 1 ms steps", ge=2
+    )
+    anti_windup: AntiWindup = param(
+        "back_calculation",
+        "",
+        "the integrators' anti-windup (controllers.joint): back_calculation (tracking "
+        "time below), conditional (held only while growing into a rail: no pull towards "
+        "the valve's centre from dither or sensor noise at the rails; docs/paper-notes.md) "
+        "or none",
+    )
+    tracking_time_ms: Real = param(
+        50.0, "ms", "back-calculation's tracking time T_t", gt=0, le=10000
     )
 
 

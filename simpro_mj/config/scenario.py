@@ -350,6 +350,14 @@ def _set(tree: dict, key: str, value: Any) -> None:
         node[last] = value
 
 
+#: (block of ``controller``, key, default): left out of the hash at the default
+_HASHED_UNLESS_DEFAULT = (
+    ("outer", "joint_lag", "none"),
+    ("inner", "anti_windup", "back_calculation"),
+    ("inner", "tracking_time_ms", 50.0),
+)
+
+
 def scenario_hash(resolved: Mapping) -> str:
     """SHA-256 (hex) of the canonical JSON of a resolved scenario (sorted keys).
 
@@ -370,11 +378,15 @@ def scenario_hash(resolved: Mapping) -> str:
         # null is the shipped MJCF's rig, which enters by the MJCF's digest below
         resolved = {**resolved, "plant": {k: v for k, v in plant.items() if k != "rig"}}
     ctl = resolved.get("controller")
-    outer = ctl.get("outer") if isinstance(ctl, Mapping) else None
-    if isinstance(ctl, Mapping) and isinstance(outer, Mapping) and outer.get("joint_lag") == "none":
-        # the paper's law (the default) hashes as a scenario without the key
-        outer = {k: v for k, v in outer.items() if k != "joint_lag"}
-        resolved = {**resolved, "controller": {**ctl, "outer": outer}}
+    if isinstance(ctl, Mapping):
+        # a key at a default that steps as the scenario without it hashes as that
+        # scenario: the same run, the same hash
+        ctl = dict(ctl)
+        for block, key, default in _HASHED_UNLESS_DEFAULT:
+            sub = ctl.get(block)
+            if isinstance(sub, Mapping) and key in sub and sub[key] == default:
+                ctl[block] = {k: v for k, v in sub.items() if k != key}
+        resolved = {**resolved, "controller": ctl}
     resolved = {**resolved, "mjcf": f"sha256:{model_digest()}"}  # the model it compiles
     text = json.dumps(resolved, sort_keys=True, separators=(",", ":"), allow_nan=False)
     return hashlib.sha256(text.encode("utf-8")).hexdigest()

@@ -159,6 +159,8 @@ class CoSimulation:
             spec=spec,
             reading=sc.paper_units,
             dead_band=[w * 1e-3 for w in inner.dead_band_mm],
+            anti_windup=inner.anti_windup,
+            tracking_time=inner.tracking_time_ms * 1e-3,
         )
         sf = ctl.setpoint_filter
         # Fig. 13's "Filter": q_d (outer loop every T, or the IK every 1 ms in
