@@ -598,9 +598,9 @@ def test_send_takes_the_shipped_telemetry_names_that_list_shows(capsys):
 
 def test_after_the_feed_stops_the_set_point_goes_home_and_stays_for_the_mpc():
     """A biased drive (fz 9.6 m/s^2, as a real accelerometer's bias) for 6 s, then nothing:
-    the pacer's set-point is home exactly from HOME_S after the fade on, and stays; the MPC
-    alone is within 1 mm of home by then too (its heave's high-passed target and its rate
-    and position weights: the otoliths' slow error no longer lets it coast)."""
+    the pacer's set-point is home exactly from stale_after + HOME_S after the last sample on,
+    and stays; the MPC alone is within 1 mm of home a second later (its heave's high-passed
+    target and its rate and position weights: the otoliths' slow error does not let it coast)."""
     from controllers.geometry import nominal_geometry
     from controllers.mpc_cueing import ModelPredictiveCueing
     from simpro_mj.config.cueing import washout_params
@@ -639,11 +639,13 @@ def test_after_the_feed_stops_the_set_point_goes_home_and_stays_for_the_mpc():
     home = np.asarray(law.geometry.home)
     poses = {k: sim.rows[k][0][0] for k in sim.rows}
     law_out = np.array([raw[i] for i in range(len(raw))])
-    t_home = 6.0 + 0.5 + 1.0 + HOME_S  # the last sample, held, faded, blended home
+    t_home = 6.0 + 0.5 + HOME_S  # the last sample, held until stale, blended home
     after = [k for k in poses if k * 1e-3 >= t_home + 0.011]
     assert after and all(np.array_equal(poses[k], home) for k in after)
-    # the law alone: its heave within 1 mm of home from then on
-    late = law_out[int(t_home / 0.01) :]
+    before = [k for k in poses if 6.6 <= k * 1e-3 < t_home - 0.1]
+    assert [k for k in before if np.array_equal(poses[k], home)] == []  # on its way, no jump
+    # the law alone: its heave within 1 mm of home a second later, and from then on
+    late = law_out[int((t_home + 1.0) / 0.01) :]
     assert np.abs(late[:, 2] - home[2]).max() < 0.001
     # while the drive came, the law's set-points were played (after the soft start)
     mid = [k for k in poses if 3.0 <= k * 1e-3 < 6.0]
@@ -671,3 +673,59 @@ def test_the_pacer_gives_the_law_the_conditioned_input():
     f_first, f_last = sim.rows[0][1][0], sim.rows[30000][1][0]
     assert abs(f_first[2] - 9.6) < 1e-3  # a step passes at once (Tustin: to 0.1 %)
     assert abs(f_last[2] - GRAVITY) < abs(9.6 - GRAVITY) * math.exp(-6.0) * 1.05
+
+
+def test_the_simulated_platform_is_home_within_3_s_after_a_biased_feed_stops():
+    """The real plant (the lane change's MPC, pneumatics and loops), paced by a clock that
+    moves only when the pacer sleeps (no wall clock): 3.5 s of swaying input on a biased
+    vertical force (9.6 m/s^2), then nothing. From 3 s after the last sample the simulated
+    pose is within 1 mm and 0.05 deg of home; the set-point goes there within the MPC's
+    own rate and acceleration limits (15 deg/s, 30 deg/s^2; 0.2 m/s, 3 m/s^2)."""
+    from controllers.mpc_cueing import ModelPredictiveCueing
+    from simpro_mj.config.cueing import washout_params
+    from simpro_mj.config.scenario import load_scenario
+    from simpro_mj.sim.build import Build
+    from simpro_mj.sim.live import HOME_S, LiveOptions
+
+    stop_s, end_s = 3.5, 7.0
+    shipped = LiveOptions(listen=("127.0.0.1", 0))  # the session's stale and fade times
+    scenario = load_scenario("cue_lane_change.yaml", [f"duration_s={end_s}"])
+    params = washout_params(scenario["setpoint"]["cueing"]).replace(preview=0.0)
+    sim = Build(scenario, setpoints="external").simulation()
+    law = ModelPredictiveCueing(params, sim.geometry).stream(0.01)
+    clock = _Clock(100.0)
+    origin = 100.0 - 0.010  # the pacer anchors its clock at the second chunk (k = 10)
+
+    class Feed(Receiver):  # a sample every 10 ms of the clock until stop_s, then silence
+        def poll(self, now):
+            t = now - origin
+            if t < stop_s:
+                self.last_wall, self.last_time = now, t
+                self.f = (0.3 * math.sin(2.4 * t), 3.0 * math.sin(2.4 * t), 9.6)
+                self.w = (0.06 * math.sin(2.4 * t), 0.0, 0.25 * math.sin(2.4 * t))
+            return 0
+
+    rx = Feed(("127.0.0.1", 0), "csv", shipped.stale_after_s, shipped.fade_s)
+    try:
+        pacer = Pacer(sim, rx, law, wash_every=10, send_every=10, clock=clock,
+                      sleep=clock.sleep)  # fmt: skip
+        res = sim.run(pace=pacer)
+    finally:
+        rx.close()
+    cols = res.columns
+    t = cols["time_s"]
+    home = np.asarray(sim.geometry.home)
+    off = np.column_stack([np.degrees(cols["roll_rad"]), np.degrees(cols["pitch_rad"]),
+                           (cols["heave_m"] - home[2]) * 1e3])  # fmt: skip
+    assert np.abs(off[(t > 2.0) & (t < stop_s), 0]).max() > 1.0  # the sway: rolled > 1 deg
+    settled = t >= stop_s + 3.0
+    assert settled.sum() > 400
+    assert np.abs(off[settled, :2]).max() < 0.05 and np.abs(off[settled, 2]).max() < 1.0
+    # the set-point's way home, sampled at the law's 10 ms: within the MPC's limits
+    ref = np.column_stack([cols["roll_ref_rad"], cols["pitch_ref_rad"], cols["heave_ref_m"]])
+    way = ref[(t >= stop_s) & (t <= stop_s + 2.5)][::10]
+    rate = np.abs(np.diff(way, axis=0)).max(axis=0) / 0.01
+    accel = np.abs(np.diff(way, 2, axis=0)).max(axis=0) / 0.01**2
+    assert np.all(rate[:2] <= params.tilt_rate_max) and rate[2] <= params.heave_rate_max
+    assert np.all(accel[:2] <= params.tilt_accel_max) and accel[2] <= params.heave_accel_max
+    assert np.allclose(ref[t >= stop_s + shipped.stale_after_s + HOME_S + 0.011], home, atol=1e-12)

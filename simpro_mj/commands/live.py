@@ -118,10 +118,10 @@ def add_arguments(parser) -> None:
     parser.add_argument(
         "--stale-after",
         type=float,
-        default=0.5,
+        default=0.3,
         metavar="S",
         help="input older than this is stale: held until then, then faded to "
-        "rest over 1 s (default 0.5)",
+        "rest over 1.5 s while the set-point goes home over 1.5 s (default 0.3)",
     )
     parser.add_argument(
         "--bias-tau",
