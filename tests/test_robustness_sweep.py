@@ -108,7 +108,9 @@ def test_the_shipped_sweep_spans_the_cabins_range():
     assert -0.5 <= bias.min() < -0.45 and 0.45 < bias.max() <= 0.5
     assert 5.0 <= sup.min() < 5.1 and 6.9 < sup.max() <= 7.0
     assert {s["plant"]["preset"] for s in good} == {"heavy_cabin"}
+    # one controller for every drawn plant: the cabin's, on the preset's identified models
     assert {s["controller"]["inner"]["design_plant"] for s in good} == {"identified"}
+    assert {s["controller"]["inner"]["identify"] for s in good} == {"preset"}
 
 
 def test_a_stopped_batch_counts_finished_variants_only_and_names_the_rest():
