@@ -66,13 +66,13 @@ def test_the_rebuilt_model_assembles_where_the_controllers_ik_says():
 
 def test_validate_ik_passes_on_the_moved_rig_within_the_paper_rigs_bounds():
     kin = validate(params([f"model.rig={WIDE}", "drive=kinematic", "trajectory.duration_s=5"]))
-    assert kin["max_position_error_m"] < 1e-8 and kin["max_angle_error_rad"] < 1e-8
+    assert kin.max_position_error_m < 1e-8 and kin.max_angle_error_rad < 1e-8
     dyn = validate(params([f"model.rig={WIDE}", "trajectory.duration_s=8"]))
     # the bounds of the paper rig's own test (tests/test_validate_ik.py)
-    assert dyn["max_position_error_m"] < 1e-4
-    assert dyn["max_angle_error_rad"] < np.radians(0.01)
-    assert dyn["max_loop_closure_error_m"] < 5e-4
-    assert dyn["paper_ik_max_leg_error_m"] is None  # eqs. 30-33 are the paper rig's
+    assert dyn.max_position_error_m < 1e-4
+    assert dyn.max_angle_error_rad < np.radians(0.01)
+    assert dyn.max_loop_closure_error_m < 5e-4
+    assert dyn.paper_ik_max_leg_error_m is None  # eqs. 30-33 are the paper rig's
 
 
 def test_step_pitch_on_the_moved_rig_settles_ok():

@@ -11,20 +11,20 @@ from simpro_mj.commands.main import main
 
 def test_dynamic_drive_matches_ik_within_bounds():
     res = validate(params(["trajectory.duration_s=20"]))
-    assert res["max_position_error_m"] < 1e-4  # 0.1 mm
-    assert res["max_angle_error_rad"] < np.radians(0.01)  # 0.01 deg
-    assert res["max_loop_closure_error_m"] < 5e-4
+    assert res.max_position_error_m < 1e-4  # 0.1 mm
+    assert res.max_angle_error_rad < np.radians(0.01)  # 0.01 deg
+    assert res.max_loop_closure_error_m < 5e-4
     # the trajectory really covers the workspace it claims
-    span = res["x_des"].max(0) - res["x_des"].min(0)
+    span = res.x_des.max(0) - res.x_des.min(0)
     assert span[0] > np.radians(19) and span[1] > np.radians(15) and span[2] > 0.23
     # the paper's IK is measured, not hidden: it disagrees with the point list
-    assert res["paper_ik_max_leg_error_m"] > 0.01
+    assert res.paper_ik_max_leg_error_m > 0.01
 
 
 def test_kinematic_drive_is_exact():
     res = validate(params(["drive=kinematic", "trajectory.duration_s=10"]))
-    assert res["max_position_error_m"] < 1e-8
-    assert res["max_angle_error_rad"] < 1e-8
+    assert res.max_position_error_m < 1e-8
+    assert res.max_angle_error_rad < 1e-8
 
 
 def test_cli_json_contract(capsys, tmp_path):

@@ -25,7 +25,7 @@ Parameters (``--set KEY=VALUE``): :class:`AnalyzeParams`.
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from typing import Annotated, Any, Literal, get_args
 
 import numpy as np
@@ -63,6 +63,7 @@ from simpro_mj.analysis.loop_records import (
 )
 from simpro_mj.analysis.response_summary import figures
 from simpro_mj.config.messages import from_sets
+from simpro_mj.config.models import Outer, Scenario, as_scenario
 from simpro_mj.config.rules import Block, Real, Whole, block, param
 from simpro_mj.core.errors import UserInputError
 
@@ -317,16 +318,16 @@ def _feedforward(p: AnalyzeParams, spec: dict, jac, real_i: RealLoop) -> Feedfor
     )
 
 
-def _law_text(outer: dict) -> str:
+def _law_text(outer: Outer) -> str:
     """The outer law as the scenario runs it, in words."""
-    if outer["type"] == "PI":
-        return f"PI law T (z + {outer['pi_zero']:g})/(z - 1)"
-    if outer["integrator"] == "backward":
+    if outer.type == "PI":
+        return f"PI law T (z + {outer.pi_zero:g})/(z - 1)"
+    if outer.integrator == "backward":
         return "I law by backward Euler, T z/(z - 1)"
     return "I law by forward Euler, T/(z - 1) (Fig. 7 as printed)"
 
 
-def shipped(scenario: dict) -> Shipped:
+def shipped(scenario: Scenario | Mapping) -> Shipped:
     """The loop ``scenario`` ships, analysed as the preflight does (module docstring).
 
     ``scenario`` is resolved and carries its design plants
@@ -337,25 +338,26 @@ def shipped(scenario: dict) -> Shipped:
     """
     from simpro_mj.analysis.stability import outer_loop
 
-    c = scenario["controller"]
-    outer, inner, sf = c["outer"], c["inner"], c["setpoint_filter"]
-    times = "/".join(f"{t:g}" for t in sf["time_ms"])
+    sc = as_scenario(scenario)
+    c = sc.controller
+    outer, inner, sf = c.outer, c.inner, c.setpoint_filter
+    times = "/".join(f"{t:g}" for t in sf.time_ms)
     loop = ShippedLoop(
-        scenario=scenario["name"],
-        preset=scenario["plant"]["preset"],
-        mode=c["mode"],
+        scenario=sc.name,
+        preset=sc.plant.preset,
+        mode=c.mode,
         law=_law_text(outer),
-        period_ms=outer["period_ms"],
-        gains=list(outer["gains"]),
-        setpoint_filter=f"{sf['type']} {times} ms" if sf["type"] != "none" else "none",
-        joint_controllers=f"{inner['variant']} joint controllers designed on the "
-        f"{inner['design_plant']} plant",
-        dead_band=dict(outer["dead_band"]),
-        joint_integrator_dead_band_mm=list(inner["dead_band_mm"]),
+        period_ms=outer.period_ms,
+        gains=list(outer.gains),
+        setpoint_filter=f"{sf.type} {times} ms" if sf.type != "none" else "none",
+        joint_controllers=f"{inner.variant} joint controllers designed on the "
+        f"{inner.design_plant} plant",
+        dead_band=outer.dead_band.model_dump(),
+        joint_integrator_dead_band_mm=list(inner.dead_band_mm),
     )
     limits = {}
     for plant in ("actuator", "paper"):
-        r = outer_loop(scenario, plant)
+        r = outer_loop(sc, plant)
         limits[plant] = PlantLimit(
             stability_limit=r["limit"],
             spectral_radius_at_gains=r["spectral_radius"],
@@ -365,7 +367,7 @@ def shipped(scenario: dict) -> Shipped:
     return Shipped(loop=loop, **limits)
 
 
-def compute(p: AnalyzeParams | None = None, scenario: dict | None = None) -> Analysis:
+def compute(p: AnalyzeParams | None = None, scenario: Scenario | Mapping | None = None) -> Analysis:
     """All numbers of the analysis for the parameters ``p`` (default: :class:`AnalyzeParams`'s),
     the loop ``scenario`` ships first (:func:`shipped`) when one is given."""
     p = p or AnalyzeParams()

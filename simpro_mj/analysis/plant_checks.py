@@ -32,11 +32,13 @@ the tolerance and the source of the expectation.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import asdict, dataclass
 
 import mujoco
 import numpy as np
 
+from simpro_mj.config.models import Scenario, as_scenario
 from simpro_mj.plant.model import load_model
 from simpro_mj.plant.platform import Platform
 from simpro_mj.plant.pneumatics.factory import make_actuators
@@ -67,12 +69,13 @@ class Check:
         return {**asdict(self), "ok": self.ok}
 
 
-def _plant(scenario: dict, settle: float = 1.0, ideal_supply: bool = False):
+def _plant(scenario: Scenario | Mapping, settle: float = 1.0, ideal_supply: bool = False):
     """The scenario's MuJoCo model and nonlinear actuators on a :class:`Platform` at
     home, the valves at their holding voltages for ``settle`` s (the closed chain's
     own static deflection under its load, which the static pressures do not know)."""
-    model = load_model(scenario["plant"])
-    tree = dict(scenario["actuator"].get("pneumatics") or {})
+    sc = as_scenario(scenario)
+    model = load_model(sc.plant.tree())
+    tree = sc.actuator.pneumatics.model_dump()
     if ideal_supply:  # the seal alone: no droop of the line under the valves' leakage
         tree["supply"] = {**(tree.get("supply") or {}), "model": "ideal"}
     act = make_actuators("nonlinear", tree, model=model)
@@ -99,7 +102,9 @@ def _leg_push(leg: int, force: float) -> np.ndarray:
     return f
 
 
-def stiction(scenario: dict, leg: int = 1, share: float = 0.8, seconds: float = 2.0) -> Check:
+def stiction(
+    scenario: Scenario | Mapping, leg: int = 1, share: float = 0.8, seconds: float = 2.0
+) -> Check:
     """A leg at valve null loaded by ``share`` of its breakaway force stays put (the
     supply ideal: the seal alone)."""
     plat = _plant(scenario, ideal_supply=True)
@@ -130,7 +135,9 @@ def _air_spring(act, leg: int, q: float) -> float:
     return P.n_poly * (p1 * P.area_cap**2 / v1 + p2 * P.area_rod_side**2 / v2)
 
 
-def breakaway(scenario: dict, leg: int = 1, seconds: float = 4.0, slip: float = 2e-5) -> Check:
+def breakaway(
+    scenario: Scenario | Mapping, leg: int = 1, seconds: float = 4.0, slip: float = 2e-5
+) -> Check:
     """The seal's force when a leg at valve null, pushed by a force ramped from 0
     to twice its breakaway force over ``2 seconds``, has moved ``slip`` m: the
     push less what the air springs then carry (quasi-static; the supply ideal: with
@@ -158,9 +165,9 @@ def breakaway(scenario: dict, leg: int = 1, seconds: float = 4.0, slip: float = 
     )
 
 
-def _sealed(scenario: dict):
+def _sealed(scenario: Scenario | Mapping):
     """The scenario's actuators with the valve sealed: no underlap, no leakage."""
-    tree = dict(scenario["actuator"].get("pneumatics") or {})
+    tree = as_scenario(scenario).actuator.pneumatics.model_dump()
     valve = dict(tree.get("valve") or {})
     valve.update(underlap_fraction=0.0, leakage_fraction=1e-12)  # > 0: the model needs an edge
     tree["valve"] = valve
@@ -169,7 +176,9 @@ def _sealed(scenario: dict):
     return act
 
 
-def sealed_chamber_energy(scenario: dict, amplitude: float = 0.1, hz: float = 1.0) -> Check:
+def sealed_chamber_energy(
+    scenario: Scenario | Mapping, amplitude: float = 0.1, hz: float = 1.0
+) -> Check:
     """The first law over one compression cycle of a sealed cap-side chamber:
     work done on the gas plus heat from the wall less the change of its internal
     energy ``p V / (γ - 1)``, over the largest work stored in the cycle."""
@@ -213,11 +222,11 @@ def sealed_chamber_energy(scenario: dict, amplitude: float = 0.1, hz: float = 1.
     )
 
 
-def null_leakage(scenario: dict) -> Check:
+def null_leakage(scenario: Scenario | Mapping) -> Check:
     """Supply flow of the three valves at null, pistons held at mid-stroke, l/min ANR:
     the step's own draw (one step from the static equilibrium) against ISO 6358
     through each chamber's underlapped supply edge."""
-    act = make_actuators("nonlinear", scenario["actuator"].get("pneumatics") or {})
+    act = make_actuators("nonlinear", as_scenario(scenario).actuator.pneumatics.model_dump())
     P = act.params
     q = np.full(3, 0.5 * P.stroke)
     act.set_timestep(1e-3)
@@ -241,11 +250,11 @@ def null_leakage(scenario: dict) -> Check:
     )
 
 
-def chamber_filling(scenario: dict, seconds: float = 0.3, fine: int = 64) -> Check:
+def chamber_filling(scenario: Scenario | Mapping, seconds: float = 0.3, fine: int = 64) -> Check:
     """Largest pressure difference filling a held chamber at 1 ms against 1 ms / ``fine``."""
     traces = []
     for sub in (1, fine):
-        tree = dict(scenario["actuator"].get("pneumatics") or {})
+        tree = as_scenario(scenario).actuator.pneumatics.model_dump()
         base = int((tree.get("integration") or {}).get("substeps", 1))
         tree["integration"] = {"substeps": sub * base}
         act = make_actuators("nonlinear", tree)
@@ -292,7 +301,7 @@ def _loop_gap(plat: Platform) -> float:
     return float(max(np.linalg.norm(d.site_xpos[a] - d.site_xpos[b]) for a, b in pairs))
 
 
-def supply_sag(scenario: dict, seconds: float = 0.4) -> Check:
+def supply_sag(scenario: Scenario | Mapping, seconds: float = 0.4) -> Check:
     """The supply during a fast move: the ideal source holds its pressure; the supply
     as built (``supply.model: receiver``) loses from its receiver and line the mass
     the valves draw less what the compressor delivers (the mass balance, in % of
@@ -332,7 +341,7 @@ def supply_sag(scenario: dict, seconds: float = 0.4) -> Check:
     )
 
 
-def loop_closure(scenario: dict) -> Check:
+def loop_closure(scenario: Scenario | Mapping) -> Check:
     """The largest loop-closure gap during a fast move (m)."""
     plat = _plant(scenario)
     gaps, _, _ = _fast_move(plat)
@@ -358,7 +367,7 @@ CHECKS = (
 )
 
 
-def check_plant(scenario: dict) -> list[Check]:
+def check_plant(scenario: Scenario | Mapping) -> list[Check]:
     """Every check of :data:`CHECKS` on the resolved ``scenario``'s plant."""
     return [fn(scenario) for fn in CHECKS]
 

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Iterable
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Annotated, Any, Literal, get_args
 
@@ -98,8 +99,39 @@ def trajectory(t: np.ndarray, tr: Trajectory, home: np.ndarray) -> np.ndarray:
     return home + amp * np.sin(2 * np.pi * t[:, None] / period)
 
 
-def validate(p: IkParams | None = None) -> dict:
-    """Run the validation; returns a dict of results (SI) and time series."""
+@dataclass
+class IkValidation:
+    """A validation's figures (SI) and its logged series (``t``: s; poses: rad, rad, m;
+    slides: m); :meth:`to_json` gives the figures ``--json`` reports."""
+
+    t: np.ndarray
+    x_des: np.ndarray
+    x_sim: np.ndarray
+    q_des: np.ndarray
+    q_sim: np.ndarray
+    dq_paper: np.ndarray
+    dq_ours: np.ndarray
+    closure: np.ndarray
+    max_position_error_m: float
+    max_angle_error_rad: float
+    max_joint_tracking_error_m: float
+    max_loop_closure_error_m: float
+    #: eqs. 30-33 against the vector loops: on the paper's rig only (None on another)
+    paper_ik_max_leg_error_m: float | None
+    paper_ik_max_leg_error_per_leg_m: list[float] | None
+    paper_ik_reading: str
+    drive: str
+    rig: dict | None
+    samples: int
+    wall_s: float
+
+    def to_json(self) -> dict:
+        """The figures of :data:`SUMMARY_KEYS`, in that order (the time series stay out)."""
+        return {k: getattr(self, k) for k in SUMMARY_KEYS}
+
+
+def validate(p: IkParams | None = None) -> IkValidation:
+    """Run the validation; its figures (SI) and time series."""
     p = p or IkParams()
     # the rig (model.rig: a file or its keys) gives the MJCF and the IK alike
     rig = rig_value(p.model.get("rig"), where="model.rig")
@@ -163,32 +195,32 @@ def validate(p: IkParams | None = None) -> dict:
     dq_paper = paper_inverse_kinematics(xd, reading=p.paper_ik_reading)
     paper_err = dq_paper - dq_ours
     paper = rig is None
-    return {
-        "t": t[logged],
-        "x_des": xd,
-        "x_sim": x_sim,
-        "q_des": q_des[logged],
-        "q_sim": q_sim,
-        "dq_paper": dq_paper,
-        "dq_ours": dq_ours,
-        "closure": closure,
-        "max_position_error_m": float(np.abs(err[:, 2]).max()),
-        "max_angle_error_rad": float(np.abs(err[:, :2]).max()),
-        "max_joint_tracking_error_m": float(np.abs(q_sim - q_des[logged]).max()),
-        "max_loop_closure_error_m": float(closure.max()),
-        "paper_ik_max_leg_error_m": float(np.abs(paper_err).max()) if paper else None,
-        "paper_ik_max_leg_error_per_leg_m": (
+    return IkValidation(
+        t=t[logged],
+        x_des=xd,
+        x_sim=x_sim,
+        q_des=q_des[logged],
+        q_sim=q_sim,
+        dq_paper=dq_paper,
+        dq_ours=dq_ours,
+        closure=closure,
+        max_position_error_m=float(np.abs(err[:, 2]).max()),
+        max_angle_error_rad=float(np.abs(err[:, :2]).max()),
+        max_joint_tracking_error_m=float(np.abs(q_sim - q_des[logged]).max()),
+        max_loop_closure_error_m=float(closure.max()),
+        paper_ik_max_leg_error_m=float(np.abs(paper_err).max()) if paper else None,
+        paper_ik_max_leg_error_per_leg_m=(
             np.abs(paper_err).max(axis=0).tolist() if paper else None
         ),
-        "paper_ik_reading": p.paper_ik_reading,
-        "drive": p.drive,
-        "rig": rig,
-        "samples": int(logged.size),
-        "wall_s": wall,
-    }
+        paper_ik_reading=p.paper_ik_reading,
+        drive=p.drive,
+        rig=rig,
+        samples=int(logged.size),
+        wall_s=wall,
+    )
 
 
-def plot(res: dict, out: Path) -> Path:
+def plot(res: IkValidation, out: Path) -> Path:
     """Desired vs simulated pose and the paper IK's leg displacements (Agg)."""
     # matplotlib when the figure is drawn (--no-plot skips it)
     import matplotlib
@@ -196,28 +228,28 @@ def plot(res: dict, out: Path) -> Path:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    t = res["t"]
+    t = res.t
     fig, ax = plt.subplots(4, 1, figsize=(9, 10), sharex=True)
     labels = [("roll", "deg", np.degrees), ("pitch", "deg", np.degrees), ("heave h", "mm", None)]
     for k, (name, unit, f) in enumerate(labels):
         conv = f if f else (lambda v: v * 1e3)
-        ax[k].plot(t, conv(res["x_des"][:, k]), "b-", lw=2, label="desired (IK input)")
-        ax[k].plot(t, conv(res["x_sim"][:, k]), "g--", lw=1.2, label="MuJoCo")
+        ax[k].plot(t, conv(res.x_des[:, k]), "b-", lw=2, label="desired (IK input)")
+        ax[k].plot(t, conv(res.x_sim[:, k]), "g--", lw=1.2, label="MuJoCo")
         ax[k].set_ylabel(f"{name} [{unit}]")
         ax[k].grid(alpha=0.3)
     ax[0].legend(loc="upper right")
     for i in range(3):
-        ax[3].plot(t, res["dq_ours"][:, i] * 1e3, f"C{i}-", label=f"q{i + 1} vector loops")
-        if res["rig"] is None:  # eqs. 30-33 are the paper's rig's
-            ax[3].plot(t, res["dq_paper"][:, i] * 1e3, f"C{i}:", label=f"q{i + 1} eqs. 30-33")
+        ax[3].plot(t, res.dq_ours[:, i] * 1e3, f"C{i}-", label=f"q{i + 1} vector loops")
+        if res.rig is None:  # eqs. 30-33 are the paper's rig's
+            ax[3].plot(t, res.dq_paper[:, i] * 1e3, f"C{i}:", label=f"q{i + 1} eqs. 30-33")
     ax[3].set_ylabel("leg displacement from home [mm]")
     ax[3].set_xlabel("time [s]")
     ax[3].legend(ncol=3, fontsize=7)
     ax[3].grid(alpha=0.3)
     fig.suptitle(
-        f"IK validation ({res['drive']} drive{', own rig' if res['rig'] else ''}): "
-        f"max |e_h| = {res['max_position_error_m'] * 1e3:.4f} mm,"
-        f" max |e_angle| = {np.degrees(res['max_angle_error_rad']):.5f} deg"
+        f"IK validation ({res.drive} drive{', own rig' if res.rig else ''}): "
+        f"max |e_h| = {res.max_position_error_m * 1e3:.4f} mm,"
+        f" max |e_angle| = {np.degrees(res.max_angle_error_rad):.5f} deg"
     )
     fig.tight_layout()
     out.mkdir(parents=True, exist_ok=True)
@@ -242,20 +274,20 @@ SUMMARY_KEYS = (
 )
 
 
-def summary(res: dict) -> str:
+def summary(res: IkValidation) -> str:
     """The human summary of a validation (mm, deg)."""
     lines = [
-        f"IK validation, {res['drive']} drive, {res['samples']} samples:",
-        f"  max heave error         {res['max_position_error_m'] * 1e3:10.5f} mm",
-        f"  max roll/pitch error    {np.degrees(res['max_angle_error_rad']):10.6f} deg",
-        f"  max slide tracking err  {res['max_joint_tracking_error_m'] * 1e3:10.5f} mm",
-        f"  max loop-closure error  {res['max_loop_closure_error_m'] * 1e3:10.5f} mm",
+        f"IK validation, {res.drive} drive, {res.samples} samples:",
+        f"  max heave error         {res.max_position_error_m * 1e3:10.5f} mm",
+        f"  max roll/pitch error    {np.degrees(res.max_angle_error_rad):10.6f} deg",
+        f"  max slide tracking err  {res.max_joint_tracking_error_m * 1e3:10.5f} mm",
+        f"  max loop-closure error  {res.max_loop_closure_error_m * 1e3:10.5f} mm",
     ]
-    if res["paper_ik_max_leg_error_m"] is None:
+    if res.paper_ik_max_leg_error_m is None:
         lines.append("  paper IK (eqs. 30-33): not compared (they hold the paper's rig)")
     else:
         lines.append(
-            f"  paper IK (eqs. 30-33, {res['paper_ik_reading']}) vs vector loops, "
-            f"max leg-displacement difference {res['paper_ik_max_leg_error_m'] * 1e3:.1f} mm"
+            f"  paper IK (eqs. 30-33, {res.paper_ik_reading}) vs vector loops, "
+            f"max leg-displacement difference {res.paper_ik_max_leg_error_m * 1e3:.1f} mm"
         )
     return "\n".join(lines)

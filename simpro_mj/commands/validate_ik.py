@@ -20,7 +20,7 @@ def add_arguments(parser) -> None:
 
 def run(args) -> int:
     # the validation loads MuJoCo: after argparse has checked the options
-    from simpro_mj.analysis.validate_ik import SUMMARY_KEYS, params, plot, summary, validate
+    from simpro_mj.analysis.validate_ik import params, plot, summary, validate
 
     p = params(args.sets)
     with Phases("validate-ik", ["IK against MuJoCo", "plot"], show_progress(args)) as phase:
@@ -32,8 +32,7 @@ def run(args) -> int:
                 res = validate(p)
                 phase.start("plot")
                 (plot_path,) = install_figures(out, lambda tmp: [plot(res, tmp)], "validate-ik")
-    doc = {k: res[k] for k in SUMMARY_KEYS}
-    doc["plot"] = str(plot_path) if plot_path else None
+    doc = {**res.to_json(), "plot": str(plot_path) if plot_path else None}
     if args.json:
         emit_json(doc)
     else:
