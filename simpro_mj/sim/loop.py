@@ -34,6 +34,7 @@ import copy
 import functools
 import threading
 import time
+from collections.abc import Mapping
 
 import mujoco
 import numpy as np
@@ -41,13 +42,12 @@ import numpy as np
 from controllers.design import paper_coefficients
 from controllers.dither import dither_signal
 from controllers.frames import GRAVITY
-from controllers.geometry import geometry_from_rig
 from controllers.joint import JointControllers
 from controllers.kinematics import inverse_kinematics
 from controllers.setpoint_filter import SetpointFilter
 from controllers.task_space import TaskSpaceController, outer_law, raise_step_error
 from controllers.velocity_feedforward import leg_velocity_feedforward
-from simpro_mj.config.models import scenario_model
+from simpro_mj.config.models import Scenario, as_scenario
 from simpro_mj.core.errors import PhysicsError, UserInputError
 from simpro_mj.core.rates import steps_per_period
 from simpro_mj.plant.faults import NEVER, FaultSchedule
@@ -75,10 +75,11 @@ class CoSimulation:
 
     Parameters
     ----------
-    scenario : dict
-        A resolved scenario (:func:`simpro_mj.config.scenario.load_scenario`).
+    scenario : Scenario or mapping
+        A resolved scenario (:func:`simpro_mj.config.scenario.load_scenario`), typed
+        or its dict (recorded with the result).
     model : mujoco.MjModel
-        The compiled plant of ``scenario["plant"]``.
+        The compiled plant of the scenario's ``plant``.
     setpoints : {"scenario", "external"}
         ``scenario``: the set-points (and a cueing scenario's vehicle input)
         computed from the scenario for the whole run. ``external``: every row
@@ -96,7 +97,7 @@ class CoSimulation:
 
     def __init__(
         self,
-        scenario: dict,
+        scenario: Scenario | Mapping,
         model: mujoco.MjModel,
         *,
         setpoints: str = "scenario",
@@ -108,17 +109,17 @@ class CoSimulation:
         self.external = external = setpoints == "external"
         self._resume: int | None = None
         self.identified_source = identified_source
-        self.scenario = scenario
+        sc = as_scenario(scenario)
+        #: the resolved scenario as a dict: what the result records
+        self.scenario = scenario if isinstance(scenario, dict) else sc.model_dump()
         m = model
         self.model, self.idx = m, PlantIndex.of(m)
         self.dt = dt = float(m.opt.timestep)
-        # the typed view of the resolved scenario: read by attribute below
-        sc = scenario_model(scenario)
         self.n_steps = int(round(sc.duration_s / dt))
         self.decimation = sc.logging.decimation
         # the controller's nominal model: the rig's (plant.rig; the paper's when null),
         # without the plant's as-built errors
-        self.geometry = geometry_from_rig(scenario["plant"].get("rig"))
+        self.geometry = sc.plant.geometry()
 
         ctl = sc.controller
         self.mode = ctl.mode
@@ -168,12 +169,12 @@ class CoSimulation:
         self.setpoint_filter = SetpointFilter(sf.type, dt=dt, time=[t * 1e-3 for t in sf.time_ms])
         self.actuators = make_actuators(
             sc.actuator.model,
-            scenario["actuator"].get("pneumatics") or {},  # the plant's tree, passed whole
+            sc.actuator.pneumatics.model_dump(),  # the plant's tree, passed whole
             model=m,
             linear_plants=paper_coefficients(sc.paper_units),
         )
         self.rng = np.random.default_rng(sc.seed)
-        self.sensor_cfg = SensorConfig.from_tree(scenario["sensors"], dt)
+        self.sensor_cfg = SensorConfig.from_tree(sc.sensors.model_dump(), dt)
         # the IMU bias's random walk draws from a generator of its own
         self.walk_rng = self.rng.spawn(1)[0] if self.sensor_cfg.imu_walk_rad > 0 else None
         # the plant as the loop sees it (dm_control's Physics)
@@ -198,7 +199,7 @@ class CoSimulation:
             # which no other run needs
             from simpro_mj.config.cueing import vehicle_input
 
-            _, self.veh_f, self.veh_w, _, _ = vehicle_input(scenario)
+            _, self.veh_f, self.veh_w, _, _ = vehicle_input(self.scenario)
             if "head_accel" not in self.idx.sensor or "head_gyro" not in self.idx.sensor:
                 raise UserInputError(
                     "invalid value at setpoint.cueing: the model has no head_accel/head_gyro "
