@@ -5,8 +5,7 @@
 Runs a Monte Carlo of ``--samples`` new cabins (``scenarios/sweep_robustness.yaml``
 with its sample count replaced: every variant a plant not seen before) as
 ``simpro-sim batch --jobs J`` runs it (:func:`simpro_mj.batch.runner.run_batch`,
-threads; ``--processes``: a process pool, as ``simpro-sim batch --processes``: the
-identification experiment's Python loop holds the GIL, which threads share), with
+threads; ``--processes``: a process pool, as ``simpro-sim batch --processes``), with
 an empty identification cache unless ``--keep-cache``, and prints one JSON document:
 
 Before the clock starts one cabin of another draw runs in this process, so that

@@ -1,0 +1,105 @@
+"""Where a new cabin's CPU time goes: one variant of a Monte Carlo, profiled.
+
+    python benchmarks/new_cabin_cost.py [--variant mc004] [--warm mc005]
+
+Runs two variants of ``scenarios/sweep_robustness.yaml`` in this process as a
+batch's worker does (:func:`simpro_mj.batch.worker.run_variant`), each a plant
+not seen before (an empty identification cache in a temporary folder): first
+``--warm`` (imports, numba's cache of the compiled step, MuJoCo's callback),
+then ``--variant`` under cProfile with a CPU timer (``time.process_time``), and
+prints one JSON document, CPU seconds:
+
+* ``total``: the variant (identification, design, analysis, run, result folder);
+* ``identification``: the Fig. 12 experiment on its three legs with their fits,
+  of which ``experiment`` (the stepping, :func:`simpro_mj.sim.experiment.step_experiment`)
+  and ``fit`` (:func:`simpro_mj.identification.identify.fit_eq19`);
+* ``stability_limit`` (the loop analysis), ``run`` (the run's own stepping,
+  ``CoSimulation.run``), ``result_folder`` (writing it);
+* ``experiment_us_per_step`` and ``run_us_per_step``.
+
+cProfile counts Python calls, so it inflates a loop of many small calls more
+than one ``mj_step`` of many steps: read the parts against each other, and the
+unprofiled ``cpu_s`` of ``summary.json`` for a variant's cost. A speed figure:
+here, not in a timed test. Meaningful on a quiet machine only.
+"""
+
+from __future__ import annotations
+
+import argparse
+import cProfile
+import json
+import os
+import pstats
+import re
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+SCENARIO = ROOT / "scenarios" / "sweep_robustness.yaml"
+
+#: The parts, as (a path's ending, function name) of the function whose cumulative
+#: time is the part's.
+PARTS = {
+    "total": ("batch/worker.py", "run_variant"),
+    "identification": ("identification/identify.py", "identify"),
+    "experiment": ("sim/experiment.py", "step_experiment"),
+    "fit": ("identification/identify.py", "fit_eq19"),
+    "stability_limit": ("analysis/preflight.py", "stability_limit"),
+    "run": ("sim/loop.py", "run"),
+    "result_folder": ("report/results.py", "write_run"),
+}
+
+
+def measure(variant: str = "mc004", warm: str = "mc005") -> dict:
+    """Profile ``variant`` after ``warm`` (module docstring); the figures."""
+    with tempfile.TemporaryDirectory(prefix="simpro-cabin-cost-") as tmp:
+        os.environ["SIMPRO_CACHE_DIR"] = str(Path(tmp) / "cache")
+        from simpro_mj.batch.plan import plan
+        from simpro_mj.batch.worker import run_variant
+
+        jobs = {j.variant: j for j in plan([str(SCENARIO)]).jobs}
+
+        def task(v):
+            return {"scenario": jobs[v].scenario, "out": f"{tmp}/{v}", "plots": False, "label": v}
+
+        run_variant(task(warm))
+        prof = cProfile.Profile(time.process_time)
+        prof.enable()
+        result = run_variant(task(variant))
+        prof.disable()
+    stats = pstats.Stats(prof).stats  # type: ignore[attr-defined]  # pstats' own table
+    out: dict = {"variant": variant, "status": result["status"]}
+    for part, (path, name) in PARTS.items():
+        out[part] = sum(v[3] for (f, _, n), v in stats.items() if n == name and f.endswith(path))
+    scenario = jobs[variant].scenario
+    from simpro_mj.identification.auto import plant_tree
+
+    ip = plant_tree(scenario)["identify"]
+    steps = 3 * round((ip["settle_s"] + ip["duration_s"]) * 1000)
+    out["experiment_us_per_step"] = 1e6 * out["experiment"] / steps
+    out["run_us_per_step"] = 1e6 * out["run"] / round(scenario["duration_s"] * 1000)
+    return out
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    p.add_argument("--variant", default="mc004")
+    p.add_argument("--warm", default="mc005")
+    a = p.parse_args(argv)
+    samples = int(re.search(r"samples: (\d+)", SCENARIO.read_text()).group(1))  # type: ignore[union-attr]
+    names = {f"mc{i:03d}" for i in range(samples)}
+    if a.variant not in names or a.warm not in names or a.variant == a.warm:
+        print(
+            f"error: invalid value at --variant/--warm: {a.variant}/{a.warm}; allowed: two "
+            f"different names mc000..mc{samples - 1:03d}",
+            file=sys.stderr,
+        )
+        return 2
+    print(json.dumps(measure(a.variant, a.warm), indent=2))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
