@@ -505,6 +505,11 @@ def test_a_live_session_driven_over_udp_and_ended_by_sigterm(tmp_path):
         assert np.abs(q_ref - counts).max(axis=1).min() <= 1.0
     lat = np.load(out / "realtime.npz")
     assert lat["lateness_us"].size == rt["deadlines"]
+    # what the pacing cost, counted: the collector's passes, the pacer's core kept apart
+    assert len(rt["gc_collections"]) == 3 and rt["spin_us"] == 0.0
+    if len(os.sched_getaffinity(0)) >= 2:
+        assert not set(rt["cpus"]["pacer"]) & set(rt["cpus"]["cue"])
+    assert rt["pacer_switches"]["voluntary"] > 0  # it slept between deadlines
 
 
 # ------------------------------------------------------------------ strict templates, send
@@ -729,3 +734,65 @@ def test_the_simulated_platform_is_home_within_3_s_after_a_biased_feed_stops():
     assert np.all(rate[:2] <= params.tilt_rate_max) and rate[2] <= params.heave_rate_max
     assert np.all(accel[:2] <= params.tilt_accel_max) and accel[2] <= params.heave_accel_max
     assert np.allclose(ref[t >= stop_s + shipped.stale_after_s + HOME_S + 0.011], home, atol=1e-12)
+
+
+# ------------------------------------------------------------------ what the pacer costs
+
+
+class _TickingClock(_Clock):
+    """Each reading moves the clock 20 us on (a spin has something to wait for)."""
+
+    def __call__(self):
+        self.t += 2e-5
+        return self.t
+
+
+def test_the_pacer_sleeps_to_a_margin_before_the_deadline_then_spins_to_it():
+    sim, clock = _FakeSim(), _TickingClock(100.0)
+    sleeps = []
+
+    def sleep(s):
+        sleeps.append(s)
+        clock.sleep(s)
+
+    rx = Receiver(("127.0.0.1", 0), "csv", stale_after_s=0.3, fade_s=1.5)
+    try:
+        pacer = Pacer(sim, rx, ClassicalWashout(), wash_every=10, send_every=10, spin_s=1e-3,
+                      clock=clock, sleep=sleep)  # fmt: skip
+        log = np.zeros((0, 1))
+        pacer(0, log)
+        pacer(10, log)  # the anchor: D(k) = t + (k - 10) dt
+        d20 = pacer.wall0 + 0.020
+        clock.t = d20 - 0.004  # 4 ms early: sleep 3 ms, spin the last
+        pacer(20, log)
+        assert sleeps == [pytest.approx(0.004 - 1e-3 - 2e-5)]
+        # the sleep overslept by 100 us, still 0.9 ms early: the spin took it to the deadline,
+        # a reading (20 us) past it at most
+        assert 0.0 <= pacer.stats.lateness_s[1] <= 2e-5 + 1e-12
+        clock.t = pacer.wall0 + 0.030 - 5e-4  # within the margin: no sleep, a spin
+        pacer(30, log)
+        assert len(sleeps) == 1 and 0.0 <= pacer.stats.lateness_s[2] <= 2e-5 + 1e-12
+    finally:
+        rx.close()
+
+
+def test_the_pacing_thread_is_pinned_with_a_fine_timer_slack_and_then_as_it_was():
+    import ctypes
+    import ctypes.util
+
+    from simpro_mj.sim.live import cpu_split, pinned, thread_switches
+
+    assert cpu_split({3}) is None  # one core: nothing to keep apart
+    assert cpu_split({0, 2, 5}) == ({5}, {0, 2})
+    switches = thread_switches()
+    assert switches is None or all(n >= 0 for n in switches)
+    if not hasattr(os, "sched_getaffinity") or len(os.sched_getaffinity(0)) < 2:
+        pytest.skip("needs two cores")
+    before = os.sched_getaffinity(0)
+    prctl = ctypes.CDLL(ctypes.util.find_library("c")).prctl
+    slack = prctl(30, 0, 0, 0, 0)  # PR_GET_TIMERSLACK
+    pacer_cpus, _ = cpu_split(before)
+    with pinned(pacer_cpus):
+        assert os.sched_getaffinity(0) == pacer_cpus
+        assert prctl(30, 0, 0, 0, 0) == 1
+    assert os.sched_getaffinity(0) == before and prctl(30, 0, 0, 0, 0) == slack

@@ -141,6 +141,20 @@ def add_arguments(parser) -> None:
     parser.add_argument(
         "--rt", action="store_true", help="ask for real-time scheduling (SCHED_FIFO, locked memory)"
     )
+    parser.add_argument(
+        "--no-pin",
+        action="store_true",
+        help="leave the pacing thread and the cueing law's process where the kernel puts "
+        "them (default with 2+ cores: the pacer on the last core, the law on the others)",
+    )
+    parser.add_argument(
+        "--spin-us",
+        type=float,
+        default=0.0,
+        metavar="US",
+        help="sleep until this long before each deadline, then spin to it (0 to 5000 us; "
+        "default 0: sleep to it)",
+    )
     parser.add_argument("--out", default=None, help="result folder (default results/<name>-live)")
     parser.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     parser.add_argument("--quiet", action="store_true", help="no console line every second")
@@ -186,6 +200,10 @@ def _options(args) -> LiveOptions:
             f"invalid value at --vibration-hz: {args.vibration_hz:g}; allowed: 0 (off) or "
             "below 50 Hz (the Nyquist frequency of the 10 ms cueing period)"
         )
+    if not (math.isfinite(args.spin_us) and 0 <= args.spin_us <= 5000):
+        raise UserInputError(
+            f"invalid value at --spin-us: {args.spin_us:g}; allowed: 0 (sleep) to 5000 us"
+        )
     listen = parse_address(args.listen, "--listen", bind=True)
     check_listen(listen)  # a busy port refused now, not after the scenario's seconds
     return LiveOptions(
@@ -196,6 +214,8 @@ def _options(args) -> LiveOptions:
         send_format=pose_template(args.send_format),
         stale_after_s=float(args.stale_after),
         rt=bool(args.rt),
+        pin=not args.no_pin,
+        spin_s=float(args.spin_us) * 1e-6,
         output=args.output,
         output_template=template,
         output_rate_hz=float(args.output_rate),

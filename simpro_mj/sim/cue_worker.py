@@ -24,7 +24,9 @@ it), and ends by itself when its pipe closes.
 
 from __future__ import annotations
 
+import contextlib
 import multiprocessing
+import os
 import signal
 
 import numpy as np
@@ -35,9 +37,20 @@ __all__ = ["CueWorker", "START_TIMEOUT_S"]
 START_TIMEOUT_S = 120.0
 
 
-def _serve(conn, params, geometry, period: float) -> None:
+def _pin_process(cpus) -> None:
+    """Every thread of this process (the interpreter's, BLAS's) on ``cpus``."""
+    os.sched_setaffinity(0, cpus)  # threads started from now on inherit it
+    for tid in os.listdir("/proc/self/task"):
+        with contextlib.suppress(OSError, ValueError):
+            os.sched_setaffinity(int(tid), cpus)
+
+
+def _serve(conn, params, geometry, period: float, cpus=None) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    if cpus:
+        with contextlib.suppress(OSError, AttributeError):
+            _pin_process(cpus)
     from controllers.mpc_cueing import ModelPredictiveCueing
 
     law = ModelPredictiveCueing(params, geometry=geometry)
@@ -67,13 +80,19 @@ class CueWorker:
     geometry : PlatformGeometry
     period : float
         The stream's step (s): the washout period of the session.
+    cpus : set of int, optional
+        The cores the child and its threads run on (the pacer's kept free of its
+        solves); None: wherever the kernel puts them.
     """
 
-    def __init__(self, params, geometry, period: float):
+    def __init__(self, params, geometry, period: float, cpus=None):
         ctx = multiprocessing.get_context("spawn")  # no fork of a process holding MuJoCo
         self._conn, child = ctx.Pipe()
         self._proc = ctx.Process(
-            target=_serve, args=(child, params, geometry, period), daemon=True, name="cue-law"
+            target=_serve,
+            args=(child, params, geometry, period, None if cpus is None else set(cpus)),
+            daemon=True,
+            name="cue-law",
         )
         self._proc.start()
         child.close()
@@ -81,6 +100,7 @@ class CueWorker:
             self.close()
             raise RuntimeError(f"the cueing law's process did not start in {START_TIMEOUT_S} s")
         kind, self.box = self._conn.recv()
+        self.pid = self._proc.pid
         self.geometry = geometry
         self.last_rate_limited = self.last_softened = False
         self._pose = np.asarray(geometry.home, float)

@@ -51,6 +51,7 @@ import math
 import os
 import time
 from dataclasses import dataclass
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -76,6 +77,7 @@ __all__ = [
     "run_session",
 ]
 
+_PR_SET_TIMERSLACK, _PR_GET_TIMERSLACK = 29, 30  # prctl(2)
 #: Behind the wall clock by more than this (s), the session re-anchors its clock.
 MAX_BEHIND_S = 0.1
 #: Once the input is stale, the set-point is blended to home over this (s), and back to
@@ -119,6 +121,11 @@ class LiveOptions:
     #: harsher than its cue (a 0.5 s fade doubles its acceleration on the way)
     fade_s: float = 1.5
     rt: bool = False
+    #: with 2+ cores allowed: the pacing thread on the last, the cueing law's process on
+    #: the others (:func:`cpu_split`), so that a solve never holds the pacer's core
+    pin: bool = True
+    #: sleep until this long (s) before a deadline, then spin to it (0: sleep to it)
+    spin_s: float = 0.0
     console: bool = True
     #: a rig's output string (:mod:`simpro_mj.sim.rig_output`): where, what, how often
     output: str | None = None
@@ -158,13 +165,17 @@ class Pacer:
     sender : PoseSender, optional
     say : callable(str), optional
         The console (one line a second); None: silent.
+    spin_s : float
+        Sleep until this long before a deadline, then spin to it (0: sleep to it).
+        A wake-up late by less than this (timer slack, an idle core's exit from its
+        sleep state) is absorbed, at the price of that share of a core.
     clock, sleep : callables
         ``time.perf_counter`` and ``time.sleep`` (replaceable in tests).
     """
 
     def __init__(self, sim, receiver: Receiver, washout: ClassicalWashout | MpcStream | CueWorker,
                  *, wash_every: int, send_every: int, sender: PoseSender | None = None, say=None,
-                 rig=None, rig_every: int | None = None, conditioner=None,
+                 rig=None, rig_every: int | None = None, conditioner=None, spin_s: float = 0.0,
                  clock=time.perf_counter, sleep=time.sleep):  # fmt: skip
         self.sim, self.rx, self.washout, self.sender, self.say = sim, receiver, washout, sender, say
         self.dt, self.n = sim.dt, sim.n_steps
@@ -172,7 +183,7 @@ class Pacer:
         self.rig, self.rig_every = rig, rig_every or send_every
         self.conditioner = conditioner
         self.chunk = math.gcd(math.gcd(wash_every, send_every), self.rig_every)
-        self.clock, self.sleep = clock, sleep
+        self.clock, self.sleep, self.spin = clock, sleep, float(spin_s)
         size = self.n // self.chunk + 2
         self.stats = _Stats(lateness_s=np.zeros(size), compute_s=np.zeros(size))
         self.wall0: float | None = None  # the anchor: D(k) = wall0 + k dt
@@ -184,13 +195,24 @@ class Pacer:
         self._home_weight = 1.0  # at home until samples come (a soft start)
         self._last_console = 0
         self._col = column_index()
+        #: the collector's passes per generation from the anchor on (filled by
+        #: :func:`frozen_gc` in a session; None: not counted, nothing frozen)
+        self.gc_counts: list | None = None
+        self._switches: list = [None, None]  # the pacing thread's, at the anchor and the end
 
     # the callback ---------------------------------------------------------
     def __call__(self, k: int, log) -> int:
         now = self.clock()
         st = self.stats
         if self.wall0 is None and k > 0:
-            # the first chunk has loaded the compiled kernels: the clock starts here
+            # the first chunk has loaded the compiled kernels: out of the collector's way
+            # with the rest, then the clock starts here
+            if self.gc_counts is not None:
+                gc.collect()
+                gc.freeze()
+                self.gc_counts[:] = [0] * len(self.gc_counts)
+                now = self.clock()
+            self._switches[0] = thread_switches()
             self.wall0 = self.start_wall = now - k * self.dt
             host, port = self.rx.address
             signal_ready(f"listening@{host}:{port}")
@@ -199,8 +221,16 @@ class Pacer:
                 st.compute_s[st.n] = now - self._left
             deadline = self.wall0 + k * self.dt
             if now < deadline:
-                self.sleep(deadline - now)
-                now = self.clock()
+                if self.spin <= 0.0:
+                    self.sleep(deadline - now)
+                    now = self.clock()
+                else:  # sleep to the margin, then spin: a late wake-up within it is absorbed
+                    if deadline - now > self.spin:
+                        self.sleep(deadline - now - self.spin)
+                    clock = self.clock
+                    now = clock()
+                    while now < deadline:
+                        now = clock()
             elif now > deadline:
                 st.missed += 1
             late = now - deadline
@@ -226,6 +256,7 @@ class Pacer:
             self.sim.write_setpoints(k, ones * pose, ones * f, ones * w)
         if k >= self.n:  # the last step: its row is written, the session ends with it
             self.end_wall = now
+            self._switches[1] = thread_switches()
             return NEVER
         if self.sender is not None and k % self.send_every == 0 and len(log):
             self.sender.send(log[-1].tolist())
@@ -307,6 +338,16 @@ class Pacer:
             "packets": self.rx.counts(),
             "stale_s": float(st.stale_s),
         }
+        if self.gc_counts is not None:
+            out["gc_collections"] = list(self.gc_counts)
+        begin, end = self._switches
+        if begin is not None and end is None:  # ended by a signal: the figures are now
+            end = thread_switches()
+        if begin is not None and end is not None:  # the pacing thread's, anchor to end
+            out["pacer_switches"] = {
+                "voluntary": end[0] - begin[0],
+                "involuntary": end[1] - begin[1],
+            }
         if self.sender is not None:
             out["pose_sent"] = {"datagrams": self.sender.sent, "errors": self.sender.errors}
         if self.rig is not None:
@@ -355,14 +396,73 @@ def realtime_scheduling(wanted: bool, say=None):
 
 
 @contextlib.contextmanager
-def frozen_gc():
-    """The objects built so far moved out of the collector's way for the session."""
+def frozen_gc(counts: list | None = None):
+    """The objects built so far moved out of the collector's way for the session (and
+    those of the first chunk, :class:`Pacer`); ``counts[g]`` counts the collections of
+    generation ``g`` made meanwhile (None: not counted)."""
     gc.collect()
     gc.freeze()
+    if counts is None:
+        counts = [0, 0, 0]
+
+    def count(phase, info):
+        if phase == "stop":
+            counts[info["generation"]] += 1
+
+    gc.callbacks.append(count)
     try:
         yield
     finally:
+        gc.callbacks.remove(count)
         gc.unfreeze()
+
+
+def cpu_split(allowed) -> tuple[set, set] | None:
+    """``(pacer, law)`` cores out of the ``allowed`` ones: the last for the pacing thread,
+    the others for the cueing law's process; None with fewer than 2."""
+    cpus = sorted(allowed)
+    if len(cpus) < 2:
+        return None
+    return {cpus[-1]}, set(cpus[:-1])
+
+
+def thread_switches() -> tuple[int, int] | None:
+    """The calling thread's voluntary and involuntary context switches so far (Linux's
+    ``/proc/thread-self/status``); None where there is none. An involuntary one is a
+    preemption: the thread was runnable and another ran on its core instead."""
+    try:
+        text = Path("/proc/thread-self/status").read_text()
+    except OSError:
+        return None
+    got = dict(line.split(":\t", 1) for line in text.splitlines() if ":\t" in line)
+    try:
+        return int(got["voluntary_ctxt_switches"]), int(got["nonvoluntary_ctxt_switches"])
+    except (KeyError, ValueError):
+        return None
+
+
+@contextlib.contextmanager
+def pinned(cpus: set | None):
+    """The calling thread on ``cpus`` for the block, with a timer slack of 1 ns (Linux's
+    default 50 us lets a sleep's wake-up be delayed to batch timers); then as it was."""
+    if cpus is None or not hasattr(os, "sched_setaffinity"):
+        yield
+        return
+    before = os.sched_getaffinity(0)
+    os.sched_setaffinity(0, cpus)
+    prctl = slack = None
+    libc_name = ctypes.util.find_library("c")
+    if libc_name:
+        with contextlib.suppress(OSError, AttributeError):
+            prctl = ctypes.CDLL(libc_name, use_errno=True).prctl
+            slack = prctl(_PR_GET_TIMERSLACK, 0, 0, 0, 0)
+            prctl(_PR_SET_TIMERSLACK, ctypes.c_ulong(1), 0, 0, 0)
+    try:
+        yield
+    finally:
+        os.sched_setaffinity(0, before)
+        if prctl is not None and slack is not None and slack > 0:
+            prctl(_PR_SET_TIMERSLACK, ctypes.c_ulong(slack), 0, 0, 0)
 
 
 def run_session(scenario: dict, options: LiveOptions, say=None, checks=None):
@@ -416,9 +516,13 @@ def run_session(scenario: dict, options: LiveOptions, say=None, checks=None):
         wash_every = steps_per_period(period * 1e3, 1e-3, "setpoint.cueing.parameters.period_ms")
         send_every = steps_per_period(1e3 / options.send_rate_hz, 1e-3, "--send-rate")
         sim = Build(scenario, setpoints="external").simulation()
+        split = None
+        if options.pin and hasattr(os, "sched_getaffinity"):
+            split = cpu_split(os.sched_getaffinity(0))
         if mpc:  # its solves in a child process, one period late (sim/cue_worker.py)
             assert isinstance(params, MpcParams)
-            law = CueWorker(params.replace(preview=0.0), sim.geometry, period)
+            law = CueWorker(params.replace(preview=0.0), sim.geometry, period,
+                            cpus=None if split is None else split[1])  # fmt: skip
             washout: CueWorker | ClassicalWashout = law
         else:
             assert isinstance(params, WashoutParams)
@@ -442,10 +546,18 @@ def run_session(scenario: dict, options: LiveOptions, say=None, checks=None):
             rig = RigOutput(options.output, options.output_template, sim.geometry.home[2])
         pacer = Pacer(sim, rx, washout, wash_every=wash_every, send_every=send_every,
                       sender=sender, say=say, rig=rig, rig_every=rig_every,
-                      conditioner=conditioner)  # fmt: skip
-        with realtime_scheduling(options.rt, say), frozen_gc():
+                      conditioner=conditioner, spin_s=options.spin_s)  # fmt: skip
+        pacer.gc_counts = [0, 0, 0]  # counted from the anchor, after a freeze there
+        with (
+            realtime_scheduling(options.rt, say),
+            pinned(None if split is None else split[0]),
+            frozen_gc(pacer.gc_counts),
+        ):
             res = sim.run(pace=pacer)
         realtime = pacer.realtime(int(res.sim["steps"]))
+        realtime["spin_us"] = options.spin_s * 1e6
+        realtime["cpus"] = None if split is None else {
+            "pacer": sorted(split[0]), "cue": sorted(split[1])}  # fmt: skip
         info = dict(pacer.washout_info(), lateness=pacer.lateness(), address=rx.address)
         info["algorithm"] = cue.get("algorithm", "classical_washout")  # the law that ran
         if law is not None:
