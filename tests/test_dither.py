@@ -35,15 +35,17 @@ def test_a_bad_period_is_one_line_naming_the_key():
 
 @pytest.mark.slow
 def test_the_cabin_hunts_without_its_dither():
-    """step_pitch (its 20 s) on the cabin as shipped (seals that stick, +-2 V at 25 Hz,
+    """step_all (its 20 s) on the cabin as shipped (seals that stick, +-2 V at 25 Hz,
     loops placed on the plant identified under that dither): ok within the floors;
-    the same loops without the dither let the seals stick-slip (not ok)."""
+    the same loops without the dither let the seals stick-slip (a roll cycle of about
+    0.07 deg at 1.5 Hz: not ok). A lone pitch step does not show it: legs 2 and 3
+    then move together and the roll band holds."""
     import simpro_mj as s
 
-    calm = s.run("step_pitch", {"plant.preset": "heavy_cabin"})
+    calm = s.run("step_all", {"plant.preset": "heavy_cabin"})
     assert calm.status == "ok"
-    assert calm.metrics["axes"]["pitch"]["overshoot_pct"] < 10.0
-    hunting = s.run("step_pitch", {"plant.preset": "heavy_cabin", "controller.inner.dither_v": 0})
+    assert all(a["overshoot_pct"] < 10.0 for a in calm.metrics["axes"].values())
+    hunting = s.run("step_all", {"plant.preset": "heavy_cabin", "controller.inner.dither_v": 0})
     assert hunting.status != "ok"
 
 
