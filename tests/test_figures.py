@@ -134,7 +134,14 @@ def test_cueing_figures_legends_name_their_series():
         assert legend_mismatches(fig) == [], name
 
 
-def _response_doc(with_prediction: bool = True) -> dict:
+def _response(with_prediction: bool = True):
+    from simpro_mj.analysis.response_summary import (
+        Bode,
+        PoseResponse,
+        PredictedCurve,
+        ResponseRow,
+    )
+
     freq = [0.2, 0.5, 1.0, 2.0]
     rows = []
     for a in ("pitch", "heave"):
@@ -142,33 +149,26 @@ def _response_doc(with_prediction: bool = True) -> dict:
             for sig in ("true", "measured"):
                 for f in freq:
                     g = -3.0 * f if o == a else -40.0
-                    rows.append({
-                        "input_axis": a, "output_axis": o, "signal": sig, "frequency_hz": f,
-                        "gain": 10 ** (g / 20), "gain_db": g, "phase_deg": -60.0 * f,
-                        "diff_db": 0.1 if with_prediction else None,
-                        "diff_deg": 2.0 if with_prediction else None,
-                    })  # fmt: skip
+                    rows.append(ResponseRow(
+                        input_axis=a, output_axis=o, signal=sig, frequency_hz=f,
+                        omega_rad_s=2 * np.pi * f, period_ms=round(1000 / f), amplitude=0.5,
+                        gain=10 ** (g / 20), gain_db=g, phase_deg=-60.0 * f,
+                        diff_db=0.1 if with_prediction else None,
+                        diff_deg=2.0 if with_prediction else None,
+                    ))  # fmt: skip
     dense = np.geomspace(0.2, 2.0, 50)
-    curve = {"gain_db": (-3.0 * dense).tolist(), "phase_deg": (-60.0 * dense).tolist()}
-    curves = {
-        a: {"frequency_hz": dense.tolist(), "true": curve, "measured": curve}
-        for a in ("pitch", "heave")
-    }
-    return {
-        "scenario": "synthetic",
-        "mode": "task_space",
-        "loop": "task_space, I law",
-        "axes_excited": ["pitch", "heave"],
-        "rows": rows,
-        "predicted_curves": curves if with_prediction else {},
-    }
+    curve = Bode(gain_db=(-3.0 * dense).tolist(), phase_deg=(-60.0 * dense).tolist())
+    curves = {a: PredictedCurve(dense.tolist(), curve, curve) for a in ("pitch", "heave")}
+    return PoseResponse(rows=rows, predicted_curves=curves if with_prediction else {})
 
 
 @pytest.mark.parametrize("with_prediction", [True, False])
 def test_bode_figures_draw_the_prediction_as_a_curve(with_prediction):
     from simpro_mj.report.response import bode_figures
 
-    figs = bode_figures(_response_doc(with_prediction))
+    figs = bode_figures(
+        _response(with_prediction), ["pitch", "heave"], "synthetic (task_space, I law)"
+    )
     for name, fig in figs.items():
         assert legend_mismatches(fig) == [], name
     gain = figs["bode"].axes[0]

@@ -170,16 +170,16 @@ def test_linear_actuator_measured_matches_prediction(linear_pitch):
     sc, plan, results = linear_pitch
     assert results[0]["status"] == "ok"
     doc = summary(plan, results, loop_model(sc))
-    assert not doc["failed"]
-    diag = [r for r in doc["rows"] if r["output_axis"] == "pitch" and r["input_axis"] == "pitch"]
-    assert {r["signal"] for r in diag} == {"true", "measured"}
+    assert not doc.failed
+    diag = [r for r in doc.rows if r.output_axis == "pitch" and r.input_axis == "pitch"]
+    assert {r.signal for r in diag} == {"true", "measured"}
     for r in diag:
-        assert r["saturated_pct"] == 0.0  # linear: no valve at a rail
+        assert r.saturated_pct == 0.0  # linear: no valve at a rail
         # the linear model is what the prediction describes: 0.5 dB and 3 deg
-        assert abs(r["diff_db"]) < 0.5, r
-        assert abs(r["diff_deg"]) < 3.0, r
+        assert abs(r.diff_db) < 0.5, r
+        assert abs(r.diff_deg) < 3.0, r
         # and the loop is far from trivial there: the I loop lags by > 90 deg at 1 Hz
-        assert r["phase_deg"] < -90.0
+        assert r.phase_deg < -90.0
 
 
 def test_bad_frequencies():

@@ -89,11 +89,9 @@ def pitch_1hz():
         sc = load_scenario("track_cues", [f"controller.feedforward.leg_velocity={on}"])
         plan = plan_response(sc, periods_ms=[1000], axes=("pitch",), settle_s=3.0, periods=1)
         doc = summary(plan, measure(plan, jobs=1), loop_model(sc))
-        assert not doc["failed"]
+        assert not doc.failed
         (row,) = [
-            r
-            for r in doc["rows"]
-            if r["signal"] == "true" and r["input_axis"] == r["output_axis"] == "pitch"
+            r for r in doc.rows if r.signal == "true" and r.input_axis == r.output_axis == "pitch"
         ]
         out[on] = row
     return out
@@ -104,8 +102,8 @@ def test_velocity_feedforward_removes_most_of_the_lag_at_1_hz(pitch_1hz):
     supplied in advance, takes most of it away (measured: -40 -> -10 deg), and the
     prediction with the same term agrees within 15 deg and 2 dB."""
     off, on = pitch_1hz["false"], pitch_1hz["true"]
-    assert off["phase_deg"] < -30.0
-    assert on["phase_deg"] > off["phase_deg"] + 20.0
+    assert off.phase_deg < -30.0
+    assert on.phase_deg > off.phase_deg + 20.0
     for r in (off, on):
-        assert r["saturated_pct"] == 0.0
-        assert abs(r["diff_deg"]) < 15.0 and abs(r["diff_db"]) < 2.0, r
+        assert r.saturated_pct == 0.0
+        assert abs(r.diff_deg) < 15.0 and abs(r.diff_db) < 2.0, r

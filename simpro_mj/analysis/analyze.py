@@ -289,7 +289,7 @@ def _feedforward(p: AnalyzeParams, spec: dict, jac, real_i: RealLoop) -> Feedfor
         h = predict(model, 2 * np.pi * f_hz)["true"]
         ph = np.degrees(np.unwrap(np.angle(h), axis=0))
         freq[mode] = {
-            ax: figures(f_hz, h[:, j, j], ph[:, j, j])
+            ax: figures(f_hz, h[:, j, j], ph[:, j, j]).to_json()
             for j, ax in enumerate(("roll", "pitch", "heave"))
         }
     if ff.lag == "joints":

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
+from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
@@ -31,7 +32,125 @@ from controllers.velocity_feedforward import velocity_gains
 from simpro_mj.analysis.response import _UNITS, AXES, ResponsePlan, failures
 from simpro_mj.config.models import Scenario
 
-__all__ = ["figures", "loop_model", "summary"]
+__all__ = [
+    "Agreement",
+    "AxisFigures",
+    "Bode",
+    "CurveFigures",
+    "PoseResponse",
+    "PredictedCurve",
+    "ResponseRow",
+    "figures",
+    "loop_model",
+    "summary",
+]
+
+
+@dataclass
+class CurveFigures:
+    """Bandwidth, phases at 0.5 and 1 Hz and equivalent delay of one response curve
+    (``None``: fewer than two measured frequencies, or not crossed)."""
+
+    bandwidth_3db_hz: float | None = None
+    #: with no bandwidth: the gain stays within 3 dB up to this frequency
+    bandwidth_above_hz: float | None = None
+    phase_deg_at_0_5_hz: float | None = None
+    phase_deg_at_1_hz: float | None = None
+    equivalent_delay_ms: float | None = None
+
+    def to_json(self) -> dict:
+        return asdict(self)
+
+
+@dataclass
+class AxisFigures(CurveFigures):
+    """An excited axis' figures from the true pose, with the measured pose's and the
+    prediction's (``predicted`` only with a loop model)."""
+
+    measured_pose: CurveFigures | None = None
+    predicted: CurveFigures | None = None
+
+    def to_json(self) -> dict:
+        out = asdict(self)
+        if self.predicted is None:
+            del out["predicted"]
+        return out
+
+
+@dataclass
+class ResponseRow:
+    """One measured ratio: an output axis' response to a sine on the input axis at one
+    frequency (edge units: deg/deg, mm/deg, deg/mm, mm/mm), beside the prediction."""
+
+    input_axis: str
+    output_axis: str
+    signal: str  # "true" or "measured" pose
+    frequency_hz: float
+    omega_rad_s: float
+    period_ms: int
+    amplitude: float
+    gain: float
+    gain_db: float
+    phase_deg: float
+    predicted_gain_db: float | None = None
+    predicted_phase_deg: float | None = None
+    diff_db: float | None = None
+    diff_deg: float | None = None
+    saturated_pct: float = 0.0
+
+    def to_json(self) -> dict:
+        return asdict(self)
+
+
+@dataclass
+class Agreement:
+    """Largest |measured - predicted| up to 1 Hz on the excited axis."""
+
+    max_abs_diff_db: float | None
+    max_abs_diff_deg: float | None
+
+
+@dataclass
+class Bode:
+    """A predicted curve's gain (dB) and phase (deg) on its grid."""
+
+    gain_db: list[float]
+    phase_deg: list[float]
+
+
+@dataclass
+class PredictedCurve:
+    """The prediction of one excited axis on a dense grid between the measured
+    frequencies, for the true and the measured pose."""
+
+    frequency_hz: list[float]
+    true: Bode
+    measured: Bode
+
+
+@dataclass
+class PoseResponse:
+    """The summary of a pose frequency response (:func:`summary`)."""
+
+    rows: list[ResponseRow] = field(default_factory=list)
+    #: per excited axis
+    axes: dict[str, AxisFigures] = field(default_factory=dict)
+    #: per excited axis and signal ("true", "measured"); empty without a prediction
+    agreement: dict[str, dict[str, Agreement]] = field(default_factory=dict)
+    #: the frequencies that did not run: axis, period, status, reason
+    failed: list[dict] = field(default_factory=list)
+    predicted_curves: dict[str, PredictedCurve] = field(default_factory=dict)
+
+    def to_json(self) -> dict:
+        return {
+            "rows": [r.to_json() for r in self.rows],
+            "axes": {a: v.to_json() for a, v in self.axes.items()},
+            "agreement": {
+                a: {sig: asdict(x) for sig, x in v.items()} for a, v in self.agreement.items()
+            },
+            "failed": self.failed,
+            "predicted_curves": {a: asdict(c) for a, c in self.predicted_curves.items()},
+        }
 
 
 def loop_model(scenario: Scenario | Mapping) -> LoopModel:
@@ -85,19 +204,16 @@ def _in_edge(axis_in: str, axis_out: str, h: complex) -> complex:
     return h * _UNITS[axis_in][1] / _UNITS[axis_out][1]
 
 
-def summary(plan: ResponsePlan, results: list, model: LoopModel | None) -> dict:
+def summary(plan: ResponsePlan, results: list, model: LoopModel | None) -> PoseResponse:
     """Tables and per-axis figures from the measurements and the prediction.
 
-    Returns a JSON-ready dict: ``rows`` (one per input axis, output axis,
-    signal and frequency), ``axes`` (per excited axis, from the true pose:
-    ``bandwidth_3db_hz``, ``phase_deg_at_0_5_hz``, ``phase_deg_at_1_hz``,
-    ``equivalent_delay_ms``, and the same under ``predicted`` and
-    ``measured_pose``), ``agreement`` (largest |measured - predicted| up to
-    1 Hz on the excited axis), ``failed`` (frequencies that did not run),
-    ``predicted_curves`` (per excited axis, its prediction on a dense grid
-    between the lowest and highest measured frequency: ``frequency_hz`` and,
-    for ``true`` and ``measured``, ``gain_db`` and ``phase_deg``; empty
-    without a prediction).
+    Returns the :class:`PoseResponse`: ``rows`` (one per input axis, output axis,
+    signal and frequency), ``axes`` (per excited axis, from the true pose, and the
+    same for the measured pose and the prediction), ``agreement`` (largest
+    |measured - predicted| up to 1 Hz on the excited axis), ``failed`` (frequencies
+    that did not run), ``predicted_curves`` (per excited axis, its prediction on a
+    dense grid between the lowest and highest measured frequency; empty without a
+    prediction).
     """
     periods = sorted(plan.periods_ms, reverse=True)
     freq = np.array([1000.0 / p for p in periods])
@@ -116,7 +232,8 @@ def summary(plan: ResponsePlan, results: list, model: LoopModel | None) -> dict:
         }
     by_key = {(r.get("axis"), r.get("period_ms")): r for r in results if r.get("status") == "ok"}
     failed = failures(plan.tasks, results, "axis")
-    rows, axes, agreement = [], {}, {}
+    out = PoseResponse(failed=failed)
+    rows, axes = out.rows, out.axes
     for axis_in in plan.axes:
         j = AXES.index(axis_in)
         ok = [i for i, p in enumerate(periods) if (axis_in, p) in by_key]
@@ -147,102 +264,83 @@ def summary(plan: ResponsePlan, results: list, model: LoopModel | None) -> dict:
                 for n, i in enumerate(ok):
                     r = by_key[(axis_in, periods[i])]
                     g = abs(_in_edge(axis_in, axis_out, hm[n]))
-                    row = {
-                        "input_axis": axis_in,
-                        "output_axis": axis_out,
-                        "signal": sig,
-                        "frequency_hz": freq[i],
-                        "omega_rad_s": omega[i],
-                        "period_ms": periods[i],
-                        "amplitude": plan.amplitudes[axis_in] / _UNITS[axis_in][1],
-                        "gain": g,
-                        "gain_db": 20 * math.log10(max(g, 1e-300)),
-                        "phase_deg": float(ph_m[n]),
-                        "predicted_gain_db": None,
-                        "predicted_phase_deg": None,
-                        "diff_db": None,
-                        "diff_deg": None,
-                        "saturated_pct": r["saturated_pct"],
-                    }
+                    row = ResponseRow(
+                        input_axis=axis_in,
+                        output_axis=axis_out,
+                        signal=sig,
+                        frequency_hz=freq[i],
+                        omega_rad_s=omega[i],
+                        period_ms=periods[i],
+                        amplitude=plan.amplitudes[axis_in] / _UNITS[axis_in][1],
+                        gain=g,
+                        gain_db=20 * math.log10(max(g, 1e-300)),
+                        phase_deg=float(ph_m[n]),
+                        saturated_pct=r["saturated_pct"],
+                    )
                     if hp is not None and ph_p is not None:
                         gp = abs(_in_edge(axis_in, axis_out, hp[i]))
-                        row["predicted_gain_db"] = 20 * math.log10(max(gp, 1e-300))
-                        row["predicted_phase_deg"] = float(ph_p[i])
-                        row["diff_db"] = row["gain_db"] - row["predicted_gain_db"]
-                        d = float(np.degrees(np.angle(hm[n] / hp[i])))
-                        row["diff_deg"] = d
+                        row.predicted_gain_db = 20 * math.log10(max(gp, 1e-300))
+                        row.predicted_phase_deg = float(ph_p[i])
+                        row.diff_db = row.gain_db - row.predicted_gain_db
+                        row.diff_deg = float(np.degrees(np.angle(hm[n] / hp[i])))
                     rows.append(row)
         h_true = curves["true"][ok, j]
         enough = len(ok) >= 2
-        axes[axis_in] = figures(f_ok, h_true, diag_phase["true"]) if enough else figures()
-        axes[axis_in]["measured_pose"] = (
-            figures(f_ok, curves["measured"][ok, j], diag_phase["measured"]) if enough else None
+        true = figures(f_ok, h_true, diag_phase["true"]) if enough else CurveFigures()
+        axes[axis_in] = AxisFigures(
+            **asdict(true),
+            measured_pose=(
+                figures(f_ok, curves["measured"][ok, j], diag_phase["measured"]) if enough else None
+            ),
         )
         if pred is not None:
-            axes[axis_in]["predicted"] = figures(
+            axes[axis_in].predicted = figures(
                 freq, pred["true"][:, j, j], pred_phase["true"][:, j, j]
             )
             near = [
                 r
                 for r in rows
-                if r["input_axis"] == axis_in
-                and r["output_axis"] == axis_in
-                and r["frequency_hz"] <= 1.0 + 1e-9
+                if r.input_axis == r.output_axis == axis_in and r.frequency_hz <= 1.0 + 1e-9
             ]
-            agreement[axis_in] = {
-                sig: {
-                    "max_abs_diff_db": max(
-                        (abs(r["diff_db"]) for r in near if r["signal"] == sig), default=None
-                    ),
-                    "max_abs_diff_deg": max(
-                        (abs(r["diff_deg"]) for r in near if r["signal"] == sig), default=None
-                    ),
-                }
+            out.agreement[axis_in] = {
+                sig: Agreement(
+                    max((abs(r.diff_db or 0.0) for r in near if r.signal == sig), default=None),
+                    max((abs(r.diff_deg or 0.0) for r in near if r.signal == sig), default=None),
+                )
                 for sig in ("true", "measured")
             }
-    predicted: dict[str, dict] = {}
     if pred is not None:  # the prediction between the measured frequencies, to draw as curves
         span = (dense >= omega.min() * (1 - 1e-9)) & (dense <= omega.max() * (1 + 1e-9))
         for axis_in in plan.axes:
             j = AXES.index(axis_in)
-            predicted[axis_in] = {"frequency_hz": (dense[span] / (2 * np.pi)).tolist()}
+            bode = {}
             for sig in ("true", "measured"):
                 h = full[sig][span, j, j]
                 phase = np.degrees(np.unwrap(np.angle(full[sig][:, j, j])))[span]
-                predicted[axis_in][sig] = {
-                    "gain_db": (20 * np.log10(np.maximum(np.abs(h), 1e-300))).tolist(),
-                    "phase_deg": phase.tolist(),
-                }
-    return {
-        "rows": rows,
-        "axes": axes,
-        "agreement": agreement,
-        "failed": failed,
-        "predicted_curves": predicted,
-    }
+                bode[sig] = Bode(
+                    gain_db=(20 * np.log10(np.maximum(np.abs(h), 1e-300))).tolist(),
+                    phase_deg=phase.tolist(),
+                )
+            out.predicted_curves[axis_in] = PredictedCurve(
+                (dense[span] / (2 * np.pi)).tolist(), bode["true"], bode["measured"]
+            )
+    return out
 
 
-def figures(freq=(), h=(), phase_deg=()) -> dict:
+def figures(freq=(), h=(), phase_deg=()) -> CurveFigures:
     """Bandwidth, phases at 0.5 and 1 Hz and equivalent delay of one response curve."""
     if len(freq) < 2:
-        return {
-            "bandwidth_3db_hz": None,
-            "bandwidth_above_hz": None,
-            "phase_deg_at_0_5_hz": None,
-            "phase_deg_at_1_hz": None,
-            "equivalent_delay_ms": None,
-        }
+        return CurveFigures()
     f = np.asarray(freq, float)
     h = np.asarray(h)
     order = np.argsort(f)
     f, h, ph = f[order], h[order], np.asarray(phase_deg, float)[order]
     bw = bandwidth_3db(f, h)
     tau = equivalent_delay(f, h, phase_deg=ph)
-    return {
-        "bandwidth_3db_hz": bw,
-        # None bandwidth: the gain stays within 3 dB up to this frequency
-        "bandwidth_above_hz": float(f[-1]) if bw is None else None,
-        "phase_deg_at_0_5_hz": phase_at(f, h, 0.5, ph),
-        "phase_deg_at_1_hz": phase_at(f, h, 1.0, ph),
-        "equivalent_delay_ms": None if tau is None else tau * 1e3,
-    }
+    return CurveFigures(
+        bandwidth_3db_hz=bw,
+        bandwidth_above_hz=float(f[-1]) if bw is None else None,
+        phase_deg_at_0_5_hz=phase_at(f, h, 0.5, ph),
+        phase_deg_at_1_hz=phase_at(f, h, 1.0, ph),
+        equivalent_delay_ms=None if tau is None else tau * 1e3,
+    )

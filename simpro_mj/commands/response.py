@@ -176,7 +176,7 @@ def run(args) -> int:
             scheduler=args.scheduler,
             progress=not args.quiet and not args.json,
         )
-        doc = summary(plan, results, model)
+        resp = summary(plan, results, model)
         doc = {
             "scenario": scenario["name"],
             "mode": scenario["controller"]["mode"],
@@ -192,10 +192,17 @@ def run(args) -> int:
             "settle_s": plan.settle_s,
             "periods": plan.periods,
             "frequencies_hz": [1000.0 / p for p in sorted(plan.periods_ms, reverse=True)],
-            **doc,
+            **resp.to_json(),
         }
-        write_result(out, doc, "response", csv_text(doc["rows"]), None if args.no_plots else plot)
-    return report(args, doc, out, print_summary)
+        title = f"{scenario['name']} ({doc['loop']})"
+
+        def plotter(_doc, folder: Path) -> list[str]:
+            return plot(resp, plan.axes, title, folder)
+
+        write_result(
+            out, doc, "response", csv_text(doc["rows"]), None if args.no_plots else plotter
+        )
+    return report(args, doc, out, lambda _doc, folder: print_summary(resp, title, folder))
 
 
 def report(args, doc: dict, out: Path, printer) -> int:

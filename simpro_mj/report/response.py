@@ -14,10 +14,14 @@ import json
 import math
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from simpro_mj.report.figures import log_ticks, margins, save
 from simpro_mj.report.folders import install_folder
 from simpro_mj.report.results import jsonable
+
+if TYPE_CHECKING:  # the records' module loads the analysis: when a response is summarised
+    from simpro_mj.analysis.response_summary import CurveFigures, PoseResponse
 
 __all__ = [
     "CHAIN_CSV_COLUMNS",
@@ -72,17 +76,19 @@ def _title(doc: dict) -> str:
     return f"{doc['scenario']} ({doc.get('loop', doc['mode'])})"
 
 
-def plot(doc: dict, folder: Path) -> list[str]:
+def plot(resp: PoseResponse, axes_in, title: str, folder: Path) -> list[str]:
     """``bode.png`` (excited axes) and ``cross_axis.png`` into ``folder``."""
-    return [save(fig, folder / f"{name}.png", 110).name for name, fig in bode_figures(doc).items()]
+    figs = bode_figures(resp, axes_in, title)
+    return [save(fig, folder / f"{name}.png", 110).name for name, fig in figs.items()]
 
 
 #: measured points per signal: marker, and the prediction's line style
 _SIGNALS = (("true", "o", "-"), ("measured", "x", "--"))
 
 
-def bode_figures(doc: dict) -> dict:
-    """``bode`` and ``cross_axis`` figures of a pose response document.
+def bode_figures(resp: PoseResponse, axes_in, title: str) -> dict:
+    """``bode`` and ``cross_axis`` figures of a pose response on the excited axes
+    ``axes_in``; ``title``: the scenario and its loop.
 
     The measured points are markers; the linearised loop's prediction is a
     curve through its dense grid (``predicted_curves``), and the bottom row
@@ -90,33 +96,30 @@ def bode_figures(doc: dict) -> dict:
     """
     from matplotlib.figure import Figure
 
-    rows = doc["rows"]
-    axes_in = doc["axes_excited"]
-    curves = doc.get("predicted_curves") or {}
+    rows = resp.rows
     figs = {}
     fig = Figure(figsize=(4.2 * len(axes_in), 8.5))
     ax = fig.subplots(3, len(axes_in), squeeze=False, sharex=True)
     for c, a in enumerate(axes_in):
         for k, (sig, marker, ls) in enumerate(_SIGNALS):
-            rs = [r for r in rows if r["input_axis"] == a and r["output_axis"] == a]
-            rs = [r for r in rs if r["signal"] == sig]
-            f = [r["frequency_hz"] for r in rs]
+            rs = [r for r in rows if r.input_axis == a and r.output_axis == a and r.signal == sig]
+            f = [r.frequency_hz for r in rs]
             colour = f"C{k}"
-            ax[0, c].semilogx(f, [r["gain_db"] for r in rs], marker, color=colour, ls="none",
+            ax[0, c].semilogx(f, [r.gain_db for r in rs], marker, color=colour, ls="none",
                               label=f"measured, {sig} pose")  # fmt: skip
-            ax[1, c].semilogx(f, [r["phase_deg"] for r in rs], marker, color=colour, ls="none")
-            curve = curves.get(a)
+            ax[1, c].semilogx(f, [r.phase_deg for r in rs], marker, color=colour, ls="none")
+            curve = resp.predicted_curves.get(a)
             if curve:
-                fc = curve["frequency_hz"]
-                ax[0, c].semilogx(fc, curve[sig]["gain_db"], color="k", ls=ls, lw=1,
+                fc, bode = curve.frequency_hz, getattr(curve, sig)
+                ax[0, c].semilogx(fc, bode.gain_db, color="k", ls=ls, lw=1,
                                   label=f"predicted, {sig} pose")  # fmt: skip
-                ax[1, c].semilogx(fc, curve[sig]["phase_deg"], color="k", ls=ls, lw=1)
-            with_pred = [r for r in rs if r["diff_db"] is not None]
+                ax[1, c].semilogx(fc, bode.phase_deg, color="k", ls=ls, lw=1)
+            with_pred = [r for r in rs if r.diff_db is not None and r.diff_deg is not None]
             if with_pred:
-                fp = [r["frequency_hz"] for r in with_pred]
-                ax[2, c].semilogx(fp, [r["diff_db"] for r in with_pred], marker, color=colour,
+                fp = [r.frequency_hz for r in with_pred]
+                ax[2, c].semilogx(fp, [r.diff_db for r in with_pred], marker, color=colour,
                                   ls="none", label=f"gain (dB), {sig}")  # fmt: skip
-                ax[2, c].semilogx(fp, [r["diff_deg"] / 10 for r in with_pred], marker,
+                ax[2, c].semilogx(fp, [(r.diff_deg or 0.0) / 10 for r in with_pred], marker,
                                   color=colour, ls="none", mfc="none", alpha=0.6,
                                   label=f"phase (deg/10), {sig}")  # fmt: skip
         ax[0, c].axhline(-3, color="r", lw=0.6, ls=":", label="-3 dB")
@@ -132,7 +135,7 @@ def bode_figures(doc: dict) -> dict:
         ax[0, c].legend(fontsize=7)
         if ax[2, c].lines[1:]:
             ax[2, c].legend(fontsize=7)
-    fig.suptitle(f"{_title(doc)}: closed-loop frequency response", fontsize=10)
+    fig.suptitle(f"{title}: closed-loop frequency response", fontsize=10)
     margins(fig, left=0.75, top=0.75, bottom=0.55, wspace=0.35, hspace=0.12)
     figs["bode"] = fig
 
@@ -143,18 +146,17 @@ def bode_figures(doc: dict) -> dict:
             if o == a:
                 continue
             rs = [
-                r for r in rows
-                if r["input_axis"] == a and r["output_axis"] == o and r["signal"] == "true"
-            ]  # fmt: skip
-            f = [r["frequency_hz"] for r in rs]
+                r for r in rows if r.input_axis == a and r.output_axis == o and r.signal == "true"
+            ]
+            f = [r.frequency_hz for r in rs]
             unit = f"{'mm' if o == 'heave' else 'deg'}/{'mm' if a == 'heave' else 'deg'}"
-            ax[0, c].loglog(f, [max(r["gain"], 1e-9) for r in rs], "o", label=f"{o} ({unit})")
+            ax[0, c].loglog(f, [max(r.gain, 1e-9) for r in rs], "o", label=f"{o} ({unit})")
         ax[0, c].set_title(f"cross-axis: {a} command (measured, true pose)", fontsize=9)
         ax[0, c].set_xlabel("frequency (Hz)")
         ax[0, c].grid(alpha=0.3, which="both")
         log_ticks(ax[0, c])
         ax[0, c].legend(fontsize=7)
-    fig.suptitle(f"{_title(doc)}: cross-axis gains", fontsize=10)
+    fig.suptitle(f"{title}: cross-axis gains", fontsize=10)
     margins(fig, left=0.75, top=0.75, bottom=0.55, wspace=0.35)
     figs["cross_axis"] = fig
     return figs
@@ -164,37 +166,39 @@ def _fmt(v, d=1) -> str:
     return "-" if v is None else f"{v:.{d}f}"
 
 
-def print_summary(doc: dict, folder, file=None) -> None:
+def _bandwidth(v: CurveFigures | None) -> str:
+    if v is None:
+        return "-"
+    if v.bandwidth_3db_hz is None and v.bandwidth_above_hz:
+        return f">{v.bandwidth_above_hz:.2f}"
+    return _fmt(v.bandwidth_3db_hz, 2)
+
+
+def print_summary(resp: PoseResponse, title: str, folder, file=None) -> None:
     file = file or sys.stdout
-    print(f"{_title(doc)}, set-point -> true pose:", file=file)
+    print(f"{title}, set-point -> true pose:", file=file)
     print(
         "axis    bandwidth_3db_hz  phase@0.5Hz  phase@1Hz  delay_ms | predicted: bw  "
         "ph@0.5  ph@1  delay",
         file=file,
     )
-    for a, v in doc["axes"].items():
-        p = v.get("predicted") or {}
-        bw = _fmt(v["bandwidth_3db_hz"], 2)
-        if v["bandwidth_3db_hz"] is None and v.get("bandwidth_above_hz"):
-            bw = f">{v['bandwidth_above_hz']:.2f}"
-        pbw = _fmt(p.get("bandwidth_3db_hz"), 2)
-        if p.get("bandwidth_3db_hz") is None and p.get("bandwidth_above_hz"):
-            pbw = f">{p['bandwidth_above_hz']:.2f}"
+    for a, v in resp.axes.items():
+        p = v.predicted
         print(
-            f"{a:7s} {bw:>16s}  {_fmt(v['phase_deg_at_0_5_hz']):>11s}  "
-            f"{_fmt(v['phase_deg_at_1_hz']):>9s}  {_fmt(v['equivalent_delay_ms']):>8s} | "
-            f"{pbw:>12s}  {_fmt(p.get('phase_deg_at_0_5_hz')):>6s}  "
-            f"{_fmt(p.get('phase_deg_at_1_hz')):>4s}  {_fmt(p.get('equivalent_delay_ms'))}",
+            f"{a:7s} {_bandwidth(v):>16s}  {_fmt(v.phase_deg_at_0_5_hz):>11s}  "
+            f"{_fmt(v.phase_deg_at_1_hz):>9s}  {_fmt(v.equivalent_delay_ms):>8s} | "
+            f"{_bandwidth(p):>12s}  {_fmt(p and p.phase_deg_at_0_5_hz):>6s}  "
+            f"{_fmt(p and p.phase_deg_at_1_hz):>4s}  {_fmt(p and p.equivalent_delay_ms)}",
             file=file,
         )
-    for a, v in doc["agreement"].items():
-        t = v["true"]
+    for a, by_signal in resp.agreement.items():
+        t = by_signal["true"]
         print(
-            f"{a}: measured - predicted up to 1 Hz: {_fmt(t['max_abs_diff_db'], 2)} dB, "
-            f"{_fmt(t['max_abs_diff_deg'])} deg",
+            f"{a}: measured - predicted up to 1 Hz: {_fmt(t.max_abs_diff_db, 2)} dB, "
+            f"{_fmt(t.max_abs_diff_deg)} deg",
             file=file,
         )
-    for f in doc["failed"]:
+    for f in resp.failed:
         print(f"FAILED {f['axis']} {f['period_ms']} ms: {f['status']}: {f['reason']}", file=file)
     print(f"results: {folder}", file=file)
 
