@@ -128,14 +128,14 @@ def test_cosimulated_chain_matches_the_linear_chain(cosim_pitch):
     plan, results = cosim_pitch
     assert results[0]["status"] == "ok", results[0]
     doc = chain_summary(plan, results)
-    assert not doc["failed"] and doc["prediction_note"] is None
-    rows = {r["test"]: r for r in doc["rows"]}
+    assert not doc.failed and doc.prediction_note is None
+    rows = {r.test: r for r in doc.rows}
     assert set(rows) == {"pitch", "pitch-to-surge"}
     for r in rows.values():
-        assert r["saturated_pct"] == 0.0 and r["rate_limited_pct"] == 0.0
-        assert abs(r["gain_db"] - r["predicted_gain_db"]) < 0.5, r
-        assert abs(r["phase_deg"] - r["predicted_phase_deg"]) < 3.0, r
-    assert rows["pitch-to-surge"]["platform_db"] > 3.0
+        assert r.saturated_pct == 0.0 and r.rate_limited_pct == 0.0
+        assert abs(r.gain_db - r.predicted_gain_db) < 0.5, r
+        assert abs(r.phase_deg - r.predicted_phase_deg) < 3.0, r
+    assert rows["pitch-to-surge"].platform_db > 3.0
 
 
 def test_omct_periods():

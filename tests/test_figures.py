@@ -199,24 +199,21 @@ def test_log_ticks_label_a_short_axis_without_overlap():
 
 
 def test_chain_figure_draws_washout_and_linear_chain_as_curves():
+    from simpro_mj.analysis.chain_response import ChainCurve, ChainRow, ChainSummary
+    from simpro_mj.analysis.response_summary import Bode
     from simpro_mj.report.response import chain_figure
 
     omega = [1.0, 2.5, 6.3]
     rows = [
-        {"test": "pitch", "input": "wy", "output": "wy", "unit": "deg/s per deg/s",
-         "omega_rad_s": w, "gain_db": -1.0, "phase_deg": -10.0 * w}
+        ChainRow(test="pitch", input="wy", output="wy", unit="deg/s per deg/s",
+                 frequency_hz=w / (2 * np.pi), omega_rad_s=w, period_ms=round(2000 * np.pi / w),
+                 amplitude=1.0, gain=0.89, gain_db=-1.0, phase_deg=-10.0 * w)
         for w in omega
     ]  # fmt: skip
     dense = np.geomspace(1.0, 6.3, 40).tolist()
-    curve = {"gain_db": [-1.0] * 40, "phase_deg": [-10.0 * w for w in dense]}
-    doc = {
-        "scenario": "synthetic",
-        "mode": "feedforward",
-        "loop": "feedforward, I correction",
-        "rows": rows,
-        "curves": {"pitch": {"omega_rad_s": dense, "washout": curve, "predicted": curve}},
-    }
-    fig = chain_figure(doc)
+    curve = Bode(gain_db=[-1.0] * 40, phase_deg=[-10.0 * w for w in dense])
+    summary = ChainSummary(rows=rows, curves={"pitch": ChainCurve(dense, curve, curve)})
+    fig = chain_figure(summary, "synthetic (feedforward, I correction)")
     assert legend_mismatches(fig) == []
     (washout,) = [ln for ln in fig.axes[0].lines if ln.get_label() == "washout alone"]
     assert len(washout.get_xdata()) == 40

@@ -49,7 +49,7 @@ from __future__ import annotations
 import copy
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 
 import mujoco
 import numpy as np
@@ -58,7 +58,7 @@ from controllers.frequency import CHAIN_CHANNELS, OMCT_RAD_S, chain_response, fi
 from controllers.kinematics import inverse_kinematics
 from controllers.washout import ClassicalWashout, WashoutParams
 from simpro_mj.analysis.response import check_run_length, check_settle_periods, failures, measure
-from simpro_mj.analysis.response_summary import loop_model
+from simpro_mj.analysis.response_summary import Bode, loop_model
 from simpro_mj.config.cueing import vehicle_input, washout_params
 from simpro_mj.config.models import check_cueing
 from simpro_mj.core.errors import UserInputError
@@ -78,6 +78,9 @@ __all__ = [
     "measure_chain_point",
     "measure_chain",
     "predictions",
+    "ChainCurve",
+    "ChainRow",
+    "ChainSummary",
     "chain_summary",
 ]
 
@@ -378,10 +381,73 @@ def _unwrapped(h_dense: np.ndarray) -> np.ndarray:
     return np.degrees(np.unwrap(np.angle(h_dense)))
 
 
-def chain_summary(plan: ChainPlan, results: list) -> dict:
+@dataclass
+class ChainRow:
+    """One OMCT pair at one frequency: the head's measured response (edge units, the
+    pair's ``unit``) beside the washout alone and the linear chain."""
+
+    test: str
+    input: str
+    output: str
+    unit: str
+    frequency_hz: float
+    omega_rad_s: float
+    period_ms: int
+    amplitude: float
+    gain: float
+    gain_db: float
+    phase_deg: float
+    washout_gain_db: float | None = None
+    washout_phase_deg: float | None = None
+    predicted_gain_db: float | None = None
+    predicted_phase_deg: float | None = None
+    #: measured less the washout alone: what the platform adds
+    platform_db: float | None = None
+    platform_deg: float | None = None
+    saturated_pct: float = 0.0
+    rate_limited_pct: float = 0.0
+    softened_pct: float = 0.0
+
+    def to_json(self) -> dict:
+        return asdict(self)
+
+
+@dataclass
+class ChainCurve:
+    """An OMCT pair's washout alone and linear chain (None without a loop model) on a
+    dense grid between the measured frequencies."""
+
+    omega_rad_s: list[float]
+    washout: Bode | None = None
+    predicted: Bode | None = None
+
+
+@dataclass
+class ChainSummary:
+    """The summary of a chain response (:func:`chain_summary`)."""
+
+    rows: list[ChainRow] = field(default_factory=list)
+    #: the frequencies that did not run: channel, period, status, reason
+    failed: list[dict] = field(default_factory=list)
+    prediction_note: str | None = None
+    #: the pairs on which the washout's rate limit or softening acted
+    not_small_signal: list[str] = field(default_factory=list)
+    curves: dict[str, ChainCurve] = field(default_factory=dict)
+
+    def to_json(self) -> dict:
+        return {
+            "rows": [r.to_json() for r in self.rows],
+            "failed": self.failed,
+            "prediction_note": self.prediction_note,
+            "not_small_signal": self.not_small_signal,
+            "curves": {k: asdict(c) for k, c in self.curves.items()},
+        }
+
+
+def chain_summary(plan: ChainPlan, results: list) -> ChainSummary:
     """Rows (one per OMCT pair and frequency), the failures, and ``curves``: per OMCT
     pair the washout alone and the linear chain (None without a loop model) on a
-    dense grid between the lowest and highest measured frequency; JSON-ready."""
+    dense grid between the lowest and highest measured frequency."""
     periods = sorted(plan.periods_ms, reverse=True)
     omega = 2 * np.pi * 1000.0 / np.array(periods, float)
     # the predictions on a dense grid from well below, so that their phase unwraps from
@@ -391,8 +457,8 @@ def chain_summary(plan: ChainPlan, results: list) -> dict:
     pred = predictions(plan, dense)
     by_key = {(r.get("channel"), r.get("period_ms")): r for r in results if r.get("status") == "ok"}
 
-    failed = failures(plan.tasks, results, "channel")
-    rows = []
+    out = ChainSummary(failed=failures(plan.tasks, results, "channel"),
+                       prediction_note=pred["note"])  # fmt: skip
     for (cin, cout), name in PAIRS.items():
         if cin not in plan.channels:
             continue
@@ -411,61 +477,51 @@ def chain_summary(plan: ChainPlan, results: list) -> dict:
             phase = raw + 360.0 * round((near - raw) / 360.0)  # the branch of the prediction
             g = abs(_edge(cin, cout, hm))
             gw = abs(_edge(cin, cout, hw[at[n]])) if hw is not None else None
-            row = {
-                "test": name,
-                "input": cin,
-                "output": cout,
-                "unit": f"{_UNITS[cout][0]} per {_UNITS[cin][0]}",
-                "frequency_hz": float(omega[n] / (2 * np.pi)),
-                "omega_rad_s": float(omega[n]),
-                "period_ms": p,
-                "amplitude": plan.amplitudes[cin] / _UNITS[cin][1],
-                "gain": g,
-                "gain_db": 20 * math.log10(max(g, 1e-300)),
-                "phase_deg": float(phase),
-                "washout_gain_db": None if gw is None else 20 * math.log10(max(gw, 1e-300)),
-                "washout_phase_deg": None if ph_w is None else float(ph_w[n]),
-                "predicted_gain_db": None,
-                "predicted_phase_deg": None,
-                "platform_db": None
+            row = ChainRow(
+                test=name,
+                input=cin,
+                output=cout,
+                unit=f"{_UNITS[cout][0]} per {_UNITS[cin][0]}",
+                frequency_hz=float(omega[n] / (2 * np.pi)),
+                omega_rad_s=float(omega[n]),
+                period_ms=p,
+                amplitude=plan.amplitudes[cin] / _UNITS[cin][1],
+                gain=g,
+                gain_db=20 * math.log10(max(g, 1e-300)),
+                phase_deg=float(phase),
+                washout_gain_db=None if gw is None else 20 * math.log10(max(gw, 1e-300)),
+                washout_phase_deg=None if ph_w is None else float(ph_w[n]),
+                platform_db=None
                 if gw is None
                 else 20 * math.log10(max(g, 1e-300) / max(gw, 1e-300)),
-                "platform_deg": None if hw is None else float(np.degrees(np.angle(hm / hw[at[n]]))),
-                "saturated_pct": r["saturated_pct"],
-                "rate_limited_pct": r["rate_limited_pct"],
-                "softened_pct": r["softened_pct"],
-            }
+                platform_deg=None if hw is None else float(np.degrees(np.angle(hm / hw[at[n]]))),
+                saturated_pct=r["saturated_pct"],
+                rate_limited_pct=r["rate_limited_pct"],
+                softened_pct=r["softened_pct"],
+            )
             if hp is not None and ph_p is not None:
                 gp = abs(_edge(cin, cout, hp[at[n]]))
-                row["predicted_gain_db"] = 20 * math.log10(max(gp, 1e-300))
-                row["predicted_phase_deg"] = float(ph_p[n])
-            rows.append(row)
-    nonlinear = sorted(
-        {r["test"] for r in rows if r["rate_limited_pct"] > 0 or r["softened_pct"] > 0}
+                row.predicted_gain_db = 20 * math.log10(max(gp, 1e-300))
+                row.predicted_phase_deg = float(ph_p[n])
+            out.rows.append(row)
+    out.not_small_signal = sorted(
+        {r.test for r in out.rows if r.rate_limited_pct > 0 or r.softened_pct > 0}
     )
     # the washout alone and the linear chain between the measured frequencies, to draw
     # as curves (the rows hold them at the measured frequencies only)
     span = (dense >= omega.min() * (1 - 1e-9)) & (dense <= omega.max() * (1 + 1e-9))
-    curves = {}
     for (cin, cout), name in PAIRS.items():
         if cin not in plan.channels:
             continue
         i, o = CHANNELS.index(cin), CHANNELS.index(cout)
-        curves[name] = {"omega_rad_s": dense[span].tolist()}
+        curve = out.curves[name] = ChainCurve(dense[span].tolist())
         for key in ("washout", "predicted"):
-            if pred[key] is None:
-                curves[name][key] = None
-                continue
-            h = pred[key][:, o, i]
-            gain = np.abs(h[span]) * _UNITS[cin][1] / _UNITS[cout][1]
-            curves[name][key] = {
-                "gain_db": (20 * np.log10(np.maximum(gain, 1e-300))).tolist(),
-                "phase_deg": _unwrapped(h)[span].tolist(),
-            }
-    return {
-        "rows": rows,
-        "failed": failed,
-        "prediction_note": pred["note"],
-        "not_small_signal": nonlinear,
-        "curves": curves,
-    }
+            if pred[key] is not None:
+                h = pred[key][:, o, i]
+                gain = np.abs(h[span]) * _UNITS[cin][1] / _UNITS[cout][1]
+                bode = Bode(
+                    gain_db=(20 * np.log10(np.maximum(gain, 1e-300))).tolist(),
+                    phase_deg=_unwrapped(h)[span].tolist(),
+                )
+                setattr(curve, key, bode)
+    return out

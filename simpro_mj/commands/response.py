@@ -275,9 +275,13 @@ def run_chain(args, jobs: int) -> int:
             "periods": plan.periods,
             "frequencies_rad_s": [2000.0 * math.pi / p for p in plan.periods_ms],
             "washout": {"algorithm": cue["algorithm"], "parameters": cue["parameters"]},
-            **summ,
+            **summ.to_json(),
         }
+        title = f"{scenario['name']} ({doc['loop']})"
 
-        plotter = None if args.no_plots else plot_chain
-        write_result(out, doc, "chain", csv_text(doc["rows"], CHAIN_CSV_COLUMNS), plotter)
-    return report(args, doc, out, print_chain_summary)
+        def plotter(_doc, folder: Path) -> list[str]:
+            return plot_chain(summ, title, folder)
+
+        csv_body = csv_text(doc["rows"], CHAIN_CSV_COLUMNS)
+        write_result(out, doc, "chain", csv_body, None if args.no_plots else plotter)
+    return report(args, doc, out, lambda _doc, folder: print_chain_summary(summ, title, folder))

@@ -21,6 +21,7 @@ from simpro_mj.report.folders import install_folder
 from simpro_mj.report.results import jsonable
 
 if TYPE_CHECKING:  # the records' module loads the analysis: when a response is summarised
+    from simpro_mj.analysis.chain_response import ChainSummary
     from simpro_mj.analysis.response_summary import CurveFigures, PoseResponse
 
 __all__ = [
@@ -70,10 +71,6 @@ def csv_text(rows: list[dict], columns=CSV_COLUMNS) -> str:
     for r in rows:
         w.writerow([_cell(r[c]) for c in columns])
     return buf.getvalue()
-
-
-def _title(doc: dict) -> str:
-    return f"{doc['scenario']} ({doc.get('loop', doc['mode'])})"
 
 
 def plot(resp: PoseResponse, axes_in, title: str, folder: Path) -> list[str]:
@@ -243,45 +240,46 @@ CHAIN_CSV_COLUMNS = (
 )
 
 
-def plot_chain(doc: dict, folder: Path) -> list[str]:
+def plot_chain(summary: ChainSummary, title: str, folder: Path) -> list[str]:
     """``chain_bode.png``: gain and phase per OMCT pair (measured, washout, predicted)."""
-    fig = chain_figure(doc)
+    fig = chain_figure(summary, title)
     if fig is None:
         return []
     return [save(fig, folder / "chain_bode.png", 110).name]
 
 
-def chain_figure(doc: dict):
+def chain_figure(summary: ChainSummary, title: str):
     """Gain and phase per OMCT pair: measured points, the washout alone and the
-    linear chain as curves (``curves``); None when no pair was measured."""
+    linear chain as curves (``curves``); None when no pair was measured. ``title``:
+    the scenario and its loop."""
     from matplotlib.figure import Figure
 
     # the chain's analysis loads python-control and scipy.signal: only when drawn
     from simpro_mj.analysis.chain_response import PAIRS
 
-    tests = [n for n in PAIRS.values() if any(r["test"] == n for r in doc["rows"])]
+    tests = [n for n in PAIRS.values() if any(r.test == n for r in summary.rows)]
     if not tests:
         return None
-    curves = doc.get("curves") or {}
     ncol = min(len(tests), 5)
     nrow = -(-len(tests) // ncol)
     fig = Figure(figsize=(3.3 * ncol, 5.0 * nrow))
     ax = fig.subplots(2 * nrow, ncol, squeeze=False)
     for k, name in enumerate(tests):
         g, p = ax[2 * (k // ncol), k % ncol], ax[2 * (k // ncol) + 1, k % ncol]
-        rs = [r for r in doc["rows"] if r["test"] == name]
-        f = [r["omega_rad_s"] for r in rs]
-        g.semilogx(f, [r["gain_db"] for r in rs], "o", label="measured (co-simulation)")
-        p.semilogx(f, [r["phase_deg"] for r in rs], "o")
-        curve = curves.get(name) or {}
+        rs = [r for r in summary.rows if r.test == name]
+        f = [r.omega_rad_s for r in rs]
+        g.semilogx(f, [r.gain_db for r in rs], "o", label="measured (co-simulation)")
+        p.semilogx(f, [r.phase_deg for r in rs], "o")
+        curve = summary.curves.get(name)
         for key, ls, label in (("washout", "--", "washout alone"), ("predicted", "-",
                                                                    "linear chain")):  # fmt: skip
-            if curve.get(key):
-                w = curve["omega_rad_s"]
-                g.semilogx(w, curve[key]["gain_db"], color="k", ls=ls, lw=1, label=label)
-                p.semilogx(w, curve[key]["phase_deg"], color="k", ls=ls, lw=1)
-        g.set_title(f"{name} ({rs[0]['input']} -> {rs[0]['output']})", fontsize=9)
-        g.set_ylabel(f"gain (dB, {rs[0]['unit']})", fontsize=7)
+            bode = getattr(curve, key) if curve is not None else None
+            if bode is not None and curve is not None:
+                w = curve.omega_rad_s
+                g.semilogx(w, bode.gain_db, color="k", ls=ls, lw=1, label=label)
+                p.semilogx(w, bode.phase_deg, color="k", ls=ls, lw=1)
+        g.set_title(f"{name} ({rs[0].input} -> {rs[0].output})", fontsize=9)
+        g.set_ylabel(f"gain (dB, {rs[0].unit})", fontsize=7)
         p.set_ylabel("phase (deg)", fontsize=7)
         p.set_xlabel("frequency (rad/s)", fontsize=8)
         for a in (g, p):
@@ -293,32 +291,31 @@ def chain_figure(doc: dict):
         ax[2 * (k // ncol), k % ncol].axis("off")
         ax[2 * (k // ncol) + 1, k % ncol].axis("off")
     fig.suptitle(
-        f"{_title(doc)}: whole cueing chain, vehicle -> driver's head (OMCT frequencies)",
+        f"{title}: whole cueing chain, vehicle -> driver's head (OMCT frequencies)",
         fontsize=10,
     )
     margins(fig, left=0.6, right=0.15, top=0.6, bottom=0.5, wspace=0.55, hspace=0.45)
     return fig
 
 
-def print_chain_summary(doc: dict, folder, file=None) -> None:
+def print_chain_summary(summary: ChainSummary, title: str, folder, file=None) -> None:
     file = file or sys.stdout
     print(
-        f"{_title(doc)}, vehicle -> driver's head, measured | washout alone"
+        f"{title}, vehicle -> driver's head, measured | washout alone"
         " | linear chain (gain dB, phase deg):",
         file=file,
     )
-    for r in doc["rows"]:
-        pg, pp = r["predicted_gain_db"], r["predicted_phase_deg"]
-        flag = "  (limits acted)" if r["rate_limited_pct"] > 0 or r["softened_pct"] > 0 else ""
+    for r in summary.rows:
+        flag = "  (limits acted)" if r.rate_limited_pct > 0 or r.softened_pct > 0 else ""
         print(
-            f"{r['test']:15s} {r['omega_rad_s']:6.2f} rad/s  "
-            f"{r['gain_db']:7.2f} {r['phase_deg']:7.1f}"
-            f" | {_fmt(r['washout_gain_db'], 2):>7s} {_fmt(r['washout_phase_deg']):>7s}"
-            f" | {_fmt(pg, 2):>7s} {_fmt(pp):>7s}{flag}",
+            f"{r.test:15s} {r.omega_rad_s:6.2f} rad/s  "
+            f"{r.gain_db:7.2f} {r.phase_deg:7.1f}"
+            f" | {_fmt(r.washout_gain_db, 2):>7s} {_fmt(r.washout_phase_deg):>7s}"
+            f" | {_fmt(r.predicted_gain_db, 2):>7s} {_fmt(r.predicted_phase_deg):>7s}{flag}",
             file=file,
         )
-    if doc.get("prediction_note"):
-        print(doc["prediction_note"], file=file)
-    for f in doc["failed"]:
+    if summary.prediction_note:
+        print(summary.prediction_note, file=file)
+    for f in summary.failed:
         print(f"FAILED {f['channel']} {f['period_ms']} ms: {f['status']}: {f['reason']}", file=file)
     print(f"results: {folder}", file=file)
