@@ -180,3 +180,17 @@ def test_a_run_marks_the_steps_cache_complete(monkeypatch):
     monkeypatch.setenv("SIMPRO_KERNEL", "numba")
     compiling.prepare_step()
     assert (Path(step.compiled().cache_folder) / numba_cache.COMPLETE).exists()
+
+
+def test_registering_without_a_run_shares_the_first_compile(monkeypatch):
+    """The identification experiment registers its arrays without a run: its callback
+    is loaded through prepare_step too, so it waits for another process's compile
+    instead of compiling the same step beside it."""
+    from simpro_mj.sim import compiling, registration
+
+    monkeypatch.setenv("SIMPRO_KERNEL", "numba")
+    calls = []
+    real = compiling.prepare_step
+    monkeypatch.setattr(compiling, "prepare_step", lambda *a, **k: calls.append(1) or real())
+    control, clock = registration._make_callback()
+    assert calls == [1] and control and clock

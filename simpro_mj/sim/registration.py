@@ -38,7 +38,12 @@ _installed = _Installed()
 
 def _make_callback():
     """The C callbacks (:mod:`simpro_mj.sim.callback`, numba): built once per process,
-    ``(control, clock)``."""
+    ``(control, clock)``. Loaded through :func:`~simpro_mj.sim.compiling.prepare_step`
+    (a no-op once a run has loaded it): callers that register without a run (the
+    identification experiment) share a first compile with other processes too."""
+    from simpro_mj.sim.compiling import prepare_step
+
+    prepare_step()
     from simpro_mj.sim import callback  # numba: imported when a compiled run starts
 
     return callback.install_pointer(st.REGISTRY), callback.frozen_clock.ctypes
