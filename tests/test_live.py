@@ -313,6 +313,7 @@ def _one_error_line(capsys) -> str:
         (["--listen", "127.0.0.1:0", "--send-format", "{q4_mm}"], "unknown field 'q4_mm'"),
         (["--listen", "127.0.0.1:0", "--duration", "-1"], "invalid value at --duration: -1"),
         (["--listen", "127.0.0.1:0", "--bias-tau", "-1"], "invalid value at --bias-tau: -1"),
+        (["--listen", "127.0.0.1:0", "--spin-us", "6000"], "invalid value at --spin-us: 6000"),
         (["--listen", "127.0.0.1:0", "--vibration-hz", "60"], "invalid value at --vibration-hz"),
         (["--listen", "127.0.0.1:0", "--output", "tcp:x:1"], "invalid value at --output"),
         (

@@ -22,13 +22,14 @@ the send period: 10 ms by default) the pacer, called before step ``k``:
    woke: ``lateness(k) = max(0, woke - D(k))``. A chunk that finished after
    ``D(k)`` (the state at ``t_k`` was not ready at wall time ``t_k``) is a
    missed deadline, and the next chunk starts at once;
-2. reads every datagram waiting (at most :data:`~simpro_mj.sim.udp.MAX_DRAIN` a chunk, the rest
+2. every send period, sends the newest logged pose (:class:`PoseSender`): the
+   state at ``t_k``, stepped before the wake, goes out first;
+3. reads every datagram waiting (at most :data:`~simpro_mj.sim.udp.MAX_DRAIN` a chunk, the rest
    stays for the next one), skipping and counting the bad and the late ones;
-3. every washout period, steps the washout once with the newest sample
+4. every washout period, steps the washout once with the newest sample
    (held; faded to rest when stale, :class:`Receiver`) and writes the
    set-point for the next period;
-4. every send period, sends the newest logged pose (:class:`PoseSender`);
-5. every second, one console line.
+5. every output period, the rig's string; every second, one console line.
 
 The loop then runs the chunk's steps without looking outside: the
 simulation is ahead of the wall clock by up to one chunk, and an input
@@ -240,6 +241,9 @@ class Pacer:
                 self.wall0 += late
                 st.resyncs += 1
                 st.lost_s += late
+        # the pose of t_k (logged before the wake) goes out first, at D(k)
+        if self.sender is not None and k % self.send_every == 0 and len(log) and k < self.n:
+            self.sender.send(log[-1].tolist())
         rx = self.rx
         rx.poll(now)
         if k % self.wash_every == 0:
@@ -258,8 +262,6 @@ class Pacer:
             self.end_wall = now
             self._switches[1] = thread_switches()
             return NEVER
-        if self.sender is not None and k % self.send_every == 0 and len(log):
-            self.sender.send(log[-1].tolist())
         if self.rig is not None and k % self.rig_every == 0 and len(log):
             self.rig.send(log[-1].tolist())
         if self.say is not None and k - self._last_console >= 1000 and len(log):
