@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from typing import Any
+from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
@@ -40,10 +40,14 @@ from controllers.geometry import HEAD_HEIGHT_PITCH, HEAD_HEIGHT_ROLL
 from controllers.washout import WashoutParams
 
 __all__ = [
+    "CHAIN",
     "FIDELITY_REGIONS",
     "FIDELITY_SOURCE",
     "OMCT_TESTS",
     "LAWS",
+    "Fidelity",
+    "Omct",
+    "OmctRow",
     "fidelity",
     "law_blocks",
     "law_response",
@@ -224,7 +228,69 @@ def _edge(channel: str) -> float:
     return 1.0 if channel[0] == "f" else math.pi / 180.0
 
 
-def omct(laws: Mapping, omegas: Sequence[float] = OMCT_RAD_S, amplitudes=None, progress=None):
+@dataclass
+class OmctRow:
+    """One law's response in one OMCT test at one frequency (edge units)."""
+
+    law: str
+    test: str
+    input: str
+    output: str
+    omega_rad_s: float
+    frequency_hz: float
+    gain: float
+    gain_db: float
+    phase_deg: float
+
+
+@dataclass
+class Fidelity:
+    """A direct test's response at 1 rad/s and its region (:func:`fidelity`)."""
+
+    gain: float
+    phase_deg: float
+    fidelity: str
+
+
+@dataclass
+class Omct:
+    """The OMCT of the laws (:func:`omct`); :meth:`to_json` is ``omct.json``'s body."""
+
+    rows: list[OmctRow] = field(default_factory=list)
+    #: per law, per direct test
+    fidelity_at_1_rad_s: dict[str, dict[str, Fidelity]] = field(default_factory=dict)
+    f_mps2: float = 0.0
+    w_deg_s: float = 0.0
+    #: name -> cueing block
+    laws: dict[str, dict] = field(default_factory=dict)
+
+    def to_json(self) -> dict:
+        return {
+            "rows": [asdict(r) for r in self.rows],
+            "fidelity_at_1_rad_s": {
+                law: {t: asdict(v) for t, v in tests.items()}
+                for law, tests in self.fidelity_at_1_rad_s.items()
+            },
+            "amplitudes": {"f_mps2": self.f_mps2, "w_deg_s": self.w_deg_s},
+            "laws": self.laws,
+            "fidelity_regions": {
+                "source": FIDELITY_SOURCE,
+                "regions": [
+                    {"name": n, "gain_min": lo, "gain_max": hi, "phase_max_deg": ph}
+                    for n, lo, hi, ph in FIDELITY_REGIONS
+                ],
+            },
+            "chain": CHAIN,
+        }
+
+
+#: The chain every law's OMCT runs through.
+CHAIN = "law -> platform loop model (5.0 rad/s, 0.72, 0.31 s, 0.03 s) -> rigid cabin"
+
+
+def omct(
+    laws: Mapping, omegas: Sequence[float] = OMCT_RAD_S, amplitudes=None, progress=None
+) -> Omct:
     """The OMCT of each law: rows (law, test, omega, gain, phase) for every test of
     :data:`OMCT_TESTS`, and per law the fidelity of each direct test at 1 rad/s.
 
@@ -233,8 +299,11 @@ def omct(laws: Mapping, omegas: Sequence[float] = OMCT_RAD_S, amplitudes=None, p
     frequencies from the lowest.
     """
     amps = dict(AMPLITUDES, **(amplitudes or {}))
-    rows: list[dict] = []
-    verdicts: dict[str, Any] = {}
+    out = Omct(
+        f_mps2=amps["f"],
+        w_deg_s=math.degrees(amps["w"]),
+        laws={k: {kk: v for kk, v in b.items()} for k, b in laws.items()},
+    )
     for name, block in laws.items():
         h = {}
         for cin in sorted({c for c, _ in OMCT_TESTS.values()}):
@@ -242,7 +311,7 @@ def omct(laws: Mapping, omegas: Sequence[float] = OMCT_RAD_S, amplitudes=None, p
                 h[cin, om] = law_response(block, cin, om, amps[cin[0]])
                 if progress:
                     progress()
-        verdicts[name] = {}
+        verdicts = out.fidelity_at_1_rad_s[name] = {}
         for test, (cin, cout) in OMCT_TESTS.items():
             resp = np.array([h[cin, om][cout] for om in omegas])
             phase = np.degrees(np.unwrap(np.angle(resp)))
@@ -251,39 +320,12 @@ def omct(laws: Mapping, omegas: Sequence[float] = OMCT_RAD_S, amplitudes=None, p
                 phase -= 360.0 * round(phase[0] / 360.0)
             for om, r, ph in zip(omegas, resp, phase, strict=True):
                 g = abs(r) * _edge(cin) / _edge(cout)
-                rows.append(
-                    {
-                        "law": name,
-                        "test": test,
-                        "input": cin,
-                        "output": cout,
-                        "omega_rad_s": float(om),
-                        "frequency_hz": float(om / (2 * math.pi)),
-                        "gain": float(g),
-                        "gain_db": 20 * math.log10(max(g, 1e-300)),
-                        "phase_deg": float(ph),
-                    }
-                )
+                row = OmctRow(name, test, cin, cout, float(om), float(om / (2 * math.pi)),
+                              float(g), 20 * math.log10(max(g, 1e-300)), float(ph))  # fmt: skip
+                out.rows.append(row)
                 if cin == cout and abs(om - 1.0) < 1e-9:
-                    verdicts[name][test] = {
-                        "gain": float(g),
-                        "phase_deg": float(ph),
-                        "fidelity": fidelity(g, ph),
-                    }
-    return {
-        "rows": rows,
-        "fidelity_at_1_rad_s": verdicts,
-        "amplitudes": {"f_mps2": amps["f"], "w_deg_s": math.degrees(amps["w"])},
-        "laws": {k: {kk: v for kk, v in b.items()} for k, b in laws.items()},
-        "fidelity_regions": {
-            "source": FIDELITY_SOURCE,
-            "regions": [
-                {"name": n, "gain_min": lo, "gain_max": hi, "phase_max_deg": ph}
-                for n, lo, hi, ph in FIDELITY_REGIONS
-            ],
-        },
-        "chain": "law -> platform loop model (5.0 rad/s, 0.72, 0.31 s, 0.03 s) -> rigid cabin",
-    }
+                    verdicts[test] = Fidelity(float(g), float(ph), fidelity(g, ph))
+    return out
 
 
 def model_chain_metrics(block: Mapping, t: np.ndarray, f: np.ndarray, w: np.ndarray) -> dict:

@@ -63,13 +63,17 @@ def run(args) -> int:
         amps["f"] = af
     if aw is not None:
         amps["w"] = math.radians(aw)
-    doc = omct(blocks, amplitudes=amps)
-    doc["kind"] = "omct"
+    res = omct(blocks, amplitudes=amps)
+    doc = {**res.to_json(), "kind": "omct"}
     out = Path(args.out) if args.out else Path("results") / "omct"
+
+    def plotter(_doc, folder: Path) -> list[str]:
+        return plot_omct(res, folder)
+
     write_result(out, doc, "omct", csv_text(doc["rows"], CSV_COLUMNS),
-                 None if args.no_plots else plot_omct)  # fmt: skip
+                 None if args.no_plots else plotter)  # fmt: skip
     if args.json:
         emit_json(doc)
         return 0
-    print_omct_summary(doc, out)
+    print_omct_summary(res, out, doc["files"])
     return 0

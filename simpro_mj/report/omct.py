@@ -4,8 +4,12 @@ from __future__ import annotations
 
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from simpro_mj.report.figures import log_ticks, save
+
+if TYPE_CHECKING:  # the analysis loads the laws: when the OMCT runs
+    from simpro_mj.analysis.omct import Omct
 
 __all__ = ["CSV_COLUMNS", "plot_omct", "print_omct_summary"]
 
@@ -26,7 +30,7 @@ _CROSS = ("pitch-to-surge", "roll-to-sway", "surge-to-pitch", "sway-to-roll")
 _REGION_COLOURS = {"high": "#c7e9c0", "medium": "#fdd0a2"}
 
 
-def plot_omct(doc: dict, folder: Path) -> list[str]:
+def plot_omct(res: Omct, folder: Path) -> list[str]:
     """``omct_bode.png`` (gain and phase of every test per law against the OMCT
     frequencies) and ``omct_fidelity.png`` (each law's direct responses at 1 rad/s on the
     gain / phase-distortion plane with the fidelity regions)."""
@@ -38,20 +42,20 @@ def plot_omct(doc: dict, folder: Path) -> list[str]:
 
     from simpro_mj.analysis.omct import FIDELITY_REGIONS, FIDELITY_SOURCE
 
-    laws = list(doc["laws"])
+    laws = list(res.laws)
     colours = {law: f"C{i}" for i, law in enumerate(laws)}
     tests = _DIRECT + _CROSS
     fig, axes = plt.subplots(2, len(tests), figsize=(2.6 * len(tests), 5.6), sharex=True)
     for j, test in enumerate(tests):
         for law in laws:
-            rows = [r for r in doc["rows"] if r["law"] == law and r["test"] == test]
-            om = [r["omega_rad_s"] for r in rows]
-            axes[0, j].semilogx(om, [r["gain"] for r in rows], "o-", ms=3, color=colours[law],
+            rows = [r for r in res.rows if r.law == law and r.test == test]
+            om = [r.omega_rad_s for r in rows]
+            axes[0, j].semilogx(om, [r.gain for r in rows], "o-", ms=3, color=colours[law],
                                 label=law)  # fmt: skip
-            axes[1, j].semilogx(om, [r["phase_deg"] for r in rows], "o-", ms=3,
+            axes[1, j].semilogx(om, [r.phase_deg for r in rows], "o-", ms=3,
                                 color=colours[law])  # fmt: skip
-        unit = rows[0]["output"] if rows else ""
-        cin = rows[0]["input"] if rows else ""
+        unit = rows[0].output if rows else ""
+        cin = rows[0].input if rows else ""
         units = {"f": "m/s^2", "w": "deg/s"}
         axes[0, j].set_title(f"{test}\n({units[unit[:1]]} per {units[cin[:1]]})", fontsize=8)
         axes[1, j].set_xlabel("rad/s")
@@ -62,11 +66,10 @@ def plot_omct(doc: dict, folder: Path) -> list[str]:
     axes[0, 0].set_ylabel("gain")
     axes[1, 0].set_ylabel("phase (deg)")
     axes[0, 0].legend(fontsize=7, loc="best")
-    amp = doc["amplitudes"]
     fig.suptitle(
         "Objective motion cueing test per law: vehicle -> driver's head "
-        f"(law, loop model, rigid cabin; sines of {amp['f_mps2']:g} m/s^2, "
-        f"{amp['w_deg_s']:g} deg/s)",
+        f"(law, loop model, rigid cabin; sines of {res.f_mps2:g} m/s^2, "
+        f"{res.w_deg_s:g} deg/s)",
         fontsize=10,
     )
     fig.tight_layout()
@@ -85,10 +88,10 @@ def plot_omct(doc: dict, folder: Path) -> list[str]:
             ax.add_patch(Rectangle((lo, 0), min(hi, 1.6) - lo, ph, color=_REGION_COLOURS[name],
                                    alpha=0.8, label=label, zorder=0))  # fmt: skip
         for law in laws:
-            v = doc["fidelity_at_1_rad_s"][law]
+            v = res.fidelity_at_1_rad_s[law]
             for test in names:
                 if test in v:
-                    ax.plot(v[test]["gain"], _distortion(v[test]["phase_deg"]), markers[test],
+                    ax.plot(v[test].gain, _distortion(v[test].phase_deg), markers[test],
                             color=colours[law], ms=7, label=f"{law}: {test}")  # fmt: skip
         ax.text(0.05, 170, "low fidelity elsewhere", fontsize=7, va="top")
         ax.set_xlim(0, 1.6)
@@ -114,24 +117,26 @@ def _distortion(phase_deg: float) -> float:
     return abs((phase_deg + 180.0) % 360.0 - 180.0)
 
 
-def print_omct_summary(doc: dict, folder, file=None) -> None:
+def print_omct_summary(res: Omct, folder, files=(), file=None) -> None:
     """Per law the direct tests at 1 rad/s (gain, phase, fidelity region), then where
-    the files are."""
+    the files are (``files``: their names in ``folder``)."""
+    from simpro_mj.analysis.omct import CHAIN
+
     file = sys.stdout if file is None else file
     print("OMCT at 1 rad/s (gain, phase deg, fidelity):", file=file)
     head = f"{'law':<20}" + "".join(f"{t:>24}" for t in _DIRECT)
     print(head, file=file)
     print("-" * len(head), file=file)
-    for law, v in doc["fidelity_at_1_rad_s"].items():
+    for law, v in res.fidelity_at_1_rad_s.items():
         cells = []
         for t in _DIRECT:
             c = v.get(t)
             cells.append(
                 f"{'-':>24}" if c is None
-                else f"{c['gain']:>8.2f}{c['phase_deg']:>8.0f} {c['fidelity']:>7}"
+                else f"{c.gain:>8.2f}{c.phase_deg:>8.0f} {c.fidelity:>7}"
             )  # fmt: skip
         print(f"{law:<20}" + "".join(cells), file=file)
-    print(f"({doc['chain']})", file=file)
+    print(f"({CHAIN})", file=file)
     if folder is not None:
         print(f"results: {folder}", file=file)
-        print("  " + ", ".join(doc.get("files", [])), file=file)
+        print("  " + ", ".join(files), file=file)
