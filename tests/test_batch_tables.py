@@ -64,10 +64,10 @@ def test_small_signal_stable_limit_cycle_is_noted_in_row_and_limit_table():
     assert cycle in rows[3]["stability_note"]
     assert rows[0]["stability_note"] is None and rows[5]["stability_note"] is None
     (t,) = stability_table(rows, jobs)
-    assert (t["largest_stable"], t["smallest_unstable"]) == (14, 16)
-    assert (t["largest_settled"], t["smallest_unsettled"]) == (12, 13)
-    assert "K K_I 13, 14: small-signal stable" in t["note"]
-    assert "limit_cycle" in t["note"]
+    assert (t.largest_stable, t.smallest_unstable) == (14, 16)
+    assert (t.largest_settled, t.smallest_unsettled) == (12, 13)
+    assert "K K_I 13, 14: small-signal stable" in t.note
+    assert "limit_cycle" in t.note
     report = Report(out=Path("out"), rows=rows, paths=[GAIN_PATH], files=[], stability=[t])
     text = io.StringIO()
     print_report(report, file=text)
@@ -88,10 +88,10 @@ def test_stopped_monte_carlo_counts_finished_samples_only():
         r["pitch_ss_err_deg"] = None
     jobs = [_job(i, 3.0, mc=True, sample=i) for i in range(len(rows))]
     (m,) = monte_carlo_table(rows, jobs)
-    assert (m["samples"], m["finished"], m["unfinished"]) == (10, 4, 6)
-    (g,) = m["groups"]
-    assert (g["n"], g["finished"], g["of"]) == (3, 4, 10)
-    assert abs(g["axes"]["pitch"]["max"] - 0.03) < 1e-12
+    assert (m.samples, m.finished, m.unfinished) == (10, 4, 6)
+    (g,) = m.groups
+    assert (g.n, g.finished, g.of) == (3, 4, 10)
+    assert abs(g.axes["pitch"].max - 0.03) < 1e-12
     report = Report(out=Path("out"), rows=rows, paths=[], files=[], monte_carlo=[m])
     text = io.StringIO()
     print_report(report, file=text)

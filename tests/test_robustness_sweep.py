@@ -48,18 +48,18 @@ def test_table_counts_the_floors_per_payload_and_friction_cell():
         {**_row(), "scenario": "other"},  # another file's variant
     ]
     t = robustness_table(rows, "rob")
-    assert (t["n"], t["met"]) == (3, 1) and abs(t["fraction"] - 1 / 3) < 1e-12
-    assert t["statuses"] == {"ok": 2, "limit_cycle": 1}
-    cells = {(tuple(c["payload_kg"]), tuple(c["coulomb_n"])): c for c in t["cells"]}
+    assert (t.n, t.met) == (3, 1) and abs(t.fraction - 1 / 3) < 1e-12
+    assert t.statuses == {"ok": 2, "limit_cycle": 1}
+    cells = {(tuple(c.payload_kg), tuple(c.coulomb_n)): c for c in t.cells}
     assert (
-        cells[(100.0, 200.0), (100.0, 150.0)]["n"],
-        cells[(100.0, 200.0), (100.0, 150.0)]["met"],
+        cells[(100.0, 200.0), (100.0, 150.0)].n,
+        cells[(100.0, 200.0), (100.0, 150.0)].met,
     ) == (2, 1)
-    assert cells[(0.0, 100.0), (200.0, 250.0)]["fraction"] == 0.0
-    assert sum(c["n"] for c in t["cells"]) == 3
+    assert cells[(0.0, 100.0), (200.0, 250.0)].fraction == 0.0
+    assert sum(c.n for c in t.cells) == 3
     text = "\n".join(table_lines(t))
     assert "1 of 3 finished variants (33.3 %)" in text and "limit_cycle 1" in text
-    assert "not finished" not in text and t["unfinished"] == 0
+    assert "not finished" not in text and t.unfinished == 0
     assert robustness_table([{**_row(), "values": {}}], "rob") is None
 
 
@@ -68,10 +68,10 @@ def test_the_table_and_map_extend_to_the_catalogue_seals():
     cells of the same width, and the map's axes hold every point."""
     rows = [_row(payload=p, coulomb=[c] * 3) for p in (0.0, 450.0) for c in (75.0, 450.0)]
     t = robustness_table(rows, "rob")
-    assert t["coulomb_edges"][-1] == 450.0 and t["coulomb_edges"][-2] == 400.0
-    assert t["payload_edges"][-1] == 500.0
-    assert sum(c["n"] for c in t["cells"]) == 4
-    assert {tuple(c["coulomb_n"]) for c in t["cells"] if c["n"]} == {(50.0, 100.0), (400.0, 450.0)}
+    assert t.coulomb_edges[-1] == 450.0 and t.coulomb_edges[-2] == 400.0
+    assert t.payload_edges[-1] == 500.0
+    assert sum(c.n for c in t.cells) == 4
+    assert {tuple(c.coulomb_n) for c in t.cells if c.n} == {(50.0, 100.0), (400.0, 450.0)}
     fig = map_figure(rows, t)
     lo, hi = fig.axes[0].get_ylim()
     assert lo < 75.0 and hi > 450.0
@@ -125,17 +125,15 @@ def test_a_stopped_batch_counts_finished_variants_only_and_names_the_rest():
         _row(payload=180.0, coulomb=(110.0, 120.0, 130.0), status="interrupted"),
     ]
     t = robustness_table(rows, "rob")
-    assert (t["n"], t["met"], t["unfinished"]) == (3, 1, 3)
-    assert abs(t["fraction"] - 1 / 3) < 1e-12
-    assert t["statuses"] == {"ok": 2, "limit_cycle": 1}
-    assert sum(c["n"] for c in t["cells"]) == 3
-    cell = next(
-        c for c in t["cells"] if c["payload_kg"] == [100.0, 200.0] and c["coulomb_n"][0] == 100.0
-    )
-    assert (cell["met"], cell["n"]) == (1, 2)  # the cancelled and interrupted ones left out
+    assert (t.n, t.met, t.unfinished) == (3, 1, 3)
+    assert abs(t.fraction - 1 / 3) < 1e-12
+    assert t.statuses == {"ok": 2, "limit_cycle": 1}
+    assert sum(c.n for c in t.cells) == 3
+    cell = next(c for c in t.cells if c.payload_kg == [100.0, 200.0] and c.coulomb_n[0] == 100.0)
+    assert (cell.met, cell.n) == (1, 2)  # the cancelled and interrupted ones left out
     text = "\n".join(table_lines(t))
     assert "1 of 3 finished variants (33.3 %)" in text and "3 not finished" in text
     # nothing finished: no fraction, no division by zero
     t0 = robustness_table([_row(status="cancelled")], "rob")
-    assert (t0["n"], t0["fraction"], t0["unfinished"]) == (0, None, 1)
+    assert (t0.n, t0.fraction, t0.unfinished) == (0, None, 1)
     assert "0 of 0 finished variants (-)" in "\n".join(table_lines(t0))

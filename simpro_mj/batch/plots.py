@@ -36,8 +36,9 @@ from matplotlib.figure import Figure
 from controllers.geometry import H0
 from simpro_mj.analysis.cue_metrics import FLOORS
 from simpro_mj.analysis.verdict import VERDICTS
-from simpro_mj.batch.robustness import map_figure
+from simpro_mj.batch.robustness import RobustnessTable, map_figure
 from simpro_mj.batch.summary import RUN_STATUSES
+from simpro_mj.batch.tables import StabilityLimit
 from simpro_mj.config.sweep import format_value
 from simpro_mj.report.figures import envelope, legend_mismatches, log_ticks, save
 from simpro_mj.report.results import read_timeseries
@@ -88,14 +89,16 @@ def _save(fig: Figure | None, path: Path) -> Path | None:
     return None if fig is None else save(fig, path, DPI)
 
 
-def plot_metric_vs_param(rows: list[dict], info: Mapping, stability: list[dict], out: Path):
+def plot_metric_vs_param(
+    rows: list[dict], info: Mapping, stability: list[StabilityLimit], out: Path
+):
     """Metrics against the swept parameter (module docstring); None if not applicable."""
     fig = metric_vs_param_figure(rows, info, stability)
     label = fig.get_label() if fig is not None else ""
     return _save(fig, out / f"{info['folder']}_vs_{label}.png")
 
 
-def metric_vs_param_figure(rows: list[dict], info: Mapping, stability: list[dict]):
+def metric_vs_param_figure(rows: list[dict], info: Mapping, stability: list[StabilityLimit]):
     """The figure of :func:`plot_metric_vs_param` (its label: the swept key's last part)."""
     grid = info["grid_paths"]
     if info["monte_carlo"] or not grid:
@@ -144,9 +147,9 @@ def metric_vs_param_figure(rows: list[dict], info: Mapping, stability: list[dict
                 ax.plot(xs, ana, "--", color=col, lw=1.0, label=f"{name} (analysis)")
     limits = set()  # which kinds of limit line are drawn (each in the legend once)
     for s in stability:
-        name = ", ".join(f"{k.split('.')[-1]}={v}" for k, v in s["group"].items()) or "all"
+        name = ", ".join(f"{k.split('.')[-1]}={v}" for k, v in s.group.items()) or "all"
         col = colours.get(name, "k")
-        limit_a, limit_s = s.get("analytic_limit"), s.get("simulated_limit")
+        limit_a, limit_s = s.analytic_limit, s.simulated_limit
         for kind, x, ls, lw in (("analytic", limit_a, "--", 0.9), ("simulated", limit_s, ":", 1.2)):
             if x is None or not math.isfinite(x):
                 continue
@@ -361,10 +364,10 @@ def plot_mc(rows: list[dict], info: Mapping, out: Path):
     return _save(fig, out / f"{info['folder']}_mc_ss_error.png")
 
 
-def plot_robustness_map(rows: list[dict], tables: list[dict], info: Mapping, out: Path):
+def plot_robustness_map(rows: list[dict], tables: list[RobustnessTable], info: Mapping, out: Path):
     """The payload x friction map of a Monte Carlo file that draws both
     (:func:`simpro_mj.batch.robustness.map_figure`)."""
-    table = next((t for t in tables if t["scenario"] == info["scenario"]), None)
+    table = next((t for t in tables if t.scenario == info["scenario"]), None)
     if table is None:
         return None
     return _save(map_figure(rows, table), out / f"{info['folder']}_map.png")
@@ -385,7 +388,7 @@ def plot_summary(report, jobs) -> list[Path]:
         ]
         if not rows:
             continue
-        stab = [s for s in report.stability if s["scenario"] == info["scenario"]]
+        stab = [s for s in report.stability if s.scenario == info["scenario"]]
         for p in (
             plot_metric_vs_param([r for r in rows if r["status"] != "invalid"], info, stab, out),
             plot_responses(rows, info, Path(report.out), out),

@@ -21,6 +21,7 @@ neither a success nor a failure; the table counts those apart as ``unfinished``.
 from __future__ import annotations
 
 from collections.abc import Mapping
+from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
@@ -30,6 +31,9 @@ __all__ = [
     "PAYLOAD",
     "COULOMB",
     "UNFINISHED",
+    "Cell",
+    "Floors",
+    "RobustnessTable",
     "meets_floors",
     "worst",
     "robustness_table",
@@ -100,13 +104,52 @@ def _cell(edges, x: float) -> int:
     return int(np.clip(np.searchsorted(edges, x, side="right") - 1, 0, len(edges) - 2))
 
 
-def robustness_table(rows: list[dict], name: str) -> dict | None:
-    """The floors over the finished variants of scenario file ``name`` that drew
-    payload and friction: ``{scenario, n, met, fraction, unfinished, floors, statuses,
-    cells}``; ``n`` the finished variants, ``unfinished`` those the batch did not
-    finish (module docstring), ``statuses`` the finished ones' statuses; ``cells`` one
-    per payload x friction cell ``{payload_kg, coulomb_n, n, met, fraction}``. None
-    when no variant drew both; ``fraction`` None when none finished."""
+@dataclass
+class Floors:
+    """What a variant must meet (module docstring)."""
+
+    overshoot_pct: float = OVERSHOOT_PCT
+    settling_s: float = SETTLING_S
+    status: str = "ok"
+
+
+@dataclass
+class Cell:
+    """One payload x friction cell: its bands, its finished variants and those that met."""
+
+    payload_kg: list[float]
+    coulomb_n: list[float]
+    n: int
+    met: int
+    fraction: float | None
+
+
+@dataclass
+class RobustnessTable:
+    """The floors over the finished variants of one scenario file that drew payload and
+    friction: ``n`` the finished variants, ``unfinished`` those the batch did not finish
+    (module docstring), ``statuses`` the finished ones' statuses, ``cells`` one per
+    payload x friction cell (payload rows, friction columns); ``fraction`` None when
+    none finished."""
+
+    scenario: str
+    n: int
+    met: int
+    fraction: float | None
+    unfinished: int
+    floors: Floors = field(default_factory=Floors)
+    statuses: dict[str, int] = field(default_factory=dict)
+    cells: list[Cell] = field(default_factory=list)
+    payload_edges: list[float] = field(default_factory=list)
+    coulomb_edges: list[float] = field(default_factory=list)
+
+    def to_json(self) -> dict:
+        return asdict(self)
+
+
+def robustness_table(rows: list[dict], name: str) -> RobustnessTable | None:
+    """The :class:`RobustnessTable` of scenario file ``name``; None when no variant
+    drew both payload and friction."""
     drawn = [(r, p) for r in rows if r["scenario"] == name and (p := _point(r)) is not None]
     if not drawn:
         return None
@@ -126,54 +169,53 @@ def robustness_table(rows: list[dict], name: str) -> dict | None:
                 if _cell(pay_edges, pay) == i and _cell(cou_edges, cou) == j
             ]
             cells.append(
-                {
-                    "payload_kg": [pay_edges[i], pay_edges[i + 1]],
-                    "coulomb_n": [cou_edges[j], cou_edges[j + 1]],
-                    "n": len(inside),
-                    "met": sum(inside),
-                    "fraction": sum(inside) / len(inside) if inside else None,
-                }
+                Cell(
+                    payload_kg=[pay_edges[i], pay_edges[i + 1]],
+                    coulomb_n=[cou_edges[j], cou_edges[j + 1]],
+                    n=len(inside),
+                    met=sum(inside),
+                    fraction=sum(inside) / len(inside) if inside else None,
+                )
             )
-    return {
-        "scenario": name,
-        "n": len(pts),
-        "met": sum(met),
-        "fraction": sum(met) / len(pts) if pts else None,
-        "unfinished": len(drawn) - len(pts),
-        "floors": {"overshoot_pct": OVERSHOOT_PCT, "settling_s": SETTLING_S, "status": "ok"},
-        "statuses": statuses,
-        "cells": cells,
-        "payload_edges": list(pay_edges),
-        "coulomb_edges": list(cou_edges),
-    }
+    return RobustnessTable(
+        scenario=name,
+        n=len(pts),
+        met=sum(met),
+        fraction=sum(met) / len(pts) if pts else None,
+        unfinished=len(drawn) - len(pts),
+        statuses=statuses,
+        cells=cells,
+        payload_edges=list(pay_edges),
+        coulomb_edges=list(cou_edges),
+    )
 
 
-def table_lines(table: Mapping) -> list[str]:
+def table_lines(table: RobustnessTable) -> list[str]:
     """The table as text: the fraction, then one row per payload band."""
-    f = table["floors"]
-    pay_edges, cou_edges = table["payload_edges"], table["coulomb_edges"]
+    f = table.floors
+    pay_edges, cou_edges = table.payload_edges, table.coulomb_edges
     per_row = len(cou_edges) - 1
     lines = [
-        f"\nRobustness {table['scenario']}: {fraction_text(table)} meet overshoot <= "
-        f"{f['overshoot_pct']:g} %, settling <= {f['settling_s']:g} s, status ok; statuses "
-        + (", ".join(f"{k} {v}" for k, v in sorted(table["statuses"].items())) or "none"),
+        f"\nRobustness {table.scenario}: {fraction_text(table)} meet overshoot <= "
+        f"{f.overshoot_pct:g} %, settling <= {f.settling_s:g} s, status ok; statuses "
+        + (", ".join(f"{k} {v}" for k, v in sorted(table.statuses.items())) or "none"),
         "  met / n per cell (n: finished variants): payload (kg) rows, smallest Coulomb "
         "friction of a leg (N) columns",
         "  " + " " * 10 + "".join(f"{_band(cou_edges, j):>10}" for j in range(per_row)),
     ]
     for i in range(len(pay_edges) - 1):
-        cells = table["cells"][i * per_row : (i + 1) * per_row]
-        text = "".join(f"{str(c['met']) + '/' + str(c['n']):>10}" for c in cells)
+        cells = table.cells[i * per_row : (i + 1) * per_row]
+        text = "".join(f"{str(c.met) + '/' + str(c.n):>10}" for c in cells)
         lines.append(f"  {_band(pay_edges, i):<10}{text}")
     return lines
 
 
-def fraction_text(table: Mapping) -> str:
+def fraction_text(table: RobustnessTable) -> str:
     """``"51 of 53 finished variants (96.2 %)"``, with the unfinished ones named."""
-    pct = "-" if table["fraction"] is None else f"{100 * table['fraction']:.1f} %"
-    text = f"{table['met']} of {table['n']} finished variants ({pct})"
-    if table.get("unfinished"):
-        text += f" [{table['unfinished']} not finished, not counted]"
+    pct = "-" if table.fraction is None else f"{100 * table.fraction:.1f} %"
+    text = f"{table.met} of {table.n} finished variants ({pct})"
+    if table.unfinished:
+        text += f" [{table.unfinished} not finished, not counted]"
     return text
 
 
@@ -198,7 +240,7 @@ def _verdict_class(row: Mapping) -> str:
     return row["status"] if row["status"] in ("not_settled", "limit_cycle") else "other"
 
 
-def map_figure(rows: list[dict], table: Mapping):
+def map_figure(rows: list[dict], table: RobustnessTable):
     """Payload x the smallest leg's Coulomb friction, coloured by verdict, overshoot, settling
     (a matplotlib Figure; None without points)."""
     from matplotlib.figure import Figure  # when drawn: the batch's start does not load it
@@ -206,7 +248,7 @@ def map_figure(rows: list[dict], table: Mapping):
     pts = [
         (r, p)
         for r in rows
-        if r["scenario"] == table["scenario"]
+        if r["scenario"] == table.scenario
         and (p := _point(r)) is not None
         and r["status"] not in UNFINISHED
     ]
@@ -240,14 +282,14 @@ def map_figure(rows: list[dict], table: Mapping):
                      fontsize=10)  # fmt: skip
     for ax in axes:
         ax.set_xlabel("payload [kg]")
-        ax.set_xlim(table["payload_edges"][0] - 10, table["payload_edges"][-1] + 10)
-        ax.set_ylim(table["coulomb_edges"][0] - 5, table["coulomb_edges"][-1] + 5)
+        ax.set_xlim(table.payload_edges[0] - 10, table.payload_edges[-1] + 10)
+        ax.set_ylim(table.coulomb_edges[0] - 5, table.coulomb_edges[-1] + 5)
         ax.grid(alpha=0.3)
     axes[0].set_ylabel("smallest Coulomb friction of a leg [N]")
-    f = table["floors"]
+    f = table.floors
     fig.suptitle(
-        f"{table['scenario']}: {fraction_text(table)} meet overshoot <= {f['overshoot_pct']:g} %, "
-        f"settling <= {f['settling_s']:g} s, no limit cycle",
+        f"{table.scenario}: {fraction_text(table)} meet overshoot <= {f.overshoot_pct:g} %, "
+        f"settling <= {f.settling_s:g} s, no limit cycle",
         fontsize=11,
     )
     return fig

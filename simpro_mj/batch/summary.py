@@ -25,7 +25,7 @@ import os
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from simpro_mj.analysis.cue_metrics import SUMMARY_COLUMNS, summary_columns
 from simpro_mj.analysis.verdict import FINISHED_STATUSES
@@ -33,6 +33,10 @@ from simpro_mj.batch.plan import Job
 from simpro_mj.batch.stability import analytic
 from simpro_mj.config.sweep import format_value
 from simpro_mj.report.results import jsonable
+
+if TYPE_CHECKING:
+    from simpro_mj.batch.robustness import RobustnessTable
+    from simpro_mj.batch.tables import MonteCarloSpread, StabilityLimit
 
 __all__ = [
     "AXES",
@@ -161,10 +165,10 @@ class Report:
     rows: list[dict]
     paths: list[str]
     files: list[dict]
-    stability: list[dict] = field(default_factory=list)
-    monte_carlo: list[dict] = field(default_factory=list)
+    stability: list[StabilityLimit] = field(default_factory=list)
+    monte_carlo: list[MonteCarloSpread] = field(default_factory=list)
     #: the floors met over payload x friction (simpro_mj.batch.robustness)
-    robustness: list[dict] = field(default_factory=list)
+    robustness: list[RobustnessTable] = field(default_factory=list)
     plots: list[str] = field(default_factory=list)
     skipped: int = 0
     wall_s: float = 0.0

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import sys
 from collections.abc import Mapping
+from dataclasses import asdict, dataclass
 from typing import Any
 
 import numpy as np
@@ -30,7 +31,85 @@ from simpro_mj.batch.robustness import UNFINISHED, table_lines
 from simpro_mj.batch.summary import AXES, SMALL_SIGNAL_ONLY, Report, verdict_note
 from simpro_mj.config.sweep import format_value
 
-__all__ = ["monte_carlo_table", "print_report", "stability_table"]
+__all__ = [
+    "ErrorSpread",
+    "MonteCarloSpread",
+    "SpreadGroup",
+    "StabilityLimit",
+    "monte_carlo_table",
+    "print_report",
+    "stability_table",
+]
+
+
+@dataclass
+class StabilityLimit:
+    """One gain sweep group's stability limit, K K_I (1/s), analytic against simulated.
+
+    ``stable`` and ``statuses`` per gain, the two answers of the module docstring:
+    ``largest_stable`` / ``smallest_unstable`` by the error envelope's growth,
+    ``largest_settled`` / ``smallest_unsettled`` by the verdict; ``simulated_limit``
+    the growth's zero crossing interpolated between them (their midpoint when the
+    growth rates do not bracket zero).
+    """
+
+    scenario: str
+    group: dict[str, str]
+    outer_type: str
+    period_ms: float
+    actuator_model: str
+    gains: list[float]
+    stable: list[bool]
+    growth_rate_1_s: list[float | None]
+    statuses: list[str]
+    largest_stable: float | None
+    smallest_unstable: float | None
+    largest_settled: float | None
+    smallest_unsettled: float | None
+    simulated_limit: float | None
+    analytic_limit: float | None
+    analytic_limit_delay_model: float | None
+    simulated_over_analytic: float | None
+    note: str | None
+
+    def to_json(self) -> dict:
+        return asdict(self)
+
+
+@dataclass
+class ErrorSpread:
+    """|steady-state error| of a group's ok variants on one axis (``unit``: deg or mm)."""
+
+    unit: str
+    median: float | None
+    p90: float | None
+    max: float | None
+
+
+@dataclass
+class SpreadGroup:
+    """One grid combination of a Monte Carlo file: ``n`` its ok variants, ``finished``
+    those that finished, ``of`` all of them; ``axes`` the spread per axis."""
+
+    group: str
+    n: int
+    finished: int
+    of: int
+    axes: dict[str, ErrorSpread]
+
+
+@dataclass
+class MonteCarloSpread:
+    """A Monte Carlo file's spread per grid combination (:func:`monte_carlo_table`)."""
+
+    scenario: str
+    samples: int
+    finished: int
+    unfinished: int
+    groups: list[SpreadGroup]
+
+    def to_json(self) -> dict:
+        return asdict(self)
 
 
 def _gain_list(gains: list[float]) -> str:
@@ -47,7 +126,7 @@ def _gain(values: Mapping) -> float | None:
     return None
 
 
-def stability_table(rows: list[dict], jobs: list[Job]) -> list[dict]:
+def stability_table(rows: list[dict], jobs: list[Job]) -> list[StabilityLimit]:
     """Analytic vs simulated stability limit per gain sweep group (module docstring)."""
 
     groups: dict[tuple, list[tuple[float, dict, Job]]] = {}
@@ -105,31 +184,31 @@ def stability_table(rows: list[dict], jobs: list[Job]) -> list[dict]:
                 "<= the verdict's"
             )
         table.append(
-            {
-                "scenario": sname,
-                "group": {p: v for p, v in others},
-                "outer_type": first["controller"]["outer"]["type"],
-                "period_ms": first["controller"]["outer"]["period_ms"],
-                "actuator_model": first["actuator"]["model"],
-                "gains": gains,
-                "stable": stable,
-                "growth_rate_1_s": [m[1]["growth_rate_1_s"] for m in members],
-                "statuses": statuses,
-                "largest_stable": lo,
-                "smallest_unstable": hi,
-                "largest_settled": settled_lo,
-                "smallest_unsettled": settled_hi,
-                "simulated_limit": estimate,
-                "analytic_limit": ana,
-                "analytic_limit_delay_model": members[0][1].get("analytic_limit_delay_model"),
-                "simulated_over_analytic": (estimate / ana) if estimate and ana else None,
-                "note": "; ".join(note) or None,
-            }
+            StabilityLimit(
+                scenario=sname,
+                group={p: v for p, v in others},
+                outer_type=first["controller"]["outer"]["type"],
+                period_ms=first["controller"]["outer"]["period_ms"],
+                actuator_model=first["actuator"]["model"],
+                gains=gains,
+                stable=stable,
+                growth_rate_1_s=[m[1]["growth_rate_1_s"] for m in members],
+                statuses=statuses,
+                largest_stable=lo,
+                smallest_unstable=hi,
+                largest_settled=settled_lo,
+                smallest_unsettled=settled_hi,
+                simulated_limit=estimate,
+                analytic_limit=ana,
+                analytic_limit_delay_model=members[0][1].get("analytic_limit_delay_model"),
+                simulated_over_analytic=(estimate / ana) if estimate and ana else None,
+                note="; ".join(note) or None,
+            )
         )
     return table
 
 
-def monte_carlo_table(rows: list[dict], jobs: list[Job]) -> list[dict]:
+def monte_carlo_table(rows: list[dict], jobs: list[Job]) -> list[MonteCarloSpread]:
     """Distribution of |steady-state error| per Monte Carlo file and grid combination.
 
     Per axis the median, 90th percentile and maximum over the variants with
@@ -162,33 +241,17 @@ def monte_carlo_table(rows: list[dict], jobs: list[Job]) -> list[dict]:
                         if r[f"{axis}_ss_err_{unit}"] is not None
                     ]
                 )
-                axes[axis] = {
-                    "unit": unit,
-                    "median": float(np.median(v)) if v.size else None,
-                    "p90": float(np.percentile(v, 90)) if v.size else None,
-                    "max": float(v.max()) if v.size else None,
-                }
+                axes[axis] = ErrorSpread(
+                    unit=unit,
+                    median=float(np.median(v)) if v.size else None,
+                    p90=float(np.percentile(v, 90)) if v.size else None,
+                    max=float(v.max()) if v.size else None,
+                )
             finished = sum(r["status"] not in UNFINISHED for r in members)
-            groups.append(
-                {
-                    "group": name,
-                    "n": len(ok),
-                    "finished": finished,
-                    "of": len(members),
-                    "axes": axes,
-                }
-            )
-        finished = sum(g["finished"] for g in groups)
-        total = sum(g["of"] for g in groups)
-        out.append(
-            {
-                "scenario": sname,
-                "samples": f["samples"],
-                "finished": finished,
-                "unfinished": total - finished,
-                "groups": groups,
-            }
-        )
+            groups.append(SpreadGroup(name, len(ok), finished, len(members), axes))
+        finished = sum(g.finished for g in groups)
+        total = sum(g.of for g in groups)
+        out.append(MonteCarloSpread(sname, f["samples"], finished, total - finished, groups))
     return out
 
 
@@ -238,23 +301,22 @@ def print_report(report: Report, file=None) -> None:
         file=file,
     )
     for m in report.monte_carlo:
-        unfinished = f"; {m['unfinished']} not finished, not counted" if m.get("unfinished") else ""
+        unfinished = f"; {m.unfinished} not finished, not counted" if m.unfinished else ""
         print(
-            f"\nMonte Carlo {m['scenario']}, |steady-state error| of the ok variants "
-            f"(n: ok of the finished; {m['samples']} samples drawn{unfinished}) "
+            f"\nMonte Carlo {m.scenario}, |steady-state error| of the ok variants "
+            f"(n: ok of the finished; {m.samples} samples drawn{unfinished}) "
             "(median / 90th percentile / max):",
             file=file,
         )
-        for g in m["groups"]:
+        for g in m.groups:
             cells = []
             for axis, unit, _ in AXES:
-                st = g["axes"][axis]
+                st = g.axes[axis]
                 cells.append(
-                    f"{axis} {_num(st['median'], 3)} / {_num(st['p90'], 3)} / "
-                    f"{_num(st['max'], 3)} {unit}"
+                    f"{axis} {_num(st.median, 3)} / {_num(st.p90, 3)} / {_num(st.max, 3)} {unit}"
                 )
-            n = f"{g['n']}/{g['finished']}"
-            print(f"  {g['group']:<24} n={n:<7} " + "; ".join(cells), file=file)
+            n = f"{g.n}/{g.finished}"
+            print(f"  {g.group:<24} n={n:<7} " + "; ".join(cells), file=file)
     for table in report.robustness:
         print("\n".join(table_lines(table)), file=file)
     if report.stability:
@@ -270,17 +332,17 @@ def print_report(report: Report, file=None) -> None:
             file=file,
         )
         for s in report.stability:
-            group = ",".join(f"{k.split('.')[-1]}={v}" for k, v in s["group"].items()) or "-"
+            group = ",".join(f"{k.split('.')[-1]}={v}" for k, v in s.group.items()) or "-"
             print(
-                f"{s['scenario']:<20} {group:<26} {_num(s['analytic_limit']):>9} "
-                f"{_num(s['analytic_limit_delay_model']):>9} {_num(s['largest_stable']):>9} "
-                f"{_num(s['smallest_unstable']):>11} {_num(s['simulated_limit']):>9} "
-                f"{_num(s['simulated_over_analytic'], 3):>7} "
-                f"{_num(s['largest_settled']):>10} {_num(s['smallest_unsettled']):>12}",
+                f"{s.scenario:<20} {group:<26} {_num(s.analytic_limit):>9} "
+                f"{_num(s.analytic_limit_delay_model):>9} {_num(s.largest_stable):>9} "
+                f"{_num(s.smallest_unstable):>11} {_num(s.simulated_limit):>9} "
+                f"{_num(s.simulated_over_analytic, 3):>7} "
+                f"{_num(s.largest_settled):>10} {_num(s.smallest_unsettled):>12}",
                 file=file,
             )
-            if s["note"]:
-                print(f"    note: {s['note']}", file=file)
+            if s.note:
+                print(f"    note: {s.note}", file=file)
     for text, count in report.notices.items():
         print(f"\n{text} ({count} variant{'s' if count != 1 else ''})", file=file)
     c = report.counts

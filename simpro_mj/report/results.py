@@ -116,7 +116,10 @@ def versions(resolved: Mapping | None = None) -> dict:
 
 
 def jsonable(obj: Any) -> Any:
-    """Plain JSON types: numpy scalars/arrays converted, NaN and inf as null."""
+    """Plain JSON types: numpy scalars/arrays converted, NaN and inf as null, a typed
+    record by its ``to_json()``."""
+    if callable(getattr(obj, "to_json", None)):
+        return jsonable(obj.to_json())
     if isinstance(obj, Mapping):
         return {str(k): jsonable(v) for k, v in obj.items()}
     if isinstance(obj, (list, tuple)):
