@@ -25,7 +25,9 @@ import warnings
 from collections import deque
 from concurrent.futures import ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from tqdm import tqdm
@@ -95,7 +97,37 @@ def check_joints(rec) -> None:
 
 # ---------------------------------------------------------------- workers
 
-_WORKER: dict = {}
+
+@dataclass
+class PanelJob:
+    """One run's panel of the video, per frame: what a worker draws (pickled to it)."""
+
+    scenario: dict
+    qpos: np.ndarray
+    times: np.ndarray
+    #: where the strip's cursor stands (0 at the start, 1 at the end)
+    frac: np.ndarray
+    #: the run's name, when runs stand side by side
+    label: np.ndarray | None = None
+    #: the set-point's ghost per frame (None: no ghost)
+    ghost_pos: np.ndarray | None = None
+    ghost_quat: np.ndarray | None = None
+    #: the plot strip under the view and its axes' boxes (None: no strip)
+    strip: np.ndarray | None = None
+    boxes: Any = None
+
+
+@dataclass
+class _Worker:
+    """A render worker's state (:func:`_worker_init`): its scenes or why it cannot render."""
+
+    error: str | None = "worker not initialised"
+    scenes: list = field(default_factory=list)
+    jobs: list[PanelJob] = field(default_factory=list)
+    text: Any = None
+
+
+_WORKER = _Worker()
 
 
 def _worker_init(
@@ -111,23 +143,23 @@ def _worker_init(
     watch_parent(parent)
     os.environ["MUJOCO_GL"] = gl  # before MuJoCo is imported in this (spawned) process
     warnings.simplefilter("ignore")  # GLFW/OpenGL warnings: a failure is reported in one line
-    _WORKER["error"] = None
+    _WORKER.error = None
     try:
         with open(jobs_file, "rb") as fh:
             jobs = pickle.load(fh)
-        _WORKER["scenes"] = [
-            ReplayScene(job["scenario"], width, height, camera, ghost, shadows) for job in jobs
+        _WORKER.scenes = [
+            ReplayScene(job.scenario, width, height, camera, ghost, shadows) for job in jobs
         ]
     except Exception as exc:  # noqa: BLE001 - reported by _probe as the backend's failure
-        _WORKER["error"] = f"{type(exc).__name__}: {one_line(exc)}"
+        _WORKER.error = f"{type(exc).__name__}: {one_line(exc)}"
         return
-    _WORKER["jobs"] = jobs
-    _WORKER["text"] = TextStamp(text_px(width, height))
+    _WORKER.jobs = jobs
+    _WORKER.text = TextStamp(text_px(width, height))
 
 
 def _probe(_=None):
     """None if this worker can render, else why not."""
-    return _WORKER.get("error", "worker not initialised")
+    return _WORKER.error
 
 
 def _render_frames(indices) -> tuple[list[np.ndarray], float]:
@@ -136,18 +168,20 @@ def _render_frames(indices) -> tuple[list[np.ndarray], float]:
     frames = []
     for i in indices:
         panels = []
-        for scene, job in zip(_WORKER["scenes"], _WORKER["jobs"], strict=True):
-            gp, gq = (job["ghost_pos"][i], job["ghost_quat"][i]) if job["ghost"] else (None, None)
-            scene.pose(job["qpos"][i], gp, gq)
+        for scene, job in zip(_WORKER.scenes, _WORKER.jobs, strict=True):
+            gp = gq = None
+            if job.ghost_pos is not None and job.ghost_quat is not None:  # the set-point's ghost
+                gp, gq = job.ghost_pos[i], job.ghost_quat[i]
+            scene.pose(job.qpos[i], gp, gq)
             view = scene.render()
             # the simulated time, top right: what the strip's cursor marks
-            _WORKER["text"].stamp(view, f"t = {job['times'][i]:6.2f} s", view.shape[1] - 4, 4)
-            label = job.get("label")
+            _WORKER.text.stamp(view, f"t = {job.times[i]:6.2f} s", view.shape[1] - 4, 4)
+            label = job.label
             if label is not None:  # runs side by side: which is which
                 lh, lw = min(label.shape[0], view.shape[0]), min(label.shape[1], view.shape[1])
                 view[:lh, :lw] = label[:lh, :lw]
-            if job["strip"] is not None:
-                strip = draw_cursor(job["strip"], job["boxes"], job["frac"][i])
+            if job.strip is not None:
+                strip = draw_cursor(job.strip, job.boxes, job.frac[i])
                 view = np.concatenate([view, strip], axis=0)
             panels.append(view)
         frames.append(np.concatenate(panels, axis=1) if len(panels) > 1 else panels[0])
@@ -248,21 +282,18 @@ def render_video(
     wjobs = []
     for rec in recs:
         rows = nearest_rows(rec.time_s, times)
-        job = {
-            "scenario": rec.scenario,
-            "qpos": rec.qpos[rows],
-            "ghost": ghost,
-            "strip": None,
-            "boxes": None,
-            "frac": (times - start) / (end - start),
-            "times": times,
-            "label": label_image(rec.name, height) if len(recs) > 1 else None,
-        }
+        job = PanelJob(
+            scenario=rec.scenario,
+            qpos=rec.qpos[rows],
+            times=times,
+            frac=(times - start) / (end - start),
+            label=label_image(rec.name, height) if len(recs) > 1 else None,
+        )
         if ghost:
-            job["ghost_pos"], job["ghost_quat"] = ghost_poses(rec.columns, nearest_rows(
+            job.ghost_pos, job.ghost_quat = ghost_poses(rec.columns, nearest_rows(
                 rec.columns["time_s"], times))  # fmt: skip
         if plots:
-            job["strip"], job["boxes"] = plot_strip(rec, width, strip_h, start, end)
+            job.strip, job.boxes = plot_strip(rec, width, strip_h, start, end)
         wjobs.append(job)
     out = Path(out)
     n = len(times)
