@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from typing import Any
+from dataclasses import asdict, dataclass
 
 import numpy as np
 
@@ -46,6 +46,8 @@ __all__ = [
     "FINAL_WINDOW_FRACTION",
     "SETTLING_BAND",
     "SETTLING_FLOOR",
+    "AxisMetrics",
+    "StepFigures",
     "compute_metrics",
     "final_window",
     "step_info",
@@ -100,6 +102,36 @@ def _finite_prefix(columns: Mapping, names) -> int:
     return n
 
 
+@dataclass
+class StepFigures:
+    """A step response's figures (:func:`step_info`); None where one does not apply."""
+
+    output_change: float
+    rise_time_s: float | None = None
+    overshoot_pct: float | None = None
+    settling_time_s: float | None = None
+    settling_band: float | None = None
+    #: None, or why figures are None
+    note: str | None = None
+
+
+@dataclass
+class AxisMetrics:
+    """One task axis's figures in ``metrics.json`` (SI; :data:`DEFINITIONS`)."""
+
+    steady_state_error: float | None = None
+    steady_state_error_measured: float | None = None
+    rise_time_s: float | None = None
+    settling_time_s: float | None = None
+    overshoot_pct: float | None = None
+    iae: float | None = None
+    rms_error: float | None = None
+    max_abs_error: float | None = None
+    #: the last step's time, reference and output changes and settling band
+    step: dict | None = None
+    note: str | None = None
+
+
 def _crossing(t: np.ndarray, s: np.ndarray, level: float) -> float | None:
     """First time ``s`` reaches ``level`` (interpolated), or None."""
     idx = np.flatnonzero(s >= level)
@@ -119,7 +151,7 @@ def step_info(
     y_final: float,
     ref_change: float,
     floor: float = 0.0,
-) -> dict:
+) -> StepFigures:
     """Rise time, overshoot and settling time of a step response.
 
     Not :func:`controllers.analysis.step_metrics` (:func:`control.step_info`):
@@ -145,24 +177,15 @@ def step_info(
 
     Returns
     -------
-    dict
-        ``rise_time_s``, ``overshoot_pct``, ``settling_time_s``,
-        ``output_change``, ``settling_band`` and ``note`` (None or why the
-        figures are null).
+    StepFigures
+        None where a figure does not apply, and the ``note`` says why.
     """
     before = np.flatnonzero(t < t_step)
     y0 = float(y[before[-1]]) if before.size else float(y[0])
     dy = float(y_final) - y0
-    out: dict[str, Any] = {
-        "output_change": dy,
-        "rise_time_s": None,
-        "overshoot_pct": None,
-        "settling_time_s": None,
-        "settling_band": None,
-        "note": None,
-    }
+    out = StepFigures(output_change=dy)
     if ref_change == 0 or dy / ref_change < MIN_RESPONSE:
-        out["note"] = (
+        out.note = (
             f"the output moved by {dy:.4g} for a reference step of {ref_change:.4g} "
             f"(< {MIN_RESPONSE:.0%}): no step-response figures"
         )
@@ -172,21 +195,21 @@ def step_info(
     s = (ya - y0) / dy
     t10, t90 = _crossing(ta, s, 0.1), _crossing(ta, s, 0.9)
     if t10 is not None and t90 is not None:
-        out["rise_time_s"] = t90 - t10
-    out["overshoot_pct"] = 100.0 * max(0.0, float(s.max()) - 1.0)
+        out.rise_time_s = t90 - t10
+    out.overshoot_pct = 100.0 * max(0.0, float(s.max()) - 1.0)
     band = max(SETTLING_BAND * abs(dy), floor)
-    out["settling_band"] = band
+    out.settling_band = band
     dev = np.abs(ya - y_final)
     outside = np.flatnonzero(dev > band)
     if outside.size == 0:
-        out["settling_time_s"] = 0.0
+        out.settling_time_s = 0.0
     elif outside[-1] == ya.size - 1:
-        out["note"] = "not settled at the end of the run"
+        out.note = "not settled at the end of the run"
     else:
         k = int(outside[-1])
         d0, d1 = dev[k], dev[k + 1]
         tc = ta[k] + (d0 - band) / (d0 - d1) * (ta[k + 1] - ta[k])
-        out["settling_time_s"] = float(tc - t_step)
+        out.settling_time_s = float(tc - t_step)
     return out
 
 
@@ -238,47 +261,38 @@ def compute_metrics(columns: Mapping[str, np.ndarray], scenario: Mapping) -> dic
         raise KeyError(f"compute_metrics: missing columns {missing}")
     n = _finite_prefix(columns, needed)
     t = np.asarray(columns["time_s"], dtype=float)[:n]
+    axes: dict[str, dict] = {}
+    joints: dict[str, dict] = {}
     result: dict = {
         "n_samples": n,
         "final_window_s": None,
         "units": dict(UNITS),
         "definitions": dict(DEFINITIONS),
-        "axes": {},
-        "joints": {},
-    }
-    empty: dict[str, Any] = {
-        "steady_state_error": None,
-        "steady_state_error_measured": None,
-        "rise_time_s": None,
-        "settling_time_s": None,
-        "overshoot_pct": None,
-        "iae": None,
-        "rms_error": None,
-        "max_abs_error": None,
-        "step": None,
-        "note": None,
+        "axes": axes,
+        "joints": joints,
     }
     if n < 2:
         for axis in AXES:
-            result["axes"][axis] = dict(empty, note="fewer than 2 finite samples")
+            axes[axis] = asdict(AxisMetrics(note="fewer than 2 finite samples"))
         return result
     w0, w1 = final_window(t)
-    result["final_window_s"] = [w0, w1]
+    result.update(final_window_s=[w0, w1])
     in_window = t >= w0
     for axis in AXES:
         ref = np.asarray(columns[_REF[axis]], dtype=float)[:n]
         y = np.asarray(columns[_TRUE[axis]], dtype=float)[:n]
         e = ref - y
-        m = dict(empty)
-        m["steady_state_error"] = float(e[in_window].mean())
+        m = AxisMetrics(
+            steady_state_error=float(e[in_window].mean()),
+            iae=_trapz(np.abs(e), t),
+            rms_error=float(np.sqrt(np.mean(e**2))),
+            max_abs_error=float(np.abs(e).max()),
+        )
         if _MEAS[axis] in columns:
             ym = np.asarray(columns[_MEAS[axis]], dtype=float)[:n]
             em = (ref - ym)[in_window]
             if np.all(np.isfinite(em)):
-                m["steady_state_error_measured"] = float(em.mean())
-        m["iae"] = _trapz(np.abs(e), t)
-        m["rms_error"] = float(np.sqrt(np.mean(e**2)))
-        m["max_abs_error"] = float(np.abs(e).max())
+                m.steady_state_error_measured = float(em.mean())
         step = _last_step(scenario, axis, float(t[-1]))
         if step is not None:
             t_step, _ = step
@@ -289,23 +303,23 @@ def compute_metrics(columns: Mapping[str, np.ndarray], scenario: Mapping) -> dic
                 ref_change = step[1]
             y_final = float(y[in_window].mean()) if w0 > t_step else float(y[-1])
             info = step_info(t, y, t_step, y_final, ref_change, SETTLING_FLOOR[axis])
-            m["step"] = {
+            m.step = {
                 "time_s": t_step,
                 "reference_change": ref_change,
-                "output_change": info["output_change"],
-                "settling_band": info["settling_band"],
+                "output_change": info.output_change,
+                "settling_band": info.settling_band,
             }
-            for key in ("rise_time_s", "settling_time_s", "overshoot_pct", "note"):
-                m[key] = info[key]
-        result["axes"][axis] = m
+            m.rise_time_s, m.settling_time_s = info.rise_time_s, info.settling_time_s
+            m.overshoot_pct, m.note = info.overshoot_pct, info.note
+        axes[axis] = asdict(m)
     if scenario.get("setpoint", {}).get("cueing") and "head_fx_mps2" in columns:
-        result["cueing"] = cue_metrics(columns, scenario)
+        result.update(cueing=cue_metrics(columns, scenario))
     for i in (1, 2, 3):
         qr, qm = f"q{i}_ref_m", f"q{i}_m"
         if qr in columns and qm in columns:
             eq = np.asarray(columns[qr], dtype=float)[:n] - np.asarray(columns[qm], dtype=float)[:n]
             if np.all(np.isfinite(eq)):
-                result["joints"][f"q{i}"] = {
+                joints[f"q{i}"] = {
                     "steady_state_error_m": float(eq[in_window].mean()),
                     "iae": _trapz(np.abs(eq), t),
                 }
