@@ -34,6 +34,7 @@ from simpro_mj.config.scenario import load_scenario, scenario_hash, scenarios_di
 from simpro_mj.config.sweep import expand, parse_sweep
 from simpro_mj.config.variants import load_sweep
 from simpro_mj.core.errors import UserInputError
+from simpro_mj.report import marker
 
 BASE = {
     "duration_s": 1.0,
@@ -297,6 +298,36 @@ def test_resume_skips_complete_and_recomputes_incomplete(tmp_path, monkeypatch):
     assert calls == [1.0, 2.0, 3.0]
 
 
+def test_plots_drawn_for_examples_and_failing_variants_only(tmp_path):
+    """``--plots examples`` (the default) draws the first variant's figures only;
+    ``failing`` also those of every variant whose status is not ok (gain 30 is past
+    the outer loop's stability limit), moved in whole (no temporary folder left);
+    ``none`` none. The rows are the same whichever is drawn."""
+    path = _grid_file(tmp_path, **{"controller.outer.gains": [2, 4, 30]})
+    common = [str(path), "--set", "duration_s=3", "--jobs", "1"]
+    out = {w: tmp_path / w for w in ("examples", "failing", "none")}
+    assert main(["batch", *common, "--out", str(out["examples"])]) == 1
+    assert main(["batch", *common, "--out", str(out["failing"]), "--plots", "failing"]) == 1
+    assert main(["batch", *common, "--out", str(out["none"]), "--no-plots"]) == 1
+    rows = _read_csv(out["failing"] / "summary.csv")
+    status = {r["variant"]: r["status"] for r in rows}
+    assert status["gains=30"] != "ok" and status["gains=4"] == "ok", status
+    figures = {"task_space.png", "joints.png", "valves.png", "pressures.png"}
+
+    def drawn(which: str, variant: str) -> set:
+        return {p.name for p in (out[which] / "g" / variant).glob("*.png")}
+
+    for variant, verdict in status.items():
+        example = variant == "gains=2"
+        assert drawn("examples", variant) == (figures if example else set())
+        assert drawn("failing", variant) == (figures if example or verdict != "ok" else set())
+        assert drawn("none", variant) == set()
+        assert marker.is_complete(out["failing"] / "g" / variant)  # the figures listed as ours
+    assert not [p for p in tmp_path.rglob("*") if ".simpro-tmp-" in p.name]
+    csvs = [_drop_wall_clock((o / "summary.csv").read_text()) for o in out.values()]
+    assert csvs[0] == csvs[1] == csvs[2]
+
+
 def _batch_exit(out) -> int:
     """A batch's exit status from its summary: 0 when every variant is ok, else 1."""
     rows = _read_csv(out / "summary.csv")
@@ -322,7 +353,7 @@ def test_threads_and_dask_agree_and_plots_written(tmp_path):
     pool, dask = tmp_path / "threads", tmp_path / "dask"
     common = [str(path), str(mc), "--set", "duration_s=1.5"]
     # gain 30 is unstable: the runs complete, never ok (the verdict), exit 1, stable false;
-    # two threads of this process, then a local cluster of one worker process (and its
+    # two worker processes (the default), then a local cluster of one worker process (and its
     # nanny): the tasks shipped to another process are what the comparison is about
     assert main(["batch", *common, "--jobs", "2", "--out", str(pool)]) == 1
     assert main(["batch", *common, "--jobs", "1", "--out", str(dask), "--scheduler", "local",

@@ -152,11 +152,12 @@ def test_a_signal_stops_a_batch_in_this_process(tmp_path):
 
 @linux
 def test_a_signal_stops_a_threaded_batch(tmp_path):
-    """``--jobs 2`` on threads (the default): SIGTERM reaches the main thread, the
+    """``--jobs 2 --threads``: SIGTERM reaches the main thread, the
     running simulations are asked to stop at their next chunk and hand back what
     they computed; the batch writes its summary and exits 130."""
     out = tmp_path / "out"
-    argv = ["batch", str(_sweep(tmp_path)), "--jobs", "2", "--out", str(out), "--no-plots"]
+    argv = ["batch", str(_sweep(tmp_path)), "--jobs", "2", "--threads", "--out", str(out),
+            "--no-plots"]  # fmt: skip
     rc, stderr, _, ready = _signal_when_ready(tmp_path, argv, signal.SIGTERM)
     assert ready.read_text().split()[0] == "batch"
     assert rc == 130, stderr

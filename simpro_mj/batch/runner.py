@@ -18,11 +18,15 @@ model, runs, writes a normal result folder (:func:`simpro_mj.report.runner.execu
 atomic) and returns a small dict. No model is ever pickled.
 
 * ``--jobs N`` (default ``os.cpu_count()``, at most :data:`MAX_JOBS`): N
-  threads of this process, never more than the variants to run (the
-  compiled step runs inside ``mj_step``, which releases the GIL, so the
-  threads share the cores; no process starts, nothing is pickled);
-  ``--processes``: a ``ProcessPoolExecutor`` with ``spawn`` workers instead;
-  ``--jobs 1`` runs in this process, one after another.
+  spawned worker processes (a ``ProcessPoolExecutor``), never more than the
+  variants to run. Each worker pays the fixed start-up (imports, numba's cache of
+  the compiled step, MuJoCo's callback) once and then takes variant after
+  variant; a variant's figures, its ``timeseries.csv`` and its analysis run in
+  Python and hold a process's GIL, so processes keep every core busy where
+  threads would wait on each other. ``--threads``: N threads of this process
+  instead (no process starts, nothing is pickled; the compiled step runs inside
+  ``mj_step``, which releases the GIL, but the rest of a variant does not).
+  ``--jobs 1``, or a batch of one variant to run, runs in this process.
 * ``--scheduler ADDRESS``: the same tasks on a running Dask distributed
   scheduler; ``--scheduler local`` starts a ``LocalCluster`` of ``--jobs``
   single-threaded worker processes (no more than the variants to run). The
@@ -30,6 +34,15 @@ atomic) and returns a small dict. No model is ever pickled.
   results land in the same layout here whether or not the workers share this
   file system
   (``pip install 'simpro-sim[cluster]'``).
+* Per-variant figures (``--plots``, :data:`PLOTS`): ``examples`` (default) draws
+  the figures of each file's first variant (a file without a ``sweep:`` block is one
+  variant: its run's figures, as ``simpro-sim run`` draws them); ``failing`` also
+  those of every variant whose status is not ``ok``; ``all`` every variant's;
+  ``none`` (``--no-plots``) none. A run's four figures cost several times its
+  stepping, so a sweep draws only what is asked. The batch's own figures
+  (``OUT/plots``) are always drawn. A variant without figures can be drawn again
+  with ``simpro-sim run OUT/<scenario>/<variant>/scenario.yaml`` (the same run: its
+  seed is in the file).
 * The variants start in order of their expected cost, the dearest first (a
   long tail of one dear variant on one worker while the others idle is what
   file order gives): :func:`expected_cost`, the simulated seconds of the run and
@@ -38,7 +51,7 @@ atomic) and returns a small dict. No model is ever pickled.
 * A progress bar (tqdm, stderr; off with ``--quiet`` or when stderr is not a
   terminal) shows ok/not ok/left, the expected time left and, on threads,
   what each worker is doing (its variant, ``identifying`` or ``simulating``,
-  for how long). While threads run, BLAS is held to one thread (the
+  for how long; on threads only). While threads run, BLAS is held to one thread (the
   parallelism is the workers'; BLAS threads would only spin against them).
 * A line a run would print (the identification's) is printed once at the
   end with the number of variants that said it (:mod:`simpro_mj.core.notices`).
@@ -133,6 +146,7 @@ __all__ = [
     "EXPERIMENT_WEIGHT",
     "MAX_JOBS",
     "NO_WORKERS_S",
+    "PLOTS",
     "SUMMARY_FILES",
     "expected_cost",
     "run_batch",
@@ -144,6 +158,9 @@ __all__ = [
 #: a new heavy-cabin plant: 2.1 s for the experiment's 3 x 21 simulated seconds with
 #: their fits against 0.39 s for a 15 s run, a ratio near 1.3).
 EXPERIMENT_WEIGHT = 1.3
+
+#: The choices of ``--plots``: whose run figures a batch draws (module docstring).
+PLOTS = ("examples", "failing", "all", "none")
 
 #: What a batch writes at the top of ``--out`` (its variants are result folders).
 SUMMARY_FILES = ("summary.csv", "summary.json", "plots")
@@ -161,12 +178,15 @@ def run_batch(
     resume: bool = False,
     strict: bool = False,
     scheduler: str | None = None,
-    plots: bool = True,
+    plots: bool | str = "examples",
     progress: bool = False,
     summary_plots: bool = True,
-    processes: bool = False,
+    processes: bool = True,
 ) -> Report:
     """Plan, run and summarise a batch (see the module docstring).
+
+    ``plots`` is one of :data:`PLOTS` (``True``: ``all``, ``False``: ``none``);
+    ``processes``: ``jobs > 1`` variants in worker processes, else on threads.
 
     Raises
     ------
@@ -178,6 +198,9 @@ def run_batch(
 
     wall0 = time.perf_counter()
     out = Path(out)
+    plots = {True: "all", False: "none"}.get(plots, plots) if isinstance(plots, bool) else plots
+    if plots not in PLOTS:
+        raise UserInputError(f"invalid value at --plots: {plots!r}; allowed: {', '.join(PLOTS)}")
     inputs = [f for f, _ in scenario_files(paths)]
 
     if scheduler is not None:  # before the output folder is made
@@ -203,6 +226,7 @@ def _run_batch(
     rows: list[dict | None] = [None] * len(p.jobs)
     tasks: list[tuple[int, dict]] = []
     skipped = 0
+    examples = _examples(p.jobs)
     for job in p.jobs:
         if job.scenario is None:
             rows[job.index] = summary_row(job, None)
@@ -227,12 +251,15 @@ def _run_batch(
                 job, {"status": "invalid", "reason": str(exc), "metrics": None}
             )
             continue
-        task = {"scenario": job.scenario, "out": str(folder), "plots": plots, "label": job.variant}
+        draw = _draw(plots, job.index in examples)
+        task = {"scenario": job.scenario, "out": str(folder), "plots": draw, "label": job.variant}
         tasks.append((job.index, task))
     if skipped and progress:
         sys.stderr.write(f"resume: {skipped} complete variant(s) skipped\n")
     # the dearest first (stable: equal costs keep file order)
     tasks.sort(key=lambda t: -expected_cost(t[1]["scenario"]))
+    if scheduler is None:  # one variant to run: no worker to start
+        jobs = max(1, min(jobs, len(tasks)))
     threaded = scheduler is None and not processes and jobs > 1
     bar = Progress(
         len(tasks), progress, activity=ACTIVITY if threaded else None, workers=min(jobs, len(tasks))
@@ -297,6 +324,22 @@ def _run_batch(
     write_summary(report)
     record(out, SUMMARY_FILES, "batch")
     return report
+
+
+def _examples(jobs) -> set[int]:
+    """The row index of each file's first variant to run (expansion order)."""
+    first: dict[str, int] = {}
+    for job in jobs:
+        if job.scenario is not None:
+            first.setdefault(job.file, job.index)
+    return set(first.values())
+
+
+def _draw(plots: str, example: bool) -> str:
+    """A variant's ``plots`` (:data:`simpro_mj.batch.worker.DRAW`) under ``--plots``."""
+    if plots == "all" or (example and plots in ("examples", "failing")):
+        return "all"
+    return "failing" if plots == "failing" else "none"
 
 
 def _blas_limited(on: bool):

@@ -7,6 +7,12 @@ model is ever pickled; the function is top level so that it pickles by name
 to a pool or Dask worker. A worker that may not share this file system writes
 into a temporary folder and ships the files back (:func:`install` writes them here).
 
+A variant draws its run's figures (the PNG files of
+:func:`simpro_mj.report.plots.plot_run`) as its task says (:data:`DRAW`): ``all``
+(inside the folder's atomic write), ``failing`` (only when its status is not
+``ok``: drawn after the run into a temporary folder beside the result and moved
+in, each file whole) or ``none``.
+
 The notices a run would print (the identification line) are gathered
 (:mod:`simpro_mj.core.notices`) and returned, so the batch says each once with a
 count; on threads of the batch's process, :data:`ACTIVITY` holds what each worker
@@ -15,6 +21,7 @@ is doing for the progress line.
 
 from __future__ import annotations
 
+import os
 import shutil
 import tempfile
 import threading
@@ -27,9 +34,14 @@ from simpro_mj.core import notices
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.messages import one_line
 from simpro_mj.report.folders import install_folder
+from simpro_mj.report.marker import hidden, record
 from simpro_mj.report.runner import execute
 
-__all__ = ["ACTIVITY", "install", "run_variant"]
+__all__ = ["ACTIVITY", "DRAW", "install", "run_variant"]
+
+#: What a variant's task may ask to draw (``plots``; ``True`` is ``all``, ``False``
+#: ``none``): every run's figures, only a run whose status is not ``ok``, or none.
+DRAW = ("all", "failing", "none")
 
 #: Worker thread name -> (variant label, phase, time.monotonic() the phase began), of
 #: the variants running on threads of this process (the progress line reads it).
@@ -43,8 +55,9 @@ def run_variant(task: Mapping) -> dict:
     ----------
     task : mapping
         ``scenario`` (resolved, plain data), ``out`` (its folder), ``plots``
-        (bool), ``ship`` (bool: write into a temporary folder and return the
-        files' bytes, for workers that may not share this file system).
+        (one of :data:`DRAW`, or a bool: ``all``/``none``), ``ship`` (bool: write
+        into a temporary folder and return the files' bytes, for workers that may
+        not share this file system).
 
     Returns
     -------
@@ -79,15 +92,18 @@ def _run_variant(task: Mapping) -> dict:
     tmp = Path(tempfile.mkdtemp(prefix="simpro-batch-")) if ship else None
     try:
         folder = tmp / "variant" if tmp is not None else Path(task["out"])
+        draw = draw_choice(task.get("plots", True))
         # warnings go to metrics.json only: many workers on one stderr would be noise
         res, doc = execute(
             task["scenario"],
             folder,
-            plots=bool(task.get("plots", True)),
+            plots=draw == "all",
             quiet=True,
             stop=task.get("stop"),
         )
         folder = res.folder
+        if draw == "failing" and doc.get("status", "ok") not in ("ok", "interrupted"):
+            _draw_into(Path(folder), res.columns, task["scenario"])
         out = {
             "status": doc.get("status", "ok"),
             "reason": doc.get("reason"),
@@ -104,6 +120,40 @@ def _run_variant(task: Mapping) -> dict:
     finally:
         if tmp is not None:
             shutil.rmtree(tmp, ignore_errors=True)
+
+
+def draw_choice(value) -> str:
+    """A task's ``plots`` as one of :data:`DRAW` (``True``: ``all``; ``False``, ``None``:
+    ``none``).
+
+    Raises
+    ------
+    ValueError
+        Anything else.
+    """
+    if value is True:
+        return "all"
+    if value is False or value is None:
+        return "none"
+    if value not in DRAW:
+        raise ValueError(f"invalid plots: {value!r}; allowed: {', '.join(DRAW)}, True or False")
+    return str(value)
+
+
+def _draw_into(folder: Path, columns, scenario: Mapping) -> None:
+    """The run's figures into its complete result folder: drawn beside it, listed in its
+    marker as ours (:func:`simpro_mj.report.marker.record`), moved in whole."""
+    from simpro_mj.report.plots import plot_run  # matplotlib only when a figure is drawn
+
+    tmp = Path(tempfile.mkdtemp(prefix=hidden(folder, "tmp"), dir=folder.parent))
+    try:
+        names = [path.name for path in plot_run(columns, scenario, tmp)]
+        record(folder, names, "run", pending=True)  # a kill from here on leaves them ours
+        for name in names:
+            os.replace(tmp / name, folder / name)
+        record(folder, names, "run")
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
 
 
 def install(files: Mapping[str, bytes], out: Path) -> None:

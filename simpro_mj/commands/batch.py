@@ -11,7 +11,7 @@ import sys
 from pathlib import Path
 
 from simpro_mj.batch.plan import scenario_files
-from simpro_mj.batch.runner import run_batch
+from simpro_mj.batch.runner import PLOTS, run_batch
 from simpro_mj.batch.tables import print_report
 from simpro_mj.config.scenario import read_document, resolve_scenario
 from simpro_mj.core.errors import UserInputError
@@ -38,13 +38,19 @@ def add_arguments(parser) -> None:
         type=int,
         default=None,
         metavar="N",
-        help="variants at once, on threads of this process (default: the number of CPUs; "
-        "1: one after another)",
+        help="variants at once, in worker processes (default: the number of CPUs; "
+        "1: one after another in this process)",
     )
-    parser.add_argument(
+    where = parser.add_mutually_exclusive_group()
+    where.add_argument(
         "--processes",
         action="store_true",
-        help="run the --jobs variants in spawned worker processes instead of threads",
+        help="run the --jobs variants in spawned worker processes (the default)",
+    )
+    where.add_argument(
+        "--threads",
+        action="store_true",
+        help="run the --jobs variants on threads of this process instead of processes",
     )
     parser.add_argument(
         "--resume", action="store_true", help="skip variants whose result folder is complete"
@@ -61,7 +67,19 @@ def add_arguments(parser) -> None:
         help="run on a Dask distributed scheduler at ADDRESS, or 'local' for a LocalCluster",
     )
     parser.add_argument(
-        "--no-plots", action="store_true", help="skip each variant's PNGs (summary plots stay)"
+        "--plots",
+        choices=PLOTS,
+        default="examples",
+        help="whose run figures to draw: each file's first variant (examples, the default), "
+        "also every variant not ok (failing), every variant (all) or none; the batch's own "
+        "figures are always drawn",
+    )
+    parser.add_argument(
+        "--no-plots",
+        action="store_const",
+        const="none",
+        dest="plots",
+        help="no variant's figures (--plots none; the batch's own figures stay)",
     )
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
 
@@ -106,9 +124,9 @@ def run(args) -> int:
         resume=args.resume,
         strict=args.strict,
         scheduler=args.scheduler,
-        plots=not args.no_plots,
+        plots=args.plots,
         progress=not args.quiet and not args.json,
-        processes=args.processes,
+        processes=not args.threads,
     )
     if args.json:
         emit_json(report.document())
