@@ -83,12 +83,12 @@ def test_fit_recovers_the_washout_on_an_ideal_platform(channel, period_ms):
     wash = ClassicalWashout(washout_params(sc["setpoint"]["cueing"]))
     pred = chain_response(wash, [omega])[0]
     i = CHAIN_CHANNELS.index(channel)
-    ref = complex(*fit["ref"])
+    ref = complex(*fit.ref)
     assert abs(ref) == pytest.approx(amp, rel=1e-6)
     info = vehicle_input(sc)[4]
     assert not info["rate_limited"].any() and not info["softened"].any()  # small signal
     for o, out in enumerate(CHAIN_CHANNELS):
-        h = complex(*fit["head"][o]) / ref
+        h = complex(*fit.head[o]) / ref
         if (channel, out) in PAIRS:
             assert _db(h) == pytest.approx(_db(pred[o, i]), abs=0.05), out
             assert abs(math.degrees(np.angle(h / pred[o, i]))) < 0.5, out

@@ -241,12 +241,22 @@ def chain_scenario(
     return sc
 
 
-def fit_columns(columns: Mapping, task: Mapping, dt: float = 0.001) -> dict:
+@dataclass
+class SineFit:
+    """A chain run's fit over its settled whole periods (:func:`fit_columns`): ``ref``
+    the input's complex amplitude (``[re, im]``, SI), ``head`` one ``[re, im]`` per
+    :data:`CHANNELS`, and the fitted rows ``k0:k1``."""
+
+    ref: list
+    head: list
+    k0: int
+    k1: int
+
+
+def fit_columns(columns: Mapping, task: Mapping, dt: float = 0.001) -> SineFit:
     """Fit a run's vehicle input and head channels over the settled whole periods.
 
     ``columns``: ``time_s``, ``veh_*`` and ``head_*`` (:data:`simpro_mj.config.cueing.CUE_COLUMNS`).
-    Returns ``ref`` (the input's complex amplitude, ``[re, im]`` SI) and ``head``
-    (one ``[re, im]`` per :data:`CHANNELS`), and the fitted rows ``k0``, ``k1``.
     """
     period = task["period_ms"] / 1000.0
     k0 = int(round(task["settle_s"] / dt))
@@ -263,12 +273,7 @@ def fit_columns(columns: Mapping, task: Mapping, dt: float = 0.001) -> dict:
 
     ref = fit_sine(t, col("veh", task["channel"]), w)
     head = fit_sine(t, np.column_stack([col("head", c) for c in CHANNELS]), w)
-    return {
-        "ref": [ref.real, ref.imag],
-        "head": [[v.real, v.imag] for v in np.atleast_1d(head)],
-        "k0": k0,
-        "k1": k1,
-    }
+    return SineFit([ref.real, ref.imag], [[v.real, v.imag] for v in np.atleast_1d(head)], k0, k1)
 
 
 def measure_chain_point(task: Mapping) -> dict:
@@ -285,7 +290,7 @@ def measure_chain_point(task: Mapping) -> dict:
             return {"status": res.status, "reason": res.reason}
         c = res.columns
         fit = fit_columns(c, task, res.sim["timestep_s"])
-        k0, k1 = fit["k0"], fit["k1"]
+        k0, k1 = fit.k0, fit.k1
         u = np.column_stack([c[f"u{i}_v"][k0:k1] for i in (1, 2, 3)])
         sat = np.any((u <= 0.0) | (u >= 10.0), axis=1).mean() * 100.0
         info = vehicle_input(task["scenario"])[4]
@@ -297,8 +302,8 @@ def measure_chain_point(task: Mapping) -> dict:
             "reason": None,
             "channel": task["channel"],
             "period_ms": task["period_ms"],
-            "ref": fit["ref"],
-            "head": fit["head"],
+            "ref": fit.ref,
+            "head": fit.head,
             "saturated_pct": float(sat),
             "rate_limited_pct": float(lim.mean() * 100.0) if lim.size else 0.0,
             "softened_pct": float(soft.mean() * 100.0) if soft.size else 0.0,
@@ -349,27 +354,35 @@ def head_jacobian(scenario: Mapping, step: float = 1e-4) -> np.ndarray:
     return t @ jac @ t
 
 
-def predictions(plan: ChainPlan, omega) -> dict:
-    """``washout`` and ``predicted`` (or None when the loop has no linear model):
-    complex (len(omega), 5, 5) per :func:`controllers.frequency.chain_response`."""
+@dataclass
+class ChainPrediction:
+    """The washout alone and the linear chain (None when the loop has no linear model)
+    at the frequencies asked for: complex (len(omega), 5, 5) per
+    :func:`controllers.frequency.chain_response`; ``note`` why one is missing."""
+
+    washout: np.ndarray | None = None
+    predicted: np.ndarray | None = None
+    note: str | None = None
+
+
+def predictions(plan: ChainPlan, omega) -> ChainPrediction:
+    """The :class:`ChainPrediction` of ``plan``'s washout and loop at ``omega``."""
 
     sc = plan.tasks[0]["scenario"] if plan.tasks else plan.scenario
     if sc["setpoint"]["cueing"].get("algorithm") == "mpc":
         # a constrained optimisation, not a filter: no transfer function to draw beside
         note = "no linear prediction: the mpc law is a constrained QP, not a linear filter"
-        return {"washout": None, "predicted": None, "note": note}
+        return ChainPrediction(note=note)
     params = washout_params(sc["setpoint"]["cueing"])
     assert isinstance(params, WashoutParams)  # mpc returned above
     wash = ClassicalWashout(params)
-    out = {"washout": chain_response(wash, omega), "predicted": None, "note": None}
+    out = ChainPrediction(washout=chain_response(wash, omega))
     try:
         loop = predict(loop_model(sc), omega)["true"]
         t = np.diag([-1.0, -1.0, 1.0])  # base <-> ISO angles (controllers.frames)
-        out["predicted"] = chain_response(
-            wash, omega, pose=t @ loop @ t, head_jac=head_jacobian(sc)
-        )
+        out.predicted = chain_response(wash, omega, pose=t @ loop @ t, head_jac=head_jacobian(sc))
     except Exception as exc:  # noqa: BLE001 - the measurement stands without it
-        out["note"] = f"no loop prediction: {type(exc).__name__}: {exc}"
+        out.note = f"no loop prediction: {type(exc).__name__}: {exc}"
     return out
 
 
@@ -458,14 +471,14 @@ def chain_summary(plan: ChainPlan, results: list) -> ChainSummary:
     by_key = {(r.get("channel"), r.get("period_ms")): r for r in results if r.get("status") == "ok"}
 
     out = ChainSummary(failed=failures(plan.tasks, results, "channel"),
-                       prediction_note=pred["note"])  # fmt: skip
+                       prediction_note=pred.note)  # fmt: skip
     for (cin, cout), name in PAIRS.items():
         if cin not in plan.channels:
             continue
         i, o = CHANNELS.index(cin), CHANNELS.index(cout)
-        hw = pred["washout"][:, o, i] if pred["washout"] is not None else None
+        hw = pred.washout[:, o, i] if pred.washout is not None else None
         ph_w = _unwrapped(hw)[at] if hw is not None else None
-        hp = pred["predicted"][:, o, i] if pred["predicted"] is not None else None
+        hp = pred.predicted[:, o, i] if pred.predicted is not None else None
         ph_p = _unwrapped(hp)[at] if hp is not None else None
         for n, p in enumerate(periods):
             r = by_key.get((cin, p))
@@ -516,8 +529,9 @@ def chain_summary(plan: ChainPlan, results: list) -> ChainSummary:
         i, o = CHANNELS.index(cin), CHANNELS.index(cout)
         curve = out.curves[name] = ChainCurve(dense[span].tolist())
         for key in ("washout", "predicted"):
-            if pred[key] is not None:
-                h = pred[key][:, o, i]
+            h_all = getattr(pred, key)
+            if h_all is not None:
+                h = h_all[:, o, i]
                 gain = np.abs(h[span]) * _UNITS[cin][1] / _UNITS[cout][1]
                 bode = Bode(
                     gain_db=(20 * np.log10(np.maximum(gain, 1e-300))).tolist(),
