@@ -354,7 +354,7 @@ def test_gl_backend_falls_back_and_names_what_is_missing(pitch_run, tmp_path, mo
     monkeypatch.setattr(render, "GL_BACKENDS", ("glx", "egl"))  # no X display here: glx fails
     info = render.render_video([pitch_run], tmp_path / "a.mp4", size=(32, 32), end=0.08,
                                plots=False, jobs=1, progress=False)  # fmt: skip
-    assert info["gl"] == "egl" and info["frames"] == 2
+    assert info.gl == "egl" and info.frames == 2
     monkeypatch.setattr(render, "GL_BACKENDS", ("glx",))
     code = main(["render", str(pitch_run), "--size", "32x32", "--end", "0.08", "--jobs", "1",
                  "--out", str(tmp_path / "b.mp4")])  # fmt: skip

@@ -15,7 +15,7 @@ from simpro_mj.report.folders import locked
 from simpro_mj.report.recording import find_runs
 from simpro_mj.report.render import render_video
 from simpro_mj.report.single_files import record_file
-from simpro_mj.report.video_options import add_video_options, said, video_options
+from simpro_mj.report.video_options import add_video_options, video_options
 
 HELP = "render a result folder (or each run of a compare folder, side by side) to MP4"
 #: the recorded runs' scenarios are replayed as they ran: nothing to override
@@ -39,7 +39,7 @@ def run(args) -> int:
         info = render_video(runs, out, progress=show_progress(args), **opts)
         record_file(out)  # listed in its folder's marker: a re-render may replace it
     if args.json:
-        emit_json(info)
+        emit_json(info.to_json())
     else:
-        print(said(info))
+        print(info.said())
     return 0

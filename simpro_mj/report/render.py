@@ -25,7 +25,7 @@ import warnings
 from collections import deque
 from concurrent.futures import ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -46,7 +46,7 @@ from simpro_mj.report.scene import (
     text_px,
 )
 
-__all__ = ["GL_BACKENDS", "GL_LIBRARIES", "VIDEO_HINT", "render_video", "require_video"]
+__all__ = ["GL_BACKENDS", "GL_LIBRARIES", "VIDEO_HINT", "Rendered", "render_video", "require_video"]
 
 #: What the user runs when imageio or its ffmpeg is missing.
 VIDEO_HINT = "pip install 'simpro-sim[video]' (imageio and imageio-ffmpeg)"
@@ -115,6 +115,37 @@ class PanelJob:
     #: the plot strip under the view and its axes' boxes (None: no strip)
     strip: np.ndarray | None = None
     boxes: Any = None
+
+
+@dataclass
+class Rendered:
+    """A rendered video: its file, frames and size (all panels, strip included), the
+    backend and workers that drew it, and the wall and worker CPU time per frame."""
+
+    out: str
+    frames: int
+    width: int
+    height: int
+    fps: float
+    camera: str
+    shadows: bool
+    gl: str
+    workers: int
+    wall_s: float
+    s_per_frame: float
+    worker_cpu_s_per_frame: float
+    runs: list[str]
+
+    def to_json(self) -> dict:
+        return asdict(self)
+
+    def said(self) -> str:
+        """One line about the video."""
+        return (
+            f"video: {self.out} ({self.frames} frames, {self.width}x{self.height}, "
+            f"{self.fps:g} fps, camera {self.camera}; {self.wall_s:.1f} s with "
+            f"{self.workers} workers, MUJOCO_GL={self.gl})"
+        )
 
 
 @dataclass
@@ -238,7 +269,7 @@ def render_video(
     shadows: bool = False,
     jobs: int | None = None,
     progress: bool = True,
-) -> dict:
+) -> Rendered:
     """Render recorded runs side by side into one MP4.
 
     Parameters
@@ -260,9 +291,7 @@ def render_video(
 
     Returns
     -------
-    dict
-        ``out``, ``frames``, ``width``, ``height``, ``fps``, ``gl`` (backend),
-        ``workers``, ``wall_s``, ``s_per_frame``.
+    Rendered
     """
     require_video()
 
@@ -341,21 +370,21 @@ def render_video(
         if tmp is not None:
             tmp.unlink(missing_ok=True)
     wall = time.perf_counter() - wall0
-    return {
-        "out": str(out),
-        "frames": n,
-        "width": len(recs) * width,
-        "height": height + strip_h,
-        "fps": fps,
-        "camera": camera,
-        "shadows": bool(shadows),
-        "gl": gl,
-        "workers": workers,
-        "wall_s": wall,
-        "s_per_frame": wall / n,
-        "worker_cpu_s_per_frame": sum(cpu) / n,
-        "runs": [r.name for r in recs],
-    }
+    return Rendered(
+        out=str(out),
+        frames=n,
+        width=len(recs) * width,
+        height=height + strip_h,
+        fps=fps,
+        camera=camera,
+        shadows=bool(shadows),
+        gl=gl,
+        workers=workers,
+        wall_s=wall,
+        s_per_frame=wall / n,
+        worker_cpu_s_per_frame=sum(cpu) / n,
+        runs=[r.name for r in recs],
+    )
 
 
 def _drain(future, writer, bar, cpu: list) -> None:

@@ -11,8 +11,12 @@ import math
 import os
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from simpro_mj.core.errors import UserInputError
+
+if TYPE_CHECKING:
+    from simpro_mj.report.render import Rendered
 
 # the renderer (report.render, report.scene: MuJoCo's GL context, imageio) is imported
 # by the functions that render, so that a run without --video never loads it
@@ -22,7 +26,6 @@ __all__ = [
     "add_video_flag",
     "add_video_options",
     "number",
-    "said",
     "video_after_run",
     "video_options",
 ]
@@ -184,7 +187,7 @@ def video_options(args, default_out: Path) -> dict:
     }
 
 
-def video_after_run(folder, quiet: bool) -> dict:
+def video_after_run(folder, quiet: bool) -> Rendered:
     """Render a finished run or compare folder to ``folder/replay.mp4``."""
     # on use: none of them is needed for a --help
     from simpro_mj.report.recording import find_runs
@@ -196,14 +199,5 @@ def video_after_run(folder, quiet: bool) -> dict:
     info = render_video(find_runs(folder), out, progress=not quiet and sys.stderr.isatty())
     record_file(out)
     if not quiet:
-        print(said(info))
+        print(info.said())
     return info
-
-
-def said(info: dict) -> str:
-    """One line about a rendered video."""
-    return (
-        f"video: {info['out']} ({info['frames']} frames, {info['width']}x{info['height']}, "
-        f"{info['fps']:g} fps, camera {info['camera']}; {info['wall_s']:.1f} s with "
-        f"{info['workers']} workers, MUJOCO_GL={info['gl']})"
-    )
