@@ -627,11 +627,13 @@ def test_interrupted_run_leaves_a_marked_partial_folder(tmp_path, sig):
 
 
 def test_same_scenario_twice_gives_identical_files(tmp_path):
+    from simpro_mj.config.models import as_scenario
     from simpro_mj.report.runner import execute
 
     sc = load_scenario("step_all", ["duration_s=1.0"])
     _, a = execute(sc, tmp_path / "a", plots=False, quiet=True)
-    _, b = execute(sc, tmp_path / "b", plots=False, quiet=True)
+    # the second time typed: the same run, the same files
+    _, b = execute(as_scenario(sc), tmp_path / "b", plots=False, quiet=True)
     ts_a = (tmp_path / "a" / "timeseries.csv").read_bytes()
     assert ts_a == (tmp_path / "b" / "timeseries.csv").read_bytes()
     assert (tmp_path / "a" / "scenario.yaml").read_bytes() == (

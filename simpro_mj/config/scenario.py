@@ -91,7 +91,7 @@ from simpro_mj.config.cueing import resolve_paths
 from simpro_mj.config.defaults import DEFAULT_SCENARIO
 from simpro_mj.config.defaults import merge as _merge
 from simpro_mj.config.entries import COMPONENT_TYPES, FAULT_TYPES
-from simpro_mj.config.models import Scenario, scenario_model
+from simpro_mj.config.models import Scenario, as_tree, scenario_model
 from simpro_mj.config.pneumatics import check_pneumatics as _check_pneumatics
 from simpro_mj.config.presets import scenario_overlay
 from simpro_mj.config.reference import SetpointError, check_setpoints, late_setpoints, reference
@@ -358,8 +358,9 @@ _HASHED_UNLESS_DEFAULT = (
 )
 
 
-def scenario_hash(resolved: Mapping) -> str:
-    """SHA-256 (hex) of the canonical JSON of a resolved scenario (sorted keys).
+def scenario_hash(resolved: Scenario | Mapping) -> str:
+    """SHA-256 (hex) of the canonical JSON of a resolved scenario (sorted keys), typed
+    or its dict.
 
     A telemetry file (``setpoint.cueing.telemetry``) enters by its contents, not its
     path: the same recording hashes the same wherever it lies, and an edited or
@@ -367,6 +368,7 @@ def scenario_hash(resolved: Mapping) -> str:
     recording. A file that cannot be read enters by its path. The MJCF enters by its
     SHA-256 too (``SIMPRO_MODEL`` or the shipped one): a heavier rod is another run.
     """
+    resolved = as_tree(resolved)
     cue = ((resolved.get("setpoint") or {}).get("cueing")) or {}
     if isinstance(cue, Mapping) and cue.get("telemetry"):
         digest = file_digest(cue["telemetry"])

@@ -44,6 +44,7 @@ import yaml
 
 from simpro_mj import __version__
 from simpro_mj.analysis.verdict import FINISHED_STATUSES
+from simpro_mj.config.models import Scenario, as_tree
 from simpro_mj.config.scenario import scenario_hash
 from simpro_mj.core.cache import file_digest
 from simpro_mj.core.shipped import model_path
@@ -338,7 +339,7 @@ def write_results(
     out_dir,
     columns: Mapping[str, np.ndarray],
     metrics: Mapping,
-    scenario: Mapping,
+    scenario: Scenario | Mapping,
     extra: Mapping | None = None,
     arrays: Mapping[str, Mapping[str, np.ndarray]] | None = None,
 ) -> Path:
@@ -352,8 +353,8 @@ def write_results(
         Logged time series, SI, names with units (``time_s``, ``roll_rad``, ...).
     metrics : mapping
         :func:`simpro_mj.analysis.metrics.compute_metrics` output.
-    scenario : mapping
-        The resolved scenario.
+    scenario : Scenario or mapping
+        The resolved scenario, typed or its dict.
     extra : mapping, optional
         ``status`` (one of :data:`STATUSES`; default ``metrics["status"]``, else
         "ok"), ``reason`` (why it diverged or stopped; default ``metrics["reason"]``),
@@ -382,7 +383,9 @@ def write_results(
     return _write(out_dir, columns, metrics, scenario, extra, arrays)[0]
 
 
-def write_run(out_dir, outcome, scenario: Mapping, *, plots: bool = True, arrays=None, rows=None):
+def write_run(
+    out_dir, outcome, scenario: Scenario | Mapping, *, plots: bool = True, arrays=None, rows=None
+):
     """Write a run's result folder (:func:`write_results`) from what
     :meth:`simpro_mj.job.run.Run.execute` returned.
 
@@ -392,7 +395,7 @@ def write_run(out_dir, outcome, scenario: Mapping, *, plots: bool = True, arrays
         The folder.
     outcome : simpro_mj.job.run.RunOutcome
         The run, measured.
-    scenario : mapping
+    scenario : Scenario or mapping
         The resolved scenario as the user gave it (``scenario.yaml`` and the
         hash ``--resume`` compares).
     plots : bool
@@ -415,6 +418,7 @@ def write_run(out_dir, outcome, scenario: Mapping, *, plots: bool = True, arrays
 
 def _write(out_dir, columns, metrics, scenario, extra, arrays, rows=None) -> tuple[Path, dict]:
     """:func:`write_results`; returns the folder and the ``metrics.json`` document."""
+    scenario = as_tree(scenario)  # the record of the scenario, typed or not
     extra = dict(extra or {})
     out_dir = Path(out_dir).expanduser().absolute()
     status = extra.pop("status", metrics.get("status", "ok"))

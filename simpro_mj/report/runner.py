@@ -18,10 +18,12 @@ once the simulation has taken its first step under the signal handlers
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
 
+from simpro_mj.config.models import Scenario, as_scenario
 from simpro_mj.core.interrupts import writing
 from simpro_mj.core.progress import show_progress
 from simpro_mj.core.rates import PHYSICS_DT_S
@@ -43,7 +45,7 @@ EXIT_INTERRUPTED = 130
 
 
 def execute(
-    scenario: dict,
+    scenario: Scenario | Mapping,
     out: Path,
     plots: bool = True,
     *,
@@ -58,8 +60,8 @@ def execute(
 
     Parameters
     ----------
-    scenario : dict
-        A resolved scenario.
+    scenario : Scenario or mapping
+        A resolved scenario, typed or its dict.
     out : path
         The result folder.
     plots : bool
@@ -94,11 +96,12 @@ def execute(
     KeyboardInterrupt
         If the simulation does not hand back a partial result on Ctrl-C.
     """
-    bar = _Bar(scenario, label) if progress else None
+    spec = as_scenario(scenario)
+    bar = _Bar(spec, label) if progress else None
     # timeseries.csv's lines formatted while the compiled step runs (its columns
     # are the log's but for a cueing run's vehicle signals)
     rows = None
-    if csv_beside and kernel_choice() == "numba" and not scenario["setpoint"].get("cueing"):
+    if csv_beside and kernel_choice() == "numba" and not spec.setpoint.cueing:
         rows = RowText.if_useful()
     try:
         run = Run(scenario, model=model)
@@ -136,13 +139,13 @@ class _Bar:
     """The simulated seconds as a tqdm bar (stderr), updated every 1000 steps; the
     readiness file once the run has steps to keep, as without a bar."""
 
-    def __init__(self, scenario: dict, label: str | None):
+    def __init__(self, spec: Scenario, label: str | None):
         from tqdm import tqdm
 
         self.tqdm = tqdm(
-            total=float(scenario["duration_s"]),
+            total=float(spec.duration_s),
             unit="sim s",
-            desc=label or scenario.get("name", "run"),
+            desc=label or spec.name,
             leave=False,
             bar_format="{desc}: {percentage:3.0f}%|{bar}| {n:.1f}/{total:.1f} sim s "
             "[{elapsed}<{remaining}]",
