@@ -56,10 +56,10 @@ def test_every_command_takes_the_shared_options_that_mean_something_to_it():
         assert "--json" in sub._option_string_actions, name
         if name not in ("list", "send"):
             assert "--quiet" in sub._option_string_actions, name
-    for name in ("list", "send", "render"):  # nothing to override: no --set offered
+    for name in ("list", "send", "render", "telemetry"):  # nothing to override: no --set
         sub = parser._subparsers._group_actions[0].choices[name]
         assert "--set" not in sub._option_string_actions, name
-    for name in set(COMMANDS) - {"list", "send", "render"}:
+    for name in set(COMMANDS) - {"list", "send", "render", "telemetry"}:
         sub = parser._subparsers._group_actions[0].choices[name]
         assert "--set" in sub._option_string_actions, name
     for name in ("identify", "validate-ik", "run", "compare", "batch", "response"):

@@ -61,6 +61,7 @@ COMMANDS = {
     "render": "simpro_mj.commands.render",
     "view": "simpro_mj.commands.view",
     "manoeuvre": "simpro_mj.commands.manoeuvre",
+    "telemetry": "simpro_mj.commands.telemetry",
     "response": "simpro_mj.commands.response",
     "omct": "simpro_mj.commands.omct",
     "live": "simpro_mj.commands.live",
