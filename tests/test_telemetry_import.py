@@ -117,3 +117,40 @@ def test_the_cli_writes_a_file_the_chain_reads_and_refuses_a_wrong_column(tmp_pa
     assert len(r.stderr.strip().splitlines()) == 1
     assert "missing column gyro_z" in r.stderr
     assert not (tmp_path / "x.csv").exists()
+
+
+def _braking_file(path, seconds=8.0):
+    """A 4 m/s^2 braking held 3 s, ramped in and out in 0.5 s, at rest otherwise."""
+    from simpro_mj.config.telemetry import Telemetry, write_telemetry
+
+    t = np.arange(0, seconds + 1e-9, 0.01)
+    fx = -4.0 * np.clip(np.minimum((t - 1.0) / 0.5, (4.5 - t) / 0.5), 0, 1)
+    f = np.column_stack([fx, np.zeros_like(t), np.full_like(t, GRAVITY)])
+    write_telemetry(path, Telemetry(t=t, f=f, w=np.zeros((t.size, 3))))
+    return path
+
+
+def test_judge_plays_a_recording_through_the_shipped_law(tmp_path):
+    """A braking judged through the shipped MPC and the loop's model: the surge is the
+    one channel judged, felt in shape (correlation >= 0.9) at about the law's scale
+    (``gain_x`` 0.3: the perceived gain 0.2-0.35), its onset found."""
+    from simpro_mj.analysis.cue_corpus import judge, table
+
+    rows = judge([_braking_file(tmp_path / "brake.csv")], shipped=(), bound=False)
+    assert [r.channel for r in rows] == ["longitudinal_f"]
+    r = rows[0]
+    assert r.correlation >= 0.9
+    assert 0.2 <= r.gain <= 0.35
+    assert r.onsets >= 1 and r.onsets_missed == 0
+    assert "| brake | longitudinal_f |" in table(rows)
+
+
+def test_judge_refuses_a_parameter_the_law_does_not_take(tmp_path):
+    """A law change out of range is one line naming it, exit 2."""
+    path = _braking_file(tmp_path / "brake.csv", 3.0)
+    cmd = [sys.executable, "-m", "simpro_mj.commands.main", "telemetry", "judge", str(path),
+           "--no-shipped", "--law", "lead_x_s=0.9"]  # fmt: skip
+    r = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
+    assert r.returncode == 2
+    assert len(r.stderr.strip().splitlines()) == 1
+    assert "lead_x" in r.stderr

@@ -1,9 +1,15 @@
-"""``simpro-sim telemetry import SOURCE``: a recorded drive as a telemetry CSV.
+"""``simpro-sim telemetry import SOURCE``: a recorded drive as a telemetry CSV;
+``simpro-sim telemetry judge [FILE ...]``: the shipped cueing law on the shipped drives
+and on these recordings, the done-when table.
 
-Reads a phone's or a data logger's accelerometer and gyroscope (a CSV, two CSVs, or a
-comma2k19 segment folder), estimates the car's axes (``--frame``) and writes the
-cueing chain's input (:mod:`simpro_mj.config.telemetry_import`, the method and its
-quality figures; the file's comment lines repeat them).
+``import`` reads a phone's or a data logger's accelerometer and gyroscope (a CSV, two
+CSVs, or a comma2k19 segment folder), estimates the car's axes (``--frame``) and writes
+the cueing chain's input (:mod:`simpro_mj.config.telemetry_import`, the method and its
+quality figures; the file's comment lines repeat them). ``judge`` plays each drive
+through the shipped law, the loop's model and the bound
+(:mod:`simpro_mj.analysis.cue_corpus`) and prints, per judged channel, the perceived
+correlation, mean lag, gain, the bound's gain and the share, the worst onset and the
+raw wrong-way peak, with the floors each misses.
 """
 
 from __future__ import annotations
@@ -18,21 +24,39 @@ from simpro_mj.core.jsonout import emit_json
 from simpro_mj.report.marker import hidden
 from simpro_mj.report.single_files import check_file, record_file
 
-HELP = "import a recorded drive (accelerometer + gyroscope) as telemetry CSV"
+HELP = (
+    "import a recorded drive (accelerometer + gyroscope) as telemetry CSV; judge the "
+    "shipped cueing law on drives"
+)
 COMMON_OPTIONS = ("json", "quiet")
 
 
 def add_arguments(parser) -> None:
-    parser.add_argument("action", choices=("import",), help="what to do")
-    parser.add_argument("source", help="the recording: a CSV, or a comma2k19 segment folder")
+    parser.add_argument("action", choices=("import", "judge"), help="what to do")
+    parser.add_argument(
+        "source",
+        nargs="*",
+        help="import: the recording (a CSV, or a comma2k19 segment folder); judge: "
+        "telemetry CSVs to judge beside the shipped drives",
+    )
     parser.add_argument("--format", default="csv", choices=("csv", "comma2k19"))
     parser.add_argument(
         "--frame",
-        required=True,
+        default=None,
         choices=("vehicle", "device", "level", "earth"),
         help="the axes the sensors read in (simpro_mj/config/telemetry_import.py)",
     )
-    parser.add_argument("--out", required=True, help="telemetry CSV to write")
+    parser.add_argument("--out", default=None, help="import: the telemetry CSV to write")
+    parser.add_argument(
+        "--law",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="judge: a change to the shipped law's parameters (YAML name; repeatable)",
+    )
+    parser.add_argument(
+        "--no-shipped", action="store_true", help="judge: the files only, not the shipped drives"
+    )
     parser.add_argument("--gyro-file", default=None, help="the gyroscope's own CSV")
     parser.add_argument("--time", default="time_s", help="time column (default time_s)")
     parser.add_argument("--gyro-time", default=None, help="the gyroscope's time column")
@@ -57,7 +81,40 @@ def _finite(x: float) -> float | None:
     return None if x != x else float(x)
 
 
+def _judge(args) -> int:
+    import yaml
+
+    from simpro_mj.analysis.cue_corpus import SHIPPED, judge, table
+
+    changes = {}
+    for item in args.law:
+        key, sep, value = item.partition("=")
+        if not sep or not key.strip():
+            raise UserInputError(f"invalid value at --law: {item!r}; allowed: KEY=VALUE")
+        changes[key.strip()] = yaml.safe_load(value)
+    for p in args.source:
+        if not Path(p).is_file():
+            raise UserInputError(f"invalid value at FILE: {p!r} is not a file")
+    try:
+        rows = judge(args.source, shipped=() if args.no_shipped else SHIPPED, changes=changes)
+    except (ValueError, TypeError) as exc:  # a parameter the law refuses names itself
+        raise UserInputError(f"invalid value at --law: {exc}") from None
+    if args.json:
+        emit_json({"changes": changes, "rows": [r.to_json() for r in rows]})
+    else:
+        print(table(rows))
+    return 0
+
+
 def run(args) -> int:
+    if args.action == "judge":
+        return _judge(args)
+    if len(args.source) != 1 or args.frame is None or args.out is None:
+        raise UserInputError(
+            "telemetry import: one SOURCE, --frame (vehicle, device, level, earth) and --out "
+            "are required"
+        )
+    args.source = args.source[0]
     from controllers.conditioning import BIAS_TAU_S, VIBRATION_HZ
     from simpro_mj.config.telemetry import write_telemetry
     from simpro_mj.config.telemetry_import import (

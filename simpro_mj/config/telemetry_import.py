@@ -225,7 +225,8 @@ def read_comma2k19(segment) -> Recording:
                 "allowed: (n,) and (n, 3)"
             )
         out += [np.asarray(t, float), np.asarray(v, float)]
-    return Recording(*out, source=f"comma2k19 {seg.parent.name}/{seg.name}")
+    ta, a, tg, g = out
+    return Recording(ta=ta, a=a, tg=tg, g=g, source=f"comma2k19 {seg.parent.name}/{seg.name}")
 
 
 def _grid(rec: Recording, rate_hz: float, start_s: float, end_s: float):
@@ -301,7 +302,8 @@ def _heading(t, h, r, window_s: float) -> np.ndarray:
     if window_s <= 0 or window_s >= t[-1] - t[0]:
         return np.full(t.size, whole)
     step = window_s / 4
-    centres, angles = [], []
+    centres: list[float] = []
+    angles: list[float] = []
     for c in np.arange(t[0] + window_s / 2, t[-1] - window_s / 2 + step, step):
         m = np.abs(t - c) <= window_s / 2
         if wts[m].sum() < 1:
@@ -337,19 +339,19 @@ def import_recording(rec: Recording, frame: str, *, rate_hz: float = 100.0,
     if frame == "vehicle":
         sign, perm = [], []
         for tok in _columns(axes, "--axes"):
-            s, name = (-1.0, tok[1:]) if tok.startswith("-") else (1.0, tok.lstrip("+"))
+            sg, name = (-1.0, tok[1:]) if tok.startswith("-") else (1.0, tok.lstrip("+"))
             if name not in ("x", "y", "z"):
                 raise RecordingError(
                     f"invalid value at --axes: {axes!r}; allowed: each of x, y, z once, with an "
                     "optional sign (x,-y,-z: forward-right-down)"
                 )
-            sign.append(s)
+            sign.append(sg)
             perm.append("xyz".index(name))
         if sorted(perm) != [0, 1, 2]:
             raise RecordingError(f"invalid value at --axes: {axes!r}; allowed: x, y, z once each")
         rot = np.zeros((3, 3))
-        for k, (s, p) in enumerate(zip(sign, perm, strict=True)):
-            rot[p, k] = s  # the device's axis k is the car's axis p
+        for k, (sg, p) in enumerate(zip(sign, perm, strict=True)):
+            rot[p, k] = sg  # the device's axis k is the car's axis p
         f, w = a @ rot.T, g @ rot.T
     else:
         if frame == "device":
