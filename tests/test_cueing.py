@@ -306,7 +306,7 @@ def test_sweep_variants_get_the_preset_like_a_run():
                 "parameters": {
                     "preview_s": 1.0,
                     "lead_s": 0.17,
-                    "lead_x_s": 0.4,
+                    "lead_x_s": 0.5,
                     "rotation_limit_pitch": 0.9,
                 },
             },

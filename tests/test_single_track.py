@@ -41,7 +41,7 @@ def test_the_shipped_law_on_a_drive_it_was_not_tuned_on(drive):
     pitch, so the felt-pitch limit lets the tilt that carries the braking come and go
     only at a rate the canals barely feel: with the surge planned 0.17 s ahead as the
     sway and the felt pitch within 0.8 thresholds the surge lags more than 0.5 s; the
-    shipped surge lead (0.4 s) and 0.9 thresholds bring it under 0.45 s (0.38 s through
+    shipped surge lead (0.5 s) and 0.9 thresholds bring it under 0.45 s (see docs/cueing.md; through
     the loop's model); with the limit off it lags less than 0.3 s."""
     m = model_chain_metrics(_block(), drive.t, drive.f, drive.w)["channels"]
     for ch in ("longitudinal_f", "lateral_f"):
