@@ -1,11 +1,11 @@
 """A batch's throughput: variants per minute and the ratio to the step's own cost.
 
-    python benchmarks/batch_throughput.py [--samples 20] [--jobs 2] [--keep-cache] [--processes]
+    python benchmarks/batch_throughput.py [--samples 20] [--jobs 2] [--keep-cache] [--threads]
 
 Runs a Monte Carlo of ``--samples`` new cabins (``scenarios/sweep_robustness.yaml``
 with its sample count replaced: every variant a plant not seen before) as
-``simpro-sim batch --jobs J`` runs it (:func:`simpro_mj.batch.runner.run_batch`,
-threads; ``--processes``: a process pool, as ``simpro-sim batch --processes``), with
+``simpro-sim batch --jobs J --no-plots`` runs it (:func:`simpro_mj.batch.runner.run_batch`,
+worker processes; ``--threads``: threads, as ``simpro-sim batch --threads``), with
 an empty identification cache unless ``--keep-cache``, and prints one JSON document:
 
 Before the clock starts one cabin of another draw runs in this process, so that
@@ -42,7 +42,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def measure(
-    samples: int = 20, jobs: int = 2, keep_cache: bool = False, processes: bool = False
+    samples: int = 20, jobs: int = 2, keep_cache: bool = False, processes: bool = True
 ) -> dict:
     """Run the batch and return the figures of the module docstring."""
     with tempfile.TemporaryDirectory(prefix="simpro-throughput-") as tmp:
@@ -100,12 +100,12 @@ def main(argv=None) -> int:
     p.add_argument("--samples", type=int, default=20)
     p.add_argument("--jobs", type=int, default=2)
     p.add_argument("--keep-cache", action="store_true")
-    p.add_argument("--processes", action="store_true", help="a process pool instead of threads")
+    p.add_argument("--threads", action="store_true", help="threads instead of worker processes")
     a = p.parse_args(argv)
     if not (1 <= a.samples <= 1000 and 1 <= a.jobs <= 64):
         print("error: invalid value at --samples/--jobs: allowed 1..1000 / 1..64", file=sys.stderr)
         return 2
-    print(json.dumps(measure(a.samples, a.jobs, a.keep_cache, a.processes), indent=2))
+    print(json.dumps(measure(a.samples, a.jobs, a.keep_cache, not a.threads), indent=2))
     return 0
 
 

@@ -1,6 +1,6 @@
 """Where a new cabin's CPU time goes: one variant of a Monte Carlo, profiled.
 
-    python benchmarks/new_cabin_cost.py [--variant mc004] [--warm mc005]
+    python benchmarks/new_cabin_cost.py [--variant mc004] [--warm mc005] [--as-shipped] [--plots]
 
 Runs two variants of ``scenarios/sweep_robustness.yaml`` with ``--set
 controller.inner.identify=auto`` (each draw's joint loops placed on its own
@@ -17,7 +17,17 @@ prints one JSON document, CPU seconds:
   and ``fit`` (:func:`simpro_mj.identification.identify.fit_eq19`);
 * ``stability_limit`` (the loop analysis), ``run`` (the run's own stepping,
   ``CoSimulation.run``), ``result_folder`` (writing it);
-* ``experiment_us_per_step`` and ``run_us_per_step``.
+* ``figures`` (the run's PNGs, :func:`simpro_mj.report.plots.plot_run`: with
+  ``--plots`` only), ``timeseries_csv`` (writing it) and ``stability`` (the batch's
+  measured stability, which reads ``timeseries.csv`` back), parts of
+  ``result_folder`` or beside it;
+* ``experiment_us_per_step`` and ``run_us_per_step``;
+* ``cpu_s``: the variant's CPU time measured again unprofiled (a third variant,
+  ``mc006`` or ``mc007``, the same way).
+
+``--as-shipped``: the sweep as shipped (the cabin's one controller on every draw,
+no experiment): what outside the step a sweep's variant costs. ``--plots``: with
+its figures, as ``simpro-sim batch --plots all`` draws them.
 
 cProfile counts Python calls, so it inflates a loop of many small calls more
 than one ``mj_step`` of many steps: read the parts against each other, and the
@@ -53,10 +63,15 @@ PARTS = {
     "stability_limit": ("analysis/preflight.py", "stability_limit"),
     "run": ("sim/loop.py", "run"),
     "result_folder": ("report/results.py", "write_run"),
+    "figures": ("report/plots.py", "plot_run"),
+    "timeseries_csv": ("report/results.py", "write_timeseries"),
+    "stability": ("batch/stability.py", "stability_of_folder"),
 }
 
 
-def measure(variant: str = "mc004", warm: str = "mc005") -> dict:
+def measure(
+    variant: str = "mc004", warm: str = "mc005", as_shipped: bool = False, plots: bool = False
+) -> dict:
     """Profile ``variant`` after ``warm`` (module docstring); the figures."""
     with tempfile.TemporaryDirectory(prefix="simpro-cabin-cost-") as tmp:
         os.environ["SIMPRO_CACHE_DIR"] = str(Path(tmp) / "cache")
@@ -65,22 +80,25 @@ def measure(variant: str = "mc004", warm: str = "mc005") -> dict:
 
         # each draw's loops placed on its own identification (the shipped sweep runs
         # the cabin's one controller on every draw)
-        jobs = {j.variant: j for j in plan([str(SCENARIO)], [AUTO]).jobs}
+        jobs = {j.variant: j for j in plan([str(SCENARIO)], [] if as_shipped else [AUTO]).jobs}
         from simpro_mj.identification.auto import experiment_s
 
-        if not experiment_s(jobs[variant].scenario) > 0.0:
+        if not as_shipped and not experiment_s(jobs[variant].scenario) > 0.0:
             raise RuntimeError(f"{variant} would run no identification experiment")
 
         def task(v):
-            return {"scenario": jobs[v].scenario, "out": f"{tmp}/{v}", "plots": False, "label": v}
+            return {"scenario": jobs[v].scenario, "out": f"{tmp}/{v}", "plots": plots, "label": v}
 
         run_variant(task(warm))
         prof = cProfile.Profile(time.process_time)
         prof.enable()
         result = run_variant(task(variant))
         prof.disable()
+        again = next(v for v in ("mc006", "mc007") if v not in (variant, warm))
+        cpu_s = run_variant(task(again))["cpu_s"]
     stats = pstats.Stats(prof).stats  # type: ignore[attr-defined]  # pstats' own table
-    out: dict = {"variant": variant, "status": result["status"]}
+    out: dict = {"variant": variant, "status": result["status"], "as_shipped": as_shipped,
+                 "plots": plots}  # fmt: skip
     for part, (path, name) in PARTS.items():
         out[part] = sum(v[3] for (f, _, n), v in stats.items() if n == name and f.endswith(path))
     scenario = jobs[variant].scenario
@@ -88,8 +106,9 @@ def measure(variant: str = "mc004", warm: str = "mc005") -> dict:
 
     ip = plant_tree(scenario)["identify"]
     steps = 3 * round((ip["settle_s"] + ip["duration_s"]) * 1000)
-    out["experiment_us_per_step"] = 1e6 * out["experiment"] / steps
+    out["experiment_us_per_step"] = 1e6 * out["experiment"] / steps if not as_shipped else None
     out["run_us_per_step"] = 1e6 * out["run"] / round(scenario["duration_s"] * 1000)
+    out["cpu_s"] = cpu_s
     return out
 
 
@@ -97,6 +116,8 @@ def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("--variant", default="mc004")
     p.add_argument("--warm", default="mc005")
+    p.add_argument("--as-shipped", action="store_true", help="the one controller, no experiment")
+    p.add_argument("--plots", action="store_true", help="with the run's figures")
     a = p.parse_args(argv)
     samples = int(re.search(r"samples: (\d+)", SCENARIO.read_text()).group(1))  # type: ignore[union-attr]
     names = {f"mc{i:03d}" for i in range(samples)}
@@ -107,7 +128,7 @@ def main(argv=None) -> int:
             file=sys.stderr,
         )
         return 2
-    print(json.dumps(measure(a.variant, a.warm), indent=2))
+    print(json.dumps(measure(a.variant, a.warm, a.as_shipped, a.plots), indent=2))
     return 0
 
 
