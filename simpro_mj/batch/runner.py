@@ -51,7 +51,7 @@ atomic) and returns a small dict. No model is ever pickled.
 * A progress bar (tqdm, stderr; off with ``--quiet`` or when stderr is not a
   terminal) shows ok/not ok/left, the expected time left and, on threads,
   what each worker is doing (its variant, ``identifying`` or ``simulating``,
-  for how long; on threads only). While threads run, BLAS is held to one thread (the
+  for how long; not on Dask). While threads run, BLAS is held to one thread (the
   parallelism is the workers'; BLAS threads would only spin against them).
 * A line a run would print (the identification's) is printed once at the
   end with the number of variants that said it (:mod:`simpro_mj.core.notices`).
@@ -261,9 +261,11 @@ def _run_batch(
     if scheduler is None:  # one variant to run: no worker to start
         jobs = max(1, min(jobs, len(tasks)))
     threaded = scheduler is None and not processes and jobs > 1
+    watched = scheduler is None and jobs > 1  # the workers' phases (Dask's are its own)
     bar = Progress(
-        len(tasks), progress, activity=ACTIVITY if threaded else None, workers=min(jobs, len(tasks))
+        len(tasks), progress, activity=ACTIVITY if watched else None, workers=min(jobs, len(tasks))
     )
+    shown = watched and bar.bar is not None  # a pool's workers then say their phases
     said: dict[str, int] = {}
 
     def done(key: int, result: dict) -> None:
@@ -284,6 +286,7 @@ def _run_batch(
             run_tasks(
                 tasks, done, jobs=jobs, scheduler=scheduler, fn=run_variant,
                 no_workers_s=NO_WORKERS_S, threads=not processes,
+                activity=ACTIVITY if shown and processes else None,
             )  # fmt: skip
     except KeyboardInterrupt as exc:  # SIGINT, or SIGTERM (commands.main: interruptible)
         stopped = f"interrupted ({exc})" if str(exc) else "interrupted"

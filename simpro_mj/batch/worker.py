@@ -15,12 +15,14 @@ in, each file whole) or ``none``.
 
 The notices a run would print (the identification line) are gathered
 (:mod:`simpro_mj.core.notices`) and returned, so the batch says each once with a
-count; on threads of the batch's process, :data:`ACTIVITY` holds what each worker
-is doing for the progress line.
+count; :data:`ACTIVITY` holds what each worker is doing for the progress line (on
+threads of the batch's process directly; a pool worker puts it on its parent's queue,
+:func:`simpro_mj.sim.workers.activity_queue`).
 """
 
 from __future__ import annotations
 
+import contextlib
 import os
 import shutil
 import tempfile
@@ -36,6 +38,7 @@ from simpro_mj.core.messages import one_line
 from simpro_mj.report.folders import install_folder
 from simpro_mj.report.marker import hidden, record
 from simpro_mj.report.runner import execute
+from simpro_mj.sim.workers import activity_queue
 
 __all__ = ["ACTIVITY", "DRAW", "install", "run_variant"]
 
@@ -43,8 +46,9 @@ __all__ = ["ACTIVITY", "DRAW", "install", "run_variant"]
 #: ``none``): every run's figures, only a run whose status is not ``ok``, or none.
 DRAW = ("all", "failing", "none")
 
-#: Worker thread name -> (variant label, phase, time.monotonic() the phase began), of
-#: the variants running on threads of this process (the progress line reads it).
+#: Worker (a thread's name, or ``pid N`` of a pool worker) -> (variant label, phase,
+#: time.monotonic() the phase began), of the running variants (the progress line reads
+#: it; a pool's are copied here from its queue, :func:`simpro_mj.sim.executors.run_pool`).
 ACTIVITY: dict[str, tuple[str, str, float]] = {}
 
 
@@ -70,9 +74,20 @@ def run_variant(task: Mapping) -> dict:
     """
     me = threading.current_thread().name
     label = str(task.get("label") or Path(task["out"]).name)
+    queue = activity_queue()  # a pool worker's line to its parent, else None
+    if queue is not None:
+        me = f"pid {os.getpid()}"
+
+    def say(*what) -> None:
+        with contextlib.suppress(Exception):  # a line not shown is no failure
+            queue.put((me, *what))  # type: ignore[union-attr]  # checked by the callers
 
     def on_phase(name: str) -> None:
-        ACTIVITY[me] = (label, name, time.monotonic())
+        since = time.monotonic()  # CLOCK_MONOTONIC: one clock for every process here
+        if queue is None:
+            ACTIVITY[me] = (label, name, since)
+        else:
+            say(label, name, since)
 
     wall0, cpu0 = time.perf_counter(), time.thread_time()
     on_phase("preparing")
@@ -80,7 +95,10 @@ def run_variant(task: Mapping) -> dict:
         with notices.collecting(on_phase) as said:
             out = _run_variant(task)
     finally:
-        ACTIVITY.pop(me, None)
+        if queue is None:
+            ACTIVITY.pop(me, None)
+        else:
+            say(None, None, None)
     out["notices"] = said.counts
     out["wall_s"] = time.perf_counter() - wall0
     out["cpu_s"] = time.thread_time() - cpu0

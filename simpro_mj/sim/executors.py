@@ -142,11 +142,13 @@ def run_tasks(
     scheduler: str | None = None,
     no_workers_s: float | None = None,
     threads: bool = False,
+    activity: dict | None = None,
 ) -> None:
     """Run ``fn(task)`` for each ``(key, task)``; ``done(key, result)`` in this process
     as each finishes (``jobs == 1`` here; ``jobs`` threads of this process with
     ``threads``, else a spawn pool; or Dask with ``scheduler``). A worker that
-    dies fails its task only.
+    dies fails its task only. ``activity``, on a spawn pool: filled with what the
+    workers say they are doing (:func:`run_pool`).
 
     Raises
     ------
@@ -165,7 +167,7 @@ def run_tasks(
     elif threads:
         run_threads(tasks, jobs, done, fn=fn)
     else:
-        run_pool(tasks, jobs, done, fn=fn)
+        run_pool(tasks, jobs, done, fn=fn, activity=activity)
 
 
 def run_here(tasks: list[tuple[int, dict]], done: Callback, fn: Worker) -> None:
@@ -220,17 +222,31 @@ def run_threads(tasks: list[tuple[int, dict]], jobs: int, done: Callback, fn: Wo
     pool.shutdown(wait=True)
 
 
-def run_pool(tasks: list[tuple[int, dict]], jobs: int, done: Callback, fn: Worker) -> None:
-    """The tasks on a spawn process pool of at most ``jobs`` workers."""
+def run_pool(
+    tasks: list[tuple[int, dict]],
+    jobs: int,
+    done: Callback,
+    fn: Worker,
+    activity: dict | None = None,
+) -> None:
+    """The tasks on a spawn process pool of at most ``jobs`` workers.
+
+    With ``activity``, the workers get a queue (:func:`simpro_mj.sim.workers.activity_queue`)
+    on which a task puts ``(worker, label, phase, since)``, or ``(worker, None, None,
+    None)`` when it ends; a thread here keeps ``activity[worker]`` = ``(label, phase,
+    since)`` from them for the progress line.
+    """
     ctx = multiprocessing.get_context("spawn")  # no inherited MuJoCo/threads state
+    queue = ctx.Queue() if activity is not None else None
     pool = ProcessPoolExecutor(
         max_workers=min(jobs, len(tasks)),
         mp_context=ctx,
         initializer=init_worker,  # SIGTERM stops a variant; no worker outlives the batch
-        initargs=(os.getpid(),),
+        initargs=(os.getpid(), queue),
     )
     futures: dict = {}
     reported: set = set()
+    reader = _Activity(queue, activity) if queue is not None else None
     try:
         with main_not_imported():  # the workers start while the tasks are submitted
             futures = {pool.submit(run_task, fn, task): key for key, task in tasks}
@@ -256,7 +272,42 @@ def run_pool(tasks: list[tuple[int, dict]], jobs: int, done: Callback, fn: Worke
             with contextlib.suppress(Exception):
                 done(key, fut.result(timeout=0))
         raise
+    finally:
+        if reader is not None:
+            reader.close()
     pool.shutdown(wait=True)
+
+
+class _Activity:
+    """A thread that copies what pool workers say they are doing into a dict."""
+
+    def __init__(self, queue, into: dict):
+        self.queue, self.into = queue, into
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._read, name="simpro-activity", daemon=True)
+        self._thread.start()
+
+    def _read(self) -> None:
+        import queue as queues
+
+        while not self._stop.is_set():
+            try:
+                worker, label, phase, since = self.queue.get(timeout=0.2)
+            except queues.Empty:
+                continue
+            except (EOFError, OSError, ValueError):  # the queue closed under us
+                return
+            if label is None:
+                self.into.pop(worker, None)
+            else:
+                self.into[worker] = (label, phase, since)
+
+    def close(self) -> None:
+        self._stop.set()
+        self._thread.join(timeout=2.0)
+        self.into.clear()
+        self.queue.cancel_join_thread()  # nothing of ours waits to be sent
+        self.queue.close()
 
 
 def dask_module():

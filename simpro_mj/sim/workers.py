@@ -13,6 +13,8 @@
   variant's folder is written marked ``PARTIAL`` and the worker exits (it
   takes no further task, not even one the pool had queued); an idle worker
   exits at once;
+* keeps the queue it was given (:func:`activity_queue`), on which a task may
+  say what it is doing for its parent's progress line;
 * starts a watchdog thread that polls ``os.getppid()`` every
   :data:`POLL_S`: when the parent is gone (``kill -9``, a crash), the worker
   has been re-parented: an idle worker exits at once, a busy one sends itself
@@ -37,6 +39,7 @@ from simpro_mj.sim.readiness import ENV
 __all__ = [
     "POLL_S",
     "GRACE_S",
+    "activity_queue",
     "init_worker",
     "main_not_imported",
     "run_task",
@@ -51,6 +54,12 @@ GRACE_S = 30.0
 
 _busy = False
 _ending = False  # SIGTERM received or parent gone: no further task
+_activity = None  # the parent's queue of what this worker is doing, if it gave one
+
+
+def activity_queue():
+    """The queue this worker's parent reads what its workers are doing from, or None."""
+    return _activity
 
 
 @contextlib.contextmanager
@@ -88,14 +97,17 @@ def _on_sigterm(signum, frame):
     os._exit(128 + signum)
 
 
-def init_worker(parent_pid: int) -> None:
-    """Pool initializer: the signal handling and the parent watchdog (module docstring).
+def init_worker(parent_pid: int, activity=None) -> None:
+    """Pool initializer: the signal handling, the parent watchdog and the activity
+    queue (module docstring).
 
     With ``SIMPRO_READY_FILE`` set, the worker's own readiness file (its
     variant is stepping) is ``<file>.worker-<pid>``, so it never stands for
     the parent's.
     """
 
+    global _activity
+    _activity = activity
     if os.environ.get(ENV):
         os.environ[ENV] = f"{os.environ[ENV]}.worker-{os.getpid()}"
     signal.signal(signal.SIGINT, signal.SIG_IGN)
