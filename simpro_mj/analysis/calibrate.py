@@ -46,6 +46,7 @@ from __future__ import annotations
 import copy
 import json
 import math
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -64,6 +65,7 @@ __all__ = [
     "paper_targets",
     "load_targets",
     "residuals",
+    "Calibration",
     "calibrate",
     "calibrate_preset",
 ]
@@ -135,6 +137,20 @@ def residuals(identified: dict, targets: dict) -> dict:
     return out
 
 
+@dataclass
+class Calibration:
+    """The best fit :func:`calibrate` found: the fitted ``values``, the models
+    ``identified`` there (actuators 1-2, the first amplitude's) and their
+    ``residuals`` per tolerance (None if no evaluation ran), the ``evaluations``
+    spent and the ``cost`` (sum of squared residuals)."""
+
+    cost: float = math.inf
+    values: dict[str, float] = field(default_factory=dict)
+    identified: dict | None = None
+    residuals: dict | None = None
+    evaluations: int = 0
+
+
 def calibrate(
     tree: dict,
     targets: dict,
@@ -143,7 +159,7 @@ def calibrate(
     max_evaluations: int = 40,
     progress=None,
     amplitudes_v=(0.3, 1.0),
-) -> dict:
+) -> Calibration:
     """Fit :data:`PARAMETERS` with ``scipy.optimize.least_squares``.
 
     Parameters
@@ -164,9 +180,7 @@ def calibrate(
 
     Returns
     -------
-    dict
-        ``values`` (fitted), ``identified`` (at the fit, actuators 1-2),
-        ``residuals`` (per tolerance), ``evaluations``, ``cost``.
+    Calibration
     """
     names = [p[0] for p in PARAMETERS]
     start = {}
@@ -188,7 +202,7 @@ def calibrate(
         )
     acts = ("actuator1", "actuator2")
     count = [0]
-    best: dict[str, Any] = {"cost": math.inf}
+    best = Calibration()
 
     class _Budget(Exception):
         pass
@@ -213,8 +227,8 @@ def calibrate(
         except (PhysicsError, UserInputError):
             ident, res, r = None, None, np.full(6 * len(amplitudes), 10.0)
         cost = float(r @ r)
-        if cost < best["cost"]:
-            best.update(cost=cost, values=values, identified=ident, residuals=res)
+        if cost < best.cost:
+            best.cost, best.values, best.identified, best.residuals = cost, values, ident, res
         if progress is not None:
             progress(count[0], cost)
         return r
@@ -225,7 +239,7 @@ def calibrate(
         )
     except _Budget:
         pass
-    best["evaluations"] = count[0]
+    best.evaluations = count[0]
     return best
 
 
@@ -273,7 +287,9 @@ def plausibility(tree: dict) -> dict:
     }
 
 
-def preset_document(name: str, tree: dict, base: dict, result: dict, targets: dict, extra=None):
+def preset_document(
+    name: str, tree: dict, base: dict, result: Calibration, targets: dict, extra=None
+):
     """The preset YAML document: only the values that differ from ``base``'s."""
 
     def diff(a, b):
@@ -287,7 +303,7 @@ def preset_document(name: str, tree: dict, base: dict, result: dict, targets: di
                 out[k] = v
         return out
 
-    ident = result.get("identified") or {}
+    ident = result.identified or {}
     doc = {
         "name": name,
         "description": f"calibrated by simpro-sim calibrate ({len(targets)} target models)",
@@ -299,9 +315,9 @@ def preset_document(name: str, tree: dict, base: dict, result: dict, targets: di
         "calibration": {
             "targets": targets,
             "tolerances": TOLERANCES,
-            "residuals_per_tolerance": result.get("residuals"),
-            "fitted": result.get("values"),
-            "evaluations": result.get("evaluations"),
+            "residuals_per_tolerance": result.residuals,
+            "fitted": result.values,
+            "evaluations": result.evaluations,
             "plausibility": plausibility(tree),
         }
         | (extra or {}),
@@ -326,21 +342,22 @@ def calibrate_preset(
         tree, targets, duration_s=duration_s, max_evaluations=max_evaluations,
         progress=progress, amplitudes_v=amplitudes_v,
     )  # fmt: skip
-    fitted = apply_values(tree, result["values"])
+    fitted = apply_values(tree, result.values)
     final = identify(fitted)
-    result["identified"] = final
-    result["residuals"] = residuals(final, targets)
-    # a preset lies over the model's own defaults: it records what differs from them
-    base = {"model": DEFAULT_MODEL_PARAMS, "pneumatics": DEFAULT_PNEUMATIC_PARAMS}
-    doc = preset_document(name, fitted, base, result, targets)
-    doc["calibration"]["paper_units"] = tree["paper_units"]
-    doc["calibration"]["amplitudes_v"] = [float(a) for a in amplitudes_v]
+    result.identified, result.residuals = final, residuals(final, targets)
     by_amp = {}
     for amp in amplitudes_v[1:]:  # the other amplitudes' models at the fit, for the record
         t2 = copy.deepcopy(fitted)
         t2["identify"]["prbs_amplitude_v"] = [float(amp)] * 3
         got = identify(t2, legs=(1, 2))
         by_amp[f"{amp:g}_v"] = {a: {k: round(float(got[a][k]), 4) for k in TOLERANCES} for a in got}
-    doc["calibration"]["identified_at_other_amplitudes"] = by_amp
+    # a preset lies over the model's own defaults: it records what differs from them
+    base = {"model": DEFAULT_MODEL_PARAMS, "pneumatics": DEFAULT_PNEUMATIC_PARAMS}
+    extra = {
+        "paper_units": tree["paper_units"],
+        "amplitudes_v": [float(a) for a in amplitudes_v],
+        "identified_at_other_amplitudes": by_amp,
+    }
+    doc = preset_document(name, fitted, base, result, targets, extra)
     doc = json.loads(json.dumps(doc, default=float))  # plain floats for YAML
     return doc, final
