@@ -48,38 +48,12 @@ class CorpusRow:
         return asdict(self)
 
 
-def _chain_columns(block: Mapping, t: np.ndarray, f: np.ndarray, w: np.ndarray):
-    from simpro_mj.analysis import omct
-
-    law, _ = omct._law(block)
-    pose, home = omct._poses(block, f, w)
-    loop = omct._loop(pose, _DT)
-    head = omct._head(loop, home, _DT)
-    n = t.size
-    cols: dict[str, np.ndarray] = {"time_s": t - t[0]}
-    for k, a in enumerate("xyz"):
-        cols[f"veh_f{a}_mps2"], cols[f"veh_w{a}_rad_s"] = f[:, k], w[:, k]
-        cols[f"head_f{a}_mps2"] = head[f"f{a}"]
-        cols[f"head_w{a}_rad_s"] = head[f"w{a}"] if a != "z" else np.zeros(n)
-    cols["roll_rad"], cols["pitch_rad"], cols["heave_m"] = loop[:, 0], loop[:, 1], loop[:, 2]
-    for i in (1, 2, 3):
-        cols[f"q{i}_m"], cols[f"u{i}_v"] = np.full(n, 0.25), np.full(n, 5.0)
-    info = {
-        "box": law.box,
-        "softened_fraction": 0.0,
-        "rate_limited_fraction": 0.0,
-        "source": "model chain",
-        "algorithm": block["algorithm"],
-    }
-    return cols, info
-
-
 def judge_drive(name: str, block: Mapping, t, f, w, *, bound: bool = True) -> list[CorpusRow]:
     """The judged channels of one drive (``t`` on a 10 ms grid, ``f``, ``w`` V frame)."""
-    from simpro_mj.analysis.cue_metrics import cue_floors, cue_metrics
+    from simpro_mj.analysis.cue_metrics import cue_floors
+    from simpro_mj.analysis.omct import model_chain_metrics
 
-    cols, info = _chain_columns(block, np.asarray(t), np.asarray(f), np.asarray(w))
-    m = cue_metrics(cols, {"setpoint": {"cueing": dict(block)}}, info=info, bound=bound)
+    m = model_chain_metrics(block, np.asarray(t), np.asarray(f), np.asarray(w), bound=bound)
     floors = cue_floors(m)
     rows = []
     bound_ch = (m.get("bound") or {}).get("channels") or {}

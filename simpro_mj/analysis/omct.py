@@ -328,13 +328,15 @@ def omct(
     return out
 
 
-def model_chain_metrics(block: Mapping, t: np.ndarray, f: np.ndarray, w: np.ndarray) -> dict:
-    """The cueing metrics (:func:`simpro_mj.analysis.cue_metrics.cue_metrics`, without the
-    bound) of a vehicle input ``t``, ``f``, ``w`` (V frame, SI, a uniform grid whose step
-    divides into ``_DT``) through the same chain as the OMCT: the law of ``block`` (with
-    its preview), the platform loop's model, a rigid cabin's head. The loop's valves and
-    strokes are not modelled: the block's ``workspace`` is the set-points' and its
-    ``valves`` say nothing (a run through the plant has them)."""
+def model_chain_metrics(block: Mapping, t: np.ndarray, f: np.ndarray, w: np.ndarray, *,
+                        bound: bool = False) -> dict:  # fmt: skip
+    """The cueing metrics (:func:`simpro_mj.analysis.cue_metrics.cue_metrics`) of a vehicle
+    input ``t``, ``f``, ``w`` (V frame, SI, a uniform grid whose step divides into
+    ``_DT``) through the same chain as the OMCT: the law of ``block`` (with its preview),
+    the platform loop's model, a rigid cabin's head; with ``bound``, the bound with the
+    block's own parameters too. The loop's valves and strokes are not modelled: the
+    block's ``workspace`` is the set-points' and its ``valves`` say nothing (a run
+    through the plant has them)."""
     from simpro_mj.analysis.cue_metrics import cue_metrics
 
     t = np.asarray(t, float)
@@ -363,4 +365,4 @@ def model_chain_metrics(block: Mapping, t: np.ndarray, f: np.ndarray, w: np.ndar
         "source": "model chain",
         "algorithm": block["algorithm"],
     }
-    return cue_metrics(cols, {}, info=info, bound=False)
+    return cue_metrics(cols, {"setpoint": {"cueing": dict(block)}}, info=info, bound=bound)

@@ -76,6 +76,24 @@ def add_arguments(parser) -> None:
                         help="replace --out even if simpro-sim did not write it")  # fmt: skip
 
 
+def write_new(out: Path, tel, comment: str) -> None:
+    """Write ``tel`` to ``out`` (checked by ``check_file``) whole or not at all: into a
+    hidden file beside it, renamed over it once complete, then listed in the folder's
+    marker."""
+    from simpro_mj.config.telemetry import write_telemetry
+
+    fd, tmp = tempfile.mkstemp(prefix=hidden(out, "tmp"), dir=out.parent)
+    os.close(fd)
+    try:
+        write_telemetry(tmp, tel, comment)
+        os.replace(tmp, out)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
+    record_file(out)
+
+
 def _finite(x: float) -> float | None:
     """``x``, or None where nothing was estimated (NaN: the vehicle frame)."""
     return None if x != x else float(x)
@@ -116,7 +134,6 @@ def run(args) -> int:
         )
     args.source = args.source[0]
     from controllers.conditioning import BIAS_TAU_S, VIBRATION_HZ
-    from simpro_mj.config.telemetry import write_telemetry
     from simpro_mj.config.telemetry_import import (
         import_recording,
         read_comma2k19,
@@ -160,16 +177,7 @@ def run(args) -> int:
             "includes gravity; format: simpro_mj/config/telemetry.py",
         ]
     )
-    fd, tmp = tempfile.mkstemp(prefix=hidden(out, "tmp"), dir=out.parent)
-    os.close(fd)
-    try:
-        write_telemetry(tmp, tel, comment)
-        os.replace(tmp, out)
-    except BaseException:
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)
-        raise
-    record_file(out)
+    write_new(out, tel, comment)
     if args.json:
         emit_json(
             {
