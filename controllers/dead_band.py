@@ -22,7 +22,13 @@ compiled step.
 
 from __future__ import annotations
 
-__all__ = ["dead_band"]
+from typing import Literal
+
+__all__ = ["dead_band", "gap", "BandKind"]
+
+#: How a band shapes the error an integrator takes: :func:`dead_band` (``subtract``)
+#: or :func:`gap`.
+BandKind = Literal["subtract", "gap"]
 
 
 def dead_band(e: float, width: float) -> float:
@@ -39,5 +45,20 @@ def dead_band(e: float, width: float) -> float:
     if e < -width:
         return e + width
     if e == e:  # inside the band (a NaN passes, as the loop would see it)
+        return 0.0
+    return e
+
+
+def gap(e: float, width: float) -> float:
+    """``e`` outside ``[-width, width]``, 0 inside: a gap in what an integrator takes.
+
+    Discontinuous, so only for an integrator's input, whose output stays
+    continuous: the task-space I law then integrates the whole error until the
+    pose is within the band, where :func:`dead_band` slows to ``e - width`` on the
+    last stretch (a 2 deg roll step held by the seals 0.09 deg short of its
+    set-point creeps in at 0.04 deg of error under a 0.05 deg band). A leg's
+    proportional action needs the continuous :func:`dead_band` instead.
+    """
+    if width > 0.0 and -width <= e <= width:
         return 0.0
     return e

@@ -16,7 +16,7 @@ import math
 
 import numpy as np
 
-from .dead_band import dead_band
+from .dead_band import dead_band, gap
 from .layout import layout
 
 __all__ = [
@@ -285,20 +285,23 @@ def joint_step(x, jc, e0, e1, e2, f0, f1, f2, v_out):
 # command x_c, IK(x_c) and whether it is known, q_d, the last error (PI), the correction
 # c, the pending one (I law) and whether it is, the reference model, the outer period's
 # sums (of the command, the pose, q_d, the joints) and their count, the last command, a
-# valve at its rail; scratch: the checked set-point, an IK result, the error
+# valve at its rail, per axis whether the dead band holds the law (its release);
+# scratch: the checked set-point, an IK result, the error
 TS = layout(
     "TaskState", xc=3, qxc=3, qxc_ok=1, qd=3, eprev=3, corr=3, pend=3, pend_ok=1, model=3,
-    acc_ref=3, acc_y=3, acc_qd=3, acc_qm=3, nacc=1, refcmd=3, sat=1, scr_ref=3, scr_q=3,
-    scr_e=3,
+    acc_ref=3, acc_y=3, acc_qd=3, acc_qm=3, nacc=1, refcmd=3, sat=1, held=3, scr_ref=3,
+    scr_q=3, scr_e=3,
 )  # fmt: skip
 # Its constants ``tc``: mode (0 joint-only, 1 I, 2 PI, 3 feed-forward), the
 # feed-forward correction's law (1 I, 2 PI), clamp, lag "joints", average,
 # model_tau (s), the model's beta, the PI zero c, T K K_I (3), margin, home (3), the
-# dead band of the integrated task error (3: rad, rad, m; 0: none); the I/PI law's
-# joint lag (0 none, 1 joints) and the joint dead bands it leaves in the error (3, m)
+# dead band of the integrated task error (3: rad, rad, m; 0: none), its kind (0
+# subtract, 1 gap) and its release (the error that ends a hold, in band widths; 1:
+# none); the I/PI law's joint lag (0 none, 1 joints) and the joint dead bands it
+# leaves in the error (3, m)
 TC = layout(
     "TaskConstants", mode=1, law=1, clamp=1, lagj=1, avg=1, tau=1, beta=1, piz=1, tg=3,
-    margin=1, home=3, db=3, jlag=1, jband=3,
+    margin=1, home=3, db=3, dbgap=1, dbrel=1, jlag=1, jband=3,
 )  # fmt: skip
 MODE_JOINT, MODE_I, MODE_PI, MODE_FF = 0, 1, 2, 3
 
@@ -450,6 +453,27 @@ def ff_step(ref, ts, tc, g):
     return 0
 
 
+def _banded(e, w, j, ts, tc):
+    """Axis ``j``'s error as the law integrates it, through its dead band ``w``.
+
+    Without a release (``TC.dbrel`` 1) :func:`~controllers.dead_band.dead_band` or
+    :func:`~controllers.dead_band.gap` of ``e``. With a release ``r > 1`` the band
+    holds the law from the step the error enters ``[-w, w]`` until it leaves
+    ``[-r w, r w]`` (``TS.held``): a seal's slip that lands the pose within ``r w``
+    does not restart the law that the slip would answer with the next slip.
+    """
+    r = tc[TC.dbrel]
+    if r > 1.0:
+        if ts[TS.held + j] != 0.0:
+            if -r * w <= e <= r * w:
+                return 0.0
+            ts[TS.held + j] = 0.0
+        elif -w <= e <= w:
+            ts[TS.held + j] = 1.0
+            return 0.0
+    return gap(e, w) if tc[TC.dbgap] else dead_band(e, w)
+
+
 def outer_update(r0, r1, r2, y0, y1, y2, qm0, qm1, qm2, hold, ts, tc, g):
     """One outer step (eqs. 21-27): set-point and measured pose -> ``q_d`` in ``ts[TS.qd]``.
 
@@ -482,7 +506,7 @@ def outer_update(r0, r1, r2, y0, y1, y2, qm0, qm1, qm2, hold, ts, tc, g):
         _less_joint_lag(qm0, qm1, qm2, ts, tc, g, e)
     for j in range(3):  # the dead band: within it the integrated pose holds
         if tc[TC.db + j] > 0.0:
-            e[j] = dead_band(e[j], tc[TC.db + j])
+            e[j] = _banded(e[j], tc[TC.db + j], j, ts, tc)
     if mode == MODE_FF:
         _correct(ref, e, hold, ts, tc, g, q)
         return ff_step(ref, ts, tc, g)

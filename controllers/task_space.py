@@ -80,6 +80,7 @@ from typing import Literal, get_args
 import numpy as np
 
 from . import step_functions as sf
+from .dead_band import BandKind
 from .errors import WorkspaceError
 from .geometry import PlatformGeometry, nominal_geometry
 from .kinematics import check_reachable
@@ -126,6 +127,7 @@ LAGS: tuple[Lag, ...] = get_args(Lag)
 #: the joint loops' lag beyond their dead bands (``joint_lag``).
 JointLag = Literal["none", "joints"]
 JOINT_LAGS: tuple[JointLag, ...] = get_args(JointLag)
+BAND_KINDS: tuple[BandKind, ...] = get_args(BandKind)
 
 
 def _widths(value, name: str) -> np.ndarray:
@@ -177,6 +179,13 @@ class TaskSpaceController:
         Width per axis (rad, rad, m) of the dead band on the task error the
         law integrates (:func:`controllers.dead_band.dead_band`): within it the
         integrated pose holds. Default 0 (none).
+    band_kind : {"subtract", "gap"}
+        Outside the band the law integrates ``e -+ w`` (``"subtract"``,
+        :func:`~controllers.dead_band.dead_band`) or the whole ``e`` (``"gap"``,
+        :func:`~controllers.dead_band.gap`).
+    band_release : float
+        ``>= 1``: once the error is within the band, the law holds until it
+        leaves ``band_release`` times the band (1: no hold beyond the band).
     joint_lag : {"none", "joints"}
         Modes I and PI: ``"none"`` (the paper) integrates the whole task error
         ``y_d - y``; ``"joints"`` integrates it less the joint loops' lag
@@ -213,6 +222,8 @@ class TaskSpaceController:
         lag: str = "model",
         average: bool = False,
         dead_band=0.0,
+        band_kind: str = "subtract",
+        band_release: float = 1.0,
         joint_lag: str = "none",
         joint_band=0.0,
     ):
@@ -222,6 +233,10 @@ class TaskSpaceController:
             raise ValueError(f"unknown outer_law {outer_law!r}; allowed: ['I', 'PI']")
         if lag not in LAGS:
             raise ValueError(f"unknown lag {lag!r}; allowed: {list(LAGS)}")
+        if band_kind not in BAND_KINDS:
+            raise ValueError(f"unknown band_kind {band_kind!r}; allowed: {list(BAND_KINDS)}")
+        if not (math.isfinite(band_release) and band_release >= 1.0):
+            raise ValueError(f"band_release must be finite and >= 1, got {band_release!r}")
         if joint_lag not in JOINT_LAGS:
             raise ValueError(f"unknown joint_lag {joint_lag!r}; allowed: {list(JOINT_LAGS)}")
         if not (np.isfinite(inner_dt) and inner_dt > 0):
@@ -266,7 +281,8 @@ class TaskSpaceController:
             mode=_MODE_CODES[mode], law=2.0 if outer_law == "PI" else 1.0, clamp=self.clamp,
             lagj=lag == "joints", avg=self.average, tau=self.model_tau, beta=self._beta,
             piz=self.pi_zero, tg=self.period * self.gains, margin=self.margin,
-            home=self.geometry.home, db=db, jlag=joint_lag == "joints", jband=jb,
+            home=self.geometry.home, db=db, dbgap=band_kind == "gap", dbrel=band_release,
+            jlag=joint_lag == "joints", jband=jb,
         )  # fmt: skip
         self.step_state = np.zeros(sf.TS.LEN)
         self.reset()  # raises if home is not reachable

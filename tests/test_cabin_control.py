@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 import simpro_mj.identification.auto as ai
-from controllers.dead_band import dead_band
+from controllers import step_functions as sf
+from controllers.dead_band import dead_band, gap
 from controllers.joint import JointControllers
 from controllers.task_space import TaskSpaceController
 from simpro_mj.analysis.metrics import compute_metrics
@@ -71,6 +72,40 @@ def test_task_space_dead_band_holds_the_integrated_pose_within_the_band():
     assert ctl.pose_command[1] - HOME[1] == pytest.approx(-0.18 * np.radians(0.03), rel=1e-9)
 
 
+def test_a_gap_band_integrates_the_whole_error_outside_it():
+    w = 1e-3
+    assert gap(0.9e-3, w) == 0.0 and gap(-w, w) == 0.0
+    assert gap(1.5e-3, w) == 1.5e-3 and gap(-1.5e-3, w) == -1.5e-3
+    assert gap(0.3e-3, 0.0) == 0.3e-3
+    # the task-space law: 0.08 deg of pitch error past a 0.05 deg gap, all of it integrated
+    ctl = TaskSpaceController("I", gains=3.0, dead_band=[0.0, np.radians(0.05), 0.0],
+                              band_kind="gap")  # fmt: skip
+    ctl.reset()
+    ctl.update(HOME, HOME + np.array([0.0, np.radians(0.08), 0.0]))
+    ctl.update(HOME, HOME)
+    assert ctl.pose_command[1] - HOME[1] == pytest.approx(-0.18 * np.radians(0.08), rel=1e-9)
+
+
+def test_a_band_with_a_release_holds_until_the_error_leaves_release_times_the_band():
+    w = np.radians(0.05)
+    ctl = TaskSpaceController("I", gains=3.0, dead_band=[0.0, w, 0.0], band_release=3.0)
+    ctl.reset()
+    ts, tc = ctl.step_state, ctl.step_constants
+
+    def banded(e_deg):  # the pitch error the law integrates, as the step shapes it
+        return sf._banded(np.radians(e_deg), w, 1, ts, tc)
+
+    assert banded(0.1) == pytest.approx(np.radians(0.05))  # not held: e - w
+    assert banded(0.04) == 0.0  # entered the band: held from here
+    assert banded(0.1) == 0.0 and banded(-0.149) == 0.0  # within 3 w: still held
+    assert banded(0.2) == pytest.approx(np.radians(0.15))  # released beyond 3 w: e - w
+    assert banded(0.1) == pytest.approx(np.radians(0.05))  # and not held again until within w
+    ctl.reset()
+    assert banded(0.1) == pytest.approx(np.radians(0.05))  # a reset releases the hold
+    with pytest.raises(ValueError, match="band_release"):
+        TaskSpaceController("I", band_release=0.5)
+
+
 def test_design_plant_auto_is_the_paper_plant_on_paper_and_identified_on_other_presets():
     assert load_scenario("step_pitch")["controller"]["inner"]["design_plant"] == "paper"
     heavy = load_scenario("step_pitch", [HEAVY])
@@ -84,14 +119,17 @@ def test_design_plant_auto_is_the_paper_plant_on_paper_and_identified_on_other_p
 def test_the_presets_controller_block_lies_under_the_scenarios_own_values():
     preset = load_preset("heavy_cabin")["controller"]
     heavy = load_scenario("step_pitch", [HEAVY])["controller"]
-    assert heavy["outer"]["dead_band"] == preset["outer"]["dead_band"]
+    band = {"kind": "subtract", "release": 1.0, **preset["outer"]["dead_band"]}
+    assert heavy["outer"]["dead_band"] == band and band["release"] == 3.0
     assert heavy["setpoint_filter"]["time_ms"] == preset["setpoint_filter"]["time_ms"]
     assert heavy["outer"]["gains"] == [3.0, 3.0, 3.0]  # the scenario's, the preset has none
     own = load_scenario("step_pitch", [HEAVY, "controller.outer.dead_band.pitch_deg=0"])
     assert own["controller"]["outer"]["dead_band"]["pitch_deg"] == 0.0
     # the paper preset carries no controller block: no dead band
     paper = load_scenario("step_pitch")["controller"]
-    assert paper["outer"]["dead_band"] == {"roll_deg": 0.0, "pitch_deg": 0.0, "heave_mm": 0.0}
+    assert paper["outer"]["dead_band"] == {
+        "roll_deg": 0.0, "pitch_deg": 0.0, "heave_mm": 0.0, "kind": "subtract", "release": 1.0
+    }  # fmt: skip
     assert paper["inner"]["dead_band_mm"] == [0.0, 0.0, 0.0]
 
 
@@ -112,7 +150,7 @@ def _run(*sets):
 def test_the_cabin_settles_with_its_dead_bands_and_hunts_without_them(cache):
     """The cabin's seals (250 N breakaway, 150 N Coulomb per leg) stick: an integrator
     winds up while friction holds a leg, which then slips past. With the preset's 2 mm
-    integrator band and 0.02 deg / 0.2 mm outer band (and its valve dither) the pitch
+    integrator band and 0.05 deg / 0.2 mm outer band (and its valve dither) the pitch
     step meets the cabin's floors (<= 10 %, <= 3 s, heave within 2 mm); without either
     band the pose is still moving over the last 3 s."""
     sc, judged, m, c = _run()
@@ -124,7 +162,10 @@ def test_the_cabin_settles_with_its_dead_bands_and_hunts_without_them(cache):
     assert pitch["overshoot_pct"] <= 10.0 and pitch["settling_time_s"] <= 3.0
     after = c["time_s"] >= 1.0
     assert np.abs(c["heave_m"][after] - c["heave_ref_m"][after]).max() <= 2e-3
-    _, joints, _, _ = _run("controller.inner.dead_band_mm=0")
+    # without the joint bands (and the outer band's release, which alone holds them)
+    _, joints, _, _ = _run(
+        "controller.inner.dead_band_mm=0", "controller.outer.dead_band.release=1"
+    )
     assert joints["status"] != "ok", joints["reason"]
     # without the outer band the pose keeps hunting: over the last 3 s the heave moves by
     # 0.3 mm (the verdict's threshold is 0.2 mm) against 0.01 mm with it

@@ -30,6 +30,7 @@ from pydantic import (
     model_validator,
 )
 
+from controllers.dead_band import BandKind
 from controllers.design import ACTUATORS, Plant, Reading, Variant, paper_plant, redesigned_design
 from controllers.errors import DesignError
 from controllers.joint import AntiWindup, Method
@@ -90,6 +91,21 @@ class OuterDeadBand(Block):
     roll_deg: Width = param(0.0, "deg", "dead band on the roll error")
     pitch_deg: Width = param(0.0, "deg", "dead band on the pitch error")
     heave_mm: Width = param(0.0, "mm", "dead band on the heave error")
+    kind: BandKind = param(
+        "subtract",
+        "",
+        "subtract: the law integrates e -+ w outside the band (continuous); gap: the whole "
+        "e outside it (controllers.dead_band.gap), the last step into the band at full rate",
+    )
+    release: Real = param(
+        1.0,
+        "",
+        "once the error is within the band the law holds until it leaves release times "
+        "the band (1: the band alone): a seal's slip landing within it does not restart "
+        "the law (docs/paper-notes.md, dead bands)",
+        ge=1,
+        le=20,
+    )
 
 
 class Outer(Block):

@@ -352,10 +352,24 @@ def _set(tree: dict, key: str, value: Any) -> None:
 
 #: (block of ``controller``, key, default): left out of the hash at the default
 _HASHED_UNLESS_DEFAULT = (
-    ("outer", "joint_lag", "none"),
-    ("inner", "anti_windup", "back_calculation"),
-    ("inner", "tracking_time_ms", 50.0),
+    (("outer",), "joint_lag", "none"),
+    (("inner",), "anti_windup", "back_calculation"),
+    (("inner",), "tracking_time_ms", 50.0),
+    (("outer", "dead_band"), "kind", "subtract"),
+    (("outer", "dead_band"), "release", 1.0),
 )
+
+
+def _without_default(tree: Mapping, path: tuple, key: str, default) -> Mapping:
+    """``tree`` less ``key`` at ``path`` where it holds ``default`` (copied, not changed)."""
+    sub = tree.get(path[0])
+    if not isinstance(sub, Mapping):
+        return tree
+    if len(path) > 1:
+        return {**tree, path[0]: _without_default(sub, path[1:], key, default)}
+    if key in sub and sub[key] == default:
+        return {**tree, path[0]: {k: v for k, v in sub.items() if k != key}}
+    return tree
 
 
 def scenario_hash(resolved: Scenario | Mapping) -> str:
@@ -383,11 +397,8 @@ def scenario_hash(resolved: Scenario | Mapping) -> str:
     if isinstance(ctl, Mapping):
         # a key at a default that steps as the scenario without it hashes as that
         # scenario: the same run, the same hash
-        ctl = dict(ctl)
-        for block, key, default in _HASHED_UNLESS_DEFAULT:
-            sub = ctl.get(block)
-            if isinstance(sub, Mapping) and key in sub and sub[key] == default:
-                ctl[block] = {k: v for k, v in sub.items() if k != key}
+        for path, key, default in _HASHED_UNLESS_DEFAULT:
+            ctl = _without_default(ctl, path, key, default)
         resolved = {**resolved, "controller": ctl}
     resolved = {**resolved, "mjcf": f"sha256:{model_digest()}"}  # the model it compiles
     text = json.dumps(resolved, sort_keys=True, separators=(",", ":"), allow_nan=False)

@@ -142,6 +142,8 @@ class CoSimulation:
             lag=ff.lag,
             average=ff.average,
             dead_band=band,
+            band_kind=outer.dead_band.kind,
+            band_release=outer.dead_band.release,
             joint_lag=outer.joint_lag,
             joint_band=np.asarray(inner.dead_band_mm) * 1e-3,
         )

@@ -416,29 +416,41 @@ def compiled():
         return _compiled
 
 
+def _sources_digest() -> str:
+    """SHA-256 of the step's source files: every compiled function's module, the
+    callback's, and the layouts' helper (the offsets compiled in as constants)."""
+    import os
+
+    from simpro_mj.core.cache import source_digest
+
+    files = {sys.modules[f.__module__].__file__ for f in _PLAIN}
+    files.add(os.path.join(os.path.dirname(__file__), "callback.py"))
+    files.add(sys.modules[layout.__module__].__file__)
+    return source_digest(files)
+
+
+#: Taken as the step's modules are imported, not when it is first compiled: a source
+#: edited between the two would otherwise name the old code's cache by the new
+#: code's digest, and every later run would load offsets that no longer hold.
+_SOURCES = _sources_digest()
+
+
 def _cache_dir() -> str:
     """numba's cache directory for the compiled step, named by a hash of its sources.
 
     numba invalidates a cached function when its own file changes, not when
     a function it calls does (the callee's code is linked into the caller's
-    cache entry): a cache keyed by all the step's source files is never
-    stale. Under ``NUMBA_CACHE_DIR`` if it is a writable folder (else said),
-    else next to this package, else the user's cache directory
+    cache entry): a cache keyed by all the step's source files (:data:`_SOURCES`)
+    is never stale. Under ``NUMBA_CACHE_DIR`` if it is a writable folder (else
+    said), else next to this package, else the user's cache directory
     (:mod:`simpro_mj.sim.numba_cache`); damaged files are deleted first.
     """
     import os
 
-    from simpro_mj.core.cache import source_digest
     from simpro_mj.sim.numba_cache import cache_base, heal
 
-    # the modules of every compiled function, the callback's, and the layouts' helper
-    # (the offsets compiled in as constants)
-    files = {sys.modules[f.__module__].__file__ for f in _PLAIN}
-    files.add(os.path.join(os.path.dirname(__file__), "callback.py"))
-    files.add(sys.modules[layout.__module__].__file__)
-    digest = source_digest(files)
     base = cache_base(os.path.join(os.path.dirname(__file__), "__pycache__"))
-    folder = os.path.join(base, "simpro-step-" + digest[:16])
+    folder = os.path.join(base, "simpro-step-" + _SOURCES[:16])
     heal(folder)  # a truncated file is deleted (said) and its function compiled again
     return folder
 
