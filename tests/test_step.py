@@ -47,6 +47,13 @@ CASES = {
          "controller.feedforward.average=false"],
     ),
     "joint_only": ("step_roll.yaml", ["duration_s=0.6", "controller.mode=joint_only"]),
+    # the cabin's bands, dither and conditional integration; the outer band holding and
+    # released (2.5 s: the pose enters its band after the step at 1 s), and its gap kind
+    "cabin_band_release": ("step_all.yaml", ["duration_s=2.5", "plant.preset=heavy_cabin"]),
+    "cabin_band_gap": (
+        "step_all.yaml",
+        ["duration_s=2.5", "plant.preset=heavy_cabin", "controller.outer.dead_band.kind=gap"],
+    ),
     "linear_plant": ("sweep_outer_gain.yaml", ["duration_s=0.6"]),
     "faults": (
         "fault_supply_drop.yaml",
@@ -63,7 +70,8 @@ def test_interpreted_and_compiled_agree_bit_for_bit(case, monkeypatch):
     name, sets = CASES[case]
     a = _run(name, sets, "python", monkeypatch)
     b = _run(name, sets, "numba", monkeypatch)
-    assert a.status == b.status and a.sim["steps"] == b.sim["steps"] == 600
+    steps = round(1000 * float(sets[0].split("=")[1]))  # duration_s at 1 ms
+    assert a.status == b.status and a.sim["steps"] == b.sim["steps"] == steps
     for col, x in a.columns.items():
         assert np.array_equal(x, b.columns[col], equal_nan=True), col
     assert np.array_equal(a.qpos, b.qpos)
