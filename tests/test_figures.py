@@ -264,11 +264,33 @@ def test_sweep_responses_draw_each_variants_setpoint(tmp_path, same_setpoint):
 @pytest.mark.parametrize("with_limits", [True, False])
 def test_metric_vs_param_lists_only_what_it_draws(tmp_path, with_limits):
     from simpro_mj.batch.plots import metric_vs_param_figure
+    from simpro_mj.batch.tables import StabilityLimit
 
     rows, info = _sweep_rows(tmp_path, True)
     stability = []
     if with_limits:
-        stability = [{"group": {}, "analytic_limit": 11.8, "simulated_limit": 12.5}]
+        stability = [
+            StabilityLimit(
+                scenario=info["scenario"],
+                group={},
+                outer_type="I",
+                period_ms=60.0,
+                actuator_model="nonlinear",
+                gains=[],
+                stable=[],
+                growth_rate_1_s=[],
+                statuses=[],
+                largest_stable=12.0,
+                smallest_unstable=16.0,
+                largest_settled=12.0,
+                smallest_unsettled=16.0,
+                simulated_limit=12.5,
+                analytic_limit=11.8,
+                analytic_limit_delay_model=None,
+                simulated_over_analytic=12.5 / 11.8,
+                note=None,
+            )
+        ]
     fig = metric_vs_param_figure(rows, info, stability)
     assert legend_mismatches(fig) == []
     labels = {t.get_text() for t in fig.axes[0].get_legend().get_texts()}
