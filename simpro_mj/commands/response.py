@@ -28,6 +28,7 @@ import math
 import os
 from pathlib import Path
 
+from simpro_mj.config.models import as_scenario
 from simpro_mj.config.scenario import load_scenario
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.jsonout import emit_json
@@ -149,6 +150,7 @@ def run(args) -> int:
     args.amplitude_mm = 5.0 if args.amplitude_mm is None else args.amplitude_mm
     args.settle_s = 4.0 if args.settle_s is None else args.settle_s
     scenario = load_scenario(args.scenario, args.sets)
+    spec = as_scenario(scenario)
     periods_ms = None if args.freq_hz is None else check_periods(args.freq_hz)
     if args.freq_hz is not None and not args.freq_hz:
         raise UserInputError("invalid value at --freq-hz: empty; allowed: one or more frequencies")
@@ -167,7 +169,7 @@ def run(args) -> int:
     )
     if args.scheduler is not None:
         dask_module()  # say so before anything runs
-    out = Path(args.out) if args.out else Path("results") / f"{scenario['name']}-response"
+    out = Path(args.out) if args.out else Path("results") / f"{spec.name}-response"
     with claim(out, "response", inputs=[args.scenario]):
         model = loop_model(scenario)
         results = measure(
@@ -178,8 +180,8 @@ def run(args) -> int:
         )
         resp = summary(plan, results, model)
         doc = {
-            "scenario": scenario["name"],
-            "mode": scenario["controller"]["mode"],
+            "scenario": spec.name,
+            "mode": spec.controller.mode,
             "loop": loop_label(scenario),
             # the law as analysed: an I law by backward Euler is the PI form with c = 0
             "analysed_law": model.mode,
@@ -194,7 +196,7 @@ def run(args) -> int:
             "frequencies_hz": [1000.0 / p for p in sorted(plan.periods_ms, reverse=True)],
             **resp.to_json(),
         }
-        title = f"{scenario['name']} ({doc['loop']})"
+        title = f"{spec.name} ({doc['loop']})"
 
         def plotter(_doc, folder: Path) -> list[str]:
             return plot(resp, plan.axes, title, folder)
@@ -236,6 +238,7 @@ def run_chain(args, jobs: int) -> int:
     if args.axes != "roll,pitch,heave":
         raise UserInputError("invalid value at --axes: not with --chain; allowed: --channels")
     scenario = load_scenario(args.scenario, args.sets)
+    spec = as_scenario(scenario)
     if args.freq_hz is not None and not args.freq_hz:
         raise UserInputError("invalid value at --freq-hz: empty; allowed: one or more frequencies")
     periods_ms = None if args.freq_hz is None else check_periods(args.freq_hz)
@@ -251,7 +254,7 @@ def run_chain(args, jobs: int) -> int:
     )
     if args.scheduler is not None:
         dask_module()  # say so before anything runs
-    out = Path(args.out) if args.out else Path("results") / f"{scenario['name']}-chain"
+    out = Path(args.out) if args.out else Path("results") / f"{spec.name}-chain"
     with claim(out, "response", inputs=[args.scenario]):
         results = measure_chain(
             plan,
@@ -262,9 +265,9 @@ def run_chain(args, jobs: int) -> int:
         summ = chain_summary(plan, results)
         cue = plan.tasks[0]["scenario"]["setpoint"]["cueing"]
         doc = {
-            "scenario": scenario["name"],
+            "scenario": spec.name,
             "kind": "chain",
-            "mode": scenario["controller"]["mode"],
+            "mode": spec.controller.mode,
             "loop": loop_label(scenario),
             "channels_excited": list(plan.channels),
             "amplitude": {
@@ -277,7 +280,7 @@ def run_chain(args, jobs: int) -> int:
             "washout": {"algorithm": cue["algorithm"], "parameters": cue["parameters"]},
             **summ.to_json(),
         }
-        title = f"{scenario['name']} ({doc['loop']})"
+        title = f"{spec.name} ({doc['loop']})"
 
         def plotter(_doc, folder: Path) -> list[str]:
             return plot_chain(summ, title, folder)
