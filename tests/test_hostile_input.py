@@ -321,13 +321,26 @@ _leaf = st.one_of(
 )
 
 
+#: Nodes drawn per document, beyond which every value is a plain ``0``: room for each
+#: shape a naive loader breaks on (five anchors of 12 aliases, each of the one before,
+#: expand past ``safe_yaml.MAX_NODES``: 12**5 > 200,000; a ``deep`` node nests past
+#: ``MAX_DEPTH``; the repeats give size and duplicate keys). Without the bound, trees 12
+#: wide and 5 deep overrun Hypothesis's buffer (the example is thrown away) and the
+#: test's time goes into drawing their leaves. The catalogue above has one case of each.
+_NODES = 80
+
+
 @st.composite
 def yaml_structures(draw):
     """YAML text with anchors, aliases (to finished anchors, to unfinished ones),
     nesting of random depth and repeated blocks: the shapes that break naive loaders."""
     anchors: list[str] = []
+    drawn = [0]
 
     def node(depth: int) -> str:
+        if drawn[0] >= _NODES:
+            return "0"
+        drawn[0] += 1
         kind = draw(st.sampled_from(["leaf", "list", "map", "alias", "deep"]))
         if kind == "alias" and anchors:
             return "*" + draw(st.sampled_from(anchors))
