@@ -13,6 +13,7 @@ explicit ``from simpro_mj import run`` is.
 from __future__ import annotations
 
 import ast
+import functools
 from pathlib import Path
 
 import pytest
@@ -77,12 +78,24 @@ def _targets(module: str, is_package: bool, node: ast.AST, mods: dict[str, Path]
     return out
 
 
+@functools.cache
+def _tree(path: Path) -> ast.Module:
+    """A module's syntax tree, parsed once per test process (the tests only read it)."""
+    return ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
+
+
 def import_graph() -> dict[str, set[str]]:
-    """``module -> {modules it imports}`` over simpro_mj and controllers (any level)."""
+    """``module -> {modules it imports}`` over simpro_mj and controllers (any level): a
+    fresh copy of :func:`_graph`, which is read once per test process."""
+    return {name: set(targets) for name, targets in _graph().items()}
+
+
+@functools.cache
+def _graph() -> dict[str, set[str]]:
     mods = _modules()
     graph: dict[str, set[str]] = {}
     for name, path in mods.items():
-        tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
+        tree = _tree(path)
         skip = _type_checking_nodes(tree)
         edges: set[str] = set()
         for node in ast.walk(tree):
@@ -183,8 +196,7 @@ def test_controllers_import_no_simulation_module():
     for name, path in _modules().items():
         if not name.startswith("controllers"):
             continue
-        tree = ast.parse(path.read_text(encoding="utf-8"))
-        for node in ast.walk(tree):
+        for node in ast.walk(_tree(path)):
             names = []
             if isinstance(node, ast.Import):
                 names = [a.name for a in node.names]
@@ -290,7 +302,7 @@ def test_every_project_import_resolves():
     bad = []
     for name, path in mods.items():
         is_package = path.stem == "__init__"
-        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        for node in ast.walk(_tree(path)):
             if isinstance(node, ast.ImportFrom):
                 if node.level:
                     here = name.split(".") if is_package else name.split(".")[:-1]
