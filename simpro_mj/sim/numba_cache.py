@@ -179,6 +179,19 @@ def _cache_class(folder: str):
     class FolderCache(caching.FunctionCache):
         _impl_class = Impl
 
+        def load_overload(self, sig, target_context):
+            # numba's own first refreshes the target context: it starts numba's runtime
+            # (NRT, whose symbols the object code links to) and imports and installs
+            # every registry of implementations (through numba's arraymath, scipy.linalg
+            # too), about 0.4 s of CPU that only a compile needs; a compile refreshes
+            # the context itself (numba's CompilerBase). A cached function is rebuilt
+            # from its object code with the runtime alone.
+            from numba.core.runtime import rtsys
+
+            rtsys.initialize(target_context)
+            with self._guard_against_spurious_io_errors():
+                return self._load_overload(sig, target_context)
+
     return FolderCache
 
 
