@@ -15,7 +15,6 @@ import sys
 from pathlib import Path
 from types import ModuleType
 
-from simpro_mj.config.scenario import load_scenario
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.jsonout import emit_json
 from simpro_mj.core.keys import value_text
@@ -121,6 +120,9 @@ def _duration(value) -> float:
 
 
 def run(args) -> int:
+    # the scenario's models on use: --help and argparse's refusals import none of them
+    from simpro_mj.config.scenario import load_scenario
+
     repeats = _positive_int(args.repeats, "--repeats", MAX_REPEATS)
     pairs = _positive_int(args.commands, "--commands", MAX_REPEATS, lo=0)
     runs = _positive_int(args.batch_runs, "--batch-runs", MAX_BATCH_RUNS)

@@ -28,23 +28,7 @@ import math
 import os
 from pathlib import Path
 
-from simpro_mj.config.models import as_scenario
-from simpro_mj.config.scenario import load_scenario
 from simpro_mj.core.errors import UserInputError
-from simpro_mj.core.jsonout import emit_json
-from simpro_mj.report.figures import loop_label
-from simpro_mj.report.folders import claim
-from simpro_mj.report.response import (
-    CHAIN_CSV_COLUMNS,
-    csv_text,
-    plot,
-    plot_chain,
-    print_chain_summary,
-    print_summary,
-    write_result,
-)
-from simpro_mj.report.results import jsonable
-from simpro_mj.sim.executors import MAX_JOBS, dask_module
 
 HELP = (
     "closed-loop frequency response per task axis, or (--chain) of the whole cueing chain "
@@ -127,10 +111,16 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
-    # the measurement and its prediction load python-control and scipy: imported once
-    # argparse has checked the options
+    # the measurement and its prediction load python-control and scipy, the scenario
+    # pydantic, the report matplotlib: imported once argparse has checked the options
     from simpro_mj.analysis.response import check_periods, measure, plan_response
     from simpro_mj.analysis.response_summary import loop_model, summary
+    from simpro_mj.config.models import as_scenario
+    from simpro_mj.config.scenario import load_scenario
+    from simpro_mj.report.figures import loop_label
+    from simpro_mj.report.folders import claim
+    from simpro_mj.report.response import csv_text, plot, print_summary, write_result
+    from simpro_mj.sim.executors import MAX_JOBS, dask_module
 
     jobs = args.jobs if args.jobs is not None else (os.cpu_count() or 1)
     if not 1 <= jobs <= MAX_JOBS:
@@ -210,6 +200,9 @@ def run(args) -> int:
 def report(args, doc: dict, out: Path, printer) -> int:
     """``--json`` or the printed summary; exit 1 if a frequency did not run."""
     if args.json:
+        from simpro_mj.core.jsonout import emit_json
+        from simpro_mj.report.results import jsonable
+
         emit_json(jsonable(doc))
     else:
         printer(doc, out)
@@ -225,6 +218,18 @@ def run_chain(args, jobs: int) -> int:
         plan_chain,
     )
     from simpro_mj.analysis.response import check_periods
+    from simpro_mj.config.models import as_scenario
+    from simpro_mj.config.scenario import load_scenario
+    from simpro_mj.report.figures import loop_label
+    from simpro_mj.report.folders import claim
+    from simpro_mj.report.response import (
+        CHAIN_CSV_COLUMNS,
+        csv_text,
+        plot_chain,
+        print_chain_summary,
+        write_result,
+    )
+    from simpro_mj.sim.executors import dask_module
 
     for opt, other in (
         ("amplitude_deg", "--amplitude-deg-s"),

@@ -13,9 +13,7 @@ or GLFW cannot start) the command stops with one line suggesting
 from __future__ import annotations
 
 from simpro_mj.core.errors import UserInputError
-from simpro_mj.report.scene import replay_model
 from simpro_mj.report.video_options import number
-from simpro_mj.report.viewer import check_display, play, recording_for
 
 HELP = "watch a scenario or a result folder in MuJoCo's interactive viewer (needs a display)"
 
@@ -28,6 +26,10 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
+    # the job's modules on use: --help and argparse's refusals import none of them
+    from simpro_mj.report.scene import replay_model
+    from simpro_mj.report.viewer import check_display, play, recording_for
+
     speed = number(args.speed, "--speed", 0.0, 100.0)
     start = number(args.start, "--start", 0.0, 1e9, lo_open=False)
     check_display()
