@@ -10,7 +10,9 @@ import numpy as np
 import pytest
 
 from controllers.analysis import tf_step
+from controllers.analysis.inner import companion
 from controllers.design import (
+    ACTUATORS,
     PLANTS,
     Plant,
     closed_loop_poles,
@@ -27,7 +29,7 @@ from controllers.design import (
     reduced_polynomial,
 )
 from controllers.errors import DesignError
-from controllers.joint import JointControllers, discretise, split_integrator
+from controllers.joint import JointControllers, discretise, expm, split_integrator
 
 P = np.polymul
 
@@ -330,3 +332,22 @@ def test_the_closed_forms_equal_c2d(variant):
             np.testing.assert_allclose(g, w, rtol=0, atol=1e-12 * np.abs(w).max())
     with pytest.raises(ValueError, match="allowed"):
         discretise(a, b, c, d, 1e-3, "euler")
+
+
+@pytest.mark.parametrize("dt", [1e-3, 1e-2])
+def test_expm_equals_scipys_on_the_zoh_discretisations(dt):
+    """expm (the ZOH's exponential, kept free of scipy's import) equals scipy.linalg.expm
+    to 1e-15 of the largest entry on every actuator's ZOH matrix ``[[A, B], [0, 0]] T``
+    (norms 0.3-14): float rounding only."""
+    from scipy.linalg import expm as scipy_expm
+
+    for actuator in ACTUATORS:
+        plant = paper_plant(actuator)
+        ap, bp, _, _ = companion(plant.num, plant.den)
+        n = ap.shape[0]
+        big = np.zeros((n + 1, n + 1))
+        big[:n, :n], big[:n, n:] = ap, bp
+        want = scipy_expm(big * dt)
+        np.testing.assert_allclose(expm(big * dt), want, rtol=0, atol=1e-15 * np.abs(want).max())
+    np.testing.assert_array_equal(expm(np.zeros((3, 3))), np.eye(3))
+    assert expm([[1.0]])[0, 0] == pytest.approx(np.e, rel=1e-15)
