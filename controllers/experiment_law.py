@@ -10,8 +10,9 @@ constants say so (``XC.on``)::
     u_i = clip(u_hold,i + K_p,i (q_ref - q_i) + w[k] + [i = leg] x[k], lo, hi)
 
 with ``w[k]`` the valves' dither and ``x[k]`` the excitation, read by step
-index from the step's feed-forward input (columns 0 and 1). The law acts on
-the slides' true positions (the experiment's own loop, not the rig's
+index from the step's feed-forward input (columns 0 and 1). With ``leg`` 3 every
+leg is excited at once, each by its own column (``w[k] + x_i[k]`` in column i).
+The law acts on the slides' true positions (the experiment's own loop, not the rig's
 potentiometers), summed in this order so that a record is the same number
 for number whichever way the step runs.
 """
@@ -23,8 +24,8 @@ from .layout import layout
 __all__ = ["XC", "experiment_volts"]
 
 #: The experiment's constants: on (1) or not (0: the joint controllers act), the leg
-#: under test (0-2), q_ref (m), per leg K_p (V/m) and the holding voltage (V), the
-#: valves' range (V)
+#: under test (0-2; 3: all three at once), q_ref (m), per leg K_p (V/m) and the holding
+#: voltage (V), the valves' range (V)
 XC = layout("ExperimentConstants", on=1, leg=1, qref=1, kp=3, hold=3, lo=1, hi=1)
 
 
@@ -33,11 +34,14 @@ def experiment_volts(k, q, xc, exc, u):
 
     ``q`` (3,): the slides (m); ``xc``: the constants (:data:`XC`); ``exc``:
     rows by step, the dither (column 0, every valve) and the excitation
-    (column 1, the leg under test).
+    (column 1, the leg under test); with every leg under test, column i leg i's.
     """
     leg, qref, lo, hi = int(xc[XC.leg]), xc[XC.qref], xc[XC.lo], xc[XC.hi]
     for i in range(3):
-        v = (qref - q[i]) * xc[XC.kp + i] + xc[XC.hold + i] + exc[k, 0]
+        if leg > 2:
+            v = (qref - q[i]) * xc[XC.kp + i] + xc[XC.hold + i] + exc[k, i]
+        else:
+            v = (qref - q[i]) * xc[XC.kp + i] + xc[XC.hold + i] + exc[k, 0]
         if i == leg:
             v = v + exc[k, 1]
         if v < lo:  # comparisons: a NaN passes through

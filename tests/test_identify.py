@@ -223,3 +223,54 @@ def test_experiment_law_excites_one_leg_and_holds_the_valves_range():
     assert u[2] == 10.0 and u[0] == 5.5  # the valve's rail; the other legs not excited
     experiment_volts(0, np.array([0.25, 0.20, 1.0]), xc, exc, u)
     assert u[2] == 0.0
+
+
+def test_experiment_law_excites_every_leg_by_its_own_column():
+    from controllers.experiment_law import XC, experiment_volts
+
+    xc = XC.pack(on=1, leg=3, qref=0.25, kp=[10.0, 20.0, 30.0], hold=[5.0, 6.0, 4.0], lo=0, hi=10)
+    exc = np.array([[0.5, -0.3, 0.2]])  # leg i's dither and sequence in column i
+    u = np.empty(3)
+    experiment_volts(0, np.array([0.25, 0.20, 0.30]), xc, exc, u)
+    np.testing.assert_allclose(u, [5.5, 6.0 + 1.0 - 0.3, 4.0 - 1.5 + 0.2], rtol=0, atol=1e-12)
+
+
+def test_all_legs_at_once_one_record_the_same_compiled_and_interpreted(monkeypatch):
+    # excitation all_legs: one run excites the three legs, each with its own shift of the
+    # sequence (a third of its period apart), every leg's record from it; the compiled
+    # and interpreted step give the same numbers
+    from simpro_mj.identification.identify import _prbs, run_experiment_all_legs
+
+    tree = apply_overrides(
+        default_tree(),
+        ["identify.duration_s=0.6", "identify.settle_s=0.2", "identify.dither_v=1.0",
+         "identify.excitation=all_legs"],
+    )  # fmt: skip
+    recs = {}
+    for kernel in ("python", "numba"):
+        monkeypatch.setenv("SIMPRO_KERNEL", kernel)
+        recs[kernel] = run_experiment_all_legs(copy.deepcopy(tree))
+    ip = tree["identify"]
+    q_ref = float(ip["position_mm"]) * 1e-3
+    n = recs["python"][1]["u"].size
+    dither = np.where((np.arange(200, 200 + n) // 20) % 2 == 0, 1.0, -1.0)
+    shifts = [ip["seed"] + j * ((2 ** ip["prbs_bits"] - 1) // 3) for j in range(3)]
+    for leg in (1, 2, 3):
+        a, b = recs["python"][leg], recs["numba"][leg]
+        for key in ("u", "q", "qdot", "q_all"):
+            assert np.array_equal(b[key], a[key]), (leg, key)
+        assert np.abs(a["qdot"]).max() > 1e-3  # every slide moved
+        prbs = ip["prbs_amplitude_v"][leg - 1] * _prbs(n, 20, ip["prbs_bits"], shifts[leg - 1])
+        law = (q_ref - a["q"]) * ip["kp_v_per_m"][leg - 1] + a["u_hold"][leg - 1] + (dither + prbs)
+        np.testing.assert_allclose(a["u"], np.clip(law, 0.0, 10.0), rtol=0, atol=1e-12)
+    # the three sequences over a whole period: uncorrelated (an m-sequence's shifts: -1/N)
+    seqs = [_prbs(1023, 1, 10, s) for s in shifts]
+    for i, j in ((0, 1), (0, 2), (1, 2)):
+        assert abs(float(seqs[i] @ seqs[j])) == 1.0
+
+
+def test_excitation_names_its_choices(capsys):
+    rc = cli.main(["identify", "--set", "identify.excitation=both", "--no-plots"])
+    assert rc == 2
+    err = capsys.readouterr().err
+    assert "identify.excitation" in err and "one_leg, all_legs" in err

@@ -211,8 +211,9 @@ def identified_models(scenario: Mapping, progress=None) -> tuple[dict, str]:
 def experiment_s(scenario: Mapping) -> float:
     """Simulated seconds of the experiment :func:`with_identified` would run for the
     scenario now: 0 when it needs none (not ``design_plant: identified``, the preset's
-    plant, ``identify: preset``, or the plant's models in the cache), else per leg the
-    settling time and the excitation."""
+    plant, ``identify: preset``, or the plant's models in the cache), else per record
+    (three, or one with ``identify.excitation: all_legs``) the settling time and the
+    excitation."""
     inner = scenario["controller"]["inner"]
     if inner["design_plant"] != "identified" or inner.get("identify", "auto") != "auto":
         return 0.0
@@ -223,7 +224,8 @@ def experiment_s(scenario: Mapping) -> float:
     if h in _memo or (cache_dir() / f"{h}.json").is_file():
         return 0.0
     ip = tree["identify"]
-    return 3.0 * (float(ip["settle_s"]) + float(ip["duration_s"]))
+    records = 1.0 if ip.get("excitation") == "all_legs" else 3.0  # one run, or one a leg
+    return records * (float(ip["settle_s"]) + float(ip["duration_s"]))
 
 
 def with_identified(scenario: Mapping, progress=None) -> tuple[Mapping, str]:

@@ -10,7 +10,10 @@ Per actuator i, around mid-stroke under the nominal payload:
    :math:`u_j = u_{h,j} + K_{p,j}(q_{ref} - q_j)` on its true position
    (:mod:`controllers.experiment_law`); after a settling time a pseudo-random
    binary sequence (maximum-length, ``prbs_clock_ms`` per bit,
-   ±``prbs_amplitude_v``) is added to the valve voltage of leg i only;
+   ±``prbs_amplitude_v``) is added to the valve voltage of leg i only
+   (``identify.excitation: one_leg``, the paper's; ``all_legs``: to every leg at
+   once, leg j's sequence shifted by j/3 of its period, so that the three are
+   uncorrelated and one record serves the three fits);
 3. the co-simulation runs at 1 ms on the run's own step
    (:mod:`simpro_mj.sim.step`: sensors, that law in place of the joint
    controllers, the actuators, the log;
@@ -74,6 +77,7 @@ __all__ = [
     "paper_models",
     "document",
     "run_experiment",
+    "run_experiment_all_legs",
     "fit_eq19",
     "simulate_velocity",
     "identify",
@@ -125,6 +129,18 @@ def run_experiment(tree: dict, leg: int, model=None) -> dict:
     PhysicsError
         On a MuJoCo warning, a non-finite state or an opened loop.
     """
+    return _experiment(tree, (leg,), model)[leg]
+
+
+def run_experiment_all_legs(tree: dict, model=None) -> dict:
+    """The experiment with the three legs excited at once (``excitation: all_legs``);
+    ``{leg: record}``, each record as :func:`run_experiment`'s, from one run."""
+    return _experiment(tree, (1, 2, 3), model)
+
+
+def _experiment(tree: dict, legs: tuple, model=None) -> dict:
+    """One run of the experiment exciting ``legs`` (one leg, or all three); per leg its
+    record (:func:`run_experiment`)."""
     check_tree(tree)
     ip = tree["identify"]
     kind = ip["actuator_kind"]
@@ -165,13 +181,13 @@ def run_experiment(tree: dict, leg: int, model=None) -> dict:
     act.reset(q0, np.zeros(3), force=f_hold)
     u_hold = act.u_hold.copy()
     kp = leg_values(ip["kp_v_per_m"], "kp_v_per_m")
-    amp = leg_values(ip["prbs_amplitude_v"], "prbs_amplitude_v")[leg - 1]
+    amp = leg_values(ip["prbs_amplitude_v"], "prbs_amplitude_v")
     n_settle = int(round(float(ip["settle_s"]) / dt))
     n_exc = int(round(float(ip["duration_s"]) / dt))
     if n_exc < 500:
         raise UserInputError("invalid value at identify.duration_s: allowed >= 0.5 s")
     clock = max(1, int(round(float(ip["prbs_clock_ms"]) * 1e-3 / dt)))
-    prbs = amp * _prbs(n_exc, clock, int(ip["prbs_bits"]), int(ip["seed"]))
+    bits, seed = int(ip["prbs_bits"]), int(ip["seed"])
     # the joint loops' dither on every valve, from the settling on (controllers.dither)
     dither = dither_signal(
         n_settle + n_exc, dt, float(ip["dither_v"]), float(ip["dither_period_ms"]) * 1e-3
@@ -181,28 +197,42 @@ def run_experiment(tree: dict, leg: int, model=None) -> dict:
     # the excitation by step (controllers.experiment_law): the dither, the sequence
     n_all = n_settle + n_exc
     exc = np.zeros((n_all + 1, 3))
-    exc[:n_all, 0] = dither[:, 0]  # one wave on the three valves (controllers.dither)
-    exc[n_settle:n_all, 1] = prbs
-    xp = XC.pack(on=1.0, leg=leg - 1, qref=q_ref, kp=kp, hold=u_hold, lo=0.0, hi=10.0)
+    if len(legs) == 1:
+        (leg,) = legs
+        exc[:n_all, 0] = dither[:, 0]  # one wave on the three valves (controllers.dither)
+        exc[n_settle:n_all, 1] = amp[leg - 1] * _prbs(n_exc, clock, bits, seed)
+        law_leg = leg - 1
+    else:  # every leg, column j leg j's: the dither and its own shift of the sequence
+        period = 2**bits - 1
+        for j in range(3):
+            exc[:n_all, j] = dither[:, 0]
+            shift = seed + j * (period // 3)
+            exc[n_settle:n_all, j] += amp[j] * _prbs(n_exc, clock, bits, shift)
+        law_leg = 3
+    xp = XC.pack(on=1.0, leg=law_leg, qref=q_ref, kp=kp, hold=u_hold, lo=0.0, hi=10.0)
     from simpro_mj.sim.experiment import step_experiment  # the run's own step
 
     rec = step_experiment(m, d, idx, act, xp, exc, loop_bound)
     rows = slice(n_settle, n_all)
     q_all = rec["q"][rows].copy()
     if np.any(q_all < 0.0) or np.any(q_all > 0.5):
+        which = f" {legs[0]}" if len(legs) == 1 else "s 1-3"
         raise PhysicsError(
-            f"identification of actuator {leg} hit an end stop: lower identify.prbs_amplitude_v "
-            "or raise identify.kp_v_per_m"
+            f"identification of actuator{which} hit an end stop: lower "
+            "identify.prbs_amplitude_v or raise identify.kp_v_per_m"
         )
     return {
-        "t": np.arange(n_exc) * dt,
-        "u": rec["u"][rows, leg - 1].copy(),
-        "q": q_all[:, leg - 1].copy(),
-        "qdot": rec["qdot"][rows, leg - 1].copy(),
-        "u_hold": u_hold,
-        "force_hold": f_hold,
-        "q_all": q_all,
-        "dt": dt,
+        leg: {
+            "t": np.arange(n_exc) * dt,
+            "u": rec["u"][rows, leg - 1].copy(),
+            "q": q_all[:, leg - 1].copy(),
+            "qdot": rec["qdot"][rows, leg - 1].copy(),
+            "u_hold": u_hold,
+            "force_hold": f_hold,
+            "q_all": q_all,
+            "dt": dt,
+        }
+        for leg in legs
     }
 
 
@@ -347,8 +377,10 @@ def identify(tree: dict | None = None, legs=(1, 2, 3), records: dict | None = No
     ip = tree["identify"]
     model = load_model(tree["model"])
     out = {}
+    together = ip.get("excitation", "one_leg") == "all_legs" and len(legs) > 1
+    recs = _experiment(tree, tuple(legs), model) if together else {}
     for leg in legs:
-        rec = run_experiment(tree, leg, model=model)
+        rec = recs[leg] if together else run_experiment(tree, leg, model=model)
         skip = int(round(float(ip["fit_skip_s"]) / rec["dt"]))
         res = fit_eq19(rec["u"], rec["qdot"], rec["dt"], skip=skip)
         res["holding_force_n"] = float(rec["force_hold"][leg - 1])

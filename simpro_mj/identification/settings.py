@@ -18,7 +18,10 @@ from simpro_mj.core.keys import check_number
 from simpro_mj.plant.model_params import DEFAULT_MODEL_PARAMS
 from simpro_mj.plant.pneumatics.params import DEFAULT_PNEUMATIC_PARAMS
 
-__all__ = ["DEFAULT_IDENTIFY_PARAMS", "default_tree", "check_tree", "leg_values"]
+__all__ = ["DEFAULT_IDENTIFY_PARAMS", "EXCITATIONS", "default_tree", "check_tree", "leg_values"]
+
+#: The values of ``identify.excitation`` (:data:`DEFAULT_IDENTIFY_PARAMS`).
+EXCITATIONS = ("one_leg", "all_legs")
 
 #: Experiment settings (the paper does not print them: our choices).
 DEFAULT_IDENTIFY_PARAMS: dict = {
@@ -39,6 +42,10 @@ DEFAULT_IDENTIFY_PARAMS: dict = {
     "dither_v": 0.0,
     "dither_period_ms": 40.0,
     "seed": 1,  # shift of the sequence
+    # one_leg: each leg in turn, the others held (the paper's Fig. 12: three records);
+    # all_legs: the three at once, each its own shift of the sequence (a third of the
+    # sequence's period apart: uncorrelated), one record
+    "excitation": "one_leg",
     "actuator_kind": "nonlinear",
     # discard the first part of the record in the fit (initial transient), s
     "fit_skip_s": 0.2,
@@ -103,6 +110,11 @@ def check_tree(tree: dict) -> dict:
         )
     check_number(tree, f"{i}.prbs_bits", 2, 24, integer=True)
     check_number(tree, f"{i}.seed", 0, 2**31, integer=True)
+    if tree[i].get("excitation", "one_leg") not in EXCITATIONS:
+        raise UserInputError(
+            f"invalid value at {i}.excitation: {tree[i]['excitation']!r}; allowed: "
+            f"{', '.join(EXCITATIONS)}"
+        )
     check_number(tree, f"{i}.fit_skip_s", 0.0, tree[i]["duration_s"], hi_open=True, unit=" s")
     check_number(tree, f"{i}.loop_bound_mm", 0.0, lo_open=True, unit=" mm")
     amp = leg_values(tree[i]["prbs_amplitude_v"], "prbs_amplitude_v")
