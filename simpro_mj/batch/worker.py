@@ -80,7 +80,7 @@ def run_variant(task: Mapping) -> dict:
 
     def say(*what) -> None:
         with contextlib.suppress(Exception):  # a line not shown is no failure
-            queue.put((me, *what))  # type: ignore[union-attr]  # checked by the callers
+            queue.put((me, *what))
 
     def on_phase(name: str) -> None:
         since = time.monotonic()  # CLOCK_MONOTONIC: one clock for every process here

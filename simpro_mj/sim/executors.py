@@ -246,7 +246,7 @@ def run_pool(
     )
     futures: dict = {}
     reported: set = set()
-    reader = _Activity(queue, activity) if queue is not None else None
+    reader = _Activity(queue, activity) if queue is not None and activity is not None else None
     try:
         with main_not_imported():  # the workers start while the tasks are submitted
             futures = {pool.submit(run_task, fn, task): key for key, task in tasks}
