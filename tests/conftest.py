@@ -11,6 +11,13 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 # states), and OpenBLAS's threads, spinning against a loaded 2-core machine, made the
 # preflight's lifted loop take 455 s instead of 23 s; set before numpy is imported
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+# the session writes the bytecode of what it imports, whatever the shell asks: the
+# install then compiles only the package itself (.ci/run), and each module the ~90
+# processes of a run import (numpy, scipy, numba, matplotlib, dask: a fraction of each)
+# is compiled once, by the first process to import it, instead of every module of every
+# dependency at install (26 s of a quiet 2-core machine's 300 s budget)
+sys.dont_write_bytecode = False
+os.environ.pop("PYTHONDONTWRITEBYTECODE", None)
 
 try:
     from hypothesis import settings
