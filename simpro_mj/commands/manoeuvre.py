@@ -10,18 +10,13 @@ Parameters by ``--set``: ``speed_kmh``, ``vehicle``, ``deceleration_mps2``,
 
 from __future__ import annotations
 
-import contextlib
-import os
-import tempfile
 from pathlib import Path
 
 from simpro_mj.config.manoeuvres import MANOEUVRES, ManoeuvreSpec, generate
-from simpro_mj.config.telemetry import write_telemetry
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.jsonout import emit_json
 from simpro_mj.core.keys import apply_overrides
-from simpro_mj.report.marker import hidden
-from simpro_mj.report.single_files import check_file, record_file
+from simpro_mj.report.single_files import check_file, write_telemetry_file
 
 HELP = (
     "generate a vehicle manoeuvre (braking, lane_change, slalom, bump, braking_turn) as "
@@ -94,16 +89,7 @@ def run(args) -> int:
         "specific force includes gravity (fz = +9.81 at rest); "
         "format: simpro_mj/config/telemetry.py"
     )
-    fd, tmp = tempfile.mkstemp(prefix=hidden(out, "tmp"), dir=out.parent)
-    os.close(fd)
-    try:
-        write_telemetry(tmp, tel, comment)
-        os.replace(tmp, out)
-    except BaseException:
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)
-        raise
-    record_file(out)
+    write_telemetry_file(out, tel, comment)
     summary = {
         "file": str(out),
         "manoeuvre": spec.manoeuvre,

@@ -14,15 +14,11 @@ raw wrong-way peak, with the floors each misses.
 
 from __future__ import annotations
 
-import contextlib
-import os
-import tempfile
 from pathlib import Path
 
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.jsonout import emit_json
-from simpro_mj.report.marker import hidden
-from simpro_mj.report.single_files import check_file, record_file
+from simpro_mj.report.single_files import check_file, write_telemetry_file
 
 HELP = (
     "import a recorded drive (accelerometer + gyroscope) as telemetry CSV; judge the "
@@ -74,24 +70,6 @@ def add_arguments(parser) -> None:
     parser.add_argument("--vibration-hz", type=float, default=None, help="low-pass (Hz; 0 off)")
     parser.add_argument("--overwrite", "--force", dest="force", action="store_true",
                         help="replace --out even if simpro-sim did not write it")  # fmt: skip
-
-
-def write_new(out: Path, tel, comment: str) -> None:
-    """Write ``tel`` to ``out`` (checked by ``check_file``) whole or not at all: into a
-    hidden file beside it, renamed over it once complete, then listed in the folder's
-    marker."""
-    from simpro_mj.config.telemetry import write_telemetry
-
-    fd, tmp = tempfile.mkstemp(prefix=hidden(out, "tmp"), dir=out.parent)
-    os.close(fd)
-    try:
-        write_telemetry(tmp, tel, comment)
-        os.replace(tmp, out)
-    except BaseException:
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)
-        raise
-    record_file(out)
 
 
 def _finite(x: float) -> float | None:
@@ -177,7 +155,7 @@ def run(args) -> int:
             "includes gravity; format: simpro_mj/config/telemetry.py",
         ]
     )
-    write_new(out, tel, comment)
+    write_telemetry_file(out, tel, comment)
     if args.json:
         emit_json(
             {

@@ -105,3 +105,21 @@ def write_file(path, data: str | bytes, overwrite: bool = False, option: str = "
         raise
     record_file(path, created)
     return path
+
+
+def write_telemetry_file(out: Path, tel, comment: str) -> None:
+    """Write the telemetry ``tel`` to ``out`` (checked by :func:`check_file`) whole or not
+    at all: into a hidden file beside it, renamed over it once complete, then listed in
+    the folder's marker (:func:`record_file`)."""
+    from simpro_mj.config.telemetry import write_telemetry
+
+    fd, tmp = tempfile.mkstemp(prefix=hidden(out, "tmp"), dir=out.parent)
+    os.close(fd)
+    try:
+        write_telemetry(tmp, tel, comment)
+        os.replace(tmp, out)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
+    record_file(out)
