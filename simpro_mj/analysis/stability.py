@@ -55,7 +55,7 @@ from simpro_mj.config.models import Scenario, as_scenario
 from simpro_mj.core import cache
 from simpro_mj.plant.pneumatics.params import fill_linear
 
-__all__ = ["PLANTS", "inner_legs", "outer_loop"]
+__all__ = ["PLANTS", "outer_loop"]
 
 #: The plant assumptions of the analysis (module docstring).
 PLANTS = ("actuator", "paper")
@@ -186,14 +186,6 @@ def _analysed(key: tuple):
     limit, delay_limit = _limits(key, legs)
     lifted = an.reduced(an.lifted_inner(period, dt=dt, legs=legs))  # same eigenvalues
     return limit, delay_limit, lifted, basis
-
-
-def inner_legs(
-    scenario: Scenario | Mapping, plant: str = "actuator", dt: float = 1e-3
-) -> tuple[list, str]:
-    """The joint loops as the analysis sees them, at ``dt``: fast-rate ``(A, B, C)`` per
-    leg behind the set-point filter, and a description of what was analysed."""
-    return _legs_of(_key(as_scenario(scenario), plant, dt))
 
 
 def outer_loop(scenario: Scenario | Mapping, plant: str = "actuator", dt: float = 1e-3) -> dict:

@@ -11,7 +11,7 @@ import copy
 import difflib
 import math
 import re
-from collections.abc import Collection, Iterable, Mapping
+from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -29,7 +29,6 @@ __all__ = [
     "check_keys",
     "check_number",
     "key_text",
-    "check_tagged",
     "short_text",
     "value_text",
 ]
@@ -66,67 +65,6 @@ def closest(name: str, choices: Iterable[str]) -> str:
     """A ' (did you mean X?)' hint, or '' when nothing is close."""
     match = difflib.get_close_matches(name[:200], list(choices), n=1, cutoff=0.5)
     return f" (did you mean '{match[0]}'?)" if match else ""
-
-
-def check_tagged(
-    entry: Mapping,
-    path: str,
-    tag: str,
-    kinds: Mapping[str, tuple[tuple[str, ...], Collection[str]]],
-    noun: str = "",
-) -> tuple[str, tuple[str, ...], Collection[str]]:
-    """Check a tagged entry such as ``{type: step, time_s: 1, value: 3}``.
-
-    The tag (``entry[tag]``) picks the entry's kind in ``kinds``, which maps
-    each kind to its required keys and its optional keys; the entry's other
-    keys must be among them.
-
-    Parameters
-    ----------
-    entry : mapping
-        The entry as read from YAML.
-    path : str
-        Its dotted path, for messages (``setpoint.pitch_deg[0]``).
-    tag : str
-        The key naming the kind (``type``, ``distribution``).
-    kinds : mapping
-        ``kind -> (required keys, optional keys)``.
-    noun : str, optional
-        Appended to the kind in messages (``"distribution"``: "a normal
-        distribution needs ...").
-
-    Returns
-    -------
-    (kind, required, optional)
-
-    Raises
-    ------
-    UserInputError
-        Missing or unknown tag, unknown key (with the closest valid one),
-        missing required key; one line, ``<what> at <path>: <allowed>``.
-    """
-    names = list(kinds)
-    kind = entry.get(tag)
-    if not isinstance(kind, str) or kind not in kinds:
-        if tag not in entry:
-            raise UserInputError(f"missing key at {path}.{tag}: allowed: one of {names}")
-        raise UserInputError(
-            f"invalid value at {path}.{tag}: {value_text(kind)}; allowed: one of {names}"
-            f"{closest(str(kind), names)}"
-        )
-    required, optional = kinds[kind]
-    label = f"{kind} {noun}".strip()
-    allowed = [tag, *required, *optional]
-    for key in entry:
-        if key not in allowed:
-            raise UserInputError(
-                f"unknown key at {path}.{key_text(key)}: allowed keys of a {label} are "
-                f"{allowed}{closest(str(key), allowed)}"
-            )
-    for key in required:
-        if key not in entry:
-            raise UserInputError(f"missing key at {path}.{key}: a {label} needs {list(required)}")
-    return kind, required, optional
 
 
 def parse_set(expr: str) -> tuple[str, Any]:
