@@ -350,7 +350,7 @@ def _set(tree: dict, key: str, value: Any) -> None:
         node[last] = value
 
 
-#: (block of ``controller``, key, default): left out of the hash at the default
+#: (path of blocks under ``controller``, key, default): left out of the hash at the default
 _HASHED_UNLESS_DEFAULT = (
     (("outer",), "joint_lag", "none"),
     (("inner",), "anti_windup", "back_calculation"),
