@@ -344,6 +344,30 @@ def test_the_stick_model_sets_each_slides_dry_friction_to_its_breakaway():
     np.testing.assert_array_equal(model.dof_frictionloss[dofs], [0.0, 0.0, 0.0])
 
 
+def test_the_stick_constraints_softness_is_the_mjcfs_unless_the_scenario_moves_it():
+    """``stick_time_constant_ms`` / ``stick_impedance`` default to the MJCF's own
+    solreffriction 2 ms and solimpfriction 0.9999 (a shipped run is unchanged) and,
+    when set, are what MuJoCo's dry-friction rows of the three slides use."""
+    from simpro_mj.plant.model import PlantIndex, load_model
+    from simpro_mj.plant.platform import Platform
+
+    model = load_model()
+    dofs = PlantIndex.of(model).slide_dof
+    np.testing.assert_array_equal(model.dof_solref[dofs, 0], [0.002] * 3)
+    np.testing.assert_array_equal(model.dof_solimp[dofs, :2], [[0.9999, 0.9999]] * 3)
+    tree = {"cylinder": {"coulomb_friction_n": FC, "breakaway_friction_n": FS}}
+    Platform(model, NonlinearActuators(tree))
+    np.testing.assert_array_equal(model.dof_solref[dofs, 0], [0.002] * 3)
+    np.testing.assert_array_equal(model.dof_solimp[dofs, :2], [[0.9999, 0.9999]] * 3)
+    tree["cylinder"].update(stick_time_constant_ms=4.0, stick_impedance=0.9998)
+    Platform(model, NonlinearActuators(tree))
+    np.testing.assert_allclose(model.dof_solref[dofs, 0], [0.004] * 3, rtol=1e-12)
+    np.testing.assert_array_equal(model.dof_solimp[dofs, :2], [[0.9998, 0.9998]] * 3)
+    tree["cylinder"]["stick_time_constant_ms"] = 1.0  # under two 1 ms steps
+    with pytest.raises(ValueError, match="stick_time_constant_ms"):
+        NonlinearActuators(tree)
+
+
 @pytest.mark.parametrize("model_name, still", [("stick", True), ("regularised", False)])
 def test_a_leg_loaded_below_breakaway_sticks_only_with_the_stick_model(model_name, still):
     """The platform at rest, leg 2 at valve null pushed by 80 % of its 250 N

@@ -160,6 +160,16 @@ class Cylinder(Block):
     coulomb_smoothing_mm_per_s: Real = _p(
         "cylinder.coulomb_smoothing_mm_per_s", "mm/s", "regularising velocity (regularised only)"
     )
+    stick_time_constant_ms: Real = _p(
+        "cylinder.stick_time_constant_ms",
+        "ms",
+        "stick only: the time constant of MuJoCo's dry-friction constraint (solreffriction)",
+    )
+    stick_impedance: Real = _p(
+        "cylinder.stick_impedance",
+        "",
+        "stick only: the impedance of MuJoCo's dry-friction constraint (solimpfriction)",
+    )
 
 
 class Valve(Block):

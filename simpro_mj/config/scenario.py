@@ -350,13 +350,15 @@ def _set(tree: dict, key: str, value: Any) -> None:
         node[last] = value
 
 
-#: (path of blocks under ``controller``, key, default): left out of the hash at the default
+#: (path of blocks, key, default): left out of the hash at the default
 _HASHED_UNLESS_DEFAULT = (
-    (("outer",), "joint_lag", "none"),
-    (("inner",), "anti_windup", "back_calculation"),
-    (("inner",), "tracking_time_ms", 50.0),
-    (("outer", "dead_band"), "kind", "subtract"),
-    (("outer", "dead_band"), "release", 1.0),
+    (("controller", "outer"), "joint_lag", "none"),
+    (("controller", "inner"), "anti_windup", "back_calculation"),
+    (("controller", "inner"), "tracking_time_ms", 50.0),
+    (("controller", "outer", "dead_band"), "kind", "subtract"),
+    (("controller", "outer", "dead_band"), "release", 1.0),
+    (("actuator", "pneumatics", "cylinder"), "stick_time_constant_ms", 2.0),
+    (("actuator", "pneumatics", "cylinder"), "stick_impedance", 0.9999),
 )
 
 
@@ -393,13 +395,10 @@ def scenario_hash(resolved: Scenario | Mapping) -> str:
     if isinstance(plant, Mapping) and "rig" in plant and plant["rig"] is None:
         # null is the shipped MJCF's rig, which enters by the MJCF's digest below
         resolved = {**resolved, "plant": {k: v for k, v in plant.items() if k != "rig"}}
-    ctl = resolved.get("controller")
-    if isinstance(ctl, Mapping):
-        # a key at a default that steps as the scenario without it hashes as that
-        # scenario: the same run, the same hash
-        for path, key, default in _HASHED_UNLESS_DEFAULT:
-            ctl = _without_default(ctl, path, key, default)
-        resolved = {**resolved, "controller": ctl}
+    # a key at a default that steps as the scenario without it hashes as that
+    # scenario: the same run, the same hash
+    for path, key, default in _HASHED_UNLESS_DEFAULT:
+        resolved = _without_default(resolved, path, key, default)
     resolved = {**resolved, "mjcf": f"sha256:{model_digest()}"}  # the model it compiles
     text = json.dumps(resolved, sort_keys=True, separators=(",", ":"), allow_nan=False)
     return hashlib.sha256(text.encode("utf-8")).hexdigest()

@@ -32,6 +32,9 @@ def set_seal_friction(model: mujoco.MjModel, index: PlantIndex, actuators) -> No
     dry = [0.0] * 3
     if actuators.kind == "nonlinear":
         dry = dry_friction_forces(actuators.params)
+        p = actuators.params
+        model.dof_solref[index.slide_dof, 0] = p.stick_solref
+        model.dof_solimp[index.slide_dof, :2] = p.stick_solimp
     model.dof_frictionloss[index.slide_dof] = dry
 
 

@@ -134,6 +134,14 @@ DEFAULT_PNEUMATIC_PARAMS: dict = {
         # regularising velocity of the "regularised" dry friction (tanh), mm/s: below
         # it the seal acts as a damper of slope breakaway / velocity (assumption)
         "coulomb_smoothing_mm_per_s": 5.0,
+        # the "stick" model's constraint softness (MuJoCo's solreffriction time
+        # constant and solimpfriction impedance): a stuck seal yields by about
+        # (1 - impedance) of what it holds and recovers within the time constant;
+        # 2 ms (two 1 ms steps) and 0.9999 are the stiffest MuJoCo integrates and
+        # accepts (numerical choices: halving or doubling them is checked in
+        # docs/paper-notes.md, numerical parameters)
+        "stick_time_constant_ms": 2.0,
+        "stick_impedance": 0.9999,
     },
     "valve": {
         # Sonic conductance C of one fully open metering edge, dm^3/(s bar).
@@ -290,6 +298,12 @@ _PLAUSIBLE = {
     "cylinder.coulomb_smoothing_mm_per_s": (
         1e-3, 1000.0, False, "mm/s: the speed over which the friction changes sign"
     ),
+    "cylinder.stick_time_constant_ms": (
+        2.0, 100.0, False, "ms: two 1 ms steps is the stiffest MuJoCo integrates"
+    ),
+    "cylinder.stick_impedance": (
+        0.9, 0.9999, False, "MuJoCo's impedance: at most 0.9999, its own limit"
+    ),
     "valve.sonic_conductance_dm3_per_s_bar": (
         0.01, 100.0, False, "dm^3/(s bar): the MPYE-5-3/8 has 7.87; 100 is a valve far "
         "beyond the cylinder's ports",
@@ -322,6 +336,8 @@ class PneumaticParams:
     v_stribeck: float  # m/s
     v_smooth: float  # m/s, the regularising velocity of the seal friction
     friction_model: str  # "stick" or "regularised"
+    stick_solref: float  # s, the stick model's constraint time constant
+    stick_solimp: float  # the stick model's constraint impedance
     thermal_model: str  # "polytropic" or "energy"
     supply_model: str  # "ideal" or "receiver"
     compressor_flow: float  # kg/s
@@ -424,6 +440,8 @@ class PneumaticParams:
             v_stribeck=_scalar(t, "cylinder.stribeck_velocity_mm_per_s", 0.0) * 1e-3,
             v_smooth=_scalar(t, "cylinder.coulomb_smoothing_mm_per_s", 0.0) * 1e-3,
             friction_model=_choice(t, "cylinder.friction_model", FRICTION_MODELS),
+            stick_solref=_scalar(t, "cylinder.stick_time_constant_ms", 2.0) * 1e-3,
+            stick_solimp=_scalar(t, "cylinder.stick_impedance", 0.9),
             thermal_model=_choice(t, "thermal.model", THERMAL_MODELS),
             supply_model=_choice(t, "supply.model", SUPPLY_MODELS),
             compressor_flow=_scalar(t, "supply.compressor_flow_l_per_min", 0.0, 1e5, False)
