@@ -1,5 +1,6 @@
-"""numba's cache of the compiled step: a damaged file is deleted with a notice and
-compiled again; an unusable ``NUMBA_CACHE_DIR`` is said and another folder used."""
+"""numba's cache of the compiled step: a damaged file is deleted with a notice when
+it is loaded, and its function compiled again; an unusable ``NUMBA_CACHE_DIR`` is said
+and another folder used."""
 
 from __future__ import annotations
 
@@ -31,7 +32,7 @@ def test_a_truncated_cache_file_is_deleted_and_said(tmp_path):
     mine = tmp_path / "notes.txt"
     mine.write_text("not numba's\n")
     said: list[str] = []
-    removed = numba_cache.heal(str(tmp_path), said.append)
+    removed = numba_cache.heal(tmp_path.rglob("*"), said.append)
     assert sorted(removed) == sorted([bad, empty])
     assert good.exists() and good_index.exists() and mine.exists()
     assert len(said) == 2 and all(s.startswith("notice: numba cache file ") for s in said)
@@ -55,7 +56,7 @@ def test_healing_parses_an_object_file_without_importing_its_module(tmp_path, mo
     obj.write_bytes(pickle.dumps(("object code", _ImportsOnLoad())))
     pickle.loads(obj.read_bytes())  # loading it imports the module
     assert sys.modules.pop("probe_mod_for_heal") and sys.__dict__.pop("probe_imported") == 1
-    assert numba_cache.heal(str(tmp_path / "nb"), print) == []
+    assert numba_cache.heal([obj], print) == []
     assert obj.exists() and "probe_mod_for_heal" not in sys.modules
     assert not hasattr(sys, "probe_imported")
 
@@ -96,11 +97,64 @@ def test_functions_are_cached_in_the_folder_passed_to_them(tmp_path, monkeypatch
     sys.modules.pop("probe_mod_for_jit")
 
 
+def test_a_truncated_function_is_healed_where_it_is_loaded(tmp_path, monkeypatch, capsys):
+    """A function whose object file was cut short: its load deletes the file, says so
+    in one line and compiles the function again (saved anew); a function whose files
+    are sound loads without a word, and another function's damaged file is not read."""
+    numba = pytest.importorskip("numba")
+    (tmp_path / "probe_mod_for_heal2.py").write_text(
+        "def twice(x):\n    return 2.0 * x\n\ndef one():\n    return 1.0\n"
+    )
+    monkeypatch.syspath_prepend(str(tmp_path))
+    probe = importlib.import_module("probe_mod_for_heal2")
+    folder = str(tmp_path / "nb")
+    assert numba_cache.jit(folder)(probe.twice)(3.0) == 6.0
+    assert numba_cache.cfunc(numba.types.float64(), folder)(probe.one).ctypes() == 1.0
+    (obj,) = Path(folder).rglob("*twice*.nbc")
+    (other,) = Path(folder).rglob("*one*.nbc")
+    obj.write_bytes(obj.read_bytes()[:64])
+    other.write_bytes(other.read_bytes()[:64])
+    capsys.readouterr()
+    again = numba_cache.jit(folder)(probe.twice)
+    assert again(4.0) == 8.0 and sum(again.stats.cache_misses.values()) == 1
+    (line,) = capsys.readouterr().err.splitlines()
+    assert line.startswith(f"notice: numba cache file {obj} is damaged (")
+    assert line.endswith("); the step is compiled again")
+    assert len(obj.read_bytes()) > 64  # saved anew: the next load is a hit
+    third = numba_cache.jit(folder)(probe.twice)
+    assert third(5.0) == 10.0 and sum(third.stats.cache_hits.values()) == 1
+    assert capsys.readouterr().err == "" and len(other.read_bytes()) == 64
+    sys.modules.pop("probe_mod_for_heal2")
+
+
+def test_a_load_that_fails_on_sound_files_is_not_hidden(tmp_path, monkeypatch):
+    """A failure of numba's load with every file of the function sound is numba's:
+    raised, and no file deleted."""
+    pytest.importorskip("numba")
+    (tmp_path / "probe_mod_for_heal3.py").write_text("def twice(x):\n    return 2.0 * x\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    probe = importlib.import_module("probe_mod_for_heal3")
+    folder = str(tmp_path / "nb")
+    assert numba_cache.jit(folder)(probe.twice)(3.0) == 6.0
+    files = sorted(Path(folder).rglob("*.nb[ci]"))
+    again = numba_cache.jit(folder)(probe.twice)
+
+    def fail(sig, target_context):
+        raise RuntimeError("numba's own")
+
+    monkeypatch.setattr(again._cache, "_load_overload", fail)
+    with pytest.raises(RuntimeError, match="numba's own"):
+        again(4.0)
+    assert sorted(Path(folder).rglob("*.nb[ci]")) == files
+    sys.modules.pop("probe_mod_for_heal3")
+
+
 @pytest.mark.slow
 def test_a_run_after_its_cache_file_was_truncated_heals(tmp_path):
     """A run fills (or finds) the step's cache; a copy of it under ``NUMBA_CACHE_DIR``
-    gets one object file truncated, and a run on the copy says so, compiles that
-    function again and gives the first run's time series byte for byte."""
+    gets the object file of the profiler clock's callback (small, and loaded by every
+    run) truncated, and a run on the copy says so, compiles that function again and
+    gives the first run's time series byte for byte."""
     cmd = [sys.executable, "-m", "simpro_mj.commands.main", "run", "step_pitch.yaml",
            "--no-plots", "--set", "duration_s=0.2"]  # fmt: skip
     env = {k: v for k, v in os.environ.items() if k != "NUMBA_CACHE_DIR"}
@@ -112,9 +166,9 @@ def test_a_run_after_its_cache_file_was_truncated_heals(tmp_path):
                                  check=True).stdout.strip())  # fmt: skip
     copy = tmp_path / "nb" / folder.name
     shutil.copytree(folder, copy)
-    files = sorted(copy.rglob("*.nbc"), key=lambda f: f.stat().st_size)
-    assert files
-    files[0].write_bytes(files[0].read_bytes()[:64])  # the smallest: little to compile
+    files = sorted(copy.rglob("callback.frozen_clock-*.nbc"))
+    assert len(files) == 1
+    files[0].write_bytes(files[0].read_bytes()[:64])
     env["NUMBA_CACHE_DIR"] = str(tmp_path / "nb")
     again = subprocess.run([*cmd, "--out", str(tmp_path / "b")], env=env, capture_output=True,
                            text=True, timeout=900)  # fmt: skip

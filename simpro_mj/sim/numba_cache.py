@@ -15,12 +15,14 @@ run (23.8 s instead of 1.4 s) and to writing into the package's folders. So:
   complete while the others wait for it and then load the cache (two first
   runs at once, a batch's worker processes, the test suite's workers), instead
   of each compiling the same half minute on cores they share;
-* :func:`heal` reads every cache file of the step's folder to its end and
-  deletes a damaged one with a one-line notice: the function it held is
-  compiled again. An object file is parsed, not loaded: loading it rebuilds
-  the function's environment, which imports the module that defined it, and
-  that module (the MuJoCo callback) asks for the compiled step while the
-  caller that heals holds its lock.
+* a function's cache that does not load is healed where numba loads it
+  (:func:`heal` on that function's files only: a run loads the two C
+  callbacks' entries, not the hundred files of every function in the
+  folder): a file that does not read to its end is deleted with a one-line
+  notice and the function compiled again. An object file is parsed, not
+  loaded: loading it rebuilds the function's environment, which imports the
+  module that defined it; what numba's own load raised is raised again when
+  no file is damaged.
 """
 
 from __future__ import annotations
@@ -31,7 +33,7 @@ import os
 import pickle
 import pickletools
 import tempfile
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 
 try:
@@ -137,12 +139,11 @@ def _loads(path: Path) -> None:
         raise ValueError("a pickle without its end")
 
 
-def heal(folder: str, say: Callable[[str], None] = notice) -> list[Path]:
-    """Delete the cache files under ``folder`` that do not load (said, one line
-    each); returns them. Only ``*.nbi`` and ``*.nbc`` files: numba's, in the
-    step's own folder."""
+def heal(files: Iterable[Path], say: Callable[[str], None] = notice) -> list[Path]:
+    """Delete those of ``files`` that do not load (said, one line each); returns
+    them. Only ``*.nbi`` and ``*.nbc`` files, numba's."""
     removed = []
-    for path in sorted(Path(folder).rglob("*.nb[ci]")):
+    for path in sorted(Path(f) for f in files if Path(f).suffix in (".nbi", ".nbc")):
         try:
             _loads(path)
         except Exception as exc:  # noqa: BLE001 - whatever unpickling a damaged file raises
@@ -189,8 +190,26 @@ def _cache_class(folder: str):
             from numba.core.runtime import rtsys
 
             rtsys.initialize(target_context)
-            with self._guard_against_spurious_io_errors():
-                return self._load_overload(sig, target_context)
+            try:
+                with self._guard_against_spurious_io_errors():
+                    return self._load_overload(sig, target_context)
+            except Exception:  # noqa: BLE001 - whatever unpickling a damaged file raises
+                # a file that does not read to its end is deleted (said) and the
+                # function compiled again; any other failure is numba's to report
+                if not heal(self._files()):
+                    raise  # no file of the function is damaged: not ours to hide
+            return None  # numba compiles the function and saves it again
+
+        def _files(self) -> list[Path]:
+            """This function's index and object files (``NAME.nbi``, ``NAME.N.nbc``)."""
+            cache = self._cache_file
+            index = Path(cache._index_path)
+            stem = index.name[: -len(".nbi")] + "."
+            try:
+                objects = [p for p in index.parent.iterdir() if p.name.startswith(stem)]
+            except OSError:
+                objects = []
+            return [index, *(p for p in objects if p.suffix == ".nbc")]
 
     return FolderCache
 

@@ -443,16 +443,14 @@ def _cache_dir() -> str:
     cache entry): a cache keyed by all the step's source files (:data:`_SOURCES`)
     is never stale. Under ``NUMBA_CACHE_DIR`` if it is a writable folder (else
     said), else next to this package, else the user's cache directory
-    (:mod:`simpro_mj.sim.numba_cache`); damaged files are deleted first.
+    (:mod:`simpro_mj.sim.numba_cache`, which deletes a damaged file when it is loaded).
     """
     import os
 
-    from simpro_mj.sim.numba_cache import cache_base, heal
+    from simpro_mj.sim.numba_cache import cache_base
 
     base = cache_base(os.path.join(os.path.dirname(__file__), "__pycache__"))
-    folder = os.path.join(base, "simpro-step-" + _SOURCES[:16])
-    heal(folder)  # a truncated file is deleted (said) and its function compiled again
-    return folder
+    return os.path.join(base, "simpro-step-" + _SOURCES[:16])
 
 
 def _module_view(module, env):
