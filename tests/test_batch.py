@@ -442,6 +442,27 @@ def test_stability_criterion_offset_and_held_oscillation():
     assert stability_of(_columns(t, offset), status="diverged")["stable"] is False
 
 
+def test_variant_stability_from_memory_is_the_folders(tmp_path):
+    """A variant's stability is taken from its columns in memory rounded as
+    ``timeseries.csv`` writes them: every figure equal, bit for bit, to the folder's
+    read back (what ``--resume`` rebuilds a row from). An unstable gain (30, past the
+    outer loop's limit) gives a growth rate and an oscillation to compare."""
+    from simpro_mj.batch.stability import stability_of_folder
+    from simpro_mj.batch.worker import AsWritten, run_variant
+
+    scenario = load_scenario(
+        str(_grid_file(tmp_path)), ["duration_s=3", "controller.outer.gains=30"]
+    )
+    got = run_variant({"scenario": scenario, "out": str(tmp_path / "v"), "plots": "none"})
+    again = stability_of_folder(tmp_path / "v", got["status"])
+    assert got["stability"] == again and got["stability"]["growth_rate_1_s"] is not None
+    assert got["stability"]["stable"] is False, got["stability"]
+    # the rounding is the file's: 12 significant digits, NaN kept
+    cols = AsWritten({"x": np.array([1 / 3, np.nan, -2.0e-7 / 3, 1e300])})
+    assert cols["x"][0] == 0.333333333333 and np.isnan(cols["x"][1])
+    assert cols["x"][2] == -6.66666666667e-08 and cols["x"][3] == 1e300
+
+
 def test_jobs_and_paths_errors(tmp_path, capsys):
     path = _grid_file(tmp_path)
     assert main(["batch", str(path), "--jobs", "0", "--out", str(tmp_path / "o")]) == 2

@@ -13,6 +13,11 @@ A variant draws its run's figures (the PNG files of
 ``ok``: drawn after the run into a temporary folder beside the result and moved
 in, each file whole) or ``none``.
 
+A variant's measured stability (:func:`simpro_mj.batch.stability.stability_of`) is
+taken from its run's columns in memory, each number rounded as ``timeseries.csv``
+writes it (:class:`AsWritten`): the figures a resumed batch reads back from the
+folder, without reading the file.
+
 The notices a run would print (the identification line) are gathered
 (:mod:`simpro_mj.core.notices`) and returned, so the batch says each once with a
 count; :data:`ACTIVITY` holds what each worker is doing for the progress line (on
@@ -31,16 +36,19 @@ import time
 from collections.abc import Mapping
 from pathlib import Path
 
-from simpro_mj.batch.stability import stability_of_folder
+import numpy as np
+
+from simpro_mj.batch.stability import stability_of
 from simpro_mj.core import notices
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.messages import one_line
 from simpro_mj.report.folders import install_folder
 from simpro_mj.report.marker import hidden, record
+from simpro_mj.report.results import NUMBER_FORMAT
 from simpro_mj.report.runner import execute
 from simpro_mj.sim.workers import activity_queue
 
-__all__ = ["ACTIVITY", "DRAW", "install", "run_variant"]
+__all__ = ["ACTIVITY", "DRAW", "AsWritten", "install", "run_variant"]
 
 #: What a variant's task may ask to draw (``plots``; ``True`` is ``all``, ``False``
 #: ``none``): every run's figures, only a run whose status is not ``ok``, or none.
@@ -126,7 +134,9 @@ def _run_variant(task: Mapping) -> dict:
             "status": doc.get("status", "ok"),
             "reason": doc.get("reason"),
             "metrics": doc,
-            "stability": stability_of_folder(folder, doc.get("status")),
+            # from the columns in memory, each number as timeseries.csv holds it: the
+            # same figures as the folder read back (a resumed batch's), without reading
+            "stability": stability_of(AsWritten(res.columns), doc.get("status")),
         }
         if ship:
             out["files"] = {p.name: p.read_bytes() for p in sorted(folder.iterdir())}
@@ -138,6 +148,29 @@ def _run_variant(task: Mapping) -> dict:
     finally:
         if tmp is not None:
             shutil.rmtree(tmp, ignore_errors=True)
+
+
+class AsWritten(Mapping):
+    """A run's columns read as ``timeseries.csv`` holds them: each number formatted
+    with :data:`simpro_mj.report.results.NUMBER_FORMAT` and parsed back, a column at a
+    time as it is first read (the stability reads 7 of the run's columns)."""
+
+    def __init__(self, columns: Mapping):
+        self._columns = columns
+        self._read: dict = {}
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        if name not in self._read:
+            values = np.asarray(self._columns[name], dtype=float).ravel().tolist()
+            text = (NUMBER_FORMAT + "\n") * len(values) % tuple(values)
+            self._read[name] = np.array(text.split(), dtype=float)
+        return self._read[name]
+
+    def __iter__(self):
+        return iter(self._columns)
+
+    def __len__(self) -> int:
+        return len(self._columns)
 
 
 def draw_choice(value) -> str:
