@@ -14,7 +14,7 @@ from controllers.mpc_cueing import ModelPredictiveCueing
 from simpro_mj.config.cueing import washout_params
 from simpro_mj.config.scenario import load_scenario
 from simpro_mj.sim.cue_worker import CueWorker
-from simpro_mj.sim.live import cpu_split
+from simpro_mj.sim.scheduling import cpu_split
 
 
 def _inputs(n):

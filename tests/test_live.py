@@ -38,7 +38,8 @@ from simpro_mj.config.telemetry import Telemetry, read_telemetry, resample, writ
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.shipped import TELEMETRY_DIR
 from simpro_mj.plant.faults import NEVER
-from simpro_mj.sim.live import MAX_BEHIND_S, Pacer, request_realtime
+from simpro_mj.sim.live import MAX_BEHIND_S, Pacer
+from simpro_mj.sim.scheduling import request_realtime
 from simpro_mj.sim.udp import MAX_DRAIN, Receiver, pose_template
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -781,7 +782,7 @@ def test_the_pacing_thread_is_pinned_with_a_fine_timer_slack_and_then_as_it_was(
     import ctypes
     import ctypes.util
 
-    from simpro_mj.sim.live import cpu_split, pinned, thread_switches
+    from simpro_mj.sim.scheduling import cpu_split, pinned, thread_switches
 
     assert cpu_split({3}) is None  # one core: nothing to keep apart
     assert cpu_split({0, 2, 5}) == ({5}, {0, 2})

@@ -44,15 +44,11 @@ instead of running the backlog at full speed: the time lost is counted
 
 from __future__ import annotations
 
-import contextlib
-import ctypes
-import ctypes.util
 import gc
 import math
 import os
 import time
 from dataclasses import dataclass
-from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -64,6 +60,13 @@ from simpro_mj.core.errors import UserInputError
 from simpro_mj.plant.faults import NEVER
 from simpro_mj.sim.cue_worker import CueWorker
 from simpro_mj.sim.readiness import signal_ready
+from simpro_mj.sim.scheduling import (
+    cpu_split,
+    frozen_gc,
+    pinned,
+    realtime_scheduling,
+    thread_switches,
+)
 from simpro_mj.sim.udp import DEFAULT_POSE_FORMAT, PoseSender, Receiver, column_index
 
 if TYPE_CHECKING:
@@ -74,35 +77,15 @@ __all__ = [
     "MAX_BEHIND_S",
     "LiveOptions",
     "Pacer",
-    "request_realtime",
     "run_session",
 ]
 
-_PR_SET_TIMERSLACK, _PR_GET_TIMERSLACK = 29, 30  # prctl(2)
 #: Behind the wall clock by more than this (s), the session re-anchors its clock.
 MAX_BEHIND_S = 0.1
 #: Once the input is stale, the set-point is blended to home over this (s), and back to
 #: the law's when samples come again (:class:`Pacer`). 1.5 s keeps the blend of a set-point
 #: held at the MPC box's largest tilt (roll 11.3 deg) within its 15 deg/s and 30 deg/s^2.
 HOME_S = 1.5
-
-
-def request_realtime(priority: int = 50) -> str:
-    """Ask for ``SCHED_FIFO`` and locked memory; one line saying what was granted."""
-    parts = []
-    try:
-        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
-        parts.append(f"SCHED_FIFO priority {priority}")
-    except (AttributeError, OSError) as exc:
-        why = getattr(exc, "strerror", None) or str(exc)
-        return f"--rt: real-time scheduling not permitted ({why}); running at normal priority"
-    libc_name = ctypes.util.find_library("c")
-    ok = False
-    if libc_name:
-        with contextlib.suppress(OSError, AttributeError):
-            ok = ctypes.CDLL(libc_name, use_errno=True).mlockall(3) == 0  # MCL_CURRENT|FUTURE
-    parts.append("memory locked" if ok else "memory not locked (mlockall refused)")
-    return "--rt: " + ", ".join(parts)
 
 
 @dataclass
@@ -136,6 +119,14 @@ class LiveOptions:
     #: corner (Hz); 0 leaves the stage out
     bias_tau_s: float = 0.0
     vibration_hz: float = 0.0
+
+
+def _spread(x: np.ndarray) -> dict:
+    """The median, 99th percentile and largest of ``x`` (None each when empty)."""
+    if not x.size:
+        return {"p50": None, "p99": None, "max": None}
+    p50, p99 = np.percentile(x, [50, 99])
+    return {"p50": float(p50), "p99": float(p99), "max": float(x.max())}
 
 
 @dataclass
@@ -321,17 +312,9 @@ class Pacer:
         if self.start_wall is not None:
             drift = (steps * self.dt - (end - self.start_wall)) * 1e3
         out = {
-            "lateness_us": {
-                "p50": float(np.percentile(lat, 50)) if lat.size else None,
-                "p99": float(np.percentile(lat, 99)) if lat.size else None,
-                "max": float(lat.max()) if lat.size else None,
-            },
+            "lateness_us": _spread(lat),
             "deadlines": int(st.n),
-            "chunk_compute_us": {
-                "p50": float(np.percentile(busy, 50)) if busy.size else None,
-                "p99": float(np.percentile(busy, 99)) if busy.size else None,
-                "max": float(busy.max()) if busy.size else None,
-            },
+            "chunk_compute_us": _spread(busy),
             "missed_deadlines": int(st.missed),
             "chunk_steps": self.chunk,
             "drift_ms": drift,
@@ -374,97 +357,6 @@ class Pacer:
             "rate_limited_fraction": st.rate_limited / m,
             "softened_fraction": st.softened / m,
         }
-
-
-@contextlib.contextmanager
-def realtime_scheduling(wanted: bool, say=None):
-    """:func:`request_realtime` for the block (saying what was granted), then the
-    process's scheduling as it was."""
-    if not wanted:
-        yield
-        return
-    policy = param = None
-    with contextlib.suppress(AttributeError, OSError):
-        policy, param = os.sched_getscheduler(0), os.sched_getparam(0)
-    note = request_realtime()
-    if say is not None:
-        say(note)
-    try:
-        yield
-    finally:
-        if policy is not None and param is not None:
-            with contextlib.suppress(OSError):
-                os.sched_setscheduler(0, policy, param)
-
-
-@contextlib.contextmanager
-def frozen_gc(counts: list | None = None):
-    """The objects built so far moved out of the collector's way for the session (and
-    those of the first chunk, :class:`Pacer`); ``counts[g]`` counts the collections of
-    generation ``g`` made meanwhile (None: not counted)."""
-    gc.collect()
-    gc.freeze()
-    if counts is None:
-        counts = [0, 0, 0]
-
-    def count(phase, info):
-        if phase == "stop":
-            counts[info["generation"]] += 1
-
-    gc.callbacks.append(count)
-    try:
-        yield
-    finally:
-        gc.callbacks.remove(count)
-        gc.unfreeze()
-
-
-def cpu_split(allowed) -> tuple[set, set] | None:
-    """``(pacer, law)`` cores out of the ``allowed`` ones: the last for the pacing thread,
-    the others for the cueing law's process; None with fewer than 2."""
-    cpus = sorted(allowed)
-    if len(cpus) < 2:
-        return None
-    return {cpus[-1]}, set(cpus[:-1])
-
-
-def thread_switches() -> tuple[int, int] | None:
-    """The calling thread's voluntary and involuntary context switches so far (Linux's
-    ``/proc/thread-self/status``); None where there is none. An involuntary one is a
-    preemption: the thread was runnable and another ran on its core instead."""
-    try:
-        text = Path("/proc/thread-self/status").read_text()
-    except OSError:
-        return None
-    got = dict(line.split(":\t", 1) for line in text.splitlines() if ":\t" in line)
-    try:
-        return int(got["voluntary_ctxt_switches"]), int(got["nonvoluntary_ctxt_switches"])
-    except (KeyError, ValueError):
-        return None
-
-
-@contextlib.contextmanager
-def pinned(cpus: set | None):
-    """The calling thread on ``cpus`` for the block, with a timer slack of 1 ns (Linux's
-    default 50 us lets a sleep's wake-up be delayed to batch timers); then as it was."""
-    if cpus is None or not hasattr(os, "sched_setaffinity"):
-        yield
-        return
-    before = os.sched_getaffinity(0)
-    os.sched_setaffinity(0, cpus)
-    prctl = slack = None
-    libc_name = ctypes.util.find_library("c")
-    if libc_name:
-        with contextlib.suppress(OSError, AttributeError):
-            prctl = ctypes.CDLL(libc_name, use_errno=True).prctl
-            slack = prctl(_PR_GET_TIMERSLACK, 0, 0, 0, 0)
-            prctl(_PR_SET_TIMERSLACK, ctypes.c_ulong(1), 0, 0, 0)
-    try:
-        yield
-    finally:
-        os.sched_setaffinity(0, before)
-        if prctl is not None and slack is not None and slack > 0:
-            prctl(_PR_SET_TIMERSLACK, ctypes.c_ulong(slack), 0, 0, 0)
 
 
 def run_session(scenario: dict, options: LiveOptions, say=None, checks=None):
