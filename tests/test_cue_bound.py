@@ -40,10 +40,10 @@ def test_gain_share_floor_names_a_cue_weaker_than_the_platform_can_give():
     # a channel where even the bound removes little of the error has no error share
     assert bound_share(weak, {"gain": 0.30, "rms_error": 1.25})["error_share"] is None
     floors = cue_floors({"channels": {"longitudinal_f": weak}})
-    assert floors["missed"] == ["longitudinal_f gain 0.07 is 0.22 of the bound's < 0.8"]
+    assert floors.missed == ["longitudinal_f gain 0.07 is 0.22 of the bound's < 0.8"]
     strong = dict(weak, gain=0.27)
     strong.update(bound_share(strong, {"gain": 0.30, "rms_error": 0.9}))
-    assert cue_floors({"channels": {"longitudinal_f": strong}})["met"]
+    assert cue_floors({"channels": {"longitudinal_f": strong}}).met
 
 
 def _braking(decel: float, dt: float = 0.01, n: int = 1200):

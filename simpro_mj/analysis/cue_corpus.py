@@ -57,7 +57,7 @@ def judge_drive(name: str, block: Mapping, t, f, w, *, bound: bool = True) -> li
     floors = cue_floors(m)
     rows = []
     bound_ch = (m.get("bound") or {}).get("channels") or {}
-    for c in floors["channels"]:
+    for c in floors.channels:
         x = m["channels"][c]
         rows.append(
             CorpusRow(
@@ -72,7 +72,7 @@ def judge_drive(name: str, block: Mapping, t, f, w, *, bound: bool = True) -> li
                 onsets=int(x.get("onsets") or 0),
                 onsets_missed=int(x.get("onsets_missed") or 0),
                 raw_wrong_way_mps2=x.get("onset_raw_wrong_sign_peak"),
-                floors_missed="; ".join(s for s in floors["missed"] if s.startswith(c)),
+                floors_missed="; ".join(s for s in floors.missed if s.startswith(c)),
             )
         )
     return rows

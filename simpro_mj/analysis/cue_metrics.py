@@ -10,6 +10,8 @@ the ``cueing`` block of ``metrics.json`` and the cueing columns of a batch summa
 from __future__ import annotations
 
 from collections.abc import Mapping
+from dataclasses import dataclass
+from types import MappingProxyType
 from typing import Any
 
 import numpy as np
@@ -29,6 +31,8 @@ from simpro_mj.config.telemetry import Telemetry
 __all__ = [
     "CHANNELS",
     "FLOORS",
+    "FloorVerdict",
+    "Floors",
     "SUMMARY_COLUMNS",
     "cue_floors",
     "cue_metrics",
@@ -152,16 +156,17 @@ def cue_metrics(columns: Mapping, scenario: Mapping, model: VestibularModel | No
         ch.update(onset_block(t, pv, ps, veh_raw, raw, thr))
         ch.update(strength(pv, ps, lag, dt))
         if kind == "w":
-            ch["rms_error_deg_s"] = float(np.degrees(ch["rms_error"]))
-        if kind == "w":
             excess = false_rotation(pv, ps)
-            wrong_rot = above & (excess > thr)
-            ch["false_rotation_s"] = float(wrong_rot.sum() * dt)
-            ch["false_rotation_peak"] = float(excess[wrong_rot].max()) if wrong_rot.any() else 0.0
+            wrong = above & (excess > thr)
+            ch.update(
+                rms_error_deg_s=float(np.degrees(ch["rms_error"])),
+                false_rotation_s=float(wrong.sum() * dt),
+                false_rotation_peak=float(excess[wrong].max()) if wrong.any() else 0.0,
+            )
     if bound:
-        out["bound"] = bound_block(col, dt, scenario, veh, model)
+        out["bound"] = best = bound_block(col, dt, scenario, veh, model)
         for name, ch in out["channels"].items():
-            ch.update(bound_share(ch, out["bound"]["channels"].get(name)))
+            ch.update(bound_share(ch, best["channels"].get(name)))
     if info is None:
         _, _, _, _, info = vehicle_input(scenario)
     box = info["box"]
@@ -172,24 +177,26 @@ def cue_metrics(columns: Mapping, scenario: Mapping, model: VestibularModel | No
         lo, hi = box[axis]
         frac = np.where(y >= home, (y - home) / (hi - home), (home - y) / (home - lo))
         usage[axis] = float(frac.max())
-    out["workspace"] = {
-        "box_fraction_max": usage,
-        "box": box,
-        "setpoint_softened_fraction": info["softened_fraction"],
-        "tilt_rate_limited_fraction": info["rate_limited_fraction"],
-    }
-    strokes = [np.asarray(columns[f"q{i}_m"], float)[:n] for i in (1, 2, 3)]
-    out["workspace"]["stroke_min_m"] = float(min(q.min() for q in strokes))
-    out["workspace"]["stroke_max_m"] = float(max(q.max() for q in strokes))
-    out["workspace"]["end_stop_margin_m"] = float(min(min(q.min(), 0.5 - q.max()) for q in strokes))
+    q = np.stack([np.asarray(columns[f"q{i}_m"], float)[:n] for i in (1, 2, 3)])
     u = np.stack([np.asarray(columns[f"u{i}_v"], float)[:n] for i in (1, 2, 3)], -1)
     sat = (u <= 1e-9) | (u >= 10.0 - 1e-9)
-    out["valves"] = {
-        "saturated_fraction": float(sat.any(axis=1).mean()),
-        "saturated_fraction_per_valve": [float(v) for v in sat.mean(axis=0)],
-    }
-    out["source"] = info["source"]
-    out["algorithm"] = info.get("algorithm", "classical_washout")
+    out.update(
+        workspace={
+            "box_fraction_max": usage,
+            "box": box,
+            "setpoint_softened_fraction": info["softened_fraction"],
+            "tilt_rate_limited_fraction": info["rate_limited_fraction"],
+            "stroke_min_m": float(q.min()),
+            "stroke_max_m": float(q.max()),
+            "end_stop_margin_m": float(min(q.min(), 0.5 - q.max())),
+        },
+        valves={
+            "saturated_fraction": float(sat.any(axis=1).mean()),
+            "saturated_fraction_per_valve": [float(v) for v in sat.mean(axis=0)],
+        },
+        source=info["source"],
+        algorithm=info.get("algorithm", "classical_washout"),
+    )
     if info.get("solve_time"):
         out["solve_time"] = info["solve_time"]
     return out
@@ -282,6 +289,20 @@ def telemetry_of(columns: Mapping) -> Telemetry:
     return Telemetry(t=t, f=f, w=w)
 
 
+@dataclass(frozen=True)
+class Floors:
+    """The acceptance floors (see :data:`FLOORS`)."""
+
+    correlation: Mapping[str, float]
+    mean_lag_s: float = 0.5
+    onset_delay_s: float = 0.3
+    onset_raw_wrong_sign_peak: float = 0.17
+    false_rotation_s: float = 0.5
+    box_fraction: float = 1.0
+    valve_saturated_fraction: float = 0.05
+    gain_share: float = 0.8
+
+
 #: What a driver would accept (docs/cueing.md), on every channel the vehicle drives (surge
 #: and sway whose perceived vehicle peak passes the otoliths' threshold; the larger of the
 #: two if neither does): perceived correlation (0.8 on surge, 0.85 on sway), mean lag (s),
@@ -290,29 +311,33 @@ def telemetry_of(columns: Mapping) -> Telemetry:
 #: and the end stops; valve saturation; the perceived gain at least ``gain_share`` of the
 #: bound's (:func:`bound_share`: a cue right in shape but weaker than the platform can
 #: give misses it), where the bound was computed.
-FLOORS: dict[str, Any] = {
-    "correlation": {"longitudinal_f": 0.8, "lateral_f": 0.85},
-    "mean_lag_s": 0.5,
-    "onset_delay_s": 0.3,
-    "onset_raw_wrong_sign_peak": 0.17,
-    "false_rotation_s": 0.5,
-    "box_fraction": 1.0,
-    "valve_saturated_fraction": 0.05,
-    "gain_share": 0.8,
-}
+FLOORS = Floors(correlation=MappingProxyType({"longitudinal_f": 0.8, "lateral_f": 0.85}))
 
 
-def cue_floors(cue: Mapping) -> dict:
-    """The :data:`FLOORS` on one run's ``cueing`` block: ``channel`` (the main one: the
-    larger perceived vehicle peak), ``channels`` (those judged: every surge or sway channel
-    the vehicle drives past the otoliths' threshold, else the main one), ``met`` (bool) and
-    ``missed`` (one short phrase per floor missed, with its value)."""
+@dataclass
+class FloorVerdict:
+    """One run's cueing block against :data:`FLOORS` (:func:`cue_floors`)."""
+
+    channel: str  #: the main one: the larger perceived vehicle peak
+    channels: list[str]  #: those judged
+    missed: list[str]  #: one short phrase per floor missed, with its value
+
+    @property
+    def met(self) -> bool:
+        """Every floor met."""
+        return not self.missed
+
+
+def cue_floors(cue: Mapping) -> FloorVerdict:
+    """The :data:`FLOORS` on one run's ``cueing`` block: the main channel (the larger
+    perceived vehicle peak), those judged (every surge or sway channel the vehicle drives
+    past the otoliths' threshold, else the main one) and the floors missed."""
     ch = cue.get("channels") or {}
-    peak = {c: abs((ch.get(c) or {}).get("vehicle_peak") or 0.0) for c in FLOORS["correlation"]}
+    peak = {c: abs((ch.get(c) or {}).get("vehicle_peak") or 0.0) for c in FLOORS.correlation}
     main = max(peak, key=lambda c: peak[c])
-    thr = FLOORS["onset_raw_wrong_sign_peak"]
+    thr = FLOORS.onset_raw_wrong_sign_peak
     judged = [
-        c for c in FLOORS["correlation"] if peak[c] > ((ch.get(c) or {}).get("threshold") or thr)
+        c for c in FLOORS.correlation if peak[c] > ((ch.get(c) or {}).get("threshold") or thr)
     ]
     judged = judged or [main]
     missed = []
@@ -325,40 +350,40 @@ def cue_floors(cue: Mapping) -> dict:
     for name in judged:
         m = ch.get(name) or {}
         corr = m.get("correlation")
-        if corr is None or corr < FLOORS["correlation"][name]:
+        if corr is None or corr < FLOORS.correlation[name]:
             shown = "none" if corr is None else f"{corr:.2f}"
-            missed.append(f"{name} correlation {shown} < {FLOORS['correlation'][name]:g}")
-        above(f"{name} mean lag", m.get("mean_lag_s"), FLOORS["mean_lag_s"], " s")
+            missed.append(f"{name} correlation {shown} < {FLOORS.correlation[name]:g}")
+        above(f"{name} mean lag", m.get("mean_lag_s"), FLOORS.mean_lag_s, " s")
         if m.get("onsets"):
-            above(f"{name} onset delay", m.get("onset_delay_s"), FLOORS["onset_delay_s"], " s")
+            above(f"{name} onset delay", m.get("onset_delay_s"), FLOORS.onset_delay_s, " s")
             if m.get("onsets_missed"):
                 missed.append(f"{name} onsets missed {m['onsets_missed']}")
             above(
                 f"{name} raw wrong-sign peak",
                 m.get("onset_raw_wrong_sign_peak"),
-                FLOORS["onset_raw_wrong_sign_peak"],
+                FLOORS.onset_raw_wrong_sign_peak,
                 " m/s^2",
             )
         share = m.get("gain_share")
-        if share is not None and share < FLOORS["gain_share"]:
+        if share is not None and share < FLOORS.gain_share:
             missed.append(
                 f"{name} gain {m.get('gain'):.2f} is {share:.2f} of the bound's "
-                f"< {FLOORS['gain_share']:g}"
+                f"< {FLOORS.gain_share:g}"
             )
     for rot in ("roll_rate", "pitch_rate"):
         v = (ch.get(rot) or {}).get("false_rotation_s")
         if v is not None:
-            above(f"felt false {rot.split('_')[0]}", v, FLOORS["false_rotation_s"], " s")
+            above(f"felt false {rot.split('_')[0]}", v, FLOORS.false_rotation_s, " s")
     ws = cue.get("workspace") or {}
     for axis, v in (ws.get("box_fraction_max") or {}).items():
-        above(f"{axis} box", v, FLOORS["box_fraction"])
+        above(f"{axis} box", v, FLOORS.box_fraction)
     margin = ws.get("end_stop_margin_m")
     if margin is not None and margin <= 0:
         missed.append(f"end stops reached ({margin * 1e3:.0f} mm)")
     sat = (cue.get("valves") or {}).get("saturated_fraction")
     if sat is not None:
-        above("valve saturation", sat, FLOORS["valve_saturated_fraction"])
-    return {"channel": main, "channels": judged, "met": not missed, "missed": missed}
+        above("valve saturation", sat, FLOORS.valve_saturated_fraction)
+    return FloorVerdict(main, judged, missed)
 
 
 #: Cueing columns of ``simpro-sim batch``'s summary.csv (perceived correlations,
@@ -445,8 +470,8 @@ def summary_columns(cue: Mapping) -> dict:
         "cue_roll_false_rot_s": g("roll_rate", "false_rotation_s"),
         "cue_pitch_false_rot_s": g("pitch_rate", "false_rotation_s"),
         "cue_solve_p99_ms": (cue.get("solve_time") or {}).get("p99_ms"),
-        "cue_floors_met": floors["met"],
-        "cue_floors_missed": "; ".join(floors["missed"]),
+        "cue_floors_met": floors.met,
+        "cue_floors_missed": "; ".join(floors.missed),
         "cue_long_gain": g("longitudinal_f", "gain"),
         "cue_lat_gain": g("lateral_f", "gain"),
         "cue_long_gain_rms": g("longitudinal_f", "gain_rms"),

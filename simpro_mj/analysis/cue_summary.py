@@ -73,8 +73,8 @@ def print_cue_summary(cue: Mapping, file=None) -> None:
         )
     floors = cue_floors(cue)
     print(
-        f"floors ({', '.join(floors['channels'])}): "
-        + ("met" if floors["met"] else "missed: " + "; ".join(floors["missed"])),
+        f"floors ({', '.join(floors.channels)}): "
+        + ("met" if floors.met else "missed: " + "; ".join(floors.missed)),
         file=file,
     )
     print(

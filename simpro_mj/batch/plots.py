@@ -28,7 +28,6 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 from matplotlib.figure import Figure
@@ -402,17 +401,6 @@ def plot_summary(report, jobs) -> list[Path]:
     return paths
 
 
-#: The acceptance floors drawn on :func:`plot_cue_comparison` (docs/cueing.md;
-#: :data:`simpro_mj.analysis.cue_metrics.FLOORS`): the correlation's per main channel.
-CUE_FLOORS: dict[str, Any] = {
-    "correlation": {"long": FLOORS["correlation"]["longitudinal_f"],
-                    "lat": FLOORS["correlation"]["lateral_f"]},
-    "lag_s": FLOORS["mean_lag_s"],
-    "onset_s": FLOORS["onset_delay_s"],
-    "false_rot_s": FLOORS["false_rotation_s"],
-}  # fmt: skip
-
-
 def plot_cue_comparison(rows: list[dict], info: Mapping, out: Path):
     """Cueing laws side by side: per vehicle input (the grid's telemetry) and law, the
     perceived correlation, mean lag and worst onset delay of the channel the vehicle
@@ -433,11 +421,11 @@ def plot_cue_comparison(rows: list[dict], info: Mapping, out: Path):
         key = _input_label(r)
         if key not in inputs:
             inputs.append(key)
-    panels = (
-        ("correlation", "perceived correlation", "correlation", False),
-        ("lag", "mean lag (s)", "lag_s", True),
-        ("onset", "onset delay, worst (s)", "onset_s", True),
-        ("false_rot", "felt false rotation (s)", "false_rot_s", True),
+    panels = (  # the floors (FLOORS): the correlation's per main channel
+        ("correlation", "perceived correlation", None, False),
+        ("lag", "mean lag (s)", FLOORS.mean_lag_s, True),
+        ("onset", "onset delay, worst (s)", FLOORS.onset_delay_s, True),
+        ("false_rot", "felt false rotation (s)", FLOORS.false_rotation_s, True),
     )
     fig = Figure(figsize=(11, 3.4), layout="constrained")
     axes = fig.subplots(1, len(panels))
@@ -452,15 +440,16 @@ def plot_cue_comparison(rows: list[dict], info: Mapping, out: Path):
                 vals.append(np.nan if hit is None else _main(hit, what))
             x = np.arange(len(inputs)) + (j - (len(laws) - 1) / 2) * width
             ax.bar(x, vals, width, label=law)
-        if floor == "correlation":  # the floor of each input's main channel
+        if floor is None:  # the correlation's floor of each input's main channel
             for i, key in enumerate(inputs):
                 r = next(x for x in pts if _input_label(x) == key)
-                level = CUE_FLOORS[floor][r.get("cue_main_channel") or "long"]
+                main = "lateral_f" if r.get("cue_main_channel") == "lat" else "longitudinal_f"
+                level = FLOORS.correlation[main]
                 ax.plot([i - 0.45, i + 0.45], [level, level], color="k", ls="--", lw=1)
             ax.set_ylim(0.0, 1.6)  # room for the legend above the bars
             ax.set_yticks(np.linspace(0.0, 1.0, 6))
         else:
-            ax.axhline(CUE_FLOORS[floor], color="k", ls="--", lw=1)
+            ax.axhline(floor, color="k", ls="--", lw=1)
         ax.set_xticks(np.arange(len(inputs)), inputs, fontsize=7, rotation=20, ha="right")
         ax.set_title(label + (" (floor: at most)" if below else " (floor: at least)"), fontsize=8)
         ax.grid(True, axis="y", alpha=0.3)
