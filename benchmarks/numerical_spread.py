@@ -1,0 +1,146 @@
+"""The cabin's step figures under halved and doubled numerical parameters, over seeds.
+
+    python benchmarks/numerical_spread.py [--seeds 1 .. 10] [--seals 450 750] [--jobs 2]
+
+Seals that stick make a settling time a discontinuous function of anything that
+moves a run by a micrometre: a seal breaks away a step earlier or later, the
+slip lands elsewhere within the loops' bands, and the last entry into the 2 %
+band moves by seconds. The noise seed moves it as far as a numerical parameter
+does (``docs/paper-notes.md``, numerical parameters). So a single run per
+setting cannot show whether a figure depends on the step's numerics; its
+distribution over seeds can. This runs ``step_pitch`` and ``step_all`` on
+``heavy_cabin`` with the given seals on every leg, at each seed, with the
+shipped numerics and with each numerical parameter moved as far as MuJoCo
+allows (the other way is its own limit, where the shipped value sits):
+
+* ``stick_time_constant_ms`` 2 -> 4 (doubled; 2 ms, two steps, is MuJoCo's
+  least);
+* ``stick_impedance`` 0.9999 -> 0.9998 (the yield ``1 - d`` doubled; 0.9999 is
+  MuJoCo's greatest);
+* ``integration.substeps`` 1 -> 2 (the pressure step halved).
+
+Prints one JSON document: per variant, scenario and axis, the overshoot (%) and
+2 % settling time (s) of ``metrics.json`` at every seed, their median, range
+and the number of runs that meet the cabin's floors (overshoot <= 10 %,
+settling <= 3 s on ``step_pitch`` / 4 s on ``step_all``, status ok), and for
+each variant against the shipped numerics the ratio of the medians and the
+two-sided Mann-Whitney U p-value (scipy.stats.mannwhitneyu): a small p says
+the numerical parameter moves the figure's distribution beyond the seeds' own
+spread. CPU-bound: on two cores 10 seeds take a few minutes.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import multiprocessing
+import statistics
+import sys
+from concurrent.futures import ProcessPoolExecutor
+
+CYL = "actuator.pneumatics.cylinder"
+VARIANTS = {
+    "shipped": {},
+    "stick_time_constant_x2": {f"{CYL}.stick_time_constant_ms": 4.0},
+    "stick_yield_x2": {f"{CYL}.stick_impedance": 0.9998},
+    "substeps_x2": {"actuator.pneumatics.integration.substeps": 2},
+}
+SCENARIOS = {"step_pitch": 3.0, "step_all": 4.0}  # their settling floors, s
+OVERSHOOT_FLOOR = 10.0  # %
+
+
+def _one(job: tuple) -> tuple:
+    """One run: (variant, scenario, seed) -> its figures per stepped axis."""
+    variant, name, seed, seals = job
+    from simpro_mj.api import run
+
+    sets = {
+        "plant.preset": "heavy_cabin",
+        f"{CYL}.coulomb_friction_n": [seals[0]] * 3,
+        f"{CYL}.breakaway_friction_n": [seals[1]] * 3,
+        "seed": seed,
+        **VARIANTS[variant],
+    }
+    m = run(name, sets).metrics
+    axes = {}
+    for axis, fig in m["axes"].items():
+        if fig.get("step"):
+            axes[axis] = (fig["overshoot_pct"], fig["settling_time_s"])
+    return variant, name, seed, m["status"], axes
+
+
+def _summary(runs: list, floor: float) -> dict:
+    ov = [r[0] for r in runs]
+    st = [r[1] if r[1] is not None else float("inf") for r in runs]
+    return {
+        "overshoot_pct": ov,
+        "settling_s": st,
+        "settling_median_s": statistics.median(st),
+        "settling_range_s": [min(st), max(st)],
+        "overshoot_max_pct": max(ov),
+        "meet": sum(o <= OVERSHOOT_FLOOR and s <= floor for o, s in zip(ov, st, strict=True)),
+    }
+
+
+def measure(seeds, seals=(450.0, 750.0), jobs: int = 2) -> dict:
+    """Run every variant, scenario and seed (module docstring) and summarise."""
+    from scipy.stats import mannwhitneyu
+
+    todo = [(v, n, s, seals) for v in VARIANTS for n in SCENARIOS for s in seeds]
+    ctx = multiprocessing.get_context("spawn")
+    with ProcessPoolExecutor(max_workers=jobs, mp_context=ctx) as pool:
+        done = list(pool.map(_one, todo))
+    out: dict = {"seeds": list(seeds), "seals_n": list(seals), "variants": {}}
+    for v in VARIANTS:
+        per = out["variants"][v] = {}
+        for name, floor in SCENARIOS.items():
+            rows = sorted((r for r in done if r[0] == v and r[1] == name), key=lambda r: r[2])
+            per[name] = {"status": [r[3] for r in rows]}
+            for axis in rows[0][4]:
+                got = [r[4][axis] for r in rows]
+                per[name][axis] = _summary(got, floor)
+                per[name][axis]["ok_and_meet"] = sum(
+                    r[3] == "ok" and g[0] <= OVERSHOOT_FLOOR and (g[1] or 1e9) <= floor
+                    for r, g in zip(rows, got, strict=True)
+                )
+    base = out["variants"]["shipped"]
+    for v in VARIANTS:
+        if v == "shipped":
+            continue
+        for name in SCENARIOS:
+            for axis, fig in out["variants"][v][name].items():
+                if axis == "status":
+                    continue
+                ref = base[name][axis]
+                fig["settling_median_ratio"] = fig["settling_median_s"] / ref["settling_median_s"]
+                fig["settling_p"] = float(mannwhitneyu(fig["settling_s"], ref["settling_s"]).pvalue)
+                fig["overshoot_p"] = float(
+                    mannwhitneyu(fig["overshoot_pct"], ref["overshoot_pct"]).pvalue
+                )
+    return out
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    p.add_argument("--seeds", type=int, nargs="+", default=list(range(1, 11)))
+    p.add_argument("--seals", type=float, nargs=2, default=[450.0, 750.0],
+                   metavar=("COULOMB_N", "BREAKAWAY_N"))  # fmt: skip
+    p.add_argument("--jobs", type=int, default=2)
+    a = p.parse_args(argv)
+    if len(a.seeds) < 3 or any(not 0 <= s < 2**31 for s in a.seeds):
+        print("error: invalid value at --seeds: allowed: three or more of 0..2^31-1",
+              file=sys.stderr)  # fmt: skip
+        return 2
+    if not 0 <= a.seals[0] <= a.seals[1] <= 5000:
+        print("error: invalid value at --seals: allowed: 0 <= Coulomb <= breakaway <= 5000 N",
+              file=sys.stderr)  # fmt: skip
+        return 2
+    if not 1 <= a.jobs <= 64:
+        print("error: invalid value at --jobs: allowed: 1..64", file=sys.stderr)
+        return 2
+    print(json.dumps(measure(tuple(a.seeds), tuple(a.seals), a.jobs), indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
