@@ -258,8 +258,7 @@ def _run_command(scenario: dict, model, durations: tuple[float, float]) -> float
             t0 = time.perf_counter()
             try:
                 check_setpoints(sc)
-                execute(sc, Path(tmp) / f"run_{d:g}", plots=False, quiet=True, model=model,
-                        csv_beside=True)  # fmt: skip
+                execute(sc, Path(tmp) / f"run_{d:g}", plots=False, quiet=True, model=model)
             except UserInputError:
                 return None
             times.append(time.perf_counter() - t0)

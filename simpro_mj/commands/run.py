@@ -72,7 +72,6 @@ def run(args) -> int:
             plots=not args.no_plots,
             quiet=args.quiet,
             progress=show_progress(args),
-            csv_beside=True,  # one run: the second core formats timeseries.csv meanwhile
         )
     if args.json:
         emit_json(metrics)

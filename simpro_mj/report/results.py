@@ -31,8 +31,6 @@ import math
 import os
 import platform
 import sys
-import threading
-import time
 import warnings
 from collections.abc import Mapping
 from importlib import metadata
@@ -54,7 +52,6 @@ from simpro_mj.report.machine import fingerprint_id
 from simpro_mj.report.marker import PARTIAL_MARKER, is_complete
 
 __all__ = [
-    "RowText",
     "write_results",
     "write_run",
     "write_timeseries",
@@ -145,104 +142,16 @@ def jsonable(obj: Any) -> Any:
 NUMBER_FORMAT = "%.12g"
 
 
-class RowText:
-    """``timeseries.csv``'s lines of a run's logged rows, formatted on a second
-    thread while the run steps.
-
-    Formatting the numbers is about 0.2 µs a value in Python, 0.8 µs per
-    simulated step for a plain run's 37 columns logged every 10th step: a
-    tenth of the step. The run's ``mj_step`` releases the GIL, so on a
-    machine with a second core the formatting is done meanwhile. Give
-    :meth:`pace` to :meth:`simpro_mj.sim.loop.CoSimulation.run` (every 1000
-    steps it hands over the rows logged so far) and the object to
-    :func:`write_timeseries`, which takes the lines of the leading rows that
-    equal its columns bit for bit and formats the rest itself: the file is
-    the same whether the thread ran, ran part way or not at all.
-
-    The thread yields the GIL every :attr:`BATCH` rows (about 35 µs), so the
-    stepping thread never waits longer than that between its chunks.
-    :meth:`close` stops it (:func:`write_timeseries` does; so must a caller
-    that does not write).
-    """
-
-    #: rows formatted between two releases of the GIL
-    BATCH = 4
-    #: steps between two hand-overs of the logged rows
-    EVERY = 1000
-
-    def __init__(self):
-        self._cond = threading.Condition()
-        self._rows = np.empty((0, 0))
-        self._done = 0
-        self._lines: list[str] = []
-        self._fmt = ""
-        self._closing = False
-        self._thread: threading.Thread | None = None
-
-    @classmethod
-    def if_useful(cls) -> RowText | None:
-        """A new formatter on a machine this process may use two cores of, else None."""
-        try:
-            cores = len(os.sched_getaffinity(0))
-        except AttributeError:  # not Linux
-            cores = os.cpu_count() or 1
-        return cls() if cores >= 2 else None
-
-    def pace(self, k: int, rows: np.ndarray) -> int:
-        """The run's ``pace``: hand over the rows logged before step ``k`` (a view of
-        whole rows the run no longer writes); the next call at ``k + EVERY``."""
-        with self._cond:
-            self._rows = rows
-            if self._thread is None and not self._closing:
-                self._fmt = ",".join([NUMBER_FORMAT] * rows.shape[1])
-                self._thread = threading.Thread(target=self._work, name="timeseries", daemon=True)
-                self._thread.start()
-            self._cond.notify()
-        return k + self.EVERY
-
-    def _work(self) -> None:
-        fmt, lines, batch = self._fmt, self._lines, self.BATCH
-        while True:
-            with self._cond:
-                while self._done >= self._rows.shape[0] and not self._closing:
-                    self._cond.wait()
-                rows, start = self._rows, self._done
-            if start >= rows.shape[0]:
-                return  # closing, all handed-over rows formatted
-            for i in range(start, rows.shape[0], batch):
-                lines.extend(fmt % tuple(r) for r in rows[i : i + batch].tolist())
-                time.sleep(0)  # release the GIL: the stepping thread's chunk comes first
-            with self._cond:
-                self._done = rows.shape[0]
-
-    def close(self) -> None:
-        """Let the thread format the rows handed over and end; idempotent."""
-        with self._cond:
-            self._closing = True
-            self._cond.notify()
-        if self._thread is not None:
-            self._thread.join()
-
-    def lines_for(self, data: np.ndarray) -> list[str]:
-        """:meth:`close`, then the formatted lines of ``data``'s leading rows: those
-        handed over whose every bit equals ``data``'s (the columns written)."""
-        self.close()
-        rows = self._rows[: self._done]
-        n = min(rows.shape[0], data.shape[0])
-        if rows.ndim != 2 or rows.shape[1] != data.shape[1] or n == 0:
-            return []
-        same = np.all(rows[:n].view(np.int64) == data[:n].view(np.int64), axis=1)
-        n = int(np.argmin(same)) if not same.all() else n
-        return self._lines[:n]
+#: rows formatted by one ``%`` (a block's lines at once: the per-row calls of
+#: ``numpy.savetxt`` cost a third of its time; a larger block only holds more
+#: Python floats at once)
+ROWS_PER_FORMAT = 256
 
 
-def write_timeseries(path, columns: Mapping[str, np.ndarray], rows: RowText | None = None) -> Path:
+def write_timeseries(path, columns: Mapping[str, np.ndarray]) -> Path:
     """Write columns as CSV: header of names, :data:`NUMBER_FORMAT` values, as
-    ``numpy.savetxt`` writes them.
-
-    ``rows``, a :class:`RowText` the run handed its rows to, gives the lines
-    of the leading rows it formatted (those equal to the columns' bit for
-    bit); the rest are formatted here.
+    ``numpy.savetxt`` writes them, byte for byte: each value ``NUMBER_FORMAT % x``
+    of its Python float, :data:`ROWS_PER_FORMAT` rows to one ``%``.
 
     Raises
     ------
@@ -263,13 +172,12 @@ def write_timeseries(path, columns: Mapping[str, np.ndarray], rows: RowText | No
         shapes = {n: a.shape for n, a in zip(names, arrays, strict=True)}
         raise ValueError(f"columns must be 1-D and of equal length, got {shapes}")
     data = np.column_stack(arrays) if arrays else np.empty((0, 0))
-    done = rows.lines_for(data) if rows is not None and data.size else []
+    line = ",".join([NUMBER_FORMAT] * data.shape[1]) + "\n"
     with open(path, "w", encoding="utf-8") as fh:
         fh.write(",".join(names) + "\n")
-        if done:
-            fh.write("\n".join(done) + "\n")
-        if data.size:
-            np.savetxt(fh, data[len(done) :], fmt=NUMBER_FORMAT, delimiter=",")
+        for i in range(0, data.shape[0] if data.size else 0, ROWS_PER_FORMAT):
+            block = data[i : i + ROWS_PER_FORMAT]
+            fh.write((line * block.shape[0]) % tuple(block.ravel().tolist()))
     return path
 
 
@@ -383,9 +291,7 @@ def write_results(
     return _write(out_dir, columns, metrics, scenario, extra, arrays)[0]
 
 
-def write_run(
-    out_dir, outcome, scenario: Scenario | Mapping, *, plots: bool = True, arrays=None, rows=None
-):
+def write_run(out_dir, outcome, scenario: Scenario | Mapping, *, plots: bool = True, arrays=None):
     """Write a run's result folder (:func:`write_results`) from what
     :meth:`simpro_mj.job.run.Run.execute` returned.
 
@@ -402,8 +308,6 @@ def write_run(
         Write the PNG figures.
     arrays : mapping, optional
         As :func:`write_results` (``qpos.npz``).
-    rows : RowText, optional
-        The lines of ``timeseries.csv`` formatted while the run stepped.
 
     Returns
     -------
@@ -413,10 +317,10 @@ def write_run(
     """
     extra = dict(outcome.extra(), plots=plots)
     columns = outcome.result.columns
-    return _write(out_dir, columns, outcome.metrics, scenario, extra, arrays, rows)
+    return _write(out_dir, columns, outcome.metrics, scenario, extra, arrays)
 
 
-def _write(out_dir, columns, metrics, scenario, extra, arrays, rows=None) -> tuple[Path, dict]:
+def _write(out_dir, columns, metrics, scenario, extra, arrays) -> tuple[Path, dict]:
     """:func:`write_results`; returns the folder and the ``metrics.json`` document."""
     scenario = as_tree(scenario)  # the record of the scenario, typed or not
     extra = dict(extra or {})
@@ -447,7 +351,7 @@ def _write(out_dir, columns, metrics, scenario, extra, arrays, rows=None) -> tup
                 "see metrics.json (status interrupted)\n",
                 encoding="utf-8",
             )
-        write_timeseries(tmp / "timeseries.csv", columns, rows)
+        write_timeseries(tmp / "timeseries.csv", columns)
         if "head_fx_mps2" in columns and "veh_fx_mps2" in columns:
             # a cueing run: what the driver perceives, from the logged head signals
             from simpro_mj.analysis.cue_metrics import perceived_columns

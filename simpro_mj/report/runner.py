@@ -28,8 +28,7 @@ from simpro_mj.core.interrupts import writing
 from simpro_mj.core.progress import show_progress
 from simpro_mj.core.rates import PHYSICS_DT_S
 from simpro_mj.job.run import Run, warn
-from simpro_mj.plant.kernels import kernel_choice
-from simpro_mj.report.results import RowText, write_run
+from simpro_mj.report.results import write_run
 from simpro_mj.sim.readiness import signal_ready
 
 __all__ = [
@@ -53,7 +52,6 @@ def execute(
     model=None,
     progress: bool = False,
     label: str | None = None,
-    csv_beside: bool = False,
     stop=None,
 ):
     """Run a resolved scenario and write its result folder.
@@ -72,12 +70,6 @@ def execute(
         The scenario's compiled plant, when the caller has it (a comparison).
     progress : bool
         A tqdm bar of the simulated seconds on stderr (``label`` before it).
-    csv_beside : bool
-        Format ``timeseries.csv``'s lines on a second thread while the compiled
-        step runs (:class:`~simpro_mj.report.results.RowText`): for a run
-        alone in its process, as ``simpro-sim run``. Runs of a batch on
-        threads already keep both cores busy; there the thread only competes
-        (about 14 % slower for ``sweep_outer_gain`` with ``--jobs 2``).
     stop : threading.Event, optional
         The run's stop token (:meth:`simpro_mj.sim.loop.CoSimulation.run`).
 
@@ -98,33 +90,21 @@ def execute(
     """
     spec = as_scenario(scenario)
     bar = _Bar(spec, label) if progress else None
-    # timeseries.csv's lines formatted while the compiled step runs (its columns
-    # are the log's but for a cueing run's vehicle signals)
-    rows = None
-    if csv_beside and kernel_choice() == "numba" and not spec.setpoint.cueing:
-        rows = RowText.if_useful()
+    run = Run(scenario, model=model)
     try:
-        run = Run(scenario, model=model)
-        pace = rows.pace if rows is not None else None
-        try:
-            if bar is None:
-                outcome = run.execute(quiet=quiet, pace=pace, stop=stop)
-            else:
-                outcome = run.execute(
-                    quiet=quiet, progress=bar.step, pace=pace, bar=True, stop=stop
-                )
-        finally:
-            if bar is not None:
-                bar.close()
-        res = outcome.result
-        res.folder = None
-        with writing(lambda: kept_line(res)):  # a folder is always written whole
-            res.folder, doc = write_run(
-                Path(out), outcome, scenario, plots=plots, arrays=recording(res), rows=rows
-            )
+        if bar is None:
+            outcome = run.execute(quiet=quiet, stop=stop)
+        else:
+            outcome = run.execute(quiet=quiet, progress=bar.step, bar=True, stop=stop)
     finally:
-        if rows is not None:
-            rows.close()
+        if bar is not None:
+            bar.close()
+    res = outcome.result
+    res.folder = None
+    with writing(lambda: kept_line(res)):  # a folder is always written whole
+        res.folder, doc = write_run(
+            Path(out), outcome, scenario, plots=plots, arrays=recording(res)
+        )
     return res, doc
 
 
