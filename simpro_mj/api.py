@@ -31,6 +31,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from simpro_mj.config.models import Scenario, as_scenario
 from simpro_mj.config.variants import load_sweep
 from simpro_mj.core.errors import SweepError, UserInputError
 from simpro_mj.core.keys import closest
@@ -53,8 +54,8 @@ class Result:
 
     Attributes
     ----------
-    scenario : dict
-        The resolved scenario (every default filled in).
+    scenario : Scenario
+        The resolved scenario, typed (every default filled in).
     columns : dict of str to ndarray
         The logged time series, SI units, names as in ``timeseries.csv``.
     metrics : dict
@@ -64,7 +65,7 @@ class Result:
         The result folder, if one was written.
     """
 
-    scenario: dict
+    scenario: Scenario
     columns: dict
     metrics: dict
     out: Path | None = None
@@ -156,29 +157,34 @@ def _sets(overrides: Mapping | None) -> list[str]:
     return out
 
 
-def load(scenario: str | Path | Mapping, overrides: Mapping | None = None) -> dict:
+def load(scenario: str | Path | Mapping | Scenario, overrides: Mapping | None = None) -> Scenario:
     """Resolve a scenario: a shipped name, a YAML path or a mapping, plus overrides.
 
     Returns
     -------
-    dict
-        The resolved scenario, as ``scenario.yaml`` of a result folder holds it.
+    Scenario
+        The resolved scenario, typed; its ``model_dump()`` is what ``scenario.yaml``
+        of a result folder holds.
     """
-    from simpro_mj.config.scenario import load_scenario, resolve_scenario
+    from simpro_mj.config.scenario import load_scenario, resolve
 
+    if isinstance(scenario, Scenario):
+        scenario = scenario.model_dump()
     if isinstance(scenario, Mapping):
-        return resolve_scenario(copy.deepcopy(dict(scenario)), _sets(overrides))
+        return resolve(copy.deepcopy(dict(scenario)), _sets(overrides))
     return load_scenario(str(scenario), _sets(overrides))
 
 
-def load_scenario(scenario: str | Path | Mapping, overrides: Mapping | None = None) -> dict:
+def load_scenario(
+    scenario: str | Path | Mapping | Scenario, overrides: Mapping | None = None
+) -> Scenario:
     """Resolve a scenario: the same as :func:`load` (the name the command line's
     modules use)."""
     return load(scenario, overrides)
 
 
 def run(
-    scenario: str | Path | Mapping,
+    scenario: str | Path | Mapping | Scenario,
     overrides: Mapping | None = None,
     *,
     out: str | Path | None = None,
@@ -211,7 +217,9 @@ def run(
     return Result(resolved, done["columns"], done["metrics"], None)
 
 
-def compare(scenario: str | Path | Mapping, overrides: Mapping | None = None) -> dict[str, Result]:
+def compare(
+    scenario: str | Path | Mapping | Scenario, overrides: Mapping | None = None
+) -> dict[str, Result]:
     """The same plant and seed with joint-only and with task-space control (Fig. 15 a/b).
 
     Returns
@@ -219,12 +227,12 @@ def compare(scenario: str | Path | Mapping, overrides: Mapping | None = None) ->
     dict
         ``{"joint_only": Result, "task_space": Result}``.
     """
+    from simpro_mj.config.scenario import scenario_with
+
     base = load(scenario, overrides)
     out: dict[str, Any] = {}
     for mode in ("joint_only", "task_space"):
-        sc = copy.deepcopy(base)
-        sc["controller"]["mode"] = mode
-        out[mode] = run(sc)
+        out[mode] = run(scenario_with(base, {"controller.mode": mode}))
     return out
 
 
@@ -357,7 +365,7 @@ def sweep(
         out = done.get(i) or {}
         if "columns" in out:
             assert v.scenario is not None  # a valid variant
-            results[v.name] = Result(v.scenario, out["columns"], out["metrics"], None)
+            results[v.name] = Result(as_scenario(v.scenario), out["columns"], out["metrics"], None)
         else:  # a worker that died fails its variant only
             errors[v.name] = out.get("reason") or "the worker ended without a result"
     if valid and not results:

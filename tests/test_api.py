@@ -59,7 +59,7 @@ def test_the_readme_example_runs_from_any_folder(tmp_path):
 
 def test_run_is_the_simulation_of_the_resolved_scenario():
     r = s.run("step_pitch", {"duration_s": 0.5, "controller.outer.type": "PI"})
-    assert r.scenario["controller"]["outer"]["type"] == "PI"
+    assert r.scenario.controller.outer.type == "PI"
     # 0.5 s: the outer loop is still removing the as-built error; the verdict says so
     assert r.status == r.metrics["verdict"]["status"] and r.reason == r.metrics["verdict"]["reason"]
     direct = simulate(load_scenario("step_pitch", ["duration_s=0.5", "controller.outer.type=PI"]))
@@ -75,8 +75,8 @@ def test_a_mapping_scenario_and_compare():
                                                           "value": 1.0}]}}  # fmt: skip
     both = s.compare(doc)
     assert set(both) == {"joint_only", "task_space"}
-    assert both["joint_only"].scenario["controller"]["mode"] == "joint_only"
-    assert both["task_space"].scenario["controller"]["mode"] == "task_space"
+    assert both["joint_only"].scenario.controller.mode == "joint_only"
+    assert both["task_space"].scenario.controller.mode == "task_space"
     # the same plant and seed: the two runs differ only by the controller
     a, b = both["joint_only"].columns, both["task_space"].columns
     assert np.array_equal(a["pitch_ref_rad"], b["pitch_ref_rad"])

@@ -27,7 +27,7 @@ def test_the_presets_own_plant_needs_no_experiment(cache, fake_identify):
     sc = load_scenario("step_pitch", [IDENT])
     models, source = ai.identified_models(sc)
     assert source == "preset" and fake_identify == []
-    assert models == sc["controller"]["inner"]["identified"]
+    assert models == sc.controller.inner.identified.model_dump()
 
 
 def test_a_changed_plant_is_identified_once_then_read_from_the_cache(cache, fake_identify):
@@ -78,7 +78,7 @@ def test_the_simulation_designs_on_the_scenarios_own_plant(cache, monkeypatch):
     from simpro_mj.sim.build import Build
 
     monkeypatch.setitem(ident.DEFAULT_IDENTIFY_PARAMS, "duration_s", 4.0)  # short PRBS
-    preset_a0 = sc["controller"]["inner"]["identified"]["actuator1"]["a0"]
+    preset_a0 = sc.controller.inner.identified.actuator1.a0
     cs = Build(sc).simulation()
     assert cs.identified_source == "identified"
     own = cs.scenario["controller"]["inner"]["identified"]
@@ -183,9 +183,9 @@ def test_the_linearised_models_need_no_experiment_and_share_the_air_spring(cache
     assert ai.experiment_s(sc) == 0.0
     models, source = ai.identified_models(sc)
     assert source == "linearised" and fake_identify == [] and not list(cache.glob("*.json"))
-    given = sc["controller"]["inner"]["identified"]  # the preset's: the experiment's fit
+    given = sc.controller.inner.identified  # the preset's: the experiment's fit
     for a in ("actuator1", "actuator2", "actuator3"):
-        assert models[a]["a0"] == pytest.approx(given[a]["a0"], rel=0.10)
+        assert models[a]["a0"] == pytest.approx(getattr(given, a).a0, rel=0.10)
 
 
 def test_a_plant_whose_seals_stick_is_refused_by_the_linearisation(cache, fake_identify):

@@ -197,8 +197,8 @@ def test_invalid_sweep_blocks_one_line(block, expected):
 def test_run_on_a_sweep_file_runs_the_base_and_says_so(tmp_path, capsys):
     path = _grid_file(tmp_path)
     sc = load_scenario(str(path))
-    assert "sweep" not in sc
-    assert sc["controller"]["outer"]["type"] == "I"
+    assert "sweep" not in sc.model_dump()
+    assert sc.controller.outer.type == "I"
     assert sc == load_scenario(str(_write(tmp_path / "plain.yaml", dict(BASE, name="g"))))
     err = capsys.readouterr().err
     assert "declares 4 variants" in err and "simpro-sim batch" in err

@@ -23,7 +23,7 @@ STAGES, measure = bench.STAGES, bench.measure
 
 @pytest.fixture(scope="module")
 def short():
-    scenario = load_scenario("step_pitch", ["duration_s=0.5"])
+    scenario = load_scenario("step_pitch", ["duration_s=0.5"]).model_dump()  # the harness's dict
     return measure(scenario, repeats=2, batch=False, run_durations=(0.6, 0.3))
 
 
@@ -59,7 +59,7 @@ def test_run_command_figure_is_null_when_the_scenario_cannot_last():
     scenario = load_scenario("step_pitch", [
         "duration_s=0.5", "setpoint.pitch_deg=[]",
         "setpoint.heave_mm=[{type: ramp, start_s: 0.2, end_s: 40, value: 400}]"])  # fmt: skip
-    r = measure(scenario, repeats=1, batch=False)
+    r = measure(scenario.model_dump(), repeats=1, batch=False)
     assert r["run_command_us"] is None and r["run_command_ratio"] is None
     table = bench.table
 

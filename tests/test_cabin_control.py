@@ -107,30 +107,30 @@ def test_a_band_with_a_release_holds_until_the_error_leaves_release_times_the_ba
 
 
 def test_design_plant_auto_is_the_paper_plant_on_paper_and_identified_on_other_presets():
-    assert load_scenario("step_pitch")["controller"]["inner"]["design_plant"] == "paper"
+    assert load_scenario("step_pitch").controller.inner.design_plant == "paper"
     heavy = load_scenario("step_pitch", [HEAVY])
-    assert heavy["controller"]["inner"]["design_plant"] == "identified"
+    assert heavy.controller.inner.design_plant == "identified"
     kept = load_scenario("step_pitch", [HEAVY, "controller.inner.design_plant=paper"])
-    assert kept["controller"]["inner"]["design_plant"] == "paper"
+    assert kept.controller.inner.design_plant == "paper"
     with pytest.raises(UserInputError, match="controller.inner.design_plant.*'auto'"):
         load_scenario("step_pitch", ["controller.inner.design_plant=own"])
 
 
 def test_the_presets_controller_block_lies_under_the_scenarios_own_values():
     preset = load_preset("heavy_cabin")["controller"]
-    heavy = load_scenario("step_pitch", [HEAVY])["controller"]
+    heavy = load_scenario("step_pitch", [HEAVY]).controller
     band = {"kind": "subtract", "release": 1.0, **preset["outer"]["dead_band"]}
-    assert heavy["outer"]["dead_band"] == band and band["release"] == 3.0
-    assert heavy["setpoint_filter"]["time_ms"] == preset["setpoint_filter"]["time_ms"]
-    assert heavy["outer"]["gains"] == [3.0, 3.0, 3.0]  # the scenario's, the preset has none
+    assert heavy.outer.dead_band.model_dump() == band and band["release"] == 3.0
+    assert heavy.setpoint_filter.time_ms == preset["setpoint_filter"]["time_ms"]
+    assert heavy.outer.gains == [3.0, 3.0, 3.0]  # the scenario's, the preset has none
     own = load_scenario("step_pitch", [HEAVY, "controller.outer.dead_band.pitch_deg=0"])
-    assert own["controller"]["outer"]["dead_band"]["pitch_deg"] == 0.0
+    assert own.controller.outer.dead_band.pitch_deg == 0.0
     # the paper preset carries no controller block: no dead band
-    paper = load_scenario("step_pitch")["controller"]
-    assert paper["outer"]["dead_band"] == {
+    paper = load_scenario("step_pitch").controller
+    assert paper.outer.dead_band.model_dump() == {
         "roll_deg": 0.0, "pitch_deg": 0.0, "heave_mm": 0.0, "kind": "subtract", "release": 1.0
     }  # fmt: skip
-    assert paper["inner"]["dead_band_mm"] == [0.0, 0.0, 0.0]
+    assert paper.inner.dead_band_mm == [0.0, 0.0, 0.0]
 
 
 @pytest.fixture
@@ -144,7 +144,8 @@ def _run(*sets):
     sc = load_scenario("step_pitch", [HEAVY, "duration_s=15", *sets])
     res = simulate(sc)
     assert res.status == "ok", res.reason  # ran to its end
-    return sc, verdict(res.columns, res.sensor_floor), compute_metrics(res.columns, sc), res.columns
+    metrics = compute_metrics(res.columns, sc.model_dump())
+    return sc, verdict(res.columns, res.sensor_floor), metrics, res.columns
 
 
 def test_the_cabin_settles_with_its_dead_bands_and_hunts_without_them(cache):
@@ -154,9 +155,9 @@ def test_the_cabin_settles_with_its_dead_bands_and_hunts_without_them(cache):
     step meets the cabin's floors (<= 10 %, <= 3 s, heave within 2 mm); without either
     band the pose is still moving over the last 3 s."""
     sc, judged, m, c = _run()
-    cabin = sc["actuator"]["pneumatics"]["cylinder"]
-    assert sc["plant"]["payload"]["mass_kg"] >= 150 and min(cabin["coulomb_friction_n"]) >= 50
-    assert sc["controller"]["inner"]["design_plant"] == "identified"
+    cabin = sc.actuator.pneumatics.cylinder
+    assert sc.plant.payload.mass_kg >= 150 and min(cabin.coulomb_friction_n) >= 50
+    assert sc.controller.inner.design_plant == "identified"
     assert judged["status"] == "ok", judged["reason"]
     pitch = m["axes"]["pitch"]
     assert pitch["overshoot_pct"] <= 10.0 and pitch["settling_time_s"] <= 3.0

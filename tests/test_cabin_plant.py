@@ -141,7 +141,7 @@ def test_heavy_cabin_resolves_to_a_cabin_with_its_driver_and_real_seals():
     from simpro_mj.config.scenario import load_scenario
     from simpro_mj.plant.model import load_model
 
-    sc = load_scenario("step_pitch", ["plant.preset=heavy_cabin"])
+    sc = load_scenario("step_pitch", ["plant.preset=heavy_cabin"]).model_dump()
     payload = sc["plant"]["payload"]
     assert payload["mass_kg"] >= 150.0
     cyl = sc["actuator"]["pneumatics"]["cylinder"]

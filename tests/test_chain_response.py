@@ -72,7 +72,7 @@ def test_fit_recovers_the_washout_on_an_ideal_platform(channel, period_ms):
     of the discrete, nonlinear (asin, exact rotation) washout run recovers its linear
     prediction (discrete filters, 10 ms hold) within 0.05 dB and 0.5 deg on every OMCT
     pair, and the off-pair channels stay at least 40 dB below."""
-    base = load_scenario("cue_braking.yaml", CLASSICAL)
+    base = load_scenario("cue_braking.yaml", CLASSICAL).model_dump()  # the plan's dict
     amp = 0.3 if channel[0] == "f" else math.radians(1.0)
     sc = chain_scenario(base, channel, period_ms, amp, settle_s=10.0, periods=1)
     sc["duration_s"] += 0.1  # np.gradient's one-sided ends outside the fitted period
@@ -114,7 +114,7 @@ def test_washout_prediction_known_values():
 
 @pytest.fixture(scope="module")
 def cosim_pitch():
-    sc = load_scenario("cue_braking.yaml", CLASSICAL)
+    sc = load_scenario("cue_braking.yaml", CLASSICAL).model_dump()  # the plan's dict
     plan = plan_chain(sc, periods_ms=[2513], channels=("wy",), settle_s=4.0, periods=1)
     return plan, measure_chain(plan, jobs=1)
 

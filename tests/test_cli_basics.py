@@ -87,11 +87,12 @@ def test_radians_in_a_degrees_key(value, warned):
     sc = load_scenario(
         "step_pitch", [f"setpoint.pitch_deg=[{{type: step, time_s: 1, value: {value}}}]"]
     )
-    lines = radians_warnings(sc)
+    lines = radians_warnings(sc.model_dump())
     assert bool(lines) == warned
     if warned:
         assert "setpoint.pitch_deg" in lines[0] and "rad" in lines[0]
-    assert radians_warnings(load_scenario("step_all")) == []  # the shipped steps: degrees
+    # the shipped steps: degrees
+    assert radians_warnings(load_scenario("step_all").model_dump()) == []
 
 
 def _telemetry(path, fz):
@@ -112,7 +113,7 @@ def test_telemetry_without_gravity(tmp_path, fz, warned):
 
 
 def test_shipped_telemetry_has_gravity():
-    sc = load_scenario("cue_braking")
+    sc = load_scenario("cue_braking").model_dump()
     assert telemetry_warnings(sc) == []
 
 

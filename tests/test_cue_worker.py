@@ -24,7 +24,7 @@ def _inputs(n):
 
 
 def test_the_law_in_its_process_plays_the_inline_set_points_one_period_late():
-    cue = load_scenario("cue_lane_change.yaml", [])["setpoint"]["cueing"]
+    cue = load_scenario("cue_lane_change.yaml", []).setpoint.cueing
     params = washout_params(cue).replace(preview=0.0)
     geometry = nominal_geometry()
     inline = ModelPredictiveCueing(params, geometry=geometry).stream(0.01)
@@ -54,7 +54,7 @@ def test_the_law_in_its_process_plays_the_inline_set_points_one_period_late():
 def test_the_law_and_every_thread_of_its_process_run_on_the_cores_given():
     """A live session keeps the pacer's core free of the solves: every thread of the
     child (the interpreter's, BLAS's) is on the cores handed to it."""
-    cue = load_scenario("cue_lane_change.yaml", [])["setpoint"]["cueing"]
+    cue = load_scenario("cue_lane_change.yaml", []).setpoint.cueing
     params = washout_params(cue).replace(preview=0.0)
     pacer_cpus, law_cpus = cpu_split(os.sched_getaffinity(0))
     worker = CueWorker(params, nominal_geometry(), 0.01, cpus=law_cpus)

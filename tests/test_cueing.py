@@ -137,7 +137,7 @@ def test_cueing_block_is_spelled_out_and_checked(tmp_path):
     assert cue["parameters"]["gain_x"] == 0.4
     assert cue["parameters"]["tilt_rate_limit_deg_s"] == pytest.approx(3.0)
     # scenarios without a cueing block do not gain the key (their hash is unchanged)
-    assert "cueing" not in load_scenario("step_pitch.yaml")["setpoint"]
+    assert "cueing" not in load_scenario("step_pitch.yaml").model_dump()["setpoint"]
     for bad, match in [
         ({}, "exactly one of telemetry"),
         ({"telemetry": "x.csv", "manoeuvre": {"type": "bump", "speed_kmh": 30}}, "exactly one"),
@@ -174,7 +174,7 @@ def test_shipped_cue_scenarios_load():
     for name in ("cue_braking.yaml", "cue_lane_change.yaml", "cue_slalom.yaml", "cue_bump.yaml"):
         sc = load_scenario(name)
         t, f, w, pose, info = vehicle_input(sc)
-        assert t[-1] == pytest.approx(sc["duration_s"]) and f.shape == (t.size, 3)
+        assert t[-1] == pytest.approx(sc.duration_s) and f.shape == (t.size, 3)
         # starts driving straight: gravity tilted by the body's static pitch (0.07 deg,
         # 0.012 m/s^2) and nothing sideways (the tyres' offsets at 0: docs/paper-notes.md)
         assert np.abs(f[0] - [0, 0, GRAVITY]).max() < 0.02
@@ -293,7 +293,7 @@ def test_sweep_variants_get_the_preset_like_a_run():
     from simpro_mj.config.variants import load_sweep
 
     # the sweep runs 11.5 s, the length of the shortest recording it plays
-    run = load_scenario("cue_braking.yaml", ["duration_s=11.5"])
+    run = load_scenario("cue_braking.yaml", ["duration_s=11.5"]).model_dump()
     sw = load_sweep("sweep_cueing.yaml")
     (v,) = [
         x

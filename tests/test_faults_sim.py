@@ -37,11 +37,11 @@ def test_supply_drop_settles_on_the_lower_end_stops():
     c, t = res.columns, res.columns["time_s"]
     for key, col in c.items():
         assert np.all(np.isfinite(col)), key  # pressures and forces too, at the stops
-    drop = sc["faults"][0]
-    p_low = PA + drop["pressure_bar_gauge"] * 1e5
-    after = t >= drop["time_s"] + drop["ramp_s"]
+    drop = sc.faults[0]
+    p_low = PA + drop.pressure_bar_gauge * 1e5
+    after = t >= drop.time_s + drop.ramp_s
     np.testing.assert_allclose(c["supply_pa"][after], p_low)
-    assert np.all(c["supply_pa"][t < drop["time_s"]] == pytest.approx(6e5 + PA))
+    assert np.all(c["supply_pa"][t < drop.time_s] == pytest.approx(6e5 + PA))
     for i in (1, 2, 3):
         for side in ("a", "b"):
             p = c[f"p{i}{side}_pa"]
@@ -55,7 +55,7 @@ def test_supply_drop_settles_on_the_lower_end_stops():
         assert np.all(q[last] < 2e-3) and np.all(q > -10e-3), i
         assert np.ptp(q[last]) < 1e-4  # settled, not bouncing
     assert c["heave_m"][-1] < 1.265 - 0.25  # the platform came down
-    np.testing.assert_array_equal(c["fault_flags"], flag_series(sc, t))
+    np.testing.assert_array_equal(c["fault_flags"], flag_series(sc.model_dump(), t))
 
 
 def test_valve_stuck_holds_the_voltage_and_the_leg_drifts():

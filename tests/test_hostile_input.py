@@ -299,7 +299,7 @@ def test_a_legit_large_table_is_read(tmp_path):
     path.write_text(text)
     assert path.stat().st_size < safe_yaml.MAX_FILE_BYTES
     sc = load_scenario(str(path))
-    assert len(sc["setpoint"]["pitch_deg"][0]["times_s"]) == n
+    assert len(sc.setpoint.pitch_deg[0].times_s) == n
 
 
 def test_anchors_within_the_bounds_still_work(tmp_path):
@@ -309,7 +309,7 @@ def test_anchors_within_the_bounds_still_work(tmp_path):
         "sensors:\n  potentiometer:\n    gain_error_pct: *g\n"
     )
     sc = load_scenario(str(path))
-    assert sc["sensors"]["potentiometer"]["gain_error_pct"] == [0.5, 0.5, 0.5]
+    assert sc.sensors.potentiometer.gain_error_pct == [0.5, 0.5, 0.5]
 
 
 # ------------------------------------------------------------------ YAML structure fuzz

@@ -614,7 +614,7 @@ def test_after_the_feed_stops_the_set_point_goes_home_and_stays_for_the_mpc():
     from simpro_mj.config.scenario import load_scenario
     from simpro_mj.sim.live import HOME_S
 
-    cue = load_scenario("cue_lane_change.yaml", [])["setpoint"]["cueing"]
+    cue = load_scenario("cue_lane_change.yaml", []).setpoint.cueing
     law = ModelPredictiveCueing(washout_params(cue).replace(preview=0.0), nominal_geometry())
     stream = law.stream(0.01)
     raw = {}
@@ -697,7 +697,7 @@ def test_the_simulated_platform_is_home_within_3_s_after_a_biased_feed_stops():
     stop_s, end_s = 3.5, 7.0
     shipped = LiveOptions(listen=("127.0.0.1", 0))  # the session's stale and fade times
     scenario = load_scenario("cue_lane_change.yaml", [f"duration_s={end_s}"])
-    params = washout_params(scenario["setpoint"]["cueing"]).replace(preview=0.0)
+    params = washout_params(scenario.setpoint.cueing).replace(preview=0.0)
     sim = Build(scenario, setpoints="external").simulation()
     law = ModelPredictiveCueing(params, sim.geometry).stream(0.01)
     clock = _Clock(100.0)

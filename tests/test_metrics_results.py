@@ -57,7 +57,8 @@ def _second_order(zeta, wn):
 
 @pytest.fixture(scope="module")
 def step_all():
-    return load_scenario("step_all")  # roll 2 deg, pitch 3 deg, heave 50 mm at 1 s
+    # roll 2 deg, pitch 3 deg, heave 50 mm at 1 s; the resolved document the metrics read
+    return load_scenario("step_all").model_dump()
 
 
 def test_first_order_rise_settling_iae(step_all):
@@ -99,7 +100,7 @@ def test_steady_state_error_is_signed_reference_minus_true(step_all):
 
 
 def test_axes_without_a_step_have_null_step_figures():
-    s = load_scenario("step_pitch")
+    s = load_scenario("step_pitch").model_dump()
     m = compute_metrics(_columns(s, _first_order(0.3)), s)
     assert m["axes"]["pitch"]["rise_time_s"] is not None
     for axis in ("roll", "heave"):

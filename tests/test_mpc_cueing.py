@@ -191,8 +191,8 @@ def test_the_jolt_limit_gives_way_before_the_felt_rotation():
     from simpro_mj.config.scenario import load_scenario
     from simpro_mj.config.telemetry import read_telemetry
 
-    cue = load_scenario("cue_braking_turn")["setpoint"]["cueing"]
-    tel = read_telemetry(cue["telemetry"])
+    cue = load_scenario("cue_braking_turn").setpoint.cueing
+    tel = read_telemetry(cue.telemetry)
     every = int(round(DT / float(tel.t[1] - tel.t[0])))
     f, w = tel.f[::every][:1150], tel.w[::every][:1150]
     params = washout_params(cue)

@@ -20,7 +20,7 @@ def _axes(name, *sets, duration=6.0):
     sc = load_scenario(name, [f"duration_s={duration}", *sets])
     res = simulate(sc)
     assert res.status == "ok", res.reason
-    m = compute_metrics(res.columns, sc)
+    m = compute_metrics(res.columns, sc.model_dump())
     m["sensor_floor"] = res.sensor_floor
     return sc, res.columns, m
 
@@ -38,8 +38,8 @@ def test_step_pitch_meets_the_paper_floors():
     of its set-point, steady-state error below the sensor floor (IMU)."""
     sc, c, m = _axes("step_pitch", duration=12.0)  # 2.4 s of final window
     pitch = m["axes"]["pitch"]
-    assert sc["controller"]["outer"]["gains"] == [3.0, 3.0, 3.0]
-    assert sc["controller"]["outer"]["period_ms"] == 60
+    assert sc.controller.outer.gains == [3.0, 3.0, 3.0]
+    assert sc.controller.outer.period_ms == 60
     assert pitch["overshoot_pct"] <= 8.0
     assert pitch["settling_time_s"] <= 3.0
     after = c["time_s"] >= 1.0

@@ -50,7 +50,7 @@ def test_an_impossible_plant_is_refused_with_its_range_and_reason(override, fiel
 def test_the_shipped_plant_and_its_offsets_are_inside_the_ranges():
     sc = load_scenario("step_pitch", ["plant.anchor_offsets_mm.A1=[50,0,-50]",
                                       "plant.payload.mass_kg=1000"])  # fmt: skip
-    assert sc["plant"]["anchor_offsets_mm"]["A1"] == [50.0, 0.0, -50.0]
+    assert sc.plant.anchor_offsets_mm.A1 == [50.0, 0.0, -50.0]
 
 
 @pytest.mark.parametrize(

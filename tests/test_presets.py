@@ -20,24 +20,24 @@ from simpro_mj.core.errors import UserInputError
 def test_shipped_presets_and_the_default():
     assert {"paper", "heavy_cabin"} <= set(shipped_presets())
     sc = load_scenario("step_pitch")
-    assert sc["plant"]["preset"] == "paper"
-    assert sc["plant"]["payload"]["mass_kg"] == pytest.approx(22.7)
-    assert sc["actuator"]["pneumatics"]["valve"]["sonic_conductance_dm3_per_s_bar"] == 2.85
+    assert sc.plant.preset == "paper"
+    assert sc.plant.payload.mass_kg == pytest.approx(22.7)
+    assert sc.actuator.pneumatics.valve.sonic_conductance_dm3_per_s_bar == 2.85
     # the preset's identified models are what design_plant: identified uses
-    assert sc["controller"]["inner"]["identified"] == load_preset("paper")["identified"]
+    assert sc.controller.inner.identified.model_dump() == load_preset("paper")["identified"]
     heavy = load_scenario("step_pitch", ["plant.preset=heavy_cabin"])
-    assert heavy["plant"]["payload"]["mass_kg"] == pytest.approx(230.0)
-    assert heavy["actuator"]["pneumatics"]["valve"]["sonic_conductance_dm3_per_s_bar"] == 7.87
-    assert heavy["controller"]["inner"]["identified"]["actuator1"]["b"] == pytest.approx(4.899)
+    assert heavy.plant.payload.mass_kg == pytest.approx(230.0)
+    assert heavy.actuator.pneumatics.valve.sonic_conductance_dm3_per_s_bar == 7.87
+    assert heavy.controller.inner.identified.actuator1.b == pytest.approx(4.899)
 
 
 def test_scenario_values_override_the_preset():
     sc = load_scenario("step_pitch", ["plant.payload.mass_kg=40"])
-    assert sc["plant"]["payload"]["mass_kg"] == 40.0
+    assert sc.plant.payload.mass_kg == 40.0
     sc = load_scenario("step_pitch", ["actuator.pneumatics.valve.underlap_fraction=0.03"])
     # one number for a per-leg value: every leg's (the scenario's --set broadcast)
-    assert sc["actuator"]["pneumatics"]["valve"]["underlap_fraction"] == [0.03, 0.03, 0.03]
-    assert sc["actuator"]["pneumatics"]["valve"]["sonic_conductance_dm3_per_s_bar"] == 2.85
+    assert sc.actuator.pneumatics.valve.underlap_fraction == [0.03, 0.03, 0.03]
+    assert sc.actuator.pneumatics.valve.sonic_conductance_dm3_per_s_bar == 2.85
 
 
 def test_unknown_preset_is_a_one_line_error():
@@ -116,7 +116,7 @@ def test_calibrate_writes_a_preset_that_scenarios_load(tmp_path, capsys):
     assert cal["amplitudes_v"] == [0.3, 1.0]  # both fitted by default
     assert set(cal["identified_at_other_amplitudes"]) == {"1_v"}
     sc = load_scenario("step_pitch", [f"plant.preset={out}"])
-    assert sc["controller"]["inner"]["identified"]["actuator1"] == doc["identified"]["actuator1"]
+    assert sc.controller.inner.identified.actuator1.model_dump() == doc["identified"]["actuator1"]
 
 
 def test_calibrate_refuses_bad_amplitudes_in_one_line(capsys):

@@ -86,7 +86,7 @@ def test_ghost_changes_nothing_in_the_dynamics():
             "controller.setpoint_filter.type=none",
         ],
     )
-    spec = load_spec(scenario["plant"])
+    spec = load_spec(scenario.plant.tree())
     with_ghost = spec.compile()
     ghost = with_ghost.body("ghost")
     assert with_ghost.body_mocapid[ghost.id] == 0 and with_ghost.body_jntnum[ghost.id] == 0

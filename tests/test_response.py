@@ -157,7 +157,7 @@ def linear_pitch():
     frequency measured on pitch, with the cross axes."""
     sc = load_scenario(
         "step_pitch", ["actuator.model=linear", "controller.outer.gains=[3.0, 3.0, 3.0]"]
-    )
+    ).model_dump()  # the plan's dict
     # 0.1 deg: at 1 Hz near the loop's resonance, 0.5 deg puts the valves at their rails
     plan = plan_response(
         sc, periods_ms=[1000], amplitudes={"pitch": 0.1}, axes=("pitch",), settle_s=2.0, periods=1

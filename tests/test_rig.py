@@ -78,7 +78,7 @@ def test_validate_ik_passes_on_the_moved_rig_within_the_paper_rigs_bounds():
 def test_step_pitch_on_the_moved_rig_settles_ok():
     res = s.run("step_pitch", {"duration_s": 6.0, "plant.rig": WIDE})
     assert res.metrics["status"] == "ok"
-    assert res.scenario["plant"]["rig"]["base_anchors_mm"]["A2"] == [180.0, -600.0, 0.0]
+    assert res.scenario.plant.rig.base_anchors_mm.A2 == [180.0, -600.0, 0.0]
     # the 3 deg step, held: the pitch ends within 0.05 deg of it
     pitch = np.degrees(res.columns["pitch_rad"][-500:])
     assert np.abs(pitch - 3.0).max() < 0.05

@@ -102,7 +102,7 @@ def test_the_run_shares_its_plant_and_set_points_with_the_preflight():
     assert shared["utilisation"] == pytest.approx(alone["utilisation"], rel=1e-9)
     # the model's payload mass is restored after the static solves
     body = run.model.body("payload").id
-    assert run.model.body_mass[body] == pytest.approx(sc["plant"]["payload"]["mass_kg"])
+    assert run.model.body_mass[body] == pytest.approx(sc.plant.payload.mass_kg)
     assert run.stroke() == [(0.0, 0.5)] * 3  # the DNC-125-500 stroke, from the MJCF
 
 

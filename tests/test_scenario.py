@@ -47,7 +47,7 @@ SHIPPED = [
 def test_shipped_scenarios_load_and_validate():
     assert shipped_scenarios() == SHIPPED
     for name in SHIPPED:
-        s = load_scenario(name)
+        s = load_scenario(name).model_dump()  # the resolved document
         assert s["name"] == name
         # track_cues' base is the feed-forward scheme (its sweep adds the other two)
         # moving set-points (tracking, cueing) go through the feed-forward scheme
@@ -62,9 +62,9 @@ def test_shipped_scenarios_load_and_validate():
 
 def test_found_from_any_folder_by_name_and_by_path(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
-    assert load_scenario("step_pitch")["name"] == "step_pitch"
+    assert load_scenario("step_pitch").name == "step_pitch"
     path = scenarios_dir() / "step_roll.yaml"
-    assert load_scenario(str(path))["name"] == "step_roll"
+    assert load_scenario(str(path)).name == "step_roll"
 
 
 def test_env_overrides_the_shipped_folder(tmp_path, monkeypatch):
@@ -72,11 +72,11 @@ def test_env_overrides_the_shipped_folder(tmp_path, monkeypatch):
     monkeypatch.setenv("SIMPRO_SCENARIOS", str(tmp_path))
     assert shipped_scenarios() == ["mine"]
     s = load_scenario("mine")
-    assert s["name"] == "mine" and s["duration_s"] == 2.0
+    assert s.name == "mine" and s.duration_s == 2.0
 
 
 def test_as_built_defaults_and_plant_tree():
-    s = load_scenario("step_pitch")
+    s = load_scenario("step_pitch").model_dump()  # the resolved document
     plant = s["plant"]
     assert plant["payload"]["com_mm"] == [60.0, 0.0, 400.0]
     assert plant["anchor_offsets_mm"]["A2"] == [3.0, 0.0, -2.0]
@@ -99,7 +99,7 @@ def test_sets_apply_after_file_and_before_validation():
             "plant.payload={mass_kg: 100}",  # a mapping merges: com_mm kept
             "setpoint.heave_mm=[{type: ramp, start_s: 1, end_s: 2, value: 10}]",
         ],
-    )
+    ).model_dump()  # the resolved document
     assert s["controller"]["mode"] == "joint_only"
     assert s["duration_s"] == 4.0 and isinstance(s["duration_s"], float)
     assert s["controller"]["outer"]["gains"] == [1.0, 2.0, 3.0]
@@ -125,7 +125,7 @@ def test_hash_is_canonical():
 
 
 def test_sine_optional_keys_are_spelled_out():
-    s = load_scenario("track_sines")
+    s = load_scenario("track_sines").model_dump()  # the resolved document
     comp = s["setpoint"]["roll_deg"][0]
     assert comp == {
         "type": "sine",
@@ -242,7 +242,7 @@ def test_invalid_yaml_names_line_and_column(tmp_path):
 
 def test_yaml_exponent_without_dot_is_a_number():
     s = load_scenario("step_pitch", ["sensors.imu.noise_deg='5e-3'"])
-    assert s["sensors"]["imu"]["noise_deg"] == pytest.approx(0.005)
+    assert s.sensors.imu.noise_deg == pytest.approx(0.005)
 
 
 def test_unreachable_setpoint_names_limit_setpoint_and_time():
@@ -261,7 +261,7 @@ def test_unreachable_ramp_is_named_at_its_first_unreachable_millisecond():
     named (against every sample of the 1 ms grid checked one by one)."""
     from controllers.kinematics import reachable
 
-    base = load_scenario("step_pitch", ["setpoint.pitch_deg=[]"])
+    base = load_scenario("step_pitch", ["setpoint.pitch_deg=[]"]).model_dump()
     sets = ["setpoint.pitch_deg=[]",
             "setpoint.heave_mm=[{type: ramp, start_s: 1.0, end_s: 3.0, value: 400}]"]  # fmt: skip
     with pytest.raises(SetpointError) as info:

@@ -146,7 +146,7 @@ def test_sweep_variant_hashes_unchanged(name, pinned, current):
 def test_the_typed_model_is_the_resolved_scenario(name):
     """``scenario_model`` of a resolved scenario gives it back (the typed view of the same
     data), its blocks as attributes."""
-    resolved = load_scenario(name)
+    resolved = load_scenario(name).model_dump()  # the resolved document
     model = scenario_model(resolved)
     assert model.model_dump() == resolved
     assert model.controller.outer.gains == resolved["controller"]["outer"]["gains"]
@@ -157,12 +157,12 @@ def test_the_typed_model_is_the_resolved_scenario(name):
 def test_a_recording_is_hashed_by_its_contents(tmp_path):
     """The same telemetry copied elsewhere hashes the same; one changed sample does
     not (``batch --resume`` must not keep a run of an edited recording)."""
-    shipped = Path(load_scenario("cue_braking")["setpoint"]["cueing"]["telemetry"])
+    shipped = Path(load_scenario("cue_braking").setpoint.cueing.telemetry)
     copy_ = tmp_path / shipped.name
     copy_.write_bytes(shipped.read_bytes())
     here = load_scenario("cue_braking")
     there = load_scenario("cue_braking", [f"setpoint.cueing.telemetry={copy_}"])
-    assert here["setpoint"]["cueing"]["telemetry"] != there["setpoint"]["cueing"]["telemetry"]
+    assert here.setpoint.cueing.telemetry != there.setpoint.cueing.telemetry
     assert scenario_hash(here) == scenario_hash(there)
     lines = copy_.read_text().splitlines()
     cells = lines[-1].split(",")

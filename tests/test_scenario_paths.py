@@ -67,4 +67,4 @@ def test_one_number_sets_each_element_of_a_list():
     from simpro_mj.config.scenario import load_scenario
 
     sc = load_scenario("step_pitch", ["controller.outer.gains=30"])
-    assert sc["controller"]["outer"]["gains"] == [30.0, 30.0, 30.0]
+    assert sc.controller.outer.gains == [30.0, 30.0, 30.0]

@@ -73,7 +73,7 @@ def test_per_leg_times_filter_each_leg_with_its_own_ramp():
 
 def test_scenario_takes_one_time_or_three_multiples_of_the_step():
     one = load_scenario("step_pitch", ["controller.setpoint_filter.time_ms=40"])
-    assert one["controller"]["setpoint_filter"]["time_ms"] == [40.0, 40.0, 40.0]
+    assert one.controller.setpoint_filter.time_ms == [40.0, 40.0, 40.0]
     with pytest.raises(UserInputError, match="one number or a list of 3"):
         load_scenario("step_pitch", ["controller.setpoint_filter.time_ms=[60, 30]"])
     with pytest.raises(UserInputError, match="multiples of the 1 ms"):

@@ -65,10 +65,10 @@ def test_changed_lists_only_what_differs_from_the_defaults(capsys):
 
 def test_the_resolved_scenario_holds_the_whole_pneumatics_block():
     s = api.load_scenario("step_pitch")
-    pn = s["actuator"]["pneumatics"]
-    assert set(pn) == set(DEFAULT_PNEUMATIC_PARAMS)
-    assert pn["supply_pressure_bar_gauge"] == 6.0
-    assert pn["cylinder"]["coulomb_friction_n"] == [1.7, 1.7, 1.7]  # the paper preset's fit
+    pn = s.actuator.pneumatics
+    assert set(type(pn).model_fields) == set(DEFAULT_PNEUMATIC_PARAMS)
+    assert pn.supply_pressure_bar_gauge == 6.0
+    assert pn.cylinder.coulomb_friction_n == [1.7, 1.7, 1.7]  # the paper preset's fit
 
 
 def test_a_runs_scenario_yaml_holds_the_supply_pressure(tmp_path):

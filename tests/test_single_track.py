@@ -20,7 +20,7 @@ def drive():
 
 
 def _block(**changes):
-    cue = load_scenario("cue_braking_turn")["setpoint"]["cueing"]
+    cue = load_scenario("cue_braking_turn").setpoint.cueing.model_dump()
     return {"algorithm": cue["algorithm"], "parameters": {**cue["parameters"], **changes}}
 
 

@@ -87,7 +87,9 @@ def pitch_1hz():
     out = {}
     for on in ("false", "true"):
         sc = load_scenario("track_cues", [f"controller.feedforward.leg_velocity={on}"])
-        plan = plan_response(sc, periods_ms=[1000], axes=("pitch",), settle_s=3.0, periods=1)
+        plan = plan_response(
+            sc.model_dump(), periods_ms=[1000], axes=("pitch",), settle_s=3.0, periods=1
+        )
         doc = summary(plan, measure(plan, jobs=1), loop_model(sc))
         assert not doc.failed
         (row,) = [

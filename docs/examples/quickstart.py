@@ -31,9 +31,9 @@ print(f"pitch at t = {t[-1]:.1f} s: {y[-1] * 57.29578:.3f} deg")
 r.plot("task_space", out / "step_pitch.png")  # Fig. 16's layout; a matplotlib Figure
 
 # 2. The scenario is data: read it, change it, run it.
-scenario = s.load_scenario("step_pitch", {"duration_s": 2.0})
-scenario["controller"]["outer"]["gains"] = [2.0, 2.0, 2.0]  # K K_I per axis
-slower = s.run(scenario)
+scenario = s.load_scenario("step_pitch", {"duration_s": 2.0})  # typed, validated
+print(f"K K_I per axis: {scenario.controller.outer.gains}")
+slower = s.run(scenario, {"controller.outer.gains": [2.0, 2.0, 2.0]})
 print(f"K K_I = 2: overshoot {slower.metrics['axes']['pitch']['overshoot_pct']:.1f} %")
 
 # 3. Joint-only against task-space control, same plant and seed (Fig. 15).

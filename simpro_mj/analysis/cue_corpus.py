@@ -89,10 +89,10 @@ def judge(files: Sequence = (), *, shipped: Sequence[str] = SHIPPED,
 
     rows: list[CorpusRow] = []
     drives = [(s, None) for s in shipped] + [(Path(p).stem, Path(p)) for p in files]
-    law = load_scenario(LAW_OF_RECORDINGS)["setpoint"]["cueing"]
+    law = load_scenario(LAW_OF_RECORDINGS).model_dump()["setpoint"]["cueing"]
     for name, path in drives:
         if path is None:
-            scen = load_scenario(name)
+            scen = load_scenario(name).model_dump()
             cue = scen["setpoint"]["cueing"]
             t = np.arange(0, float(scen["duration_s"]) + 1e-9, _DT)
             if cue.get("step"):

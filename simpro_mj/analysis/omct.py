@@ -120,7 +120,7 @@ def law_blocks(names: Sequence[str] | None = None) -> dict:
         if name not in LAWS:
             raise UserInputError(f"invalid value at --laws: {name!r}; allowed: {list(LAWS)}")
         scen, changes = LAWS[name]
-        cue = load_scenario(scen)["setpoint"]["cueing"]
+        cue = load_scenario(scen).model_dump()["setpoint"]["cueing"]
         out[name] = {
             "algorithm": cue["algorithm"],
             "parameters": {**dict(cue.get("parameters") or {}), **changes},

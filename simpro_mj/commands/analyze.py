@@ -8,7 +8,6 @@ from __future__ import annotations
 import os
 import sys
 from pathlib import Path
-from typing import cast
 
 from simpro_mj.analysis.analyze import AnalyzeParams, compute, document, params
 from simpro_mj.core.jsonout import emit_json
@@ -55,10 +54,11 @@ def _say(line: str) -> None:
 
 def _scenario(name: str, sets: list, say) -> dict:
     """The resolved scenario with its design plants (identified when it asks)."""
+    from simpro_mj.config.models import as_tree
     from simpro_mj.config.scenario import load_scenario
     from simpro_mj.identification.auto import with_identified
 
-    return cast(dict, with_identified(load_scenario(name, sets), say)[0])  # a resolved scenario
+    return dict(as_tree(with_identified(load_scenario(name, sets), say)[0]))
 
 
 def run(args) -> int:

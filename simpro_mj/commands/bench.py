@@ -121,7 +121,7 @@ def _duration(value) -> float:
 
 def run(args) -> int:
     # the scenario's models on use: --help and argparse's refusals import none of them
-    from simpro_mj.config.scenario import load_scenario
+    from simpro_mj.config.scenario import load_scenario, scenario_with
 
     repeats = _positive_int(args.repeats, "--repeats", MAX_REPEATS)
     pairs = _positive_int(args.commands, "--commands", MAX_REPEATS, lo=0)
@@ -135,8 +135,8 @@ def run(args) -> int:
     bench = harness()
     if args.video:
         if args.duration is None:
-            scenario["duration_s"] = 20.0
-        result = bench.measure_video(scenario, progress=not args.json)
+            scenario = scenario_with(scenario, {"duration_s": 20.0})
+        result = bench.measure_video(scenario.model_dump(), progress=not args.json)
         if args.json:
             emit_json(result)
         else:
@@ -145,7 +145,7 @@ def run(args) -> int:
     progress = None if args.json or args.quiet else (lambda msg: print(f"  {msg}", file=sys.stderr))
     # SIGTERM: exit 130 like Ctrl-C (commands.main), workers stopped
     result = bench.measure(
-        scenario, repeats, batch=not args.no_batch, batch_runs=runs, log=progress
+        scenario.model_dump(), repeats, batch=not args.no_batch, batch_runs=runs, log=progress
     )
     if pairs:
         bare = result["samples"]["bare_step_us"]

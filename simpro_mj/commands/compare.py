@@ -46,7 +46,7 @@ def run(args) -> int:
         from simpro_mj.report.render import require_video  # the renderer only for a video
 
         require_video()  # the install hint before the run, not after it
-    out = Path(args.out) if args.out else Path("results") / f"{scenario['name']}-compare"
+    out = Path(args.out) if args.out else Path("results") / f"{scenario.name}-compare"
     with claim(out, "compare", inputs=[args.scenario], writes=COMPARE_FILES):
         out.mkdir(parents=True, exist_ok=True)
         record(out, COMPARE_FILES, "compare", pending=True)

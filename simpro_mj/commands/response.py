@@ -115,7 +115,6 @@ def run(args) -> int:
     # pydantic, the report matplotlib: imported once argparse has checked the options
     from simpro_mj.analysis.response import check_periods, measure, plan_response
     from simpro_mj.analysis.response_summary import loop_model, summary
-    from simpro_mj.config.models import as_scenario
     from simpro_mj.config.scenario import load_scenario
     from simpro_mj.report.figures import loop_label
     from simpro_mj.report.folders import claim
@@ -139,8 +138,8 @@ def run(args) -> int:
     args.amplitude_deg = 0.5 if args.amplitude_deg is None else args.amplitude_deg
     args.amplitude_mm = 5.0 if args.amplitude_mm is None else args.amplitude_mm
     args.settle_s = 4.0 if args.settle_s is None else args.settle_s
-    scenario = load_scenario(args.scenario, args.sets)
-    spec = as_scenario(scenario)
+    spec = load_scenario(args.scenario, args.sets)
+    scenario = spec.model_dump()  # the analyses' plans read the resolved dict
     periods_ms = None if args.freq_hz is None else check_periods(args.freq_hz)
     if args.freq_hz is not None and not args.freq_hz:
         raise UserInputError("invalid value at --freq-hz: empty; allowed: one or more frequencies")
@@ -218,7 +217,6 @@ def run_chain(args, jobs: int) -> int:
         plan_chain,
     )
     from simpro_mj.analysis.response import check_periods
-    from simpro_mj.config.models import as_scenario
     from simpro_mj.config.scenario import load_scenario
     from simpro_mj.report.figures import loop_label
     from simpro_mj.report.folders import claim
@@ -242,8 +240,8 @@ def run_chain(args, jobs: int) -> int:
             )
     if args.axes != "roll,pitch,heave":
         raise UserInputError("invalid value at --axes: not with --chain; allowed: --channels")
-    scenario = load_scenario(args.scenario, args.sets)
-    spec = as_scenario(scenario)
+    spec = load_scenario(args.scenario, args.sets)
+    scenario = spec.model_dump()  # the analyses' plans read the resolved dict
     if args.freq_hz is not None and not args.freq_hz:
         raise UserInputError("invalid value at --freq-hz: empty; allowed: one or more frequencies")
     periods_ms = None if args.freq_hz is None else check_periods(args.freq_hz)

@@ -61,7 +61,7 @@ def run(args) -> int:
 
         require_video()  # the install hint before the run, not after it
     digest = scenario_hash(scenario)
-    base = Path("results") / scenario["name"]
+    base = Path("results") / scenario.name
     out = Path(args.out) if args.out else default_out(base, args.sets or (), digest)
     # refused (exit 2) before anything runs: not ours to replace, or busy
     with claim(out, "run", inputs=[args.scenario]):

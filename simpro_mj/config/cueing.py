@@ -39,7 +39,7 @@ import math
 from collections.abc import Mapping
 from functools import lru_cache
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -50,6 +50,10 @@ from simpro_mj.config.telemetry import read_telemetry, resample
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.rates import PHYSICS_DT_S, steps_per_period
 from simpro_mj.core.shipped import TELEMETRY_DIR, user_path
+
+if TYPE_CHECKING:
+    from simpro_mj.config.cue_models import Cueing
+    from simpro_mj.config.models import Scenario
 
 __all__ = [
     "PARAMETER_KEYS",
@@ -238,15 +242,14 @@ def sweep_defaults() -> dict:
     }
 
 
-def resolve_paths(scenario: dict, base: Path | None) -> None:
+def resolve_paths(cue: Cueing, base: Path | None) -> None:
     """Make ``setpoint.cueing.telemetry`` an absolute path (beside the scenario, then shipped).
 
     Raises :class:`UserInputError` naming the key if the file is in neither place.
     """
-    cue = (scenario.get("setpoint") or {}).get("cueing")
-    if not cue or not cue.get("telemetry"):
+    if not cue.telemetry:
         return
-    name = user_path(cue["telemetry"], "setpoint.cueing.telemetry")
+    name = user_path(cue.telemetry, "setpoint.cueing.telemetry")
     tries = [name] if name.is_absolute() else []
     if not name.is_absolute():
         if base is not None:
@@ -254,7 +257,7 @@ def resolve_paths(scenario: dict, base: Path | None) -> None:
         tries += [Path.cwd() / name, TELEMETRY_DIR / name]
     for p in tries:
         if p.is_file():
-            cue["telemetry"] = str(p.resolve())
+            cue.telemetry = str(p.resolve())
             return
         if p.exists() and not p.is_dir():  # a FIFO, a device: refused, never opened
             raise UserInputError(
@@ -268,9 +271,11 @@ def resolve_paths(scenario: dict, base: Path | None) -> None:
     )
 
 
-def washout_params(cue: Mapping) -> WashoutParams | MpcParams:
+def washout_params(cue: Cueing | Mapping) -> WashoutParams | MpcParams:
     """:class:`WashoutParams` (or :class:`MpcParams` for ``algorithm: mpc``) from a
-    resolved block's ``parameters`` (YAML units)."""
+    resolved block's ``parameters`` (YAML units), typed or its dict."""
+    if not isinstance(cue, Mapping):
+        cue = cue.model_dump()
     algorithm = cue.get("algorithm", "classical_washout")
     keys = parameter_keys(algorithm)
     kw: dict[str, Any] = {}
@@ -366,8 +371,14 @@ def _chain(key: str):
     return t, f, w, pose, info
 
 
-def vehicle_input(scenario: Mapping):
-    """(t, f, w, pose, info) of a cueing scenario on the 1 ms grid (cached, read-only arrays)."""
+def vehicle_input(scenario: Scenario | Mapping):
+    """(t, f, w, pose, info) of a cueing scenario, typed or its dict, on the 1 ms grid
+    (cached, read-only arrays)."""
+    if not isinstance(scenario, Mapping):
+        rig = scenario.plant.rig
+        cue = scenario.setpoint.cueing
+        assert cue is not None, "a cueing scenario"
+        return _chain(_key(cue.model_dump(), scenario.duration_s, rig and rig.model_dump()))
     cue = scenario["setpoint"]["cueing"]
     return _chain(_key(cue, float(scenario["duration_s"]), scenario["plant"].get("rig")))
 

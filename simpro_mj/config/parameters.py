@@ -23,7 +23,7 @@ from simpro_mj.config.messages import (
     tagged_members,
     unit_of,
 )
-from simpro_mj.config.models import Scenario
+from simpro_mj.config.models import Scenario, as_tree
 from simpro_mj.config.rules import ONE_FOR_ALL, PHYSICS_DT_MS, Block, check_period
 
 __all__ = ["Parameter", "parameters"]
@@ -91,10 +91,10 @@ def _rows(model: type[Block], value: Mapping, default: Mapping, prefix: str) -> 
     return out
 
 
-def parameters(resolved: Mapping) -> list[Parameter]:
+def parameters(resolved: Scenario | Mapping) -> list[Parameter]:
     """Every parameter of a resolved scenario (:func:`~simpro_mj.config.scenario.load_scenario`),
     in the order of the scenario's blocks."""
-    return _rows(Scenario, resolved, Scenario.defaults(), "")
+    return _rows(Scenario, as_tree(resolved), Scenario.defaults(), "")
 
 
 def text(value: Any) -> str:

@@ -78,6 +78,7 @@ message reads ``<what> at <dotted.path>: <what is allowed>``.
 
 from __future__ import annotations
 
+import copy
 import hashlib
 import json
 import os
@@ -133,7 +134,9 @@ __all__ = [
     "shipped_scenarios",
     "find_scenario",
     "load_scenario",
+    "resolve",
     "resolve_scenario",
+    "scenario_with",
     "validate_scenario",
     "check_setpoints",
     "reference",
@@ -249,7 +252,7 @@ def read_document(name_or_path: str) -> tuple[Path, Mapping]:
     return path, doc
 
 
-def load_scenario(name_or_path: str, sets: Iterable[str] = ()) -> dict:
+def load_scenario(name_or_path: str, sets: Iterable[str] = ()) -> Scenario:
     """Load, merge, override and validate a scenario.
 
     Parameters
@@ -263,8 +266,9 @@ def load_scenario(name_or_path: str, sets: Iterable[str] = ()) -> dict:
 
     Returns
     -------
-    dict
-        The resolved scenario (see the module docstring).
+    Scenario
+        The resolved scenario, typed (see the module docstring); its
+        ``model_dump()`` is the dict ``scenario.yaml`` holds.
 
     Raises
     ------
@@ -283,7 +287,7 @@ def load_scenario(name_or_path: str, sets: Iterable[str] = ()) -> dict:
             f"note: {path.name} declares {n} variants in its sweep: block; running the base "
             f"scenario (simpro-sim batch {path} runs them)\n"
         )
-    return resolve_scenario(doc, sets, default_name=path.stem, base=path.parent)
+    return resolve(doc, sets, default_name=path.stem, base=path.parent)
 
 
 def resolve_scenario(
@@ -292,6 +296,16 @@ def resolve_scenario(
     default_name: str = "scenario",
     base: Path | None = None,
 ) -> dict:
+    """:func:`resolve`'s scenario as the plain dict ``scenario.yaml`` holds."""
+    return resolve(doc, sets, default_name, base).model_dump()
+
+
+def resolve(
+    doc: Mapping,
+    sets: Iterable[str] = (),
+    default_name: str = "scenario",
+    base: Path | None = None,
+) -> Scenario:
     """Resolve a scenario document given as a dict (same rules as :func:`load_scenario`).
 
     ``base``: the scenario file's folder, where a relative
@@ -308,12 +322,28 @@ def resolve_scenario(
         plant["rig"] = rig_value(plant["rig"], base)  # a rig file beside the scenario first
     if not tree.get("name"):
         tree["name"] = default_name
-    resolved = validate_scenario(tree)
-    if resolved["setpoint"].get("cueing"):
-        resolve_paths(resolved, base)
-    if not resolved["controller"]["clamp_setpoints"]:
+    resolved = scenario_model(tree)
+    if resolved.setpoint.cueing is not None:
+        resolve_paths(resolved.setpoint.cueing, base)
+    if not resolved.controller.clamp_setpoints:
         check_setpoints(resolved)
     return resolved
+
+
+def scenario_with(scenario: Scenario | Mapping, changes: Mapping[str, Any]) -> Scenario:
+    """The resolved ``scenario`` with ``changes`` (dotted key to value, as ``--set``'s
+    ``KEY=VALUE`` once read) applied and resolved again: a new scenario, validated as a
+    loaded one is (``scenario_with(s, {"controller.mode": "joint_only"})``).
+
+    Raises
+    ------
+    UserInputError
+        As :func:`load_scenario` for a key or a value it refuses.
+    """
+    tree = copy.deepcopy(dict(as_tree(scenario)))
+    for key, value in changes.items():
+        _set(tree, key, broadcast_value(key, value))
+    return resolve(tree, default_name=str(tree.get("name") or "scenario"))
 
 
 def _overlay(base: Mapping, doc: Mapping, sets: list) -> dict:

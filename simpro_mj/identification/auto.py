@@ -41,6 +41,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+from simpro_mj.config.models import Identified, Scenario, as_tree
 from simpro_mj.config.presets import scenario_overlay
 from simpro_mj.config.scenario import (
     DEFAULT_SCENARIO,
@@ -78,12 +79,12 @@ def cache_dir() -> Path:
     return cache.cache_dir("identified")
 
 
-def plant_tree(scenario: Mapping) -> dict:
+def plant_tree(scenario: Scenario | Mapping) -> dict:
     """The ``identify`` tree of the scenario's own plant: its preset's experiment
     settings (its 20 s record: a 5.1 s one leaves the 450/750 N cabin in a limit
     cycle, docs/paper-notes.md), the scenario's ``plant`` and ``actuator.pneumatics``
     values."""
-
+    scenario = as_tree(scenario)
     preset = scenario["plant"]["preset"]
     tree = identify_module.default_tree(preset)
     model = {k: v for k, v in scenario["plant"].items() if k != "preset"}
@@ -164,7 +165,7 @@ def _read(path: Path) -> dict | None:
     return cache.read_json(path, _models)
 
 
-def identified_models(scenario: Mapping, progress=None) -> tuple[dict, str]:
+def identified_models(scenario: Scenario | Mapping, progress=None) -> tuple[dict, str]:
     """``({actuator: {b, a1, a0}}, source)`` for the scenario (module docstring).
 
     ``source`` is ``"preset"`` (the scenario's ``controller.inner.identified``), ``"linearised"``
@@ -172,6 +173,7 @@ def identified_models(scenario: Mapping, progress=None) -> tuple[dict, str]:
     ``"cache"`` or ``"identified"`` (the experiment ran now). ``progress``, when
     given, is called with a one-line message before an experiment.
     """
+    scenario = as_tree(scenario)
     inner = scenario["controller"]["inner"]
     given = {a: dict(inner["identified"][a]) for a in _ACTS}
     if inner.get("identify", "auto") == "preset":
@@ -208,12 +210,13 @@ def identified_models(scenario: Mapping, progress=None) -> tuple[dict, str]:
     return models, source
 
 
-def experiment_s(scenario: Mapping) -> float:
+def experiment_s(scenario: Scenario | Mapping) -> float:
     """Simulated seconds of the experiment :func:`with_identified` would run for the
     scenario now: 0 when it needs none (not ``design_plant: identified``, the preset's
     plant, ``identify: preset``, or the plant's models in the cache), else per record
     (three, or one with ``identify.excitation: all_legs``) the settling time and the
     excitation."""
+    scenario = as_tree(scenario)
     inner = scenario["controller"]["inner"]
     if inner["design_plant"] != "identified" or inner.get("identify", "auto") != "auto":
         return 0.0
@@ -228,20 +231,30 @@ def experiment_s(scenario: Mapping) -> float:
     return records * (float(ip["settle_s"]) + float(ip["duration_s"]))
 
 
-def with_identified(scenario: Mapping, progress=None) -> tuple[Mapping, str]:
+def with_identified(scenario: Scenario | Mapping, progress=None) -> tuple[Scenario | Mapping, str]:
     """The scenario with ``controller.inner.identified`` its own plant's models when
     ``design_plant: identified`` (:func:`identified_models`); ``(scenario, source)``.
     Other scenarios come back as they are, ``source`` ``"preset"``: with the
     paper's design plants the identified models only linearise the plant for the
     preflight's analysis, which keeps the preset's (no experiment per variant of a
-    Monte-Carlo sweep)."""
+    Monte-Carlo sweep). A typed scenario comes back typed."""
+    typed = scenario if isinstance(scenario, Scenario) else None
+    if typed is not None:
+        if typed.controller.inner.design_plant != "identified":
+            notices.phase("simulating")
+            return scenario, "preset"
+        scenario = typed.model_dump()
     if scenario["controller"]["inner"]["design_plant"] != "identified":
         notices.phase("simulating")
         return scenario, "preset"
     models, source = identified_models(scenario, progress)
     notices.phase("simulating")  # the design plants are known: the run proper follows
     if source == "preset":
-        return scenario, source
+        return typed if typed is not None else scenario, source
+    if typed is not None:
+        out_t = typed.model_copy(deep=True)
+        out_t.controller.inner.identified = Identified.model_validate(models)
+        return out_t, source
     out = dict(scenario)
     ctl = out["controller"] = dict(scenario["controller"])
     ctl["inner"] = dict(ctl["inner"], identified=models)

@@ -6,10 +6,10 @@ comparison ``simpro-sim compare`` prints and writes to ``comparison.txt``.
 
 from __future__ import annotations
 
-import copy
 import math
 from pathlib import Path
 
+from simpro_mj.config.models import Scenario
 from simpro_mj.job.run import Run, warn
 from simpro_mj.report.runner import execute
 
@@ -20,7 +20,12 @@ MODES = ("joint_only", "task_space")
 
 
 def compare(
-    scenario: dict, out: Path, plots: bool = True, *, quiet: bool = False, progress: bool = False
+    scenario: Scenario,
+    out: Path,
+    plots: bool = True,
+    *,
+    quiet: bool = False,
+    progress: bool = False,
 ) -> dict:
     """Run both modes into ``out/joint_only`` and ``out/task_space``; returns both metrics.
 
@@ -31,17 +36,13 @@ def compare(
     An interrupted run stops the comparison (``results`` then holds fewer
     than two modes).
     """
-    task = copy.deepcopy(scenario)
-    task["controller"]["mode"] = "task_space"
-    first = Run(task)
+    first = Run(_in_mode(scenario, "task_space"))
     warnings, _ = first.preflight()  # raises for a payload the cylinders cannot hold
     warn(warnings, quiet)
     results, metrics = {}, {}
     for mode in MODES:
-        sc = copy.deepcopy(scenario)
-        sc["controller"]["mode"] = mode
-        res, met = execute(sc, out / mode, plots=plots, quiet=True, model=first.model,
-                           progress=progress, label=mode)  # fmt: skip
+        res, met = execute(_in_mode(scenario, mode), out / mode, plots=plots, quiet=True,
+                           model=first.model, progress=progress, label=mode)  # fmt: skip
         results[mode], metrics[mode] = res, met
         if res.status == "interrupted":
             return {"metrics": metrics, "results": results}
@@ -49,8 +50,17 @@ def compare(
         # matplotlib is loaded only when figures are drawn
         from simpro_mj.report.plots import plot_compare
 
-        plot_compare(results["joint_only"].columns, results["task_space"].columns, scenario, out)
+        both = results["joint_only"].columns, results["task_space"].columns
+        plot_compare(*both, scenario.model_dump(), out)
     return {"metrics": metrics, "results": results}
+
+
+def _in_mode(scenario: Scenario, mode: str) -> Scenario:
+    """A copy of ``scenario`` under ``controller.mode`` ``mode`` (a choice that no rule
+    across fields reads)."""
+    out = scenario.model_copy(deep=True)
+    out.controller.mode = mode  # type: ignore[assignment]
+    return out
 
 
 def table(metrics: dict) -> str:

@@ -27,11 +27,13 @@ from __future__ import annotations
 
 import copy
 import json
+from collections.abc import Mapping
 from pathlib import Path
 
 from simpro_mj.analysis.cue_metrics import cue_metrics
 from simpro_mj.analysis.metrics import compute_metrics
 from simpro_mj.analysis.preflight import preflight
+from simpro_mj.config.models import Scenario, as_tree
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.interrupts import writing
 from simpro_mj.report.results import write_results
@@ -44,9 +46,9 @@ __all__ = ["MAX_LOG_BYTES", "actuator_tracking", "execute_live", "live_scenario"
 MAX_LOG_BYTES = 1 << 30
 
 
-def live_scenario(scenario: dict, duration_s: float | None) -> dict:
+def live_scenario(scenario: Scenario | Mapping, duration_s: float | None) -> dict:
     """The scenario a session runs: ``duration_s`` the session's (default: the scenario's)."""
-    out = copy.deepcopy(scenario)
+    out = copy.deepcopy(dict(as_tree(scenario)))
     if duration_s is not None:
         out["duration_s"] = float(duration_s)
     rows = out["duration_s"] / 1e-3 / int(out["logging"]["decimation"]) + 1

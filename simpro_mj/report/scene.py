@@ -14,9 +14,11 @@ and a render worker must set ``MUJOCO_GL`` before MuJoCo is first imported.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 
 import numpy as np
 
+from simpro_mj.config.models import Scenario
 from simpro_mj.report.recording import Recording
 
 __all__ = [
@@ -78,13 +80,14 @@ def _restyle(m) -> None:
             m.cam_pos[cam] = m.cam_pos[cam] + CAMERA_ZOOM * distance * forward
 
 
-def replay_model(scenario: dict):
+def replay_model(scenario: Scenario | Mapping):
     """The run's plant (its ``plant`` parameters) as ``(MjModel, MjData)``."""
     import mujoco
 
     from simpro_mj.plant.model import load_model  # MuJoCo's model builder
 
-    model = load_model(scenario.get("plant"))
+    plant = scenario.get("plant") if isinstance(scenario, Mapping) else scenario.plant.tree()
+    model = load_model(plant)
     return model, mujoco.MjData(model)
 
 
