@@ -375,10 +375,10 @@ def vehicle_input(scenario: Scenario | Mapping):
     """(t, f, w, pose, info) of a cueing scenario, typed or its dict, on the 1 ms grid
     (cached, read-only arrays)."""
     if not isinstance(scenario, Mapping):
-        rig = scenario.plant.rig
         cue = scenario.setpoint.cueing
         assert cue is not None, "a cueing scenario"
-        return _chain(_key(cue.model_dump(), scenario.duration_s, rig and rig.model_dump()))
+        rig = scenario.plant.model_dump()["rig"]
+        return _chain(_key(cue.model_dump(), scenario.duration_s, rig))
     cue = scenario["setpoint"]["cueing"]
     return _chain(_key(cue, float(scenario["duration_s"]), scenario["plant"].get("rig")))
 

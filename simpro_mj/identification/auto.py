@@ -238,23 +238,18 @@ def with_identified(scenario: Scenario | Mapping, progress=None) -> tuple[Scenar
     paper's design plants the identified models only linearise the plant for the
     preflight's analysis, which keeps the preset's (no experiment per variant of a
     Monte-Carlo sweep). A typed scenario comes back typed."""
-    typed = scenario if isinstance(scenario, Scenario) else None
-    if typed is not None:
-        if typed.controller.inner.design_plant != "identified":
-            notices.phase("simulating")
-            return scenario, "preset"
-        scenario = typed.model_dump()
-    if scenario["controller"]["inner"]["design_plant"] != "identified":
+    tree = as_tree(scenario)
+    if tree["controller"]["inner"]["design_plant"] != "identified":
         notices.phase("simulating")
         return scenario, "preset"
-    models, source = identified_models(scenario, progress)
+    models, source = identified_models(tree, progress)
     notices.phase("simulating")  # the design plants are known: the run proper follows
     if source == "preset":
-        return typed if typed is not None else scenario, source
-    if typed is not None:
-        out_t = typed.model_copy(deep=True)
-        out_t.controller.inner.identified = Identified.model_validate(models)
-        return out_t, source
+        return scenario, source
+    if isinstance(scenario, Scenario):
+        typed = scenario.model_copy(deep=True)
+        typed.controller.inner.identified = Identified.model_validate(models)
+        return typed, source
     out = dict(scenario)
     ctl = out["controller"] = dict(scenario["controller"])
     ctl["inner"] = dict(ctl["inner"], identified=models)

@@ -20,6 +20,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from controllers.geometry import H0
+from simpro_mj.config.models import Scenario, as_tree
 from simpro_mj.plant.faults import fault_intervals
 from simpro_mj.report.cue_plots import plot_cueing
 from simpro_mj.report.figures import (
@@ -168,7 +169,7 @@ RUN_FIGURES = ("task_space", "joints", "valves", "pressures")
 
 
 def run_figures(
-    columns: Mapping[str, np.ndarray], scenario: Mapping, only: str | None = None
+    columns: Mapping[str, np.ndarray], scenario: Scenario | Mapping, only: str | None = None
 ) -> dict[str, Figure]:
     """The figures of one run, by name (:data:`RUN_FIGURES`), each only if its columns
     are present; ``only`` builds just the one named. Scheduled faults are shaded.
@@ -177,6 +178,7 @@ def run_figures(
     (Figs. 14/16); ``joints``: slide set-points vs positions (mm); ``valves``: valve
     voltages (V); ``pressures``: chamber pressures (bar absolute, with the supply).
     """
+    scenario = as_tree(scenario)
     t = _col(columns, "time_s")
     figs: dict[str, Figure] = {}
     if only in (None, "task_space"):
