@@ -6,7 +6,7 @@ The Python API (:mod:`simpro_mj.api`)::
     r = s.run("step_pitch", {"duration_s": 2})
     r.metrics["axes"]["pitch"], r.columns["pitch_rad"], r.to_frame()
     s.compare("step_all")                 # {"joint_only": Result, "task_space": Result}
-    s.load_scenario("step_pitch")         # the resolved scenario (also s.load)
+    s.load_scenario("step_pitch")         # the resolved, typed Scenario (also s.load)
     r.plot("task_space")                  # a matplotlib Figure (Fig. 16)
     s.sweep("sweep_outer_gain", jobs=2)   # every variant of a sweep file
     s.shipped_scenarios()

@@ -115,11 +115,12 @@ def test_experiment_seconds_name_the_variants_that_identify(cache, fake_identify
     assert ai.experiment_s(load_scenario("step_pitch", [IDENT])) == 0.0  # the preset's plant
     paper = load_scenario("step_pitch", ["plant.payload.mass_kg=80"])
     assert ai.experiment_s(paper) == 0.0  # designed on the paper's plants
-    assert expected_cost(new) == pytest.approx(
-        new["duration_s"] + EXPERIMENT_WEIGHT * ai.experiment_s(new)
+    variant = new.model_dump()  # a batch variant's resolved scenario
+    assert expected_cost(variant) == pytest.approx(
+        new.duration_s + EXPERIMENT_WEIGHT * ai.experiment_s(new)
     )
     ai.identified_models(new)  # now cached: the run alone
-    assert ai.experiment_s(new) == 0.0 and expected_cost(new) == new["duration_s"]
+    assert ai.experiment_s(new) == 0.0 and expected_cost(variant) == new.duration_s
 
 
 def test_threads_needing_one_new_plant_run_one_experiment(cache, monkeypatch):

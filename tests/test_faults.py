@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from simpro_mj.config.scenario import load_scenario, resolve_scenario
+from simpro_mj.config.scenario import load_scenario, resolve, resolve_scenario
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.plant.faults import FLAG_BITS, NEVER, FaultSchedule, flag_series
 
@@ -19,9 +19,7 @@ PS = 6e5 + PA
 
 
 def _schedule(faults, duration=10.0, seed=1):
-    sc = resolve_scenario(
-        {"duration_s": duration, "faults": faults, "seed": seed}, default_name="t"
-    )
+    sc = resolve({"duration_s": duration, "faults": faults, "seed": seed}, default_name="t")
     return sc, FaultSchedule.from_scenario(sc, DT)
 
 

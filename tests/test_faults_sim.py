@@ -55,7 +55,7 @@ def test_supply_drop_settles_on_the_lower_end_stops():
         assert np.all(q[last] < 2e-3) and np.all(q > -10e-3), i
         assert np.ptp(q[last]) < 1e-4  # settled, not bouncing
     assert c["heave_m"][-1] < 1.265 - 0.25  # the platform came down
-    np.testing.assert_array_equal(c["fault_flags"], flag_series(sc.model_dump(), t))
+    np.testing.assert_array_equal(c["fault_flags"], flag_series(sc, t))
 
 
 def test_valve_stuck_holds_the_voltage_and_the_leg_drifts():

@@ -128,11 +128,8 @@ def test_a_one_percent_change_fails_the_check(monkeypatch):
     import simpro_mj.config.scenario as scenario_module
 
     load = scenario_module.load_scenario
-    plant = load("step_pitch")["plant"]
-    mass, moving = (
-        plant["payload"]["mass_kg"],
-        plant["payload"]["mass_kg"] + plant["platform_mass_kg"],
-    )
+    plant = load("step_pitch").plant
+    mass, moving = plant.payload.mass_kg, plant.payload.mass_kg + plant.platform_mass_kg
     heavier = [f"plant.payload.mass_kg={mass + 0.01 * moving!r}"]  # 1 % of the moving mass
     monkeypatch.setattr(scenario_module, "load_scenario", lambda n, s=None: load(n, heavier))
     got, _ = mr.entry("step_pitch")

@@ -20,10 +20,13 @@ Resolution order (:func:`load_scenario`)
    reachability of the set-point profile on the 1 ms physics grid (unless
    ``controller.clamp_setpoints``; :mod:`simpro_mj.config.reference`).
 
-The result is the *resolved* scenario: a plain, JSON-compatible dict with
-every key present, numbers normalised to the defaults' types (so that
-:func:`scenario_hash` does not depend on ``15`` vs ``15.0``) and every
-set-point component spelled out with its optional keys.
+The result is the *resolved* scenario, a typed
+:class:`~simpro_mj.config.models.Scenario`; its ``model_dump()`` is a plain,
+JSON-compatible dict (what ``scenario.yaml`` holds) with every key present,
+numbers normalised to the defaults' types (so that :func:`scenario_hash` does
+not depend on ``15`` vs ``15.0``) and every set-point component spelled out with
+its optional keys. :func:`scenario_with` applies ``--set``-like changes to a
+resolved scenario.
 
 Set-point components
 --------------------

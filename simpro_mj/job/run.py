@@ -111,8 +111,8 @@ def end_stop_warnings(columns, scenario, stroke) -> tuple[list[str], list[dict]]
     ----------
     columns : mapping
         The logged columns (``time_s``, ``q<i>_m``).
-    scenario : mapping
-        The resolved scenario (its fault schedule).
+    scenario : Scenario
+        The typed scenario (its fault schedule).
     stroke : sequence of (float, float)
         Each slide's range (m), the model's joint limits.
     """
@@ -200,6 +200,6 @@ class Run(Build):
         metrics["status"] = res.status
         metrics["reason"] = res.reason
         metrics["sensor_floor"] = res.sensor_floor
-        stop_lines, hits = end_stop_warnings(res.columns, res.scenario, self.stroke())
+        stop_lines, hits = end_stop_warnings(res.columns, self.spec, self.stroke())
         warn(stop_lines, quiet)
         return RunOutcome(res, metrics, warnings + stop_lines, figures, hits)

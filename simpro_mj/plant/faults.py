@@ -46,7 +46,7 @@ electrical reading), frozen, dropout, bias.
 How the co-simulation loop uses it (``simpro_mj.sim.loop``)
 ------------------------------------------------------
 :meth:`CoSimulation.run <simpro_mj.sim.loop.CoSimulation.run>` builds the schedule
-(:meth:`FaultSchedule.from_scenario`) only if ``scenario["faults"]`` is not
+(:meth:`FaultSchedule.from_scenario`) only if the scenario's ``faults`` is not
 empty; such a run steps from Python (the compiled stages when numba is
 there) and :class:`simpro_mj.sim.stages.FaultHooks` acts between the stages:
 
@@ -87,11 +87,15 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from simpro_mj.plant.pneumatics.params import PneumaticParams
 from simpro_mj.plant.sensors import DEFAULT_SENSORS
+
+if TYPE_CHECKING:  # the typed scenario, read by attribute; the plant does not import it
+    from simpro_mj.config.models import Scenario
 
 __all__ = [
     "FLAG_BITS",
@@ -152,20 +156,19 @@ def _steps(t: float, dt: float) -> int:
     return int(round(t / dt))
 
 
-def _channels(f: Mapping) -> tuple[int, ...]:
-    if f["type"] == "potentiometer_failure":
-        return (f["leg"] - 1,)
-    sensor = f["sensor"]
-    if sensor == "potentiometer":
-        return _POT if f.get("leg") is None else (f["leg"] - 1,)
-    if sensor == "imu":
-        return _IMU[f.get("axis")]
+def _channels(f: Any) -> tuple[int, ...]:
+    if f.type == "potentiometer_failure":
+        return (f.leg - 1,)
+    if f.sensor == "potentiometer":
+        return _POT if f.leg is None else (f.leg - 1,)
+    if f.sensor == "imu":
+        return _IMU[f.axis]
     return _ENC
 
 
-def _every(f: Mapping, sensors: Mapping, dt: float) -> int:
+def _every(f: Any, sensors: Mapping, dt: float) -> int:
     """Update period (steps) of the sensor a fault acts on (dropout draws)."""
-    sensor = "potentiometer" if f["type"] == "potentiometer_failure" else f["sensor"]
+    sensor = "potentiometer" if f.type == "potentiometer_failure" else f.sensor
     ms = float(sensors.get(sensor, {}).get("rate_ms", 1))
     return max(1, _steps(ms * 1e-3, dt))
 
@@ -191,8 +194,9 @@ class FaultSchedule:
 
     Parameters
     ----------
-    faults : sequence of mapping
-        The resolved ``scenario["faults"]`` (every key spelled out).
+    faults : sequence
+        The typed scenario's ``faults`` (:mod:`simpro_mj.config.entries`: each
+        with its ``type``, ``time_s`` and the keys of its type as attributes).
     dt : float
         Physics step (s).
     n_steps : int
@@ -202,7 +206,7 @@ class FaultSchedule:
     p_atm : float
         Atmospheric pressure, Pa (gauge values are relative to it).
     sensors : mapping, optional
-        The resolved ``scenario["sensors"]`` (rates for dropout, potentiometer
+        The resolved scenario's ``sensors`` tree (rates for dropout, potentiometer
         scale for the rails). Default: :data:`simpro_mj.plant.sensors.DEFAULT_SENSORS`.
     seed : int
         The scenario's seed (dropout draws, on a stream of their own).
@@ -226,7 +230,7 @@ class FaultSchedule:
 
     def __init__(
         self,
-        faults: Sequence[Mapping],
+        faults: Sequence[Any],
         dt: float,
         n_steps: int,
         *,
@@ -241,7 +245,7 @@ class FaultSchedule:
         self.n_steps = int(n_steps)
         self.nominal_supply_pa = float(supply_pa)
         self.p_atm = float(p_atm)
-        self.faults = [dict(f) for f in faults]
+        self.faults = list(faults)
         rng = np.random.default_rng(np.random.SeedSequence([int(seed), _SEED_TAG]))
         end = self.n_steps + 1
         events: set[int] = set()
@@ -262,9 +266,9 @@ class FaultSchedule:
         rails = {"open": 0.0, "short": min(vpm * 500.0, rng_v - lsb_v) / vpm * 1e-3}
 
         for f in self.faults:
-            kind = f["type"]
-            k0 = _steps(f["time_s"], dt)
-            k1 = end if f.get("end_s") is None else _steps(f["end_s"], dt)
+            kind = f.type
+            k0 = _steps(f.time_s, dt)
+            k1 = end if getattr(f, "end_s", None) is None else _steps(f.end_s, dt)
             if k0 > self.n_steps:
                 continue
             self._windows.append((k0, k1, FLAG_BITS[kind]))
@@ -272,26 +276,26 @@ class FaultSchedule:
             if k1 <= self.n_steps:
                 events.add(k1)
             if kind == "supply_drop":
-                ramp = max(0, _steps(f.get("ramp_s", 0.0), dt))
-                target = self.p_atm + f["pressure_bar_gauge"] * 1e5
+                ramp = max(0, _steps(f.ramp_s, dt))
+                target = self.p_atm + f.pressure_bar_gauge * 1e5
                 self._drops.append((k0, ramp, target))
                 events.update(range(k0 + 1, min(k0 + ramp, self.n_steps) + 1))
             elif kind == "valve_stuck":
-                self._valves.append((k0, k1, f["leg"] - 1, float(f["voltage_v"])))
+                self._valves.append((k0, k1, f.leg - 1, float(f.voltage_v)))
             else:
                 chans = _channels(f)
                 every = _every(f, sensors, dt)
                 value, drops = None, None
                 if kind == "sensor_bias":
-                    if f.get("bias_deg") is not None:
-                        value = math.radians(f["bias_deg"])
+                    if f.bias_deg is not None:
+                        value = math.radians(f.bias_deg)
                     else:
-                        value = f["bias_mm"] * 1e-3
+                        value = f.bias_mm * 1e-3
                 elif kind == "potentiometer_failure":
-                    value = rails[f.get("mode", "open")]
+                    value = rails[f.mode]
                 elif kind == "sensor_dropout":
                     n = min(k1, end) - k0
-                    drops = rng.random(max(n, 0)) < float(f.get("probability", 1.0))
+                    drops = rng.random(max(n, 0)) < float(f.probability)
                 self._sensor_faults.append(_SensorFault(kind, chans, k0, k1, every, value, drops))
         # the order on a channel: failure, frozen, dropout, bias
         order = {"potentiometer_failure": 0, "sensor_frozen": 1, "sensor_dropout": 2}
@@ -309,17 +313,17 @@ class FaultSchedule:
         self._acting: list[_SensorFault] = []
 
     @classmethod
-    def from_scenario(cls, scenario: Mapping, dt: float) -> FaultSchedule:
-        """The schedule of a resolved scenario at physics step ``dt``."""
-        params = PneumaticParams.from_tree(scenario["actuator"].get("pneumatics") or {})
+    def from_scenario(cls, scenario: Scenario, dt: float) -> FaultSchedule:
+        """The schedule of a resolved, typed scenario at physics step ``dt``."""
+        params = PneumaticParams.from_tree(scenario.actuator.pneumatics.model_dump())
         return cls(
-            scenario.get("faults") or [],
+            scenario.faults,
             dt,
-            int(round(scenario["duration_s"] / dt)),
+            int(round(scenario.duration_s / dt)),
             supply_pa=params.p_supply,
             p_atm=params.p_atm,
-            sensors=scenario.get("sensors"),
-            seed=int(scenario.get("seed", 0)),
+            sensors=scenario.sensors.model_dump(),
+            seed=scenario.seed,
         )
 
     # ------------------------------------------------------------------ events
@@ -422,22 +426,23 @@ class FaultSchedule:
         return y[:3], y[3:]
 
 
-def fault_intervals(scenario: Mapping) -> list[tuple[str, float, float]]:
-    """``(type, start_s, end_s)`` of each fault (end: its ``end_s`` or the run's end)."""
-    end = float(scenario["duration_s"])
-    return [
-        (f["type"], float(f["time_s"]), end if f.get("end_s") is None else float(f["end_s"]))
-        for f in scenario.get("faults") or []
-    ]
+def fault_intervals(scenario: Scenario) -> list[tuple[str, float, float]]:
+    """``(type, start_s, end_s)`` of each fault of a typed scenario (end: its ``end_s``
+    or the run's end)."""
+    out: list[tuple[str, float, float]] = []
+    for f in scenario.faults:
+        end = getattr(f, "end_s", None)
+        out.append((f.type, f.time_s, scenario.duration_s if end is None else end))
+    return out
 
 
-def flag_series(scenario: Mapping, t) -> np.ndarray:
-    """The ``fault_flags`` mask at times ``t`` (s) from the scenario alone (int array)."""
+def flag_series(scenario: Scenario, t) -> np.ndarray:
+    """The ``fault_flags`` mask at times ``t`` (s) from the typed scenario alone (int array)."""
     t = np.asarray(t, dtype=float)
     out = np.zeros(t.shape, dtype=np.int64)
     for kind, start, end in fault_intervals(scenario):
         on = t >= start - 1e-12
-        if end < float(scenario["duration_s"]):
+        if end < scenario.duration_s:
             on &= t < end - 1e-12
         out[on] |= FLAG_BITS[kind]
     return out

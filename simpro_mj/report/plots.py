@@ -20,7 +20,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from controllers.geometry import H0
-from simpro_mj.config.models import Scenario, as_tree
+from simpro_mj.config.models import Scenario, as_scenario, as_tree
 from simpro_mj.plant.faults import fault_intervals
 from simpro_mj.report.cue_plots import plot_cueing
 from simpro_mj.report.figures import (
@@ -87,9 +87,9 @@ _FAULT_COLOURS = {
 }
 
 
-def _shade_faults(fig: Figure, scenario: Mapping) -> None:
+def _shade_faults(fig: Figure, scenario: Scenario) -> None:
     """Shade each scheduled fault's interval on every axis of ``fig`` (one legend entry)."""
-    spans = fault_intervals(scenario) if scenario.get("faults") else []
+    spans = fault_intervals(scenario)
     if not spans:
         return
     axes = [ax for ax in fig.axes if ax.get_visible()]
@@ -178,6 +178,7 @@ def run_figures(
     (Figs. 14/16); ``joints``: slide set-points vs positions (mm); ``valves``: valve
     voltages (V); ``pressures``: chamber pressures (bar absolute, with the supply).
     """
+    spec = scenario if isinstance(scenario, Scenario) else None
     scenario = as_tree(scenario)
     t = _col(columns, "time_s")
     figs: dict[str, Figure] = {}
@@ -248,8 +249,11 @@ def run_figures(
             fig.suptitle(_title(scenario, "chamber pressures"))
             figs["pressures"] = fig
 
+    if scenario.get("faults"):  # the typed scenario's schedule (validated once if a dict)
+        spec = spec if spec is not None else as_scenario(scenario)
     for name, fig in figs.items():
-        _shade_faults(fig, scenario)
+        if spec is not None and spec.faults:
+            _shade_faults(fig, spec)
         margins(fig, bottom=0.9 if name == "task_space" and fig.texts else 0.55)
     return figs
 

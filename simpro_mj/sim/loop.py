@@ -109,7 +109,8 @@ class CoSimulation:
         self.external = external = setpoints == "external"
         self._resume: int | None = None
         self.identified_source = identified_source
-        sc = as_scenario(scenario)
+        #: the typed scenario
+        self.spec = sc = as_scenario(scenario)
         #: the resolved scenario as a dict: what the result records
         self.scenario = scenario if isinstance(scenario, dict) else sc.model_dump()
         m = model
@@ -336,8 +337,8 @@ class CoSimulation:
             k0 = 0
         log = self._log
         faults = None
-        if self.scenario.get("faults"):
-            faults = FaultSchedule.from_scenario(self.scenario, self.dt)
+        if self.spec.faults:
+            faults = FaultSchedule.from_scenario(self.spec, self.dt)
         kernel = kernel_choice()
         timer = Profile() if profile is not None else None
         status, reason = "ok", None

@@ -208,7 +208,7 @@ def run_scenario(name: str):
 
     scenario = load_scenario(name)
     res = simulate(scenario)
-    metrics = compute_metrics(res.columns, scenario)
+    metrics = compute_metrics(res.columns, res.scenario)
     # the run's status as simpro-sim run reports it: a run to its end judged by its end
     metrics["status"] = (
         verdict(res.columns, res.sensor_floor)["status"] if res.status == "ok" else res.status
