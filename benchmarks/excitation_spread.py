@@ -9,7 +9,8 @@ the preset's 20 s record, 1 s settling, the joint loops' 2 V dither) is run as
 ``one_leg`` (the default, the paper's Fig. 12: three records) and as each of
 ``--options`` (:data:`OPTIONS`: ``all_legs``, one record exciting the three legs;
 ``record_10s``, one period of a 9-bit sequence on the same 20 ms clock, 10.2 s a
-leg), at each ``--seed`` of the sequence. Then
+leg; ``levenberg_marquardt``, the default record fitted by that solver), at each
+``--seed`` of the sequence. Then
 ``step_pitch`` and ``step_all`` run with the joint loops placed on each model set
 (``controller.inner.identify: preset`` with those models; the run's own seed 1).
 Prints one JSON document:
@@ -47,6 +48,7 @@ OPTIONS = {
     "one_leg": {},
     "all_legs": {"excitation": "all_legs"},
     "record_10s": {"duration_s": 10.0, "prbs_bits": 9},
+    "levenberg_marquardt": {"fit_method": "levenberg_marquardt"},
 }
 KEYS = ("b", "a1", "a0", "fit_percent")
 

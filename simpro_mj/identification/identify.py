@@ -24,9 +24,11 @@ Per actuator i, around mid-stroke under the nominal payload:
    recorded valve voltage (deviation from 5 V) and slide motion. Because (19)
    has a pure integrator, it is fitted on the slide velocity
    :math:`sY = b/(s^2 + a_1 s + a_0)\\,(U - d)` by continuous-time output
-   error (ZOH-discretised at 1 ms, ``scipy.optimize.least_squares``), with d
-   an input offset (the holding voltage's deviation from 5 V), started from a
-   discrete ARX(2, 2) least-squares estimate converted to continuous time.
+   error (ZOH-discretised at 1 ms, ``scipy.optimize.least_squares``' trust
+   region; ``identify.fit_method: levenberg_marquardt``,
+   :func:`levenberg_marquardt`, is an option), with d an input offset (the holding
+   voltage's deviation from 5 V), started from a discrete ARX(2, 2) least-squares
+   estimate converted to continuous time.
 
 Reported per actuator: b, a1, a0, :math:`ω_n = \\sqrt{a_0}`,
 :math:`ζ = a_1 / (2 ω_n)`, velocity gain b/a0 (m/s/V), next to the paper's
@@ -54,6 +56,7 @@ from controllers.experiment_law import XC
 from simpro_mj.core.errors import PhysicsError, UserInputError
 from simpro_mj.identification.settings import (
     DEFAULT_IDENTIFY_PARAMS,
+    FIT_METHODS,
     check_tree,
     default_tree,
     leg_values,
@@ -79,6 +82,7 @@ __all__ = [
     "run_experiment",
     "run_experiment_all_legs",
     "fit_eq19",
+    "levenberg_marquardt",
     "simulate_velocity",
     "identify",
 ]
@@ -300,7 +304,7 @@ def _arx_guess(u, v, dt):
     return b, a1, a0, d
 
 
-def fit_eq19(u, qdot, dt: float, skip: int = 0, guess=None) -> dict:
+def fit_eq19(u, qdot, dt: float, skip: int = 0, guess=None, method: str = "trust_region") -> dict:
     """Fit eq. (19) to a record (continuous output error on the velocity).
 
     Parameters
@@ -316,6 +320,10 @@ def fit_eq19(u, qdot, dt: float, skip: int = 0, guess=None) -> dict:
     guess : (b, a1, a0), optional
         Starting point; default the ARX estimate (the paper's values if the
         ARX poles are unusable).
+    method : str
+        The solver (:data:`simpro_mj.identification.settings.FIT_METHODS`):
+        ``trust_region`` (``scipy.optimize.least_squares``, bounded trust region
+        reflective) or ``levenberg_marquardt`` (:func:`levenberg_marquardt`).
 
     Returns
     -------
@@ -342,18 +350,94 @@ def fit_eq19(u, qdot, dt: float, skip: int = 0, guess=None) -> dict:
     lo = np.array([1e-6, 0.0, 1e-6, -5.0])
     hi = np.array([np.inf, np.inf, np.inf, 5.0])
     x0 = np.clip(x0, lo + 1e-9, hi - 1e-9)
-    from scipy.optimize import least_squares
     from threadpoolctl import threadpool_limits
 
     # one BLAS thread: the problem is small (4 parameters; a 3 x 3 matrix exponential per
     # evaluation) and BLAS threads spinning on a busy machine cost ten times its CPU time
     with threadpool_limits(limits=1, user_api="blas"):
-        sol = least_squares(res, x0, bounds=(lo, hi), x_scale="jac", max_nfev=400)
-    b, a1, a0, d = sol.x * scale
-    err = sol.fun
+        if method == "levenberg_marquardt":
+            x, err = levenberg_marquardt(res, x0, lo, hi)
+        elif method == "trust_region":
+            from scipy.optimize import least_squares
+
+            sol = least_squares(res, x0, bounds=(lo, hi), x_scale="jac", max_nfev=400)
+            x, err = sol.x, sol.fun
+        else:
+            raise ValueError(f"invalid fit method {method!r}; allowed: {', '.join(FIT_METHODS)}")
+    b, a1, a0, d = x * scale
     vv = v[sl] - v[sl].mean()
     fit = 100.0 * (1.0 - np.linalg.norm(err) / max(np.linalg.norm(vv), 1e-300))
     return _coefficients(b, a1, a0) | {"offset_v": float(d), "fit_percent": float(fit)}
+
+
+#: The Levenberg-Marquardt damping's start (:func:`levenberg_marquardt`): 0.1, a first
+#: step a tenth of the way from Gauss-Newton's towards gradient descent. With 1e-3 the
+#: first steps (near Gauss-Newton's) jump out of the basin least_squares' trust region
+#: stays in on a leg its seals dominate (a sweep cabin's leg 1: cost 3 % higher).
+LAM0 = 0.1
+
+
+def levenberg_marquardt(fun, x0, lo, hi, ftol: float = 1e-8, max_nfev: int = 400):
+    """Minimise ``|fun(x)|^2 / 2`` over the box ``lo <= x <= hi``; ``(x, fun(x))``.
+
+    Levenberg-Marquardt with Marquardt's scaling: from the Jacobian ``J`` by forward
+    differences (step ``sqrt(eps) max(1, |x_j|)``, backwards at an upper bound) and the
+    residual ``r``, the step ``(J^T J + λ diag(J^T J)) δ = -J^T r``, clipped to the
+    box; a step that lowers the cost is taken and λ divided by 3, else λ is
+    multiplied by 4 and the step solved again. It stops when a step lowers the cost
+    by less than ``ftol`` of it, or after ``max_nfev`` evaluations of ``fun``.
+
+    For eq. (19)'s four parameters the normal equations are 4 x 4: an iteration
+    costs its five evaluations (a 20 s record filtered five times), where
+    ``scipy.optimize.least_squares``' trust region (the default solver) adds an SVD
+    of the whole Jacobian and its scaling per iteration: on the 450/750 N cabin's
+    nine records (seeds 1-3) the nine fits took 0.54-0.63 s of CPU against
+    0.90-1.10 s (three repeats in one process, a loaded machine). Both reach the same
+    minimum within the flatness of its valley: b, a1 and a0 within 0.3 % there, and
+    within 0.5 % on the 24 legs of ``sweep_robustness.yaml``'s first eight cabins.
+    It is not the default: the 450/750 N cabin's ``step_all`` on loops placed on
+    its models leaves the default's seed spread (pitch settling 1.91-2.90 s
+    against 1.12-1.93 s, roll overshoot up to 3.4 % against 2.3 %), as any change
+    of a micrometre does under stick-slip (``benchmarks/excitation_spread.py
+    --options levenberg_marquardt``).
+    """
+    eps = np.finfo(float).eps
+    x = np.clip(np.asarray(x0, dtype=float), lo, hi)
+    r = fun(x)
+    cost, lam, nfev = 0.5 * float(r @ r), LAM0, 1
+    while nfev < max_nfev:
+        h = eps**0.5 * np.maximum(1.0, np.abs(x))
+        jac = np.empty((r.size, x.size))
+        for j in range(x.size):
+            xj = x.copy()
+            back = xj[j] + h[j] > hi[j]
+            xj[j] += -h[j] if back else h[j]
+            jac[:, j] = (r - fun(xj)) / h[j] if back else (fun(xj) - r) / h[j]
+        nfev += x.size
+        a, g = jac.T @ jac, jac.T @ r
+        damp = np.diag(np.maximum(np.diag(a), eps))
+        while nfev < max_nfev:
+            try:
+                step = np.linalg.solve(a + lam * damp, -g)
+            except np.linalg.LinAlgError:
+                step = np.zeros_like(x)
+            xn = np.clip(x + step, lo, hi)
+            rn = fun(xn)
+            nfev += 1
+            cn = 0.5 * float(rn @ rn)
+            if cn < cost:
+                lam = max(lam / 3.0, 1e-12)
+                break
+            lam *= 4.0
+            if lam > 1e12:  # no step lowers the cost: a minimum
+                return x, r
+        else:
+            return x, r
+        done = cost - cn <= ftol * cn
+        x, r, cost = xn, rn, cn
+        if done:
+            break
+    return x, r
 
 
 def _coefficients(b, a1, a0) -> dict:
@@ -382,7 +466,8 @@ def identify(tree: dict | None = None, legs=(1, 2, 3), records: dict | None = No
     for leg in legs:
         rec = recs[leg] if together else run_experiment(tree, leg, model=model)
         skip = int(round(float(ip["fit_skip_s"]) / rec["dt"]))
-        res = fit_eq19(rec["u"], rec["qdot"], rec["dt"], skip=skip)
+        method = ip.get("fit_method", "trust_region")
+        res = fit_eq19(rec["u"], rec["qdot"], rec["dt"], skip=skip, method=method)
         res["holding_force_n"] = float(rec["force_hold"][leg - 1])
         res["holding_voltage_v"] = float(rec["u_hold"][leg - 1])
         out[f"actuator{leg}"] = res
