@@ -18,9 +18,9 @@ prints one JSON document, CPU seconds:
 * ``stability_limit`` (the loop analysis), ``run`` (the run's own stepping,
   ``CoSimulation.run``), ``result_folder`` (writing it);
 * ``figures`` (the run's PNGs, :func:`simpro_mj.report.plots.plot_run`: with
-  ``--plots`` only), ``timeseries_csv`` (writing it) and ``stability`` (the batch's
-  measured stability, which reads ``timeseries.csv`` back), parts of
-  ``result_folder`` or beside it;
+  ``--plots`` only) and ``timeseries_csv`` (writing it), parts of ``result_folder``,
+  and ``stability`` (the batch's measured stability, from the run's columns in memory
+  rounded as ``timeseries.csv`` holds them) beside it;
 * ``experiment_us_per_step`` and ``run_us_per_step``;
 * ``cpu_s``: the variant's CPU time measured again unprofiled (a third variant,
   ``mc006`` or ``mc007``, the same way).
@@ -65,7 +65,7 @@ PARTS = {
     "result_folder": ("report/results.py", "write_run"),
     "figures": ("report/plots.py", "plot_run"),
     "timeseries_csv": ("report/results.py", "write_timeseries"),
-    "stability": ("batch/stability.py", "stability_of_folder"),
+    "stability": ("batch/stability.py", "stability_of"),
 }
 
 
