@@ -199,3 +199,24 @@ def test_a_plant_whose_seals_stick_is_refused_by_the_linearisation(cache, fake_i
     with pytest.raises(UserInputError, match=r"at controller.inner.identify: linearised.*auto"):
         ai.identified_models(sc)
     assert fake_identify == []
+
+
+def test_metrics_name_the_models_the_loops_were_placed_on(cache, fake_identify):
+    """``scenario.yaml`` keeps the scenario as given (the preset's models under
+    ``identified``); ``metrics.json`` → ``design_plants`` says what the joint loops
+    were placed on: the plant's own models from the experiment, the same whether it
+    ran now or was read from the cache, and the preset's where nothing was identified."""
+    from simpro_mj.api import run
+
+    sets = {"controller.inner.design_plant": "identified", "plant.payload.mass_kg": 80}
+    sets["duration_s"] = 0.2
+    first = run("step_pitch", sets).metrics["design_plants"]
+    own = {f"actuator{i}": {"b": 10.0 + i, "a1": 20.0, "a0": 180.0} for i in (1, 2, 3)}
+    assert first == {"design_plant": "identified", "source": "identified", "models": own}
+    ai._memo.clear()  # a new process: the cache file answers
+    assert run("step_pitch", sets).metrics["design_plants"] == first
+    assert len(fake_identify) == 1
+    paper = run("step_pitch", {"duration_s": 0.2})
+    preset = paper.scenario.controller.inner.identified.model_dump()
+    want = {"design_plant": "paper", "source": "preset", "models": preset}
+    assert paper.metrics["design_plants"] == want

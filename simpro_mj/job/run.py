@@ -162,6 +162,24 @@ class Run(Build):
         self.design_plants()
         return preflight(self.spec, self.model, setpoints=setpoints, payload=payload)
 
+    def design_plants_record(self) -> dict:
+        """What the joint loops were placed on (``metrics.json`` → ``design_plants``).
+
+        ``design_plant`` (``paper``: eqs. 34-35; ``identified``: the models below),
+        ``source`` of the models (``preset``: the scenario's ``controller.inner.
+        identified``; ``identified``: the Fig. 12 experiment on this run's own plant,
+        run now or cached; ``linearised``: the plant model's linearisation) and the
+        models, m/(s^3 V), 1/s, 1/s^2. ``scenario.yaml`` keeps the scenario as given,
+        so under ``identify: auto`` this is where a plant's own models are written.
+        """
+        inner = self.spec.controller.inner
+        source = self.identified_source or "preset"
+        return {
+            "design_plant": inner.design_plant,
+            "source": "identified" if source == "cache" else source,
+            "models": inner.identified.model_dump(),
+        }
+
     def execute(
         self,
         *,
@@ -200,6 +218,7 @@ class Run(Build):
         metrics["status"] = res.status
         metrics["reason"] = res.reason
         metrics["sensor_floor"] = res.sensor_floor
+        metrics["design_plants"] = self.design_plants_record()
         stop_lines, hits = end_stop_warnings(res.columns, self.spec, self.stroke())
         warn(stop_lines, quiet)
         return RunOutcome(res, metrics, warnings + stop_lines, figures, hits)
