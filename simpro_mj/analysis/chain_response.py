@@ -57,14 +57,21 @@ import numpy as np
 from controllers.frequency import CHAIN_CHANNELS, OMCT_RAD_S, chain_response, fit_sine, predict
 from controllers.kinematics import inverse_kinematics
 from controllers.washout import ClassicalWashout, WashoutParams
-from simpro_mj.analysis.response import check_run_length, check_settle_periods, failures, measure
+from simpro_mj.analysis.response import (
+    check_run_length,
+    check_settle_periods,
+    failures,
+    measure,
+    run_point,
+    saturated_pct,
+    window,
+)
 from simpro_mj.analysis.response_summary import Bode, loop_model
 from simpro_mj.config.cueing import vehicle_input, washout_params
 from simpro_mj.config.models import check_cueing
 from simpro_mj.core.errors import UserInputError
-from simpro_mj.core.messages import one_line
 from simpro_mj.plant.model import assemble
-from simpro_mj.sim.build import Build, simulate
+from simpro_mj.sim.build import Build
 
 __all__ = [
     "CHANNELS",
@@ -258,13 +265,11 @@ def fit_columns(columns: Mapping, task: Mapping, dt: float = 0.001) -> SineFit:
 
     ``columns``: ``time_s``, ``veh_*`` and ``head_*`` (:data:`simpro_mj.config.cueing.CUE_COLUMNS`).
     """
-    period = task["period_ms"] / 1000.0
-    k0 = int(round(task["settle_s"] / dt))
-    k1 = k0 + int(round(task["periods"] * period / dt))
+    k0, k1 = window(task, dt)
     t = np.asarray(columns["time_s"], float)[k0:k1]
     if t.size < k1 - k0 or t.size < 4:
         raise ValueError(f"run too short: {t.size} samples, the fit needs {k1 - k0}")
-    w = 2.0 * math.pi / period
+    w = 2.0 * math.pi / (task["period_ms"] / 1000.0)
 
     def col(side: str, ch: str) -> np.ndarray:
         kind = "f" if ch[0] == "f" else "w"
@@ -284,34 +289,25 @@ def measure_chain_point(task: Mapping) -> dict:
     rail), ``rate_limited_pct`` and ``softened_pct`` (fitted cueing samples where the
     tilt rate limit or the workspace soft limit acted).
     """
-    try:
-        res = simulate(task["scenario"], stop=task.get("stop"))
-        if res.status != "ok":
-            return {"status": res.status, "reason": res.reason}
-        c = res.columns
-        fit = fit_columns(c, task, res.sim["timestep_s"])
-        k0, k1 = fit.k0, fit.k1
-        u = np.column_stack([c[f"u{i}_v"][k0:k1] for i in (1, 2, 3)])
-        sat = np.any((u <= 0.0) | (u >= 10.0), axis=1).mean() * 100.0
+
+    def fit(res) -> dict:
+        sine = fit_columns(res.columns, task, res.sim["timestep_s"])
+        k0, k1 = sine.k0, sine.k1
         info = vehicle_input(task["scenario"])[4]
         e = info["every"]
         lim = np.asarray(info["rate_limited"])[k0 // e : -(-k1 // e)]
         soft = np.asarray(info["softened"])[k0 // e : -(-k1 // e)]
         return {
-            "status": "ok",
-            "reason": None,
             "channel": task["channel"],
             "period_ms": task["period_ms"],
-            "ref": fit.ref,
-            "head": fit.head,
-            "saturated_pct": float(sat),
+            "ref": sine.ref,
+            "head": sine.head,
+            "saturated_pct": saturated_pct(res.columns, k0, k1),
             "rate_limited_pct": float(lim.mean() * 100.0) if lim.size else 0.0,
             "softened_pct": float(soft.mean() * 100.0) if soft.size else 0.0,
         }
-    except UserInputError as exc:
-        return {"status": "invalid", "reason": one_line(exc)}
-    except Exception as exc:  # noqa: BLE001 - a failure is this frequency's, not the test's
-        return {"status": "failed", "reason": f"{type(exc).__name__}: {' '.join(str(exc).split())}"}
+
+    return run_point(task, fit)
 
 
 def measure_chain(plan: ChainPlan, *, jobs: int = 1, scheduler=None, progress: bool = False):

@@ -270,14 +270,21 @@ def point_scenario(
     return sc
 
 
-def measure_point(task: Mapping) -> dict:
-    """Run one stepped sine and fit it (worker side; top level, pickles by name).
+def window(task: Mapping, dt: float) -> tuple[int, int]:
+    """The rows ``k0:k1`` of a sine task's settled whole periods at step ``dt``."""
+    k0 = int(round(task["settle_s"] / dt))
+    return k0, k0 + int(round(task["periods"] * (task["period_ms"] / 1000.0) / dt))
 
-    Returns ``status``, ``reason``, and when ``ok``: ``axis``, ``period_ms``,
-    ``ref`` (the set-point's complex amplitude as ``[re, im]``, SI), ``true``
-    and ``measured`` (3 outputs each, ``[re, im]`` SI), ``saturated_pct``
-    (share of the fitted steps with a valve at a rail).
-    """
+
+def saturated_pct(columns: Mapping, k0: int, k1: int) -> float:
+    """The share (%) of the rows ``k0:k1`` with a valve at a rail (0 or 10 V)."""
+    u = np.column_stack([columns[f"u{i}_v"][k0:k1] for i in (1, 2, 3)])
+    return float(np.any((u <= 0.0) | (u >= 10.0), axis=1).mean() * 100.0)
+
+
+def run_point(task: Mapping, fit) -> dict:
+    """Run one sine task and ``fit(result)`` it (worker side): ``status``, ``reason`` and,
+    when ``ok``, what ``fit`` returns; a failure is this frequency's, not the test's."""
     # MuJoCo with the loop, when a point runs: analysis.analyze imports this room's
     # figures without running anything
     from simpro_mj.sim.build import simulate
@@ -286,37 +293,44 @@ def measure_point(task: Mapping) -> dict:
         res = simulate(task["scenario"], stop=task.get("stop"))
         if res.status != "ok":
             return {"status": res.status, "reason": res.reason}
+        return {"status": "ok", "reason": None, **fit(res)}
+    except UserInputError as exc:
+        return {"status": "invalid", "reason": one_line(exc)}
+    except Exception as exc:  # noqa: BLE001
+        return {"status": "failed", "reason": f"{type(exc).__name__}: {' '.join(str(exc).split())}"}
+
+
+def measure_point(task: Mapping) -> dict:
+    """Run one stepped sine and fit it (worker side; top level, pickles by name).
+
+    Returns ``status``, ``reason``, and when ``ok``: ``axis``, ``period_ms``,
+    ``ref`` (the set-point's complex amplitude as ``[re, im]``, SI), ``true``
+    and ``measured`` (3 outputs each, ``[re, im]`` SI), ``saturated_pct``
+    (share of the fitted steps with a valve at a rail).
+    """
+
+    def fit(res) -> dict:
         c = res.columns
-        dt = res.sim["timestep_s"]
-        period = task["period_ms"] / 1000.0
-        k0 = int(round(task["settle_s"] / dt))
-        k1 = k0 + int(round(task["periods"] * period / dt))
+        k0, k1 = window(task, res.sim["timestep_s"])
         t = c["time_s"][k0:k1]
-        w = 2.0 * math.pi / period
-        j = AXES.index(task["axis"])
-        ref_col = ("roll_ref_rad", "pitch_ref_rad", "heave_ref_m")[j]
+        w = 2.0 * math.pi / (task["period_ms"] / 1000.0)
+        ref_col = ("roll_ref_rad", "pitch_ref_rad", "heave_ref_m")[AXES.index(task["axis"])]
         true = np.column_stack([c[k][k0:k1] for k in ("roll_rad", "pitch_rad", "heave_m")])
         meas = np.column_stack(
             [c[k][k0:k1] for k in ("roll_meas_rad", "pitch_meas_rad", "heave_meas_m")]
         )
         r = fit_sine(t, c[ref_col][k0:k1], w)
         yt, ym = fit_sine(t, true, w), fit_sine(t, meas, w)
-        u = np.column_stack([c[f"u{i}_v"][k0:k1] for i in (1, 2, 3)])
-        sat = np.any((u <= 0.0) | (u >= 10.0), axis=1).mean() * 100.0
         return {
-            "status": "ok",
-            "reason": None,
             "axis": task["axis"],
             "period_ms": task["period_ms"],
             "ref": [r.real, r.imag],
             "true": [[v.real, v.imag] for v in np.atleast_1d(yt)],
             "measured": [[v.real, v.imag] for v in np.atleast_1d(ym)],
-            "saturated_pct": float(sat),
+            "saturated_pct": saturated_pct(c, k0, k1),
         }
-    except UserInputError as exc:
-        return {"status": "invalid", "reason": one_line(exc)}
-    except Exception as exc:  # noqa: BLE001 - a failure is this frequency's, not the test's
-        return {"status": "failed", "reason": f"{type(exc).__name__}: {' '.join(str(exc).split())}"}
+
+    return run_point(task, fit)
 
 
 def measure(
