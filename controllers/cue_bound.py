@@ -80,10 +80,10 @@ def _axis_qp(law: ModelPredictiveCueing, k: int, d: np.ndarray, N: int):
 
     p, ax, pr = law.params, law.axes[k], law._pred[k]
     n = ax.n
-    ny = pr["CY"].shape[0] // law.N  # the MPC's per-sample cost rows (horizon N_mpc)
-    cy = pr["CY"][:ny, :n]
-    dy = pr["DY"][:ny, 2:4]  # the sample's own input (horizon 2: shift [[0, 1], [0, 1]])
-    sel = pr["S"][: pr["rows"], :n]
+    ny = pr.CY.shape[0] // law.N  # the MPC's per-sample cost rows (horizon N_mpc)
+    cy = pr.CY[:ny, :n]
+    dy = pr.DY[:ny, 2:4]  # the sample's own input (horizon 2: shift [[0, 1], [0, 1]])
+    sel = pr.S[: pr.rows, :n]
     A, B = ax.ad, ax.bd
     jref = ax.accel_max / p.period
     r = p.weight_jerk / jref**2
@@ -103,30 +103,30 @@ def _axis_qp(law: ModelPredictiveCueing, k: int, d: np.ndarray, N: int):
     free = np.zeros((N + 1, n))
     for i in range(N):
         free[i + 1] = A @ free[i] + B[:, 1:3] @ d[i]
-    rows = pr["rows"]
+    rows = pr.rows
     lo = -np.ones((N, rows))
     hi = np.ones((N, rows))
-    if pr["veh"] is not None:
-        vrow = pr["veh"][0][0, :n]
-        vd = pr["veh"][1][0, 2:4]
+    if pr.veh is not None:
+        vrow = pr.veh[0][0, :n]
+        vd = pr.veh[1][0, 2:4]
         cveh = free[1:] @ vrow + d[1:] @ vd
         wv = d[:, 1]
         cveh = cveh + ax.tau_n * np.gradient(wv)[1:] / p.period / ax.thr_w
         lim = law._rotation_limit(ax.kind)
-        lo[:, pr["felt"]] = np.minimum(cveh, 0.0) - lim
-        hi[:, pr["felt"]] = np.maximum(cveh, 0.0) + lim
-    if pr["jolt"] is not None:
+        lo[:, pr.felt] = np.minimum(cveh, 0.0) - lim
+        hi[:, pr.felt] = np.maximum(cveh, 0.0) + lim
+    if pr.jolt is not None:
         target = d[1:, 0]
         thr = ax.thr_f * ax.kf
-        lo[:, pr["jolt"]] = np.where(target > thr, -1.0, -np.inf)
-        hi[:, pr["jolt"]] = np.where(target < -thr, 1.0, np.inf)
+        lo[:, pr.jolt] = np.where(target > thr, -1.0, -np.inf)
+        hi[:, pr.jolt] = np.where(target < -thr, 1.0, np.inf)
     Ain = sparse.hstack(
         [sparse.kron(sparse.eye(N), sparse.csc_matrix(sel)), sparse.csc_matrix((N * rows, N))]
     )
     A_all = sparse.vstack([Aeq, Ain], format="csc")
     # the rows given up in turn: the jolt limit's, then the felt rotation's too
     soft: list[np.ndarray] = []
-    for cols in ((pr["jolt"],), (pr["felt"], pr["jolt"])):
+    for cols in ((pr.jolt,), (pr.felt, pr.jolt)):
         mask = np.zeros((N, rows), bool)
         for c in cols:
             if c is not None:

@@ -10,6 +10,8 @@ constraints read, discretised at the law's period by the zero-order hold.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from .analysis.inner import companion
@@ -17,7 +19,7 @@ from .cue_mpc_params import MpcParams
 from .frames import GRAVITY
 from .vestibular import CanalModel, OtolithModel
 
-__all__ = ["MpcAxis", "discretise"]
+__all__ = ["AxisPrediction", "MpcAxis", "discretise"]
 
 
 def discretise(a: np.ndarray, b: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
@@ -30,6 +32,28 @@ def discretise(a: np.ndarray, b: np.ndarray, dt: float) -> tuple[np.ndarray, np.
     big[:n, n:] = b
     e = expm(big * dt)
     return e[:n, :n], e[:n, n:]
+
+
+@dataclass
+class AxisPrediction:
+    """One axis' prediction over the MPC's horizon (built by
+    :class:`~controllers.mpc_cueing.ModelPredictiveCueing`): ``X = phi x_0 + gam u +
+    psi d``; the weighted cost outputs ``CY X + DY d`` (``G = CY gam``); the constrained
+    rows ``S X`` (``rows`` a sample), with the vehicle's felt rotation ``veh`` (its state
+    and input maps) and the indices of the felt-rotation and jolt rows (None: not
+    constrained); ``shift`` takes each output to its sample's input."""
+
+    phi: np.ndarray
+    psi: np.ndarray
+    CY: np.ndarray
+    DY: np.ndarray
+    G: np.ndarray
+    S: np.ndarray
+    rows: int
+    veh: tuple[np.ndarray, np.ndarray] | None
+    felt: int | None
+    jolt: int | None
+    shift: np.ndarray
 
 
 class MpcAxis:

@@ -66,7 +66,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .cue_mpc_axis import MpcAxis
+from .cue_mpc_axis import AxisPrediction, MpcAxis
 from .cue_mpc_params import MpcParams
 from .frames import GRAVITY
 from .geometry import PlatformGeometry, nominal_geometry
@@ -212,7 +212,7 @@ class ModelPredictiveCueing:
             MpcAxis("roll", p, oto, scc, lim[0]),
             MpcAxis("heave", p, oto, scc, lim[2]),
         ]
-        self.N = N = int(p.horizon)
+        self.N = int(p.horizon)
         self._build()
         P = sparse.csc_matrix(np.triu(self._P))
         A = sparse.csc_matrix(self._A)
@@ -231,7 +231,6 @@ class ModelPredictiveCueing:
             eps_rel=1e-4,
             max_iter=1000,
         )
-        self._nu = N
         self.reset()
 
     # ------------------------------------------------------------------ the QP
@@ -304,21 +303,9 @@ class ModelPredictiveCueing:
             S = np.kron(np.eye(N), sel)
             blocks_a.append(S @ gam)
             self._pred.append(
-                {
-                    "phi": phi,
-                    "gam": gam,
-                    "psi": psi,
-                    "CY": CY,
-                    "DY": DY,
-                    "G": G,
-                    "S": S,
-                    "rows": sel.shape[0],
-                    "veh": veh,
-                    "felt": 3 if felt else None,
-                    "jolt": sel.shape[0] - 1 if jolt else None,
-                    "shift": shift,
-                }
-            )
+                AxisPrediction(phi, psi, CY, DY, G, S, sel.shape[0], veh,
+                            3 if felt else None, sel.shape[0] - 1 if jolt else None, shift)
+            )  # fmt: skip
         from scipy.linalg import block_diag
 
         self._P = block_diag(*blocks_p)
@@ -328,8 +315,8 @@ class ModelPredictiveCueing:
         jolt_rows: list[np.ndarray] = []
         felt_rows: list[np.ndarray] = []
         for pr in self._pred:
-            for cols, out in (((pr["jolt"],), jolt_rows), ((pr["felt"], pr["jolt"]), felt_rows)):
-                mask = np.zeros((N, pr["rows"]), bool)
+            for cols, out in (((pr.jolt,), jolt_rows), ((pr.felt, pr.jolt), felt_rows)):
+                mask = np.zeros((N, pr.rows), bool)
                 for r in cols:
                     if r is not None:
                         mask[:, r] = True
@@ -380,28 +367,28 @@ class ModelPredictiveCueing:
         q_parts, lo_parts, hi_parts = [], [], []
         for k, pr in enumerate(self._pred):
             d = self._d(f_future, w_future, k)
-            free = pr["phi"] @ self._x[k] + pr["psi"] @ d  # X without the jerks
-            yfree = pr["CY"] @ free + pr["DY"] @ d
-            q_parts.append(2.0 * pr["G"].T @ yfree)
-            sfree = pr["S"] @ free
+            free = pr.phi @ self._x[k] + pr.psi @ d  # X without the jerks
+            yfree = pr.CY @ free + pr.DY @ d
+            q_parts.append(2.0 * pr.G.T @ yfree)
+            sfree = pr.S @ free
             low, high = -np.ones(sfree.size), np.ones(sfree.size)
-            if pr["veh"] is not None:  # the vehicle's felt rotation (free of the jerks)
-                cveh = pr["veh"][0] @ free + pr["veh"][1] @ d
+            if pr.veh is not None:  # the vehicle's felt rotation (free of the jerks)
+                cveh = pr.veh[0] @ free + pr.veh[1] @ d
                 # the neural lead on the vehicle's side: tau_n times its rate's change
                 wv = d[1::2]
                 lead = self.axes[k].tau_n * np.gradient(wv) / self.params.period
                 cveh = cveh + lead / self.axes[k].thr_w
                 r = self._rotation_limit(self.axes[k].kind)
-                low[3 :: pr["rows"]] = np.minimum(cveh, 0.0) - r
-                high[3 :: pr["rows"]] = np.maximum(cveh, 0.0) + r
-            if pr["jolt"] is not None:
+                low[3 :: pr.rows] = np.minimum(cveh, 0.0) - r
+                high[3 :: pr.rows] = np.maximum(cveh, 0.0) + r
+            if pr.jolt is not None:
                 # where the car's specific force is past the otoliths' threshold, the
                 # head's may not go the other way by more than jolt_limit (in its units)
-                target = pr["shift"] @ d[0::2]
+                target = pr.shift @ d[0::2]
                 thr = self.axes[k].thr_f * self.axes[k].kf  # the car's past its threshold
-                j = pr["jolt"]
-                low[j :: pr["rows"]] = np.where(target > thr, -1.0, -np.inf)
-                high[j :: pr["rows"]] = np.where(target < -thr, 1.0, np.inf)
+                j = pr.jolt
+                low[j :: pr.rows] = np.where(target > thr, -1.0, -np.inf)
+                high[j :: pr.rows] = np.where(target < -thr, 1.0, np.inf)
             lo_parts.append(low - sfree)
             hi_parts.append(high - sfree)
         q = np.concatenate(q_parts)

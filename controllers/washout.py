@@ -251,7 +251,6 @@ class ClassicalWashout:
         else:  # (1/s) * s^2/(s^2 + 2 zeta w s + w^2)
             rot = ([p.gain_rot, 0.0], [1.0, 2.0 * p.rot_zeta * wr, wr * wr])
         self._rot = [DiscreteFilter(*rot, dt), DiscreteFilter(*rot, dt)]  # roll, pitch
-        self._max_step = p.tilt_rate_limit * dt
         self._home = [float(v) for v in self.geometry.home]
         self._lims = [
             (float(self.box[k][0]), float(self.box[k][1])) for k in ("roll", "pitch", "heave")
