@@ -115,11 +115,13 @@ class MpcAxis:
         if nq:  # the target d + c q: c q enters against the head
             a[o, n - 1] -= cq * ob[:, 0]
             raw[n - 1] = -cq
-        rows = {}
+        # the outputs read by the cost and the constraints, each (state row, input row)
+        # over (jerk, vehicle f, vehicle w); the canal ones None on heave
         e_f = np.zeros(n)
         e_f[o] = oc[0]
-        rows["f"] = (e_f, np.zeros(3))
-        rows["raw"] = (raw, np.array([0.0, -1.0, 0.0]))
+        self.out_f = (e_f, np.zeros(3))
+        self.out_raw = (raw, np.array([0.0, -1.0, 0.0]))
+        self.out_w = self.out_w_vehicle = self.out_w_head = None
         if nc:
             assert ca is not None and cb is not None and cc is not None and cd is not None
             c = slice(3 + no_, 3 + no_ + nc)
@@ -131,15 +133,14 @@ class MpcAxis:
             b[c, 2] = -cb[:, 0]
             e_w = cd[0, 0] * rate
             e_w[c] += cc[0]
-            rows["w"] = (e_w, np.array([0.0, 0.0, -cd[0, 0]]))
+            self.out_w = (e_w, np.array([0.0, 0.0, -cd[0, 0]]))
             # the vehicle's own canal sensation (of the scaled rate), and the head's
             a[v, v] = ca
             b[v, 2] = cb[:, 0]
             veh = np.zeros(n)
             veh[v] = cc[0]
-            rows["w_vehicle"] = (veh, np.array([0.0, 0.0, cd[0, 0]]))
-            sim = e_w + veh
-            rows["w_head"] = (sim, np.zeros(3))
+            self.out_w_vehicle = (veh, np.array([0.0, 0.0, cd[0, 0]]))
+            self.out_w_head = (e_w + veh, np.zeros(3))
         self.n, self.kf, self.kw = n, kf, kw
         self.tau_n = float(scc.tau_n)
         self.thr_f, self.thr_w = float(thr_f), float(thr_w)
@@ -148,5 +149,4 @@ class MpcAxis:
             self.rate_max, self.accel_max = p.heave_rate_max, p.heave_accel_max
         else:
             self.rate_max, self.accel_max = p.tilt_rate_max, p.tilt_accel_max
-        self.rows = rows
         self.ad, self.bd = discretise(a, b, p.period)

@@ -262,11 +262,11 @@ class ModelPredictiveCueing:
             outs = []
             wf = math.sqrt(p.weight_f) / ax.thr_f
             wr = math.sqrt(p.weight_raw) / ax.thr_f
-            outs.append((wf * ax.rows["f"][0], wf * ax.rows["f"][1][1:]))
-            outs.append((wr * ax.rows["raw"][0], wr * ax.rows["raw"][1][1:]))
-            if "w" in ax.rows:
+            outs.append((wf * ax.out_f[0], wf * ax.out_f[1][1:]))
+            outs.append((wr * ax.out_raw[0], wr * ax.out_raw[1][1:]))
+            if ax.out_w is not None:
                 ww = math.sqrt(p.weight_w) / ax.thr_w
-                outs.append((ww * ax.rows["w"][0], ww * ax.rows["w"][1][1:]))
+                outs.append((ww * ax.out_w[0], ww * ax.out_w[1][1:]))
             tilt = np.zeros(n)
             tilt[0] = math.sqrt(p.weight_heave if ax.kind == "heave" else p.weight_tilt) / ax.amax
             if ax.kind == "heave":
@@ -289,16 +289,17 @@ class ModelPredictiveCueing:
             # constraints: a, a', a'' of x_1..x_N within limits (scaled to +-1)
             # and, with rotation_limit, the head's felt rotation (canal model) within
             # rotation_limit thresholds of the vehicle's (in units of the threshold)
-            felt = self._rotation_limit(ax.kind) > 0 and "w_head" in ax.rows
+            head, vehicle = ax.out_w_head, ax.out_w_vehicle
+            felt = self._rotation_limit(ax.kind) > 0 and head is not None
             jolt = p.jolt_limit > 0 and ax.kind != "heave"
             rows = [np.eye(n)[0] / ax.amax, np.eye(n)[1] / ax.rate_max, np.eye(n)[2] / ax.accel_max]
             veh = None
-            if felt:
-                rows.append(ax.rows["w_head"][0] / ax.thr_w)
-                vrow, vd = ax.rows["w_vehicle"]
+            if felt and head is not None and vehicle is not None:
+                rows.append(head[0] / ax.thr_w)
+                vrow, vd = vehicle
                 veh = (np.kron(np.eye(N), vrow / ax.thr_w), np.kron(shift, vd[1:] / ax.thr_w))
             if jolt:  # the head's specific force, in units of jolt_limit
-                rows.append(ax.rows["raw"][0] / p.jolt_limit)
+                rows.append(ax.out_raw[0] / p.jolt_limit)
             sel = np.array(rows)
             S = np.kron(np.eye(N), sel)
             blocks_a.append(S @ gam)
