@@ -106,7 +106,8 @@ def execute_live(scenario: dict, options: LiveOptions, out, plots: bool = True, 
         found["warnings"], found["figures"] = preflight(with_identified(home)[0])
         warn(found["warnings"], quiet)
 
-    res, realtime, wash = run_session(scenario, options, say=say, checks=checks)
+    session = run_session(scenario, options, say=say, checks=checks)
+    res, realtime = session.result, session.realtime
     warnings, figures = found["warnings"], found["figures"]
     res.folder = None
     # from here on a signal waits for the folder to be written, then says it is kept
@@ -119,12 +120,13 @@ def execute_live(scenario: dict, options: LiveOptions, out, plots: bool = True, 
                 f"(of {scenario['duration_s']:g} s)"
             )
         realtime["ended"] = ended
-        host, port = wash.pop("address")
+        host, port = session.address
         fmt = realtime["packets"]["format"]  # for auto, the format it found
         source = f"udp {fmt} {host}:{port}"
         metrics = compute_metrics(res.columns, home)
-        lateness = wash.pop("lateness")
-        metrics["cueing"] = cue_metrics(res.columns, scenario, info=dict(wash, source=source))
+        metrics["cueing"] = cue_metrics(
+            res.columns, scenario, info=dict(session.washout, source=source)
+        )
         metrics["status"], metrics["reason"] = res.status, res.reason
         metrics["sensor_floor"] = res.sensor_floor
         live = {
@@ -160,6 +162,6 @@ def execute_live(scenario: dict, options: LiveOptions, out, plots: bool = True, 
             "live": live,
             "plots": plots,
         }
-        arrays = dict(recording(res), **{"realtime.npz": lateness})
+        arrays = dict(recording(res), **{"realtime.npz": session.lateness})
         res.folder = write_results(out, res.columns, metrics, scenario, extra, arrays=arrays)
     return res, json.loads((res.folder / "metrics.json").read_text(encoding="utf-8"))

@@ -70,6 +70,7 @@ from simpro_mj.sim.scheduling import (
 from simpro_mj.sim.udp import DEFAULT_POSE_FORMAT, PoseSender, Receiver, column_index
 
 if TYPE_CHECKING:
+    from simpro_mj.sim.result import SimResult
     from simpro_mj.sim.rig_output import RigTemplate
 
 __all__ = [
@@ -77,6 +78,7 @@ __all__ = [
     "MAX_BEHIND_S",
     "LiveOptions",
     "Pacer",
+    "Session",
     "run_session",
 ]
 
@@ -110,7 +112,6 @@ class LiveOptions:
     pin: bool = True
     #: sleep until this long (s) before a deadline, then spin to it (0: sleep to it)
     spin_s: float = 0.0
-    console: bool = True
     #: a rig's output string (:mod:`simpro_mj.sim.rig_output`): where, what, how often
     output: str | None = None
     output_template: RigTemplate | None = None
@@ -359,17 +360,28 @@ class Pacer:
         }
 
 
-def run_session(scenario: dict, options: LiveOptions, say=None, checks=None):
+@dataclass
+class Session:
+    """What a live session returns (:func:`run_session`)."""
+
+    #: the result (status ``interrupted`` when a signal ended it)
+    result: SimResult
+    #: the ``realtime`` block of ``metrics.json`` (:meth:`Pacer.realtime`)
+    realtime: dict
+    #: the law's figures as it ran (:meth:`Pacer.washout_info`, the law's ``algorithm``
+    #: and, for the MPC, its ``solve_time``): the cueing metrics' ``info``
+    washout: dict
+    #: each deadline's lateness (:meth:`Pacer.lateness`)
+    lateness: dict
+    #: where the telemetry came to
+    address: tuple[str, int]
+
+
+def run_session(scenario: dict, options: LiveOptions, say=None, checks=None) -> Session:
     """Run one live session of a resolved cueing scenario (``duration_s`` long).
 
-    Returns
-    -------
-    (SimResult, dict, dict)
-        The result (status ``interrupted`` when a signal ended it), the
-        ``realtime`` block and the washout's figures (:meth:`Pacer.washout_info`)
-        with ``lateness`` (:meth:`Pacer.lateness`) and the bound ``address``.
-        The socket is bound before anything heavy is built, so that a busy
-        port is refused at once; ``checks()`` (the preflight) runs next.
+    The socket is bound before anything heavy is built, so that a busy port is
+    refused at once; ``checks()`` (the preflight) runs next.
     """
     cue = scenario["setpoint"].get("cueing")
     if not cue:
@@ -452,8 +464,7 @@ def run_session(scenario: dict, options: LiveOptions, say=None, checks=None):
         realtime["spin_us"] = options.spin_s * 1e6
         realtime["cpus"] = None if split is None else {
             "pacer": sorted(split[0]), "cue": sorted(split[1])}  # fmt: skip
-        info = dict(pacer.washout_info(), lateness=pacer.lateness(), address=rx.address)
-        info["algorithm"] = cue.get("algorithm", "classical_washout")  # the law that ran
+        info = dict(pacer.washout_info(), algorithm=cue.get("algorithm", "classical_washout"))
         if law is not None:
             law.close()
             realtime["cue"] = {
@@ -471,7 +482,7 @@ def run_session(scenario: dict, options: LiveOptions, say=None, checks=None):
                              list(law.status), np.asarray(law.iterations))  # fmt: skip
             info["solve_time"] = done.solve_time_stats()
             realtime["cue_solve_ms"] = info["solve_time"]
-        return res, realtime, info
+        return Session(res, realtime, info, pacer.lateness(), rx.address)
     finally:
         rx.close()
         if sender is not None:
