@@ -160,14 +160,19 @@ def add_arguments(parser) -> None:
     parser.add_argument("--quiet", action="store_true", help="no console line every second")
 
 
+def _within(value: float, option: str, ok, allowed: str) -> float:
+    """``value`` if finite and ``ok``; else the one-line error naming ``option``."""
+    if not (math.isfinite(value) and ok(value)):
+        raise UserInputError(f"invalid value at {option}: {value:g}; allowed: {allowed}")
+    return float(value)
+
+
 def _rate(rate: float, option: str) -> float:
-    if not (math.isfinite(rate) and 0 < rate <= 1000 and abs(1000 / rate - round(1000 / rate))
-            < 1e-9):  # fmt: skip
-        raise UserInputError(
-            f"invalid value at {option}: {rate:g}; allowed: a divisor of 1000 Hz "
-            "(1000, 500, 250, 200, 125, 100, 50, ...)"
-        )
-    return float(rate)
+    def divides(r: float) -> bool:  # 1000 Hz: the 1 ms step
+        return 0 < r <= 1000 and abs(1000 / r - round(1000 / r)) < 1e-9
+
+    allowed = "a divisor of 1000 Hz (1000, 500, 250, 200, 125, 100, 50, ...)"
+    return _within(rate, option, divides, allowed)
 
 
 def _options(args) -> LiveOptions:
@@ -180,30 +185,14 @@ def _options(args) -> LiveOptions:
         _rate(args.output_rate, "--output-rate")
         template = RigTemplate(args.output_string, args.output_bits, args.output_text)
         open_destination(args.output, check_only=True)
-    if args.duration is not None and not (
-        math.isfinite(args.duration) and 0 < args.duration <= MAX_DURATION_S
-    ):
-        raise UserInputError(
-            f"invalid value at --duration: {args.duration:g}; allowed: > 0 and <= "
-            f"{MAX_DURATION_S:g} s"
-        )
-    if not (math.isfinite(args.stale_after) and 0 < args.stale_after <= 60):
-        raise UserInputError(
-            f"invalid value at --stale-after: {args.stale_after:g}; allowed: > 0 and <= 60 s"
-        )
-    if not (math.isfinite(args.bias_tau) and 0 <= args.bias_tau <= 3600):
-        raise UserInputError(
-            f"invalid value at --bias-tau: {args.bias_tau:g}; allowed: 0 (off) to 3600 s"
-        )
-    if not (math.isfinite(args.vibration_hz) and 0 <= args.vibration_hz < 50):
-        raise UserInputError(
-            f"invalid value at --vibration-hz: {args.vibration_hz:g}; allowed: 0 (off) or "
-            "below 50 Hz (the Nyquist frequency of the 10 ms cueing period)"
-        )
-    if not (math.isfinite(args.spin_us) and 0 <= args.spin_us <= 5000):
-        raise UserInputError(
-            f"invalid value at --spin-us: {args.spin_us:g}; allowed: 0 (sleep) to 5000 us"
-        )
+    if args.duration is not None:
+        _within(args.duration, "--duration", lambda v: 0 < v <= MAX_DURATION_S,
+                f"> 0 and <= {MAX_DURATION_S:g} s")  # fmt: skip
+    _within(args.stale_after, "--stale-after", lambda v: 0 < v <= 60, "> 0 and <= 60 s")
+    _within(args.bias_tau, "--bias-tau", lambda v: 0 <= v <= 3600, "0 (off) to 3600 s")
+    nyquist = "0 (off) or below 50 Hz (the Nyquist frequency of the 10 ms cueing period)"
+    _within(args.vibration_hz, "--vibration-hz", lambda v: 0 <= v < 50, nyquist)
+    _within(args.spin_us, "--spin-us", lambda v: 0 <= v <= 5000, "0 (sleep) to 5000 us")
     listen = parse_address(args.listen, "--listen", bind=True)
     check_listen(listen)  # a busy port refused now, not after the scenario's seconds
     return LiveOptions(
