@@ -246,7 +246,7 @@ def test_step_metrics_second_order():
 
 def test_inner_summary_corrected_cancels_plant():
     s = an.inner_summary("actuator2", "corrected", t_end=1.0)
-    poles = s["closed_loop_poles"]
+    poles = s.closed_loop_poles
     plant = np.roots([1, 7.276, 1349])
     for p in plant:
         assert np.min(np.abs(poles - p)) < 1e-9  # the cancelled mode stays in the loop

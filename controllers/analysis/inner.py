@@ -4,6 +4,8 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from controllers.design import (
@@ -85,6 +87,22 @@ def step_metrics(t, y, final: float | None = None, settle: float = 0.02) -> dict
     }
 
 
+@dataclass
+class InnerSummary:
+    """One continuous joint loop (:func:`inner_summary`): its controller
+    (:meth:`~controllers.design.JointDesign.as_dict`), closed-loop poles with their
+    natural frequencies (rad/s) and damping ratios, the step response ``y`` at ``t``
+    and its figures (:func:`step_metrics`)."""
+
+    controller: dict
+    closed_loop_poles: np.ndarray
+    wn_rad_s: np.ndarray
+    zeta: np.ndarray
+    step: dict
+    t: np.ndarray
+    y: np.ndarray
+
+
 def inner_summary(
     actuator: str,
     variant: str,
@@ -92,7 +110,7 @@ def inner_summary(
     dt: float = 1e-3,
     spec=None,
     reading: str = DEFAULT_READING,
-) -> dict:
+) -> InnerSummary:
     """Closed-loop poles, damping and step metrics of one continuous joint loop.
 
     The plant is eq. (34)/(35) and the controller eq. (36)/(37) in SI under
@@ -104,15 +122,6 @@ def inner_summary(
     des = design_for(actuator, variant, plant=plant, reading=reading, **spec)
     poles = closed_loop_poles(des, plant)
     wn, zeta = damping(poles)
-    num, den = closed_loop_tf(des, plant)
     t = np.arange(0.0, t_end + dt / 2, dt)
-    y = tf_step(num, den, t)
-    return {
-        "controller": des.as_dict(),
-        "closed_loop_poles": poles,
-        "wn_rad_s": wn,
-        "zeta": zeta,
-        "step": step_metrics(t, y, final=1.0),
-        "t": t,
-        "y": y,
-    }
+    y = tf_step(*closed_loop_tf(des, plant), t)
+    return InnerSummary(des.as_dict(), poles, wn, zeta, step_metrics(t, y, final=1.0), t, y)

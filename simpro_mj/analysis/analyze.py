@@ -380,18 +380,18 @@ def compute(p: AnalyzeParams | None = None, scenario: Scenario | Mapping | None 
             s = an.inner_summary(
                 act, var, t_end=i.step_duration_s, spec=spec, reading=p.paper_units
             )
-            wn, zeta = s["wn_rad_s"], s["zeta"]
-            dom = int(np.argmin(np.where(np.abs(s["closed_loop_poles"].imag) > 0, wn, np.inf)))
+            wns, zetas = s.wn_rad_s, s.zeta
+            dom = int(np.argmin(np.where(np.abs(s.closed_loop_poles.imag) > 0, wns, np.inf)))
             inner[act][var] = InnerLoop(
-                controller=s["controller"],
-                closed_loop_poles=_pairs(s["closed_loop_poles"]),
-                wn_rad_s=wn.tolist(),
-                zeta=zeta.tolist(),
-                slowest_complex_pair={"wn_rad_s": float(wn[dom]), "zeta": float(zeta[dom])},
-                step=s["step"],
-                fraction_at_outer_period=float(np.interp(o.period_s, s["t"], s["y"])),
-                _t=s["t"],
-                _y=s["y"],
+                controller=s.controller,
+                closed_loop_poles=_pairs(s.closed_loop_poles),
+                wn_rad_s=wns.tolist(),
+                zeta=zetas.tolist(),
+                slowest_complex_pair={"wn_rad_s": float(wns[dom]), "zeta": float(zetas[dom])},
+                step=s.step,
+                fraction_at_outer_period=float(np.interp(o.period_s, s.t, s.y)),
+                _t=s.t,
+                _y=s.y,
             )
     dur = o.step_duration_s
     laws = {"I": o.gain, "PI": o.pi_gain}
@@ -431,8 +431,8 @@ def compute(p: AnalyzeParams | None = None, scenario: Scenario | Mapping | None 
         rows.append(
             SweepRow(
                 wn_rad_s=float(wn),
-                inner_fraction_at_T=float(np.interp(o.period_s, s["t"], s["y"])),
-                inner_settling_time_s=s["step"]["settling_time_s"],
+                inner_fraction_at_T=float(np.interp(o.period_s, s.t, s.y)),
+                inner_settling_time_s=s.step["settling_time_s"],
                 I_stability_limit=an.real_inner_limit("I", o.period_s, **kw),
                 PI_stability_limit=an.real_inner_limit("PI", o.period_s, **kw),
             )
