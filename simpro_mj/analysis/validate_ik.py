@@ -25,7 +25,7 @@ import time
 from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Annotated, Any, Literal, get_args
+from typing import Annotated, Any, Literal
 
 import mujoco
 import numpy as np
@@ -50,7 +50,6 @@ from simpro_mj.plant.model import (
 )
 
 Drive = Literal["dynamic", "kinematic"]
-DRIVES: tuple[Drive, ...] = get_args(Drive)
 Positive = Annotated[Real, Field(gt=0)]
 
 

@@ -121,7 +121,6 @@ class RigTemplate:
         size = sum(len(p) if isinstance(p, bytes) else width for p in self.pieces)
         if size > MAX_STRING_BYTES:
             raise self._refuse(text, f"{size} bytes a string")
-        self.tokens = [p for p in self.pieces if isinstance(p, str)]
 
     def _literal(self, b: bytes) -> None:
         if self.pieces and isinstance(self.pieces[-1], bytes):

@@ -248,12 +248,6 @@ class Receiver:
         chosen = getattr(self.decode, "chosen", None)
         return chosen or self.fmt
 
-    def at_rest(self, now: float) -> bool:
-        """True once the input has faded all the way to rest (or before any sample)."""
-        if self.last_wall is None:
-            return True
-        return now - self.last_wall >= self.stale_after + self.fade
-
     def counts(self) -> dict:
         return {
             "format": self.format,
