@@ -241,10 +241,7 @@ def check_free(out) -> None:
     out = out_path(out)
     pid = _writer(out)
     if pid is not None:
-        raise UserInputError(
-            f"busy at {short(out)}: another simpro-sim process (pid {pid}) is writing this "
-            "folder; allowed: wait for it to end or choose another --out"
-        )
+        raise _busy(out, pid, "this folder")
 
 
 def _check_inside_free(out: Path) -> None:
@@ -256,11 +253,8 @@ def _check_inside_free(out: Path) -> None:
             if name.endswith(".simpro-lock") and Path(root, name) not in ours:
                 pid = _lock_holder(Path(root) / name)
                 if pid is not None:
-                    raise UserInputError(
-                        f"busy at {short(out)}: another simpro-sim process (pid {pid}) is "
-                        f"writing inside it ({short(Path(root) / name[1:-12], 120)}); "
-                        "allowed: wait for it to end or choose another --out"
-                    )
+                    inside = short(Path(root) / name[1:-12], 120)
+                    raise _busy(out, pid, f"inside it ({inside})")
 
 
 def _check_parents_free(out: Path) -> None:
@@ -278,11 +272,15 @@ def _check_parents_free(out: Path) -> None:
             )
         pid = _writer(parent)
         if pid is not None:
-            raise UserInputError(
-                f"busy at {short(out)}: another simpro-sim process (pid {pid}) is writing "
-                f"{short(parent)}, which holds it; allowed: wait for it to end or choose "
-                "another --out"
-            )
+            raise _busy(out, pid, f"{short(parent)}, which holds it")
+
+
+def _busy(out: Path, pid: str, what: str) -> UserInputError:
+    """The refusal of ``out`` while process ``pid`` writes ``what``."""
+    return UserInputError(
+        f"busy at {short(out)}: another simpro-sim process (pid {pid}) is writing {what}; "
+        "allowed: wait for it to end or choose another --out"
+    )
 
 
 def _writer(folder: Path) -> str | None:
@@ -359,10 +357,7 @@ def locked(out) -> Iterator[Path]:
             except BlockingIOError:
                 pid = os.read(fd, 32).decode("ascii", "replace").strip() or "?"
                 os.close(fd)
-                raise UserInputError(
-                    f"busy at {short(out)}: another simpro-sim process (pid {pid}) is writing "
-                    "this folder; allowed: wait for it to end or choose another --out"
-                ) from None
+                raise _busy(out, pid, "this folder") from None
             try:
                 same = os.stat(path).st_ino == os.fstat(fd).st_ino
             except FileNotFoundError:
