@@ -386,50 +386,54 @@ def cue_floors(cue: Mapping) -> FloorVerdict:
     return FloorVerdict(main, judged, missed)
 
 
+_LONG, _LAT, _ROLL, _PITCH = "longitudinal_f", "lateral_f", "roll_rate", "pitch_rate"
+#: Each column and where it comes from: a channel's key of the cueing block, or (None)
+#: the run's workspace, valves, law, main channel, solve times, floors and bound.
+_COLUMNS = (
+    ("cue_long_corr", _LONG, "correlation"),
+    ("cue_lat_corr", _LAT, "correlation"),
+    ("cue_long_false_s", _LONG, "false_cue_s"),
+    ("cue_lat_false_s", _LAT, "false_cue_s"),
+    ("cue_roll_rate_false_s", _ROLL, "false_cue_s"),
+    ("cue_pitch_rate_false_s", _PITCH, "false_cue_s"),
+    ("cue_roll_box_frac", None, None),
+    ("cue_pitch_box_frac", None, None),
+    ("cue_heave_box_frac", None, None),
+    ("cue_end_stop_margin_mm", None, None),
+    ("cue_valve_sat_frac", None, None),
+    ("cue_algorithm", None, None),
+    ("cue_main_channel", None, None),
+    ("cue_long_lag_s", _LONG, "mean_lag_s"),
+    ("cue_lat_lag_s", _LAT, "mean_lag_s"),
+    ("cue_long_onset_s", _LONG, "onset_delay_s"),
+    ("cue_lat_onset_s", _LAT, "onset_delay_s"),
+    ("cue_long_raw_wrong_mps2", _LONG, "onset_raw_wrong_sign_peak"),
+    ("cue_lat_raw_wrong_mps2", _LAT, "onset_raw_wrong_sign_peak"),
+    ("cue_roll_false_rot_s", _ROLL, "false_rotation_s"),
+    ("cue_pitch_false_rot_s", _PITCH, "false_rotation_s"),
+    ("cue_solve_p99_ms", None, None),
+    ("cue_floors_met", None, None),
+    ("cue_floors_missed", None, None),
+    ("cue_long_gain", _LONG, "gain"),
+    ("cue_lat_gain", _LAT, "gain"),
+    ("cue_long_gain_rms", _LONG, "gain_rms"),
+    ("cue_lat_gain_rms", _LAT, "gain_rms"),
+    ("cue_long_rms_err_mps2", _LONG, "rms_error"),
+    ("cue_lat_rms_err_mps2", _LAT, "rms_error"),
+    ("cue_roll_rms_err_deg_s", _ROLL, "rms_error_deg_s"),
+    ("cue_pitch_rms_err_deg_s", _PITCH, "rms_error_deg_s"),
+    ("cue_long_bound_gain", None, None),
+    ("cue_lat_bound_gain", None, None),
+    ("cue_long_gain_share", _LONG, "gain_share"),
+    ("cue_lat_gain_share", _LAT, "gain_share"),
+    ("cue_long_error_share", _LONG, "error_share"),
+    ("cue_lat_error_share", _LAT, "error_share"),
+)
 #: Cueing columns of ``simpro-sim batch``'s summary.csv (perceived correlations,
 #: false-cue times, workspace and valve usage; lags, onset delays, the raw wrong-sign
 #: peak at the onsets, felt false rotation, the MPC's p99 solve time; the perceived
 #: gain, its RMS ratio, the RMS perceived error, the bound's gain and the law's shares).
-SUMMARY_COLUMNS = (
-    "cue_long_corr",
-    "cue_lat_corr",
-    "cue_long_false_s",
-    "cue_lat_false_s",
-    "cue_roll_rate_false_s",
-    "cue_pitch_rate_false_s",
-    "cue_roll_box_frac",
-    "cue_pitch_box_frac",
-    "cue_heave_box_frac",
-    "cue_end_stop_margin_mm",
-    "cue_valve_sat_frac",
-    "cue_algorithm",
-    "cue_main_channel",
-    "cue_long_lag_s",
-    "cue_lat_lag_s",
-    "cue_long_onset_s",
-    "cue_lat_onset_s",
-    "cue_long_raw_wrong_mps2",
-    "cue_lat_raw_wrong_mps2",
-    "cue_roll_false_rot_s",
-    "cue_pitch_false_rot_s",
-    "cue_solve_p99_ms",
-    "cue_floors_met",
-    "cue_floors_missed",
-    "cue_long_gain",
-    "cue_lat_gain",
-    "cue_long_gain_rms",
-    "cue_lat_gain_rms",
-    "cue_long_rms_err_mps2",
-    "cue_lat_rms_err_mps2",
-    "cue_roll_rms_err_deg_s",
-    "cue_pitch_rms_err_deg_s",
-    "cue_long_bound_gain",
-    "cue_lat_bound_gain",
-    "cue_long_gain_share",
-    "cue_lat_gain_share",
-    "cue_long_error_share",
-    "cue_lat_error_share",
-)
+SUMMARY_COLUMNS = tuple(name for name, _, _ in _COLUMNS)
 
 
 def summary_columns(cue: Mapping) -> dict:
@@ -437,22 +441,12 @@ def summary_columns(cue: Mapping) -> dict:
     ch = cue.get("channels") or {}
     ws = cue.get("workspace") or {}
     box = ws.get("box_fraction_max") or {}
-
-    def g(name, key):
-        return (ch.get(name) or {}).get(key)
-
     margin = ws.get("end_stop_margin_m")
     bound = (cue.get("bound") or {}).get("channels") or {}
     floors = cue_floors(cue)
-    lat = abs(g("lateral_f", "vehicle_peak") or 0.0)
-    long = abs(g("longitudinal_f", "vehicle_peak") or 0.0)
-    return {
-        "cue_long_corr": g("longitudinal_f", "correlation"),
-        "cue_lat_corr": g("lateral_f", "correlation"),
-        "cue_long_false_s": g("longitudinal_f", "false_cue_s"),
-        "cue_lat_false_s": g("lateral_f", "false_cue_s"),
-        "cue_roll_rate_false_s": g("roll_rate", "false_cue_s"),
-        "cue_pitch_rate_false_s": g("pitch_rate", "false_cue_s"),
+    lat = abs((ch.get(_LAT) or {}).get("vehicle_peak") or 0.0)
+    long = abs((ch.get(_LONG) or {}).get("vehicle_peak") or 0.0)
+    run = {
         "cue_roll_box_frac": box.get("roll"),
         "cue_pitch_box_frac": box.get("pitch"),
         "cue_heave_box_frac": box.get("heave"),
@@ -461,29 +455,13 @@ def summary_columns(cue: Mapping) -> dict:
         "cue_algorithm": cue.get("algorithm"),
         # the channel the vehicle drives: the larger perceived vehicle peak
         "cue_main_channel": "lat" if lat > long else "long",
-        "cue_long_lag_s": g("longitudinal_f", "mean_lag_s"),
-        "cue_lat_lag_s": g("lateral_f", "mean_lag_s"),
-        "cue_long_onset_s": g("longitudinal_f", "onset_delay_s"),
-        "cue_lat_onset_s": g("lateral_f", "onset_delay_s"),
-        "cue_long_raw_wrong_mps2": g("longitudinal_f", "onset_raw_wrong_sign_peak"),
-        "cue_lat_raw_wrong_mps2": g("lateral_f", "onset_raw_wrong_sign_peak"),
-        "cue_roll_false_rot_s": g("roll_rate", "false_rotation_s"),
-        "cue_pitch_false_rot_s": g("pitch_rate", "false_rotation_s"),
         "cue_solve_p99_ms": (cue.get("solve_time") or {}).get("p99_ms"),
         "cue_floors_met": floors.met,
         "cue_floors_missed": "; ".join(floors.missed),
-        "cue_long_gain": g("longitudinal_f", "gain"),
-        "cue_lat_gain": g("lateral_f", "gain"),
-        "cue_long_gain_rms": g("longitudinal_f", "gain_rms"),
-        "cue_lat_gain_rms": g("lateral_f", "gain_rms"),
-        "cue_long_rms_err_mps2": g("longitudinal_f", "rms_error"),
-        "cue_lat_rms_err_mps2": g("lateral_f", "rms_error"),
-        "cue_roll_rms_err_deg_s": g("roll_rate", "rms_error_deg_s"),
-        "cue_pitch_rms_err_deg_s": g("pitch_rate", "rms_error_deg_s"),
-        "cue_long_bound_gain": bound.get("longitudinal_f", {}).get("gain"),
-        "cue_lat_bound_gain": bound.get("lateral_f", {}).get("gain"),
-        "cue_long_gain_share": g("longitudinal_f", "gain_share"),
-        "cue_lat_gain_share": g("lateral_f", "gain_share"),
-        "cue_long_error_share": g("longitudinal_f", "error_share"),
-        "cue_lat_error_share": g("lateral_f", "error_share"),
+        "cue_long_bound_gain": bound.get(_LONG, {}).get("gain"),
+        "cue_lat_bound_gain": bound.get(_LAT, {}).get("gain"),
+    }
+    return {
+        name: run[name] if channel is None else (ch.get(channel) or {}).get(key)
+        for name, channel, key in _COLUMNS
     }
