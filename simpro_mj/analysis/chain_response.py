@@ -64,6 +64,7 @@ from simpro_mj.analysis.response import (
     measure,
     run_point,
     saturated_pct,
+    sine_tasks,
     window,
 )
 from simpro_mj.analysis.response_summary import Bode, loop_model
@@ -199,17 +200,11 @@ def plan_chain(
         settle_s=float(settle_s),
         periods=int(periods),
     )
-    for c in plan.channels:
-        for p in plan.periods_ms:
-            plan.tasks.append(
-                {
-                    "scenario": chain_scenario(scenario, c, p, amps[c], settle_s, periods),
-                    "channel": c,
-                    "period_ms": int(p),
-                    "settle_s": float(settle_s),
-                    "periods": int(periods),
-                }
-            )
+
+    def run_of(c: str, p: int) -> dict:
+        return chain_scenario(scenario, c, p, amps[c], settle_s, periods)
+
+    plan.tasks = sine_tasks("channel", plan.channels, plan.periods_ms, settle_s, periods, run_of)
     return plan
 
 

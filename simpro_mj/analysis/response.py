@@ -60,6 +60,7 @@ __all__ = [
     "check_run_length",
     "failures",
     "plan_response",
+    "sine_tasks",
     "point_scenario",
     "measure_point",
     "measure",
@@ -233,18 +234,23 @@ def plan_response(
         settle_s=float(settle_s),
         periods=int(periods),
     )
-    for axis in plan.axes:
-        for p in periods_ms:
-            plan.tasks.append(
-                {
-                    "scenario": point_scenario(scenario, axis, p, amps[axis], settle_s, periods),
-                    "axis": axis,
-                    "period_ms": int(p),
-                    "settle_s": float(settle_s),
-                    "periods": int(periods),
-                }
-            )
+
+    def run_of(a: str, p: int) -> dict:
+        return point_scenario(scenario, a, p, amps[a], settle_s, periods)
+
+    plan.tasks = sine_tasks("axis", plan.axes, periods_ms, settle_s, periods, run_of)
     return plan
+
+
+def sine_tasks(key: str, inputs, periods_ms, settle_s: float, periods: int, scenario_of) -> list:
+    """One task per input (``key``: axis or channel) and period, plain data for the
+    workers: ``scenario_of(input, period_ms)`` run for ``settle_s`` and ``periods``."""
+    return [
+        {"scenario": scenario_of(x, p), key: x, "period_ms": int(p),
+         "settle_s": float(settle_s), "periods": int(periods)}
+        for x in inputs
+        for p in periods_ms
+    ]  # fmt: skip
 
 
 def point_scenario(
