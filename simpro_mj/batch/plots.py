@@ -73,6 +73,17 @@ def _x(value) -> float | None:
     return None
 
 
+def _swept_number(rows: list[dict], grid) -> str | None:
+    """The grid path drawn along x: the gain if swept, else the numeric path with the
+    most values (None: no path is a number with two values or more)."""
+    count = {p: len({_x(r["values"].get(p)) for r in rows}) for p in grid}
+    numeric = [p for p in grid if count[p] >= 2 and all(_x(r["values"].get(p)) is not None
+                                                          for r in rows)]  # fmt: skip
+    if not numeric:
+        return None
+    return _GAIN if _GAIN in numeric else max(numeric, key=count.__getitem__)
+
+
 def _combo(row: Mapping, paths, skip=None) -> str:
 
     parts = [f"{p.split('.')[-1]}={format_value(row['values'][p])}" for p in paths if p != skip]
@@ -100,17 +111,9 @@ def plot_metric_vs_param(
 def metric_vs_param_figure(rows: list[dict], info: Mapping, stability: list[StabilityLimit]):
     """The figure of :func:`plot_metric_vs_param` (its label: the swept key's last part)."""
     grid = info["grid_paths"]
-    if info["monte_carlo"] or not grid:
+    xpath = None if info["monte_carlo"] else _swept_number(rows, grid)
+    if xpath is None:
         return None
-    numeric = [p for p in grid if all(_x(r["values"].get(p)) is not None for r in rows)]
-    numeric = [p for p in numeric if len({_x(r["values"][p]) for r in rows}) >= 2]
-    if not numeric:
-        return None
-    xpath = (
-        _GAIN
-        if _GAIN in numeric
-        else max(numeric, key=lambda p: len({_x(r["values"][p]) for r in rows}))
-    )
     label = xpath.split(".")[-1]
     groups: dict[str, list[dict]] = {}
     for r in rows:
@@ -196,12 +199,9 @@ def _shade_by_number(series, labels: list[str], info: Mapping):
           if not (r.get("stable") is False or r["status"] != "ok")]  # fmt: skip
     if info["monte_carlo"] or len({lab for _, lab in ok}) <= 12 or not grid:
         return None
-    numeric = [p for p in grid if all(_x(r["values"].get(p)) is not None for r, _ in series)]
-    numeric = [p for p in numeric if len({_x(r["values"][p]) for r, _ in series}) >= 2]
-    if not numeric:
+    path = _swept_number([r for r, _ in series], grid)
+    if path is None:
         return None
-    path = _GAIN if _GAIN in numeric else max(
-        numeric, key=lambda p: len({_x(r["values"][p]) for r, _ in series}))  # fmt: skip
     rest = [_combo(r, grid, skip=path) for r, _ in series]
     kinds = list(dict.fromkeys(rest))
     if len(kinds) > len(_STYLES):
