@@ -22,7 +22,10 @@ allows (the other way is its own limit, where the shipped value sits):
 Prints one JSON document: per variant, scenario and axis, the overshoot (%) and
 2 % settling time (s) of ``metrics.json`` at every seed, their median, range
 and the number of runs that meet the cabin's floors (overshoot <= 10 %,
-settling <= 3 s on ``step_pitch`` / 4 s on ``step_all``, status ok), and for
+settling <= 3 s on ``step_pitch`` / 4 s on ``step_all``, status ok); per
+scenario the largest swing of the true pose over the last 3 s (roll and pitch
+deg, heave mm, peak to peak) and how many runs read ``ok`` while swinging more
+than 0.05 deg or 0.5 mm (none should); and for
 each variant against the shipped numerics the ratio of the medians and the
 two-sided Mann-Whitney U p-value (scipy.stats.mannwhitneyu): a small p says
 the numerical parameter moves the figure's distribution beyond the seeds' own
@@ -47,6 +50,8 @@ VARIANTS = {
 }
 SCENARIOS = {"step_pitch": 3.0, "step_all": 4.0}  # their settling floors, s
 OVERSHOOT_FLOOR = 10.0  # %
+LAST_S = 3.0  # s: the window whose swing an ok run keeps within SWING
+SWING = (0.05, 0.05, 0.5)  # deg, deg, mm peak to peak
 
 
 def _one(job: tuple) -> tuple:
@@ -61,12 +66,25 @@ def _one(job: tuple) -> tuple:
         "seed": seed,
         **VARIANTS[variant],
     }
-    m = run(name, sets).metrics
+    r = run(name, sets)
+    m = r.metrics
     axes = {}
     for axis, fig in m["axes"].items():
         if fig.get("step"):
             axes[axis] = (fig["overshoot_pct"], fig["settling_time_s"])
-    return variant, name, seed, m["status"], axes
+    return variant, name, seed, m["status"], axes, _last_swing(r.columns)
+
+
+def _last_swing(columns) -> list:
+    """Peak to peak of the true roll, pitch (deg) and heave (mm) over the last 3 s."""
+    import numpy as np
+
+    t = np.asarray(columns["time_s"])
+    last = t >= t[-1] - LAST_S
+    return [
+        float(np.ptp(np.asarray(columns[c])[last])) * k
+        for c, k in (("roll_rad", 180 / np.pi), ("pitch_rad", 180 / np.pi), ("heave_m", 1e3))
+    ]
 
 
 def _summary(runs: list, floor: float) -> dict:
@@ -96,6 +114,10 @@ def measure(seeds, seals=(450.0, 750.0), jobs: int = 2) -> dict:
         for name, floor in SCENARIOS.items():
             rows = sorted((r for r in done if r[0] == v and r[1] == name), key=lambda r: r[2])
             per[name] = {"status": [r[3] for r in rows]}
+            per[name]["last_3s_pp_max"] = [max(r[5][k] for r in rows) for k in range(3)]
+            per[name]["ok_but_swinging"] = sum(
+                r[3] == "ok" and any(a > b for a, b in zip(r[5], SWING, strict=True)) for r in rows
+            )
             for axis in rows[0][4]:
                 got = [r[4][axis] for r in rows]
                 per[name][axis] = _summary(got, floor)
@@ -109,7 +131,7 @@ def measure(seeds, seals=(450.0, 750.0), jobs: int = 2) -> dict:
             continue
         for name in SCENARIOS:
             for axis, fig in out["variants"][v][name].items():
-                if axis == "status":
+                if axis in ("status", "last_3s_pp_max", "ok_but_swinging"):
                     continue
                 ref = base[name][axis]
                 fig["settling_median_ratio"] = fig["settling_median_s"] / ref["settling_median_s"]
