@@ -31,7 +31,7 @@ from pydantic import (
 
 from controllers.cue_mpc_params import MpcParamError
 from controllers.washout import WashoutParamError
-from simpro_mj.config.cueing import (
+from simpro_mj.config.cue_params import (
     ALGORITHMS,
     SINE_CHANNELS,
     default_parameters,
@@ -149,14 +149,14 @@ def _parameters_model(name: str, base: type[_WashoutCheck], algorithm: str) -> t
     return create_model(name, __base__=base, __module__=__name__, **fields)
 
 
-#: ``setpoint.cueing.parameters``: the keys of :data:`~simpro_mj.config.cueing.PARAMETER_KEYS`
+#: ``setpoint.cueing.parameters``: the keys of :data:`~simpro_mj.config.cue_params.PARAMETER_KEYS`
 #: (YAML units), each a finite number, the defaults those of the washout.
 if TYPE_CHECKING:  # built from the algorithm's defaults: the type checker sees its base
     WashoutParameters = _WashoutCheck
 else:
     WashoutParameters = _parameters_model("WashoutParameters", _WashoutCheck, "classical_washout")
 #: ``setpoint.cueing.parameters`` of ``algorithm: mpc``: the keys of
-#: :data:`~simpro_mj.config.cueing.MPC_PARAMETER_KEYS`, the defaults those of the MPC.
+#: :data:`~simpro_mj.config.cue_params.MPC_PARAMETER_KEYS`, the defaults those of the MPC.
 MpcParameters = _parameters_model("MpcParameters", _MpcCheck, "mpc")
 
 
@@ -190,7 +190,7 @@ class CueManoeuvre(CueBlock):
         if self.speed_kmh is None:
             raise Problem("invalid value", ": missing; allowed: 10..180", ".speed_kmh")
         try:
-            manoeuvre_spec(dict(self)).check()
+            manoeuvre_spec(self).check()
         except ManoeuvreError as exc:
             # the spec names its field alone ("invalid value at lead_s: ..."): put it below
             key, _, rest = str(exc).removeprefix("invalid value at ").partition(":")
@@ -207,7 +207,7 @@ def _sine_period(value: Any) -> float:
 
 class CueSine(CueBlock):
     """A synthetic vehicle input: the vehicle at rest plus ``amplitude sin(2 pi t /
-    period_s)`` (SI) on one ``channel`` (:data:`~simpro_mj.config.cueing.SINE_CHANNELS`)."""
+    period_s)`` (SI) on one ``channel`` (:data:`~simpro_mj.config.cue_params.SINE_CHANNELS`)."""
 
     _listed = ("channel", "amplitude", "period_s")
     _expected = f"a mapping with keys {list(_listed)}"

@@ -16,7 +16,7 @@ import numpy as np
 from controllers.errors import WorkspaceError
 from controllers.kinematics import check_reachable, reachable
 from simpro_mj.config.cueing import cue_poses
-from simpro_mj.config.models import Scenario, as_scenario, as_tree
+from simpro_mj.config.models import Scenario, as_scenario
 from simpro_mj.config.rules import PHYSICS_DT_S, SETPOINT_AXES
 from simpro_mj.core.errors import UserInputError
 
@@ -99,7 +99,7 @@ def reference(scenario: Scenario | Mapping, t, *, clamp: bool | None = None) -> 
     sc = as_scenario(scenario)
     geometry = sc.plant.geometry()
     if sc.setpoint.cueing is not None:  # the washout's set-points, inside its workspace box
-        return cue_poses(as_tree(scenario), t)
+        return cue_poses(sc, t)
     out = np.empty((t.size, 3))
     for j, (axis, scale) in enumerate(
         zip(SETPOINT_AXES, (math.pi / 180.0, math.pi / 180.0, 1e-3), strict=True)

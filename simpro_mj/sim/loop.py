@@ -202,7 +202,7 @@ class CoSimulation:
             # which no other run needs
             from simpro_mj.config.cueing import vehicle_input
 
-            _, self.veh_f, self.veh_w, _, _ = vehicle_input(self.scenario)
+            _, self.veh_f, self.veh_w, _, _ = vehicle_input(self.spec)
             if "head_accel" not in self.idx.sensor or "head_gyro" not in self.idx.sensor:
                 raise UserInputError(
                     "invalid value at setpoint.cueing: the model has no head_accel/head_gyro "
