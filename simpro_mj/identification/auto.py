@@ -41,7 +41,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from simpro_mj.config.models import Identified, Scenario, as_tree
+from simpro_mj.config.models import Identified, Scenario, as_scenario
 from simpro_mj.config.presets import scenario_overlay
 from simpro_mj.config.scenario import (
     DEFAULT_SCENARIO,
@@ -84,17 +84,15 @@ def plant_tree(scenario: Scenario | Mapping) -> dict:
     settings (its 20 s record: a 5.1 s one leaves the 450/750 N cabin in a limit
     cycle, docs/paper-notes.md), the scenario's ``plant`` and ``actuator.pneumatics``
     values."""
-    scenario = as_tree(scenario)
-    preset = scenario["plant"]["preset"]
-    tree = identify_module.default_tree(preset)
-    model = {k: v for k, v in scenario["plant"].items() if k != "preset"}
-    tree["model"] = _merge(tree["model"], model)
-    tree["pneumatics"] = _merge(tree["pneumatics"], scenario["actuator"].get("pneumatics") or {})
-    tree["paper_units"] = scenario["paper_units"]
+    sc = as_scenario(scenario)
+    tree = identify_module.default_tree(sc.plant.preset)
+    tree["model"] = _merge(tree["model"], sc.plant.model_dump(exclude={"preset"}))
+    tree["pneumatics"] = _merge(tree["pneumatics"], sc.actuator.pneumatics.model_dump())
+    tree["paper_units"] = sc.paper_units
     # the plant as the joint loops drive it: with their valve dither (controllers.dither)
-    inner = scenario["controller"]["inner"]
-    tree["identify"]["dither_v"] = float(inner["dither_v"])
-    tree["identify"]["dither_period_ms"] = float(inner["dither_period_ms"])
+    inner = sc.controller.inner
+    tree["identify"]["dither_v"] = float(inner.dither_v)
+    tree["identify"]["dither_period_ms"] = float(inner.dither_period_ms)
     return tree
 
 
@@ -134,21 +132,19 @@ def plant_hash(tree: Mapping) -> str:
     return hashlib.sha256(text.encode()).hexdigest()
 
 
-def _is_presets_plant(scenario: Mapping) -> bool:
+def _is_presets_plant(sc: Scenario) -> bool:
     """The scenario's plant and pneumatics are what its preset resolves to with no
     plant key of the scenario's own (the shipped as-built errors included): the
     preset's models stand for it."""
-
-    preset = scenario["plant"]["preset"]
+    preset = sc.plant.preset
     base = _merge(DEFAULT_SCENARIO, scenario_overlay(preset))
     base["plant"]["preset"] = preset
 
-    def text(tree):
-        return json.dumps(
-            [tree["plant"], tree["actuator"].get("pneumatics") or {}], sort_keys=True, default=str
-        )
+    def text(plant, pneumatics) -> str:
+        return json.dumps([plant, pneumatics or {}], sort_keys=True, default=str)
 
-    return text(scenario) == text(base)
+    own = text(sc.plant.model_dump(), sc.actuator.pneumatics.model_dump())
+    return own == text(base["plant"], base["actuator"].get("pneumatics"))
 
 
 def _models(doc) -> dict:
@@ -173,19 +169,19 @@ def identified_models(scenario: Scenario | Mapping, progress=None) -> tuple[dict
     ``"cache"`` or ``"identified"`` (the experiment ran now). ``progress``, when
     given, is called with a one-line message before an experiment.
     """
-    scenario = as_tree(scenario)
-    inner = scenario["controller"]["inner"]
-    given = {a: dict(inner["identified"][a]) for a in _ACTS}
-    if inner.get("identify", "auto") == "preset":
+    sc = as_scenario(scenario)
+    inner = sc.controller.inner
+    given = inner.identified.model_dump()
+    if inner.identify == "preset":
         return given, "preset"
-    if inner.get("identify") == "linearised":  # the model's own, no experiment
+    if inner.identify == "linearised":  # the model's own, no experiment
         from simpro_mj.identification.linearised import linearise
 
-        got = linearise(plant_tree(scenario))
+        got = linearise(plant_tree(sc))
         return {a: {k: float(got[a][k]) for k in ("b", "a1", "a0")} for a in _ACTS}, "linearised"
-    if _is_presets_plant(scenario):
+    if _is_presets_plant(sc):
         return given, "preset"
-    tree = plant_tree(scenario)
+    tree = plant_tree(sc)
     h = plant_hash(tree)
     # one experiment per plant in this process: a batch's threads that need the same
     # new plant wait for the first instead of running it again
@@ -216,13 +212,13 @@ def experiment_s(scenario: Scenario | Mapping) -> float:
     plant, ``identify: preset``, or the plant's models in the cache), else per record
     (three, or one with ``identify.excitation: all_legs``) the settling time and the
     excitation."""
-    scenario = as_tree(scenario)
-    inner = scenario["controller"]["inner"]
-    if inner["design_plant"] != "identified" or inner.get("identify", "auto") != "auto":
+    sc = as_scenario(scenario)
+    inner = sc.controller.inner
+    if inner.design_plant != "identified" or inner.identify != "auto":
         return 0.0
-    if _is_presets_plant(scenario):
+    if _is_presets_plant(sc):
         return 0.0
-    tree = plant_tree(scenario)
+    tree = plant_tree(sc)
     h = plant_hash(tree)
     if h in _memo or (cache_dir() / f"{h}.json").is_file():
         return 0.0
@@ -238,19 +234,14 @@ def with_identified(scenario: Scenario | Mapping, progress=None) -> tuple[Scenar
     paper's design plants the identified models only linearise the plant for the
     preflight's analysis, which keeps the preset's (no experiment per variant of a
     Monte-Carlo sweep). A typed scenario comes back typed."""
-    tree = as_tree(scenario)
-    if tree["controller"]["inner"]["design_plant"] != "identified":
+    sc = as_scenario(scenario)
+    if sc.controller.inner.design_plant != "identified":
         notices.phase("simulating")
         return scenario, "preset"
-    models, source = identified_models(tree, progress)
+    models, source = identified_models(sc, progress)
     notices.phase("simulating")  # the design plants are known: the run proper follows
     if source == "preset":
         return scenario, source
-    if isinstance(scenario, Scenario):
-        typed = scenario.model_copy(deep=True)
-        typed.controller.inner.identified = Identified.model_validate(models)
-        return typed, source
-    out = dict(scenario)
-    ctl = out["controller"] = dict(scenario["controller"])
-    ctl["inner"] = dict(ctl["inner"], identified=models)
-    return out, source
+    typed = sc.model_copy(deep=True)
+    typed.controller.inner.identified = Identified.model_validate(models)
+    return (typed if isinstance(scenario, Scenario) else typed.model_dump()), source
