@@ -103,23 +103,14 @@ def _axis_qp(law: ModelPredictiveCueing, k: int, d: np.ndarray, N: int):
     free = np.zeros((N + 1, n))
     for i in range(N):
         free[i + 1] = A @ free[i] + B[:, 1:3] @ d[i]
-    rows = pr.rows
-    lo = -np.ones((N, rows))
-    hi = np.ones((N, rows))
+    rows, cveh = pr.rows, None
     if pr.veh is not None:
         vrow = pr.veh[0][0, :n]
         vd = pr.veh[1][0, 2:4]
         cveh = free[1:] @ vrow + d[1:] @ vd
         wv = d[:, 1]
         cveh = cveh + ax.tau_n * np.gradient(wv)[1:] / p.period / ax.thr_w
-        lim = law._rotation_limit(ax.kind)
-        lo[:, pr.felt] = np.minimum(cveh, 0.0) - lim
-        hi[:, pr.felt] = np.maximum(cveh, 0.0) + lim
-    if pr.jolt is not None:
-        target = d[1:, 0]
-        thr = ax.thr_f * ax.kf
-        lo[:, pr.jolt] = np.where(target > thr, -1.0, -np.inf)
-        hi[:, pr.jolt] = np.where(target < -thr, 1.0, np.inf)
+    lo, hi = pr.bounds(ax, cveh, d[1:, 0], law._rotation_limit(ax.kind), N)
     Ain = sparse.hstack(
         [sparse.kron(sparse.eye(N), sparse.csc_matrix(sel)), sparse.csc_matrix((N * rows, N))]
     )

@@ -55,6 +55,21 @@ class AxisPrediction:
     jolt: int | None
     shift: np.ndarray
 
+    def bounds(self, ax: MpcAxis, cveh, target, limit: float, n: int):
+        """The constrained rows' bounds over ``n`` samples, (n, rows) each: +-1 (the
+        pose's limits); the felt rotation within ``limit`` thresholds of the vehicle's
+        ``cveh``; where the car's specific force ``target`` is past the otoliths'
+        threshold, the head's not the other way by more than jolt_limit (its units)."""
+        lo, hi = -np.ones((n, self.rows)), np.ones((n, self.rows))
+        if cveh is not None:
+            lo[:, self.felt] = np.minimum(cveh, 0.0) - limit
+            hi[:, self.felt] = np.maximum(cveh, 0.0) + limit
+        if self.jolt is not None:
+            thr = ax.thr_f * ax.kf  # the car's past its threshold
+            lo[:, self.jolt] = np.where(target > thr, -1.0, -np.inf)
+            hi[:, self.jolt] = np.where(target < -thr, 1.0, np.inf)
+        return lo, hi
+
 
 class MpcAxis:
     """One channel's linear model: state, inputs (jerk, vehicle f, vehicle w) and the

@@ -372,26 +372,18 @@ class ModelPredictiveCueing:
             yfree = pr.CY @ free + pr.DY @ d
             q_parts.append(2.0 * pr.G.T @ yfree)
             sfree = pr.S @ free
-            low, high = -np.ones(sfree.size), np.ones(sfree.size)
+            ax, cveh = self.axes[k], None
             if pr.veh is not None:  # the vehicle's felt rotation (free of the jerks)
                 cveh = pr.veh[0] @ free + pr.veh[1] @ d
                 # the neural lead on the vehicle's side: tau_n times its rate's change
                 wv = d[1::2]
-                lead = self.axes[k].tau_n * np.gradient(wv) / self.params.period
-                cveh = cveh + lead / self.axes[k].thr_w
-                r = self._rotation_limit(self.axes[k].kind)
-                low[3 :: pr.rows] = np.minimum(cveh, 0.0) - r
-                high[3 :: pr.rows] = np.maximum(cveh, 0.0) + r
-            if pr.jolt is not None:
-                # where the car's specific force is past the otoliths' threshold, the
-                # head's may not go the other way by more than jolt_limit (in its units)
-                target = pr.shift @ d[0::2]
-                thr = self.axes[k].thr_f * self.axes[k].kf  # the car's past its threshold
-                j = pr.jolt
-                low[j :: pr.rows] = np.where(target > thr, -1.0, -np.inf)
-                high[j :: pr.rows] = np.where(target < -thr, 1.0, np.inf)
-            lo_parts.append(low - sfree)
-            hi_parts.append(high - sfree)
+                lead = ax.tau_n * np.gradient(wv) / self.params.period
+                cveh = cveh + lead / ax.thr_w
+            # the car's specific force at each sample
+            target = None if pr.jolt is None else pr.shift @ d[0::2]
+            low, high = pr.bounds(ax, cveh, target, self._rotation_limit(ax.kind), N)
+            lo_parts.append(low.ravel() - sfree)
+            hi_parts.append(high.ravel() - sfree)
         q = np.concatenate(q_parts)
         lo, hi = np.concatenate(lo_parts), np.concatenate(hi_parts)
         # infeasible bounds (a state already outside, e.g. after a limit change) are opened
