@@ -27,13 +27,12 @@ from __future__ import annotations
 
 import copy
 import json
-from collections.abc import Mapping
 from pathlib import Path
 
 from simpro_mj.analysis.cue_metrics import cue_metrics
 from simpro_mj.analysis.metrics import compute_metrics
 from simpro_mj.analysis.preflight import preflight
-from simpro_mj.config.models import Scenario, as_tree
+from simpro_mj.config.models import Scenario
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.interrupts import writing
 from simpro_mj.report.results import write_results
@@ -46,21 +45,22 @@ __all__ = ["MAX_LOG_BYTES", "actuator_tracking", "execute_live", "live_scenario"
 MAX_LOG_BYTES = 1 << 30
 
 
-def live_scenario(scenario: Scenario | Mapping, duration_s: float | None) -> dict:
-    """The scenario a session runs: ``duration_s`` the session's (default: the scenario's)."""
-    out = copy.deepcopy(dict(as_tree(scenario)))
+def live_scenario(scenario: Scenario, duration_s: float | None) -> dict:
+    """The scenario a session runs, as its resolved dict: ``duration_s`` the session's
+    (default: the scenario's)."""
     if duration_s is not None:
-        out["duration_s"] = float(duration_s)
-    rows = out["duration_s"] / 1e-3 / int(out["logging"]["decimation"]) + 1
+        scenario = scenario.model_copy(update={"duration_s": float(duration_s)})
+    every = scenario.logging.decimation
+    rows = scenario.duration_s / 1e-3 / every + 1
     nbytes = rows * 8 * 60  # the log's columns, qpos, the head sensors
     if nbytes > MAX_LOG_BYTES:
-        need = int(rows * 8 * 60 * int(out["logging"]["decimation"]) // MAX_LOG_BYTES) + 1
+        need = int(rows * 8 * 60 * every // MAX_LOG_BYTES) + 1
         raise UserInputError(
-            f"invalid value at --duration: {out['duration_s']:g} s logs {nbytes / 2**20:.0f} MiB "
-            f"at logging.decimation {out['logging']['decimation']}; allowed: a shorter session "
-            f"or --set logging.decimation={need} or more"
+            f"invalid value at --duration: {scenario.duration_s:g} s logs "
+            f"{nbytes / 2**20:.0f} MiB at logging.decimation {every}; allowed: a shorter "
+            f"session or --set logging.decimation={need} or more"
         )
-    return out
+    return scenario.model_dump()
 
 
 def actuator_tracking(columns) -> dict:
