@@ -161,14 +161,7 @@ def manoeuvre_spec(man: CueManoeuvre):
     # which only a scenario with a manoeuvre needs
     from simpro_mj.config.manoeuvres import ManoeuvreSpec
 
-    assert man.type is not None and man.speed_kmh is not None  # required (CueManoeuvre)
-    return ManoeuvreSpec(
-        manoeuvre=man.type,
-        speed_kmh=man.speed_kmh,
-        vehicle=man.vehicle,
-        deceleration_mps2=man.deceleration_mps2,
-        bump_height_m=man.bump_height_m,
-        bump_length_m=man.bump_length_m,
-        lead_s=man.lead_s,
-        tyre_offsets=man.tyre_offsets,
-    )
+    assert man.type is not None  # required (CueManoeuvre)
+    # the block's keys are the spec's fields, ``type`` its ``manoeuvre``
+    # (its values as given: a refused one is checked by the spec, never serialised)
+    return ManoeuvreSpec(manoeuvre=man.type, **{k: v for k, v in man if k != "type"})
