@@ -3,7 +3,7 @@
 numba is a dependency of the package (not an extra), so the README's first command
 runs the compiled step. A first compile is announced on one line and kept out of the
 run's ``realtime_factor``; ``metrics.json`` records it under ``sim.wall_clock``.
-The compile of the real step takes half a minute, so the announcing is tested on a
+The compile of the real step takes 40-45 s, so the announcing is tested on a
 module of one small function compiled the same way (numba's ``numba:compile`` events).
 """
 

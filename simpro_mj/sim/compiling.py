@@ -2,7 +2,7 @@
 
 numba compiles the 1 ms step (:mod:`simpro_mj.sim.step`, made MuJoCo's control
 callback by :mod:`simpro_mj.sim.callback`) when the callback module is first
-imported: once per installation, about half a minute on two cores, and then in
+imported: once per installation, 40-45 s on two cores, and then in
 about a second from numba's on-disk cache. :func:`prepare_step` does that
 import ahead of the simulation, so that
 
@@ -34,7 +34,7 @@ CALLBACK_MODULE = "simpro_mj.sim.callback"
 
 #: What a first run is told when numba starts compiling (stderr, one line).
 COMPILE_NOTE = (
-    "compiling the 1 ms step with numba: once per installation, about half a minute "
+    "compiling the 1 ms step with numba: once per installation, under a minute "
     "on two cores (later runs load it from the cache in about a second)"
 )
 
