@@ -11,7 +11,7 @@ import pytest
 
 from controllers.geometry import nominal_geometry
 from controllers.mpc_cueing import ModelPredictiveCueing
-from simpro_mj.config.cueing import washout_params
+from simpro_mj.config.cue_params import washout_params
 from simpro_mj.config.scenario import load_scenario
 from simpro_mj.sim.cue_worker import CueWorker
 from simpro_mj.sim.scheduling import cpu_split

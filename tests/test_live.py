@@ -610,7 +610,7 @@ def test_after_the_feed_stops_the_set_point_goes_home_and_stays_for_the_mpc():
     target and its rate and position weights: the otoliths' slow error does not let it coast)."""
     from controllers.geometry import nominal_geometry
     from controllers.mpc_cueing import ModelPredictiveCueing
-    from simpro_mj.config.cueing import washout_params
+    from simpro_mj.config.cue_params import washout_params
     from simpro_mj.config.scenario import load_scenario
     from simpro_mj.sim.live import HOME_S
 
@@ -689,7 +689,7 @@ def test_the_simulated_platform_is_home_within_3_s_after_a_biased_feed_stops():
     pose is within 1 mm and 0.05 deg of home; the set-point goes there within the MPC's
     own rate and acceleration limits (15 deg/s, 30 deg/s^2; 0.2 m/s, 3 m/s^2)."""
     from controllers.mpc_cueing import ModelPredictiveCueing
-    from simpro_mj.config.cueing import washout_params
+    from simpro_mj.config.cue_params import washout_params
     from simpro_mj.config.scenario import load_scenario
     from simpro_mj.sim.build import Build
     from simpro_mj.sim.live import HOME_S, LiveOptions

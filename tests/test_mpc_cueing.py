@@ -187,7 +187,7 @@ def test_the_jolt_limit_gives_way_before_the_felt_rotation():
     again without the jolt limit only, and the felt-pitch limit still holds but once
     (with both given up at every such solve the head felt 0.44 s of false pitch there
     through the loop's model)."""
-    from simpro_mj.config.cueing import washout_params
+    from simpro_mj.config.cue_params import washout_params
     from simpro_mj.config.scenario import load_scenario
     from simpro_mj.config.telemetry import read_telemetry
 

@@ -68,7 +68,8 @@ from simpro_mj.analysis.response import (
     window,
 )
 from simpro_mj.analysis.response_summary import Bode, loop_model
-from simpro_mj.config.cueing import vehicle_input, washout_params
+from simpro_mj.config.cue_params import washout_params
+from simpro_mj.config.cueing import vehicle_input
 from simpro_mj.config.models import check_cueing
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.plant.model import assemble

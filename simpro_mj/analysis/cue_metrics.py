@@ -215,7 +215,7 @@ def bound_block(col: Mapping, dt: float, scenario: Mapping, veh, model: Vestibul
     against the vehicle's perceived ``veh``; ``status`` per axis, ``solve_s``."""
     from controllers.cue_bound import cue_bound
     from controllers.cue_mpc_params import MpcParams
-    from simpro_mj.config.cueing import washout_params
+    from simpro_mj.config.cue_params import washout_params
 
     n = col["time_s"].size if "time_s" in col else len(next(iter(col.values())))
     if n * dt > BOUND_MAX_S:

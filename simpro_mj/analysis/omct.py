@@ -130,7 +130,7 @@ def law_blocks(names: Sequence[str] | None = None) -> dict:
 
 
 def _law(block: Mapping):
-    from simpro_mj.config.cueing import washout_params
+    from simpro_mj.config.cue_params import washout_params
 
     params = washout_params(block)
     if block["algorithm"] == "mpc":

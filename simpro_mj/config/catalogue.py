@@ -2,7 +2,7 @@
 each with the one line that says what it is (``simpro-sim list``).
 
 Found through the functions that load them (:func:`simpro_mj.config.scenario.scenarios_dir`,
-:func:`simpro_mj.config.presets.presets_dir`, :data:`simpro_mj.config.cueing.TELEMETRY_DIR`),
+:func:`simpro_mj.config.presets.presets_dir`, :data:`simpro_mj.core.shipped.TELEMETRY_DIR`),
 so the listing is what ``run``, ``plant.preset`` and ``setpoint.cueing.telemetry`` accept.
 """
 
@@ -12,9 +12,9 @@ from pathlib import Path
 
 import yaml
 
-from simpro_mj.config.cueing import TELEMETRY_DIR
 from simpro_mj.config.presets import presets_dir, shipped_presets
 from simpro_mj.config.scenario import scenarios_dir, shipped_scenarios
+from simpro_mj.core.shipped import TELEMETRY_DIR
 
 __all__ = ["catalogue"]
 

@@ -57,7 +57,6 @@ if TYPE_CHECKING:
     from simpro_mj.config.models import Scenario
 
 __all__ = [
-    "TELEMETRY_DIR",
     "resolve_paths",
     "sine_input",
     "step_input",

@@ -403,7 +403,7 @@ def run_session(scenario: dict, options: LiveOptions, say=None, checks=None) -> 
     sender = rig = law = None
     try:
         # on use, once the port is ours: scipy's filter design and MuJoCo take seconds
-        from simpro_mj.config.cueing import washout_params
+        from simpro_mj.config.cue_params import washout_params
         from simpro_mj.core.rates import steps_per_period
         from simpro_mj.sim.build import Build
 
