@@ -383,16 +383,28 @@ def _set(tree: dict, key: str, value: Any) -> None:
         node[last] = value
 
 
-#: (path of blocks, key, default): left out of the hash at the default
-_HASHED_UNLESS_DEFAULT = (
-    (("controller", "outer"), "joint_lag", "none"),
-    (("controller", "inner"), "anti_windup", "back_calculation"),
-    (("controller", "inner"), "tracking_time_ms", 50.0),
-    (("controller", "outer", "dead_band"), "kind", "subtract"),
-    (("controller", "outer", "dead_band"), "release", 1.0),
-    (("actuator", "pneumatics", "cylinder"), "stick_time_constant_ms", 2.0),
-    (("actuator", "pneumatics", "cylinder"), "stick_impedance", 0.9999),
+#: (path of blocks, key): left out of the hash where it holds its default
+_DEFAULT_KEYS = (
+    (("controller", "outer"), "joint_lag"),
+    (("controller", "inner"), "anti_windup"),
+    (("controller", "inner"), "tracking_time_ms"),
+    (("controller", "outer", "dead_band"), "kind"),
+    (("controller", "outer", "dead_band"), "release"),
+    (("actuator", "pneumatics", "cylinder"), "stick_time_constant_ms"),
+    (("actuator", "pneumatics", "cylinder"), "stick_impedance"),
 )
+
+
+def _default_at(path: tuple, key: str):
+    """The value of ``key`` at ``path`` in :data:`DEFAULT_SCENARIO`."""
+    node: Any = DEFAULT_SCENARIO
+    for part in path:
+        node = node[part]
+    return node[key]
+
+
+#: (path of blocks, key, its default in :data:`DEFAULT_SCENARIO`)
+_HASHED_UNLESS_DEFAULT = tuple((p, k, _default_at(p, k)) for p, k in _DEFAULT_KEYS)
 
 
 def _without_default(tree: Mapping, path: tuple, key: str, default) -> Mapping:
