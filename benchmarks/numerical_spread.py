@@ -87,7 +87,8 @@ def _last_swing(columns) -> list:
     ]
 
 
-def _summary(runs: list, floor: float) -> dict:
+def _summary(runs: list, statuses: list, floor: float) -> dict:
+    """One axis over the seeds: ``runs`` (overshoot %, settling s or None) per seed."""
     ov = [r[0] for r in runs]
     st = [r[1] if r[1] is not None else float("inf") for r in runs]
     return {
@@ -96,7 +97,10 @@ def _summary(runs: list, floor: float) -> dict:
         "settling_median_s": statistics.median(st),
         "settling_range_s": [min(st), max(st)],
         "overshoot_max_pct": max(ov),
-        "meet": sum(o <= OVERSHOOT_FLOOR and s <= floor for o, s in zip(ov, st, strict=True)),
+        "meet": sum(
+            ok == "ok" and o <= OVERSHOOT_FLOOR and s <= floor
+            for ok, o, s in zip(statuses, ov, st, strict=True)
+        ),
     }
 
 
@@ -113,27 +117,26 @@ def measure(seeds, seals=(450.0, 750.0), jobs: int = 2) -> dict:
         per = out["variants"][v] = {}
         for name, floor in SCENARIOS.items():
             rows = sorted((r for r in done if r[0] == v and r[1] == name), key=lambda r: r[2])
-            per[name] = {"status": [r[3] for r in rows]}
-            per[name]["last_3s_pp_max"] = [max(r[5][k] for r in rows) for k in range(3)]
-            per[name]["ok_but_swinging"] = sum(
-                r[3] == "ok" and any(a > b for a, b in zip(r[5], SWING, strict=True)) for r in rows
-            )
-            for axis in rows[0][4]:
-                got = [r[4][axis] for r in rows]
-                per[name][axis] = _summary(got, floor)
-                per[name][axis]["ok_and_meet"] = sum(
-                    r[3] == "ok" and g[0] <= OVERSHOOT_FLOOR and (g[1] or 1e9) <= floor
-                    for r, g in zip(rows, got, strict=True)
-                )
+            statuses = [r[3] for r in rows]
+            per[name] = {
+                "status": statuses,
+                "last_3s_pp_max": [max(r[5][k] for r in rows) for k in range(3)],
+                "ok_but_swinging": sum(
+                    r[3] == "ok" and any(a > b for a, b in zip(r[5], SWING, strict=True))
+                    for r in rows
+                ),
+                "axes": {
+                    axis: _summary([r[4][axis] for r in rows], statuses, floor)
+                    for axis in rows[0][4]
+                },
+            }
     base = out["variants"]["shipped"]
     for v in VARIANTS:
         if v == "shipped":
             continue
         for name in SCENARIOS:
-            for axis, fig in out["variants"][v][name].items():
-                if axis in ("status", "last_3s_pp_max", "ok_but_swinging"):
-                    continue
-                ref = base[name][axis]
+            for axis, fig in out["variants"][v][name]["axes"].items():
+                ref = base[name]["axes"][axis]
                 fig["settling_median_ratio"] = fig["settling_median_s"] / ref["settling_median_s"]
                 fig["settling_p"] = float(mannwhitneyu(fig["settling_s"], ref["settling_s"]).pvalue)
                 fig["overshoot_p"] = float(
