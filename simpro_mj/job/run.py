@@ -185,12 +185,11 @@ class Run(Build):
         *,
         quiet: bool = False,
         progress=_stepping,
-        pace=None,
         bar: bool = False,
         stop=None,
     ) -> RunOutcome:
         """Preflight, simulate and measure; warnings on stderr unless ``quiet``.
-        ``progress``, ``pace`` and ``stop`` (the run's stop token) go to
+        ``progress`` and ``stop`` (the run's stop token) go to
         :meth:`simpro_mj.sim.loop.CoSimulation.run`.
 
         Between the preflight and the simulation the compiled step is loaded
@@ -208,7 +207,7 @@ class Run(Build):
         warnings, figures = self.preflight()
         warn(warnings, quiet)
         loaded = prepare_step(say=None if quiet else note, bar=bar)
-        res = self.simulation().run(progress, pace=pace, stop=stop)
+        res = self.simulation().run(progress, stop=stop)
         res.sim.update(loaded)
         metrics = compute_metrics(res.columns, res.scenario)
         if res.status == "ok":  # ran to its end: does the pose settle? (analysis.verdict)
