@@ -1,6 +1,7 @@
 """The cabin's step figures under halved and doubled numerical parameters, over seeds.
 
     python benchmarks/numerical_spread.py [--seeds 1 .. 10] [--seals 450 750] [--jobs 2]
+                                          [--null-seeds 11 .. 20] [--variants shipped ...]
 
 Seals that stick make a settling time a discontinuous function of anything that
 moves a run by a micrometre: a seal breaks away a step earlier or later, the
@@ -29,7 +30,12 @@ than 0.05 deg or 0.5 mm (none should); and for
 each variant against the shipped numerics the ratio of the medians and the
 two-sided Mann-Whitney U p-value (scipy.stats.mannwhitneyu): a small p says
 the numerical parameter moves the figure's distribution beyond the seeds' own
-spread. CPU-bound: on two cores 10 seeds take a few minutes.
+spread. With ``--null-seeds`` the shipped numerics also run at those other
+seeds, compared with the shipped runs the same way (``shipped_other_seeds``):
+the ratio of medians that the noise seed alone gives, the yardstick for the
+variants' ratios (a median of ten runs of a two-mode figure moves by more
+than 10 % with the seeds drawn). CPU-bound: on two cores 10 seeds take a few
+minutes.
 """
 
 from __future__ import annotations
@@ -59,12 +65,14 @@ def _one(job: tuple) -> tuple:
     variant, name, seed, seals = job
     from simpro_mj.api import run
 
+    numerics = VARIANTS.get(variant, {})  # the null variant: the shipped numerics
+
     sets = {
         "plant.preset": "heavy_cabin",
         f"{CYL}.coulomb_friction_n": [seals[0]] * 3,
         f"{CYL}.breakaway_friction_n": [seals[1]] * 3,
         "seed": seed,
-        **VARIANTS[variant],
+        **numerics,
     }
     r = run(name, sets)
     m = r.metrics
@@ -104,16 +112,23 @@ def _summary(runs: list, statuses: list, floor: float) -> dict:
     }
 
 
-def measure(seeds, seals=(450.0, 750.0), jobs: int = 2) -> dict:
-    """Run every variant, scenario and seed (module docstring) and summarise."""
+NULL = "shipped_other_seeds"  # the shipped numerics at the --null-seeds
+
+
+def measure(seeds, seals=(450.0, 750.0), jobs: int = 2, null_seeds=(), variants=None) -> dict:
+    """Run every variant (or those named), scenario and seed and summarise."""
     from scipy.stats import mannwhitneyu
 
-    todo = [(v, n, s, seals) for v in VARIANTS for n in SCENARIOS for s in seeds]
+    chosen = ["shipped", *(v for v in variants or VARIANTS if v != "shipped")]
+    todo = [(v, n, s, seals) for v in chosen for n in SCENARIOS for s in seeds]
+    todo += [(NULL, n, s, seals) for n in SCENARIOS for s in null_seeds]
     ctx = multiprocessing.get_context("spawn")
     with ProcessPoolExecutor(max_workers=jobs, mp_context=ctx) as pool:
         done = list(pool.map(_one, todo))
-    out: dict = {"seeds": list(seeds), "seals_n": list(seals), "variants": {}}
-    for v in VARIANTS:
+    names = [*chosen, NULL] if null_seeds else chosen
+    out: dict = {"seeds": list(seeds), "null_seeds": list(null_seeds),
+                 "seals_n": list(seals), "variants": {}}  # fmt: skip
+    for v in names:
         per = out["variants"][v] = {}
         for name, floor in SCENARIOS.items():
             rows = sorted((r for r in done if r[0] == v and r[1] == name), key=lambda r: r[2])
@@ -131,7 +146,7 @@ def measure(seeds, seals=(450.0, 750.0), jobs: int = 2) -> dict:
                 },
             }
     base = out["variants"]["shipped"]
-    for v in VARIANTS:
+    for v in names:
         if v == "shipped":
             continue
         for name in SCENARIOS:
@@ -151,10 +166,20 @@ def main(argv=None) -> int:
     p.add_argument("--seals", type=float, nargs=2, default=[450.0, 750.0],
                    metavar=("COULOMB_N", "BREAKAWAY_N"))  # fmt: skip
     p.add_argument("--jobs", type=int, default=2)
+    p.add_argument("--null-seeds", type=int, nargs="*", default=[])
+    p.add_argument("--variants", nargs="+", choices=list(VARIANTS), default=list(VARIANTS))
     a = p.parse_args(argv)
     if len(a.seeds) < 3 or any(not 0 <= s < 2**31 for s in a.seeds):
         print("error: invalid value at --seeds: allowed: three or more of 0..2^31-1",
               file=sys.stderr)  # fmt: skip
+        return 2
+    if a.null_seeds and (
+        len(a.null_seeds) < 3
+        or set(a.null_seeds) & set(a.seeds)
+        or any(not 0 <= s < 2**31 for s in a.null_seeds)
+    ):
+        print("error: invalid value at --null-seeds: allowed: three or more of 0..2^31-1, "
+              "none of --seeds", file=sys.stderr)  # fmt: skip
         return 2
     if not 0 <= a.seals[0] <= a.seals[1] <= 5000:
         print("error: invalid value at --seals: allowed: 0 <= Coulomb <= breakaway <= 5000 N",
@@ -163,7 +188,8 @@ def main(argv=None) -> int:
     if not 1 <= a.jobs <= 64:
         print("error: invalid value at --jobs: allowed: 1..64", file=sys.stderr)
         return 2
-    print(json.dumps(measure(tuple(a.seeds), tuple(a.seals), a.jobs), indent=1))
+    out = measure(tuple(a.seeds), tuple(a.seals), a.jobs, tuple(a.null_seeds), a.variants)
+    print(json.dumps(out, indent=1))
     return 0
 
 
