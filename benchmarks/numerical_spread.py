@@ -32,10 +32,11 @@ two-sided Mann-Whitney U p-value (scipy.stats.mannwhitneyu): a small p says
 the numerical parameter moves the figure's distribution beyond the seeds' own
 spread. With ``--null-seeds`` the shipped numerics also run at those other
 seeds, compared with the shipped runs the same way (``shipped_other_seeds``):
-the ratio of medians that the noise seed alone gives, the yardstick for the
-variants' ratios (a median of ten runs of a two-mode figure moves by more
-than 10 % with the seeds drawn). CPU-bound: on two cores 10 seeds take a few
-minutes.
+the ratio of medians that the noise seed alone gives, and (``seed_ratio_95``
+beside the shipped figures) the range of that ratio over 95 % of random
+splits of the pooled shipped runs: the yardstick for the variants' ratios
+(a median of ten runs of a two-mode figure moves by more than 10 % with the
+seeds drawn). CPU-bound: on two cores 10 seeds take a few minutes.
 """
 
 from __future__ import annotations
@@ -157,7 +158,24 @@ def measure(seeds, seals=(450.0, 750.0), jobs: int = 2, null_seeds=(), variants=
                 fig["overshoot_p"] = float(
                     mannwhitneyu(fig["overshoot_pct"], ref["overshoot_pct"]).pvalue
                 )
+    if null_seeds:  # the ratio two halves of the shipped runs give, 95 % of the splits
+        for name in SCENARIOS:
+            for axis, ref in base[name]["axes"].items():
+                pool = ref["settling_s"] + out["variants"][NULL][name]["axes"][axis]["settling_s"]
+                ref["seed_ratio_95"] = _split_ratios(pool, len(seeds))
     return out
+
+
+def _split_ratios(pool: list, n: int, draws: int = 4000) -> list:
+    """The 2.5 and 97.5 % points of median(n drawn) / median(the rest) over random splits."""
+    import random
+
+    rng, ratios = random.Random(0), []
+    for _ in range(draws):
+        s = rng.sample(pool, len(pool))
+        ratios.append(statistics.median(s[:n]) / statistics.median(s[n:]))
+    ratios.sort()
+    return [ratios[int(0.025 * draws)], ratios[int(0.975 * draws) - 1]]
 
 
 def main(argv=None) -> int:
