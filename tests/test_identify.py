@@ -194,20 +194,20 @@ def test_experiment_on_the_compiled_step_matches_the_interpreted_one(monkeypatch
         monkeypatch.setenv("SIMPRO_KERNEL", kernel)
         recs[kernel] = run_experiment(copy.deepcopy(tree), 2)
     a, b = recs["python"], recs["numba"]
-    assert np.abs(a["qdot"]).max() > 1e-3  # the PRBS moved the slide
+    assert np.abs(a.qdot).max() > 1e-3  # the PRBS moved the slide
     for key in ("u", "q", "qdot", "q_all"):
-        assert np.array_equal(b[key], a[key]), key
-    fits = [fit_eq19(r["u"], r["qdot"], r["dt"], skip=50) for r in (a, b)]
+        assert np.array_equal(getattr(b, key), getattr(a, key)), key
+    fits = [fit_eq19(r.u, r.qdot, r.dt, skip=50) for r in (a, b)]
     assert fits[0] == fits[1]
     # the law acted on leg 2: its P law on the true slide, the dither, the sequence
     ip = tree["identify"]
-    n = a["u"].size
+    n = a.u.size
     prbs = ip["prbs_amplitude_v"][1] * _prbs(n, 20, ip["prbs_bits"], ip["seed"])
     dither = np.where((np.arange(200, 200 + n) // 20) % 2 == 0, 1.0, -1.0)
     q_ref = float(ip["position_mm"]) * 1e-3
-    law = (q_ref - a["q"]) * ip["kp_v_per_m"][1] + a["u_hold"][1] + dither + prbs
-    assert np.array_equal(a["u"], np.clip(law, 0.0, 10.0))
-    assert np.ptp(a["u"]) > 2.0 * ip["prbs_amplitude_v"][1]  # the sequence and the dither
+    law = (q_ref - a.q) * ip["kp_v_per_m"][1] + a.u_hold[1] + dither + prbs
+    assert np.array_equal(a.u, np.clip(law, 0.0, 10.0))
+    assert np.ptp(a.u) > 2.0 * ip["prbs_amplitude_v"][1]  # the sequence and the dither
 
 
 def test_experiment_law_excites_one_leg_and_holds_the_valves_range():
@@ -252,17 +252,17 @@ def test_all_legs_at_once_one_record_the_same_compiled_and_interpreted(monkeypat
         recs[kernel] = run_experiment_all_legs(copy.deepcopy(tree))
     ip = tree["identify"]
     q_ref = float(ip["position_mm"]) * 1e-3
-    n = recs["python"][1]["u"].size
+    n = recs["python"][1].u.size
     dither = np.where((np.arange(200, 200 + n) // 20) % 2 == 0, 1.0, -1.0)
     shifts = [ip["seed"] + j * ((2 ** ip["prbs_bits"] - 1) // 3) for j in range(3)]
     for leg in (1, 2, 3):
         a, b = recs["python"][leg], recs["numba"][leg]
         for key in ("u", "q", "qdot", "q_all"):
-            assert np.array_equal(b[key], a[key]), (leg, key)
-        assert np.abs(a["qdot"]).max() > 1e-3  # every slide moved
+            assert np.array_equal(getattr(b, key), getattr(a, key)), (leg, key)
+        assert np.abs(a.qdot).max() > 1e-3  # every slide moved
         prbs = ip["prbs_amplitude_v"][leg - 1] * _prbs(n, 20, ip["prbs_bits"], shifts[leg - 1])
-        law = (q_ref - a["q"]) * ip["kp_v_per_m"][leg - 1] + a["u_hold"][leg - 1] + (dither + prbs)
-        np.testing.assert_allclose(a["u"], np.clip(law, 0.0, 10.0), rtol=0, atol=1e-12)
+        law = (q_ref - a.q) * ip["kp_v_per_m"][leg - 1] + a.u_hold[leg - 1] + (dither + prbs)
+        np.testing.assert_allclose(a.u, np.clip(law, 0.0, 10.0), rtol=0, atol=1e-12)
     # the three sequences over a whole period: uncorrelated (an m-sequence's shifts: -1/N)
     seqs = [_prbs(1023, 1, 10, s) for s in shifts]
     for i, j in ((0, 1), (0, 2), (1, 2)):

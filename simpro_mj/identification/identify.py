@@ -41,6 +41,7 @@ eqs. (34) and (35) in SI under the ``paper_units`` reading of the tree
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass, replace
 
 import mujoco
 import numpy as np
@@ -57,6 +58,7 @@ from simpro_mj.core.errors import PhysicsError, UserInputError
 from simpro_mj.identification.settings import (
     DEFAULT_IDENTIFY_PARAMS,
     FIT_METHODS,
+    Settings,
     check_tree,
     default_tree,
     leg_values,
@@ -79,6 +81,7 @@ __all__ = [
     "check_tree",
     "paper_models",
     "document",
+    "Record",
     "run_experiment",
     "run_experiment_all_legs",
     "fit_eq19",
@@ -118,15 +121,29 @@ def _prbs(n_steps: int, clock: int, bits: int, seed: int) -> np.ndarray:
     return np.repeat(np.tile(seq, reps)[:n_bits], clock)[:n_steps]
 
 
-def run_experiment(tree: dict, leg: int, model=None) -> dict:
-    """Run the Fig. 12 experiment on ``leg`` (1..3); return the record.
+@dataclass
+class Record:
+    """One leg's record of the experiment, from the start of the excitation.
 
-    Returns
-    -------
-    dict
-        ``t`` (s), ``u`` (V, applied voltage of the leg, saturated),
-        ``q`` (m), ``qdot`` (m/s) of the leg from the start of the excitation,
-        ``u_hold`` (V), ``force_hold`` (N, all legs), ``q_all`` (m, all legs).
+    ``t`` (s), ``u`` (V, the leg's applied valve voltage, saturated), ``q`` (m) and
+    ``qdot`` (m/s) of the leg; ``u_hold`` (V) and ``force_hold`` (N) of all legs at
+    the operating point, ``q_all`` (m, all legs), the sample time ``dt`` (s); ``fit``
+    the leg's fit of eq. (19) once :func:`identify` made it.
+    """
+
+    t: np.ndarray
+    u: np.ndarray
+    q: np.ndarray
+    qdot: np.ndarray
+    u_hold: np.ndarray
+    force_hold: np.ndarray
+    q_all: np.ndarray
+    dt: float
+    fit: dict | None = None
+
+
+def run_experiment(tree: dict, leg: int, model=None) -> Record:
+    """Run the Fig. 12 experiment on ``leg`` (1..3); return its :class:`Record`.
 
     Raises
     ------
@@ -138,7 +155,7 @@ def run_experiment(tree: dict, leg: int, model=None) -> dict:
 
 def run_experiment_all_legs(tree: dict, model=None) -> dict:
     """The experiment with the three legs excited at once (``excitation: all_legs``);
-    ``{leg: record}``, each record as :func:`run_experiment`'s, from one run."""
+    ``{leg: Record}``, from one run."""
     return _experiment(tree, (1, 2, 3), model)
 
 
@@ -146,8 +163,8 @@ def _experiment(tree: dict, legs: tuple, model=None) -> dict:
     """One run of the experiment exciting ``legs`` (one leg, or all three); per leg its
     record (:func:`run_experiment`)."""
     check_tree(tree)
-    ip = tree["identify"]
-    kind = ip["actuator_kind"]
+    ip = Settings.of(tree)
+    kind = ip.actuator_kind
     if kind not in ACTUATOR_KINDS:
         raise UserInputError(
             f"invalid value at identify.actuator_kind: '{kind}'; allowed {list(ACTUATOR_KINDS)}"
@@ -156,10 +173,10 @@ def _experiment(tree: dict, legs: tuple, model=None) -> dict:
     d = mujoco.MjData(m)
     idx = PlantIndex.of(m)
     dt = float(m.opt.timestep)
-    q_ref = float(ip["position_mm"]) * 1e-3
+    q_ref = float(ip.position_mm) * 1e-3
     if not 0.05 <= q_ref <= 0.45:
         raise UserInputError(
-            f"invalid value at identify.position_mm: {ip['position_mm']}; allowed 50..450 mm"
+            f"invalid value at identify.position_mm: {ip.position_mm}; allowed 50..450 mm"
         )
     q0 = np.full(3, q_ref)
     assemble(m, d, q0, index=idx)
@@ -177,26 +194,26 @@ def _experiment(tree: dict, legs: tuple, model=None) -> dict:
         raise UserInputError(
             f"payload too heavy at model.payload.mass_kg: {tree['model']['payload']['mass_kg']:g} "
             f"kg needs {abs(f_hold[worst]) / 1e3:.2f} kN on cylinder {worst + 1} at q = "
-            f"{ip['position_mm']:g} mm, which makes at most "
+            f"{ip.position_mm:g} mm, which makes at most "
             f"{abs(force_range[1] if f_hold[worst] >= 0 else force_range[0]) / 1e3:.2f} kN; "
             f"allowed: <= {max(0.0, max_payload(f0, slope, force_range)):.0f} kg at this supply "
             "pressure (pneumatics.supply_pressure_bar_gauge)"
         )
     act.reset(q0, np.zeros(3), force=f_hold)
     u_hold = act.u_hold.copy()
-    kp = leg_values(ip["kp_v_per_m"], "kp_v_per_m")
-    amp = leg_values(ip["prbs_amplitude_v"], "prbs_amplitude_v")
-    n_settle = int(round(float(ip["settle_s"]) / dt))
-    n_exc = int(round(float(ip["duration_s"]) / dt))
+    kp = leg_values(ip.kp_v_per_m, "kp_v_per_m")
+    amp = leg_values(ip.prbs_amplitude_v, "prbs_amplitude_v")
+    n_settle = int(round(float(ip.settle_s) / dt))
+    n_exc = int(round(float(ip.duration_s) / dt))
     if n_exc < 500:
         raise UserInputError("invalid value at identify.duration_s: allowed >= 0.5 s")
-    clock = max(1, int(round(float(ip["prbs_clock_ms"]) * 1e-3 / dt)))
-    bits, seed = int(ip["prbs_bits"]), int(ip["seed"])
+    clock = max(1, int(round(float(ip.prbs_clock_ms) * 1e-3 / dt)))
+    bits, seed = int(ip.prbs_bits), int(ip.seed)
     # the joint loops' dither on every valve, from the settling on (controllers.dither)
     dither = dither_signal(
-        n_settle + n_exc, dt, float(ip["dither_v"]), float(ip["dither_period_ms"]) * 1e-3
+        n_settle + n_exc, dt, float(ip.dither_v), float(ip.dither_period_ms) * 1e-3
     )
-    loop_bound = float(ip["loop_bound_mm"]) * 1e-3
+    loop_bound = float(ip.loop_bound_mm) * 1e-3
 
     # the excitation by step (controllers.experiment_law): the dither, the sequence
     n_all = n_settle + n_exc
@@ -225,19 +242,14 @@ def _experiment(tree: dict, legs: tuple, model=None) -> dict:
             f"identification of actuator{which} hit an end stop: lower "
             "identify.prbs_amplitude_v or raise identify.kp_v_per_m"
         )
+    t = np.arange(n_exc) * dt
+    u, qdot = rec["u"][rows], rec["qdot"][rows]
+    cols = {leg: leg - 1 for leg in legs}
     return {
-        leg: {
-            "t": np.arange(n_exc) * dt,
-            "u": rec["u"][rows, leg - 1].copy(),
-            "q": q_all[:, leg - 1].copy(),
-            "qdot": rec["qdot"][rows, leg - 1].copy(),
-            "u_hold": u_hold,
-            "force_hold": f_hold,
-            "q_all": q_all,
-            "dt": dt,
-        }
-        for leg in legs
-    }
+        leg: Record(t, u[:, j].copy(), q_all[:, j].copy(), qdot[:, j].copy(), u_hold, f_hold,
+                    q_all, dt)
+        for leg, j in cols.items()
+    }  # fmt: skip
 
 
 def _expm3(m: np.ndarray) -> np.ndarray:
@@ -458,21 +470,20 @@ def identify(tree: dict | None = None, legs=(1, 2, 3), records: dict | None = No
     ``records``, when given, receives each leg's experiment record and fit.
     """
     tree = check_tree(default_tree() if tree is None else tree)
-    ip = tree["identify"]
+    ip = Settings.of(tree)
     model = load_model(tree["model"])
     out = {}
-    together = ip.get("excitation", "one_leg") == "all_legs" and len(legs) > 1
+    together = ip.excitation == "all_legs" and len(legs) > 1
     recs = _experiment(tree, tuple(legs), model) if together else {}
     for leg in legs:
         rec = recs[leg] if together else run_experiment(tree, leg, model=model)
-        skip = int(round(float(ip["fit_skip_s"]) / rec["dt"]))
-        method = ip.get("fit_method", "trust_region")
-        res = fit_eq19(rec["u"], rec["qdot"], rec["dt"], skip=skip, method=method)
-        res["holding_force_n"] = float(rec["force_hold"][leg - 1])
-        res["holding_voltage_v"] = float(rec["u_hold"][leg - 1])
+        skip = int(round(float(ip.fit_skip_s) / rec.dt))
+        res = fit_eq19(rec.u, rec.qdot, rec.dt, skip=skip, method=ip.fit_method)
+        res["holding_force_n"] = float(rec.force_hold[leg - 1])
+        res["holding_voltage_v"] = float(rec.u_hold[leg - 1])
         out[f"actuator{leg}"] = res
         if records is not None:
-            records[f"actuator{leg}"] = rec | {"fit": res}
+            records[f"actuator{leg}"] = replace(rec, fit=res)
     return out
 
 

@@ -8,6 +8,9 @@ before either is imported.
 
 from __future__ import annotations
 
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
 import numpy as np
 
 from controllers.design import READINGS
@@ -20,6 +23,7 @@ from simpro_mj.plant.pneumatics.params import DEFAULT_PNEUMATIC_PARAMS
 
 __all__ = [
     "DEFAULT_IDENTIFY_PARAMS",
+    "Settings",
     "EXCITATIONS",
     "FIT_METHODS",
     "default_tree",
@@ -33,39 +37,52 @@ EXCITATIONS = ("one_leg", "all_legs")
 #: (:func:`simpro_mj.identification.identify.fit_eq19`).
 FIT_METHODS = ("trust_region", "levenberg_marquardt")
 
-#: Experiment settings (the paper does not print them: our choices).
-DEFAULT_IDENTIFY_PARAMS: dict = {
-    "duration_s": 20.0,  # excitation time per actuator
-    "settle_s": 1.0,  # P loops alone before the PRBS starts
-    "position_mm": 250.0,  # operating point: mid-stroke
+
+@dataclass(frozen=True)
+class Settings:
+    """The experiment's settings, ``identify.*`` of the tree (the paper does not print
+    them: our choices); :data:`DEFAULT_IDENTIFY_PARAMS` is the defaults' dict."""
+
+    duration_s: float = 20.0  # excitation time per actuator
+    settle_s: float = 1.0  # P loops alone before the PRBS starts
+    position_mm: float = 250.0  # operating point: mid-stroke
     # P gains (V/m). Low enough for the loop to stay stable with the paper's
     # plants too (eq. 35 needs K_p b < a1 a0: K_p < 4.9 V/m).
-    "kp_v_per_m": [15.0, 3.0, 3.0],
+    kp_v_per_m: Any = field(default_factory=lambda: [15.0, 3.0, 3.0])
     # PRBS: ±amplitude on the excited valve, one bit per clock; a 20 ms clock
     # gives a flat spectrum up to ~ 0.44/20 ms = 22 Hz (> the 2.5-6 Hz of ω_n)
-    "prbs_amplitude_v": [0.3, 0.3, 0.3],
-    "prbs_clock_ms": 20.0,
-    "prbs_bits": 10,  # sequence period 1023 bits = 20.5 s
+    prbs_amplitude_v: Any = field(default_factory=lambda: [0.3, 0.3, 0.3])
+    prbs_clock_ms: float = 20.0
+    prbs_bits: int = 10  # sequence period 1023 bits = 20.5 s
     # the valves' dither during the experiment (controllers.dither), V and ms: a run
     # identifies its plant with its own joint loops' dither (plant_tree), so that the
     # model is of the plant the loops drive; 0: none
-    "dither_v": 0.0,
-    "dither_period_ms": 40.0,
-    "seed": 1,  # shift of the sequence
+    dither_v: float = 0.0
+    dither_period_ms: float = 40.0
+    seed: int = 1  # shift of the sequence
     # one_leg: each leg in turn, the others held (the paper's Fig. 12: three records);
     # all_legs: the three at once, each its own shift of the sequence (a third of the
     # sequence's period apart: uncorrelated), one record
-    "excitation": "one_leg",
-    "actuator_kind": "nonlinear",
+    excitation: str = "one_leg"
+    actuator_kind: str = "nonlinear"
     # discard the first part of the record in the fit (initial transient), s
-    "fit_skip_s": 0.2,
+    fit_skip_s: float = 0.2
     # the fit's solver (FIT_METHODS): scipy's bounded trust region, or our
     # Levenberg-Marquardt (identify.levenberg_marquardt: the same minimum within
     # 0.5 %, about half the CPU; not the default: docs there)
-    "fit_method": "trust_region",
+    fit_method: str = "trust_region"
     # loop-closure bound checked during the run, mm
-    "loop_bound_mm": 1.0,
-}
+    loop_bound_mm: float = 1.0
+
+    @classmethod
+    def of(cls, tree: dict) -> Settings:
+        """The settings of an identify tree (its keys are the fields: ``--set`` and
+        the presets refuse any other)."""
+        return cls(**tree["identify"])
+
+
+#: The experiment's default settings as the tree's ``identify`` block.
+DEFAULT_IDENTIFY_PARAMS: dict = asdict(Settings())
 
 
 def default_tree(preset: str | None = None) -> dict:
@@ -112,7 +129,7 @@ def check_tree(tree: dict) -> dict:
         )
     tree["model"].pop("preset", None)
     tree["pneumatics"] = _check_pneumatics(tree["pneumatics"], "pneumatics")
-    i = "identify"
+    i, s = "identify", Settings.of(tree)
     check_number(tree, f"{i}.duration_s", 0.5, 3600.0, unit=" s")
     check_number(tree, f"{i}.settle_s", 0.0, 3600.0, unit=" s")
     check_number(tree, f"{i}.position_mm", 50.0, 450.0, unit=" mm")
@@ -124,25 +141,22 @@ def check_tree(tree: dict) -> dict:
         )
     check_number(tree, f"{i}.prbs_bits", 2, 24, integer=True)
     check_number(tree, f"{i}.seed", 0, 2**31, integer=True)
-    if tree[i].get("excitation", "one_leg") not in EXCITATIONS:
+    if s.excitation not in EXCITATIONS:
         raise UserInputError(
-            f"invalid value at {i}.excitation: {tree[i]['excitation']!r}; allowed: "
-            f"{', '.join(EXCITATIONS)}"
+            f"invalid value at {i}.excitation: {s.excitation!r}; allowed: {', '.join(EXCITATIONS)}"
         )
-    if tree[i].get("fit_method", "trust_region") not in FIT_METHODS:
+    if s.fit_method not in FIT_METHODS:
         raise UserInputError(
-            f"invalid value at {i}.fit_method: {tree[i]['fit_method']!r}; allowed: "
-            f"{', '.join(FIT_METHODS)}"
+            f"invalid value at {i}.fit_method: {s.fit_method!r}; allowed: {', '.join(FIT_METHODS)}"
         )
-    check_number(tree, f"{i}.fit_skip_s", 0.0, tree[i]["duration_s"], hi_open=True, unit=" s")
+    check_number(tree, f"{i}.fit_skip_s", 0.0, s.duration_s, hi_open=True, unit=" s")
     check_number(tree, f"{i}.loop_bound_mm", 0.0, lo_open=True, unit=" mm")
-    amp = leg_values(tree[i]["prbs_amplitude_v"], "prbs_amplitude_v")
-    if np.any(amp > 5.0):
+    if np.any(leg_values(s.prbs_amplitude_v, "prbs_amplitude_v") > 5.0):
         raise UserInputError(
-            f"invalid value at {i}.prbs_amplitude_v: {tree[i]['prbs_amplitude_v']!r}; "
+            f"invalid value at {i}.prbs_amplitude_v: {s.prbs_amplitude_v!r}; "
             "allowed: <= 5 V (the valve's half range)"
         )
-    leg_values(tree[i]["kp_v_per_m"], "kp_v_per_m")
+    leg_values(s.kp_v_per_m, "kp_v_per_m")
     check_number(tree, f"{i}.dither_v", 0.0, 5.0, unit=" V")
     period = check_number(tree, f"{i}.dither_period_ms", 2.0, 10**6, unit=" ms")
     if period != round(period) or round(period) % 2:

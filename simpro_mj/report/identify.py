@@ -70,15 +70,13 @@ def plot(results: dict, records: dict, path: Path, reading: str = "volts") -> No
         ax.grid(True, alpha=0.3)
         ax.legend(fontsize=8)
         rec = records[name]
-        n = min(rec["t"].size, 3000)
-        s0 = rec["t"].size // 2
+        n = min(rec.t.size, 3000)
+        s0 = rec.t.size // 2
         sl = slice(s0, s0 + n)
-        vhat = simulate_velocity(
-            (r["b"], r["a1"], r["a0"], r["offset_v"]), rec["u"] - 5.0, rec["dt"]
-        )
+        vhat = simulate_velocity((r["b"], r["a1"], r["a0"], r["offset_v"]), rec.u - 5.0, rec.dt)
         ax = axes[1, c]
-        ax.plot(rec["t"][sl], rec["qdot"][sl] * 1e3, lw=0.8, label="MuJoCo + pneumatics")
-        ax.plot(rec["t"][sl], vhat[sl] * 1e3, lw=0.8, label=f"fit ({r['fit_percent']:.0f} %)")
+        ax.plot(rec.t[sl], rec.qdot[sl] * 1e3, lw=0.8, label="MuJoCo + pneumatics")
+        ax.plot(rec.t[sl], vhat[sl] * 1e3, lw=0.8, label=f"fit ({r['fit_percent']:.0f} %)")
         ax.set_xlabel("t (s)")
         ax.set_ylabel("qdot (mm/s)")
         ax.grid(True, alpha=0.3)
