@@ -241,6 +241,11 @@ JM = (JX.LEN + 1) ** 2
 JC = layout("JointConstants", off=1, lo=1, hi=1, kind=1, aw=1, gain=3, band=3, m=3 * JM)
 
 
+def _row(jc, k, a, b, c, e):
+    """A row of a leg's ``[[A, B], [C, D]]`` (from ``jc[k]``) times its states and error."""
+    return jc[k + JX.r1] * a + jc[k + JX.r2] * b + jc[k + JX.i] * c + jc[k + JX.LEN] * e
+
+
 def joint_step(x, jc, e0, e1, e2, f0, f1, f2, v_out):
     """The three joint controllers (eq. 28) for one step; valve volts into ``v_out``.
 
@@ -256,11 +261,11 @@ def joint_step(x, jc, e0, e1, e2, f0, f1, f2, v_out):
         f = f0 if i == 0 else (f1 if i == 1 else f2)
         o = JX.LEN * i
         a, b, c = x[o + JX.r1], x[o + JX.r2], x[o + JX.i]
-        m = JC.m + JM * i
-        n0 = jc[m] * a + jc[m + 1] * b + jc[m + 2] * c + jc[m + 3] * e
-        n1 = jc[m + 4] * a + jc[m + 5] * b + jc[m + 6] * c + jc[m + 7] * e
-        n2 = jc[m + 8] * a + jc[m + 9] * b + jc[m + 10] * c + jc[m + 11] * e
-        u = jc[m + 12] * a + jc[m + 13] * b + jc[m + 14] * c + jc[m + 15] * e
+        m, w = JC.m + JM * i, JX.LEN + 1  # the leg's matrix, its row length
+        n0 = _row(jc, m + w * JX.r1, a, b, c, e)
+        n1 = _row(jc, m + w * JX.r2, a, b, c, e)
+        n2 = _row(jc, m + w * JX.i, a, b, c, e)
+        u = _row(jc, m + w * JX.LEN, a, b, c, e)  # the output row: C and D
         gain, band = jc[JC.gain + i], jc[JC.band + i]
         if band > 0.0:  # the integrator takes the error beyond its band only
             n2 = n2 - gain * (e - dead_band(e, band))
