@@ -48,7 +48,7 @@ SC = layout(
 #: the sensors' own state ``ss``: the IMU filter (roll, pitch), the bias walk, the IMU
 #: site's last two positions and how many are known, the complementary filter's
 #: low-passed accelerometer tilt error
-SS = layout("SensorState", imu=2, walk=2, hist=6, hn=1, acc=2)
+SS = layout("SensorState", imu=2, walk=2, back1=3, back2=3, hn=1, acc=2)
 
 #: the actuators' state ``ast``: chamber pressures p1 (3) then p2 (3), spool, spool rate,
 #: each ψ-table edge's last cell (6 supply, 6 exhaust edges), the supply pressure at the
@@ -167,11 +167,11 @@ def imu_input(roll, pitch, site, sc, ss):
     if not w > 0.0:
         return roll, pitch
     x, y, z = site[0], site[1], site[2]
-    h = SS.hist
-    x1, y1, z1 = ss[h], ss[h + 1], ss[h + 2]
-    x2, y2, z2 = ss[h + 3], ss[h + 4], ss[h + 5]
-    ss[h + 3], ss[h + 4], ss[h + 5] = x1, y1, z1
-    ss[h], ss[h + 1], ss[h + 2] = x, y, z
+    b1, b2 = SS.back1, SS.back2  # the site's position one and two steps back
+    x1, y1, z1 = ss[b1], ss[b1 + 1], ss[b1 + 2]
+    x2, y2, z2 = ss[b2], ss[b2 + 1], ss[b2 + 2]
+    ss[b2], ss[b2 + 1], ss[b2 + 2] = x1, y1, z1
+    ss[b1], ss[b1 + 1], ss[b1 + 2] = x, y, z
     if ss[SS.hn] < 2.0:  # the first two positions of a run: no acceleration yet
         ss[SS.hn] += 1.0
         return roll, pitch
