@@ -421,25 +421,25 @@ def test_stability_criterion_on_envelopes(sigma, stable):
     t = np.arange(0.0, 12.0, 0.001)
     err = np.radians(0.5) * np.exp(sigma * (t - 1.5)) * np.sin(2 * np.pi * 1.3 * t) * (t >= 0.5)
     s = stability_of(_columns(t, err))
-    assert s["stable"] is stable, s
-    assert s["growth_rate_1_s"] == pytest.approx(sigma, abs=0.08)
+    assert s.stable is stable, s
+    assert s.growth_rate_1_s == pytest.approx(sigma, abs=0.08)
 
 
 def test_stability_criterion_offset_and_held_oscillation():
     t = np.arange(0.0, 12.0, 0.001)
     # joint-only-like: a constant offset of 0.4 deg is not an instability
     offset = np.radians(0.4) * (t >= 1.0)
-    assert stability_of(_columns(t, offset))["stable"] is True
+    assert stability_of(_columns(t, offset)).stable is True
     # an oscillation held at 3 deg by saturation (reference 2 deg) is one
     held = np.radians(3.0) * np.sin(2 * np.pi * 1.1 * t) * (t >= 1.0)
     s = stability_of(_columns(t, held))
-    assert s["stable"] is False and "held" in s["why"]
+    assert s.stable is False and "held" in s.why
     # noise at the sensor floor, no set-point: stable, no growth rate
     rng = np.random.default_rng(0)
     noise = np.radians(0.005) * rng.standard_normal(t.size)
     s = stability_of(_columns(t, noise, ref_pitch=np.zeros_like(t)))
-    assert s["stable"] is True and s["growth_rate_1_s"] is None
-    assert stability_of(_columns(t, offset), status="diverged")["stable"] is False
+    assert s.stable is True and s.growth_rate_1_s is None
+    assert stability_of(_columns(t, offset), status="diverged").stable is False
 
 
 def test_variant_stability_from_memory_is_the_folders(tmp_path):
@@ -455,8 +455,8 @@ def test_variant_stability_from_memory_is_the_folders(tmp_path):
     )
     got = run_variant({"scenario": scenario, "out": str(tmp_path / "v"), "plots": "none"})
     again = stability_of_folder(tmp_path / "v", got["status"])
-    assert got["stability"] == again and got["stability"]["growth_rate_1_s"] is not None
-    assert got["stability"]["stable"] is False, got["stability"]
+    assert got["stability"] == again and again.growth_rate_1_s is not None
+    assert again.stable is False, again
     # the rounding is the file's: 12 significant digits, NaN kept
     cols = AsWritten({"x": np.array([1 / 3, np.nan, -2.0e-7 / 3, 1e300])})
     assert cols["x"][0] == 0.333333333333 and np.isnan(cols["x"][1])

@@ -8,7 +8,8 @@ import io
 from pathlib import Path
 
 from simpro_mj.batch.plan import GAIN_PATH, Job
-from simpro_mj.batch.summary import Report, metric_columns, summary_csv_text, verdict_note
+from simpro_mj.batch.stability import Analytic
+from simpro_mj.batch.summary import AxisRow, Report, Row, summary_csv_text, verdict_note
 from simpro_mj.batch.tables import monte_carlo_table, print_report, stability_table
 
 _SCENARIO = {
@@ -18,23 +19,18 @@ _SCENARIO = {
 
 
 def _row(variant, status, stable, growth=None, reason=None, ss=0.01):
-    row = {
-        "variant": variant,
-        "scenario": "gain",
-        "file": "gain.yaml",
-        "values": {},
-        "sample": None,
-        "status": status,
-        "reason": reason,
-        "stable": stable,
-        "growth_rate_1_s": growth,
-        "realtime_factor": None,
-        "analytic_limit": 14.08,
-        "analytic_limit_delay_model": 33.3,
-    }
-    row.update({c: None for c in metric_columns()})
-    row["pitch_ss_err_deg"] = ss
-    row["stability_note"] = verdict_note(row)
+    row = Row(
+        variant=variant,
+        scenario="gain",
+        status=status,
+        file="gain.yaml",
+        reason=reason,
+        pitch=AxisRow(ss_err=ss),
+        stable=stable,
+        growth_rate_1_s=growth,
+        analytic=Analytic(14.08, 33.3),
+    )
+    row.stability_note = verdict_note(row)
     return row
 
 
@@ -60,9 +56,9 @@ def test_small_signal_stable_limit_cycle_is_noted_in_row_and_limit_table():
         _row("v5", "limit_cycle", False, 0.8, cycle),
     ]
     jobs = [_job(i, g) for i, g in enumerate(gains)]
-    assert rows[3]["stability_note"].startswith("small-signal stable")
-    assert cycle in rows[3]["stability_note"]
-    assert rows[0]["stability_note"] is None and rows[5]["stability_note"] is None
+    assert rows[3].stability_note.startswith("small-signal stable")
+    assert cycle in rows[3].stability_note
+    assert rows[0].stability_note is None and rows[5].stability_note is None
     (t,) = stability_table(rows, jobs)
     assert (t.largest_stable, t.smallest_unstable) == (14, 16)
     assert (t.largest_settled, t.smallest_unsettled) == (12, 13)
@@ -85,7 +81,7 @@ def test_stopped_monte_carlo_counts_finished_samples_only():
     statuses = ["ok"] * 3 + ["limit_cycle"] + ["cancelled"] * 5 + ["interrupted"]
     rows = [_row(f"s{i}", s, None, ss=0.01 * (i + 1)) for i, s in enumerate(statuses)]
     for r in rows[4:]:
-        r["pitch_ss_err_deg"] = None
+        r.pitch = AxisRow()
     jobs = [_job(i, 3.0, mc=True, sample=i) for i in range(len(rows))]
     (m,) = monte_carlo_table(rows, jobs)
     assert (m.samples, m.finished, m.unfinished) == (10, 4, 6)

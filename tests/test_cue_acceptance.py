@@ -191,6 +191,7 @@ def test_batch_judges_a_cueing_run_by_its_floors_not_step_growth():
     """The batch summary row of a cueing run carries the cue floors and no step-response
     stability verdict (a moving set-point's error is no step's growing envelope)."""
     from simpro_mj.batch.plan import Job
+    from simpro_mj.batch.stability import Stability
     from simpro_mj.batch.summary import summary_row
 
     cue = {
@@ -202,12 +203,12 @@ def test_batch_judges_a_cueing_run_by_its_floors_not_step_growth():
     result = {
         "status": "ok",
         "metrics": {"axes": {}, "metrics": {"cueing": cue}},
-        "stability": {"stable": False, "growth_rate_1_s": 0.3, "why": "grows"},
+        "stability": Stability(stable=False, growth_rate_1_s=0.3, why="grows"),
     }
     job = Job(0, "x.yaml", "x", "v", "v", {}, None, 1, None)
     row = summary_row(job, result)
-    assert row["stable"] is None and row["growth_rate_1_s"] is None
-    assert row["cue_floors_met"] is True
+    assert row.stable is None and row.growth_rate_1_s is None
+    assert row.cue["cue_floors_met"] is True
 
 
 def _user_csv(path):

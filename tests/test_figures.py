@@ -221,6 +221,8 @@ def test_chain_figure_draws_washout_and_linear_chain_as_curves():
 
 def _sweep_rows(tmp_path, same_setpoint: bool):
     """Four variants of a gain sweep with their time series on disk."""
+    from simpro_mj.batch.stability import Analytic
+    from simpro_mj.batch.summary import AxisRow, Row
     from simpro_mj.report.results import write_timeseries
 
     rows = []
@@ -232,15 +234,15 @@ def _sweep_rows(tmp_path, same_setpoint: bool):
         (tmp_path / folder).mkdir(parents=True)
         write_timeseries(tmp_path / folder / "timeseries.csv", c)
         unstable = gain > 12
-        rows.append({
-            "variant": f"gains={gain:g}", "folder": folder, "status": "ok",
-            "stable": not unstable, "values": {"controller.outer.gains": gain},
-            "roll_rms_err_deg": 0.01 * gain, "pitch_rms_err_deg": 0.02 * gain,
-            "heave_rms_err_mm": 0.1 * gain, "growth_rate_1_s": gain - 12.0,
-            "analytic_growth_rate_1_s": gain - 11.8,
-            "cue_long_corr": 0.5 + 0.01 * k, "cue_pitch_box_frac": 0.9,
-            "cue_valve_sat_frac": 0.01 * k,
-        })  # fmt: skip
+        rows.append(Row(
+            variant=f"gains={gain:g}", scenario="sweep", folder=folder, status="ok",
+            stable=not unstable, values={"controller.outer.gains": gain},
+            roll=AxisRow(rms_err=0.01 * gain), pitch=AxisRow(rms_err=0.02 * gain),
+            heave=AxisRow(rms_err=0.1 * gain), growth_rate_1_s=gain - 12.0,
+            analytic=Analytic(growth_rate_1_s=gain - 11.8),
+            cue={"cue_long_corr": 0.5 + 0.01 * k, "cue_pitch_box_frac": 0.9,
+                 "cue_valve_sat_frac": 0.01 * k},
+        ))  # fmt: skip
     info = {"scenario": "sweep", "folder": "sweep", "grid_paths": ["controller.outer.gains"],
             "monte_carlo": False}  # fmt: skip
     return rows, info
@@ -364,6 +366,7 @@ def test_sweep_responses_of_many_variants_coloured_by_gain(tmp_path):
     """More variants than a legend can name: colour is the gain (a colour bar), the line
     style the rest of the grid (in the legend); heave is drawn from the home height."""
     from simpro_mj.batch.plots import responses_figure
+    from simpro_mj.batch.summary import Row
     from simpro_mj.report.results import write_timeseries
 
     rows = []
@@ -374,10 +377,10 @@ def test_sweep_responses_of_many_variants_coloured_by_gain(tmp_path):
             folder = f"sweep/type={law}_gains={gain:g}"
             (tmp_path / folder).mkdir(parents=True)
             write_timeseries(tmp_path / folder / "timeseries.csv", c)
-            rows.append({"variant": f"type={law}_gains={gain:g}", "folder": folder,
-                         "status": "ok", "stable": gain < 14.0,
-                         "values": {"controller.outer.type": law,
-                                    "controller.outer.gains": float(gain)}})  # fmt: skip
+            rows.append(Row(variant=f"type={law}_gains={gain:g}", scenario="sweep",
+                            folder=folder, status="ok", stable=gain < 14.0,
+                            values={"controller.outer.type": law,
+                                    "controller.outer.gains": float(gain)}))  # fmt: skip
     info = {"scenario": "sweep", "folder": "sweep", "monte_carlo": False,
             "grid_paths": ["controller.outer.type", "controller.outer.gains"]}  # fmt: skip
     fig = responses_figure(rows, info, tmp_path)

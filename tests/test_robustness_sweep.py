@@ -3,6 +3,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from simpro_mj.batch.robustness import (
@@ -13,22 +15,19 @@ from simpro_mj.batch.robustness import (
     robustness_table,
     table_lines,
 )
+from simpro_mj.batch.summary import AxisRow, Row
 from simpro_mj.config.variants import load_sweep
 from simpro_mj.report.figures import legend_mismatches
 
 
 def _row(status="ok", over=5.0, settle=2.0, payload=250.0, coulomb=(100.0, 120.0, 140.0)):
-    row = {
-        "scenario": "rob",
-        "status": status,
-        "values": {PAYLOAD: payload, COULOMB: list(coulomb)},
-    }
-    for axis in ("roll", "heave"):
-        row[f"{axis}_overshoot_pct"] = None
-        row[f"{axis}_settling_s"] = None
-    row["pitch_overshoot_pct"] = over
-    row["pitch_settling_s"] = settle
-    return row
+    return Row(
+        variant="v",
+        scenario="rob",
+        status=status,
+        values={PAYLOAD: payload, COULOMB: list(coulomb)},
+        pitch=AxisRow(overshoot_pct=over, settling_s=settle),
+    )
 
 
 def test_floors_are_overshoot_15_settling_4_and_a_settled_run():
@@ -45,7 +44,7 @@ def test_table_counts_the_floors_per_payload_and_friction_cell():
         _row(payload=150.0, coulomb=(100.0, 120.0, 140.0)),  # 100-200 kg x 100-150 N: met
         _row(payload=160.0, coulomb=(110.0, 120.0, 130.0), status="limit_cycle"),  # same cell
         _row(payload=20.0, coulomb=(240.0, 230.0, 250.0), over=30.0),  # 0-100 x 200-250
-        {**_row(), "scenario": "other"},  # another file's variant
+        replace(_row(), scenario="other"),  # another file's variant
     ]
     t = robustness_table(rows, "rob")
     assert (t.n, t.met) == (3, 1) and abs(t.fraction - 1 / 3) < 1e-12
@@ -60,7 +59,7 @@ def test_table_counts_the_floors_per_payload_and_friction_cell():
     text = "\n".join(table_lines(t))
     assert "1 of 3 finished variants (33.3 %)" in text and "limit_cycle 1" in text
     assert "not finished" not in text and t.unfinished == 0
-    assert robustness_table([{**_row(), "values": {}}], "rob") is None
+    assert robustness_table([replace(_row(), values={})], "rob") is None
 
 
 def test_the_table_and_map_extend_to_the_catalogue_seals():

@@ -36,7 +36,8 @@ from controllers.geometry import H0
 from simpro_mj.analysis.cue_metrics import FLOORS
 from simpro_mj.analysis.verdict import VERDICTS
 from simpro_mj.batch.robustness import RobustnessTable, map_figure
-from simpro_mj.batch.summary import RUN_STATUSES
+from simpro_mj.batch.stability import Analytic
+from simpro_mj.batch.summary import AXES, RUN_STATUSES, Row
 from simpro_mj.batch.tables import StabilityLimit
 from simpro_mj.config.sweep import format_value
 from simpro_mj.report.figures import envelope, legend_mismatches, log_ticks, save
@@ -53,7 +54,6 @@ __all__ = [
 
 DPI = 110
 MAX_OVERLAY = 100
-_AXES = (("roll", "deg", 180.0 / math.pi), ("pitch", "deg", 180.0 / math.pi), ("heave", "mm", 1e3))
 _GAIN = "controller.outer.gains"
 
 
@@ -73,20 +73,20 @@ def _x(value) -> float | None:
     return None
 
 
-def _swept_number(rows: list[dict], grid) -> str | None:
+def _swept_number(rows: list[Row], grid) -> str | None:
     """The grid path drawn along x: the gain if swept, else the numeric path with the
     most values (None: no path is a number with two values or more)."""
-    count = {p: len({_x(r["values"].get(p)) for r in rows}) for p in grid}
-    numeric = [p for p in grid if count[p] >= 2 and all(_x(r["values"].get(p)) is not None
+    count = {p: len({_x(r.values.get(p)) for r in rows}) for p in grid}
+    numeric = [p for p in grid if count[p] >= 2 and all(_x(r.values.get(p)) is not None
                                                           for r in rows)]  # fmt: skip
     if not numeric:
         return None
     return _GAIN if _GAIN in numeric else max(numeric, key=count.__getitem__)
 
 
-def _combo(row: Mapping, paths, skip=None) -> str:
+def _combo(row: Row, paths, skip=None) -> str:
 
-    parts = [f"{p.split('.')[-1]}={format_value(row['values'][p])}" for p in paths if p != skip]
+    parts = [f"{p.split('.')[-1]}={format_value(row.values[p])}" for p in paths if p != skip]
     return ", ".join(parts) or "all"
 
 
@@ -100,7 +100,7 @@ def _save(fig: Figure | None, path: Path) -> Path | None:
 
 
 def plot_metric_vs_param(
-    rows: list[dict], info: Mapping, stability: list[StabilityLimit], out: Path
+    rows: list[Row], info: Mapping, stability: list[StabilityLimit], out: Path
 ):
     """Metrics against the swept parameter (module docstring); None if not applicable."""
     fig = metric_vs_param_figure(rows, info, stability)
@@ -108,30 +108,30 @@ def plot_metric_vs_param(
     return _save(fig, out / f"{info['folder']}_vs_{label}.png")
 
 
-def metric_vs_param_figure(rows: list[dict], info: Mapping, stability: list[StabilityLimit]):
+def metric_vs_param_figure(rows: list[Row], info: Mapping, stability: list[StabilityLimit]):
     """The figure of :func:`plot_metric_vs_param` (its label: the swept key's last part)."""
     grid = info["grid_paths"]
     xpath = None if info["monte_carlo"] else _swept_number(rows, grid)
     if xpath is None:
         return None
     label = xpath.split(".")[-1]
-    groups: dict[str, list[dict]] = {}
+    groups: dict[str, list[Row]] = {}
     for r in rows:
         groups.setdefault(_combo(r, grid, skip=xpath), []).append(r)
     colours = _colours(list(groups))
-    has_growth = any(r.get("growth_rate_1_s") is not None for r in rows)
+    has_growth = any(r.growth_rate_1_s is not None for r in rows)
     n = 3 + int(has_growth)
     fig = Figure(figsize=(8, 2.6 * n), layout="constrained")
     fig.set_label(label)
     axes = fig.subplots(n, 1, sharex=True)
     ringed = False
     for name, members in groups.items():
-        members = sorted(members, key=lambda r: _x(r["values"][xpath]) or math.inf)
-        xs = np.array([_x(r["values"][xpath]) for r in members])
-        bad = np.array([r.get("stable") is False or r["status"] != "ok" for r in members])
+        members = sorted(members, key=lambda r: _x(r.values[xpath]) or math.inf)
+        xs = np.array([_x(r.values[xpath]) for r in members])
+        bad = np.array([r.stable is False or r.status != "ok" for r in members])
         col = colours[name]
-        for ax, (axis, unit, _) in zip(axes[:3], _AXES, strict=True):
-            ys = np.array([r.get(f"{axis}_rms_err_{unit}") or np.nan for r in members], float)
+        for i, ax in enumerate(axes[:3]):
+            ys = np.array([r.axes[i].rms_err or np.nan for r in members], float)
             ax.plot(xs, ys, "o-", color=col, lw=1.2, ms=4, label=name)
             if bad.any():
                 first = not ringed
@@ -140,11 +140,11 @@ def metric_vs_param_figure(rows: list[dict], info: Mapping, stability: list[Stab
                         label="unstable or not ok" if first else None)  # fmt: skip
         if has_growth:
             ax = axes[3]
-            gs = np.array([r.get("growth_rate_1_s") for r in members], float)
+            gs = np.array([r.growth_rate_1_s for r in members], float)
             ax.plot(xs, gs, "o-", color=col, lw=1.2, ms=4, label=f"{name} (simulated)")
             if bad.any():
                 ax.plot(xs[bad], gs[bad], "o", mfc="none", mec="red", ms=9, mew=1.5)
-            ana = np.array([r.get("analytic_growth_rate_1_s") for r in members], float)
+            ana = np.array([(r.analytic or Analytic()).growth_rate_1_s for r in members], float)
             if np.isfinite(ana).any():
                 ax.plot(xs, ana, "--", color=col, lw=1.0, label=f"{name} (analysis)")
     limits = set()  # which kinds of limit line are drawn (each in the legend once)
@@ -159,7 +159,7 @@ def metric_vs_param_figure(rows: list[dict], info: Mapping, stability: list[Stab
                 first = k == 0 and kind not in limits
                 ax.axvline(x, color=col, ls=ls, lw=lw, label=f"{kind} limit" if first else None)
             limits.add(kind)
-    for ax, (axis, unit, _) in zip(axes[:3], _AXES, strict=True):
+    for ax, (axis, unit, _) in zip(axes[:3], AXES, strict=True):
         ax.set_ylabel(f"{axis} rms error [{unit}]")
         ys = np.concatenate([np.asarray(ln.get_ydata(), float) for ln in ax.lines] or [np.empty(0)])
         ys = ys[np.isfinite(ys) & (ys > 0)]
@@ -196,7 +196,7 @@ def _shade_by_number(series, labels: list[str], info: Mapping):
     """
     grid = info["grid_paths"]
     ok = [(r, lab) for (r, _), lab in zip(series, labels, strict=True)
-          if not (r.get("stable") is False or r["status"] != "ok")]  # fmt: skip
+          if not (r.stable is False or r.status != "ok")]  # fmt: skip
     if info["monte_carlo"] or len({lab for _, lab in ok}) <= 12 or not grid:
         return None
     path = _swept_number([r for r, _ in series], grid)
@@ -210,7 +210,7 @@ def _shade_by_number(series, labels: list[str], info: Mapping):
     from matplotlib.cm import ScalarMappable
     from matplotlib.colors import Normalize
 
-    xs = [_x(r["values"][path]) or 0.0 for r, _ in series]  # path's values are numbers
+    xs = [_x(r.values[path]) or 0.0 for r, _ in series]  # path's values are numbers
     norm = Normalize(min(xs), max(xs))
     cmap = colormaps["viridis"]
     colours = {lab: cmap(norm(x)) for lab, x in zip(labels, xs, strict=True)}
@@ -220,24 +220,24 @@ def _shade_by_number(series, labels: list[str], info: Mapping):
     return colours, group_of, groups, (scale, path + (" (K K_I, 1/s)" if path == _GAIN else ""))
 
 
-def plot_responses(rows: list[dict], info: Mapping, batch_out: Path, out: Path):
+def plot_responses(rows: list[Row], info: Mapping, batch_out: Path, out: Path):
     """Task-space responses of the variants overlaid; None if none has a time series."""
     fig = responses_figure(rows, info, batch_out)
     return _save(fig, out / f"{info['folder']}_responses.png")
 
 
-def responses_figure(rows: list[dict], info: Mapping, batch_out: Path):
+def responses_figure(rows: list[Row], info: Mapping, batch_out: Path):
     """The figure of :func:`plot_responses` (module docstring), or None."""
     grid = info["grid_paths"]
-    runs = [r for r in rows if r["status"] in RUN_STATUSES and r["folder"]][:MAX_OVERLAY]
+    runs = [r for r in rows if r.status in RUN_STATUSES and r.folder][:MAX_OVERLAY]
     series = []
     for r in runs:
-        path = Path(batch_out) / r["folder"] / "timeseries.csv"
+        path = Path(batch_out) / r.folder / "timeseries.csv"
         if path.is_file():
             series.append((r, read_timeseries(path, _RESPONSE_COLUMNS)))
     if not series:
         return None
-    labels = [_combo(r, grid) if info["monte_carlo"] else r["variant"] for r, _ in series]
+    labels = [_combo(r, grid) if info["monte_carlo"] else r.variant for r, _ in series]
     colours = _colours(labels)
     group_of: dict[str, str] = {}
     groups: dict[str, object] = {}
@@ -246,20 +246,20 @@ def responses_figure(rows: list[dict], info: Mapping, batch_out: Path):
         colours, group_of, groups, (mappable, bar_label) = shade
     # one dashed set-point when every variant has the same, else each its own
     refs = [
-        np.column_stack([c[f"{a}_ref_{'m' if a == 'heave' else 'rad'}"] for a, _u, _s in _AXES])
+        np.column_stack([c[f"{a}_ref_{'m' if a == 'heave' else 'rad'}"] for a, _u, _s in AXES])
         for _, c in series
     ]
     same_ref = all(x.shape == refs[0].shape and np.allclose(x, refs[0]) for x in refs)
     fig = Figure(figsize=(9, 8), layout="constrained")
     axes = fig.subplots(3, 1, sharex=True)
     seen, n_bad = set(), 0
-    span = [[np.inf, -np.inf] for _ in _AXES]  # y range of the stable runs and set-points
+    span = [[np.inf, -np.inf] for _ in AXES]  # y range of the stable runs and set-points
     for n, ((r, c), lab) in enumerate(zip(series, labels, strict=True)):
         t = c["time_s"]
         # unstable runs in grey behind: they would hide the others' scale
-        bad = r.get("stable") is False or r["status"] != "ok"
+        bad = r.stable is False or r.status != "ok"
         n_bad += bad
-        for k, (ax, (axis, _unit, scale)) in enumerate(zip(axes, _AXES, strict=True)):
+        for k, (ax, (axis, _unit, scale)) in enumerate(zip(axes, AXES, strict=True)):
             true = "heave_m" if axis == "heave" else f"{axis}_rad"
             ref = "heave_ref_m" if axis == "heave" else f"{axis}_ref_rad"
             home = H0 if axis == "heave" else 0.0  # heave from the home height
@@ -292,7 +292,7 @@ def responses_figure(rows: list[dict], info: Mapping, batch_out: Path):
                         label=label)  # fmt: skip
         if not bad:
             seen.add(lab)
-    for k, (ax, (axis, unit, _)) in enumerate(zip(axes, _AXES, strict=True)):
+    for k, (ax, (axis, unit, _)) in enumerate(zip(axes, AXES, strict=True)):
         lo, hi = span[k]
         if np.isfinite(lo) and np.isfinite(hi):
             pad = 0.15 * max(hi - lo, 1e-3)
@@ -322,25 +322,25 @@ def responses_figure(rows: list[dict], info: Mapping, batch_out: Path):
     return fig
 
 
-def plot_mc(rows: list[dict], info: Mapping, out: Path):
+def plot_mc(rows: list[Row], info: Mapping, out: Path):
     """Distribution of |steady-state error| per axis and grid combination (Monte Carlo)."""
     if not info["monte_carlo"]:
         return None
     grid = info["grid_paths"]
-    ok = [r for r in rows if r["status"] == "ok"]
+    ok = [r for r in rows if r.status == "ok"]
     if not ok:
         return None
-    groups: dict[str, list[dict]] = {}
+    groups: dict[str, list[Row]] = {}
     for r in ok:
         groups.setdefault(_combo(r, grid), []).append(r)
     names = list(groups)
     fig = Figure(figsize=(4 + 2 * len(names), 4.5), layout="constrained")
     axes = fig.subplots(1, 3)
     rng = np.random.default_rng(0)  # jitter of the dots only
-    for ax, (axis, unit, _) in zip(axes, _AXES, strict=True):
+    for i, (ax, (axis, unit, _)) in enumerate(zip(axes, AXES, strict=True)):
         data = []
         for name in names:
-            v = [abs(e) for r in groups[name] if (e := r.get(f"{axis}_ss_err_{unit}")) is not None]
+            v = [abs(e) for r in groups[name] if (e := r.axes[i].ss_err) is not None]
             data.append(np.maximum(np.array(v, float), 1e-9))
         ax.boxplot(data, showfliers=False)
         ax.set_xticks(range(1, len(names) + 1), names, rotation=20, fontsize=8)
@@ -363,7 +363,7 @@ def plot_mc(rows: list[dict], info: Mapping, out: Path):
     return _save(fig, out / f"{info['folder']}_mc_ss_error.png")
 
 
-def plot_robustness_map(rows: list[dict], tables: list[RobustnessTable], info: Mapping, out: Path):
+def plot_robustness_map(rows: list[Row], tables: list[RobustnessTable], info: Mapping, out: Path):
     """The payload x friction map of a Monte Carlo file that draws both
     (:func:`simpro_mj.batch.robustness.map_figure`)."""
     table = next((t for t in tables if t.scenario == info["scenario"]), None)
@@ -389,7 +389,7 @@ def plot_summary(report, jobs) -> list[Path]:
             continue
         stab = [s for s in report.stability if s.scenario == info["scenario"]]
         for p in (
-            plot_metric_vs_param([r for r in rows if r["status"] != "invalid"], info, stab, out),
+            plot_metric_vs_param([r for r in rows if r.status != "invalid"], info, stab, out),
             plot_responses(rows, info, Path(report.out), out),
             plot_mc(rows, info, out),
             plot_cue_tradeoff(rows, info, out),
@@ -401,14 +401,14 @@ def plot_summary(report, jobs) -> list[Path]:
     return paths
 
 
-def plot_cue_comparison(rows: list[dict], info: Mapping, out: Path):
+def plot_cue_comparison(rows: list[Row], info: Mapping, out: Path):
     """Cueing laws side by side: per vehicle input (the grid's telemetry) and law, the
     perceived correlation, mean lag and worst onset delay of the channel the vehicle
     drives (``cue_main_channel``) and the felt false rotation, the floors dashed.
     Every run that ran to its end is drawn (a cue run's verdict on its final window,
     ``limit_cycle`` or ``not_settled``, leaves its cue figures whole). None unless the
     rows hold two laws or more."""
-    pts = [r for r in rows if r.get("cue_algorithm") is not None and r["status"] in VERDICTS]
+    pts = [r for r in rows if r.cue.get("cue_algorithm") is not None and r.status in VERDICTS]
     laws = []
     for r in pts:
         law = _law_label(r)
@@ -443,7 +443,7 @@ def plot_cue_comparison(rows: list[dict], info: Mapping, out: Path):
         if floor is None:  # the correlation's floor of each input's main channel
             for i, key in enumerate(inputs):
                 r = next(x for x in pts if _input_label(x) == key)
-                main = "lateral_f" if r.get("cue_main_channel") == "lat" else "longitudinal_f"
+                main = "lateral_f" if r.cue.get("cue_main_channel") == "lat" else "longitudinal_f"
                 level = FLOORS.correlation[main]
                 ax.plot([i - 0.45, i + 0.45], [level, level], color="k", ls="--", lw=1)
             ax.set_ylim(0.0, 1.6)  # room for the legend above the bars
@@ -463,11 +463,11 @@ def plot_cue_comparison(rows: list[dict], info: Mapping, out: Path):
     return _save(fig, out / f"{info['scenario']}_cue_laws.png")
 
 
-def _law_label(r: Mapping) -> str:
-    law = "classical" if r.get("cue_algorithm") == "classical_washout" else "MPC"
+def _law_label(r: Row) -> str:
+    law = "classical" if r.cue.get("cue_algorithm") == "classical_washout" else "MPC"
     extra = [
         format_value(v)
-        for k, v in r["values"].items()
+        for k, v in r.values.items()
         if "telemetry" not in k and "manoeuvre" not in k
     ]
     text = " ".join(extra)
@@ -477,44 +477,44 @@ def _law_label(r: Mapping) -> str:
     return law
 
 
-def _input_label(r: Mapping) -> str:
-    vals = [format_value(v) for k, v in r["values"].items() if "telemetry" in k]
-    return vals[0].removesuffix(".csv") if vals else r["scenario"]
+def _input_label(r: Row) -> str:
+    vals = [format_value(v) for k, v in r.values.items() if "telemetry" in k]
+    return vals[0].removesuffix(".csv") if vals else r.scenario
 
 
-def _main(r: Mapping, what: str) -> float:
+def _main(r: Row, what: str) -> float:
     """The figure of the channel the vehicle input drives (``cue_main_channel``); the
     false rotation: the longer of roll and pitch."""
     if what == "false_rot":
-        both = [r.get("cue_roll_false_rot_s"), r.get("cue_pitch_false_rot_s")]
+        both = [r.cue.get("cue_roll_false_rot_s"), r.cue.get("cue_pitch_false_rot_s")]
         vals = [float(v) for v in both if v is not None]
         return max(vals) if vals else np.nan
-    side = r.get("cue_main_channel") or "long"
-    v = r.get(f"cue_{side}_{'corr' if what == 'correlation' else what + '_s'}")
+    side = r.cue.get("cue_main_channel") or "long"
+    v = r.cue.get(f"cue_{side}_{'corr' if what == 'correlation' else what + '_s'}")
     return np.nan if v is None else float(v)
 
 
-def plot_cue_tradeoff(rows: list[dict], info: Mapping, out: Path):
+def plot_cue_tradeoff(rows: list[Row], info: Mapping, out: Path):
     """Cueing sweeps: :func:`cue_tradeoff_figure` as ``<scenario>_cue_tradeoff.png``."""
     return _save(cue_tradeoff_figure(rows, info), out / f"{info['scenario']}_cue_tradeoff.png")
 
 
-def cue_tradeoff_figure(rows: list[dict], info: Mapping):
+def cue_tradeoff_figure(rows: list[Row], info: Mapping):
     """Perceived longitudinal correlation against the pitch workspace used, one
     point per variant labelled with its values and its valve saturation (the
     marker's area grows with it). None when the rows have no cueing columns."""
-    pts = [r for r in rows if r.get("cue_long_corr") is not None and r["status"] == "ok"]
+    pts = [r for r in rows if r.cue.get("cue_long_corr") is not None and r.status == "ok"]
     if not pts:
         return None
     fig = Figure(figsize=(7.5, 5), layout="constrained")
     ax = fig.add_subplot()
     for n, r in enumerate(pts):
-        x = float(r["cue_pitch_box_frac"])
-        y = float(r["cue_long_corr"])
-        sat = float(r.get("cue_valve_sat_frac") or 0.0)
+        x = float(r.cue["cue_pitch_box_frac"])
+        y = float(r.cue["cue_long_corr"])
+        sat = float(r.cue.get("cue_valve_sat_frac") or 0.0)
         label = "variant (area, 'sat': time with a valve at a rail)" if n == 0 else None
         ax.scatter([x], [y], s=30 + 3000 * sat, color="tab:red", alpha=0.7, label=label)
-        label = ", ".join(f"{k.split('.')[-1]}={format_value(v)}" for k, v in r["values"].items())
+        label = ", ".join(f"{k.split('.')[-1]}={format_value(v)}" for k, v in r.values.items())
         ax.annotate(f"{label}; sat {100 * sat:.1f} %", (x, y), fontsize=6, xytext=(4, 3),
                     textcoords="offset points")  # fmt: skip
     ax.set_xlabel("pitch workspace used (fraction of the cueing box)")

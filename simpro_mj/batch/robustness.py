@@ -20,10 +20,13 @@ neither a success nor a failure; the table counts those apart as ``unfinished``.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
 from dataclasses import asdict, dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from simpro_mj.batch.summary import Row
 
 __all__ = [
     "OVERSHOOT_PCT",
@@ -52,31 +55,25 @@ COULOMB = "actuator.pneumatics.cylinder.coulomb_friction_n"
 #: extended by whole cells to the largest drawn value (:func:`_edges`).
 PAYLOAD_EDGES = (0.0, 100.0, 200.0, 300.0, 400.0)
 COULOMB_EDGES = (0.0, 50.0, 100.0, 150.0, 200.0, 250.0)
-_AXES = ("roll", "pitch", "heave")
 #: The statuses of a variant the batch did not finish (no verdict to count).
 UNFINISHED = ("cancelled", "interrupted")
 
 
-def _stepped(row: Mapping) -> list[str]:
-    """The axes with a step response (an overshoot was measured)."""
-    return [a for a in _AXES if row.get(f"{a}_overshoot_pct") is not None]
-
-
-def worst(row: Mapping) -> tuple[float | None, float | None]:
-    """(largest overshoot %, longest settling s) over the stepped axes; inf: never settled."""
-    axes = _stepped(row)
-    if not axes:
+def worst(row: Row) -> tuple[float | None, float | None]:
+    """(largest overshoot %, longest settling s) over the stepped axes (those with an
+    overshoot measured); inf: never settled."""
+    stepped = [(o, a.settling_s) for a in row.axes if (o := a.overshoot_pct) is not None]
+    if not stepped:
         return None, None
-    over = max(float(row[f"{a}_overshoot_pct"]) for a in axes)
-    settle = [row.get(f"{a}_settling_s") for a in axes]
-    return over, max(np.inf if s is None else float(s) for s in settle)
+    over = max(float(o) for o, _ in stepped)
+    return over, max(np.inf if s is None else float(s) for _, s in stepped)
 
 
-def meets_floors(row: Mapping) -> bool:
+def meets_floors(row: Row) -> bool:
     """Status ok, and every stepped axis within the overshoot and settling floors."""
     over, settle = worst(row)
     return (
-        row.get("status") == "ok"
+        row.status == "ok"
         and over is not None
         and over <= OVERSHOOT_PCT
         and settle is not None
@@ -84,8 +81,8 @@ def meets_floors(row: Mapping) -> bool:
     )
 
 
-def _point(row: Mapping) -> tuple[float, float] | None:
-    values = row.get("values") or {}
+def _point(row: Row) -> tuple[float, float] | None:
+    values = row.values
     if PAYLOAD not in values or COULOMB not in values:
         return None
     return float(values[PAYLOAD]), float(np.min(values[COULOMB]))
@@ -147,17 +144,17 @@ class RobustnessTable:
         return asdict(self)
 
 
-def robustness_table(rows: list[dict], name: str) -> RobustnessTable | None:
+def robustness_table(rows: list[Row], name: str) -> RobustnessTable | None:
     """The :class:`RobustnessTable` of scenario file ``name``; None when no variant
     drew both payload and friction."""
-    drawn = [(r, p) for r in rows if r["scenario"] == name and (p := _point(r)) is not None]
+    drawn = [(r, p) for r in rows if r.scenario == name and (p := _point(r)) is not None]
     if not drawn:
         return None
-    pts = [(r, p) for r, p in drawn if r["status"] not in UNFINISHED]
+    pts = [(r, p) for r, p in drawn if r.status not in UNFINISHED]
     met = [meets_floors(r) for r, _ in pts]
     statuses: dict[str, int] = {}
     for r, _ in pts:
-        statuses[r["status"]] = statuses.get(r["status"], 0) + 1
+        statuses[r.status] = statuses.get(r.status, 0) + 1
     cells = []
     pay_edges = _edges(PAYLOAD_EDGES, [p[0] for _, p in drawn])
     cou_edges = _edges(COULOMB_EDGES, [p[1] for _, p in drawn])
@@ -232,15 +229,15 @@ _VERDICT_STYLE = {
 }
 
 
-def _verdict_class(row: Mapping) -> str:
+def _verdict_class(row: Row) -> str:
     if meets_floors(row):
         return "meets the floors"
-    if row["status"] == "ok":
+    if row.status == "ok":
         return "ok, beyond a floor"
-    return row["status"] if row["status"] in ("not_settled", "limit_cycle") else "other"
+    return row.status if row.status in ("not_settled", "limit_cycle") else "other"
 
 
-def map_figure(rows: list[dict], table: RobustnessTable):
+def map_figure(rows: list[Row], table: RobustnessTable):
     """Payload x the smallest leg's Coulomb friction, coloured by verdict, overshoot, settling
     (a matplotlib Figure; None without points)."""
     from matplotlib.figure import Figure  # when drawn: the batch's start does not load it
@@ -248,9 +245,9 @@ def map_figure(rows: list[dict], table: RobustnessTable):
     pts = [
         (r, p)
         for r in rows
-        if r["scenario"] == table.scenario
+        if r.scenario == table.scenario
         and (p := _point(r)) is not None
-        and r["status"] not in UNFINISHED
+        and r.status not in UNFINISHED
     ]
     if not pts:
         return None

@@ -124,7 +124,7 @@ from pathlib import Path
 from simpro_mj.batch.plan import plan, scenario_files
 from simpro_mj.batch.robustness import robustness_table
 from simpro_mj.batch.stability import stability_of_folder
-from simpro_mj.batch.summary import Report, summary_row, write_summary
+from simpro_mj.batch.summary import Report, Row, summary_row, write_summary
 from simpro_mj.batch.tables import monte_carlo_table, stability_table
 from simpro_mj.batch.worker import ACTIVITY, install, run_variant
 from simpro_mj.config.scenario import scenario_hash
@@ -223,7 +223,7 @@ def _run_batch(
             if job.error:
                 which = f" (variant {job.variant})" if job.variant != "-" else ""
                 raise UserInputError(f"invalid scenario at {job.file}{which}: {job.error}")
-    rows: list[dict | None] = [None] * len(p.jobs)
+    rows: list[Row | None] = [None] * len(p.jobs)
     tasks: list[tuple[int, dict]] = []
     skipped = 0
     examples = _examples(p.jobs)
@@ -275,7 +275,7 @@ def _run_batch(
         for text, count in (result.pop("notices", None) or {}).items():
             said[text] = said.get(text, 0) + count
         row = rows[key] = summary_row(p.jobs[key], result)
-        bar.update(row["status"], result.get("wall_s"))
+        bar.update(row.status, result.get("wall_s"))
 
     out.mkdir(parents=True, exist_ok=True)
     record(out, SUMMARY_FILES, "batch", pending=True)
@@ -309,8 +309,8 @@ def _run_batch(
         report.stopped = stopped
         report.notices = said
         for row in report.rows:
-            if stopped and row["status"] == "cancelled" and not row["reason"]:
-                row["reason"] = f"not finished: batch stopped: {stopped}"
+            if stopped and row.status == "cancelled" and not row.reason:
+                row.reason = f"not finished: batch stopped: {stopped}"
         report.wall_s = time.perf_counter() - wall0
         write_summary(report)
         if stopped is not None:
@@ -367,7 +367,7 @@ def expected_cost(scenario: Mapping) -> float:
     return float(scenario.get("duration_s", 0.0)) + EXPERIMENT_WEIGHT * exp
 
 
-def _finished_row(job, out: Path) -> dict:
+def _finished_row(job, out: Path) -> Row:
     """The row of a variant with no result back: from its folder if that is complete
     for this variant (as ``--resume`` would skip it), else ``cancelled``."""
     try:

@@ -41,8 +41,9 @@ linear``; the table notes when the plant is the nonlinear one.
 from __future__ import annotations
 
 from collections.abc import Mapping
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import NamedTuple
 
 import numpy as np
 
@@ -53,6 +54,8 @@ from simpro_mj.report.results import read_timeseries
 __all__ = [
     "BLOCK_S",
     "GROWTH_LIMIT_1_S",
+    "Analytic",
+    "Stability",
     "analytic",
     "stability_of",
     "stability_of_folder",
@@ -73,27 +76,28 @@ _TS_COLUMNS = {
 }
 
 
-def stability_of(columns: Mapping, status: str | None = "ok") -> dict:
-    """Measured stability of a run from its time series (criterion: module docstring).
+@dataclass
+class Stability:
+    """Measured stability of a run (criterion: module docstring).
 
-    Returns
-    -------
-    dict
-        ``stable`` (bool), ``growth_rate_1_s`` (float or None),
-        ``oscillation_floors`` and ``reference_floors`` (largest detrended
-        error and reference excursion, in settling floors) and ``why`` (None
-        or the reason it is unstable).
+    ``growth_rate_1_s`` the error envelope's growth (None: settled at noise level),
+    ``oscillation_floors`` and ``reference_floors`` the largest detrended error and
+    reference excursion, in settling floors, ``why`` None or the reason it is unstable.
     """
 
-    out: dict[str, Any] = {
-        "stable": True,
-        "growth_rate_1_s": None,
-        "oscillation_floors": None,
-        "reference_floors": None,
-        "why": None,
-    }
+    stable: bool = True
+    growth_rate_1_s: float | None = None
+    oscillation_floors: float | None = None
+    reference_floors: float | None = None
+    why: str | None = None
+
+
+def stability_of(columns: Mapping, status: str | None = "ok") -> Stability:
+    """Measured stability of a run from its time series (criterion: module docstring)."""
+
+    out = Stability()
     if status == "diverged":
-        out.update(stable=False, why="diverged")
+        out.stable, out.why = False, "diverged"
     t = np.asarray(columns.get("time_s", []), dtype=float)
     if t.size < 2:
         return out
@@ -109,7 +113,7 @@ def stability_of(columns: Mapping, status: str | None = "ok") -> dict:
             refs = max(refs, float(np.max(np.abs(fin - fin[0]))) / floor)
     n = t.size if ok.all() else int(np.argmin(ok))  # a diverged run: its finite part
     t = t[:n]
-    out["reference_floors"] = refs
+    out.reference_floors = refs
     if n < 2:
         return out
     start = _settled_from(columns, t)
@@ -143,16 +147,14 @@ def stability_of(columns: Mapping, status: str | None = "ok") -> dict:
             and (rate is None or rate > -GROWTH_LIMIT_1_S)
         ):
             held.append(amp)
-    out["oscillation_floors"] = max(osc) if osc else None
-    out["growth_rate_1_s"] = max(rates) if rates else None
-    if out["why"] is None:
+    out.oscillation_floors = max(osc) if osc else None
+    out.growth_rate_1_s = max(rates) if rates else None
+    if out.why is None:
         if rates and max(rates) > GROWTH_LIMIT_1_S:
-            out.update(stable=False, why=f"error envelope grows at {max(rates):.3g} 1/s")
+            out.stable, out.why = False, f"error envelope grows at {max(rates):.3g} 1/s"
         elif held:
-            out.update(
-                stable=False,
-                why=f"held oscillation of {max(held):.3g} floors (reference {refs:.3g} floors)",
-            )
+            out.stable = False
+            out.why = f"held oscillation of {max(held):.3g} floors (reference {refs:.3g} floors)"
     return out
 
 
@@ -171,35 +173,27 @@ def _settled_from(columns: Mapping, t) -> float:
     return start if t[-1] - start >= 3 * BLOCK_S else half
 
 
-def stability_of_folder(folder: Path, status: str | None = "ok") -> dict:
+def stability_of_folder(folder: Path, status: str | None = "ok") -> Stability:
     """:func:`stability_of` of a result folder's ``timeseries.csv``."""
-
     return stability_of(read_timeseries(Path(folder) / "timeseries.csv"), status)
 
 
-def analytic(scenario: Mapping) -> dict:
-    """The analysis' view of a variant's outer loop (module docstring).
+class Analytic(NamedTuple):
+    """The analysis' view of a variant's outer loop (module docstring): ``limit`` (real
+    inner loops), ``limit_delay_model`` and ``growth_rate_1_s`` (ln of the closed loop's
+    spectral radius per outer period, at the variant's gains); None when the analysis
+    does not apply (joint-only, identified design plants)."""
 
-    Returns
-    -------
-    dict
-        ``analytic_limit`` (real inner loops), ``analytic_limit_delay_model``
-        and ``analytic_growth_rate_1_s`` (ln of the closed loop's spectral
-        radius per outer period, at the variant's gains); ``None`` values when
-        the analysis does not apply (joint-only, identified design plants).
-    """
-    none = {
-        "analytic_limit": None,
-        "analytic_limit_delay_model": None,
-        "analytic_growth_rate_1_s": None,
-    }
+    limit: float | None = None
+    limit_delay_model: float | None = None
+    growth_rate_1_s: float | None = None
+
+
+def analytic(scenario: Mapping) -> Analytic:
+    """The :class:`Analytic` view of a variant's outer loop."""
     c = scenario["controller"]
     if c["mode"] != "task_space" or c["inner"]["design_plant"] != "paper":
-        return none
+        return Analytic()
     # the joint loops on the plants they were designed for (the paper's)
     info = outer_loop(scenario, plant="paper")
-    return {
-        "analytic_limit": info["limit"],
-        "analytic_limit_delay_model": info["delay_model_limit"],
-        "analytic_growth_rate_1_s": info["growth_rate_1_s"],
-    }
+    return Analytic(info["limit"], info["delay_model_limit"], info["growth_rate_1_s"])

@@ -25,12 +25,12 @@ import os
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 from simpro_mj.analysis.cue_metrics import SUMMARY_COLUMNS, summary_columns
 from simpro_mj.analysis.verdict import FINISHED_STATUSES
 from simpro_mj.batch.plan import Job
-from simpro_mj.batch.stability import analytic
+from simpro_mj.batch.stability import Analytic, Stability, analytic
 from simpro_mj.config.sweep import format_value
 from simpro_mj.report.results import jsonable
 
@@ -43,7 +43,9 @@ __all__ = [
     "RUN_STATUSES",
     "SMALL_SIGNAL_ONLY",
     "STATUSES",
+    "AxisRow",
     "Report",
+    "Row",
     "csv_columns",
     "metric_columns",
     "summary_row",
@@ -78,6 +80,75 @@ def metric_columns() -> list[str]:
     return out
 
 
+class AxisRow(NamedTuple):
+    """One axis's step metrics in the summary's units: the errors in deg (roll, pitch)
+    or mm (heave), the times in s, the overshoot in %; None where none was measured."""
+
+    ss_err: float | None = None
+    rms_err: float | None = None
+    max_err: float | None = None
+    rise_s: float | None = None
+    settling_s: float | None = None
+    overshoot_pct: float | None = None
+
+
+@dataclass
+class Row:
+    """One variant's row of the summary (module docstring: its columns).
+
+    ``analytic`` only on a gain sweep's rows (:func:`simpro_mj.batch.stability.analytic`);
+    ``cue`` the cueing run's :data:`SUMMARY_COLUMNS`, empty for a step run.
+    """
+
+    variant: str
+    scenario: str
+    status: str
+    folder: str = ""
+    file: str = ""
+    values: dict[str, Any] = field(default_factory=dict)
+    sample: int | None = None
+    seed: int | None = None
+    reason: str | None = None
+    skipped: bool = False
+    roll: AxisRow = AxisRow()
+    pitch: AxisRow = AxisRow()
+    heave: AxisRow = AxisRow()
+    stable: bool | None = None
+    growth_rate_1_s: float | None = None
+    stability_note: str | None = None
+    analytic: Analytic | None = None
+    realtime_factor: float | None = None
+    wall_s: float | None = None
+    cpu_s: float | None = None
+    cue: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def axes(self) -> tuple[AxisRow, AxisRow, AxisRow]:
+        """(roll, pitch, heave), in the order of :data:`AXES`."""
+        return self.roll, self.pitch, self.heave
+
+    def to_json(self) -> dict:
+        """The row as ``summary.json`` writes it: one key per column."""
+        out = {k: getattr(self, k) for k in _HEAD}
+        for (axis, unit, _), m in zip(AXES, self.axes, strict=True):
+            for (suffix, _, scaled), v in zip(_METRICS, m, strict=True):
+                out[f"{axis}_{suffix}_{unit}" if scaled else f"{axis}_{suffix}"] = v
+        out.update(
+            stable=self.stable,
+            growth_rate_1_s=self.growth_rate_1_s,
+            stability_note=self.stability_note,
+        )
+        if self.analytic is not None:
+            out.update({f"analytic_{k}": v for k, v in self.analytic._asdict().items()})
+        out.update(realtime_factor=self.realtime_factor, wall_s=self.wall_s, cpu_s=self.cpu_s)
+        return out | self.cue
+
+
+#: The row's leading columns, in ``summary.json``'s order.
+_HEAD = ("variant", "scenario", "folder", "file", "values", "sample", "seed", "status",
+         "reason", "skipped")  # fmt: skip
+
+
 def _sim_rt(doc: Mapping) -> float | None:
     sim = doc.get("sim") or {}
     rt = sim.get("realtime_factor")
@@ -90,71 +161,61 @@ def _sim_rt(doc: Mapping) -> float | None:
 SMALL_SIGNAL_ONLY = ("limit_cycle", "not_settled")
 
 
-def verdict_note(row: Mapping) -> str | None:
+def verdict_note(row: Row) -> str | None:
     """The note of a row whose two answers differ (:mod:`simpro_mj.batch.tables`), else None."""
-    if row.get("stable") is True and row.get("status") in SMALL_SIGNAL_ONLY:
-        why = f": {row['reason']}" if row.get("reason") else ""
+    if row.stable is True and row.status in SMALL_SIGNAL_ONLY:
+        why = f": {row.reason}" if row.reason else ""
         return (
             "small-signal stable (the error envelope does not grow), large-signal "
-            f"{row['status']} (the verdict{why})"
+            f"{row.status} (the verdict{why})"
         )
     return None
 
 
-def summary_row(job: Job, result: Mapping | None, skipped: bool = False) -> dict:
+def summary_row(job: Job, result: Mapping | None, skipped: bool = False) -> Row:
     """One summary row (SI converted to the column units)."""
-    row: dict[str, Any] = {
-        "variant": job.variant,
-        "scenario": job.scenario_name,
-        "folder": job.folder if job.scenario is not None else "",
-        "file": job.file,
-        "values": dict(job.values),
-        "sample": job.sample,
-        "seed": job.seed,
-        "status": "invalid" if job.error else "cancelled",
-        "reason": job.error,
-        "skipped": skipped,
-    }
-    for col in metric_columns():
-        row[col] = None
-    row.update(stable=None, growth_rate_1_s=None, stability_note=None)
+    row = Row(
+        variant=job.variant,
+        scenario=job.scenario_name,
+        status="invalid" if job.error else "cancelled",
+        folder=job.folder if job.scenario is not None else "",
+        file=job.file,
+        values=dict(job.values),
+        sample=job.sample,
+        seed=job.seed,
+        reason=job.error,
+        skipped=skipped,
+    )
     if job.gain_sweep:
-        row.update(
-            analytic_limit=None, analytic_limit_delay_model=None, analytic_growth_rate_1_s=None
-        )
-    row["realtime_factor"] = None
-    row.update(wall_s=None, cpu_s=None)
-    if job.scenario is not None and job.gain_sweep:
-        row.update(analytic(job.scenario))
+        row.analytic = Analytic() if job.scenario is None else analytic(job.scenario)
     if result is None:
         return row
-    row["status"] = result.get("status", "failed")
-    row["reason"] = result.get("reason")
-    row["wall_s"], row["cpu_s"] = result.get("wall_s"), result.get("cpu_s")
+    row.status = result.get("status", "failed")
+    row.reason = result.get("reason")
+    row.wall_s, row.cpu_s = result.get("wall_s"), result.get("cpu_s")
     doc = result.get("metrics")
     if doc:
         axes = doc.get("axes") or {}
-        for axis, unit, scale in AXES:
-            m = axes.get(axis) or {}
-            for suffix, key, scaled in _METRICS:
-                v = m.get(key)
-                row[f"{axis}_{suffix}_{unit}" if scaled else f"{axis}_{suffix}"] = (
-                    None if v is None else float(v) * (scale if scaled else 1.0)
-                )
-        row["realtime_factor"] = _sim_rt(doc)
+        row.roll, row.pitch, row.heave = (
+            AxisRow(*(_scaled((axes.get(axis) or {}).get(key), scale if scaled else 1.0)
+                      for _, key, scaled in _METRICS))
+            for axis, _, scale in AXES
+        )  # fmt: skip
+        row.realtime_factor = _sim_rt(doc)
         cue = doc.get("cueing") or (doc.get("metrics") or {}).get("cueing")
         if cue:
-            row.update(summary_columns(cue))
-    stab = result.get("stability")
-    if row.get("cue_algorithm") is not None:
+            row.cue = summary_columns(cue)
+    stab: Stability | None = result.get("stability")
+    if stab and not row.cue:
         # a cueing run is judged by the cue floors (cue_floors_met), not by the growth of
         # a step response's error: its set-point moves all along
-        stab = None
-    if stab:
-        row["stable"] = stab["stable"]
-        row["growth_rate_1_s"] = stab["growth_rate_1_s"]
-        row["stability_note"] = stab["why"] or verdict_note(row)
+        row.stable, row.growth_rate_1_s = stab.stable, stab.growth_rate_1_s
+        row.stability_note = stab.why or verdict_note(row)
     return row
+
+
+def _scaled(v: Any, scale: float) -> float | None:
+    return None if v is None else float(v) * scale
 
 
 @dataclass
@@ -162,7 +223,7 @@ class Report:
     """What a batch did: rows in expansion order, the stability table, files written."""
 
     out: Path
-    rows: list[dict]
+    rows: list[Row]
     paths: list[str]
     files: list[dict]
     stability: list[StabilityLimit] = field(default_factory=list)
@@ -181,12 +242,12 @@ class Report:
     def counts(self) -> dict:
         c = {s: 0 for s in STATUSES}
         for r in self.rows:
-            c[r["status"]] = c.get(r["status"], 0) + 1
+            c[r.status] = c.get(r.status, 0) + 1
         return c
 
     @property
     def all_ok(self) -> bool:
-        return bool(self.rows) and all(r["status"] == "ok" for r in self.rows)
+        return bool(self.rows) and all(r.status == "ok" for r in self.rows)
 
     def document(self) -> dict:
 
@@ -199,7 +260,7 @@ class Report:
                 "wall_s": self.wall_s,
                 "stopped": self.stopped,
                 "notices": self.notices,
-                "cpu_s": sum(r.get("cpu_s") or 0.0 for r in self.rows),
+                "cpu_s": sum(r.cpu_s or 0.0 for r in self.rows),
                 "swept_paths": self.paths,
                 "files": self.files,
                 "stability": self.stability,
@@ -227,13 +288,13 @@ def _cell(v: Any) -> str:
 def csv_columns(report: Report) -> list[str]:
     """summary.csv's columns for this batch (module docstring)."""
     cols = ["variant", "scenario", "folder", *report.paths]
-    if any(r["sample"] is not None for r in report.rows):
+    if any(r.sample is not None for r in report.rows):
         cols.append("sample")
     cols += ["seed", "status", "reason", *metric_columns(), "stable", "growth_rate_1_s"]
     cols.append("stability_note")
-    if any("analytic_limit" in r for r in report.rows):
+    if any(r.analytic is not None for r in report.rows):
         cols += ["analytic_limit", "analytic_limit_delay_model", "analytic_growth_rate_1_s"]
-    if any("cue_long_corr" in r for r in report.rows):  # cueing runs
+    if any("cue_long_corr" in r.cue for r in report.rows):  # cueing runs
         cols += list(SUMMARY_COLUMNS)
     cols.append("realtime_factor")
     return cols
@@ -245,7 +306,8 @@ def summary_csv_text(report: Report) -> str:
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(cols)
     for r in report.rows:
-        w.writerow([_cell(r["values"].get(c) if c in report.paths else r.get(c)) for c in cols])
+        flat = r.to_json()
+        w.writerow([_cell(r.values.get(c) if c in report.paths else flat.get(c)) for c in cols])
     return buf.getvalue()
 
 

@@ -28,7 +28,8 @@ import numpy as np
 
 from simpro_mj.batch.plan import GAIN_PATH, Job
 from simpro_mj.batch.robustness import UNFINISHED, table_lines
-from simpro_mj.batch.summary import AXES, SMALL_SIGNAL_ONLY, Report, verdict_note
+from simpro_mj.batch.stability import Analytic
+from simpro_mj.batch.summary import AXES, SMALL_SIGNAL_ONLY, Report, Row, verdict_note
 from simpro_mj.config.sweep import format_value
 
 __all__ = [
@@ -126,12 +127,12 @@ def _gain(values: Mapping) -> float | None:
     return None
 
 
-def stability_table(rows: list[dict], jobs: list[Job]) -> list[StabilityLimit]:
+def stability_table(rows: list[Row], jobs: list[Job]) -> list[StabilityLimit]:
     """Analytic vs simulated stability limit per gain sweep group (module docstring)."""
 
-    groups: dict[tuple, list[tuple[float, dict, Job]]] = {}
+    groups: dict[tuple, list[tuple[float, Row, Job]]] = {}
     for row, job in zip(rows, jobs, strict=True):
-        if not job.gain_sweep or job.mc or row["stable"] is None:
+        if not job.gain_sweep or job.mc or row.stable is None:
             continue
         g = _gain(job.values)
         if g is None:
@@ -142,25 +143,25 @@ def stability_table(rows: list[dict], jobs: list[Job]) -> list[StabilityLimit]:
     for (sname, others), members in groups.items():
         members.sort(key=lambda m: m[0])
         gains = [m[0] for m in members]
-        stable = [bool(m[1]["stable"]) for m in members]
-        statuses = [m[1]["status"] for m in members]
+        stable = [bool(m[1].stable) for m in members]
+        statuses = [m[1].status for m in members]
         unstable_at = [g for g, s in zip(gains, stable, strict=True) if not s]
         hi = min(unstable_at) if unstable_at else None
-        below = [m for m in members if m[1]["stable"] and (hi is None or m[0] < hi)]
+        below = [m for m in members if m[1].stable and (hi is None or m[0] < hi)]
         lo_m = below[-1] if below else None
         lo = lo_m[0] if lo_m else None
         estimate = None
         if lo is not None and hi is not None:
             assert lo_m is not None  # lo is its gain
             hi_m = next(m for m in members if m[0] == hi)
-            s_lo, s_hi = lo_m[1]["growth_rate_1_s"], hi_m[1]["growth_rate_1_s"]
+            s_lo, s_hi = lo_m[1].growth_rate_1_s, hi_m[1].growth_rate_1_s
             if s_lo is not None and s_hi is not None and s_lo < 0 < s_hi:
                 estimate = lo + (hi - lo) * (-s_lo) / (s_hi - s_lo)
             else:
                 estimate = 0.5 * (lo + hi)
         first = members[0][2].scenario
         assert first is not None  # a planned variant's
-        ana = members[0][1].get("analytic_limit")
+        ana = members[0][1].analytic or Analytic()
         note = []
         if first["actuator"]["model"] != "linear":
             note.append("nonlinear pneumatics: the analysis assumes eq. (19) plants")
@@ -192,23 +193,23 @@ def stability_table(rows: list[dict], jobs: list[Job]) -> list[StabilityLimit]:
                 actuator_model=first["actuator"]["model"],
                 gains=gains,
                 stable=stable,
-                growth_rate_1_s=[m[1]["growth_rate_1_s"] for m in members],
+                growth_rate_1_s=[m[1].growth_rate_1_s for m in members],
                 statuses=statuses,
                 largest_stable=lo,
                 smallest_unstable=hi,
                 largest_settled=settled_lo,
                 smallest_unsettled=settled_hi,
                 simulated_limit=estimate,
-                analytic_limit=ana,
-                analytic_limit_delay_model=members[0][1].get("analytic_limit_delay_model"),
-                simulated_over_analytic=(estimate / ana) if estimate and ana else None,
+                analytic_limit=ana.limit,
+                analytic_limit_delay_model=ana.limit_delay_model,
+                simulated_over_analytic=(estimate / ana.limit) if estimate and ana.limit else None,
                 note="; ".join(note) or None,
             )
         )
     return table
 
 
-def monte_carlo_table(rows: list[dict], jobs: list[Job]) -> list[MonteCarloSpread]:
+def monte_carlo_table(rows: list[Row], jobs: list[Job]) -> list[MonteCarloSpread]:
     """Distribution of |steady-state error| per Monte Carlo file and grid combination.
 
     Per axis the median, 90th percentile and maximum over the variants with
@@ -217,41 +218,36 @@ def monte_carlo_table(rows: list[dict], jobs: list[Job]) -> list[MonteCarloSprea
     per file ``finished`` and ``unfinished`` (module docstring).
     """
 
-    files: dict[str, dict] = {}
+    samples: dict[str, int] = {}
+    files: dict[str, dict[str, list[Row]]] = {}
     for row, job in zip(rows, jobs, strict=True):
         if not job.mc:
             continue
-        f = files.setdefault(job.scenario_name, {"samples": 0, "groups": {}})
-        f["samples"] = max(f["samples"], (job.sample or 0) + 1)
+        sname = job.scenario_name
+        samples[sname] = max(samples.get(sname, 0), (job.sample or 0) + 1)
         group = ", ".join(
             f"{p.split('.')[-1]}={format_value(job.values[p])}" for p in job.grid_paths
         )
-        f["groups"].setdefault(group or "all", []).append(row)
+        files.setdefault(sname, {}).setdefault(group or "all", []).append(row)
     out = []
-    for sname, f in files.items():
+    for sname, members_of in files.items():
         groups = []
-        for name, members in f["groups"].items():
-            ok = [r for r in members if r["status"] == "ok"]
+        for name, members in members_of.items():
+            ok = [r for r in members if r.status == "ok"]
             axes = {}
-            for axis, unit, _ in AXES:
-                v = np.abs(
-                    [
-                        r[f"{axis}_ss_err_{unit}"]
-                        for r in ok
-                        if r[f"{axis}_ss_err_{unit}"] is not None
-                    ]
-                )
+            for i, (axis, unit, _) in enumerate(AXES):
+                v = np.abs([e for r in ok if (e := r.axes[i].ss_err) is not None])
                 axes[axis] = ErrorSpread(
                     unit=unit,
                     median=float(np.median(v)) if v.size else None,
                     p90=float(np.percentile(v, 90)) if v.size else None,
                     max=float(v.max()) if v.size else None,
                 )
-            finished = sum(r["status"] not in UNFINISHED for r in members)
+            finished = sum(r.status not in UNFINISHED for r in members)
             groups.append(SpreadGroup(name, len(ok), finished, len(members), axes))
         finished = sum(g.finished for g in groups)
         total = sum(g.of for g in groups)
-        out.append(MonteCarloSpread(sname, f["samples"], finished, total - finished, groups))
+        out.append(MonteCarloSpread(sname, samples[sname], finished, total - finished, groups))
     return out
 
 
@@ -268,30 +264,30 @@ def print_report(report: Report, file=None) -> None:
     )
     last = None
     for r in report.rows:
-        if r["scenario"] != last:
-            print(f"\n{r['scenario']}  ({r['file']})", file=file)
+        if r.scenario != last:
+            print(f"\n{r.scenario}  ({r.file})", file=file)
             print(header + "\n" + "-" * len(header), file=file)
-            last = r["scenario"]
-        stable = "-" if r["stable"] is None else ("yes" if r["stable"] else "NO")
+            last = r.scenario
+        stable = "-" if r.stable is None else ("yes" if r.stable else "NO")
         differ = verdict_note(r) is not None
         stable += "*" if differ else ""
         print(
-            f"{r['variant']:<34} {r['status']:<11} {stable:<6} "
-            f"{_num(r['roll_ss_err_deg'], 3):>9} {_num(r['pitch_ss_err_deg'], 3):>9} "
-            f"{_num(r['heave_ss_err_mm'], 3):>9} {_num(r['growth_rate_1_s'], 2):>7} "
-            f"{_num(r['realtime_factor'], 3):>6}",
+            f"{r.variant:<34} {r.status:<11} {stable:<6} "
+            f"{_num(r.roll.ss_err, 3):>9} {_num(r.pitch.ss_err, 3):>9} "
+            f"{_num(r.heave.ss_err, 3):>9} {_num(r.growth_rate_1_s, 2):>7} "
+            f"{_num(r.realtime_factor, 3):>6}",
             file=file,
         )
-        if r["status"] != "ok" and r["reason"]:
-            print(f"    {r['status']}: {r['reason']}", file=file)
+        if r.status != "ok" and r.reason:
+            print(f"    {r.status}: {r.reason}", file=file)
         if differ:
             print(
                 "    * small-signal stable (the error envelope does not grow), "
-                f"large-signal {r['status']}",
+                f"large-signal {r.status}",
                 file=file,
             )
-        if r.get("cue_floors_met") is not None:
-            floors = "met" if r["cue_floors_met"] else "missed: " + r["cue_floors_missed"]
+        if r.cue.get("cue_floors_met") is not None:
+            floors = "met" if r.cue["cue_floors_met"] else "missed: " + r.cue["cue_floors_missed"]
             print(f"    cue floors {floors}", file=file)
     print(
         "(ss: steady-state error, deg, deg, mm; growth: error envelope, 1/s; "
