@@ -23,6 +23,7 @@ from simpro_mj.analysis.chain_response import (
     omct_periods_ms,
     plan_chain,
 )
+from simpro_mj.analysis.response import SineTask
 from simpro_mj.commands.main import main
 from simpro_mj.config.cue_params import washout_params
 from simpro_mj.config.cueing import vehicle_input
@@ -78,7 +79,7 @@ def test_fit_recovers_the_washout_on_an_ideal_platform(channel, period_ms):
     sc = chain_scenario(base, channel, period_ms, amp, settle_s=10.0, periods=1)
     sc["duration_s"] += 0.1  # np.gradient's one-sided ends outside the fitted period
     sc["setpoint"]["cueing"] = check_cueing(sc["setpoint"]["cueing"])
-    task = {"channel": channel, "period_ms": period_ms, "settle_s": 10.0, "periods": 1}
+    task = SineTask(sc, channel, period_ms, settle_s=10.0, periods=1)
     fit = fit_columns(_ideal_columns(sc), task)
     omega = 2000.0 * math.pi / period_ms
     wash = ClassicalWashout(washout_params(sc["setpoint"]["cueing"]))
@@ -127,7 +128,7 @@ def test_cosimulated_chain_matches_the_linear_chain(cosim_pitch):
     leak: the head, 0.75 m above P on a mechanism that also moves P fore and aft,
     accelerates with the pitch: (g + 1.18 w^2) / g = +4.9 dB over the washout alone."""
     plan, results = cosim_pitch
-    assert results[0]["status"] == "ok", results[0]
+    assert results[0].status == "ok", results[0]
     doc = chain_summary(plan, results)
     assert not doc.failed and doc.prediction_note is None
     rows = {r.test: r for r in doc.rows}

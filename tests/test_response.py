@@ -168,7 +168,7 @@ def linear_pitch():
 
 def test_linear_actuator_measured_matches_prediction(linear_pitch):
     sc, plan, results = linear_pitch
-    assert results[0]["status"] == "ok"
+    assert results[0].status == "ok"
     doc = summary(plan, results, loop_model(sc))
     assert not doc.failed
     diag = [r for r in doc.rows if r.output_axis == "pitch" and r.input_axis == "pitch"]

@@ -58,6 +58,8 @@ from controllers.frequency import CHAIN_CHANNELS, OMCT_RAD_S, chain_response, fi
 from controllers.kinematics import inverse_kinematics
 from controllers.washout import ClassicalWashout, WashoutParams
 from simpro_mj.analysis.response import (
+    Failed,
+    SineTask,
     check_run_length,
     check_settle_periods,
     failures,
@@ -65,7 +67,6 @@ from simpro_mj.analysis.response import (
     run_point,
     saturated_pct,
     sine_tasks,
-    window,
 )
 from simpro_mj.analysis.response_summary import Bode, loop_model
 from simpro_mj.config.cue_params import washout_params
@@ -146,7 +147,7 @@ class ChainPlan:
     amplitudes: dict  # SI per channel
     settle_s: float
     periods: int
-    tasks: list = field(default_factory=list)
+    tasks: list[SineTask] = field(default_factory=list)
 
 
 def _check_amplitude(value, kind: str) -> float:
@@ -205,7 +206,7 @@ def plan_chain(
     def run_of(c: str, p: int) -> dict:
         return chain_scenario(scenario, c, p, amps[c], settle_s, periods)
 
-    plan.tasks = sine_tasks("channel", plan.channels, plan.periods_ms, settle_s, periods, run_of)
+    plan.tasks = sine_tasks(plan.channels, plan.periods_ms, settle_s, periods, run_of)
     return plan
 
 
@@ -225,85 +226,72 @@ def chain_scenario(
     through its washout (or the default one), for ``settle_s`` plus ``periods`` periods,
     logged every step, faults removed."""
     sc = copy.deepcopy(dict(scenario))
-    block = _cue_block(scenario)
-    sc["setpoint"] = {
-        "cueing": {
-            "telemetry": None,
-            "manoeuvre": None,
-            "sine": {
-                "channel": _SINE_CHANNEL[channel],
-                "amplitude": float(amplitude),
-                "period_s": period_ms / 1000.0,
-            },
-            **block,
-        }
+    sine = {"channel": _SINE_CHANNEL[channel], "amplitude": float(amplitude),
+            "period_s": period_ms / 1000.0}  # fmt: skip
+    cueing = {"telemetry": None, "manoeuvre": None, "sine": sine, **_cue_block(scenario)}
+    return sc | {
+        "setpoint": {"cueing": cueing},
+        "duration_s": round(settle_s + periods * period_ms / 1000.0, 3),
+        "faults": [],
+        "logging": dict(sc.get("logging") or {}, decimation=1),
     }
-    sc["duration_s"] = round(settle_s + periods * period_ms / 1000.0, 3)
-    sc["faults"] = []
-    sc["logging"] = dict(sc.get("logging") or {}, decimation=1)
-    return sc
 
 
 @dataclass
 class SineFit:
     """A chain run's fit over its settled whole periods (:func:`fit_columns`): ``ref``
     the input's complex amplitude (``[re, im]``, SI), ``head`` one ``[re, im]`` per
-    :data:`CHANNELS`, and the fitted rows ``k0:k1``."""
+    :data:`CHANNELS`, the fitted rows ``k0:k1``; from the run (:func:`measure_chain_point`)
+    the shares (%) of those rows with a valve at a rail (``saturated_pct``) and of the
+    cueing samples where the tilt rate limit or the workspace soft limit acted."""
 
     ref: list
     head: list
     k0: int
     k1: int
+    saturated_pct: float = 0.0
+    rate_limited_pct: float = 0.0
+    softened_pct: float = 0.0
 
 
-def fit_columns(columns: Mapping, task: Mapping, dt: float = 0.001) -> SineFit:
+def fit_columns(columns: Mapping, task: SineTask, dt: float = 0.001) -> SineFit:
     """Fit a run's vehicle input and head channels over the settled whole periods.
 
     ``columns``: ``time_s``, ``veh_*`` and ``head_*`` (:data:`simpro_mj.config.cueing.CUE_COLUMNS`).
     """
-    k0, k1 = window(task, dt)
+    k0, k1 = task.window(dt)
     t = np.asarray(columns["time_s"], float)[k0:k1]
     if t.size < k1 - k0 or t.size < 4:
         raise ValueError(f"run too short: {t.size} samples, the fit needs {k1 - k0}")
-    w = 2.0 * math.pi / (task["period_ms"] / 1000.0)
+    w = 2.0 * math.pi / (task.period_ms / 1000.0)
 
     def col(side: str, ch: str) -> np.ndarray:
         kind = "f" if ch[0] == "f" else "w"
         unit = "mps2" if kind == "f" else "rad_s"
         return np.asarray(columns[f"{side}_{kind}{ch[1]}_{unit}"], float)[k0:k1]
 
-    ref = fit_sine(t, col("veh", task["channel"]), w)
+    ref = fit_sine(t, col("veh", task.input), w)
     head = fit_sine(t, np.column_stack([col("head", c) for c in CHANNELS]), w)
     return SineFit([ref.real, ref.imag], [[v.real, v.imag] for v in np.atleast_1d(head)], k0, k1)
 
 
-def measure_chain_point(task: Mapping) -> dict:
-    """Run one vehicle sine through the chain and fit it (worker side; pickles by name).
+def _fit_chain(task: SineTask, res) -> SineFit:
+    sine = fit_columns(res.columns, task, res.sim["timestep_s"])
+    k0, k1 = sine.k0, sine.k1
+    info = vehicle_input(task.scenario)[4]
+    e = info["every"]
+    lim = np.asarray(info["rate_limited"])[k0 // e : -(-k1 // e)]
+    soft = np.asarray(info["softened"])[k0 // e : -(-k1 // e)]
+    sine.saturated_pct = saturated_pct(res.columns, k0, k1)
+    sine.rate_limited_pct = float(lim.mean() * 100.0) if lim.size else 0.0
+    sine.softened_pct = float(soft.mean() * 100.0) if soft.size else 0.0
+    return sine
 
-    Returns ``status``, ``reason``, and when ``ok``: ``channel``, ``period_ms``, ``ref``,
-    ``head`` (:func:`fit_columns`), ``saturated_pct`` (fitted steps with a valve at a
-    rail), ``rate_limited_pct`` and ``softened_pct`` (fitted cueing samples where the
-    tilt rate limit or the workspace soft limit acted).
-    """
 
-    def fit(res) -> dict:
-        sine = fit_columns(res.columns, task, res.sim["timestep_s"])
-        k0, k1 = sine.k0, sine.k1
-        info = vehicle_input(task["scenario"])[4]
-        e = info["every"]
-        lim = np.asarray(info["rate_limited"])[k0 // e : -(-k1 // e)]
-        soft = np.asarray(info["softened"])[k0 // e : -(-k1 // e)]
-        return {
-            "channel": task["channel"],
-            "period_ms": task["period_ms"],
-            "ref": sine.ref,
-            "head": sine.head,
-            "saturated_pct": saturated_pct(res.columns, k0, k1),
-            "rate_limited_pct": float(lim.mean() * 100.0) if lim.size else 0.0,
-            "softened_pct": float(soft.mean() * 100.0) if soft.size else 0.0,
-        }
-
-    return run_point(task, fit)
+def measure_chain_point(envelope: Mapping) -> dict:
+    """Run one vehicle sine through the chain and fit it (worker side; pickles by name):
+    a :class:`SineFit` when ``ok`` (:func:`simpro_mj.analysis.response.run_point`)."""
+    return run_point(envelope, _fit_chain)
 
 
 def measure_chain(plan: ChainPlan, *, jobs: int = 1, scheduler=None, progress: bool = False):
@@ -360,7 +348,7 @@ class ChainPrediction:
 def predictions(plan: ChainPlan, omega) -> ChainPrediction:
     """The :class:`ChainPrediction` of ``plan``'s washout and loop at ``omega``."""
 
-    sc = plan.tasks[0]["scenario"] if plan.tasks else plan.scenario
+    sc = plan.tasks[0].scenario if plan.tasks else plan.scenario
     if sc["setpoint"]["cueing"].get("algorithm") == "mpc":
         # a constrained optimisation, not a filter: no transfer function to draw beside
         note = "no linear prediction: the mpc law is a constrained QP, not a linear filter"
@@ -432,8 +420,8 @@ class ChainSummary:
     """The summary of a chain response (:func:`chain_summary`)."""
 
     rows: list[ChainRow] = field(default_factory=list)
-    #: the frequencies that did not run: channel, period, status, reason
-    failed: list[dict] = field(default_factory=list)
+    #: the frequencies that did not run
+    failed: list[Failed] = field(default_factory=list)
     prediction_note: str | None = None
     #: the pairs on which the washout's rate limit or softening acted
     not_small_signal: list[str] = field(default_factory=list)
@@ -442,7 +430,7 @@ class ChainSummary:
     def to_json(self) -> dict:
         return {
             "rows": [r.to_json() for r in self.rows],
-            "failed": self.failed,
+            "failed": [f.as_json("channel") for f in self.failed],
             "prediction_note": self.prediction_note,
             "not_small_signal": self.not_small_signal,
             "curves": {k: asdict(c) for k, c in self.curves.items()},
@@ -460,10 +448,12 @@ def chain_summary(plan: ChainPlan, results: list) -> ChainSummary:
     dense = np.unique(np.r_[np.geomspace(omega.min() / 20, omega.max(), 300), omega])
     at = np.searchsorted(dense, omega)
     pred = predictions(plan, dense)
-    by_key = {(r.get("channel"), r.get("period_ms")): r for r in results if r.get("status") == "ok"}
-
-    out = ChainSummary(failed=failures(plan.tasks, results, "channel"),
-                       prediction_note=pred.note)  # fmt: skip
+    by_key = {
+        (t.input, t.period_ms): r.fit
+        for t, r in zip(plan.tasks, results, strict=True)
+        if r.status == "ok"
+    }
+    out = ChainSummary(failed=failures(plan.tasks, results), prediction_note=pred.note)
     for (cin, cout), name in PAIRS.items():
         if cin not in plan.channels:
             continue
@@ -476,7 +466,7 @@ def chain_summary(plan: ChainPlan, results: list) -> ChainSummary:
             r = by_key.get((cin, p))
             if r is None:
                 continue
-            hm = complex(*r["head"][o]) / complex(*r["ref"])
+            hm = complex(*r.head[o]) / complex(*r.ref)
             raw = math.degrees(np.angle(hm))
             near = ph_p[n] if ph_p is not None else ph_w[n] if ph_w is not None else raw
             phase = raw + 360.0 * round((near - raw) / 360.0)  # the branch of the prediction
@@ -500,9 +490,9 @@ def chain_summary(plan: ChainPlan, results: list) -> ChainSummary:
                 if gw is None
                 else 20 * math.log10(max(g, 1e-300) / max(gw, 1e-300)),
                 platform_deg=None if hw is None else float(np.degrees(np.angle(hm / hw[at[n]]))),
-                saturated_pct=r["saturated_pct"],
-                rate_limited_pct=r["rate_limited_pct"],
-                softened_pct=r["softened_pct"],
+                saturated_pct=r.saturated_pct,
+                rate_limited_pct=r.rate_limited_pct,
+                softened_pct=r.softened_pct,
             )
             if hp is not None and ph_p is not None:
                 gp = abs(_edge(cin, cout, hp[at[n]]))

@@ -35,6 +35,7 @@ import copy
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -59,6 +60,10 @@ __all__ = [
     "check_settle_periods",
     "check_run_length",
     "failures",
+    "Failed",
+    "Outcome",
+    "PoseFit",
+    "SineTask",
     "plan_response",
     "sine_tasks",
     "point_scenario",
@@ -185,12 +190,52 @@ def check_run_length(settle_s: float, periods: int, periods_ms: Sequence[int]) -
         )
 
 
-def failures(tasks: Sequence[Mapping], results: Sequence[Mapping], key: str) -> list:
-    """The tasks that did not run ``ok``: ``key`` (axis or channel), period, status, reason."""
+@dataclass(frozen=True)
+class SineTask:
+    """One stepped sine (worker side): ``scenario`` with the sine on ``input`` (a task
+    axis, or a vehicle channel for the chain) of ``period_ms``, run for ``settle_s`` and
+    then the ``periods`` whole periods that are fitted."""
+
+    scenario: dict
+    input: str
+    period_ms: int
+    settle_s: float
+    periods: int
+
+    def window(self, dt: float) -> tuple[int, int]:
+        """The rows ``k0:k1`` of the settled whole periods at step ``dt``."""
+        k0 = int(round(self.settle_s / dt))
+        return k0, k0 + int(round(self.periods * (self.period_ms / 1000.0) / dt))
+
+
+class Outcome(NamedTuple):
+    """A sine task's result: ``status``, ``reason`` and, when ``ok``, its ``fit``."""
+
+    status: str
+    reason: str | None = None
+    fit: Any = None
+
+
+class Failed(NamedTuple):
+    """A sine task that did not run ``ok``: its input, period, status and reason."""
+
+    input: str
+    period_ms: int
+    status: str
+    reason: str | None
+
+    def as_json(self, key: str) -> dict:
+        """The entry of ``failed`` in the document, its input named ``key`` (axis, channel)."""
+        return {key: self.input, "period_ms": self.period_ms, "status": self.status,
+                "reason": self.reason}  # fmt: skip
+
+
+def failures(tasks: Sequence[SineTask], results: Sequence[Outcome]) -> list[Failed]:
+    """The tasks that did not run ``ok``."""
     return [
-        {key: t[key], "period_ms": t["period_ms"], "status": r["status"], "reason": r["reason"]}
+        Failed(t.input, t.period_ms, r.status, r.reason)
         for t, r in zip(tasks, results, strict=True)
-        if r.get("status") != "ok"
+        if r.status != "ok"
     ]
 
 
@@ -204,7 +249,7 @@ class ResponsePlan:
     amplitudes: dict  # SI per axis
     settle_s: float
     periods: int
-    tasks: list = field(default_factory=list)
+    tasks: list[SineTask] = field(default_factory=list)
 
 
 def plan_response(
@@ -238,19 +283,18 @@ def plan_response(
     def run_of(a: str, p: int) -> dict:
         return point_scenario(scenario, a, p, amps[a], settle_s, periods)
 
-    plan.tasks = sine_tasks("axis", plan.axes, periods_ms, settle_s, periods, run_of)
+    plan.tasks = sine_tasks(plan.axes, periods_ms, settle_s, periods, run_of)
     return plan
 
 
-def sine_tasks(key: str, inputs, periods_ms, settle_s: float, periods: int, scenario_of) -> list:
-    """One task per input (``key``: axis or channel) and period, plain data for the
-    workers: ``scenario_of(input, period_ms)`` run for ``settle_s`` and ``periods``."""
+def sine_tasks(inputs, periods_ms, settle_s: float, periods: int, scenario_of) -> list[SineTask]:
+    """One task per input (axis or channel) and period: ``scenario_of(input, period_ms)``
+    run for ``settle_s`` and ``periods``."""
     return [
-        {"scenario": scenario_of(x, p), key: x, "period_ms": int(p),
-         "settle_s": float(settle_s), "periods": int(periods)}
+        SineTask(scenario_of(x, p), x, int(p), float(settle_s), int(periods))
         for x in inputs
         for p in periods_ms
-    ]  # fmt: skip
+    ]
 
 
 def point_scenario(
@@ -259,27 +303,15 @@ def point_scenario(
     """The scenario with a sine of ``amplitude`` (edge units) on ``axis`` alone, run for
     ``settle_s`` plus ``periods`` periods, logged every step, faults removed."""
     sc = copy.deepcopy(dict(scenario))
-    sc["setpoint"] = {key: [] for key in _SETPOINT_KEYS}
-    sc["setpoint"][_SETPOINT_KEYS[AXES.index(axis)]] = [
-        {
-            "type": "sine",
-            "amplitude": float(amplitude),
-            "period_s": period_ms / 1000.0,
-            "phase_deg": 0.0,
-            "start_s": 0.0,
-            "end_s": None,
-        }
-    ]
-    sc["duration_s"] = round(settle_s + periods * period_ms / 1000.0, 3)
-    sc["faults"] = []
-    sc["logging"] = dict(sc["logging"], decimation=1)
-    return sc
-
-
-def window(task: Mapping, dt: float) -> tuple[int, int]:
-    """The rows ``k0:k1`` of a sine task's settled whole periods at step ``dt``."""
-    k0 = int(round(task["settle_s"] / dt))
-    return k0, k0 + int(round(task["periods"] * (task["period_ms"] / 1000.0) / dt))
+    sine = {"type": "sine", "amplitude": float(amplitude), "period_s": period_ms / 1000.0,
+            "phase_deg": 0.0, "start_s": 0.0, "end_s": None}  # fmt: skip
+    excited = _SETPOINT_KEYS[AXES.index(axis)]
+    return sc | {
+        "setpoint": {key: [sine] if key == excited else [] for key in _SETPOINT_KEYS},
+        "duration_s": round(settle_s + periods * period_ms / 1000.0, 3),
+        "faults": [],
+        "logging": dict(sc.get("logging") or {}, decimation=1),
+    }
 
 
 def saturated_pct(columns: Mapping, k0: int, k1: int) -> float:
@@ -288,55 +320,66 @@ def saturated_pct(columns: Mapping, k0: int, k1: int) -> float:
     return float(np.any((u <= 0.0) | (u >= 10.0), axis=1).mean() * 100.0)
 
 
-def run_point(task: Mapping, fit) -> dict:
-    """Run one sine task and ``fit(result)`` it (worker side): ``status``, ``reason`` and,
-    when ``ok``, what ``fit`` returns; a failure is this frequency's, not the test's."""
+def run_point(envelope: Mapping, fit) -> dict:
+    """Run one sine task and ``fit(task, result)`` it (worker side): ``status``, ``reason``
+    and, when ``ok``, the ``fit``; a failure is this frequency's, not the test's.
+
+    ``envelope``: the executor's task, ``{"task": SineTask}`` and whatever the executor
+    adds (the runs' ``stop`` token on threads, :func:`simpro_mj.sim.executors.run_tasks`).
+    """
     # MuJoCo with the loop, when a point runs: analysis.analyze imports this room's
     # figures without running anything
     from simpro_mj.sim.build import simulate
 
+    task: SineTask = envelope["task"]
     try:
-        res = simulate(task["scenario"], stop=task.get("stop"))
+        res = simulate(task.scenario, stop=envelope.get("stop"))
         if res.status != "ok":
             return {"status": res.status, "reason": res.reason}
-        return {"status": "ok", "reason": None, **fit(res)}
+        return {"status": "ok", "reason": None, "fit": fit(task, res)}
     except UserInputError as exc:
         return {"status": "invalid", "reason": one_line(exc)}
     except Exception as exc:  # noqa: BLE001
         return {"status": "failed", "reason": f"{type(exc).__name__}: {' '.join(str(exc).split())}"}
 
 
-def measure_point(task: Mapping) -> dict:
-    """Run one stepped sine and fit it (worker side; top level, pickles by name).
+@dataclass
+class PoseFit:
+    """A pose sine's fit over its settled whole periods (:func:`measure_point`), SI, each
+    complex amplitude as ``[re, im]``: the set-point's ``ref``, the ``true`` and
+    ``measured`` poses' (three outputs each); ``saturated_pct`` the share of the fitted
+    steps with a valve at a rail."""
 
-    Returns ``status``, ``reason``, and when ``ok``: ``axis``, ``period_ms``,
-    ``ref`` (the set-point's complex amplitude as ``[re, im]``, SI), ``true``
-    and ``measured`` (3 outputs each, ``[re, im]`` SI), ``saturated_pct``
-    (share of the fitted steps with a valve at a rail).
-    """
+    ref: list
+    true: list
+    measured: list
+    saturated_pct: float
 
-    def fit(res) -> dict:
-        c = res.columns
-        k0, k1 = window(task, res.sim["timestep_s"])
-        t = c["time_s"][k0:k1]
-        w = 2.0 * math.pi / (task["period_ms"] / 1000.0)
-        ref_col = ("roll_ref_rad", "pitch_ref_rad", "heave_ref_m")[AXES.index(task["axis"])]
-        true = np.column_stack([c[k][k0:k1] for k in ("roll_rad", "pitch_rad", "heave_m")])
-        meas = np.column_stack(
-            [c[k][k0:k1] for k in ("roll_meas_rad", "pitch_meas_rad", "heave_meas_m")]
-        )
-        r = fit_sine(t, c[ref_col][k0:k1], w)
-        yt, ym = fit_sine(t, true, w), fit_sine(t, meas, w)
-        return {
-            "axis": task["axis"],
-            "period_ms": task["period_ms"],
-            "ref": [r.real, r.imag],
-            "true": [[v.real, v.imag] for v in np.atleast_1d(yt)],
-            "measured": [[v.real, v.imag] for v in np.atleast_1d(ym)],
-            "saturated_pct": saturated_pct(c, k0, k1),
-        }
 
-    return run_point(task, fit)
+def _fit_pose(task: SineTask, res) -> PoseFit:
+    c = res.columns
+    k0, k1 = task.window(res.sim["timestep_s"])
+    t = c["time_s"][k0:k1]
+    w = 2.0 * math.pi / (task.period_ms / 1000.0)
+    ref_col = ("roll_ref_rad", "pitch_ref_rad", "heave_ref_m")[AXES.index(task.input)]
+    true = np.column_stack([c[k][k0:k1] for k in ("roll_rad", "pitch_rad", "heave_m")])
+    meas = np.column_stack(
+        [c[k][k0:k1] for k in ("roll_meas_rad", "pitch_meas_rad", "heave_meas_m")]
+    )
+    r = fit_sine(t, c[ref_col][k0:k1], w)
+    yt, ym = fit_sine(t, true, w), fit_sine(t, meas, w)
+    return PoseFit(
+        [r.real, r.imag],
+        [[v.real, v.imag] for v in np.atleast_1d(yt)],
+        [[v.real, v.imag] for v in np.atleast_1d(ym)],
+        saturated_pct(c, k0, k1),
+    )
+
+
+def measure_point(envelope: Mapping) -> dict:
+    """Run one stepped sine and fit it (worker side; top level, pickles by name): a
+    :class:`PoseFit` when ``ok`` (:func:`run_point`)."""
+    return run_point(envelope, _fit_pose)
 
 
 def measure(
@@ -352,15 +395,17 @@ def measure(
     a top-level function, it pickles by name)."""
 
     fn = measure_point if fn is None else fn
-    results: list = [None] * len(plan.tasks)
+    results = [Outcome("cancelled", "not run")] * len(plan.tasks)
     bar = Progress(len(plan.tasks), progress, desc=desc)
 
     def done(key: int, result: dict) -> None:
-        results[key] = result
-        bar.update(result.get("status", "failed"))
+        results[key] = Outcome(result.get("status", "failed"), result.get("reason"),
+                               result.get("fit"))  # fmt: skip
+        bar.update(results[key].status)
 
+    tasks = [(k, {"task": t}) for k, t in enumerate(plan.tasks)]
     try:
-        run_tasks(list(enumerate(plan.tasks)), done, jobs=jobs, scheduler=scheduler, fn=fn)
+        run_tasks(tasks, done, jobs=jobs, scheduler=scheduler, fn=fn)
     finally:
         bar.close()
-    return [r if r is not None else {"status": "cancelled", "reason": "not run"} for r in results]
+    return results

@@ -29,7 +29,7 @@ from controllers.kinematics import jacobian
 from controllers.setpoint_filter import filter_state_space, leg_times
 from controllers.task_space import outer_law
 from controllers.velocity_feedforward import velocity_gains
-from simpro_mj.analysis.response import _UNITS, AXES, ResponsePlan, failures
+from simpro_mj.analysis.response import _UNITS, AXES, Failed, ResponsePlan, failures
 from simpro_mj.config.models import Scenario
 
 __all__ = [
@@ -137,8 +137,8 @@ class PoseResponse:
     axes: dict[str, AxisFigures] = field(default_factory=dict)
     #: per excited axis and signal ("true", "measured"); empty without a prediction
     agreement: dict[str, dict[str, Agreement]] = field(default_factory=dict)
-    #: the frequencies that did not run: axis, period, status, reason
-    failed: list[dict] = field(default_factory=list)
+    #: the frequencies that did not run
+    failed: list[Failed] = field(default_factory=list)
     predicted_curves: dict[str, PredictedCurve] = field(default_factory=dict)
 
     def to_json(self) -> dict:
@@ -148,7 +148,7 @@ class PoseResponse:
             "agreement": {
                 a: {sig: asdict(x) for sig, x in v.items()} for a, v in self.agreement.items()
             },
-            "failed": self.failed,
+            "failed": [f.as_json("axis") for f in self.failed],
             "predicted_curves": {a: asdict(c) for a, c in self.predicted_curves.items()},
         }
 
@@ -230,9 +230,12 @@ def summary(plan: ResponsePlan, results: list, model: LoopModel | None) -> PoseR
             sig: np.degrees(np.unwrap(np.angle(full[sig]), axis=0))[at]
             for sig in ("true", "measured")
         }
-    by_key = {(r.get("axis"), r.get("period_ms")): r for r in results if r.get("status") == "ok"}
-    failed = failures(plan.tasks, results, "axis")
-    out = PoseResponse(failed=failed)
+    by_key = {
+        (t.input, t.period_ms): r.fit
+        for t, r in zip(plan.tasks, results, strict=True)
+        if r.status == "ok"
+    }
+    out = PoseResponse(failed=failures(plan.tasks, results))
     rows, axes = out.rows, out.axes
     for axis_in in plan.axes:
         j = AXES.index(axis_in)
@@ -243,8 +246,8 @@ def summary(plan: ResponsePlan, results: list, model: LoopModel | None) -> PoseR
             h = np.full((len(periods), 3), np.nan + 0j)
             for i in ok:
                 r = by_key[(axis_in, periods[i])]
-                ref = _complex(r["ref"])
-                h[i] = [_complex(v) / ref for v in r[sig]]
+                ref = _complex(r.ref)
+                h[i] = [_complex(v) / ref for v in (r.true if sig == "true" else r.measured)]
             curves[sig] = h
         diag_phase = {}
         for sig in ("true", "measured"):
@@ -275,7 +278,7 @@ def summary(plan: ResponsePlan, results: list, model: LoopModel | None) -> PoseR
                         gain=g,
                         gain_db=20 * math.log10(max(g, 1e-300)),
                         phase_deg=float(ph_m[n]),
-                        saturated_pct=r["saturated_pct"],
+                        saturated_pct=r.saturated_pct,
                     )
                     if hp is not None and ph_p is not None:
                         gp = abs(_in_edge(axis_in, axis_out, hp[i]))

@@ -266,7 +266,7 @@ def run_chain(args, jobs: int) -> int:
             progress=not args.quiet and not args.json,
         )
         summ = chain_summary(plan, results)
-        cue = plan.tasks[0]["scenario"]["setpoint"]["cueing"]
+        cue = plan.tasks[0].scenario["setpoint"]["cueing"]
         doc = {
             "scenario": spec.name,
             "kind": "chain",

@@ -196,7 +196,7 @@ def print_summary(resp: PoseResponse, title: str, folder, file=None) -> None:
             file=file,
         )
     for f in resp.failed:
-        print(f"FAILED {f['axis']} {f['period_ms']} ms: {f['status']}: {f['reason']}", file=file)
+        print(f"FAILED {f.input} {f.period_ms} ms: {f.status}: {f.reason}", file=file)
     print(f"results: {folder}", file=file)
 
 
@@ -317,5 +317,5 @@ def print_chain_summary(summary: ChainSummary, title: str, folder, file=None) ->
     if summary.prediction_note:
         print(summary.prediction_note, file=file)
     for f in summary.failed:
-        print(f"FAILED {f['channel']} {f['period_ms']} ms: {f['status']}: {f['reason']}", file=file)
+        print(f"FAILED {f.input} {f.period_ms} ms: {f.status}: {f.reason}", file=file)
     print(f"results: {folder}", file=file)
