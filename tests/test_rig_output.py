@@ -95,11 +95,11 @@ def test_serial_without_pyserial_says_how_to_get_it(monkeypatch):
 def test_a_serial_port_gets_the_strings():
     """pyserial's loop:// port (no device): the writes are counted, none fail."""
     pytest.importorskip("serial")
-    from simpro_mj.sim.udp import column_index
+    from simpro_mj.sim.result import COLUMNS
 
     out = RigOutput("serial:loop://@115200", RigTemplate("S<q1><q2><q3>\\n"), home_heave_m=1.0)
     try:
-        row = [0.0] * len(column_index())
+        row = [0.0] * len(COLUMNS)
         for _ in range(3):
             out.send(row)
         assert (out.sent, out.errors) == (3, 0)

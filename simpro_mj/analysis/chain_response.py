@@ -84,6 +84,7 @@ __all__ = [
     "omct_periods_ms",
     "plan_chain",
     "chain_scenario",
+    "cue_block",
     "fit_columns",
     "measure_chain_point",
     "measure_chain",
@@ -210,7 +211,7 @@ def plan_chain(
     return plan
 
 
-def _cue_block(scenario: Mapping) -> dict:
+def cue_block(scenario: Mapping) -> dict:
     """The scenario's cueing block (its algorithm and parameters), or the defaults."""
     cue = (scenario.get("setpoint") or {}).get("cueing")
     if cue:
@@ -228,7 +229,7 @@ def chain_scenario(
     sc = copy.deepcopy(dict(scenario))
     sine = {"channel": _SINE_CHANNEL[channel], "amplitude": float(amplitude),
             "period_s": period_ms / 1000.0}  # fmt: skip
-    cueing = {"telemetry": None, "manoeuvre": None, "sine": sine, **_cue_block(scenario)}
+    cueing = {"telemetry": None, "manoeuvre": None, "sine": sine, **cue_block(scenario)}
     return sc | {
         "setpoint": {"cueing": cueing},
         "duration_s": round(settle_s + periods * period_ms / 1000.0, 3),

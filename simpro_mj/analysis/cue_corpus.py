@@ -89,24 +89,26 @@ def judge(files: Sequence = (), *, shipped: Sequence[str] = SHIPPED,
 
     rows: list[CorpusRow] = []
     drives = [(s, None) for s in shipped] + [(Path(p).stem, Path(p)) for p in files]
-    law = load_scenario(LAW_OF_RECORDINGS).model_dump()["setpoint"]["cueing"]
+    law = load_scenario(LAW_OF_RECORDINGS).setpoint.cueing
     for name, path in drives:
         if path is None:
-            scen = load_scenario(name).model_dump()
-            cue = scen["setpoint"]["cueing"]
-            t = np.arange(0, float(scen["duration_s"]) + 1e-9, _DT)
-            if cue.get("step"):
-                f, w = step_input(cue["step"], t)
+            scen = load_scenario(name)
+            cue = scen.setpoint.cueing
+            assert cue is not None  # a shipped cue scenario
+            t = np.arange(0, float(scen.duration_s) + 1e-9, _DT)
+            if cue.step is not None:
+                f, w = step_input(cue.step, t)
             else:
-                f, w = resample(read_telemetry(cue["telemetry"], columns=cue.get("columns")), t)
+                f, w = resample(read_telemetry(cue.telemetry, columns=cue.columns), t)
         else:
             cue = law
             tel = read_telemetry(path)
             t = np.arange(0, np.floor(tel.t[-1] / _DT + 1e-9) * _DT + 1e-9, _DT)
             f, w = resample(tel, t)
+        assert cue is not None  # the law of the recordings: a cue scenario's
         block = {
-            "algorithm": cue["algorithm"],
-            "parameters": {**dict(cue.get("parameters") or {}), **dict(changes or {})},
+            "algorithm": cue.algorithm,
+            "parameters": {**cue.parameters.model_dump(), **dict(changes or {})},
         }
         rows += judge_drive(name, block, t, f, w, bound=bound)
     return rows

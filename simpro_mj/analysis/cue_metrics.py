@@ -26,7 +26,6 @@ from simpro_mj.analysis.cue_signals import (
     strength,
 )
 from simpro_mj.config.cueing import CUE_COLUMNS, vehicle_input
-from simpro_mj.config.telemetry import Telemetry
 
 __all__ = [
     "CHANNELS",
@@ -40,7 +39,6 @@ __all__ = [
     "bound_block",
     "perceived",
     "summary_columns",
-    "telemetry_of",
 ]
 
 #: Channels compared: (name, vehicle column, simulator column, kind, axis).
@@ -279,14 +277,6 @@ def perceived(columns: Mapping, model: VestibularModel | None = None):
         return model.perceive(f, w, dt)
 
     return t, side("veh"), side("head")
-
-
-def telemetry_of(columns: Mapping) -> Telemetry:
-    """The vehicle side of a cueing run as telemetry (for re-use)."""
-    t = np.asarray(columns["time_s"], float)
-    f = np.stack([np.asarray(columns[f"veh_f{a}_mps2"], float) for a in "xyz"], -1)
-    w = np.stack([np.asarray(columns[f"veh_w{a}_rad_s"], float) for a in "xyz"], -1)
-    return Telemetry(t=t, f=f, w=w)
 
 
 @dataclass(frozen=True)

@@ -120,10 +120,11 @@ def law_blocks(names: Sequence[str] | None = None) -> dict:
         if name not in LAWS:
             raise UserInputError(f"invalid value at --laws: {name!r}; allowed: {list(LAWS)}")
         scen, changes = LAWS[name]
-        cue = load_scenario(scen).model_dump()["setpoint"]["cueing"]
+        cue = load_scenario(scen).setpoint.cueing
+        assert cue is not None  # LAWS name cue scenarios
         out[name] = {
-            "algorithm": cue["algorithm"],
-            "parameters": {**dict(cue.get("parameters") or {}), **changes},
+            "algorithm": cue.algorithm,
+            "parameters": {**cue.parameters.model_dump(), **changes},
             "scenario": scen,
         }
     return out

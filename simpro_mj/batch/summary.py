@@ -73,11 +73,8 @@ _METRICS = (
 
 def metric_columns() -> list[str]:
     """Per-axis metric column names of summary.csv (units in the names)."""
-    out = []
-    for axis, unit, _ in AXES:
-        for suffix, _, scaled in _METRICS:
-            out.append(f"{axis}_{suffix}_{unit}" if scaled else f"{axis}_{suffix}")
-    return out
+    return [f"{axis}_{suffix}_{unit}" if scaled else f"{axis}_{suffix}"
+            for axis, unit, _ in AXES for suffix, _, scaled in _METRICS]  # fmt: skip
 
 
 class AxisRow(NamedTuple):
@@ -130,14 +127,9 @@ class Row:
     def to_json(self) -> dict:
         """The row as ``summary.json`` writes it: one key per column."""
         out = {k: getattr(self, k) for k in _HEAD}
-        for (axis, unit, _), m in zip(AXES, self.axes, strict=True):
-            for (suffix, _, scaled), v in zip(_METRICS, m, strict=True):
-                out[f"{axis}_{suffix}_{unit}" if scaled else f"{axis}_{suffix}"] = v
-        out.update(
-            stable=self.stable,
-            growth_rate_1_s=self.growth_rate_1_s,
-            stability_note=self.stability_note,
-        )
+        out.update(zip(metric_columns(), (v for m in self.axes for v in m), strict=True))
+        out.update(stable=self.stable, growth_rate_1_s=self.growth_rate_1_s)
+        out.update(stability_note=self.stability_note)
         if self.analytic is not None:
             out.update({f"analytic_{k}": v for k, v in self.analytic._asdict().items()})
         out.update(realtime_factor=self.realtime_factor, wall_s=self.wall_s, cpu_s=self.cpu_s)
@@ -174,18 +166,9 @@ def verdict_note(row: Row) -> str | None:
 
 def summary_row(job: Job, result: Mapping | None, skipped: bool = False) -> Row:
     """One summary row (SI converted to the column units)."""
-    row = Row(
-        variant=job.variant,
-        scenario=job.scenario_name,
-        status="invalid" if job.error else "cancelled",
-        folder=job.folder if job.scenario is not None else "",
-        file=job.file,
-        values=dict(job.values),
-        sample=job.sample,
-        seed=job.seed,
-        reason=job.error,
-        skipped=skipped,
-    )
+    folder = job.folder if job.scenario is not None else ""
+    row = Row(job.variant, job.scenario_name, "invalid" if job.error else "cancelled", folder,
+              job.file, dict(job.values), job.sample, job.seed, job.error, skipped)  # fmt: skip
     if job.gain_sweep:
         row.analytic = Analytic() if job.scenario is None else analytic(job.scenario)
     if result is None:

@@ -168,10 +168,11 @@ def run(args) -> int:
             progress=not args.quiet and not args.json,
         )
         resp = summary(plan, results, model)
+        loop = loop_label(scenario)
         doc = {
             "scenario": spec.name,
             "mode": spec.controller.mode,
-            "loop": loop_label(scenario),
+            "loop": loop,
             # the law as analysed: an I law by backward Euler is the PI form with c = 0
             "analysed_law": model.mode,
             "axes_excited": list(plan.axes),
@@ -185,7 +186,7 @@ def run(args) -> int:
             "frequencies_hz": [1000.0 / p for p in sorted(plan.periods_ms, reverse=True)],
             **resp.to_json(),
         }
-        title = f"{spec.name} ({doc['loop']})"
+        title = f"{spec.name} ({loop})"
 
         def plotter(_doc, folder: Path) -> list[str]:
             return plot(resp, plan.axes, title, folder)
@@ -193,10 +194,10 @@ def run(args) -> int:
         write_result(
             out, doc, "response", csv_text(doc["rows"]), None if args.no_plots else plotter
         )
-    return report(args, doc, out, lambda _doc, folder: print_summary(resp, title, folder))
+    return report(args, doc, out, lambda at: print_summary(resp, title, at), resp.failed)
 
 
-def report(args, doc: dict, out: Path, printer) -> int:
+def report(args, doc: dict, out: Path, printer, failed: list) -> int:
     """``--json`` or the printed summary; exit 1 if a frequency did not run."""
     if args.json:
         from simpro_mj.core.jsonout import emit_json
@@ -204,8 +205,8 @@ def report(args, doc: dict, out: Path, printer) -> int:
 
         emit_json(jsonable(doc))
     else:
-        printer(doc, out)
-    return 0 if not doc["failed"] else 1
+        printer(out)
+    return 0 if not failed else 1
 
 
 def run_chain(args, jobs: int) -> int:
@@ -213,6 +214,7 @@ def run_chain(args, jobs: int) -> int:
     from simpro_mj.analysis.chain_response import (
         DEFAULT_SETTLE_S,
         chain_summary,
+        cue_block,
         measure_chain,
         plan_chain,
     )
@@ -266,12 +268,12 @@ def run_chain(args, jobs: int) -> int:
             progress=not args.quiet and not args.json,
         )
         summ = chain_summary(plan, results)
-        cue = plan.tasks[0].scenario["setpoint"]["cueing"]
+        loop = loop_label(scenario)
         doc = {
             "scenario": spec.name,
             "kind": "chain",
             "mode": spec.controller.mode,
-            "loop": loop_label(scenario),
+            "loop": loop,
             "channels_excited": list(plan.channels),
             "amplitude": {
                 "f_mps2": plan.amplitudes["fx"],
@@ -280,14 +282,14 @@ def run_chain(args, jobs: int) -> int:
             "settle_s": plan.settle_s,
             "periods": plan.periods,
             "frequencies_rad_s": [2000.0 * math.pi / p for p in plan.periods_ms],
-            "washout": {"algorithm": cue["algorithm"], "parameters": cue["parameters"]},
+            "washout": cue_block(scenario),
             **summ.to_json(),
         }
-        title = f"{spec.name} ({doc['loop']})"
+        title = f"{spec.name} ({loop})"
 
         def plotter(_doc, folder: Path) -> list[str]:
             return plot_chain(summ, title, folder)
 
         csv_body = csv_text(doc["rows"], CHAIN_CSV_COLUMNS)
         write_result(out, doc, "chain", csv_body, None if args.no_plots else plotter)
-    return report(args, doc, out, lambda _doc, folder: print_chain_summary(summ, title, folder))
+    return report(args, doc, out, lambda at: print_chain_summary(summ, title, at), summ.failed)

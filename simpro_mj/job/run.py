@@ -13,7 +13,7 @@ analysed limit are warned about), steps the co-simulation and measures it
 from __future__ import annotations
 
 import sys
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -71,7 +71,7 @@ class RunOutcome:
         The preflight's and the end stops', in that order.
     preflight : dict
         The preflight's figures (``payload``, ``stability``).
-    end_stop_hits : list of dict
+    end_stop_hits : list of EndStop
         Slides that reached an end stop with no fault scheduled.
     """
 
@@ -79,7 +79,7 @@ class RunOutcome:
     metrics: dict
     warnings: list[str] = field(default_factory=list)
     preflight: dict = field(default_factory=dict)
-    end_stop_hits: list[dict] = field(default_factory=list)
+    end_stop_hits: list[EndStop] = field(default_factory=list)
 
     @property
     def status(self) -> str:
@@ -100,7 +100,19 @@ class RunOutcome:
         }
 
 
-def end_stop_warnings(columns, scenario, stroke) -> tuple[list[str], list[dict]]:
+@dataclass
+class EndStop:
+    """A slide (``leg`` 1..3) that reached its ``stop`` (lower, upper) at ``time_s``."""
+
+    leg: int
+    stop: str
+    time_s: float
+
+    def to_json(self) -> dict:
+        return asdict(self)
+
+
+def end_stop_warnings(columns, scenario, stroke) -> tuple[list[str], list[EndStop]]:
     """Slides that reached an end stop while no fault was scheduled.
 
     The shipped scenarios keep every slide well inside its stroke; reaching a
@@ -129,9 +141,9 @@ def end_stop_warnings(columns, scenario, stroke) -> tuple[list[str], list[dict]]
         for name, at in (("lower", q <= lo), ("upper", q >= hi)):
             idx = np.flatnonzero(at & quiet)
             if idx.size:
-                hits.append({"leg": i, "stop": name, "time_s": float(t[idx[0]])})
+                hits.append(EndStop(i, name, float(t[idx[0]])))
     lines = [
-        f"leg {h['leg']} reached its {h['stop']} end stop at t = {h['time_s']:.3f} s with no "
+        f"leg {h.leg} reached its {h.stop} end stop at t = {h.time_s:.3f} s with no "
         "fault scheduled: the closed loop is probably unstable (see the gain warnings) or "
         "the set-point too aggressive"
         for h in hits
@@ -213,11 +225,9 @@ class Run(Build):
         if res.status == "ok":  # ran to its end: does the pose settle? (analysis.verdict)
             judged = verdict(res.columns, res.noise_floor)
             res.status, res.reason = judged["status"], judged["reason"]
-            metrics["verdict"] = judged
-        metrics["status"] = res.status
-        metrics["reason"] = res.reason
-        metrics["sensor_floor"] = res.sensor_floor
-        metrics["design_plants"] = self.design_plants_record()
+            metrics.update(verdict=judged)
+        metrics.update(status=res.status, reason=res.reason, sensor_floor=res.sensor_floor,
+                       design_plants=self.design_plants_record())  # fmt: skip
         stop_lines, hits = end_stop_warnings(res.columns, self.spec, self.stroke())
         warn(stop_lines, quiet)
         return RunOutcome(res, metrics, warnings + stop_lines, figures, hits)

@@ -80,9 +80,7 @@ def actuator_tracking(columns) -> dict:
 
 def _at_home(scenario: dict) -> dict:
     """The scenario with its set-points at home: what the preflight can check in advance."""
-    out = copy.deepcopy(scenario)
-    out["setpoint"] = {"roll_deg": [], "pitch_deg": [], "heave_mm": []}
-    return out
+    return copy.deepcopy(scenario) | {"setpoint": {"roll_deg": [], "pitch_deg": [], "heave_mm": []}}
 
 
 def execute_live(scenario: dict, options: LiveOptions, out, plots: bool = True, *,
@@ -96,19 +94,21 @@ def execute_live(scenario: dict, options: LiveOptions, out, plots: bool = True, 
     """
     out = Path(out)
     home = _at_home(scenario)
-    found: dict = {}
+    warnings: list[str] = []
+    figures: dict = {}
 
     def checks() -> None:  # payload and gains at home; the washout keeps its box
         # the preflight takes the scenario with its design plants (design_plant:
         # identified: its own plant's models); MuJoCo loads here, when the session starts
         from simpro_mj.identification.auto import with_identified
 
-        found["warnings"], found["figures"] = preflight(with_identified(home)[0])
-        warn(found["warnings"], quiet)
+        said, found = preflight(with_identified(home)[0])
+        warnings.extend(said)
+        figures.update(found)
+        warn(warnings, quiet)
 
     session = run_session(scenario, options, say=say, checks=checks)
     res, realtime = session.result, session.realtime
-    warnings, figures = found["warnings"], found["figures"]
     res.folder = None
     # from here on a signal waits for the folder to be written, then says it is kept
     with writing(lambda: kept_line(res)):
@@ -119,16 +119,14 @@ def execute_live(scenario: dict, options: LiveOptions, out, plots: bool = True, 
                 f"session ended by a signal at t = {res.sim['simulated_s']:.3f} s "
                 f"(of {scenario['duration_s']:g} s)"
             )
-        realtime["ended"] = ended
+        realtime.update(ended=ended)
         host, port = session.address
         fmt = realtime["packets"]["format"]  # for auto, the format it found
         source = f"udp {fmt} {host}:{port}"
         metrics = compute_metrics(res.columns, home)
-        metrics["cueing"] = cue_metrics(
-            res.columns, scenario, info=dict(session.washout, source=source)
-        )
-        metrics["status"], metrics["reason"] = res.status, res.reason
-        metrics["sensor_floor"] = res.sensor_floor
+        cue = cue_metrics(res.columns, scenario, info=dict(session.washout, source=source))
+        metrics.update(cueing=cue, status=res.status, reason=res.reason)
+        metrics.update(sensor_floor=res.sensor_floor)
         live = {
             "vehicle_input": source,
             "pose_out": None

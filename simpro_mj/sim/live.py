@@ -67,7 +67,7 @@ from simpro_mj.sim.scheduling import (
     realtime_scheduling,
     thread_switches,
 )
-from simpro_mj.sim.udp import DEFAULT_POSE_FORMAT, PoseSender, Receiver, column_index
+from simpro_mj.sim.udp import DEFAULT_POSE_FORMAT, PoseSender, Receiver, pose_columns
 
 if TYPE_CHECKING:
     from simpro_mj.sim.result import SimResult
@@ -187,7 +187,7 @@ class Pacer:
         self.home = np.asarray(washout.geometry.home, float)
         self._home_weight = 1.0  # at home until samples come (a soft start)
         self._last_console = 0
-        self._col = column_index()
+        self._col = pose_columns()
         #: the collector's passes per generation from the anchor on (filled by
         #: :func:`frozen_gc` in a session; None: not counted, nothing frozen)
         self.gc_counts: list | None = None
@@ -295,9 +295,9 @@ class Pacer:
         rx, c = self.rx, self._col
         _, _, stale = rx.sample(self.clock())
         return (
-            f"live t {k * self.dt:7.2f} s | roll {math.degrees(row[c['roll_rad']]):+6.2f} "
-            f"pitch {math.degrees(row[c['pitch_rad']]):+6.2f} deg heave "
-            f"{(row[c['heave_m']] - self.washout.geometry.home[2]) * 1e3:+6.1f} mm | late p99 "
+            f"live t {k * self.dt:7.2f} s | roll {math.degrees(row[c.roll_rad]):+6.2f} "
+            f"pitch {math.degrees(row[c.pitch_rad]):+6.2f} deg heave "
+            f"{(row[c.heave_m] - self.washout.geometry.home[2]) * 1e3:+6.1f} mm | late p99 "
             f"{p99:6.0f} us missed {st.missed} | rx {rx.received} bad {rx.bad} late {rx.late}"
             + (" | input stale" if stale else "")
         )

@@ -16,6 +16,7 @@ import re
 import socket
 import string
 import time
+from typing import NamedTuple
 
 import numpy as np
 
@@ -32,7 +33,8 @@ __all__ = [
     "PoseSender",
     "Receiver",
     "check_listen",
-    "column_index",
+    "PoseColumns",
+    "pose_columns",
     "pose_template",
     "send_datagrams",
 ]
@@ -65,11 +67,26 @@ DEFAULT_POSE_FORMAT = (
 )
 
 
-def column_index() -> dict:
-    """Column name -> index of a logged row (on use: ``sim.result`` loads MuJoCo)."""
+class PoseColumns(NamedTuple):
+    """Where the pose, its set-point and the leg set-points sit in a logged row."""
+
+    time_s: int
+    roll_rad: int
+    pitch_rad: int
+    heave_m: int
+    q1_ref_m: int
+    q2_ref_m: int
+    q3_ref_m: int
+    roll_ref_rad: int
+    pitch_ref_rad: int
+    heave_ref_m: int
+
+
+def pose_columns() -> PoseColumns:
+    """The :class:`PoseColumns` of ``simpro_mj.sim.result.COLUMNS`` (on use: it loads MuJoCo)."""
     from simpro_mj.sim.result import COLUMNS
 
-    return {name: j for j, name in enumerate(COLUMNS)}
+    return PoseColumns(*(COLUMNS.index(name) for name in PoseColumns._fields))
 
 
 #: Longest ``--send-format`` template (characters), and the widest field and most digits.
@@ -279,23 +296,23 @@ class PoseSender:
         self.sock.setblocking(False)
         self.address, self.template, self.home = address, template, float(home_heave_m)
         self.sent = self.errors = 0
-        self._col = column_index()
+        self._col = pose_columns()
 
     def send(self, row) -> None:
         """Send the pose of one logged row (``simpro_mj.sim.result.COLUMNS`` order)."""
         d = math.degrees
         c = self._col
         line = self.template.format(
-            t_s=row[c["time_s"]],
-            roll_deg=d(row[c["roll_rad"]]),
-            pitch_deg=d(row[c["pitch_rad"]]),
-            heave_mm=(row[c["heave_m"]] - self.home) * 1e3,
-            q1_mm=row[c["q1_ref_m"]] * 1e3,
-            q2_mm=row[c["q2_ref_m"]] * 1e3,
-            q3_mm=row[c["q3_ref_m"]] * 1e3,
-            roll_ref_deg=d(row[c["roll_ref_rad"]]),
-            pitch_ref_deg=d(row[c["pitch_ref_rad"]]),
-            heave_ref_mm=(row[c["heave_ref_m"]] - self.home) * 1e3,
+            t_s=row[c.time_s],
+            roll_deg=d(row[c.roll_rad]),
+            pitch_deg=d(row[c.pitch_rad]),
+            heave_mm=(row[c.heave_m] - self.home) * 1e3,
+            q1_mm=row[c.q1_ref_m] * 1e3,
+            q2_mm=row[c.q2_ref_m] * 1e3,
+            q3_mm=row[c.q3_ref_m] * 1e3,
+            roll_ref_deg=d(row[c.roll_ref_rad]),
+            pitch_ref_deg=d(row[c.pitch_ref_rad]),
+            heave_ref_mm=(row[c.heave_ref_m] - self.home) * 1e3,
         )
         with held_signals():  # a signal never falls between the send and its count
             try:
