@@ -75,10 +75,10 @@ def measure(
         report = run_batch([str(tmp / "throughput.yaml")], tmp / "out", jobs=jobs,
                            plots=False, summary_plots=False, processes=processes)  # fmt: skip
         wall = time.perf_counter() - wall0
-    rows = [r for r in report.rows if r.get("realtime_factor")]
+    rows = [r for r in report.rows if r.realtime_factor]
     duration = float(text.split("duration_s:")[1].split()[0])
-    stepping = sum(duration / r["realtime_factor"] for r in rows)
-    cpu = [r["cpu_s"] for r in rows if r.get("cpu_s") is not None]
+    stepping = sum(duration / r.realtime_factor for r in rows)
+    cpu = [r.cpu_s for r in rows if r.cpu_s is not None]
     return {
         "samples": samples,
         "jobs": jobs,

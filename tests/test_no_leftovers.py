@@ -134,7 +134,7 @@ def test_a_stopped_batch_counts_a_variant_whose_folder_is_complete(tmp_path, mon
     )
     report = runner.run_batch([str(scen)], tmp_path / "out", jobs=2, plots=False,
                               summary_plots=False)  # fmt: skip
-    status = {r["variant"]: r["status"] for r in report.rows}
+    status = {r.variant: r.status for r in report.rows}
     assert status == {"gains=2": "ok", "gains=3": "cancelled"}, report.rows
     assert report.stopped
 

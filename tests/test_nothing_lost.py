@@ -173,7 +173,7 @@ def test_a_batch_does_not_run_a_variant_another_process_writes(tmp_path):
     with _lock_held(variant, tmp_path / "ready") as holder:
         rows = run_batch(["step_pitch"], out, sets=["duration_s=1.1"], jobs=1, resume=True,
                          plots=False, summary_plots=False).rows  # fmt: skip
-        assert rows[0]["status"] == "invalid" and f"pid {holder.pid}" in rows[0]["reason"]
+        assert rows[0].status == "invalid" and f"pid {holder.pid}" in rows[0].reason
         assert not variant.exists()
 
 
@@ -227,7 +227,7 @@ def test_is_complete_is_the_one_check_and_resume_uses_it(tmp_path):
     out = tmp_path / "b"
     argv = dict(sets=["duration_s=1.1"], jobs=1, plots=False, summary_plots=False)
     first = run_batch(["step_pitch"], out, **argv)
-    folder = out / first.rows[0]["folder"]
+    folder = out / first.rows[0].folder
     assert marker.is_complete(folder)
     # a PARTIAL marker and a 0-byte time series written by hand: not complete, and
     # not simpro-sim's to replace either (a changed file may be the user's edit)
@@ -236,12 +236,12 @@ def test_is_complete_is_the_one_check_and_resume_uses_it(tmp_path):
     assert not marker.is_complete(folder)
     before = _snapshot(folder)
     row = run_batch(["step_pitch"], out, resume=True, **argv).rows[0]
-    assert row["status"] == "invalid" and "timeseries.csv (changed since" in row["reason"]
-    assert "PARTIAL" in row["reason"] and _snapshot(folder) == before
+    assert row.status == "invalid" and "timeseries.csv (changed since" in row.reason
+    assert "PARTIAL" in row.reason and _snapshot(folder) == before
     # the same state as simpro-sim leaves it (listed in its marker): re-run
     marker.record(folder, ["PARTIAL", "timeseries.csv"], "run")
     again = run_batch(["step_pitch"], out, resume=True, **argv)
-    assert again.skipped == 0 and again.rows[0]["status"] == "ok"
+    assert again.skipped == 0 and again.rows[0].status == "ok"
     assert marker.is_complete(folder)
     assert run_batch(["step_pitch"], out, resume=True, **argv).skipped == 1  # intact: skipped
     # each condition alone makes a folder incomplete
@@ -265,7 +265,7 @@ def test_is_complete_is_the_one_check_and_resume_uses_it(tmp_path):
     # a variant folder without the marker is not simpro-sim's: reported, not replaced
     before = _snapshot(folder)
     row = run_batch(["step_pitch"], out, resume=True, **argv).rows[0]
-    assert row["status"] == "invalid" and "not a simpro-sim result" in row["reason"]
+    assert row.status == "invalid" and "not a simpro-sim result" in row.reason
     assert _snapshot(folder) == before
 
 
