@@ -1,0 +1,171 @@
+"""The experiment's linear model against the identification's own seed spread.
+
+    python benchmarks/linear_experiment_spread.py [--cabins paper heavy c450 c75 sweep8]
+        [--seeds 1 2 3] [--responses]
+
+For each cabin, the Fig. 12 experiment a run of ``step_pitch`` identifies for its own
+plant (:func:`simpro_mj.identification.auto.plant_tree`) is run at each ``--seed`` of
+the sequence, and the same experiment's linear model
+(:func:`simpro_mj.identification.linear_experiment.identify_linear`, the first seed's
+sequence) is fitted by the same fit. Cabins (:data:`CABINS`): ``paper`` (the preset),
+``heavy`` (``heavy_cabin``), ``c450`` and ``c75`` (``heavy_cabin`` with 450/750 N and
+75/250 N of Coulomb/breakaway friction on every leg's seals) and ``sweep8`` (the first
+eight cabins of ``sweep_robustness.yaml``, each its own plant). With ``--responses``,
+``step_pitch`` and ``step_all`` run with the joint loops placed on each model set
+(``design_plant: identified``, ``identify: preset`` with those models, the run's own
+seed).
+
+Prints one JSON document, per cabin: per leg and parameter the seeds' range, the
+linear model's value and how far outside the range it lies (relative to the nearer
+end, 0 inside); the CPU seconds of each; with ``--responses`` per scenario and axis the
+range over the seeds of the overshoot (%) and the 2 % settling time (s) and the
+linear model's, with the statuses. CPU seconds are process time, meaningful on a
+quiet machine only.
+"""
+
+from __future__ import annotations
+
+import argparse
+import copy
+import json
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+HEAVY = ["plant.preset=heavy_cabin"]
+
+
+def _seals(coulomb: int, breakaway: int) -> list:
+    return [
+        *HEAVY,
+        f"actuator.pneumatics.cylinder.coulomb_friction_n=[{coulomb},{coulomb},{coulomb}]",
+        f"actuator.pneumatics.cylinder.breakaway_friction_n=[{breakaway},{breakaway},{breakaway}]",
+    ]
+
+
+#: The cabins by name: ``--set`` lists on ``step_pitch`` (``sweep8`` is expanded apart).
+CABINS = {"paper": [], "heavy": HEAVY, "c450": _seals(450, 750), "c75": _seals(75, 250)}
+KEYS = ("b", "a1", "a0", "fit_percent")
+AXES = ("roll", "pitch", "heave")
+
+
+def _scenarios(cabin: str) -> list:
+    """``[(name, typed scenario of step_pitch's plant, its --set list or None)]``."""
+    from simpro_mj.config.scenario import load_scenario
+
+    if cabin != "sweep8":
+        return [(cabin, load_scenario("step_pitch", CABINS[cabin]), CABINS[cabin])]
+    from simpro_mj.batch.plan import plan
+    from simpro_mj.config.models import as_scenario
+
+    jobs = [j for j in plan(["sweep_robustness.yaml"]).jobs if j.error is None][:8]
+    return [(f"sweep8/{j.variant}", as_scenario(j.scenario), None) for j in jobs]
+
+
+def _outside(value: float, lo: float, hi: float) -> float:
+    """How far ``value`` lies outside ``[lo, hi]``, relative to the nearer end."""
+    if value < lo:
+        return (value - lo) / abs(lo)
+    if value > hi:
+        return (value - hi) / abs(hi)
+    return 0.0
+
+
+def _responses(sc, sets, models: dict, folder: Path) -> dict:
+    """``step_pitch`` and ``step_all`` with the joint loops placed on ``models``."""
+    from simpro_mj.config.models import Identified
+    from simpro_mj.config.scenario import load_scenario
+    from simpro_mj.report.runner import execute
+
+    out = {}
+    for name in ("step_pitch", "step_all"):
+        if sets is not None:
+            run = load_scenario(name, sets)
+        else:  # a sweep cabin: its own scenario, which runs the pitch step
+            if name != "step_pitch":
+                continue
+            run = sc
+        run = run.model_copy(deep=True)
+        run.controller.inner.design_plant = "identified"
+        run.controller.inner.identify = "preset"
+        run.controller.inner.identified = Identified.model_validate(models)
+        _, doc = execute(run, folder / name, plots=False, quiet=True)
+        row = {"status": doc["status"]}
+        for axis in AXES:
+            m = doc["axes"].get(axis) or {}
+            if m.get("overshoot_pct") is not None:
+                row[axis] = [m.get("overshoot_pct"), m.get("settling_time_s")]
+        out[name] = row
+    return out
+
+
+def measure(cabins, seeds=(1, 2, 3), responses: bool = False) -> dict:
+    """Identify, linearise and (optionally) run the responses (module docstring)."""
+    from simpro_mj.identification.auto import plant_tree
+    from simpro_mj.identification.identify import identify
+    from simpro_mj.identification.linear_experiment import identify_linear
+
+    out: dict = {"seeds": list(seeds), "cabins": {}}
+    with tempfile.TemporaryDirectory(prefix="simpro-linear-") as tmp:
+        for cabin in cabins:
+            for name, sc, sets in _scenarios(cabin):
+                tree0 = plant_tree(sc)
+                fits, cpu = {}, []
+                for seed in seeds:
+                    tree = copy.deepcopy(tree0)
+                    tree["identify"]["seed"] = seed
+                    c0 = time.process_time()
+                    got = identify(tree)
+                    cpu.append(time.process_time() - c0)
+                    fits[seed] = {a: {k: float(got[a][k]) for k in KEYS} for a in got}
+                tree = copy.deepcopy(tree0)
+                tree["identify"]["seed"] = seeds[0]
+                c0 = time.process_time()
+                lin = identify_linear(tree)
+                lin_cpu = time.process_time() - c0
+                row: dict = {"identify_cpu_s": cpu, "linear_cpu_s": lin_cpu, "legs": {}}
+                for a in lin:
+                    leg = row["legs"][a] = {}
+                    for k in KEYS:
+                        vals = [fits[s][a][k] for s in seeds]
+                        lo, hi = min(vals), max(vals)
+                        v = float(lin[a][k])
+                        leg[k] = {"seeds": [lo, hi], "linear": v, "outside": _outside(v, lo, hi)}
+                if responses:
+                    res: dict = {}
+                    for seed in seeds:
+                        models = {a: {k: fits[seed][a][k] for k in KEYS[:3]} for a in lin}
+                        res[f"seed{seed}"] = _responses(
+                            sc, sets, models, Path(tmp) / name / f"seed{seed}"
+                        )
+                    models = {a: {k: float(lin[a][k]) for k in KEYS[:3]} for a in lin}
+                    res["linear"] = _responses(sc, sets, models, Path(tmp) / name / "linear")
+                    row["responses"] = res
+                out["cabins"][name] = row
+                print(json.dumps({name: row}), file=sys.stderr, flush=True)
+    return out
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    p.add_argument("--cabins", nargs="+", default=[*CABINS, "sweep8"])
+    p.add_argument("--seeds", type=int, nargs="+", default=[1, 2, 3])
+    p.add_argument("--responses", action="store_true")
+    a = p.parse_args(argv)
+    allowed = [*CABINS, "sweep8"]
+    if any(c not in allowed for c in a.cabins):
+        print(
+            f"error: invalid value at --cabins: {a.cabins}; allowed: {', '.join(allowed)}",
+            file=sys.stderr,
+        )
+        return 2
+    if len(a.seeds) < 2 or any(not 0 <= s < 2**31 for s in a.seeds):
+        print("error: invalid value at --seeds: allowed: two or more of 0..2^31-1", file=sys.stderr)
+        return 2
+    print(json.dumps(measure(a.cabins, tuple(a.seeds), a.responses), indent=2))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
