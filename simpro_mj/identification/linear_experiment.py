@@ -496,18 +496,22 @@ def _matrices(em: ExperimentModel, sigma_s: np.ndarray) -> list:
 def experiment_leg(em: ExperimentModel, leg: int) -> LegResult:
     """Leg ``leg``'s experiment on the linear model, iterated to its fixed point, and
     eq. (19) fitted to it (module docstring)."""
+    # start: the spools as the valves' commands alone would swing them (the dither on
+    # every valve, the sequence on the leg's), the seals at 1 mm/s
+    amp = leg_values(em.ip["prbs_amplitude_v"], "prbs_amplitude_v")[leg - 1]
+    sigma_s = np.full(3, float(em.ip["dither_v"]) / 5.0)
+    sigma_s[leg - 1] = math.hypot(sigma_s[leg - 1], amp / 5.0)
     sigma_v = np.full(3, 1e-3)
-    sigma_s = np.zeros(3)
     it = 0
     for it in range(1, MAX_ITER + 1):
         c_eq = np.array([equivalent_viscous(em.friction[j], sigma_v[j]) for j in range(3)])
         pm = _matrices(em, sigma_s)
         phi, gam, du_x, du_in, spool_rows = closed_loop(em, leg, pm, c_eq)
         if np.max(np.abs(np.linalg.eigvals(phi))) >= 1.0:
-            raise UserInputError(
-                f"invalid value at identify.kp_v_per_m: the experiment's linear model of "
-                f"actuator {leg} is unstable with K_p {list(em.kp)} V/m"
-            )
+            # no stationary response: a loop unstable in the small grows until the
+            # valves' gains fall: a larger spool swing, and again
+            sigma_s = np.minimum(2.0 * sigma_s + 1e-3, 1.0)
+            continue
         rms = stationary_rms(em, leg, phi, gam)
         new_v = np.maximum(rms[3:6], SIGMA_V_MIN)
         new_s = rms[spool_rows]
@@ -519,6 +523,12 @@ def experiment_leg(em: ExperimentModel, leg: int) -> LegResult:
         sigma_s = new_s if it == 1 else 0.5 * (sigma_s + new_s)
         if change < TOL:
             break
+    if np.max(np.abs(np.linalg.eigvals(phi))) >= 1.0:
+        raise UserInputError(
+            f"invalid value at identify.kp_v_per_m: the experiment's linear model of "
+            f"actuator {leg} is unstable at every swing tried with K_p "
+            f"{[float(k) for k in em.kp]} V/m"
+        )
     inp, start = _inputs(em, leg)
     x = simulate(phi, gam, inp)[start:]
     du = x @ du_x.T + inp[start:] @ du_in.T
