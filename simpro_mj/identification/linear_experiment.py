@@ -63,7 +63,7 @@ from controllers.design import paper_coefficients
 from controllers.dither import dither_signal
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.identification.identify import _prbs, fit_eq19
-from simpro_mj.identification.settings import check_tree, leg_values
+from simpro_mj.identification.settings import Settings, check_tree, leg_values
 from simpro_mj.plant import step_functions as sf
 from simpro_mj.plant.friction import seal_friction
 from simpro_mj.plant.model import PlantIndex, assemble, load_model
@@ -135,7 +135,7 @@ class ExperimentModel:
     base: np.ndarray  # their state there
     thermal: bool
     order2: bool
-    ip: dict  # the identify settings
+    ip: Settings  # the identify settings
     cache: list = field(default_factory=list)  # (spool RMS, pneumatics) computed
 
     @property
@@ -147,12 +147,12 @@ class ExperimentModel:
 def build(tree: dict, model=None) -> ExperimentModel:
     """The operating point of ``tree``'s experiment and its mechanics (module docstring)."""
     check_tree(tree)
-    ip = tree["identify"]
+    ip = Settings.of(tree)
     m = model if model is not None else load_model(tree["model"])
     d = mujoco.MjData(m)
     idx = PlantIndex.of(m)
     dt = float(m.opt.timestep)
-    q0 = np.full(3, float(ip["position_mm"]) * 1e-3)
+    q0 = np.full(3, float(ip.position_mm) * 1e-3)
     stiffness = np.empty((3, 3))
     for j in range(3):
         fs = []
@@ -167,7 +167,7 @@ def build(tree: dict, model=None) -> ExperimentModel:
     mass = slide_mass_matrix(m, d, idx)
     damping = slide_damping_matrix(m, d, idx)
     act = make_actuators(
-        ip["actuator_kind"],
+        ip.actuator_kind,
         tree["pneumatics"],
         model=m,
         linear_plants=paper_coefficients(tree["paper_units"]),
@@ -195,7 +195,7 @@ def build(tree: dict, model=None) -> ExperimentModel:
         mass=mass,
         damping=damping,
         stiffness=stiffness,
-        kp=np.asarray(leg_values(ip["kp_v_per_m"], "kp_v_per_m"), float),
+        kp=np.asarray(leg_values(ip.kp_v_per_m, "kp_v_per_m"), float),
         u_hold=act.u_hold.copy(),
         friction=friction,
         act=act,
@@ -263,7 +263,7 @@ def _pneumatic_matrices(em: ExperimentModel, sigma_s: np.ndarray):
     ``sigma_s`` (3,) (module docstring). Returns a list of 3 tuples."""
     ac = em.act.step_constants
     base = em.base
-    q0 = np.full(3, float(em.ip["position_mm"]) * 1e-3)
+    q0 = np.full(3, float(em.ip.position_mm) * 1e-3)
     z0 = np.zeros(3)
     slots = _gas_slots(em)
     ng = len(slots)
@@ -430,15 +430,15 @@ def _inputs(em: ExperimentModel, leg: int) -> tuple[np.ndarray, int]:
     """The dither and the sequence by step (as the experiment's ``exc``) and the
     first row of the record."""
     ip, dt = em.ip, em.dt
-    n_settle = int(round(float(ip["settle_s"]) / dt))
-    n_exc = int(round(float(ip["duration_s"]) / dt))
-    clock = max(1, int(round(float(ip["prbs_clock_ms"]) * 1e-3 / dt)))
-    amp = leg_values(ip["prbs_amplitude_v"], "prbs_amplitude_v")
+    n_settle = int(round(float(ip.settle_s) / dt))
+    n_exc = int(round(float(ip.duration_s) / dt))
+    clock = max(1, int(round(float(ip.prbs_clock_ms) * 1e-3 / dt)))
+    amp = leg_values(ip.prbs_amplitude_v, "prbs_amplitude_v")
     inp = np.zeros((n_settle + n_exc, 2))
     inp[:, 0] = dither_signal(
-        n_settle + n_exc, dt, float(ip["dither_v"]), float(ip["dither_period_ms"]) * 1e-3
+        n_settle + n_exc, dt, float(ip.dither_v), float(ip.dither_period_ms) * 1e-3
     )[:, 0]
-    inp[n_settle:, 1] = amp[leg - 1] * _prbs(n_exc, clock, int(ip["prbs_bits"]), int(ip["seed"]))
+    inp[n_settle:, 1] = amp[leg - 1] * _prbs(n_exc, clock, int(ip.prbs_bits), int(ip.seed))
     return inp, n_settle
 
 
@@ -452,8 +452,8 @@ def stationary_rms(em: ExperimentModel, leg: int, phi: np.ndarray, gam: np.ndarr
     from scipy.linalg import solve_discrete_lyapunov
 
     ip, n = em.ip, phi.shape[0]
-    clock = max(1, int(round(float(ip["prbs_clock_ms"]) * 1e-3 / em.dt)))
-    amp = leg_values(ip["prbs_amplitude_v"], "prbs_amplitude_v")[leg - 1]
+    clock = max(1, int(round(float(ip.prbs_clock_ms) * 1e-3 / em.dt)))
+    amp = leg_values(ip.prbs_amplitude_v, "prbs_amplitude_v")[leg - 1]
     g = gam[:, 1]
     pj, gj = np.eye(n), np.zeros(n)
     phases = []
@@ -465,9 +465,9 @@ def stationary_rms(em: ExperimentModel, leg: int, phi: np.ndarray, gam: np.ndarr
     for pk, gk in phases:
         var += np.einsum("ij,jk,ik->i", pk, p, pk) + amp**2 * gk**2
     var /= clock
-    a_w = float(ip["dither_v"])
+    a_w = float(ip.dither_v)
     if a_w > 0.0:
-        half = int(round(float(ip["dither_period_ms"]) * 1e-3 / em.dt / 2.0))
+        half = int(round(float(ip.dither_period_ms) * 1e-3 / em.dt / 2.0))
         w = np.where(np.arange(2 * half) < half, a_w, -a_w)
         x = np.zeros(n)
         for wk in w:
@@ -498,8 +498,8 @@ def experiment_leg(em: ExperimentModel, leg: int) -> LegResult:
     eq. (19) fitted to it (module docstring)."""
     # start: the spools as the valves' commands alone would swing them (the dither on
     # every valve, the sequence on the leg's), the seals at 1 mm/s
-    amp = leg_values(em.ip["prbs_amplitude_v"], "prbs_amplitude_v")[leg - 1]
-    sigma_s = np.full(3, float(em.ip["dither_v"]) / 5.0)
+    amp = leg_values(em.ip.prbs_amplitude_v, "prbs_amplitude_v")[leg - 1]
+    sigma_s = np.full(3, float(em.ip.dither_v) / 5.0)
     sigma_s[leg - 1] = math.hypot(sigma_s[leg - 1], amp / 5.0)
     sigma_v = np.full(3, 1e-3)
     it = 0
@@ -534,8 +534,8 @@ def experiment_leg(em: ExperimentModel, leg: int) -> LegResult:
     du = x @ du_x.T + inp[start:] @ du_in.T
     u = em.u_hold[leg - 1] + du[:, leg - 1]
     v = x[:, 3 + leg - 1]
-    skip = int(round(float(em.ip["fit_skip_s"]) / em.dt))
-    fit = fit_eq19(u, v, em.dt, skip=skip, method=em.ip.get("fit_method", "trust_region"))
+    skip = int(round(float(em.ip.fit_skip_s) / em.dt))
+    fit = fit_eq19(u, v, em.dt, skip=skip, method=em.ip.fit_method)
     return LegResult(fit, sigma_v, sigma_s, c_eq, it, u, v)
 
 
