@@ -42,7 +42,7 @@ import mujoco
 import numpy as np
 
 from simpro_mj.config.models import Identified, Scenario, as_scenario
-from simpro_mj.config.presets import scenario_overlay
+from simpro_mj.config.presets import presets_dir, scenario_overlay
 from simpro_mj.config.scenario import (
     DEFAULT_SCENARIO,
     IDENTIFY_CHOICES,  # values of controller.inner.identify
@@ -85,7 +85,7 @@ def plant_tree(scenario: Scenario | Mapping) -> dict:
     cycle, docs/paper-notes.md), the scenario's ``plant`` and ``actuator.pneumatics``
     values."""
     sc = as_scenario(scenario)
-    tree = identify_module.default_tree(sc.plant.preset)
+    tree = _preset_tree(sc.plant.preset)
     tree["model"] = _merge(tree["model"], sc.plant.model_dump(exclude={"preset"}))
     tree["pneumatics"] = _merge(tree["pneumatics"], sc.actuator.pneumatics.model_dump())
     tree["paper_units"] = sc.paper_units
@@ -136,15 +136,54 @@ def _is_presets_plant(sc: Scenario) -> bool:
     """The scenario's plant and pneumatics are what its preset resolves to with no
     plant key of the scenario's own (the shipped as-built errors included): the
     preset's models stand for it."""
-    preset = sc.plant.preset
+    own = _plant_text(sc.plant.model_dump(), sc.actuator.pneumatics.model_dump())
+    stamp = _stamp(sc.plant.preset)
+    return own == (_presets_plant_text(stamp) if stamp else _preset_plant(sc.plant.preset))
+
+
+def _plant_text(plant, pneumatics) -> str:
+    return json.dumps([plant, pneumatics or {}], sort_keys=True, default=str)
+
+
+def _preset_plant(preset: str) -> str:
+    """The plant and pneumatics a scenario with no plant key of its own gets from
+    ``preset``, as text."""
     base = _merge(DEFAULT_SCENARIO, scenario_overlay(preset))
     base["plant"]["preset"] = preset
+    return _plant_text(base["plant"], base["actuator"].get("pneumatics"))
 
-    def text(plant, pneumatics) -> str:
-        return json.dumps([plant, pneumatics or {}], sort_keys=True, default=str)
 
-    own = text(sc.plant.model_dump(), sc.actuator.pneumatics.model_dump())
-    return own == text(base["plant"], base["actuator"].get("pneumatics"))
+def _stamp(preset: str) -> tuple | None:
+    """A key that changes with a shipped preset's file (its name, time and size): what
+    the preset gives is then read once per process (a batch asks it of every variant,
+    each read a YAML parse and two deep merges); ``None`` for a preset given by path
+    (read each time)."""
+    if str(preset).endswith((".yaml", ".yml")):
+        return None
+    try:
+        st = (presets_dir() / f"{preset}.yaml").stat()
+    except OSError:
+        return None
+    return (str(preset), st.st_mtime_ns, st.st_size)
+
+
+@lru_cache(maxsize=8)
+def _presets_plant_text(stamp: tuple) -> str:
+    return _preset_plant(stamp[0])
+
+
+@lru_cache(maxsize=8)
+def _preset_identify_tree(stamp: tuple) -> dict:
+    return identify_module.default_tree(stamp[0])
+
+
+def _preset_tree(preset: str) -> dict:
+    """:func:`simpro_mj.identification.settings.default_tree` of ``preset``: a copy of
+    the one read for a shipped preset's file as it is now (:func:`_stamp`)."""
+    stamp = _stamp(preset)
+    if stamp is None:
+        return identify_module.default_tree(preset)
+    return copy.deepcopy(_preset_identify_tree(stamp))
 
 
 def _models(doc) -> dict:

@@ -54,6 +54,7 @@ which is what the output-error fit of the experiment does in expectation.
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass, field
 
 import mujoco
@@ -69,6 +70,7 @@ from simpro_mj.plant.friction import seal_friction
 from simpro_mj.plant.model import PlantIndex, assemble, load_model
 from simpro_mj.plant.platform import set_seal_friction
 from simpro_mj.plant.pneumatics.factory import make_actuators
+from simpro_mj.plant.pneumatics.nonlinear import NonlinearActuators
 from simpro_mj.plant.pneumatics.statics import (
     holding_forces,
     slide_damping_matrix,
@@ -131,7 +133,7 @@ class ExperimentModel:
     kp: np.ndarray  # V/m
     u_hold: np.ndarray  # V
     friction: list  # per leg: (dry F_S of MuJoCo, seal_friction's five arguments)
-    act: object  # the actuators, reset at the holding equilibrium
+    act: NonlinearActuators  # the actuators, reset at the holding equilibrium
     base: np.ndarray  # their state there
     thermal: bool
     order2: bool
@@ -172,7 +174,7 @@ def build(tree: dict, model=None) -> ExperimentModel:
         model=m,
         linear_plants=paper_coefficients(tree["paper_units"]),
     )
-    if act.kind != "nonlinear":
+    if not isinstance(act, NonlinearActuators):
         raise UserInputError(
             "invalid value at identify.actuator_kind: the experiment's linearisation needs "
             "'nonlinear' (eq. 19's linear actuators are their own model)"
@@ -460,7 +462,12 @@ def stationary_rms(em: ExperimentModel, leg: int, phi: np.ndarray, gam: np.ndarr
     for _ in range(clock):
         phases.append((pj, gj))
         pj, gj = phi @ pj, phi @ gj + g
-    p = solve_discrete_lyapunov(pj, amp**2 * np.outer(gj, gj))
+    q = amp**2 * np.outer(gj, gj)
+    with warnings.catch_warnings(record=True) as said:
+        warnings.simplefilter("always")
+        p = solve_discrete_lyapunov(pj, q)  # the bilinear transformation's, fast
+    if said:  # its transformation ill-posed (eigenvalues near -1): the exact linear solve
+        p = solve_discrete_lyapunov(pj, q, method="direct")
     var = np.zeros(n)
     for pk, gk in phases:
         var += np.einsum("ij,jk,ik->i", pk, p, pk) + amp**2 * gk**2

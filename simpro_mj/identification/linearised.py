@@ -13,9 +13,9 @@ A plant whose seals' dry friction dominates the experiment is refused in one lin
 where the describing function's equivalent viscous friction of the excited leg
 exceeds the seal's own viscous coefficient (the Coulomb force above the viscous
 force at the leg's RMS speed), the real experiment is a stick-slip (the heavy
-cabin's leg 1 is at rest 63 % of its record and slips at four times the RMS speed
-a Gaussian speed has), which no linear model of the experiment represents; the
-identified design (``auto``) stays the procedure there.
+cabin's leg 1 is at rest 63 % of its record and slips in bursts: an RMS speed 3.7
+times the describing function's), which no linear model of the experiment
+represents; the identified design (``auto``) stays the procedure there.
 """
 
 from __future__ import annotations
