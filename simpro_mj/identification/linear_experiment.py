@@ -462,12 +462,12 @@ def stationary_rms(em: ExperimentModel, leg: int, phi: np.ndarray, gam: np.ndarr
     for _ in range(clock):
         phases.append((pj, gj))
         pj, gj = phi @ pj, phi @ gj + g
-    q = amp**2 * np.outer(gj, gj)
     with warnings.catch_warnings(record=True) as said:
         warnings.simplefilter("always")
-        p = solve_discrete_lyapunov(pj, q)  # the bilinear transformation's, fast
-    if said:  # its transformation ill-posed (eigenvalues near -1): the exact linear solve
-        p = solve_discrete_lyapunov(pj, q, method="direct")
+        p = solve_discrete_lyapunov(pj, amp**2 * np.outer(gj, gj))  # bilinear, fast
+    if said:  # ill-posed (locked seals' modes at 1, others near -1): the record's own RMS
+        inp, start = _inputs(em, leg)
+        return np.sqrt(np.mean(simulate(phi, gam, inp)[start:] ** 2, axis=0))
     var = np.zeros(n)
     for pk, gk in phases:
         var += np.einsum("ij,jk,ik->i", pk, p, pk) + amp**2 * gk**2
