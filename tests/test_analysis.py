@@ -12,7 +12,6 @@ from controllers.analysis import (
     closed_form_limit,
     outer_poles,
     outer_polynomials,
-    real_inner_closed_loop,
     real_inner_limit,
     root_locus,
     schur_stable,
@@ -21,6 +20,7 @@ from controllers.analysis import (
     tf_step,
 )
 from controllers.analysis.inner import companion
+from controllers.analysis.lifted import lifted_inner, outer_closed_loop
 
 T = 0.06
 
@@ -186,7 +186,7 @@ def test_two_sample_delay_limit_by_hand():
 
 @pytest.mark.parametrize("mode, gain", [("I", 3.0), ("PI", 20.0)])
 def test_lifted_pure_delay_reproduces_delay_model(mode, gain):
-    f, _, _ = real_inner_closed_loop(mode, gain, T, legs=[(0.0, 1.0, 1.0)])
+    f, _, _ = outer_closed_loop(mode, gain, T, lifted_inner(T, legs=[(0.0, 1.0, 1.0)]))
     ev = np.linalg.eigvals(f)
     want = outer_poles(mode, gain, T)
     ev = ev[np.abs(ev) > 1e-12]  # the PI realisation adds a pole at 0
@@ -215,7 +215,7 @@ def test_reduced_lifted_loop_keeps_the_closed_loops_eigenvalues(mode, times):
 
     Compared above modulus 0.6 only: the full loop's nilpotent block (up to 59 states)
     comes out of LAPACK as a ring of radius eps^(1/59) ~ 0.54 instead of zeros."""
-    from controllers.analysis.lifted import lifted_inner, outer_closed_loop, reduced
+    from controllers.analysis.lifted import reduced
 
     full = lifted_inner(T, setpoint_filter=("ramp", times))
     small = reduced(full)

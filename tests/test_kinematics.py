@@ -6,17 +6,18 @@ import sys
 import numpy as np
 import pytest
 
-from controllers import (
-    ConvergenceError,
-    WorkspaceError,
+from controllers.errors import ConvergenceError, WorkspaceError
+from controllers.geometry import nominal_geometry
+from controllers.kinematics import (
     forward_kinematics,
     inverse_kinematics,
     jacobian,
-    nominal_geometry,
+    leg_lengths,
+    line_circle_intersection,
     paper_inverse_kinematics,
+    platform_position,
     reachable,
 )
-from controllers.kinematics import leg_lengths, line_circle_intersection, platform_position
 from controllers.workspace import axis_range, workspace_ranges
 
 G = nominal_geometry()

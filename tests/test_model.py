@@ -4,7 +4,8 @@ import mujoco
 import numpy as np
 import pytest
 
-from controllers import PAPER_POINTS_MM, inverse_kinematics, nominal_geometry
+from controllers.geometry import PAPER_POINTS_MM, nominal_geometry
+from controllers.kinematics import inverse_kinematics
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.plant.model import (
     PlantIndex,

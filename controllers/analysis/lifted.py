@@ -212,25 +212,6 @@ def outer_closed_loop(mode: str, gain, period: float, lifted, jac=None, pi_zero:
     return f, gr, h
 
 
-def real_inner_closed_loop(
-    mode: str,
-    gain,
-    period: float,
-    variant: str = "corrected",
-    dt: float = 1e-3,
-    method: str = "tustin",
-    jac=None,
-    actuators=ACTUATORS,
-    pi_zero: float = 0.2,
-    legs=None,
-    spec=None,
-    setpoint_filter=None,
-):
-    """:func:`outer_closed_loop` around :func:`lifted_inner` (see both)."""
-    lifted = lifted_inner(period, variant, dt, method, actuators, legs, spec, setpoint_filter)
-    return outer_closed_loop(mode, gain, period, lifted, jac, pi_zero)
-
-
 def spectral_radius(f) -> float:
     return float(np.max(np.abs(np.linalg.eigvals(f))))
 

@@ -343,15 +343,13 @@ class Cueing(CueBlock):
         return resolved
 
 
-def check_cueing(value: Any, path: str = "setpoint.cueing") -> dict:
-    """A ``cueing`` block on its own, validated by :class:`Cueing` and spelled out.
+def check_cueing(value: Any) -> dict:
+    """A ``setpoint.cueing`` block on its own, validated by :class:`Cueing` and spelled out.
 
     Parameters
     ----------
     value : Any
         The block as written (``{"sine": {...}}``).
-    path : str
-        Its dotted path, for the messages.
 
     Returns
     -------
@@ -363,4 +361,4 @@ def check_cueing(value: Any, path: str = "setpoint.cueing") -> dict:
     UserInputError
         One line naming the dotted key and what is allowed.
     """
-    return validated(Cueing, value, path).model_dump()
+    return validated(Cueing, value, "setpoint.cueing").model_dump()

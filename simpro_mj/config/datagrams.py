@@ -240,16 +240,14 @@ def encode_csv(t: float, f, w) -> bytes:
     return (",".join(f"{v:.9g}" for v in (t, *f, *w)) + "\n").encode("ascii")
 
 
-def encode_outsim(t: float, f, w, attitude=(0.0, 0.0, 0.0), packet_id: int | None = None) -> bytes:
+def encode_outsim(t: float, f, w, attitude=(0.0, 0.0, 0.0)) -> bytes:
     """One OutSim packet of a V-frame sample, the car at ``attitude`` (heading, pitch, roll)."""
     r = car_to_world(*attitude)
     fw = vehicle_to_world(r, f)
     acc = (fw[0], fw[1], fw[2] - GRAVITY)
     ang = vehicle_to_world(r, w)
     fields = (int(round(t * 1e3)) & 0xFFFFFFFF, *ang, *attitude, *acc, 0.0, 0.0, 0.0, 0, 0, 0)
-    if packet_id is None:
-        return _OUTSIM.pack(*fields)
-    return _OUTSIM_ID.pack(*fields, int(packet_id))
+    return _OUTSIM.pack(*fields)
 
 
 def _attitudes(w: np.ndarray, dt: float) -> list[tuple[float, float, float]]:

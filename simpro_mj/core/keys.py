@@ -115,34 +115,27 @@ def get_path(tree: Mapping, path: str) -> Any:
     return node
 
 
-def set_path(tree: dict, path: str, value: Any, strict: bool = True) -> None:
+def set_path(tree: dict, path: str, value: Any) -> None:
     """Set a dotted path in a nested dict.
 
-    With ``strict`` the path must already exist (unknown keys are refused with
-    the closest valid key) and the new value must have a compatible type.
+    The path must already exist (unknown keys are refused with the closest valid
+    key) and the new value must have a compatible type.
     """
     parts = path.split(".")
     node: Any = tree
     for depth, part in enumerate(parts):
         here = ".".join(parts[: depth + 1])
-        last = depth == len(parts) - 1
         if not isinstance(node, dict):
             raise UserInputError(
                 f"unknown key at {key_text(here)}: '{key_text(parts[depth - 1])}' has no sub-keys"
             )
         if part not in node:
-            if strict:
-                raise UserInputError(
-                    f"unknown key at {key_text(here)}: allowed keys are {sorted(node)}"
-                    f"{closest(part, node)}"
-                )
-            if last:
-                node[part] = value
-                return
-            node[part] = {}
-        if last:
-            if strict:
-                _check_type(here, node[part], value)
+            raise UserInputError(
+                f"unknown key at {key_text(here)}: allowed keys are {sorted(node)}"
+                f"{closest(part, node)}"
+            )
+        if depth == len(parts) - 1:
+            _check_type(here, node[part], value)
             node[part] = value
             return
         node = node[part]
@@ -169,12 +162,12 @@ def _check_type(path: str, old: Any, new: Any) -> None:
         )
 
 
-def apply_overrides(tree: Mapping, sets: Iterable[str], strict: bool = True) -> dict:
+def apply_overrides(tree: Mapping, sets: Iterable[str]) -> dict:
     """Return a deep copy of ``tree`` with every ``KEY=VALUE`` applied in order."""
     out = copy.deepcopy(dict(tree))
     for expr in sets or ():
         key, value = parse_set(expr)
-        set_path(out, key, value, strict=strict)
+        set_path(out, key, value)
     return out
 
 

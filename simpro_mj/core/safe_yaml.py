@@ -1,11 +1,11 @@
 """Reading YAML a user wrote, with bounds: no input can make the reader hang.
 
 Every scenario file and every ``--set`` value goes through :func:`load`:
-a ``yaml.SafeLoader`` subclass (:class:`BoundedLoader`), or its libyaml
-twin (``CSafeLoader``, several times faster) when PyYAML has it, that
+:class:`BoundedLoader`, built on libyaml's ``CSafeLoader`` (several times
+faster) when PyYAML has it, else on ``yaml.SafeLoader``, that
 
 * refuses duplicate mapping keys;
-* refuses nesting deeper than :data:`MAX_DEPTH` levels while it composes
+* refuses nesting deeper than :data:`MAX_DEPTH` levels before it composes
   (PyYAML's composer recurses: 5,000 nested brackets were a RecursionError);
 * allows anchors and aliases but counts the document as expanded (every use
   of an alias counts its whole value again) and refuses more than
@@ -37,7 +37,6 @@ from typing import Any
 
 import yaml
 from yaml.events import (
-    AliasEvent,
     MappingEndEvent,
     MappingStartEvent,
     SequenceEndEvent,
@@ -79,23 +78,13 @@ class YAMLLimitError(yaml.MarkedYAMLError):
         self.allowed = allowed
 
 
-class BoundedLoader(yaml.SafeLoader):
-    """``yaml.SafeLoader`` with the bounds of the module docstring."""
+#: libyaml's parser and composer when PyYAML has them (about 7 times faster), else PyYAML's own
+_BASE: Any = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
 
-    def __init__(self, stream):
-        super().__init__(stream)
-        self._depth = 0
 
-    def compose_node(self, parent, index):
-        if self.check_event(AliasEvent):  # an existing node: no recursion here
-            return super().compose_node(parent, index)
-        self._depth += 1
-        try:
-            if self._depth > MAX_DEPTH:
-                raise _too_deep(self.peek_event().start_mark)
-            return super().compose_node(parent, index)
-        finally:
-            self._depth -= 1
+class BoundedLoader(_BASE):
+    """``yaml.SafeLoader`` (or its libyaml twin) with the bounds of the module docstring;
+    the depth is checked on the event stream first (:func:`_check_depth_events`)."""
 
     def construct_document(self, node):
         _check_expansion(node)
@@ -164,11 +153,11 @@ def _check_expansion(root) -> None:
 
 
 def _check_depth_events(text: str) -> None:
-    """Nesting depth from libyaml's event stream (iterative), before its
+    """Nesting depth from the parser's event stream (iterative), before the
     composer (which recurses) sees the document."""
     depth = 0
     try:
-        for event in yaml.parse(text, Loader=yaml.CSafeLoader):
+        for event in yaml.parse(text, Loader=_BASE):
             if isinstance(event, _OPEN):
                 depth += 1
                 if depth > MAX_DEPTH:
@@ -241,35 +230,18 @@ def _short(text: str, limit: int = 60) -> str:
     return text if len(text) <= limit else f"{text[: limit - 16]}...{text[-10:]}"
 
 
-if getattr(yaml, "__with_libyaml__", False):
-
-    class _BoundedCLoader(yaml.CSafeLoader):
-        """libyaml's parser and composer (about 7 times faster than the pure-Python
-        ones) with the same constructors and checks; the depth is checked on the
-        event stream first (:func:`_check_depth_events`)."""
-
-        def construct_document(self, node):
-            _check_expansion(node)
-            return super().construct_document(node)
-
-    _LOADERS: tuple = (BoundedLoader, _BoundedCLoader)
-else:  # pragma: no cover - PyYAML built without libyaml
-    _BoundedCLoader = None  # type: ignore[assignment,misc]
-    _LOADERS = (BoundedLoader,)
-
 #: ``1e9``, ``-2E-3``: floats in YAML 1.2, strings in PyYAML's YAML 1.1 (where
 #: ``--set outer.gain=-1e9`` was "a string"); read as floats here.
 _EXP_FLOAT = re.compile(r"^[-+]?(?:[0-9][0-9_]*)(?:\.[0-9_]*)?[eE][-+]?[0-9]+$")
 
-for _loader in _LOADERS:
-    _loader.add_implicit_resolver("tag:yaml.org,2002:float", _EXP_FLOAT, list("-+0123456789"))
-    _loader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _unique_mapping)
-    _loader.add_constructor(
-        "tag:yaml.org,2002:int", _bounded_number(yaml.SafeLoader.construct_yaml_int)
-    )
-    _loader.add_constructor(
-        "tag:yaml.org,2002:float", _bounded_number(yaml.SafeLoader.construct_yaml_float)
-    )
+BoundedLoader.add_implicit_resolver("tag:yaml.org,2002:float", _EXP_FLOAT, list("-+0123456789"))
+BoundedLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _unique_mapping)
+BoundedLoader.add_constructor(
+    "tag:yaml.org,2002:int", _bounded_number(yaml.SafeLoader.construct_yaml_int)
+)
+BoundedLoader.add_constructor(
+    "tag:yaml.org,2002:float", _bounded_number(yaml.SafeLoader.construct_yaml_float)
+)
 
 
 def load(text: str) -> Any:
@@ -280,10 +252,8 @@ def load(text: str) -> Any:
     yaml.YAMLError
         Invalid YAML; :class:`YAMLLimitError` for a document over a bound.
     """
-    if _BoundedCLoader is None:  # pragma: no cover
-        return yaml.load(text, Loader=BoundedLoader)  # noqa: S506 - a SafeLoader subclass
     _check_depth_events(text)
-    return yaml.load(text, Loader=_BoundedCLoader)  # noqa: S506 - a CSafeLoader subclass
+    return yaml.load(text, Loader=BoundedLoader)  # noqa: S506 - a SafeLoader subclass
 
 
 def read_file(path: Path, what: str = "scenario") -> Any:

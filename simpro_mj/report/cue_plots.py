@@ -41,7 +41,7 @@ def plot_cueing(columns: Mapping, scenario: Mapping, out_dir, dpi: int = 120) ->
     """Write ``cueing.png`` and ``cue_pose.png``; returns their paths."""
     out_dir = Path(out_dir)
     return [
-        _save(fig, out_dir / f"{name}.png", dpi)
+        save(fig, out_dir / f"{name}.png", dpi)
         for name, fig in cueing_figures(columns, scenario).items()
     ]
 
@@ -121,7 +121,3 @@ def scenario_box(scenario: Mapping):
         return vehicle_input(scenario)[4]["box"]
     except Exception:  # noqa: BLE001 - a figure without the box is still a figure
         return None
-
-
-def _save(fig: Figure, path: Path, dpi: int) -> Path:
-    return save(fig, path, dpi)

@@ -40,8 +40,6 @@ __all__ = [
     "plot_compare",
     "compare_figure",
     "run_figures",
-    "DESIRED",
-    "OUTPUT",
     "DPI",
     "RUN_FIGURES",
 ]
@@ -65,10 +63,6 @@ def _col(columns: Mapping, name: str) -> np.ndarray:
 
 def _title(scenario: Mapping, what: str) -> str:
     return f"{scenario.get('name', 'run')}: {what} ({loop_label(scenario)})"
-
-
-def _save(fig: Figure, path: Path) -> Path:
-    return save(fig, path, DPI)
 
 
 def _line(ax, t, y, **kwargs):
@@ -282,7 +276,7 @@ def plot_run(columns: Mapping[str, np.ndarray], scenario: Mapping, out_dir) -> l
     """
     out_dir = Path(out_dir)
     figures = run_figures(columns, scenario)
-    paths = [_save(fig, out_dir / f"{name}.png") for name, fig in figures.items()]
+    paths = [save(fig, out_dir / f"{name}.png") for name, fig in figures.items()]
     if _has(columns, "head_fx_mps2", "veh_fx_mps2"):  # a cueing run
         paths += plot_cueing(columns, scenario, out_dir, DPI)
     return paths
@@ -343,4 +337,4 @@ def plot_compare(
         ``[out_dir / "compare.png"]``.
     """
     fig = compare_figure(columns_joint_only, columns_task_space, scenario)
-    return [_save(fig, Path(out_dir) / "compare.png")]
+    return [save(fig, Path(out_dir) / "compare.png")]

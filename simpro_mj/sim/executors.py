@@ -133,6 +133,11 @@ Callback = Callable[[int, dict], None]
 Worker = Callable[[Mapping], dict]
 
 
+def _failed(exc: Exception) -> dict:
+    """The result of a task that raised, or whose worker died."""
+    return {"status": "failed", "reason": one_line(exc, with_type=True), "metrics": None}
+
+
 def run_tasks(
     tasks: list[tuple[int, dict]],
     done: Callback,
@@ -202,8 +207,7 @@ def run_threads(tasks: list[tuple[int, dict]], jobs: int, done: Callback, fn: Wo
             try:
                 result = fut.result()
             except Exception as exc:  # noqa: BLE001 - a failing task fails its variant only
-                result = {"status": "failed", "reason": one_line(exc, with_type=True),
-                          "metrics": None}  # fmt: skip
+                result = _failed(exc)
             reported.add(fut)
             done(futures[fut], result)
             if result.get("status") == "interrupted":
@@ -255,11 +259,7 @@ def run_pool(
             try:
                 result = fut.result()
             except Exception as exc:  # noqa: BLE001 - a dead worker fails its variant only
-                result = {
-                    "status": "failed",
-                    "reason": one_line(exc, with_type=True),
-                    "metrics": None,
-                }
+                result = _failed(exc)
             reported.add(fut)
             done(futures[fut], result)
     except BaseException:
@@ -458,11 +458,7 @@ def run_dask(
                 try:
                     result = fut.result()
                 except Exception as exc:  # noqa: BLE001 - a lost worker fails its variant only
-                    result = {
-                        "status": "failed",
-                        "reason": one_line(exc, with_type=True),
-                        "metrics": None,
-                    }
+                    result = _failed(exc)
                 done(futures[fut], result)
             if finished or client.scheduler_info().get("workers"):
                 seen_worker = time.monotonic()
