@@ -119,22 +119,18 @@ def reference(scenario: Scenario | Mapping, t, *, clamp: bool | None = None) -> 
 _CHECK_BLOCK = 20_000
 
 
-def check_setpoints(scenario: Scenario | Mapping, t=None) -> None:
-    """Raise :class:`SetpointError` if the set-point leaves the reachable workspace.
+def check_setpoints(scenario: Scenario | Mapping) -> None:
+    """Raise :class:`SetpointError` if the set-point leaves the reachable workspace at
+    any time of the 1 ms physics grid over ``[0, duration_s]`` (every sample the
+    controllers can see).
 
     Parameters
     ----------
     scenario : mapping
         A resolved scenario.
-    t : array_like, optional
-        Times to check; default the 1 ms physics grid over ``[0, duration_s]``
-        (every sample the controllers can see).
     """
     sc = as_scenario(scenario)
-    if t is None:
-        n = int(round(sc.duration_s / PHYSICS_DT_S))
-        t = np.arange(n + 1) * PHYSICS_DT_S
-    t = np.atleast_1d(np.asarray(t, dtype=float))
+    t = np.arange(int(round(sc.duration_s / PHYSICS_DT_S)) + 1) * PHYSICS_DT_S
     geometry = sc.plant.geometry()
     # in blocks: the vectorised IK holds ~350 B of temporaries per pose, which
     # over a whole 600 s grid would be 200 MB for a check that keeps nothing

@@ -26,7 +26,7 @@ import numpy as np
 
 from simpro_mj.plant.kernels import kernel_label
 
-__all__ = ["machine_fingerprint", "fingerprint_id", "describe_machine"]
+__all__ = ["describe_machine", "dist_version", "fingerprint_id", "machine_fingerprint"]
 
 #: CPU flags (``/proc/cpuinfo``) that select floating-point code paths: vector
 #: widths and fused multiply-add. Other flags (virtualisation, power) do not
@@ -77,7 +77,8 @@ def _numpy_simd() -> list[str]:
     return []
 
 
-def _dist(name: str) -> str | None:
+def dist_version(name: str) -> str | None:
+    """The installed version of distribution ``name``, or None."""
     try:
         return metadata.version(name)
     except metadata.PackageNotFoundError:
@@ -96,15 +97,14 @@ def machine_fingerprint() -> dict:
         versions of Python, numpy and MuJoCo, and ``kernels`` (the
         kernel choice of ``SIMPRO_KERNEL``, with numba's version).
     """
-    kernels = kernel_label()
     return {
         "machine": platform.machine(),
         "cpu_flags": _cpu_flags(),
         "numpy_simd": _numpy_simd(),
         "python": platform.python_version(),
         "numpy": np.__version__,
-        "mujoco": _dist("mujoco"),
-        "kernels": kernels,  # "python" or "numba <version>"
+        "mujoco": dist_version("mujoco"),
+        "kernels": kernel_label(),  # "python" or "numba <version>"
     }
 
 

@@ -98,15 +98,11 @@ def _shade_faults(fig: Figure, scenario: Scenario) -> None:
         axes[0].legend(loc="best", fontsize=8)
 
 
-def _task_axes(fig: Figure, columns: Mapping, ncols: int = 1, col: int = 0, axes=None):
-    """Draw the three task-space panels into column ``col`` of a 3 x ncols grid."""
+def _task_axes(columns: Mapping, axes):
+    """Draw the three task-space panels into ``axes`` (three, one above the other)."""
     t = _col(columns, "time_s")
     drawn = []
-    for row, (title, ref, true, meas, scale, unit, zero) in enumerate(_TASK):
-        if axes is not None:
-            ax = axes[row]
-        else:
-            ax = fig.add_subplot(3, ncols, row * ncols + col + 1)
+    for ax, (title, ref, true, meas, scale, unit, zero) in zip(axes, _TASK, strict=True):
         if not _has(columns, ref, true):
             ax.set_visible(False)
             continue
@@ -178,7 +174,7 @@ def run_figures(
     figs: dict[str, Figure] = {}
     if only in (None, "task_space"):
         fig = Figure(figsize=(8, 8))
-        drawn = _task_axes(fig, columns, axes=fig.subplots(3, 1, sharex=True))
+        drawn = _task_axes(columns, fig.subplots(3, 1, sharex=True))
         if drawn:
             drawn[0].legend(loc="best", fontsize=8)
             fig.suptitle(_title(scenario, "task space, desired (blue) vs output (green)"))
@@ -314,8 +310,8 @@ def compare_figure(
     """
     fig = Figure(figsize=(12, 8))
     grid = fig.subplots(3, 2, sharex=True, sharey="row")
-    _task_axes(fig, columns_joint_only, axes=grid[:, 0])
-    _task_axes(fig, columns_task_space, axes=grid[:, 1])
+    _task_axes(columns_joint_only, grid[:, 0])
+    _task_axes(columns_task_space, grid[:, 1])
     grid[0, 0].set_title("a) joint control only")
     grid[0, 1].set_title("b) joint control + kinematic task-space control")
     grid[0, 0].legend(loc="best", fontsize=8)

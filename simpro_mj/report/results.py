@@ -33,7 +33,6 @@ import platform
 import sys
 import warnings
 from collections.abc import Mapping
-from importlib import metadata
 from pathlib import Path
 from typing import Any, TextIO
 
@@ -48,7 +47,7 @@ from simpro_mj.core.cache import file_digest
 from simpro_mj.core.shipped import model_path
 from simpro_mj.plant import kernels
 from simpro_mj.report.folders import install_folder, locked, partial_sibling
-from simpro_mj.report.machine import fingerprint_id
+from simpro_mj.report.machine import dist_version, fingerprint_id
 from simpro_mj.report.marker import PARTIAL_MARKER, is_complete
 
 __all__ = [
@@ -86,19 +85,12 @@ _RESERVED = {"status", "reason", "scenario", "axes", "joints", "metrics", "sim",
 
 def versions(resolved: Mapping | None = None) -> dict:
     """Versions of simpro-sim and its numerical dependencies (and the scenario hash)."""
-
-    def dist(name: str) -> str | None:
-        try:
-            return metadata.version(name)
-        except metadata.PackageNotFoundError:
-            return None
-
     model = model_path()
     out = {
         "simpro-sim": __version__,
-        "mujoco": dist("mujoco"),
+        "mujoco": dist_version("mujoco"),
         "numpy": np.__version__,
-        "python-control": dist("control"),
+        "python-control": dist_version("control"),
         "python": platform.python_version(),
         "kernels": kernels.kernel_label(),  # what ran: pneumatics + sensors
         # what the environment chose: SIMPRO_KERNEL as set (docs/performance.md), and the

@@ -138,6 +138,16 @@ def _failed(exc: Exception) -> dict:
     return {"status": "failed", "reason": one_line(exc, with_type=True), "metrics": None}
 
 
+def _finished_meanwhile(futures: dict, reported: set, done: Callback) -> None:
+    """Report the tasks that finished before or while the runs stopped (not counted as
+    cancelled)."""
+    for fut, key in futures.items():
+        if fut in reported or not fut.done() or fut.cancelled():
+            continue
+        with contextlib.suppress(Exception):
+            done(key, fut.result(timeout=0))
+
+
 def run_tasks(
     tasks: list[tuple[int, dict]],
     done: Callback,
@@ -217,11 +227,7 @@ def run_threads(tasks: list[tuple[int, dict]], jobs: int, done: Callback, fn: Wo
         for fut in futures:
             fut.cancel()
         pool.shutdown(wait=True)
-        for fut, key in futures.items():
-            if fut in reported or fut.cancelled():
-                continue
-            with contextlib.suppress(Exception):
-                done(key, fut.result(timeout=0))
+        _finished_meanwhile(futures, reported, done)
         raise
     pool.shutdown(wait=True)
 
@@ -264,13 +270,7 @@ def run_pool(
             done(futures[fut], result)
     except BaseException:
         stop_pool(pool)  # the workers are gone when this returns
-        # what finished meanwhile (before or while the pool stopped) is reported, not
-        # counted as cancelled
-        for fut, key in futures.items():
-            if fut in reported or not fut.done() or fut.cancelled():
-                continue
-            with contextlib.suppress(Exception):
-                done(key, fut.result(timeout=0))
+        _finished_meanwhile(futures, reported, done)
         raise
     finally:
         if reader is not None:
