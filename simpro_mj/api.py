@@ -213,8 +213,7 @@ def run(
 
         res, metrics = execute(resolved, Path(out), plots=plots, quiet=True)
         return Result(resolved, res.columns, metrics, res.folder)
-    done = _measured({"scenario": resolved})
-    return Result(resolved, done["columns"], done["metrics"], None)
+    return _measure(resolved)
 
 
 def compare(
@@ -263,16 +262,15 @@ class SweepResult:
         ``<axis>_steady_state_error`` (SI: rad, m)."""
         out = []
         for name, vals in self.values.items():
-            row: dict[str, Any] = {"variant": name, **vals}
             res = self.results.get(name)
-            row["status"] = res.status if res is not None else "invalid"
+            status = res.status if res is not None else "invalid"
+            row: dict[str, Any] = {"variant": name, **vals, "status": status}
             axes = res.metrics.get("axes", {}) if res is not None else {}
             for axis in ("roll", "pitch", "heave"):
                 m = axes.get(axis) or {}
                 for key in SWEEP_ROW_METRICS:
                     row[f"{axis}_{key}"] = m.get(key)
-            row["error"] = self.errors.get(name)
-            out.append(row)
+            out.append(row | {"error": self.errors.get(name)})
         return out
 
     def to_frame(self):
@@ -288,17 +286,22 @@ class SweepResult:
 SWEEP_ROW_METRICS = ("overshoot_pct", "settling_time_s", "iae", "steady_state_error")
 
 
-def _measured(task: Mapping) -> dict:
-    """One resolved scenario measured without writing anything (:func:`run`, and each
-    variant of :func:`sweep` here or in a pool worker: top level, it pickles by name)."""
+def _measure(scenario: Scenario | Mapping, stop=None) -> Result:
+    """One resolved scenario measured without writing anything (:func:`run`, :func:`sweep`)."""
     # MuJoCo is loaded when a plant is built, not by ``import simpro_mj``
     from simpro_mj.job.run import Run
     from simpro_mj.report.results import jsonable
 
-    outcome = Run(task["scenario"]).execute(quiet=True, stop=task.get("stop"))
+    outcome = Run(scenario).execute(quiet=True, stop=stop)
     metrics = dict(outcome.metrics, **outcome.extra())
-    return {"status": outcome.status, "columns": outcome.result.columns,
-            "metrics": jsonable(metrics)}  # fmt: skip
+    return Result(as_scenario(scenario), outcome.result.columns, jsonable(metrics), None)
+
+
+def _measured(task: Mapping) -> dict:
+    """A :func:`sweep` variant's task (here, on a thread or in a pool worker: top level,
+    it pickles by name): its ``status`` and its ``result``."""
+    result = _measure(task["scenario"], task.get("stop"))
+    return {"status": result.status, "result": result}
 
 
 def sweep(
@@ -363,9 +366,8 @@ def sweep(
     results = {}
     for i, v in enumerate(valid):
         out = done.get(i) or {}
-        if "columns" in out:
-            assert v.scenario is not None  # a valid variant
-            results[v.name] = Result(as_scenario(v.scenario), out["columns"], out["metrics"], None)
+        if "result" in out:
+            results[v.name] = out["result"]
         else:  # a worker that died fails its variant only
             errors[v.name] = out.get("reason") or "the worker ended without a result"
     if valid and not results:

@@ -466,7 +466,4 @@ def compute(p: AnalyzeParams | None = None, scenario: Scenario | Mapping | None 
 def document(res: Analysis, p: AnalyzeParams, files: list[str]) -> dict:
     """The ``--json`` document: the results without the plotting arrays, the
     parameters and the plots written."""
-    out = res.to_json()
-    out["params"] = p.model_dump()
-    out["plots"] = files
-    return out
+    return res.to_json() | {"params": p.model_dump(), "plots": files}

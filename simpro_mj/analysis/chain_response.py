@@ -69,9 +69,10 @@ from simpro_mj.analysis.response import (
     sine_tasks,
 )
 from simpro_mj.analysis.response_summary import Bode, loop_model
+from simpro_mj.config.cue_models import Cueing
 from simpro_mj.config.cue_params import washout_params
 from simpro_mj.config.cueing import vehicle_input
-from simpro_mj.config.models import check_cueing
+from simpro_mj.config.models import Scenario, as_scenario
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.plant.model import assemble
 from simpro_mj.sim.build import Build
@@ -152,6 +153,8 @@ class ChainPlan:
 
 
 def _check_amplitude(value, kind: str) -> float:
+    """``value`` (None: the default) of a ``kind`` of amplitude (``f``, ``w``), checked."""
+    value = DEFAULT_AMPLITUDES[kind] if value is None else value
     where = "--amplitude-mps2" if kind == "f" else "--amplitude-deg-s"
     unit = "m/s^2" if kind == "f" else "deg/s"
     top = MAX_AMPLITUDES[kind]
@@ -176,12 +179,7 @@ def plan_chain(
     periods: int = 2,
 ) -> ChainPlan:
     """Check the test's parameters and build its tasks (plain data for the workers)."""
-    af = _check_amplitude(
-        DEFAULT_AMPLITUDES["f"] if amplitude_mps2 is None else amplitude_mps2, "f"
-    )
-    aw = _check_amplitude(
-        DEFAULT_AMPLITUDES["w"] if amplitude_deg_s is None else amplitude_deg_s, "w"
-    )
+    af, aw = _check_amplitude(amplitude_mps2, "f"), _check_amplitude(amplitude_deg_s, "w")
     if not channels:
         raise UserInputError(f"invalid value at --channels: empty; allowed: {list(CHANNELS)}")
     for c in channels:
@@ -211,13 +209,12 @@ def plan_chain(
     return plan
 
 
-def cue_block(scenario: Mapping) -> dict:
+def cue_block(scenario: Scenario | Mapping) -> dict:
     """The scenario's cueing block (its algorithm and parameters), or the defaults."""
-    cue = (scenario.get("setpoint") or {}).get("cueing")
-    if cue:
-        return {"algorithm": cue["algorithm"], "parameters": dict(cue["parameters"])}
-    full = check_cueing({"sine": {"channel": "fx_mps2", "amplitude": 1.0, "period_s": 1.0}})
-    return {"algorithm": full["algorithm"], "parameters": full["parameters"]}
+    cue = as_scenario(scenario).setpoint.cueing or Cueing.model_validate(
+        {"sine": {"channel": "fx_mps2", "amplitude": 1.0, "period_s": 1.0}}
+    )
+    return {"algorithm": cue.algorithm, "parameters": cue.parameters.model_dump()}
 
 
 def chain_scenario(

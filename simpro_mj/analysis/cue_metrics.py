@@ -26,6 +26,7 @@ from simpro_mj.analysis.cue_signals import (
     strength,
 )
 from simpro_mj.config.cueing import CUE_COLUMNS, vehicle_input
+from simpro_mj.config.models import Scenario, as_scenario
 
 __all__ = [
     "CHANNELS",
@@ -51,8 +52,9 @@ CHANNELS = (
 )
 
 
-def cue_metrics(columns: Mapping, scenario: Mapping, model: VestibularModel | None = None, *,
-                info: Mapping | None = None, bound: bool = True) -> dict:  # fmt: skip
+def cue_metrics(columns: Mapping, scenario: Scenario | Mapping,
+                model: VestibularModel | None = None, *, info: Mapping | None = None,
+                bound: bool = True) -> dict:  # fmt: skip
     """The ``cueing`` block of ``metrics.json``: per channel, vehicle vs simulator, perceived.
 
     Per channel (:data:`CHANNELS`), of the perceived signals: ``rms_error``,
@@ -205,7 +207,8 @@ def cue_metrics(columns: Mapping, scenario: Mapping, model: VestibularModel | No
 BOUND_MAX_S = 120.0
 
 
-def bound_block(col: Mapping, dt: float, scenario: Mapping, veh, model: VestibularModel) -> dict:
+def bound_block(col: Mapping, dt: float, scenario: Scenario | Mapping, veh,
+                model: VestibularModel) -> dict:  # fmt: skip
     """The ``bound`` block: the best platform motion for this drive
     (:func:`controllers.cue_bound.cue_bound`, with the scenario's MPC parameters, or the
     MPC's defaults with the washout's box for a washout run), perceived through
@@ -218,8 +221,8 @@ def bound_block(col: Mapping, dt: float, scenario: Mapping, veh, model: Vestibul
     n = col["time_s"].size if "time_s" in col else len(next(iter(col.values())))
     if n * dt > BOUND_MAX_S:
         return {"note": f"not computed: the drive is longer than {BOUND_MAX_S:g} s", "channels": {}}
-    cue = (scenario.get("setpoint") or {}).get("cueing") or {}
-    params = washout_params(cue) if cue.get("algorithm") else None
+    cue = as_scenario(scenario).setpoint.cueing
+    params = washout_params(cue) if cue is not None else None
     if not isinstance(params, MpcParams):
         box: dict[str, Any] = {} if params is None else {
             "heave_fraction": params.heave_fraction, "stroke_margin": params.stroke_margin

@@ -38,6 +38,8 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from simpro_mj.analysis.cue_metrics import cue_metrics  # vehicle vs simulator, perceived
+from simpro_mj.config.entries import Step
+from simpro_mj.config.models import Scenario, as_scenario
 
 __all__ = [
     "AXES",
@@ -55,8 +57,6 @@ __all__ = [
 
 AXES = ("roll", "pitch", "heave")
 UNITS = {"roll": "rad", "pitch": "rad", "heave": "m"}
-_SCENARIO_AXIS = {"roll": ("roll_deg", math.pi / 180.0), "pitch": ("pitch_deg", math.pi / 180.0),
-                  "heave": ("heave_mm", 1e-3)}  # fmt: skip
 _TRUE = {"roll": "roll_rad", "pitch": "pitch_rad", "heave": "heave_m"}
 _REF = {"roll": "roll_ref_rad", "pitch": "pitch_ref_rad", "heave": "heave_ref_m"}
 _MEAS = {"roll": "roll_meas_rad", "pitch": "pitch_meas_rad", "heave": "heave_meas_m"}
@@ -213,15 +213,14 @@ def step_info(
     return out
 
 
-def _last_step(scenario: Mapping, axis: str, t_end: float) -> tuple[float, float] | None:
-    """(time, size in SI) of the last step of an axis before ``t_end``, or None."""
-    key, scale = _SCENARIO_AXIS[axis]
-    comps = (scenario.get("setpoint") or {}).get(key) or []
-    steps = [c for c in comps if c["type"] == "step" and 0.0 <= c["time_s"] < t_end]
+def _last_step(components, scale: float, t_end: float) -> tuple[float, float] | None:
+    """(time, size in SI) of the last step of an axis' set-point ``components`` (edge
+    units, ``scale`` to SI) before ``t_end``, or None."""
+    steps = [c for c in components if isinstance(c, Step) and 0.0 <= c.time_s < t_end]
     if not steps:
         return None
-    t_last = max(c["time_s"] for c in steps)
-    size = sum(c["value"] for c in steps if c["time_s"] == t_last) * scale
+    t_last = max(c.time_s for c in steps)
+    size = sum(c.value for c in steps if c.time_s == t_last) * scale
     return (t_last, size) if size != 0 else None
 
 
@@ -231,7 +230,7 @@ def _trapz(y: np.ndarray, t: np.ndarray) -> float:
     return float(np.sum(0.5 * (y[1:] + y[:-1]) * np.diff(t)))
 
 
-def compute_metrics(columns: Mapping[str, np.ndarray], scenario: Mapping) -> dict:
+def compute_metrics(columns: Mapping[str, np.ndarray], scenario: Scenario | Mapping) -> dict:
     """Figures of merit of a run, per task axis (and per leg).
 
     Parameters
@@ -241,8 +240,8 @@ def compute_metrics(columns: Mapping[str, np.ndarray], scenario: Mapping) -> dic
         and, per axis, ``<axis>_ref_*`` and the true pose ``roll_rad``,
         ``pitch_rad``, ``heave_m``; optional ``*_meas_*``, ``q<i>_ref_m``,
         ``q<i>_m``.
-    scenario : mapping
-        The resolved scenario (for the step times).
+    scenario : Scenario or mapping
+        The resolved scenario, typed or its dict (for the step times).
 
     Returns
     -------
@@ -260,6 +259,10 @@ def compute_metrics(columns: Mapping[str, np.ndarray], scenario: Mapping) -> dic
     if missing:
         raise KeyError(f"compute_metrics: missing columns {missing}")
     n = _finite_prefix(columns, needed)
+    sp = as_scenario(scenario).setpoint
+    deg = math.pi / 180.0  # the set-points' edge units
+    set_points = {"roll": (sp.roll_deg, deg), "pitch": (sp.pitch_deg, deg),
+                  "heave": (sp.heave_mm, 1e-3)}  # fmt: skip
     t = np.asarray(columns["time_s"], dtype=float)[:n]
     axes: dict[str, dict] = {}
     joints: dict[str, dict] = {}
@@ -293,7 +296,7 @@ def compute_metrics(columns: Mapping[str, np.ndarray], scenario: Mapping) -> dic
             em = (ref - ym)[in_window]
             if np.all(np.isfinite(em)):
                 m.steady_state_error_measured = float(em.mean())
-        step = _last_step(scenario, axis, float(t[-1]))
+        step = _last_step(*set_points[axis], float(t[-1]))
         if step is not None:
             t_step, _ = step
             after = np.flatnonzero(t >= t_step)
@@ -312,7 +315,7 @@ def compute_metrics(columns: Mapping[str, np.ndarray], scenario: Mapping) -> dic
             m.rise_time_s, m.settling_time_s = info.rise_time_s, info.settling_time_s
             m.overshoot_pct, m.note = info.overshoot_pct, info.note
         axes[axis] = asdict(m)
-    if scenario.get("setpoint", {}).get("cueing") and "head_fx_mps2" in columns:
+    if sp.cueing is not None and "head_fx_mps2" in columns:
         result.update(cueing=cue_metrics(columns, scenario))
     for i in (1, 2, 3):
         qr, qm = f"q{i}_ref_m", f"q{i}_m"

@@ -26,6 +26,7 @@ from __future__ import annotations
 import argparse
 import math
 import os
+from dataclasses import fields
 from pathlib import Path
 
 from simpro_mj.core.errors import UserInputError
@@ -114,7 +115,7 @@ def run(args) -> int:
     # the measurement and its prediction load python-control and scipy, the scenario
     # pydantic, the report matplotlib: imported once argparse has checked the options
     from simpro_mj.analysis.response import check_periods, measure, plan_response
-    from simpro_mj.analysis.response_summary import loop_model, summary
+    from simpro_mj.analysis.response_summary import ResponseRow, loop_model, summary
     from simpro_mj.config.scenario import load_scenario
     from simpro_mj.report.figures import loop_label
     from simpro_mj.report.folders import claim
@@ -192,7 +193,11 @@ def run(args) -> int:
             return plot(resp, plan.axes, title, folder)
 
         write_result(
-            out, doc, "response", csv_text(doc["rows"]), None if args.no_plots else plotter
+            out,
+            doc,
+            "response",
+            csv_text(doc["rows"], fields_of(ResponseRow)),
+            None if args.no_plots else plotter,
         )
     return report(args, doc, out, lambda at: print_summary(resp, title, at), resp.failed)
 
@@ -213,6 +218,7 @@ def run_chain(args, jobs: int) -> int:
     # python-control and scipy.signal (the washout, the chain's prediction), as in run()
     from simpro_mj.analysis.chain_response import (
         DEFAULT_SETTLE_S,
+        ChainRow,
         chain_summary,
         cue_block,
         measure_chain,
@@ -223,7 +229,6 @@ def run_chain(args, jobs: int) -> int:
     from simpro_mj.report.figures import loop_label
     from simpro_mj.report.folders import claim
     from simpro_mj.report.response import (
-        CHAIN_CSV_COLUMNS,
         csv_text,
         plot_chain,
         print_chain_summary,
@@ -290,6 +295,11 @@ def run_chain(args, jobs: int) -> int:
         def plotter(_doc, folder: Path) -> list[str]:
             return plot_chain(summ, title, folder)
 
-        csv_body = csv_text(doc["rows"], CHAIN_CSV_COLUMNS)
+        csv_body = csv_text(doc["rows"], fields_of(ChainRow))
         write_result(out, doc, "chain", csv_body, None if args.no_plots else plotter)
     return report(args, doc, out, lambda at: print_chain_summary(summ, title, at), summ.failed)
+
+
+def fields_of(record) -> list[str]:
+    """A row record's field names: its CSV's columns, in order."""
+    return [f.name for f in fields(record)]

@@ -221,7 +221,7 @@ class Run(Build):
         loaded = prepare_step(say=None if quiet else note, bar=bar)
         res = self.simulation().run(progress, stop=stop)
         res.sim.update(loaded)
-        metrics = compute_metrics(res.columns, res.scenario)
+        metrics = compute_metrics(res.columns, self.spec)
         if res.status == "ok":  # ran to its end: does the pose settle? (analysis.verdict)
             judged = verdict(res.columns, res.noise_floor)
             res.status, res.reason = judged["status"], judged["reason"]

@@ -25,8 +25,6 @@ if TYPE_CHECKING:  # the records' module loads the analysis: when a response is 
     from simpro_mj.analysis.response_summary import CurveFigures, PoseResponse
 
 __all__ = [
-    "CHAIN_CSV_COLUMNS",
-    "CSV_COLUMNS",
     "bode_figures",
     "chain_figure",
     "csv_text",
@@ -37,24 +35,6 @@ __all__ = [
     "write_result",
 ]
 
-CSV_COLUMNS = (
-    "input_axis",
-    "output_axis",
-    "signal",
-    "frequency_hz",
-    "omega_rad_s",
-    "period_ms",
-    "amplitude",
-    "gain",
-    "gain_db",
-    "phase_deg",
-    "predicted_gain_db",
-    "predicted_phase_deg",
-    "diff_db",
-    "diff_deg",
-    "saturated_pct",
-)
-
 
 def _cell(v) -> str:
     if v is None:
@@ -64,7 +44,8 @@ def _cell(v) -> str:
     return str(v)
 
 
-def csv_text(rows: list[dict], columns=CSV_COLUMNS) -> str:
+def csv_text(rows: list[dict], columns) -> str:
+    """The rows (documents' dicts) as CSV with the ``columns`` header, in that order."""
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(columns)
@@ -214,30 +195,6 @@ def write_result(out: Path, doc: dict, stem: str, csv_body: str, plotter) -> Non
         (tmp / f"{stem}.json").write_text(text + "\n", encoding="utf-8")
 
     install_folder(out, fill, kind="response")
-
-
-CHAIN_CSV_COLUMNS = (
-    "test",
-    "input",
-    "output",
-    "unit",
-    "frequency_hz",
-    "omega_rad_s",
-    "period_ms",
-    "amplitude",
-    "gain",
-    "gain_db",
-    "phase_deg",
-    "washout_gain_db",
-    "washout_phase_deg",
-    "predicted_gain_db",
-    "predicted_phase_deg",
-    "platform_db",
-    "platform_deg",
-    "saturated_pct",
-    "rate_limited_pct",
-    "softened_pct",
-)
 
 
 def plot_chain(summary: ChainSummary, title: str, folder: Path) -> list[str]:
