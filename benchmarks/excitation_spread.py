@@ -76,7 +76,7 @@ def measure(seeds=(1, 2, 3), options=("all_legs",)) -> dict:
             c0 = time.process_time()
             got = identify(tree)
             cpu[exc].append(time.process_time() - c0)
-            fits[exc, seed] = {a: {k: float(got[a][k]) for k in KEYS} for a in got}
+            fits[exc, seed] = {a: {k: float(getattr(got[a], k)) for k in KEYS} for a in got}
     responses: dict = {}
     with tempfile.TemporaryDirectory(prefix="simpro-excitation-") as tmp:
         for (exc, seed), models in fits.items():

@@ -118,7 +118,7 @@ def measure(cabins, seeds=(1, 2, 3), responses: bool = False) -> dict:
                     c0 = time.process_time()
                     got = identify(tree)
                     cpu.append(time.process_time() - c0)
-                    fits[seed] = {a: {k: float(got[a][k]) for k in KEYS} for a in got}
+                    fits[seed] = {a: {k: float(getattr(got[a], k)) for k in KEYS} for a in got}
                 tree = copy.deepcopy(tree0)
                 tree["identify"]["seed"] = seeds[0]
                 c0 = time.process_time()
@@ -130,7 +130,7 @@ def measure(cabins, seeds=(1, 2, 3), responses: bool = False) -> dict:
                     for k in KEYS:
                         vals = [fits[s][a][k] for s in seeds]
                         lo, hi = min(vals), max(vals)
-                        v = float(lin[a][k])
+                        v = float(getattr(lin[a], k))
                         leg[k] = {"seeds": [lo, hi], "linear": v, "outside": _outside(v, lo, hi)}
                 if responses:
                     res: dict = {}
@@ -139,7 +139,7 @@ def measure(cabins, seeds=(1, 2, 3), responses: bool = False) -> dict:
                         res[f"seed{seed}"] = _responses(
                             sc, sets, models, Path(tmp) / name / f"seed{seed}"
                         )
-                    models = {a: {k: float(lin[a][k]) for k in KEYS[:3]} for a in lin}
+                    models = {a: {k: float(getattr(lin[a], k)) for k in KEYS[:3]} for a in lin}
                     res["linear"] = _responses(sc, sets, models, Path(tmp) / name / "linear")
                     row["responses"] = res
                 out["cabins"][name] = row

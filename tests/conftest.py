@@ -106,7 +106,7 @@ def fake_identify(monkeypatch):
     def fake(tree, legs=(1, 2, 3), records=None):
         calls.append(tree)
         m = tree["model"]["payload"]["mass_kg"]
-        return {f"actuator{i}": {"b": 10.0 + i, "a1": 20.0, "a0": 100.0 + m} for i in legs}
+        return {f"actuator{i}": ident.Fit(b=10.0 + i, a1=20.0, a0=100.0 + m) for i in legs}
 
     monkeypatch.setattr(ident, "identify", fake)
     return calls

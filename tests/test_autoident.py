@@ -136,7 +136,7 @@ def test_threads_needing_one_new_plant_run_one_experiment(cache, monkeypatch):
         calls.append(threading.current_thread().name)
         b_started.wait(10.0)  # the other thread is on its way before this one ends
         threading.Event().wait(0.3)  # and has time to reach the experiment, were it let
-        return {f"actuator{i}": {"b": 10.0, "a1": 20.0, "a0": 300.0} for i in legs}
+        return {f"actuator{i}": ident.Fit(b=10.0, a1=20.0, a0=300.0) for i in legs}
 
     monkeypatch.setattr(ident, "identify", slow)
     sc = load_scenario("step_pitch", [IDENT, "plant.payload.mass_kg=80"])

@@ -60,10 +60,10 @@ def test_fit_recovers_a_known_model():
     v = simulate_velocity((120.0, 9.0, 300.0, 0.03), u - 5.0, dt)
     v += 1e-4 * rng.standard_normal(v.size)
     r = fit_eq19(u, v, dt)
-    assert r["b"] == pytest.approx(120.0, rel=0.02)
-    assert r["a1"] == pytest.approx(9.0, rel=0.02)
-    assert r["a0"] == pytest.approx(300.0, rel=0.02)
-    assert r["offset_v"] == pytest.approx(0.03, abs=2e-3)
+    assert r.b == pytest.approx(120.0, rel=0.02)
+    assert r.a1 == pytest.approx(9.0, rel=0.02)
+    assert r.a0 == pytest.approx(300.0, rel=0.02)
+    assert r.offset_v == pytest.approx(0.03, abs=2e-3)
 
 
 @pytest.mark.parametrize(
@@ -95,10 +95,10 @@ def test_identification_of_the_linear_option_returns_the_paper_models():
     paper = paper_models("volts")
     for name in ("actuator1", "actuator2"):
         p, r = paper[name], res[name]
-        assert r["wn_rad_s"] == pytest.approx(math.sqrt(p["a0"]), rel=0.05)
-        assert r["zeta"] == pytest.approx(p["a1"] / (2 * math.sqrt(p["a0"])), abs=0.06)
-        assert r["velocity_gain_m_s_per_v"] == pytest.approx(p["b"] / p["a0"], rel=0.05)
-    assert paper["actuator1"]["b"] == pytest.approx(245.94 / 20)
+        assert r.wn_rad_s == pytest.approx(math.sqrt(p.a0), rel=0.05)
+        assert r.zeta == pytest.approx(p.a1 / (2 * math.sqrt(p.a0)), abs=0.06)
+        assert r.velocity_gain_m_s_per_v == pytest.approx(p.b / p.a0, rel=0.05)
+    assert paper["actuator1"].b == pytest.approx(245.94 / 20)
 
 
 def test_default_preset_identifies_the_papers_models():
@@ -108,11 +108,9 @@ def test_default_preset_identifies_the_papers_models():
     paper = paper_models("volts")
     for name in ("actuator1", "actuator2"):
         p, r = paper[name], res[name]
-        assert r["wn_rad_s"] == pytest.approx(p["wn_rad_s"], rel=0.15), name
-        assert r["zeta"] == pytest.approx(p["zeta"], abs=0.1), name
-        assert r["velocity_gain_m_s_per_v"] == pytest.approx(
-            p["velocity_gain_m_s_per_v"], rel=0.15
-        ), name
+        assert r.wn_rad_s == pytest.approx(p.wn_rad_s, rel=0.15), name
+        assert r.zeta == pytest.approx(p.zeta, abs=0.1), name
+        assert r.velocity_gain_m_s_per_v == pytest.approx(p.velocity_gain_m_s_per_v, rel=0.15), name
 
 
 def test_identification_of_the_nonlinear_model_meets_calibration_and_physics():
@@ -125,15 +123,15 @@ def test_identification_of_the_nonlinear_model_meets_calibration_and_physics():
     res = identify(tree, legs=(1, 2))
     wn_pred, vg_pred = _physics_prediction(tree)
     a1, a2 = res["actuator1"], res["actuator2"]
-    assert a1["zeta"] == pytest.approx(0.871, abs=0.1)
-    assert a1["wn_rad_s"] == pytest.approx(wn_pred[0], rel=0.15)
-    assert a1["velocity_gain_m_s_per_v"] == pytest.approx(vg_pred[0], rel=0.25)
-    assert a1["fit_percent"] > 80
+    assert a1.zeta == pytest.approx(0.871, abs=0.1)
+    assert a1.wn_rad_s == pytest.approx(wn_pred[0], rel=0.15)
+    assert a1.velocity_gain_m_s_per_v == pytest.approx(vg_pred[0], rel=0.25)
+    assert a1.fit_percent > 80
     # legs 2-3: ω_n between the held-leg and coupled-mode predictions
-    assert a2["wn_rad_s"] == pytest.approx(wn_pred[1], rel=0.15)
-    assert a2["velocity_gain_m_s_per_v"] == pytest.approx(vg_pred[1], rel=0.3)
+    assert a2.wn_rad_s == pytest.approx(wn_pred[1], rel=0.15)
+    assert a2.velocity_gain_m_s_per_v == pytest.approx(vg_pred[1], rel=0.3)
     # the paper's ω_n ratio between the actuators comes from the mass ratio
-    ratio = a2["wn_rad_s"] / a1["wn_rad_s"]
+    ratio = a2.wn_rad_s / a1.wn_rad_s
     assert ratio == pytest.approx(36.7 / 15.9, rel=0.15)
 
 
@@ -146,8 +144,8 @@ def test_set_on_supply_pressure_and_payload_changes_the_result():
         "actuator1"
     ]
     # stiffness ~ pressure: lower supply -> lower ω_n; heavier payload -> lower ω_n
-    assert low_p["wn_rad_s"] < 0.95 * base["wn_rad_s"]
-    assert heavy["wn_rad_s"] < 0.95 * base["wn_rad_s"]
+    assert low_p.wn_rad_s < 0.95 * base.wn_rad_s
+    assert heavy.wn_rad_s < 0.95 * base.wn_rad_s
 
 
 def test_cli_json_has_the_three_actuators(tmp_path, capsys):
@@ -294,9 +292,9 @@ def test_fit_methods_reach_the_same_minimum():
     }
     a, b = fits["trust_region"], fits["levenberg_marquardt"]
     for k in ("b", "a1", "a0"):
-        assert b[k] == pytest.approx(a[k], rel=5e-3), (k, a[k], b[k])
-    assert b["a1"] == pytest.approx(9.0, rel=0.03) and b["a0"] == pytest.approx(300.0, rel=0.03)
-    assert b["fit_percent"] == pytest.approx(a["fit_percent"], abs=1e-3)
+        assert getattr(b, k) == pytest.approx(getattr(a, k), rel=5e-3), (k, a, b)
+    assert b.a1 == pytest.approx(9.0, rel=0.03) and b.a0 == pytest.approx(300.0, rel=0.03)
+    assert b.fit_percent == pytest.approx(a.fit_percent, abs=1e-3)
     with pytest.raises(ValueError, match="trust_region, levenberg_marquardt"):
         fit_eq19(u, v, dt, method="newton")
 

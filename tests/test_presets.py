@@ -15,6 +15,7 @@ from simpro_mj.commands import main as cli
 from simpro_mj.config.presets import load_preset, shipped_presets
 from simpro_mj.config.scenario import load_scenario
 from simpro_mj.core.errors import UserInputError
+from simpro_mj.identification.identify import Fit
 
 
 def test_shipped_presets_and_the_default():
@@ -55,10 +56,11 @@ def test_paper_targets_under_the_volts_reading():
     m = paper_targets("metres")
     assert m["actuator2"]["velocity_gain_m_s_per_v"] == pytest.approx(2008.3 / 1349.0)
     # residuals are in units of the tolerance: 15 % on wn is exactly 1
-    ident = {"actuator1": dict(t["actuator1"])}
-    ident["actuator1"]["wn_rad_s"] *= 1.15
-    r = residuals(ident, t)["actuator1"]
-    assert r["wn_rad_s"] == pytest.approx(1.0) and r["zeta"] == 0.0
+    wn, zeta = 1.15 * t["actuator1"]["wn_rad_s"], t["actuator1"]["zeta"]
+    a0 = wn**2
+    model = Fit(b=t["actuator1"]["velocity_gain_m_s_per_v"] * a0, a1=2 * zeta * wn, a0=a0)
+    r = residuals({"actuator1": model}, t)["actuator1"]
+    assert r["wn_rad_s"] == pytest.approx(1.0) and r["zeta"] == pytest.approx(0.0, abs=1e-12)
     assert TOLERANCES["zeta"] == 0.1
 
 
@@ -138,5 +140,5 @@ def test_default_preset_keeps_its_velocity_gains_at_one_volt():
     got = identify(tree, legs=(1, 2))
     want = paper_targets("volts")
     for a in ("actuator1", "actuator2"):
-        ratio = got[a]["velocity_gain_m_s_per_v"] / want[a]["velocity_gain_m_s_per_v"]
+        ratio = got[a].velocity_gain_m_s_per_v / want[a]["velocity_gain_m_s_per_v"]
         assert 0.85 < ratio < 1.15, (a, ratio)

@@ -52,10 +52,9 @@ from typing import Any
 import numpy as np
 from scipy.optimize import least_squares
 
-from controllers.design import ACTUATORS, paper_plant
 from simpro_mj.analysis.targets import load_targets
 from simpro_mj.core.errors import PhysicsError, UserInputError
-from simpro_mj.identification.identify import identify
+from simpro_mj.identification.identify import Fit, identify, paper_models
 from simpro_mj.plant.model_params import DEFAULT_MODEL_PARAMS
 from simpro_mj.plant.pneumatics.params import DEFAULT_PNEUMATIC_PARAMS
 
@@ -90,12 +89,12 @@ PARAMETERS = (
 
 def paper_targets(reading: str = "volts") -> dict:
     """Eqs. (34)-(35) as targets: ``{actuator: {wn_rad_s, zeta, velocity_gain_m_s_per_v}}``."""
-    out = {}
-    for a in ACTUATORS:
-        p = paper_plant(a, reading)
-        wn = math.sqrt(p.a0)
-        out[a] = {"wn_rad_s": wn, "zeta": p.a1 / (2 * wn), "velocity_gain_m_s_per_v": p.b / p.a0}
-    return out
+    return {a: _targets(m) for a, m in paper_models(reading).items()}
+
+
+def _targets(model: Fit) -> dict:
+    """The numbers of ``model`` the fit compares (:data:`TOLERANCES`)."""
+    return {k: v for k, v in model.as_dict().items() if k in TOLERANCES}
 
 
 def _set_path(tree: dict, path: str, legs, value: float) -> None:
@@ -121,18 +120,15 @@ def apply_values(tree: dict, values: dict) -> dict:
     return out
 
 
-def residuals(identified: dict, targets: dict) -> dict:
-    """Per actuator and quantity: the error in units of its tolerance (|r| <= 1 passes)."""
+def residuals(identified: dict[str, Fit], targets: dict) -> dict:
+    """Per actuator and quantity: the error in units of its tolerance (|r| <= 1 passes);
+    relative on wn and b/a0, absolute on zeta."""
     out = {}
-    for a, r in identified.items():
-        t = targets[a]
+    for a, fit in identified.items():
+        got, t = fit.as_dict(), targets[a]
         out[a] = {
-            "wn_rad_s": (r["wn_rad_s"] / t["wn_rad_s"] - 1.0) / TOLERANCES["wn_rad_s"],
-            "zeta": (r["zeta"] - t["zeta"]) / TOLERANCES["zeta"],
-            "velocity_gain_m_s_per_v": (
-                r["velocity_gain_m_s_per_v"] / t["velocity_gain_m_s_per_v"] - 1.0
-            )
-            / TOLERANCES["velocity_gain_m_s_per_v"],
+            k: ((got[k] - t[k]) if k == "zeta" else (got[k] / t[k] - 1.0)) / tol
+            for k, tol in TOLERANCES.items()
         }
     return out
 
@@ -146,7 +142,7 @@ class Calibration:
 
     cost: float = math.inf
     values: dict[str, float] = field(default_factory=dict)
-    identified: dict | None = None
+    identified: dict[str, Fit] | None = None
     residuals: dict | None = None
     evaluations: int = 0
 
@@ -309,9 +305,7 @@ def preset_document(
         "description": f"calibrated by simpro-sim calibrate ({len(targets)} target models)",
         "plant": diff(tree["model"], base["model"]),
         "pneumatics": diff(tree["pneumatics"], base["pneumatics"]),
-        "identified": {
-            a: {k: round(float(ident[a][k]), 4) for k in ("b", "a1", "a0")} for a in ident
-        },
+        "identified": {a: {k: round(v, 4) for k, v in m.model().items()} for a, m in ident.items()},
         "calibration": {
             "targets": targets,
             "tolerances": TOLERANCES,
@@ -350,7 +344,9 @@ def calibrate_preset(
         t2 = copy.deepcopy(fitted)
         t2["identify"]["prbs_amplitude_v"] = [float(amp)] * 3
         got = identify(t2, legs=(1, 2))
-        by_amp[f"{amp:g}_v"] = {a: {k: round(float(got[a][k]), 4) for k in TOLERANCES} for a in got}
+        by_amp[f"{amp:g}_v"] = {
+            a: {k: round(v, 4) for k, v in _targets(m).items()} for a, m in got.items()
+        }
     # a preset lies over the model's own defaults: it records what differs from them
     base = {"model": DEFAULT_MODEL_PARAMS, "pneumatics": DEFAULT_PNEUMATIC_PARAMS}
     extra = {

@@ -107,8 +107,8 @@ def run(args) -> int:
         for a, r in final.items():
             t = targets[a]
             print(
-                f"{a}: wn {r['wn_rad_s']:.2f} (target {t['wn_rad_s']:.2f}) rad/s, zeta "
-                f"{r['zeta']:.3f} ({t['zeta']:.3f}), b/a0 {r['velocity_gain_m_s_per_v']:.4f} "
+                f"{a}: wn {r.wn_rad_s:.2f} (target {t['wn_rad_s']:.2f}) rad/s, zeta "
+                f"{r.zeta:.3f} ({t['zeta']:.3f}), b/a0 {r.velocity_gain_m_s_per_v:.4f} "
                 f"({t['velocity_gain_m_s_per_v']:.4f}) m/s/V"
             )
         verdict = "within" if worst <= 1.0 else "OUTSIDE"

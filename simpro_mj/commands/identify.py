@@ -61,7 +61,7 @@ def run(args) -> int:
         phase.start("PRBS experiment and fit")
         results = identify(tree, legs=legs, records=records)
         doc = document(results, tree)
-        doc["warnings"] = fit_warnings(results)
+        doc["warnings"] = fit_warnings(doc["actuators"])
 
         def fill(tmp: Path) -> list:
             (tmp / "identify.json").write_text(json.dumps(doc, indent=2))

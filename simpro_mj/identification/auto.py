@@ -238,7 +238,7 @@ def identified_models(scenario: Scenario | Mapping, progress=None) -> tuple[dict
             )
             notices.phase("identifying")
             got = identify_module.identify(tree)  # by attribute: tests replace it
-            models = {a: {k: float(got[a][k]) for k in ("b", "a1", "a0")} for a in _ACTS}
+            models = {a: got[a].model() for a in _ACTS}
             cache.write_json(path, models)
             source = "identified"
         _memo[h] = copy.deepcopy(models)

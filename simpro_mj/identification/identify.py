@@ -81,6 +81,7 @@ __all__ = [
     "check_tree",
     "paper_models",
     "document",
+    "Fit",
     "Record",
     "run_experiment",
     "run_experiment_all_legs",
@@ -99,13 +100,54 @@ PAPER = {
 }
 
 
-def paper_models(reading: str = "volts") -> dict:
-    """Eqs. (34)-(35) in SI under ``reading``: ``{actuator: {b, a1, a0, wn_rad_s, ...}}``."""
-    out = {}
-    for a in ACTUATORS:
-        p = paper_plant(a, reading)
-        out[a] = _coefficients(p.b, p.a1, p.a0)
-    return out
+@dataclass(frozen=True)
+class Fit:
+    """Eq. (19), :math:`b / (s (s^2 + a_1 s + a_0))`, of one leg in SI.
+
+    ``b`` (m/s^3/V), ``a1`` (1/s), ``a0`` (1/s^2); from them ``wn_rad_s``
+    :math:`= \\sqrt{a_0}`, ``zeta`` :math:`= a_1 / (2 ω_n)` and the velocity gain
+    ``velocity_gain_m_s_per_v`` :math:`= b / a_0`. A fit (:func:`fit_eq19`) adds its
+    input offset ``offset_v`` (V) and ``fit_percent`` (100 (1 - |v - v̂| / |v - mean
+    v|), the NRMSE fit), :func:`identify` the leg's ``holding_force_n`` and
+    ``holding_voltage_v`` at the operating point; the paper's models have none.
+    """
+
+    b: float
+    a1: float
+    a0: float
+    offset_v: float | None = None
+    fit_percent: float | None = None
+    holding_force_n: float | None = None
+    holding_voltage_v: float | None = None
+
+    @property
+    def wn_rad_s(self) -> float:
+        return math.sqrt(self.a0)
+
+    @property
+    def zeta(self) -> float:
+        return self.a1 / (2.0 * self.wn_rad_s)
+
+    @property
+    def velocity_gain_m_s_per_v(self) -> float:
+        return self.b / self.a0
+
+    def model(self) -> dict:
+        """``{b, a1, a0}``: the model as a scenario's ``controller.inner.identified``
+        holds it."""
+        return {"b": self.b, "a1": self.a1, "a0": self.a0}
+
+    def as_dict(self) -> dict:
+        """The JSON form (``identify.json``): the model, its three derived numbers,
+        then the fit's numbers it has."""
+        wn, zeta, gain = self.wn_rad_s, self.zeta, self.velocity_gain_m_s_per_v
+        derived = {"wn_rad_s": wn, "zeta": zeta, "velocity_gain_m_s_per_v": gain}
+        return self.model() | derived | {k: v for k, v in vars(self).items() if v is not None}
+
+
+def paper_models(reading: str = "volts") -> dict[str, Fit]:
+    """Eqs. (34)-(35) in SI under ``reading``, per actuator."""
+    return {a: Fit(**vars(paper_plant(a, reading))) for a in ACTUATORS}
 
 
 def _prbs(n_steps: int, clock: int, bits: int, seed: int) -> np.ndarray:
@@ -139,7 +181,7 @@ class Record:
     force_hold: np.ndarray
     q_all: np.ndarray
     dt: float
-    fit: dict | None = None
+    fit: Fit | None = None
 
 
 def run_experiment(tree: dict, leg: int, model=None) -> Record:
@@ -316,7 +358,7 @@ def _arx_guess(u, v, dt):
     return b, a1, a0, d
 
 
-def fit_eq19(u, qdot, dt: float, skip: int = 0, guess=None, method: str = "trust_region") -> dict:
+def fit_eq19(u, qdot, dt: float, skip: int = 0, guess=None, method: str = "trust_region") -> Fit:
     """Fit eq. (19) to a record (continuous output error on the velocity).
 
     Parameters
@@ -339,9 +381,8 @@ def fit_eq19(u, qdot, dt: float, skip: int = 0, guess=None, method: str = "trust
 
     Returns
     -------
-    dict
-        b, a1, a0, offset_v (d), wn_rad_s, zeta, velocity_gain_m_s_per_v,
-        fit_percent (100 (1 - |v - v̂| / |v - mean v|), the NRMSE fit).
+    Fit
+        b, a1, a0, the input offset d (``offset_v``) and ``fit_percent``.
     """
     u = np.asarray(u, float) - 5.0
     v = np.asarray(qdot, float)
@@ -379,7 +420,7 @@ def fit_eq19(u, qdot, dt: float, skip: int = 0, guess=None, method: str = "trust
     b, a1, a0, d = x * scale
     vv = v[sl] - v[sl].mean()
     fit = 100.0 * (1.0 - np.linalg.norm(err) / max(np.linalg.norm(vv), 1e-300))
-    return _coefficients(b, a1, a0) | {"offset_v": float(d), "fit_percent": float(fit)}
+    return Fit(float(b), float(a1), float(a0), float(d), float(fit))
 
 
 #: The Levenberg-Marquardt damping's start (:func:`levenberg_marquardt`): 0.1, a first
@@ -452,20 +493,10 @@ def levenberg_marquardt(fun, x0, lo, hi, ftol: float = 1e-8, max_nfev: int = 400
     return x, r
 
 
-def _coefficients(b, a1, a0) -> dict:
-    wn = math.sqrt(a0)
-    return {
-        "b": float(b),
-        "a1": float(a1),
-        "a0": float(a0),
-        "wn_rad_s": wn,
-        "zeta": a1 / (2.0 * wn),
-        "velocity_gain_m_s_per_v": b / a0,
-    }
-
-
-def identify(tree: dict | None = None, legs=(1, 2, 3), records: dict | None = None) -> dict:
-    """Identify eq. (19) for each leg in ``legs``; ``{"actuator<i>": {...}}``.
+def identify(
+    tree: dict | None = None, legs=(1, 2, 3), records: dict | None = None
+) -> dict[str, Fit]:
+    """Identify eq. (19) for each leg in ``legs``; ``{"actuator<i>": Fit}``.
 
     ``records``, when given, receives each leg's experiment record and fit.
     """
@@ -478,9 +509,11 @@ def identify(tree: dict | None = None, legs=(1, 2, 3), records: dict | None = No
     for leg in legs:
         rec = recs[leg] if together else run_experiment(tree, leg, model=model)
         skip = int(round(float(ip.fit_skip_s) / rec.dt))
-        res = fit_eq19(rec.u, rec.qdot, rec.dt, skip=skip, method=ip.fit_method)
-        res["holding_force_n"] = float(rec.force_hold[leg - 1])
-        res["holding_voltage_v"] = float(rec.u_hold[leg - 1])
+        res = replace(
+            fit_eq19(rec.u, rec.qdot, rec.dt, skip=skip, method=ip.fit_method),
+            holding_force_n=float(rec.force_hold[leg - 1]),
+            holding_voltage_v=float(rec.u_hold[leg - 1]),
+        )
         out[f"actuator{leg}"] = res
         if records is not None:
             records[f"actuator{leg}"] = replace(rec, fit=res)
@@ -496,11 +529,11 @@ def document(results: dict, tree: dict) -> dict:
     acts = {}
     for name, r in results.items():
         p = paper[name]
-        acts[name] = dict(r) | {
-            "paper": p,
-            "wn_ratio": r["wn_rad_s"] / p["wn_rad_s"],
-            "zeta_difference": r["zeta"] - p["zeta"],
-            "velocity_gain_ratio": r["velocity_gain_m_s_per_v"] / p["velocity_gain_m_s_per_v"],
+        acts[name] = r.as_dict() | {
+            "paper": p.as_dict(),
+            "wn_ratio": r.wn_rad_s / p.wn_rad_s,
+            "zeta_difference": r.zeta - p.zeta,
+            "velocity_gain_ratio": r.velocity_gain_m_s_per_v / p.velocity_gain_m_s_per_v,
         }
     return {
         "paper_units": paper_units_info(reading),

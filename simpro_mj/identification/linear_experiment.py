@@ -63,7 +63,7 @@ import numpy as np
 from controllers.design import paper_coefficients
 from controllers.dither import dither_signal
 from simpro_mj.core.errors import UserInputError
-from simpro_mj.identification.identify import _prbs, fit_eq19
+from simpro_mj.identification.identify import Fit, _prbs, fit_eq19
 from simpro_mj.identification.settings import Settings, check_tree, leg_values
 from simpro_mj.plant import step_functions as sf
 from simpro_mj.plant.friction import seal_friction
@@ -113,7 +113,7 @@ _PDF = np.exp(-0.5 * _Z**2) / math.sqrt(2.0 * math.pi)
 class LegResult:
     """One leg's experiment on the linear model: the fit and the fixed point."""
 
-    fit: dict
+    fit: Fit
     sigma_v: np.ndarray  # m/s, the three slides' speed RMS over the record
     sigma_s: np.ndarray  # the three spools' RMS deviation
     c_eq: np.ndarray  # N s/m, the seals' equivalent viscous friction (dry part)

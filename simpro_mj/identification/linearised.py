@@ -25,8 +25,6 @@ from simpro_mj.identification.linear_experiment import LegResult, identify_linea
 
 __all__ = ["linearise", "dominated_by_dry_friction"]
 
-_KEYS = ("b", "a1", "a0")
-
 
 def dominated_by_dry_friction(leg: int, res: LegResult, friction) -> bool:
     """True when leg ``leg``'s seal's equivalent viscous friction in its own experiment
@@ -62,4 +60,4 @@ def linearise(tree: dict, model=None) -> dict:
                 f"{em.friction[i - 1][1][3]:.3g}: a stick-slip no linear model represents); "
                 "allowed: auto (the identification experiment) or preset"
             )
-    return {a: {k: float(got[a][k]) for k in _KEYS} for a in got}
+    return {a: fit.model() for a, fit in got.items()}

@@ -32,17 +32,17 @@ def summary(results: dict, reading: str = "volts", preset: str = "") -> str:
     for name, r in results.items():
         p = paper[name]
         lines.append(
-            f"{name:10s} {r['b']:9.2f} {r['a1']:8.3f} {r['a0']:8.1f} {r['wn_rad_s']:9.2f} "
-            f"{r['zeta']:7.3f} {r['velocity_gain_m_s_per_v']:11.4f} {r.get('fit_percent', 0):6.1f}"
+            f"{name:10s} {r.b:9.2f} {r.a1:8.3f} {r.a0:8.1f} {r.wn_rad_s:9.2f} "
+            f"{r.zeta:7.3f} {r.velocity_gain_m_s_per_v:11.4f} {r.fit_percent or 0:6.1f}"
         )
         lines.append(
-            f"{'  paper':10s} {p['b']:9.2f} {p['a1']:8.3f} {p['a0']:8.1f} {p['wn_rad_s']:9.2f} "
-            f"{p['zeta']:7.3f} {p['velocity_gain_m_s_per_v']:11.4f}"
+            f"{'  paper':10s} {p.b:9.2f} {p.a1:8.3f} {p.a0:8.1f} {p.wn_rad_s:9.2f} "
+            f"{p.zeta:7.3f} {p.velocity_gain_m_s_per_v:11.4f}"
         )
         lines.append(
-            f"{'  ratio':10s} {'':9s} {'':8s} {'':8s} {r['wn_rad_s'] / p['wn_rad_s']:9.3f} "
-            f"{r['zeta'] - p['zeta']:+7.3f} "
-            f"{r['velocity_gain_m_s_per_v'] / p['velocity_gain_m_s_per_v']:11.4f}"
+            f"{'  ratio':10s} {'':9s} {'':8s} {'':8s} {r.wn_rad_s / p.wn_rad_s:9.3f} "
+            f"{r.zeta - p.zeta:+7.3f} "
+            f"{r.velocity_gain_m_s_per_v / p.velocity_gain_m_s_per_v:11.4f}"
         )
     return "\n".join(lines)
 
@@ -62,7 +62,7 @@ def plot(results: dict, records: dict, path: Path, reading: str = "volts") -> No
         t = np.linspace(0, 1.0, 1000)
         ax = axes[0, c]
         for coef, lab, sty in ((r, "simulation fit", "-"), (p, "paper eq. (34)/(35)", "--")):
-            _, y = step(lti([coef["b"]], [1.0, coef["a1"], coef["a0"], 0.0]), T=t)
+            _, y = step(lti([coef.b], [1.0, coef.a1, coef.a0, 0.0]), T=t)
             ax.plot(t, y * 1e3, sty, label=lab)
         ax.set_title(f"{name}: 1 V step, position")
         ax.set_xlabel("t (s)")
@@ -73,10 +73,10 @@ def plot(results: dict, records: dict, path: Path, reading: str = "volts") -> No
         n = min(rec.t.size, 3000)
         s0 = rec.t.size // 2
         sl = slice(s0, s0 + n)
-        vhat = simulate_velocity((r["b"], r["a1"], r["a0"], r["offset_v"]), rec.u - 5.0, rec.dt)
+        vhat = simulate_velocity((r.b, r.a1, r.a0, r.offset_v), rec.u - 5.0, rec.dt)
         ax = axes[1, c]
         ax.plot(rec.t[sl], rec.qdot[sl] * 1e3, lw=0.8, label="MuJoCo + pneumatics")
-        ax.plot(rec.t[sl], vhat[sl] * 1e3, lw=0.8, label=f"fit ({r['fit_percent']:.0f} %)")
+        ax.plot(rec.t[sl], vhat[sl] * 1e3, lw=0.8, label=f"fit ({r.fit_percent:.0f} %)")
         ax.set_xlabel("t (s)")
         ax.set_ylabel("qdot (mm/s)")
         ax.grid(True, alpha=0.3)
