@@ -46,7 +46,7 @@ from __future__ import annotations
 import copy
 import json
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -55,6 +55,7 @@ from scipy.optimize import least_squares
 from simpro_mj.analysis.targets import load_targets
 from simpro_mj.core.errors import PhysicsError, UserInputError
 from simpro_mj.identification.identify import Fit, identify, paper_models
+from simpro_mj.identification.settings import Experiment, check_tree
 from simpro_mj.plant.model_params import DEFAULT_MODEL_PARAMS
 from simpro_mj.plant.pneumatics.params import DEFAULT_PNEUMATIC_PARAMS
 
@@ -189,8 +190,7 @@ def calibrate(
     lo = np.array([max(b[0], 1e-3) for *_, b in PARAMETERS])
     hi = np.array([b[1] for *_, b in PARAMETERS])
     x0 = np.log(np.clip([start[n] for n in names], lo * 1.0001, hi * 0.9999))
-    base = copy.deepcopy(tree)
-    base["identify"]["duration_s"] = float(duration_s)
+    settings = replace(check_tree(tree).settings, duration_s=float(duration_s))
     amplitudes = [float(a) for a in amplitudes_v]
     if not amplitudes or not all(0.0 < a <= 5.0 for a in amplitudes):
         raise UserInputError(
@@ -208,13 +208,13 @@ def calibrate(
             raise _Budget  # least_squares' max_nfev does not count its Jacobian's runs
         values = dict(zip(names, np.exp(x).tolist(), strict=True))
         count[0] += 1
-        trial = apply_values(base, values)
+        trial = apply_values(tree, values)
         parts: list[float] = []
         ident, res = None, None
         try:
             for amp in amplitudes:
-                trial["identify"]["prbs_amplitude_v"] = [amp] * 3
-                got = identify(trial, legs=(1, 2))
+                run = replace(settings, prbs_amplitude_v=[amp] * 3)
+                got = identify(replace(check_tree(trial), settings=run), legs=(1, 2))
                 rs = residuals(got, {a: targets[a] for a in acts})
                 parts.extend(rs[a][k] for a in acts for k in TOLERANCES)
                 if ident is None:  # the first amplitude's models are reported
@@ -242,7 +242,7 @@ def calibrate(
 # ------------------------------------------------------------------ plausibility, preset
 
 
-def plausibility(tree: dict) -> dict:
+def plausibility(ex: Experiment) -> dict:
     """Physical reading of a fitted plant: moving mass, friction against a seal's, valve flow.
 
     Bands (assumptions, stated): a 125 mm cylinder's seals give 100-2000 N s/m of
@@ -251,8 +251,7 @@ def plausibility(tree: dict) -> dict:
     C = 7.87 dm^3/(s bar)) bare; hoses and fittings lower the effective value.
     """
     ref = DEFAULT_PNEUMATIC_PARAMS
-    m = tree["model"]
-    p = tree["pneumatics"]
+    m, p = ex.model, ex.pneumatics
     payload = float(m["payload"]["mass_kg"])
     platform = float(m["platform_mass_kg"])
     visc = np.broadcast_to(np.asarray(p["cylinder"]["viscous_friction_n_s_per_m"], float), (3,))
@@ -283,10 +282,9 @@ def plausibility(tree: dict) -> dict:
     }
 
 
-def preset_document(
-    name: str, tree: dict, base: dict, result: Calibration, targets: dict, extra=None
-):
-    """The preset YAML document: only the values that differ from ``base``'s."""
+def preset_document(name: str, ex: Experiment, result: Calibration, targets: dict, extra=None):
+    """The preset YAML document: only the values that differ from the model's own
+    defaults (a preset lies over them)."""
 
     def diff(a, b):
         out = {}
@@ -303,8 +301,8 @@ def preset_document(
     doc = {
         "name": name,
         "description": f"calibrated by simpro-sim calibrate ({len(targets)} target models)",
-        "plant": diff(tree["model"], base["model"]),
-        "pneumatics": diff(tree["pneumatics"], base["pneumatics"]),
+        "plant": diff(ex.model, DEFAULT_MODEL_PARAMS),
+        "pneumatics": diff(ex.pneumatics, DEFAULT_PNEUMATIC_PARAMS),
         "identified": {a: {k: round(v, 4) for k, v in m.model().items()} for a, m in ident.items()},
         "calibration": {
             "targets": targets,
@@ -312,7 +310,7 @@ def preset_document(
             "residuals_per_tolerance": result.residuals,
             "fitted": result.values,
             "evaluations": result.evaluations,
-            "plausibility": plausibility(tree),
+            "plausibility": plausibility(ex),
         }
         | (extra or {}),
     }
@@ -336,24 +334,21 @@ def calibrate_preset(
         tree, targets, duration_s=duration_s, max_evaluations=max_evaluations,
         progress=progress, amplitudes_v=amplitudes_v,
     )  # fmt: skip
-    fitted = apply_values(tree, result.values)
+    fitted = check_tree(apply_values(tree, result.values))
     final = identify(fitted)
     result.identified, result.residuals = final, residuals(final, targets)
     by_amp = {}
     for amp in amplitudes_v[1:]:  # the other amplitudes' models at the fit, for the record
-        t2 = copy.deepcopy(fitted)
-        t2["identify"]["prbs_amplitude_v"] = [float(amp)] * 3
-        got = identify(t2, legs=(1, 2))
+        run = replace(fitted.settings, prbs_amplitude_v=[float(amp)] * 3)
+        got = identify(replace(fitted, settings=run), legs=(1, 2))
         by_amp[f"{amp:g}_v"] = {
             a: {k: round(v, 4) for k, v in _targets(m).items()} for a, m in got.items()
         }
-    # a preset lies over the model's own defaults: it records what differs from them
-    base = {"model": DEFAULT_MODEL_PARAMS, "pneumatics": DEFAULT_PNEUMATIC_PARAMS}
     extra = {
-        "paper_units": tree["paper_units"],
+        "paper_units": fitted.paper_units,
         "amplitudes_v": [float(a) for a in amplitudes_v],
         "identified_at_other_amplitudes": by_amp,
     }
-    doc = preset_document(name, fitted, base, result, targets, extra)
+    doc = preset_document(name, fitted, result, targets, extra)
     doc = json.loads(json.dumps(doc, default=float))  # plain floats for YAML
     return doc, final

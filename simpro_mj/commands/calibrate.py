@@ -81,11 +81,11 @@ def run(args) -> int:
 
     user_targets = None if args.targets is None else load_targets(args.targets)
     tree = apply_overrides(default_tree(args.start), args.sets)
-    check_tree(tree)
+    ex = check_tree(tree)
     # the fit loads MuJoCo and SciPy: after every input has been checked
     from simpro_mj.analysis.calibrate import calibrate_preset, paper_targets
 
-    targets = paper_targets(tree["paper_units"]) if user_targets is None else user_targets
+    targets = paper_targets(ex.paper_units) if user_targets is None else user_targets
     bar = tqdm(total=args.evaluations, desc="calibrate", unit="eval", file=sys.stderr,
                disable=not show_progress(args))  # fmt: skip
 

@@ -45,7 +45,7 @@ def run(args) -> int:
     tree = apply_overrides(default_tree(args.preset), args.sets)
     if args.duration is not None:
         tree["identify"]["duration_s"] = float(args.duration)
-    check_tree(tree)
+    ex = check_tree(tree)
     # the experiment loads MuJoCo and SciPy: after every input has been checked
     from simpro_mj.identification.identify import document, identify
     from simpro_mj.report.identify import plot, summary
@@ -59,15 +59,15 @@ def run(args) -> int:
         claim(Path(args.out), "identify") as out,
     ):
         phase.start("PRBS experiment and fit")
-        results = identify(tree, legs=legs, records=records)
-        doc = document(results, tree)
+        results = identify(ex, legs=legs, records=records)
+        doc = document(results, ex)
         doc["warnings"] = fit_warnings(doc["actuators"])
 
         def fill(tmp: Path) -> list:
             (tmp / "identify.json").write_text(json.dumps(doc, indent=2))
             if not args.no_plots:
                 phase.start("plot")
-                plot(results, records, tmp / "identify.png", tree["paper_units"])
+                plot(results, records, tmp / "identify.png", ex.paper_units)
             return []
 
         install_figures(out, fill, "identify")
@@ -75,7 +75,7 @@ def run(args) -> int:
     if args.json:
         emit_json(doc)
     else:
-        print(summary(results, tree["paper_units"], str(tree["preset"])))
+        print(summary(results, ex.paper_units, str(ex.preset)))
         print(
             f"wrote {out / 'identify.json'}"
             + ("" if args.no_plots else f", {out / 'identify.png'}")

@@ -58,7 +58,7 @@ from simpro_mj.core.errors import PhysicsError, UserInputError
 from simpro_mj.identification.settings import (
     DEFAULT_IDENTIFY_PARAMS,
     FIT_METHODS,
-    Settings,
+    Experiment,
     check_tree,
     default_tree,
     leg_values,
@@ -184,7 +184,7 @@ class Record:
     fit: Fit | None = None
 
 
-def run_experiment(tree: dict, leg: int, model=None) -> Record:
+def run_experiment(tree: dict | Experiment, leg: int, model=None) -> Record:
     """Run the Fig. 12 experiment on ``leg`` (1..3); return its :class:`Record`.
 
     Raises
@@ -195,23 +195,23 @@ def run_experiment(tree: dict, leg: int, model=None) -> Record:
     return _experiment(tree, (leg,), model)[leg]
 
 
-def run_experiment_all_legs(tree: dict, model=None) -> dict:
+def run_experiment_all_legs(tree: dict | Experiment, model=None) -> dict:
     """The experiment with the three legs excited at once (``excitation: all_legs``);
     ``{leg: Record}``, from one run."""
     return _experiment(tree, (1, 2, 3), model)
 
 
-def _experiment(tree: dict, legs: tuple, model=None) -> dict:
+def _experiment(tree: dict | Experiment, legs: tuple, model=None) -> dict:
     """One run of the experiment exciting ``legs`` (one leg, or all three); per leg its
     record (:func:`run_experiment`)."""
-    check_tree(tree)
-    ip = Settings.of(tree)
+    ex = check_tree(tree)
+    ip = ex.settings
     kind = ip.actuator_kind
     if kind not in ACTUATOR_KINDS:
         raise UserInputError(
             f"invalid value at identify.actuator_kind: '{kind}'; allowed {list(ACTUATOR_KINDS)}"
         )
-    m = model if model is not None else load_model(tree["model"])
+    m = model if model is not None else load_model(ex.model)
     d = mujoco.MjData(m)
     idx = PlantIndex.of(m)
     dt = float(m.opt.timestep)
@@ -225,7 +225,7 @@ def _experiment(tree: dict, legs: tuple, model=None) -> dict:
     f_hold = holding_forces(m, d, idx)
 
     act = make_actuators(
-        kind, tree["pneumatics"], model=m, linear_plants=paper_coefficients(tree["paper_units"])
+        kind, ex.pneumatics, model=m, linear_plants=paper_coefficients(ex.paper_units)
     )
     set_seal_friction(m, idx, act)  # the seals that stick (simpro_mj.plant.friction)
     force_range = act.params.force_range
@@ -234,7 +234,7 @@ def _experiment(tree: dict, legs: tuple, model=None) -> dict:
         cap = np.where(f_hold >= 0, force_range[1], force_range[0])
         worst = int(np.argmax(f_hold / cap))
         raise UserInputError(
-            f"payload too heavy at model.payload.mass_kg: {tree['model']['payload']['mass_kg']:g} "
+            f"payload too heavy at model.payload.mass_kg: {ex.model['payload']['mass_kg']:g} "
             f"kg needs {abs(f_hold[worst]) / 1e3:.2f} kN on cylinder {worst + 1} at q = "
             f"{ip.position_mm:g} mm, which makes at most "
             f"{abs(force_range[1] if f_hold[worst] >= 0 else force_range[0]) / 1e3:.2f} kN; "
@@ -494,20 +494,20 @@ def levenberg_marquardt(fun, x0, lo, hi, ftol: float = 1e-8, max_nfev: int = 400
 
 
 def identify(
-    tree: dict | None = None, legs=(1, 2, 3), records: dict | None = None
+    tree: dict | Experiment | None = None, legs=(1, 2, 3), records: dict | None = None
 ) -> dict[str, Fit]:
     """Identify eq. (19) for each leg in ``legs``; ``{"actuator<i>": Fit}``.
 
     ``records``, when given, receives each leg's experiment record and fit.
     """
-    tree = check_tree(default_tree() if tree is None else tree)
-    ip = Settings.of(tree)
-    model = load_model(tree["model"])
+    ex = check_tree(default_tree() if tree is None else tree)
+    ip = ex.settings
+    model = load_model(ex.model)
     out = {}
     together = ip.excitation == "all_legs" and len(legs) > 1
-    recs = _experiment(tree, tuple(legs), model) if together else {}
+    recs = _experiment(ex, tuple(legs), model) if together else {}
     for leg in legs:
-        rec = recs[leg] if together else run_experiment(tree, leg, model=model)
+        rec = recs[leg] if together else run_experiment(ex, leg, model=model)
         skip = int(round(float(ip.fit_skip_s) / rec.dt))
         res = replace(
             fit_eq19(rec.u, rec.qdot, rec.dt, skip=skip, method=ip.fit_method),
@@ -520,11 +520,11 @@ def identify(
     return out
 
 
-def document(results: dict, tree: dict) -> dict:
+def document(results: dict[str, Fit], ex: Experiment) -> dict:
     """What ``identify.json`` and ``--json`` hold: the reading, the preset, per actuator
     the identified model (SI) with the paper's in SI and the ratios."""
 
-    reading = tree["paper_units"]
+    reading = ex.paper_units
     paper = paper_models(reading)
     acts = {}
     for name, r in results.items():
@@ -538,6 +538,6 @@ def document(results: dict, tree: dict) -> dict:
     return {
         "paper_units": paper_units_info(reading),
         "units": {"b": "m/s^3/V", "a1": "1/s", "a0": "1/s^2", "velocity_gain": "m/s/V"},
-        "preset": tree["preset"],
+        "preset": ex.preset,
         "actuators": acts,
     }

@@ -26,6 +26,7 @@ __all__ = [
     "Settings",
     "EXCITATIONS",
     "FIT_METHODS",
+    "Experiment",
     "default_tree",
     "check_tree",
     "leg_values",
@@ -85,6 +86,27 @@ class Settings:
 DEFAULT_IDENTIFY_PARAMS: dict = asdict(Settings())
 
 
+@dataclass(frozen=True)
+class Experiment:
+    """A checked identify tree (:func:`check_tree`): the plant's ``model`` and
+    ``pneumatics`` parameter trees (as :func:`simpro_mj.plant.model.load_model` and
+    :func:`simpro_mj.plant.pneumatics.factory.make_actuators` read them), the
+    experiment's ``settings``, the reading ``paper_units`` under which eqs. (34)-(35)
+    are compared and the plant's ``preset``. A changed copy
+    (``dataclasses.replace``) is checked again where it runs."""
+
+    model: dict
+    pneumatics: dict
+    settings: Settings
+    paper_units: str
+    preset: Any = None
+
+    def tree(self) -> dict:
+        """The tree this record checks (:func:`default_tree`'s form)."""
+        return {"paper_units": self.paper_units, "preset": self.preset, "model": self.model,
+                "pneumatics": self.pneumatics, "identify": asdict(self.settings)}  # fmt: skip
+
+
 def default_tree(preset: str | None = None) -> dict:
     """The full parameter tree of ``identify``: paper_units, preset, model, pneumatics,
     identify; the model and pneumatics are the defaults with ``preset``'s values
@@ -113,22 +135,24 @@ def leg_values(x, name: str) -> np.ndarray:
     return arr
 
 
-def check_tree(tree: dict) -> dict:
+def check_tree(tree: dict | Experiment) -> Experiment:
     """Validate the ``identify`` settings and the pneumatics tree (the model's
-    values are checked by :func:`simpro_mj.plant.model.load_model`); returns ``tree``
-    with the pneumatics normalised.
+    values are checked by :func:`simpro_mj.plant.model.load_model`); normalise
+    ``tree``'s pneumatics in place and return its :class:`Experiment`.
 
     Raises
     ------
     UserInputError
         Naming the dotted path and what is allowed.
     """
-    if tree.get("paper_units") not in READINGS:
-        raise UserInputError(
-            f"invalid value at paper_units: {tree.get('paper_units')!r}; allowed: {list(READINGS)}"
-        )
-    tree["model"].pop("preset", None)
-    tree["pneumatics"] = _check_pneumatics(tree["pneumatics"], "pneumatics")
+    if isinstance(tree, Experiment):
+        tree = tree.tree()
+    units = tree.get("paper_units")
+    if units not in READINGS:
+        raise UserInputError(f"invalid value at paper_units: {units!r}; allowed: {list(READINGS)}")
+    model = tree["model"]
+    model.pop("preset", None)
+    pneumatics = tree["pneumatics"] = _check_pneumatics(tree["pneumatics"], "pneumatics")
     i, s = "identify", Settings.of(tree)
     check_number(tree, f"{i}.duration_s", 0.5, 3600.0, unit=" s")
     check_number(tree, f"{i}.settle_s", 0.0, 3600.0, unit=" s")
@@ -164,4 +188,4 @@ def check_tree(tree: dict) -> dict:
             f"invalid value at {i}.dither_period_ms: {period:g}; allowed: an even number of "
             "1 ms physics steps"
         )
-    return tree
+    return Experiment(model, pneumatics, s, units, tree.get("preset"))
