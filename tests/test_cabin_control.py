@@ -117,7 +117,7 @@ def test_design_plant_auto_is_the_paper_plant_on_paper_and_identified_on_other_p
 
 
 def test_the_presets_controller_block_lies_under_the_scenarios_own_values():
-    preset = load_preset("heavy_cabin")["controller"]
+    preset = load_preset("heavy_cabin").controller
     heavy = load_scenario("step_pitch", [HEAVY]).controller
     band = {"kind": "subtract", "release": 1.0, **preset["outer"]["dead_band"]}
     assert heavy.outer.dead_band.model_dump() == band and band["release"] == 3.0

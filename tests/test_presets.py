@@ -25,7 +25,7 @@ def test_shipped_presets_and_the_default():
     assert sc.plant.payload.mass_kg == pytest.approx(22.7)
     assert sc.actuator.pneumatics.valve.sonic_conductance_dm3_per_s_bar == 2.85
     # the preset's identified models are what design_plant: identified uses
-    assert sc.controller.inner.identified.model_dump() == load_preset("paper")["identified"]
+    assert sc.controller.inner.identified.model_dump() == load_preset("paper").identified
     heavy = load_scenario("step_pitch", ["plant.preset=heavy_cabin"])
     assert heavy.plant.payload.mass_kg == pytest.approx(230.0)
     assert heavy.actuator.pneumatics.valve.sonic_conductance_dm3_per_s_bar == 7.87

@@ -35,7 +35,9 @@ from __future__ import annotations
 
 import copy
 from collections.abc import Mapping
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.keys import closest, read_yaml
@@ -46,6 +48,7 @@ __all__ = [
     "PRESET_KEYS",
     "presets_dir",
     "shipped_presets",
+    "Preset",
     "load_preset",
     "scenario_overlay",
 ]
@@ -62,6 +65,24 @@ PRESET_KEYS = (
     "calibration",
 )
 _ACTS = ("actuator1", "actuator2", "actuator3")
+
+
+@dataclass(frozen=True)
+class Preset:
+    """A plant preset, read and checked (:func:`load_preset`): its ``name`` and
+    ``description``; the partial trees it lays over the defaults, ``plant``,
+    ``pneumatics``, ``sensors`` and ``controller``; the models ``identified`` on its
+    plant (``{actuator: {b, a1, a0}}``, empty if none) and the ``calibration`` record
+    ``simpro-sim calibrate`` wrote."""
+
+    name: str
+    description: str = ""
+    plant: dict = field(default_factory=dict)
+    pneumatics: dict = field(default_factory=dict)
+    sensors: dict = field(default_factory=dict)
+    identified: dict = field(default_factory=dict)
+    controller: dict = field(default_factory=dict)
+    calibration: Any = None
 
 
 def presets_dir() -> Path:
@@ -87,8 +108,8 @@ def _path(name_or_path: str) -> Path:
     )
 
 
-def load_preset(name_or_path: str) -> dict:
-    """Read and check a preset (shipped name or path); returns the mapping.
+def load_preset(name_or_path: str) -> Preset:
+    """Read and check a preset (shipped name or path).
 
     Raises
     ------
@@ -128,37 +149,30 @@ def load_preset(name_or_path: str) -> dict:
                 f"invalid value at {path.name}: identified; allowed: {{b, a1, a0}} (SI, >= 0) "
                 f"for each of {list(_ACTS)}"
             )
-    out = copy.deepcopy(dict(doc))
-    out.setdefault("name", path.stem)
-    return out
+    blocks = {k: copy.deepcopy(v) for k, v in doc.items() if v is not None}
+    return Preset(**{"name": path.stem, **blocks})
 
 
 def scenario_overlay(name_or_path: str) -> dict:
     """The preset as a partial scenario tree (plant, actuator.pneumatics, controller
     with the identified models)."""
     p = load_preset(name_or_path)
-    out: dict = {"plant": copy.deepcopy(dict(p.get("plant") or {}))}
-    out["plant"]["preset"] = str(name_or_path)
-    if p.get("pneumatics"):
-        out["actuator"] = {"pneumatics": copy.deepcopy(dict(p["pneumatics"]))}
-    if p.get("sensors"):  # the rig's sensor errors (simpro_mj.plant.sensor_errors)
-        out["sensors"] = copy.deepcopy(dict(p["sensors"]))
-    if p.get("controller"):
-        out["controller"] = copy.deepcopy(dict(p["controller"]))
-    if p.get("identified"):
-        ident = {a: {k: float(v) for k, v in p["identified"][a].items()} for a in _ACTS}
-        ctl = out.setdefault("controller", {})
-        ctl["inner"] = {**dict(ctl.get("inner") or {}), "identified": ident}
-    return out
+    out: dict = {"plant": {**p.plant, "preset": str(name_or_path)}}
+    if p.pneumatics:
+        out |= {"actuator": {"pneumatics": p.pneumatics}}
+    if p.sensors:  # the rig's sensor errors (simpro_mj.plant.sensor_errors)
+        out |= {"sensors": p.sensors}
+    controller = dict(p.controller)
+    if p.identified:
+        ident = {a: {k: float(v) for k, v in p.identified[a].items()} for a in _ACTS}
+        controller |= {"inner": {**dict(controller.get("inner") or {}), "identified": ident}}
+    return out | ({"controller": controller} if controller else {})
 
 
 def identify_overlay(name_or_path: str) -> dict:
     """The preset as a partial ``identify`` tree (model, pneumatics, and the joint
     loops' valve dither, under which the experiment identifies the plant)."""
     p = load_preset(name_or_path)
-    inner = dict((p.get("controller") or {}).get("inner") or {})
-    return {
-        "model": copy.deepcopy(dict(p.get("plant") or {})),
-        "pneumatics": copy.deepcopy(dict(p.get("pneumatics") or {})),
-        "identify": {k: float(inner[k]) for k in ("dither_v", "dither_period_ms") if k in inner},
-    }
+    inner = dict(p.controller.get("inner") or {})
+    dither = {k: float(v) for k, v in inner.items() if k in ("dither_v", "dither_period_ms")}
+    return {"model": p.plant, "pneumatics": p.pneumatics, "identify": dither}
