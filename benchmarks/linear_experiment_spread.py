@@ -149,17 +149,11 @@ def measure(cabins, seeds=(1, 2, 3), responses: bool = False) -> dict:
 
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    p.add_argument("--cabins", nargs="+", default=[*CABINS, "sweep8"])
+    allowed = [*CABINS, "sweep8"]
+    p.add_argument("--cabins", nargs="+", default=allowed, choices=allowed)
     p.add_argument("--seeds", type=int, nargs="+", default=[1, 2, 3])
     p.add_argument("--responses", action="store_true")
     a = p.parse_args(argv)
-    allowed = [*CABINS, "sweep8"]
-    if any(c not in allowed for c in a.cabins):
-        print(
-            f"error: invalid value at --cabins: {a.cabins}; allowed: {', '.join(allowed)}",
-            file=sys.stderr,
-        )
-        return 2
     if len(a.seeds) < 2 or any(not 0 <= s < 2**31 for s in a.seeds):
         print("error: invalid value at --seeds: allowed: two or more of 0..2^31-1", file=sys.stderr)
         return 2

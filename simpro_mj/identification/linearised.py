@@ -5,9 +5,9 @@ Eq. (19)'s b, a1, a0 per leg are fitted, by the experiment's own fit, to the lin
 model of the whole Fig. 12 set-up (:mod:`simpro_mj.identification.linear_experiment`:
 the reduced chain, each leg's pneumatics, the other legs under the experiment's P
 loops, the spool, the seals by their random-input describing function) instead of
-to a MuJoCo record: no experiment and no cache entry, about half the experiment's
-CPU on the ``paper`` preset. There it agrees with the experiment within 0.7 % on
-leg 1 and within 2.7 % on legs 2 and 3 (docs/paper-notes.md, section 2).
+to a MuJoCo record: no experiment and no cache entry (about the experiment's CPU).
+On the ``paper`` preset it agrees with the experiment within 0.8 % on leg 1 and
+1.9 % on legs 2 and 3 (docs/paper-notes.md, section 2).
 
 A plant whose seals' dry friction dominates the experiment is refused in one line:
 where the describing function's equivalent viscous friction of the excited leg
