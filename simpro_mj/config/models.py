@@ -219,8 +219,8 @@ class Inner(Block):
         "",
         "with design_plant identified: auto identifies the scenario's own plant when it is "
         "not its preset's (cached); preset takes the identified models as given; linearised "
-        "takes the plant model's own linearisation instead of the experiment "
-        "(simpro_mj.identification.linearised)",
+        "fits the experiment's linear model instead of its record (seals that stick "
+        "refused; simpro_mj.identification.linearised)",
     )
     identified: Identified = block(Identified)
     zeta: Real = param(0.7, "", "damping of the redesigned pole placement (5.2.2)", gt=0, lt=2)
