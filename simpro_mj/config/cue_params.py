@@ -46,73 +46,49 @@ SINE_CHANNELS = {
     "wy_rad_s": math.pi / 2,
 }
 
+#: A YAML key's unit (its suffix) -> the factor from that unit to SI; a key without
+#: one of these suffixes is the field's name, unitless.
+UNITS = {
+    "_ms": 1e-3,
+    "_deg_s2": math.pi / 180.0,
+    "_deg_s": math.pi / 180.0,
+    "_deg": math.pi / 180.0,
+    "_mm_s": 1e-3,
+    "_mm": 1e-3,
+    "_rad_s": 1.0,
+    "_mps2": 1.0,
+    "_m": 1.0,
+    "_s": 1.0,
+}
+
+
+def _fields(keys: str) -> dict[str, tuple[str, float]]:
+    """YAML key -> (field, factor from the YAML unit to SI): the field's name is the
+    key less its unit (:data:`UNITS`)."""
+    out = {}
+    for key in keys.split():
+        unit = next((u for u in UNITS if key.endswith(u)), "")
+        out[key] = (key[: len(key) - len(unit)], UNITS.get(unit, 1.0))
+    return out
+
+
 #: YAML key -> (WashoutParams field, factor from the YAML unit to SI).
-PARAMETER_KEYS = {
-    "period_ms": ("period", 1e-3),
-    "gain_x": ("gain_x", 1.0),
-    "gain_y": ("gain_y", 1.0),
-    "gain_z": ("gain_z", 1.0),
-    "gain_rot": ("gain_rot", 1.0),
-    "tilt_omega_rad_s": ("tilt_omega", 1.0),
-    "tilt_zeta": ("tilt_zeta", 1.0),
-    "tilt_rate_limit_deg_s": ("tilt_rate_limit", math.pi / 180.0),
-    "tilt_limit_deg": ("tilt_limit", math.pi / 180.0),
-    "tilt_accel_limit_deg_s2": ("tilt_accel_limit", math.pi / 180.0),
-    "head_height_m": ("head_height", 1.0),
-    "head_height_pitch_m": ("head_height_pitch", 1.0),
-    "jolt_limit_mps2": ("jolt_limit", 1.0),
-    "heave_omega_rad_s": ("heave_omega", 1.0),
-    "heave_zeta": ("heave_zeta", 1.0),
-    "heave_omega_b_rad_s": ("heave_omega_b", 1.0),
-    "rot_order": ("rot_order", 1.0),
-    "rot_omega_rad_s": ("rot_omega", 1.0),
-    "rot_zeta": ("rot_zeta", 1.0),
-    "heave_fraction": ("heave_fraction", 1.0),
-    "stroke_margin_mm": ("stroke_margin", 1e-3),
-    "knee": ("knee", 1.0),
-}
-
-
+PARAMETER_KEYS = _fields(
+    "period_ms gain_x gain_y gain_z gain_rot tilt_omega_rad_s tilt_zeta tilt_rate_limit_deg_s "
+    "tilt_limit_deg tilt_accel_limit_deg_s2 head_height_m head_height_pitch_m jolt_limit_mps2 "
+    "heave_omega_rad_s heave_zeta heave_omega_b_rad_s rot_order rot_omega_rad_s rot_zeta "
+    "heave_fraction stroke_margin_mm knee"
+)
 #: YAML key -> (MpcParams field, factor from the YAML unit to SI), ``algorithm: mpc``.
-MPC_PARAMETER_KEYS = {
-    "period_ms": ("period", 1e-3),
-    "horizon": ("horizon", 1.0),
-    "gain_x": ("gain_x", 1.0),
-    "gain_y": ("gain_y", 1.0),
-    "gain_z": ("gain_z", 1.0),
-    "gain_rot": ("gain_rot", 1.0),
-    "weight_f": ("weight_f", 1.0),
-    "weight_raw": ("weight_raw", 1.0),
-    "weight_w": ("weight_w", 1.0),
-    "weight_tilt": ("weight_tilt", 1.0),
-    "weight_jerk": ("weight_jerk", 1.0),
-    "tilt_rate_max_deg_s": ("tilt_rate_max", math.pi / 180.0),
-    "tilt_accel_max_deg_s2": ("tilt_accel_max", math.pi / 180.0),
-    "heave_rate_max_mm_s": ("heave_rate_max", 1e-3),
-    "heave_accel_max_mps2": ("heave_accel_max", 1.0),
-    "head_height_m": ("head_height", 1.0),
-    "head_height_pitch_m": ("head_height_pitch", 1.0),
-    "preview_s": ("preview", 1.0),
-    "heave_fraction": ("heave_fraction", 1.0),
-    "stroke_margin_mm": ("stroke_margin", 1e-3),
-    "box_fraction": ("box_fraction", 1.0),
-    "rotation_limit": ("rotation_limit", 1.0),
-    "rotation_limit_pitch": ("rotation_limit_pitch", 1.0),
-    "lead_s": ("lead", 1.0),
-    "lead_x_s": ("lead_x", 1.0),
-    "loop_omega_rad_s": ("loop_omega", 1.0),
-    "loop_zeta": ("loop_zeta", 1.0),
-    "loop_zero_s": ("loop_zero", 1.0),
-    "loop_delay_s": ("loop_delay", 1.0),
-    "loop_filter_s": ("loop_filter", 1.0),
-    "knee_mps2": ("knee", 1.0),
-    "jolt_limit_mps2": ("jolt_limit", 1.0),
-    "heave_washout_rad_s": ("heave_washout", 1.0),
-    "weight_heave": ("weight_heave", 1.0),
-    "weight_heave_rate": ("weight_heave_rate", 1.0),
-    "gain_y_sustained": ("gain_y_sustained", 1.0),
-    "sustained_tau_s": ("sustained_tau", 1.0),
-}
+MPC_PARAMETER_KEYS = _fields(
+    "period_ms horizon gain_x gain_y gain_z gain_rot weight_f weight_raw weight_w weight_tilt "
+    "weight_jerk tilt_rate_max_deg_s tilt_accel_max_deg_s2 heave_rate_max_mm_s "
+    "heave_accel_max_mps2 head_height_m head_height_pitch_m preview_s heave_fraction "
+    "stroke_margin_mm box_fraction rotation_limit rotation_limit_pitch lead_s lead_x_s "
+    "loop_omega_rad_s loop_zeta loop_zero_s loop_delay_s loop_filter_s knee_mps2 "
+    "jolt_limit_mps2 heave_washout_rad_s weight_heave weight_heave_rate gain_y_sustained "
+    "sustained_tau_s"
+)
 #: Whole-number parameters (an int in the resolved scenario).
 INTEGERS = ("rot_order", "horizon")
 

@@ -67,31 +67,31 @@ __all__ = [
 ]
 
 
-def sine_input(sine: CueSine | Mapping, t) -> tuple[np.ndarray, np.ndarray]:
-    """``f``, ``w`` (len(t), 3) of a ``sine`` vehicle input at times ``t`` (V frame, SI)."""
+def _on_channel(channel: str, signal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``f``, ``w`` (len(signal), 3): the vehicle at rest (``f = (0, 0, g)``, ``w = 0``)
+    plus ``signal`` on one ``channel`` (:data:`~simpro_mj.config.cue_params.SINE_CHANNELS`)."""
     from controllers.frames import GRAVITY
 
+    f = np.zeros((signal.size, 3))
+    w = np.zeros((signal.size, 3))
+    f[:, 2] = GRAVITY
+    (f if channel[0] == "f" else w)[:, "xyz".index(channel[1])] += signal
+    return f, w
+
+
+def sine_input(sine: CueSine | Mapping, t) -> tuple[np.ndarray, np.ndarray]:
+    """``f``, ``w`` (len(t), 3) of a ``sine`` vehicle input at times ``t`` (V frame, SI)."""
     s = sine if isinstance(sine, CueSine) else CueSine.model_validate(sine)
     t = np.asarray(t, dtype=float)
-    f = np.zeros((t.size, 3))
-    w = np.zeros((t.size, 3))
-    f[:, 2] = GRAVITY
-    k = "xyz".index(s.channel[1])
-    (f if s.channel[0] == "f" else w)[:, k] += s.amplitude * np.sin(2.0 * math.pi * t / s.period_s)
-    return f, w
+    return _on_channel(s.channel, s.amplitude * np.sin(2.0 * math.pi * t / s.period_s))
 
 
 def step_input(step: CueStep | Mapping, t) -> tuple[np.ndarray, np.ndarray]:
     """``f``, ``w`` (len(t), 3) of a ``step`` vehicle input: the vehicle at rest plus
     ``amplitude`` on one ``channel`` from ``start_s``, reached over ``ramp_s`` (0: a
     step), and back to rest the same way from ``end_s`` (null: held)."""
-    from controllers.frames import GRAVITY
-
     s = step if isinstance(step, CueStep) else CueStep.model_validate(step)
     t = np.asarray(t, dtype=float)
-    f = np.zeros((t.size, 3))
-    w = np.zeros((t.size, 3))
-    f[:, 2] = GRAVITY
 
     def edge(t0: float) -> np.ndarray:
         if s.ramp_s <= 0:
@@ -101,9 +101,7 @@ def step_input(step: CueStep | Mapping, t) -> tuple[np.ndarray, np.ndarray]:
     shape = edge(s.start_s)
     if s.end_s is not None:
         shape = shape - edge(s.end_s)
-    k = "xyz".index(s.channel[1])
-    (f if s.channel[0] == "f" else w)[:, k] += s.amplitude * shape
-    return f, w
+    return _on_channel(s.channel, s.amplitude * shape)
 
 
 def sweep_defaults() -> dict:
