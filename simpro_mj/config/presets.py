@@ -167,12 +167,3 @@ def scenario_overlay(name_or_path: str) -> dict:
         ident = {a: {k: float(v) for k, v in p.identified[a].items()} for a in _ACTS}
         controller |= {"inner": {**dict(controller.get("inner") or {}), "identified": ident}}
     return out | ({"controller": controller} if controller else {})
-
-
-def identify_overlay(name_or_path: str) -> dict:
-    """The preset as a partial ``identify`` tree (model, pneumatics, and the joint
-    loops' valve dither, under which the experiment identifies the plant)."""
-    p = load_preset(name_or_path)
-    inner = dict(p.controller.get("inner") or {})
-    dither = {k: float(v) for k, v in inner.items() if k in ("dither_v", "dither_period_ms")}
-    return {"model": p.plant, "pneumatics": p.pneumatics, "identify": dither}

@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from controllers.design import READINGS
-from simpro_mj.config.presets import DEFAULT_PRESET, identify_overlay
+from simpro_mj.config.presets import DEFAULT_PRESET, load_preset
 from simpro_mj.config.scenario import _check_pneumatics, _merge
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.keys import check_number
@@ -113,14 +113,17 @@ def default_tree(preset: str | None = None) -> dict:
     (default :data:`simpro_mj.config.presets.DEFAULT_PRESET`) over them."""
 
     preset = DEFAULT_PRESET if preset is None else preset
-    over = identify_overlay(preset)
+    p = load_preset(preset)
+    # the joint loops' valve dither, under which the experiment identifies the plant
+    inner = p.controller.get("inner") or {}
+    dither = {k: float(v) for k, v in inner.items() if k in ("dither_v", "dither_period_ms")}
     return {
         # unit of Y in eqs. (34)-(35) for the comparison (controllers.design.READINGS)
         "paper_units": "volts",
         "preset": preset,
-        "model": _merge(DEFAULT_MODEL_PARAMS, over["model"]),
-        "pneumatics": _merge(DEFAULT_PNEUMATIC_PARAMS, over["pneumatics"]),
-        "identify": _merge(DEFAULT_IDENTIFY_PARAMS, over["identify"]),
+        "model": _merge(DEFAULT_MODEL_PARAMS, p.plant),
+        "pneumatics": _merge(DEFAULT_PNEUMATIC_PARAMS, p.pneumatics),
+        "identify": _merge(DEFAULT_IDENTIFY_PARAMS, dither),
     }
 
 
