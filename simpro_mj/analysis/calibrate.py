@@ -53,6 +53,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from simpro_mj.analysis.targets import load_targets
+from simpro_mj.config.pneumatics import Pneumatics
 from simpro_mj.core.errors import PhysicsError, UserInputError
 from simpro_mj.identification.identify import Fit, identify, paper_models
 from simpro_mj.identification.settings import Experiment, check_tree
@@ -250,14 +251,13 @@ def plausibility(ex: Experiment) -> dict:
     passive guide's bearings it drives. The MPYE-5-3/8 passes 2000 l/min (ANR,
     C = 7.87 dm^3/(s bar)) bare; hoses and fittings lower the effective value.
     """
-    ref = DEFAULT_PNEUMATIC_PARAMS
-    m, p = ex.model, ex.pneumatics
+    m, p = ex.model, Pneumatics.model_validate(ex.pneumatics)  # checked: check_tree
     payload = float(m["payload"]["mass_kg"])
     platform = float(m["platform_mass_kg"])
-    visc = np.broadcast_to(np.asarray(p["cylinder"]["viscous_friction_n_s_per_m"], float), (3,))
-    c = float(p["valve"]["sonic_conductance_dm3_per_s_bar"])
-    c_ref = float(ref["valve"]["sonic_conductance_dm3_per_s_bar"])
-    under = np.broadcast_to(np.asarray(p["valve"]["underlap_fraction"], float), (3,))
+    visc = np.broadcast_to(np.asarray(p.cylinder.viscous_friction_n_s_per_m, float), (3,))
+    c = float(p.valve.sonic_conductance_dm3_per_s_bar)
+    c_ref = float(Pneumatics().valve.sonic_conductance_dm3_per_s_bar)
+    under = np.broadcast_to(np.asarray(p.valve.underlap_fraction, float), (3,))
     return {
         "moving_mass_kg": {
             "payload": payload,
@@ -326,10 +326,10 @@ def calibrate_preset(
     max_evaluations: int,
     amplitudes_v,
     progress=None,
-) -> tuple[dict, dict]:
+) -> tuple[dict, Calibration]:
     """Calibrate ``tree`` to ``targets`` and write nothing: returns the preset document
-    (plain data for YAML) and the models identified at the fit (all three actuators,
-    the identify command's settings)."""
+    (plain data for YAML) and the :class:`Calibration`, its models those identified at
+    the fit (all three actuators, the identify command's settings) and their residuals."""
     result = calibrate(
         tree, targets, duration_s=duration_s, max_evaluations=max_evaluations,
         progress=progress, amplitudes_v=amplitudes_v,
@@ -351,4 +351,4 @@ def calibrate_preset(
     }
     doc = preset_document(name, fitted, result, targets, extra)
     doc = json.loads(json.dumps(doc, default=float))  # plain floats for YAML
-    return doc, final
+    return doc, result

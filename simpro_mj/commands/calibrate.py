@@ -93,18 +93,17 @@ def run(args) -> int:
         bar.set_postfix(cost=f"{cost:.3g}")
         bar.update(1)
 
-    doc, final = calibrate_preset(
+    doc, result = calibrate_preset(
         tree, targets, args.name, duration_s=args.duration, max_evaluations=args.evaluations,
         amplitudes_v=args.amplitudes, progress=progress,
     )  # fmt: skip
     bar.close()
     out = write_file(out, yaml.safe_dump(doc, sort_keys=False), args.overwrite)
-    worst = max(abs(v) for r in doc["calibration"]["residuals_per_tolerance"].values()
-                for v in r.values())  # fmt: skip
+    worst = max(abs(v) for r in (result.residuals or {}).values() for v in r.values())
     if args.json:
         emit_json(doc)
     else:
-        for a, r in final.items():
+        for a, r in (result.identified or {}).items():
             t = targets[a]
             print(
                 f"{a}: wn {r.wn_rad_s:.2f} (target {t['wn_rad_s']:.2f}) rad/s, zeta "
