@@ -61,7 +61,7 @@ def run(args) -> int:
         phase.start("PRBS experiment and fit")
         results = identify(ex, legs=legs, records=records)
         doc = document(results, ex)
-        doc["warnings"] = fit_warnings(doc["actuators"])
+        doc["warnings"] = warnings = fit_warnings(doc["actuators"])
 
         def fill(tmp: Path) -> list:
             (tmp / "identify.json").write_text(json.dumps(doc, indent=2))
@@ -71,7 +71,7 @@ def run(args) -> int:
             return []
 
         install_figures(out, fill, "identify")
-    warn(doc["warnings"], args.quiet or args.json)
+    warn(warnings, args.quiet or args.json)
     if args.json:
         emit_json(doc)
     else:

@@ -10,7 +10,9 @@ Parameters by ``--set``: ``speed_kmh``, ``vehicle``, ``deceleration_mps2``,
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 from simpro_mj.config.manoeuvres import MANOEUVRES, ManoeuvreSpec, generate
 from simpro_mj.core.errors import UserInputError
@@ -58,20 +60,14 @@ def add_arguments(parser) -> None:
 
 
 def spec_from(args) -> ManoeuvreSpec:
-    p = apply_overrides(DEFAULTS, args.sets)
-    speed = p["speed_kmh"] or DEFAULT_SPEED_KMH[args.manoeuvre]
-    spec = ManoeuvreSpec(
-        manoeuvre=args.manoeuvre,
-        speed_kmh=float(speed),
-        vehicle=str(p["vehicle"]),
-        deceleration_mps2=float(p["deceleration_mps2"]),
-        bump_height_m=float(p["bump_height_m"]),
-        bump_length_m=float(p["bump_length_m"]),
-        lead_s=float(p["lead_s"]),
-        duration_s=float(p["duration_s"]) or None,
-        rate_hz=float(p["rate_hz"]),
-        tyre_offsets=str(p["tyre_offsets"]),
-    )
+    # the --set values as the spec's fields: the words as text, the numbers as floats
+    given: dict[str, Any] = {
+        k: str(v) if isinstance(DEFAULTS[k], str) else float(v)
+        for k, v in apply_overrides(DEFAULTS, args.sets).items()
+    }
+    spec = ManoeuvreSpec(args.manoeuvre, **given)
+    speed = spec.speed_kmh or DEFAULT_SPEED_KMH[args.manoeuvre]
+    spec = replace(spec, speed_kmh=float(speed), duration_s=spec.duration_s or None)
     spec.check()
     return spec
 

@@ -34,28 +34,22 @@ def run(args) -> int:
     combo = combined_ranges(g, p.heights, margin)
     roll, pitch = np.degrees(single["roll"]).tolist(), np.degrees(single["pitch"]).tolist()
     heave = (np.asarray(single["heave"]) * 1e3).tolist()
+    # per heave level (mm): the roll and pitch ranges (deg)
     levels = [
-        {
-            "heave_mm": r["heave"] * 1e3,
-            "roll_deg": np.degrees(r["roll"]).tolist(),
-            "pitch_deg": np.degrees(r["pitch"]).tolist(),
-        }
+        (r["heave"] * 1e3, np.degrees(r["roll"]).tolist(), np.degrees(r["pitch"]).tolist())
         for r in combo
     ]
     if args.json:
         home = {"roll_deg": 0.0, "pitch_deg": 0.0, "heave_mm": g.home[2] * 1e3}
+        at = [{"heave_mm": h, "roll_deg": rr, "pitch_deg": pr} for h, rr, pr in levels]
         emit_json({"home": home, "roll_deg": roll, "pitch_deg": pitch, "heave_mm": heave,
-                   "at_heights": levels})  # fmt: skip
+                   "at_heights": at})  # fmt: skip
         return 0
     print(f"Reachable workspace (stroke 0..500 mm, margin {p.margin_mm} mm), about home:")
     print(f"  roll   {roll[0]:8.2f} .. {roll[1]:7.2f} deg")
     print(f"  pitch  {pitch[0]:8.2f} .. {pitch[1]:7.2f} deg")
     print(f"  heave  {heave[0]:8.1f} .. {heave[1]:7.1f} mm")
     print("  at other heights (roll and pitch with the other angle zero):")
-    for level in levels:
-        (r0, r1), (p0, p1) = level["roll_deg"], level["pitch_deg"]
-        print(
-            f"    h = {level['heave_mm']:7.1f} mm: roll {r0:7.2f}..{r1:6.2f} deg, "
-            f"pitch {p0:7.2f}..{p1:6.2f} deg"
-        )
+    for h, (r0, r1), (p0, p1) in levels:
+        print(f"    h = {h:7.1f} mm: roll {r0:7.2f}..{r1:6.2f} deg, pitch {p0:7.2f}..{p1:6.2f} deg")
     return 0
