@@ -123,11 +123,11 @@ _REAL = TypeAdapter(Real)
 
 @dataclass(frozen=True)
 class Distribution:
-    """One Monte Carlo parameter: ``kind`` and its numbers (scalars or per-element lists)."""
+    """One Monte Carlo parameter: its ``draw`` (the distribution and its numbers, scalars
+    or per-element lists) at the scenario value ``path``."""
 
     path: str
-    kind: str
-    args: dict
+    draw: Uniform | Normal | Choice
     size: int | None  # None: scalar leaf; n: list of n numbers
 
     def sample(self, seed: int, index: int) -> Any:
@@ -135,16 +135,16 @@ class Distribution:
         key = (int(index), zlib.crc32(self.path.encode("utf-8")))
         rng = np.random.default_rng(np.random.SeedSequence(int(seed), spawn_key=key))
         shape = None if self.size is None else (self.size,)
-        a = self.args
-        if self.kind == "uniform":
-            x = rng.uniform(a["low"], a["high"], size=shape)
-        elif self.kind == "normal":
-            x = rng.normal(a["mean"], a["std"], size=shape)
-            if "low" in a or "high" in a:
-                x = np.clip(x, a.get("low", -np.inf), a.get("high", np.inf))
+        d = self.draw
+        if isinstance(d, Uniform):
+            x = rng.uniform(d.low, d.high, size=shape)
+        elif isinstance(d, Normal):
+            x = rng.normal(d.mean, d.std, size=shape)
+            if d.low is not None or d.high is not None:
+                low = -np.inf if d.low is None else d.low
+                x = np.clip(x, low, np.inf if d.high is None else d.high)
         else:  # choice: one pick per sample, whatever the leaf
-            values = a["values"]
-            return copy.deepcopy(values[int(rng.integers(len(values)))])
+            return copy.deepcopy(d.values[int(rng.integers(len(d.values)))])
         return float(x) if shape is None else [float(v) for v in np.atleast_1d(x)]
 
 
@@ -335,9 +335,7 @@ def _check_draw(path: str, draw: Entry, where: str) -> None:
 
 
 def _distribution(path: str, draw: Uniform | Normal | Choice) -> Distribution:
-    args = draw.model_dump(exclude={"distribution"}, exclude_none=True)
-    size = _numeric_list_len(_defaults_at(path, path))
-    return Distribution(path=path, kind=draw.distribution, args=args, size=size)
+    return Distribution(path=path, draw=draw, size=_numeric_list_len(_defaults_at(path, path)))
 
 
 def parse_sweep(block: Any, where: str = "sweep") -> SweepSpec:
