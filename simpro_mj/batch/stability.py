@@ -49,6 +49,7 @@ import numpy as np
 
 from simpro_mj.analysis.metrics import SETTLING_FLOOR
 from simpro_mj.analysis.stability import outer_loop
+from simpro_mj.config.models import Scenario, as_scenario
 from simpro_mj.report.results import read_timeseries
 
 __all__ = [
@@ -189,11 +190,11 @@ class Analytic(NamedTuple):
     growth_rate_1_s: float | None = None
 
 
-def analytic(scenario: Mapping) -> Analytic:
+def analytic(scenario: Scenario | Mapping) -> Analytic:
     """The :class:`Analytic` view of a variant's outer loop."""
-    c = scenario["controller"]
-    if c["mode"] != "task_space" or c["inner"]["design_plant"] != "paper":
+    c = (sc := as_scenario(scenario)).controller
+    if c.mode != "task_space" or c.inner.design_plant != "paper":
         return Analytic()
     # the joint loops on the plants they were designed for (the paper's)
-    info = outer_loop(scenario, plant="paper")
+    info = outer_loop(sc, plant="paper")
     return Analytic(info["limit"], info["delay_model_limit"], info["growth_rate_1_s"])

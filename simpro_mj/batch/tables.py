@@ -30,6 +30,7 @@ from simpro_mj.batch.plan import GAIN_PATH, Job
 from simpro_mj.batch.robustness import UNFINISHED, table_lines
 from simpro_mj.batch.stability import Analytic
 from simpro_mj.batch.summary import AXES, SMALL_SIGNAL_ONLY, Report, Row, verdict_note
+from simpro_mj.config.models import as_scenario
 from simpro_mj.config.sweep import format_value
 
 __all__ = [
@@ -161,9 +162,10 @@ def stability_table(rows: list[Row], jobs: list[Job]) -> list[StabilityLimit]:
                 estimate = 0.5 * (lo + hi)
         first = members[0][2].scenario
         assert first is not None  # a planned variant's
+        outer, actuator = (sc := as_scenario(first)).controller.outer, sc.actuator.model
         ana = members[0][1].analytic or Analytic()
         note = []
-        if first["actuator"]["model"] != "linear":
+        if actuator != "linear":
             note.append("nonlinear pneumatics: the analysis assumes eq. (19) plants")
         if any(s and g > hi for g, s in zip(gains, stable, strict=True) if hi is not None):
             note.append("not monotonic: a stable gain above an unstable one")
@@ -188,9 +190,9 @@ def stability_table(rows: list[Row], jobs: list[Job]) -> list[StabilityLimit]:
             StabilityLimit(
                 scenario=sname,
                 group={p: v for p, v in others},
-                outer_type=first["controller"]["outer"]["type"],
-                period_ms=first["controller"]["outer"]["period_ms"],
-                actuator_model=first["actuator"]["model"],
+                outer_type=outer.type,
+                period_ms=outer.period_ms,
+                actuator_model=actuator,
                 gains=gains,
                 stable=stable,
                 growth_rate_1_s=[m[1].growth_rate_1_s for m in members],
