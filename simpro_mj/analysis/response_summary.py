@@ -71,10 +71,7 @@ class AxisFigures(CurveFigures):
     predicted: CurveFigures | None = None
 
     def to_json(self) -> dict:
-        out = asdict(self)
-        if self.predicted is None:
-            del out["predicted"]
-        return out
+        return {k: v for k, v in asdict(self).items() if k != "predicted" or v is not None}
 
 
 @dataclass

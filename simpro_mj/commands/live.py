@@ -221,7 +221,7 @@ def _say(line: str) -> None:
 def run(args) -> int:
     options = _options(args)
     scenario = live_scenario(load_scenario(args.scenario, args.sets), args.duration)
-    out = Path(args.out) if args.out else Path("results") / f"{scenario['name']}-live"
+    out = Path(args.out) if args.out else Path("results") / f"{scenario.name}-live"
     with claim(out, "run", inputs=[args.scenario]):
         say = None if args.quiet else _say
         res, metrics = execute_live(scenario, options, out, plots=not args.no_plots, say=say)

@@ -25,7 +25,6 @@ SIGINT or SIGTERM is a session that ended: status ``ok``, ``realtime.ended``
 
 from __future__ import annotations
 
-import copy
 import json
 from pathlib import Path
 
@@ -45,9 +44,8 @@ __all__ = ["MAX_LOG_BYTES", "actuator_tracking", "execute_live", "live_scenario"
 MAX_LOG_BYTES = 1 << 30
 
 
-def live_scenario(scenario: Scenario, duration_s: float | None) -> dict:
-    """The scenario a session runs, as its resolved dict: ``duration_s`` the session's
-    (default: the scenario's)."""
+def live_scenario(scenario: Scenario, duration_s: float | None) -> Scenario:
+    """The scenario a session runs: ``duration_s`` the session's (default: the scenario's)."""
     if duration_s is not None:
         scenario = scenario.model_copy(update={"duration_s": float(duration_s)})
     every = scenario.logging.decimation
@@ -60,7 +58,7 @@ def live_scenario(scenario: Scenario, duration_s: float | None) -> dict:
             f"{nbytes / 2**20:.0f} MiB at logging.decimation {every}; allowed: a shorter "
             f"session or --set logging.decimation={need} or more"
         )
-    return scenario.model_dump()
+    return scenario
 
 
 def actuator_tracking(columns) -> dict:
@@ -78,12 +76,12 @@ def actuator_tracking(columns) -> dict:
     return out
 
 
-def _at_home(scenario: dict) -> dict:
+def _at_home(scenario: Scenario) -> dict:
     """The scenario with its set-points at home: what the preflight can check in advance."""
-    return copy.deepcopy(scenario) | {"setpoint": {"roll_deg": [], "pitch_deg": [], "heave_mm": []}}
+    return scenario.model_dump() | {"setpoint": {"roll_deg": [], "pitch_deg": [], "heave_mm": []}}
 
 
-def execute_live(scenario: dict, options: LiveOptions, out, plots: bool = True, *,
+def execute_live(scenario: Scenario, options: LiveOptions, out, plots: bool = True, *,
                  say=None, quiet: bool = False):  # fmt: skip
     """Run a live session of a resolved scenario (:func:`live_scenario`) and write its folder.
 
@@ -117,7 +115,7 @@ def execute_live(scenario: dict, options: LiveOptions, out, plots: bool = True, 
             res.status = "ok"
             res.reason = (
                 f"session ended by a signal at t = {res.sim['simulated_s']:.3f} s "
-                f"(of {scenario['duration_s']:g} s)"
+                f"(of {scenario.duration_s:g} s)"
             )
         realtime.update(ended=ended)
         host, port = session.address

@@ -48,6 +48,7 @@ import gc
 import math
 import os
 import time
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -56,6 +57,7 @@ import numpy as np
 from controllers.cue_mpc_params import MpcParams
 from controllers.mpc_cueing import MpcStream  # the module loads osqp on use
 from controllers.washout import ClassicalWashout, WashoutParams
+from simpro_mj.config.models import Scenario, as_scenario
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.plant.faults import NEVER
 from simpro_mj.sim.cue_worker import CueWorker
@@ -377,14 +379,16 @@ class Session:
     address: tuple[str, int]
 
 
-def run_session(scenario: dict, options: LiveOptions, say=None, checks=None) -> Session:
+def run_session(scenario: Scenario | Mapping, options: LiveOptions, say=None,
+                checks=None) -> Session:  # fmt: skip
     """Run one live session of a resolved cueing scenario (``duration_s`` long).
 
     The socket is bound before anything heavy is built, so that a busy port is
     refused at once; ``checks()`` (the preflight) runs next.
     """
-    cue = scenario["setpoint"].get("cueing")
-    if not cue:
+    sc = as_scenario(scenario)
+    cue = sc.setpoint.cueing
+    if cue is None:
         raise UserInputError(
             "invalid value at setpoint.cueing: a live session needs a cueing scenario (the "
             "vehicle input drives the washout); allowed: e.g. cue_braking.yaml"
@@ -397,8 +401,8 @@ def run_session(scenario: dict, options: LiveOptions, say=None, checks=None) -> 
     rx = Receiver(options.listen, options.fmt, options.stale_after_s, options.fade_s, chose)
     if say is not None:
         say(
-            f"live: {scenario['name']}, {options.fmt} datagrams at {rx.address[0]}:"
-            f"{rx.address[1]}, {scenario['duration_s']:g} s (Ctrl-C ends it, the result is kept)"
+            f"live: {sc.name}, {options.fmt} datagrams at {rx.address[0]}:"
+            f"{rx.address[1]}, {sc.duration_s:g} s (Ctrl-C ends it, the result is kept)"
         )
     sender = rig = law = None
     try:
@@ -410,7 +414,7 @@ def run_session(scenario: dict, options: LiveOptions, say=None, checks=None) -> 
         if checks is not None:
             checks()
         params = washout_params(cue)
-        mpc = cue.get("algorithm") == "mpc"
+        mpc = cue.algorithm == "mpc"
         if isinstance(params, MpcParams) and params.preview > 0 and say is not None:
             say(
                 f"live: setpoint.cueing.parameters.preview_s = {params.preview:g} needs the "
@@ -464,7 +468,7 @@ def run_session(scenario: dict, options: LiveOptions, say=None, checks=None) -> 
         realtime["spin_us"] = options.spin_s * 1e6
         realtime["cpus"] = None if split is None else {
             "pacer": sorted(split[0]), "cue": sorted(split[1])}  # fmt: skip
-        info = dict(pacer.washout_info(), algorithm=cue.get("algorithm", "classical_washout"))
+        info = dict(pacer.washout_info(), algorithm=cue.algorithm)
         if law is not None:
             law.close()
             realtime["cue"] = {
