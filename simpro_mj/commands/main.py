@@ -29,7 +29,6 @@ from __future__ import annotations
 
 import argparse
 import ast
-import contextlib
 import functools
 import gc
 import importlib.util
@@ -38,6 +37,7 @@ import sys
 from pathlib import Path
 
 from controllers.errors import DesignError, KinematicsError
+from simpro_mj.core.cache import notice
 from simpro_mj.core.environment import environment_problem, matplotlib_home
 from simpro_mj.core.errors import PhysicsError, UserInputError
 from simpro_mj.core.interrupts import Interrupted, held_signals, import_module, interruptible
@@ -208,7 +208,7 @@ def main(argv=None) -> int:
         with interruptible(), standard_streams():
             return _main(argv)
     except KeyboardInterrupt:  # while the command's modules were imported
-        _say("error: interrupted")
+        notice("error: interrupted")
         return 130
 
 
@@ -227,12 +227,6 @@ def cli() -> int:
     code = main()
     gc.freeze()
     return code
-
-
-def _say(line: str) -> None:
-    """The last line on stderr; a stderr that cannot take it is not a second error."""
-    with contextlib.suppress(OSError, ValueError, AttributeError):
-        sys.stderr.write(line + "\n")
 
 
 def _main(argv) -> int:
@@ -262,20 +256,20 @@ def _main(argv) -> int:
     except (UserInputError, KinematicsError, DesignError) as exc:
         # KinematicsError/DesignError reach here only from a check that did not
         # wrap them with a field path; their messages still name the limit
-        _say(f"error: {_one_line(exc)}")
+        notice(f"error: {_one_line(exc)}")
         return 2
     except PhysicsError as exc:
-        _say(f"error: simulation diverged: {exc}")
+        notice(f"error: simulation diverged: {exc}")
         return 1
     except KeyboardInterrupt as exc:  # Interrupted: during a write, which it names
-        _say(f"error: interrupted; {exc}" if isinstance(exc, Interrupted) else "error: interrupted")
+        notice("error: interrupted" + (f"; {exc}" if isinstance(exc, Interrupted) else ""))
         return 130
     except BrokenPipeError:
         # stdout closed by a reader such as `| head`: results are already on disk
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 141
     except StreamError as exc:  # the files are written; the printing failed
-        _say(
+        notice(
             f"error: cannot write at {exc.filename}: {exc.strerror}; allowed: a writable "
             "standard output (the command's files are written)"
         )

@@ -28,7 +28,7 @@ from pathlib import Path
 
 from simpro_mj.core.errors import UserInputError
 
-__all__ = ["UnreadableFile", "kind_of", "open_regular", "read_bytes", "read_text"]
+__all__ = ["UnreadableFile", "kind_of", "open_regular", "read_bytes", "read_text", "short"]
 
 
 class UnreadableFile(UserInputError):
@@ -53,9 +53,10 @@ def kind_of(mode: int) -> str:
     return "a regular file" if stat.S_ISREG(mode) else "a special file"
 
 
-def _short(path) -> str:
+def short(path, limit: int = 200) -> str:
+    """``path`` as text, its start and end around ``...`` when longer than ``limit``."""
     text = str(path)
-    return text if len(text) <= 200 else f"{text[:90]}...{text[-90:]}"
+    return text if len(text) <= limit else f"{text[:90]}...{text[-90:]}"
 
 
 def open_regular(path, max_bytes: int, what: str = "file", binary: bool = False):
@@ -87,19 +88,19 @@ def open_regular(path, max_bytes: int, what: str = "file", binary: bool = False)
         fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0))
     except OSError as exc:
         raise UnreadableFile(
-            f"cannot read {what} at {_short(path)}: {exc.strerror or exc}; "
+            f"cannot read {what} at {short(path)}: {exc.strerror or exc}; "
             f"allowed: a readable regular {what} file"
         ) from None
     try:
         st = os.fstat(fd)
         if not stat.S_ISREG(st.st_mode):
             raise UnreadableFile(
-                f"not a regular file at {_short(path)}: {kind_of(st.st_mode)}; "
+                f"not a regular file at {short(path)}: {kind_of(st.st_mode)}; "
                 f"allowed: a regular {what} file"
             )
         if st.st_size > max_bytes:
             raise UnreadableFile(
-                f"file too large at {_short(path)}: {st.st_size:,} bytes; "
+                f"file too large at {short(path)}: {st.st_size:,} bytes; "
                 f"allowed: a {what} file of at most {max_bytes:,} bytes"
             )
         flags = fcntl.fcntl(fd, fcntl.F_GETFL)
@@ -119,7 +120,7 @@ def read_bytes(path, max_bytes: int, what: str = "file") -> bytes:
         data = fh.read(max_bytes + 1)
     if len(data) > max_bytes:  # grew after the check
         raise UnreadableFile(
-            f"file too large at {_short(path)}: over {max_bytes:,} bytes; "
+            f"file too large at {short(path)}: over {max_bytes:,} bytes; "
             f"allowed: a {what} file of at most {max_bytes:,} bytes"
         )
     return data
@@ -138,5 +139,5 @@ def read_text(path, max_bytes: int, what: str = "file") -> str:
         return data.decode("utf-8")
     except UnicodeDecodeError as exc:
         raise UnreadableFile(
-            f"not UTF-8 text at {_short(path)}: byte {exc.start}; allowed: a UTF-8 {what} file"
+            f"not UTF-8 text at {short(path)}: byte {exc.start}; allowed: a UTF-8 {what} file"
         ) from None

@@ -47,6 +47,7 @@ from collections.abc import Iterable, Iterator
 from pathlib import Path
 
 from simpro_mj.core.errors import UserInputError
+from simpro_mj.core.safe_files import short
 from simpro_mj.core.shipped import user_path
 from simpro_mj.report.marker import (
     PARTIAL_MARKER,
@@ -63,7 +64,6 @@ from simpro_mj.report.marker import (
 
 __all__ = [
     "out_path",
-    "short",
     "check_free",
     "check_out",
     "claim",
@@ -138,11 +138,6 @@ def _replaceable(folder: Path, kind: str) -> bool:
 def out_path(out, where: str = "--out") -> Path:
     """``out`` absolute, ``~`` and ``~USER`` expanded (an unknown user refused)."""
     return user_path(out, where).absolute()
-
-
-def short(path, limit: int = 200) -> str:
-    text = str(path)
-    return text if len(text) <= limit else f"{text[:90]}...{text[-90:]}"
 
 
 #: Kinds filled in place (files added to an existing folder, never replaced whole):

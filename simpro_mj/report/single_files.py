@@ -13,7 +13,8 @@ import tempfile
 from pathlib import Path
 
 from simpro_mj.core.errors import UserInputError
-from simpro_mj.report.folders import locked, out_path, short
+from simpro_mj.core.safe_files import short
+from simpro_mj.report.folders import locked, out_path
 from simpro_mj.report.marker import foreign, hidden, record, result_kind, umask
 
 __all__ = ["check_file", "record_file", "write_file"]
