@@ -36,3 +36,22 @@ def test_washout_surge_at_low_frequency_is_tilt_coordination_at_its_gain():
 def test_an_unknown_law_is_named_with_the_valid_ones():
     with pytest.raises(UserInputError, match="--laws: 'nope'; allowed: \\['classical_washout'"):
         law_blocks(["nope"])
+
+
+def test_a_law_block_alone_is_judged_against_its_bound():
+    """The chain's metrics of a law block with no scenario around it (the OMCT's, the
+    recordings' judge) carry the cue bound with the law's box: on a 2 m/s^2 braking
+    step the best motion in that box gives the head more of the car's surge than the
+    washout does, so the washout's share of it lies in (0, 1]."""
+    import numpy as np
+
+    from simpro_mj.analysis.omct import model_chain_metrics
+
+    block = law_blocks(["classical_washout"])["classical_washout"]
+    t = np.arange(0.0, 3.0, 0.01)
+    f, w = np.zeros((t.size, 3)), np.zeros((t.size, 3))
+    f[:, 2], f[t > 1.0, 0] = 9.80665, -2.0
+    m = model_chain_metrics(block, t, f, w, bound=True)
+    law, best = m["channels"]["longitudinal_f"], m["bound"]["channels"]["longitudinal_f"]
+    assert 0.0 < law["gain"] < best["gain"]
+    assert 0.0 < law["gain_share"] <= 1.0

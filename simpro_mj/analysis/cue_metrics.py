@@ -26,7 +26,7 @@ from simpro_mj.analysis.cue_signals import (
     strength,
 )
 from simpro_mj.config.cueing import CUE_COLUMNS, vehicle_input
-from simpro_mj.config.models import Scenario, as_scenario
+from simpro_mj.config.models import Scenario
 
 __all__ = [
     "CHANNELS",
@@ -221,8 +221,12 @@ def bound_block(col: Mapping, dt: float, scenario: Scenario | Mapping, veh,
     n = col["time_s"].size if "time_s" in col else len(next(iter(col.values())))
     if n * dt > BOUND_MAX_S:
         return {"note": f"not computed: the drive is longer than {BOUND_MAX_S:g} s", "channels": {}}
-    cue = as_scenario(scenario).setpoint.cueing
-    params = washout_params(cue) if cue is not None else None
+    if isinstance(scenario, Scenario):  # a typed cueing block always names its algorithm
+        cue = scenario.setpoint.cueing
+        params = washout_params(cue) if cue is not None else None
+    else:  # a resolved dict, or a bare law block (the OMCT's and the recordings' chain)
+        block = (scenario.get("setpoint") or {}).get("cueing") or {}
+        params = washout_params(block) if block.get("algorithm") else None
     if not isinstance(params, MpcParams):
         box: dict[str, Any] = {} if params is None else {
             "heave_fraction": params.heave_fraction, "stroke_margin": params.stroke_margin
