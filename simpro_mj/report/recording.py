@@ -232,14 +232,8 @@ def nearest_rows(time_s: np.ndarray, t: np.ndarray) -> np.ndarray:
 
 def ghost_poses(columns: dict, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Mocap position and quaternion (w, x, y, z) of the set-point pose at ``rows``."""
-    pose = np.stack(
-        [
-            columns["roll_ref_rad"][rows],
-            columns["pitch_ref_rad"][rows],
-            columns["heave_ref_m"][rows],
-        ],
-        axis=-1,
-    )
+    names = ("roll_ref_rad", "pitch_ref_rad", "heave_ref_m")
+    pose = np.stack([columns[c][rows] for c in names], axis=-1)
     pos, _ = platform_position(pose)
     # R = Ry(pitch) Rx(roll) (eq. 8) as a quaternion: q = q_y(pitch) * q_x(roll)
     cr, sr = np.cos(pose[:, 0] / 2), np.sin(pose[:, 0] / 2)

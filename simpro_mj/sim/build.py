@@ -22,7 +22,6 @@ interface, the frequency and chain responses and the replay all start here.
 
 from __future__ import annotations
 
-import sys
 from collections.abc import Callable, Mapping
 from typing import TYPE_CHECKING, Literal, cast
 
@@ -30,6 +29,7 @@ import numpy as np
 
 from simpro_mj.config.models import Scenario, as_scenario
 from simpro_mj.config.reference import reference
+from simpro_mj.core.cache import notice
 from simpro_mj.core.interrupts import held_signals
 from simpro_mj.plant.model_params import MAX_MODEL_PAYLOAD_KG
 
@@ -38,10 +38,6 @@ if TYPE_CHECKING:  # the loop loads MuJoCo: when a build is made, not on import
     from simpro_mj.sim.result import SimResult
 
 __all__ = ["Build", "simulate"]
-
-
-def _say(message: str) -> None:
-    print(message, file=sys.stderr, flush=True)
 
 
 class Build:
@@ -78,7 +74,7 @@ class Build:
         *,
         model=None,
         setpoints: Literal["scenario", "external"] = "scenario",
-        say: Callable[[str], None] = _say,
+        say: Callable[[str], None] = notice,
     ):
         # the run's simulation modules (MuJoCo's bindings among them): loaded when a
         # scenario is built, not when a command that refuses bad input within a second
