@@ -51,6 +51,7 @@ from simpro_mj.config.scenario import (
 from simpro_mj.core import cache, notices
 from simpro_mj.core.shipped import model_digest
 from simpro_mj.identification import identify as identify_module
+from simpro_mj.identification.settings import Settings
 
 __all__ = [
     "IDENTIFY_CHOICES",
@@ -85,15 +86,16 @@ def plant_tree(scenario: Scenario | Mapping) -> dict:
     cycle, docs/paper-notes.md), the scenario's ``plant`` and ``actuator.pneumatics``
     values."""
     sc = as_scenario(scenario)
-    tree = _preset_tree(sc.plant.preset)
-    tree["model"] = _merge(tree["model"], sc.plant.model_dump(exclude={"preset"}))
-    tree["pneumatics"] = _merge(tree["pneumatics"], sc.actuator.pneumatics.model_dump())
-    tree["paper_units"] = sc.paper_units
-    # the plant as the joint loops drive it: with their valve dither (controllers.dither)
     inner = sc.controller.inner
-    tree["identify"]["dither_v"] = float(inner.dither_v)
-    tree["identify"]["dither_period_ms"] = float(inner.dither_period_ms)
-    return tree
+    own = {
+        "model": sc.plant.model_dump(exclude={"preset"}),
+        "pneumatics": sc.actuator.pneumatics.model_dump(),
+        "paper_units": sc.paper_units,
+        # the plant as the joint loops drive it: with their valve dither (controllers.dither)
+        "identify": {"dither_v": float(inner.dither_v),
+                     "dither_period_ms": float(inner.dither_period_ms)},
+    }  # fmt: skip
+    return _merge(_preset_tree(sc.plant.preset), own)
 
 
 @lru_cache(maxsize=1)
@@ -261,9 +263,9 @@ def experiment_s(scenario: Scenario | Mapping) -> float:
     h = plant_hash(tree)
     if h in _memo or (cache_dir() / f"{h}.json").is_file():
         return 0.0
-    ip = tree["identify"]
-    records = 1.0 if ip.get("excitation") == "all_legs" else 3.0  # one run, or one a leg
-    return records * (float(ip["settle_s"]) + float(ip["duration_s"]))
+    ip = Settings.of(tree)
+    records = 1.0 if ip.excitation == "all_legs" else 3.0  # one run, or one a leg
+    return records * (float(ip.settle_s) + float(ip.duration_s))
 
 
 def with_identified(scenario: Scenario | Mapping, progress=None) -> tuple[Scenario | Mapping, str]:

@@ -155,9 +155,9 @@ class ExperimentModel:
 
 def build(tree: dict, model=None) -> ExperimentModel:
     """The operating point of ``tree``'s experiment and its mechanics (module docstring)."""
-    check_tree(tree)
-    ip = Settings.of(tree)
-    m = model if model is not None else load_model(tree["model"])
+    ex = check_tree(tree)
+    ip = ex.settings
+    m = model if model is not None else load_model(ex.model)
     d = mujoco.MjData(m)
     idx = PlantIndex.of(m)
     dt = float(m.opt.timestep)
@@ -177,9 +177,9 @@ def build(tree: dict, model=None) -> ExperimentModel:
     damping = slide_damping_matrix(m, d, idx)
     act = make_actuators(
         ip.actuator_kind,
-        tree["pneumatics"],
+        ex.pneumatics,
         model=m,
-        linear_plants=paper_coefficients(tree["paper_units"]),
+        linear_plants=paper_coefficients(ex.paper_units),
     )
     if not isinstance(act, NonlinearActuators):
         raise UserInputError(
