@@ -75,7 +75,6 @@ from simpro_mj.plant.pneumatics.params import ACTUATOR_KINDS
 from simpro_mj.plant.pneumatics.statics import holding_forces
 
 __all__ = [
-    "PAPER",
     "DEFAULT_IDENTIFY_PARAMS",
     "default_tree",
     "check_tree",
@@ -90,14 +89,6 @@ __all__ = [
     "simulate_velocity",
     "identify",
 ]
-
-#: The paper's identified models, eq. (34) (actuator 1) and eq. (35) (2 and 3;
-#: the printed "s^2 + 7.276 + 1349" misses an s).
-PAPER = {
-    "actuator1": {"b": 245.94, "a1": 27.72, "a0": 253.0},
-    "actuator2": {"b": 2008.3, "a1": 7.276, "a0": 1349.0},
-    "actuator3": {"b": 2008.3, "a1": 7.276, "a0": 1349.0},
-}
 
 
 @dataclass(frozen=True)
