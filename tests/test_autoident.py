@@ -226,32 +226,15 @@ def test_metrics_name_the_models_the_loops_were_placed_on(cache, fake_identify):
     assert paper.metrics["design_plants"] == want
 
 
-def test_a_shipped_presets_tree_is_read_once_and_follows_its_file(tmp_path, monkeypatch):
-    """A batch asks every variant's expected cost, each asking its preset: a shipped
-    preset is read once per process while its file stays the same (the tree equal to
-    one read now), and again when the file changes."""
-    import shutil
+def test_a_plants_tree_follows_the_identify_defaults_as_they_are_now(monkeypatch):
+    """The tree a run's plant is identified from is merged when asked, not kept for the
+    process: a tree kept from a first call would carry the defaults of that moment (a
+    4 s record patched in by a test) into every later identification in the process."""
+    import simpro_mj.identification.identify as ident
 
-    from simpro_mj.config import presets
-    from simpro_mj.identification import identify as identify_module
-
-    folder = tmp_path / "presets"
-    shutil.copytree(presets.presets_dir(), folder)
-    monkeypatch.setattr(presets, "presets_dir", lambda: folder)
-    monkeypatch.setattr(ai, "presets_dir", lambda: folder)
-    reads = []
-    real = identify_module.default_tree
-    monkeypatch.setattr(identify_module, "default_tree", lambda p=None: reads.append(p) or real(p))
     sc = load_scenario("step_pitch", [IDENT, "plant.payload.mass_kg=80"])
-    first = ai.plant_tree(sc)
-    assert ai.plant_tree(sc) == first and len(reads) <= 1
-    monkeypatch.setattr(ai, "_stamp", lambda preset: None)  # read now, every time
-    assert ai.plant_tree(sc) == first
-    monkeypatch.undo()
-    monkeypatch.setattr(presets, "presets_dir", lambda: folder)
-    monkeypatch.setattr(ai, "presets_dir", lambda: folder)
-    monkeypatch.setattr(identify_module, "default_tree", lambda p=None: reads.append(p) or real(p))
-    n = len(reads)
-    with open(folder / "paper.yaml", "a") as f:
-        f.write("\n# the file changed\n")
-    assert ai.plant_tree(sc) == first and len(reads) == n + 1
+    assert ai.plant_tree(sc)["identify"]["duration_s"] == 20.0
+    with monkeypatch.context() as m:
+        m.setitem(ident.DEFAULT_IDENTIFY_PARAMS, "duration_s", 4.0)
+        assert ai.plant_tree(sc)["identify"]["duration_s"] == 4.0
+    assert ai.plant_tree(sc)["identify"]["duration_s"] == 20.0

@@ -42,7 +42,7 @@ import mujoco
 import numpy as np
 
 from simpro_mj.config.models import Identified, Scenario, as_scenario
-from simpro_mj.config.presets import presets_dir, scenario_overlay
+from simpro_mj.config.presets import scenario_overlay
 from simpro_mj.config.scenario import (
     DEFAULT_SCENARIO,
     IDENTIFY_CHOICES,  # values of controller.inner.identify
@@ -95,7 +95,7 @@ def plant_tree(scenario: Scenario | Mapping) -> dict:
         "identify": {"dither_v": float(inner.dither_v),
                      "dither_period_ms": float(inner.dither_period_ms)},
     }  # fmt: skip
-    return _merge(_preset_tree(sc.plant.preset), own)
+    return _merge(identify_module.default_tree(sc.plant.preset), own)
 
 
 @lru_cache(maxsize=1)
@@ -139,8 +139,7 @@ def _is_presets_plant(sc: Scenario) -> bool:
     plant key of the scenario's own (the shipped as-built errors included): the
     preset's models stand for it."""
     own = _plant_text(sc.plant.model_dump(), sc.actuator.pneumatics.model_dump())
-    stamp = _stamp(sc.plant.preset)
-    return own == (_presets_plant_text(stamp) if stamp else _preset_plant(sc.plant.preset))
+    return own == _preset_plant(sc.plant.preset)
 
 
 def _plant_text(plant, pneumatics) -> str:
@@ -149,43 +148,11 @@ def _plant_text(plant, pneumatics) -> str:
 
 def _preset_plant(preset: str) -> str:
     """The plant and pneumatics a scenario with no plant key of its own gets from
-    ``preset``, as text."""
+    ``preset``, as text. Read every time: a tree kept for the process would keep the
+    defaults it was merged with (a test's patch, say) after they change."""
     base = _merge(DEFAULT_SCENARIO, scenario_overlay(preset))
     base["plant"]["preset"] = preset
     return _plant_text(base["plant"], base["actuator"].get("pneumatics"))
-
-
-def _stamp(preset: str) -> tuple | None:
-    """A key that changes with a shipped preset's file (its name, time and size): what
-    the preset gives is then read once per process (a batch asks it of every variant,
-    each read a YAML parse and two deep merges); ``None`` for a preset given by path
-    (read each time)."""
-    if str(preset).endswith((".yaml", ".yml")):
-        return None
-    try:
-        st = (presets_dir() / f"{preset}.yaml").stat()
-    except OSError:
-        return None
-    return (str(preset), st.st_mtime_ns, st.st_size)
-
-
-@lru_cache(maxsize=8)
-def _presets_plant_text(stamp: tuple) -> str:
-    return _preset_plant(stamp[0])
-
-
-@lru_cache(maxsize=8)
-def _preset_identify_tree(stamp: tuple) -> dict:
-    return identify_module.default_tree(stamp[0])
-
-
-def _preset_tree(preset: str) -> dict:
-    """:func:`simpro_mj.identification.settings.default_tree` of ``preset``: a copy of
-    the one read for a shipped preset's file as it is now (:func:`_stamp`)."""
-    stamp = _stamp(preset)
-    if stamp is None:
-        return identify_module.default_tree(preset)
-    return copy.deepcopy(_preset_identify_tree(stamp))
 
 
 def _models(doc) -> dict:
