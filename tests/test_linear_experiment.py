@@ -9,6 +9,7 @@ import pytest
 
 from simpro_mj.config.scenario import load_scenario
 from simpro_mj.identification import linear_experiment as le
+from simpro_mj.identification.linear_pneumatics import equivalent_viscous
 from simpro_mj.identification.settings import default_tree
 
 
@@ -29,13 +30,13 @@ def test_the_coulomb_describing_function_is_booton_s_closed_form():
     tends to the same with a small smoothing speed."""
     s = 0.004
     coulomb = (150.0, (150.0, 150.0, 0.01, 0.0, 0.0))
-    assert le.equivalent_viscous(coulomb, s) == pytest.approx(150.0 * math.sqrt(2 / math.pi) / s)
+    assert equivalent_viscous(coulomb, s) == pytest.approx(150.0 * math.sqrt(2 / math.pi) / s)
     stick = (250.0, (250.0, 150.0, 0.01, 300.0, 0.0))
     k = math.sqrt(2 / math.pi) / s
     want = 150.0 * k + 100.0 * k * 0.01**2 / (0.01**2 + 2 * s**2)
-    assert le.equivalent_viscous(stick, s) == pytest.approx(want)
+    assert equivalent_viscous(stick, s) == pytest.approx(want)
     regularised = (0.0, (250.0, 150.0, 0.01, 300.0, 1e-6))  # quadrature of seal_friction
-    assert le.equivalent_viscous(regularised, s) == pytest.approx(want, rel=2e-3)
+    assert equivalent_viscous(regularised, s) == pytest.approx(want, rel=2e-3)
 
 
 def test_the_modal_simulation_is_the_step_by_step_one(paper):
