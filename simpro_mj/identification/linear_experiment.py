@@ -77,6 +77,7 @@ from simpro_mj.plant.pneumatics.factory import make_actuators
 from simpro_mj.plant.pneumatics.nonlinear import NonlinearActuators
 from simpro_mj.plant.pneumatics.statics import (
     holding_forces,
+    holding_stiffness,
     slide_damping_matrix,
     slide_mass_matrix,
 )
@@ -148,15 +149,7 @@ def build(tree: dict, model=None) -> ExperimentModel:
     idx = PlantIndex.of(m)
     dt = float(m.opt.timestep)
     q0 = np.full(3, float(ip.position_mm) * 1e-3)
-    stiffness = np.empty((3, 3))
-    for j in range(3):
-        fs = []
-        for sign in (1.0, -1.0):
-            q = q0.copy()
-            q[j] += sign * 1e-4
-            assemble(m, d, q, index=idx)
-            fs.append(holding_forces(m, d, idx))
-        stiffness[:, j] = (fs[0] - fs[1]) / 2e-4
+    stiffness = holding_stiffness(m, d, q0, 1e-4, idx)
     assemble(m, d, q0, index=idx)
     f_hold = holding_forces(m, d, idx)
     mass = slide_mass_matrix(m, d, idx)

@@ -25,7 +25,7 @@ from simpro_mj.plant.pneumatics.linear import LinearActuators
 from simpro_mj.plant.pneumatics.nonlinear import NonlinearActuators
 from simpro_mj.plant.pneumatics.params import ACTUATOR_KINDS, PneumaticParams, fill_linear
 from simpro_mj.plant.pneumatics.statics import (
-    holding_forces,
+    holding_stiffness,
     slide_damping_matrix,
     slide_mass_matrix,
 )
@@ -80,11 +80,5 @@ def make_actuators(kind: str, params_tree=None, *, model=None, linear_plants=Non
     q0 = np.full(3, 0.5 * P.stroke)
     assemble(m, d, q0)
     mq, dq = slide_mass_matrix(m, d), slide_damping_matrix(m, d)
-    kq, h = np.zeros((3, 3)), 1e-3
-    for j in range(3):  # K_q = dF_h/dq by central differences
-        fp = []
-        for sgn in (1.0, -1.0):
-            assemble(m, d, q0 + sgn * h * np.eye(3)[j])
-            fp.append(holding_forces(m, d))
-        kq[:, j] = (fp[0] - fp[1]) / (2 * h)
+    kq = holding_stiffness(m, d, q0, 1e-3)
     return LinearActuators(P, mass_matrix=mq, damping_matrix=dq, stiffness_matrix=kq)

@@ -3,7 +3,8 @@
 With N (nv, 3) the joint velocities produced by unit slide velocities while
 the loops stay closed (``J_c N = 0``, ``S N = I``), the multibody reduces to
 the slides as :math:`M_q = N^T M N` (mass), :math:`D_q = N^T D N` (joint
-damping) and :math:`F_h = N^T τ_{bias}` (the forces that hold it at rest).
+damping), :math:`F_h = N^T τ_{bias}` (the forces that hold it at rest) and
+:math:`K_q = ∂F_h/∂q` (its gravity stiffness).
 The linear actuators of eq. (19) need all three; the co-simulation,
 identification and the payload statics start from :func:`holding_forces`.
 """
@@ -13,9 +14,9 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from simpro_mj.plant.model import PlantIndex, loop_closure_jacobian
+from simpro_mj.plant.model import PlantIndex, assemble, loop_closure_jacobian
 
-__all__ = ["slide_mass_matrix", "slide_damping_matrix", "holding_forces"]
+__all__ = ["slide_mass_matrix", "slide_damping_matrix", "holding_forces", "holding_stiffness"]
 
 
 def slide_mass_matrix(model, data, index=None) -> np.ndarray:
@@ -66,3 +67,23 @@ def holding_forces(model, data, index=None) -> np.ndarray:
     data.qvel[:] = saved
     mujoco.mj_forward(model, data)
     return out
+
+
+def holding_stiffness(model, data, q0, h: float, index=None) -> np.ndarray:
+    """The gravity stiffness :math:`K_q = ∂F_h/∂q` (3, 3), N/m, about slides ``q0``.
+
+    Central differences of :func:`holding_forces` with slide j at ``q0[j] ± h``
+    (the chain assembled at each, :func:`simpro_mj.plant.model.assemble`, from
+    where ``data`` stands); ``data`` is left at the last probe.
+    """
+    idx = index or PlantIndex.of(model)
+    k = np.empty((3, 3))
+    for j in range(3):
+        f = []
+        for sign in (1.0, -1.0):
+            q = np.array(q0, dtype=float)
+            q[j] += sign * h
+            assemble(model, data, q, index=idx)
+            f.append(holding_forces(model, data, idx))
+        k[:, j] = (f[0] - f[1]) / (2 * h)
+    return k
