@@ -1,13 +1,17 @@
-"""The experiment's linear model against the identification's own seed spread.
+"""The experiment's linear or reduced model against the identification's own seed spread.
 
     python benchmarks/linear_experiment_spread.py [--cabins paper heavy c450 c75 sweep8]
-        [--seeds 1 2 3] [--responses]
+        [--seeds 1 2 3] [--responses] [--model linear|reduced]
 
 For each cabin, the Fig. 12 experiment a run of ``step_pitch`` identifies for its own
 plant (:func:`simpro_mj.identification.auto.plant_tree`) is run at each ``--seed`` of
 the sequence, and the same experiment's linear model
 (:func:`simpro_mj.identification.linear_experiment.identify_linear`, the first seed's
-sequence) is fitted by the same fit. Cabins (:data:`CABINS`): ``paper`` (the preset),
+sequence) is fitted by the same fit; with ``--model reduced`` the experiment stepped on
+the reduced chain with the step's own pneumatics and MuJoCo's friction rows
+(:func:`simpro_mj.identification.reduced_experiment.identify_reduced`) at each seed,
+and per leg and seed the records' share of steps at rest (|v| < 0.1 mm/s), RMS speed
+and RMS voltage deviation beside the experiment's. Cabins (:data:`CABINS`): ``paper`` (the preset),
 ``heavy`` (``heavy_cabin``), ``c450`` and ``c75`` (``heavy_cabin`` with 450/750 N and
 75/250 N of Coulomb/breakaway friction on every leg's seals) and ``sweep8`` (the first
 eight cabins of ``sweep_robustness.yaml``, each its own plant). With ``--responses``,
@@ -100,38 +104,85 @@ def _responses(sc, sets, models: dict, folder: Path) -> dict:
     return out
 
 
-def measure(cabins, seeds=(1, 2, 3), responses: bool = False) -> dict:
-    """Identify, linearise and (optionally) run the responses (module docstring)."""
+def _record(u, v) -> list:
+    """A leg's record: share of steps at rest, RMS speed (mm/s), RMS voltage swing (V)."""
+    import numpy as np
+
+    rest = float(np.mean(np.abs(v) < 1e-4))
+    return [rest, float(1e3 * np.sqrt(np.mean(v**2))), float(np.std(u))]
+
+
+def _model(kind: str, tree: dict, seeds, stats: dict) -> tuple[dict, float]:
+    """The model's fits (the first seed's; ``reduced``: per seed, its spread in ``stats``)
+    and its CPU seconds (the first seed's)."""
+    if kind == "linear":
+        from simpro_mj.identification.linear_experiment import identify_linear
+
+        t = copy.deepcopy(tree)
+        t["identify"]["seed"] = seeds[0]
+        c0 = time.process_time()
+        return identify_linear(t), time.process_time() - c0
+    from simpro_mj.identification.reduced_experiment import identify_reduced
+
+    first, cpu = None, 0.0
+    for seed in seeds:
+        t = copy.deepcopy(tree)
+        t["identify"]["seed"] = seed
+        recs: dict = {}
+        c0 = time.process_time()
+        got = identify_reduced(t, records=recs)
+        if first is None:
+            first, cpu = got, time.process_time() - c0
+        for a, rec in recs.items():
+            j = int(a[-1]) - 1
+            row = stats.setdefault(a, {})
+            row.setdefault("model_record", []).append(_record(rec.u[:, j], rec.qdot[:, j]))
+            seeds_of = row.setdefault("model_seeds", {})
+            for k in KEYS:
+                seeds_of.setdefault(k, []).append(float(getattr(got[a], k)))
+    return first, cpu
+
+
+def measure(cabins, seeds=(1, 2, 3), responses: bool = False, kind: str = "linear") -> dict:
+    """Identify, model and (optionally) run the responses (module docstring)."""
     from simpro_mj.identification.auto import plant_tree
     from simpro_mj.identification.identify import identify
-    from simpro_mj.identification.linear_experiment import identify_linear
 
-    out: dict = {"seeds": list(seeds), "cabins": {}}
+    out: dict = {"seeds": list(seeds), "model": kind, "cabins": {}}
     with tempfile.TemporaryDirectory(prefix="simpro-linear-") as tmp:
         for cabin in cabins:
             for name, sc, sets in _scenarios(cabin):
                 tree0 = plant_tree(sc)
-                fits, cpu = {}, []
+                fits, cpu, stats = {}, [], {}
                 for seed in seeds:
                     tree = copy.deepcopy(tree0)
                     tree["identify"]["seed"] = seed
+                    recs: dict = {}
                     c0 = time.process_time()
-                    got = identify(tree)
+                    got = identify(tree, records=recs)
                     cpu.append(time.process_time() - c0)
                     fits[seed] = {a: {k: float(getattr(got[a], k)) for k in KEYS} for a in got}
-                tree = copy.deepcopy(tree0)
-                tree["identify"]["seed"] = seeds[0]
-                c0 = time.process_time()
-                lin = identify_linear(tree)
-                lin_cpu = time.process_time() - c0
-                row: dict = {"identify_cpu_s": cpu, "linear_cpu_s": lin_cpu, "legs": {}}
+                    for a, rec in recs.items():
+                        stats.setdefault(a, {}).setdefault("record", []).append(
+                            _record(rec.u, rec.qdot)
+                        )
+                lin, lin_cpu = _model(kind, tree0, seeds, stats)
+                row: dict = {"identify_cpu_s": cpu, f"{kind}_cpu_s": lin_cpu, "legs": {}}
                 for a in lin:
                     leg = row["legs"][a] = {}
                     for k in KEYS:
                         vals = [fits[s][a][k] for s in seeds]
                         lo, hi = min(vals), max(vals)
                         v = float(getattr(lin[a], k))
-                        leg[k] = {"seeds": [lo, hi], "linear": v, "outside": _outside(v, lo, hi)}
+                        leg[k] = {"seeds": [lo, hi], kind: v, "outside": _outside(v, lo, hi)}
+                        if kind == "reduced":
+                            mine = stats[a]["model_seeds"][k]
+                            leg[k]["reduced_seeds"] = [min(mine), max(mine)]
+                    if a in stats:
+                        leg["record_rest_rms_mm_s_rms_v"] = {
+                            "experiment": stats[a].get("record"),
+                            kind: stats[a].get("model_record"),
+                        }
                 if responses:
                     res: dict = {}
                     for seed in seeds:
@@ -140,7 +191,15 @@ def measure(cabins, seeds=(1, 2, 3), responses: bool = False) -> dict:
                             sc, sets, models, Path(tmp) / name / f"seed{seed}"
                         )
                     models = {a: {k: float(getattr(lin[a], k)) for k in KEYS[:3]} for a in lin}
-                    res["linear"] = _responses(sc, sets, models, Path(tmp) / name / "linear")
+                    res[kind] = _responses(sc, sets, models, Path(tmp) / name / kind)
+                    if kind == "reduced":  # the reduced model's other seeds
+                        for i, seed in enumerate(seeds[1:], 1):
+                            models = {
+                                a: {k: stats[a]["model_seeds"][k][i] for k in KEYS[:3]} for a in lin
+                            }
+                            res[f"reduced_seed{seed}"] = _responses(
+                                sc, sets, models, Path(tmp) / name / f"reduced{seed}"
+                            )
                     row["responses"] = res
                 out["cabins"][name] = row
                 print(json.dumps({name: row}), file=sys.stderr, flush=True)
@@ -153,11 +212,12 @@ def main(argv=None) -> int:
     p.add_argument("--cabins", nargs="+", default=allowed, choices=allowed)
     p.add_argument("--seeds", type=int, nargs="+", default=[1, 2, 3])
     p.add_argument("--responses", action="store_true")
+    p.add_argument("--model", choices=["linear", "reduced"], default="linear")
     a = p.parse_args(argv)
     if len(a.seeds) < 2 or any(not 0 <= s < 2**31 for s in a.seeds):
         print("error: invalid value at --seeds: allowed: two or more of 0..2^31-1", file=sys.stderr)
         return 2
-    print(json.dumps(measure(a.cabins, tuple(a.seeds), a.responses), indent=2))
+    print(json.dumps(measure(a.cabins, tuple(a.seeds), a.responses, a.model), indent=2))
     return 0
 
 

@@ -241,6 +241,10 @@ UPWARD = {
     # the Fig. 12 experiment runs on the run's own step (one source, one numba
     # compilation and cache for both), imported when it runs
     ("simpro_mj.identification.identify", "simpro_mj.sim.experiment"),
+    # the reduced experiment binds the step's own compiled pneumatics and law (one
+    # source) into its stepper, and keeps its numba cache as the step does
+    ("simpro_mj.identification.reduced_experiment", "simpro_mj.sim.step"),
+    ("simpro_mj.identification.reduced_experiment", "simpro_mj.sim.numba_cache"),
 }
 
 
