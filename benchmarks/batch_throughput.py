@@ -1,12 +1,16 @@
 """A batch's throughput: variants per minute and the ratio to the step's own cost.
 
     python benchmarks/batch_throughput.py [--samples 20] [--jobs 2] [--keep-cache] [--threads]
+        [--identify auto|reduced]
 
 Runs a Monte Carlo of ``--samples`` new cabins (``scenarios/sweep_robustness.yaml``
 with its sample count replaced: every variant a plant not seen before) as
 ``simpro-sim batch --jobs J --no-plots`` runs it (:func:`simpro_mj.batch.runner.run_batch`,
 worker processes; ``--threads``: threads, as ``simpro-sim batch --threads``), with
-an empty identification cache unless ``--keep-cache``, and prints one JSON document:
+an empty identification cache unless ``--keep-cache``, and prints one JSON document.
+Each cabin's joint loops are placed on its own models: ``--identify auto`` (the
+default, the Fig. 12 experiment in MuJoCo) or ``reduced`` (the same experiment on
+the reduced chain, :mod:`simpro_mj.identification.reduced_experiment`).
 
 Before the clock starts one cabin of another draw runs in this process, so that
 numba's cache holds the compiled step (a change of the step's sources costs a
@@ -42,7 +46,11 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def measure(
-    samples: int = 20, jobs: int = 2, keep_cache: bool = False, processes: bool = True
+    samples: int = 20,
+    jobs: int = 2,
+    keep_cache: bool = False,
+    processes: bool = True,
+    identify: str = "auto",
 ) -> dict:
     """Run the batch and return the figures of the module docstring."""
     with tempfile.TemporaryDirectory(prefix="simpro-throughput-") as tmp:
@@ -53,8 +61,8 @@ def measure(
         text = text.replace("samples: 200", f"samples: {samples}")
         # every draw a new cabin whose loops are placed on its own identification (the
         # shipped sweep runs the cabin's one controller on every draw)
-        text = text.replace("inner: {identify: preset}", "inner: {identify: auto}")
-        assert "identify: auto" in text, "sweep_robustness.yaml no longer names identify"
+        text = text.replace("inner: {identify: preset}", f"inner: {{identify: {identify}}}")
+        assert f"identify: {identify}" in text, "sweep_robustness.yaml no longer names identify"
         (tmp / "throughput.yaml").write_text(text)
         from simpro_mj.batch.runner import run_batch
 
@@ -82,6 +90,7 @@ def measure(
     return {
         "samples": samples,
         "jobs": jobs,
+        "identify": identify,
         "processes": processes,
         "finished": len(rows),
         "counts": {k: v for k, v in report.counts.items() if v},
@@ -101,11 +110,12 @@ def main(argv=None) -> int:
     p.add_argument("--jobs", type=int, default=2)
     p.add_argument("--keep-cache", action="store_true")
     p.add_argument("--threads", action="store_true", help="threads instead of worker processes")
+    p.add_argument("--identify", choices=["auto", "reduced"], default="auto")
     a = p.parse_args(argv)
     if not (1 <= a.samples <= 1000 and 1 <= a.jobs <= 64):
         print("error: invalid value at --samples/--jobs: allowed 1..1000 / 1..64", file=sys.stderr)
         return 2
-    print(json.dumps(measure(a.samples, a.jobs, a.keep_cache, not a.threads), indent=2))
+    print(json.dumps(measure(a.samples, a.jobs, a.keep_cache, not a.threads, a.identify), indent=2))
     return 0
 
 

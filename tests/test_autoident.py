@@ -238,3 +238,24 @@ def test_a_plants_tree_follows_the_identify_defaults_as_they_are_now(monkeypatch
         m.setitem(ident.DEFAULT_IDENTIFY_PARAMS, "duration_s", 4.0)
         assert ai.plant_tree(sc)["identify"]["duration_s"] == 4.0
     assert ai.plant_tree(sc)["identify"]["duration_s"] == 20.0
+
+
+def test_the_reduced_experiment_identifies_a_changed_plant_and_caches_apart(cache, fake_identify):
+    """identify: reduced runs the experiment on the reduced chain (no MuJoCo record:
+    the experiment's function is not called), caches its models apart from the
+    experiment's (another file for the same plant), and reads them back; on the heavy
+    cabin at 231.5 kg its leg 1 is the sticking leg the experiment fits (a0 of tens
+    of 1/s^2, not the hundreds of the held pair)."""
+    sets = ["plant.preset=heavy_cabin", "plant.payload.mass_kg=231.5", IDENT]
+    sc = load_scenario("step_pitch", [*sets, "controller.inner.identify=reduced"])
+    assert ai.experiment_s(sc) == 0.0  # no MuJoCo experiment to schedule
+    models, source = ai.identified_models(sc)
+    assert source == "reduced" and fake_identify == []
+    assert 5.0 < models["actuator1"]["a0"] < 100.0 < models["actuator2"]["a0"]
+    (f,) = cache.glob("*.json")
+    assert json.loads(f.read_text()) == models
+    ai._memo.clear()
+    assert ai.identified_models(sc) == (models, "reduced")
+    auto = load_scenario("step_pitch", sets)
+    assert ai.identified_models(auto)[1] == "identified" and len(fake_identify) == 1
+    assert len(list(cache.glob("*.json"))) == 2

@@ -60,8 +60,9 @@ def test_on_the_heavy_cabin_the_stick_slip_is_mujocos():
     the experiment is a stick-slip: no sample-by-sample agreement, but the statistics
     the fit sees. Over a 6 s record of leg 1 MuJoCo's leg is at rest 75-90 % of the
     time (81 %; 63 % over 20 s); the reduced chain's share of rest lies within 0.05 of
-    it (82 %) and its RMS speed within 25 % (1.81 against 1.70 mm/s). A Gaussian describing function of the same seals
-    rests 3.5 % of the time (docs/paper-notes.md)."""
+    it (82 %) and its RMS speed within 25 % (1.81 against 1.70 mm/s). A Gaussian
+    describing function of the same seals rests 3.5 % of the time
+    (docs/paper-notes.md)."""
     tree = _tree(["plant.preset=heavy_cabin"], 6.0)
     rec = rx.run_reduced(rx.reduced_model(tree), (1,))
     ref = run_experiment(tree, 1)

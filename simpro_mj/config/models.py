@@ -220,7 +220,9 @@ class Inner(Block):
         "with design_plant identified: auto identifies the scenario's own plant when it is "
         "not its preset's (cached); preset takes the identified models as given; linearised "
         "fits the experiment's linear model instead of its record (seals that stick "
-        "refused; simpro_mj.identification.linearised)",
+        "refused; simpro_mj.identification.linearised); reduced runs the experiment on "
+        "the chain reduced to the slides with the step's own pneumatics and seals "
+        "(simpro_mj.identification.reduced_experiment, cached)",
     )
     identified: Identified = block(Identified)
     zeta: Real = param(0.7, "", "damping of the redesigned pole placement (5.2.2)", gt=0, lt=2)

@@ -52,7 +52,7 @@ OUTER_TYPES: tuple[OuterType, ...] = get_args(OuterType)
 DesignPlant = Literal["auto", "paper", "identified"]
 DESIGN_PLANTS: tuple[DesignPlant, ...] = get_args(DesignPlant)
 # controller.inner.identify (simpro_mj.identification.auto)
-IdentifyChoice = Literal["auto", "preset", "linearised"]
+IdentifyChoice = Literal["auto", "preset", "linearised", "reduced"]
 IDENTIFY_CHOICES: tuple[IdentifyChoice, ...] = get_args(IdentifyChoice)
 DelaySamples = Literal[1, 2]
 DELAY_SAMPLES: tuple[DelaySamples, ...] = get_args(DelaySamples)

@@ -17,6 +17,13 @@ Which models a scenario uses (:func:`identified_models`):
   identified once and cached;
 * ``preset``: the preset's models (or the scenario's ``controller.inner.identified``)
   as given, even for a changed plant.
+* ``reduced``: as ``auto``, the experiment stepped on the chain reduced to the
+  slides at its operating point with the step's own pneumatics and MuJoCo's
+  friction rows (:mod:`simpro_mj.identification.reduced_experiment`: the
+  stick-slip kept, its fits within the experiment's seed spread, about a twentieth
+  of its stepping), cached apart from the experiment's;
+* ``linearised``: the experiment's linear model
+  (:mod:`simpro_mj.identification.linearised`), refused where the seals stick.
 
 The cache is a folder of small JSON files, one per plant hash (the plant's
 parameters, the MJCF's bytes, the sources that identify; a damaged file is said
@@ -174,8 +181,9 @@ def identified_models(scenario: Scenario | Mapping, progress=None) -> tuple[dict
 
     ``source`` is ``"preset"`` (the scenario's ``controller.inner.identified``), ``"linearised"``
     (the model's linearisation, :mod:`simpro_mj.identification.linearised`),
-    ``"cache"`` or ``"identified"`` (the experiment ran now). ``progress``, when
-    given, is called with a one-line message before an experiment.
+    ``"reduced"`` (the reduced experiment, run now or cached), ``"cache"`` or
+    ``"identified"`` (the experiment ran now). ``progress``, when given, is called
+    with a one-line message before an experiment.
     """
     sc = as_scenario(scenario)
     inner = sc.controller.inner
@@ -191,15 +199,25 @@ def identified_models(scenario: Scenario | Mapping, progress=None) -> tuple[dict
         return given, "preset"
     tree = plant_tree(sc)
     h = plant_hash(tree)
+    reduced = inner.identify == "reduced"
+    if reduced:  # another model of the experiment: cached apart
+        h = hashlib.sha256(f"reduced:{h}".encode()).hexdigest()
     # one experiment per plant in this process: a batch's threads that need the same
     # new plant wait for the first instead of running it again
     with _lock_of(h):
         if h in _memo:
-            return copy.deepcopy(_memo[h]), "cache"
+            return copy.deepcopy(_memo[h]), "reduced" if reduced else "cache"
         path = cache_dir() / f"{h}.json"
         models = _read(path)
-        source = "cache"
-        if models is None:
+        source = "reduced" if reduced else "cache"
+        if models is None and reduced:
+            from simpro_mj.identification.reduced_experiment import identify_reduced
+
+            notices.phase("identifying")
+            got = identify_reduced(tree)
+            models = {a: got[a].model() for a in _ACTS}
+            cache.write_json(path, models)
+        elif models is None:
             # in a batch, said once with the number of variants (simpro_mj.core.notices)
             notices.say(
                 f"identifying the scenario's own plant (Fig. 12), cached in {path.parent}",
