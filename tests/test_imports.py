@@ -245,6 +245,9 @@ UPWARD = {
     # source) into its stepper, and keeps its numba cache as the step does
     ("simpro_mj.identification.reduced_experiment", "simpro_mj.sim.step"),
     ("simpro_mj.identification.reduced_experiment", "simpro_mj.sim.numba_cache"),
+    # the sensitivity fit's compiled pass keeps its numba cache beside the step's
+    ("simpro_mj.identification.sensitivity_fit", "simpro_mj.sim.step"),
+    ("simpro_mj.identification.sensitivity_fit", "simpro_mj.sim.numba_cache"),
 }
 
 
