@@ -305,8 +305,8 @@ def identify_reduced(tree: dict, legs=(1, 2, 3), model=None, records: dict | Non
     """Eq. (19) per leg fitted to the reduced experiment's records; ``{"actuator<i>": Fit}``
     as :func:`simpro_mj.identification.identify.identify` returns (its excitation:
     one leg at a time, or ``all_legs``; the default trust region's minimum reached by
-    :func:`~simpro_mj.identification.sensitivity_fit.fit_sensitivity`, within 1.2e-4 of
-    it at a fifth of its CPU). ``records``, when given, receives each leg's
+    :func:`~simpro_mj.identification.sensitivity_fit.fit_sensitivity` at about a
+    quarter of its CPU). ``records``, when given, receives each leg's
     :class:`ReducedRecord` (the whole run's, with the leg's fit)."""
     rm = rm if rm is not None else reduced_model(tree, model)
     ip = rm.em.ip

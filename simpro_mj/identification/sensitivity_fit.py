@@ -13,9 +13,13 @@ Jacobian: the ZOH filter of :func:`~simpro_mj.identification.identify.zoh_veloci
 :math:`∂n/∂θ_j\\, x - ∂d/∂θ_j\\, \\hat v`; the coefficients' derivatives by central
 differences of the filter's closed form), the residual, :math:`J^T J` (4 x 4) and
 :math:`J^T r` accumulated in one compiled pass over the record. An iteration costs
-one pass instead of five simulations and an SVD. It stops when a step lowers the
-cost by less than :data:`FTOL` of it (the trust region's ``ftol`` is 1e-8): the
-minimum is the same one within the flatness of its valley.
+one pass instead of five simulations and an SVD. It stops as the trust region does,
+when a step lowers the cost by less than :data:`FTOL` (1e-8) of it: the same minimum
+within the flatness of its valley. On the reduced experiment's records of ``paper``
+and ``heavy_cabin`` (six legs) b, a1, a0 land within 1.2e-4 of the trust region's;
+on the 450/750 N cabin's legs 2 and 3 (fit 5 %, the flattest valley seen) within
+0.9 %, where the experiment's seeds spread them by 30 %. CPU for those nine legs
+0.43 s against 1.63 s (one loaded machine, the same process).
 """
 
 from __future__ import annotations
@@ -29,8 +33,11 @@ from simpro_mj.identification.identify import Fit, _arx_guess, zoh_velocity_filt
 
 __all__ = ["FTOL", "fit_sensitivity", "normal_equations"]
 
-#: A step that lowers the cost by less than this share of it ends the fit.
-FTOL = 1e-12
+#: A step that lowers the cost by less than this share of it ends the fit (the trust
+#: region's ``ftol``).
+FTOL = 1e-8
+#: The damping's factors after a step that lowers the cost, and after one that does not.
+LAM_DOWN, LAM_UP = 1.0 / 3.0, 4.0
 #: Most iterations.
 MAX_ITER = 200
 #: Relative step of the central differences of the filter's coefficients.
@@ -148,15 +155,15 @@ def fit_sensitivity(u, qdot, dt: float, skip: int = 0) -> Fit:
             try:
                 step = np.linalg.solve(a + lam * damp, -g)
             except np.linalg.LinAlgError:
-                lam *= 10.0
+                lam *= LAM_UP
                 continue
             tn = np.clip(th + step, lo, hi)
             cn = at(tn)
             if math.isfinite(cn) and cn < cost:
-                lam = max(lam / 10.0, 1e-12)
+                lam = max(lam * LAM_DOWN, 1e-12)
                 improved = True
                 break
-            lam *= 10.0
+            lam *= LAM_UP
         if not improved:
             break
         done = cost - cn <= FTOL * cn
