@@ -25,9 +25,9 @@ from simpro_mj.analysis.chain_response import (
 )
 from simpro_mj.analysis.response import SineTask
 from simpro_mj.commands.main import main
+from simpro_mj.config.cue_models import check_cueing
 from simpro_mj.config.cue_params import washout_params
 from simpro_mj.config.cueing import vehicle_input
-from simpro_mj.config.models import check_cueing
 from simpro_mj.config.scenario import load_scenario
 from simpro_mj.core.errors import UserInputError
 

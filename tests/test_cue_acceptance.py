@@ -15,8 +15,8 @@ from controllers.washout import ClassicalWashout
 from simpro_mj.analysis.cue_metrics import cue_floors, summary_columns
 from simpro_mj.analysis.cue_signals import false_rotation, onset_block, onsets
 from simpro_mj.analysis.cue_summary import print_cue_summary
+from simpro_mj.config.cue_models import check_cueing
 from simpro_mj.config.cueing import step_input, vehicle_input
-from simpro_mj.config.models import check_cueing
 from simpro_mj.config.scenario import load_scenario, resolve_scenario
 from simpro_mj.config.telemetry import TelemetryError, read_telemetry
 from simpro_mj.core.errors import UserInputError

@@ -13,8 +13,8 @@ from controllers.frames import GRAVITY
 from controllers.geometry import H0
 from simpro_mj.analysis.cue_metrics import cue_metrics
 from simpro_mj.analysis.cue_signals import mean_lag, shift_correlations
+from simpro_mj.config.cue_models import check_cueing
 from simpro_mj.config.cueing import CUE_COLUMNS, vehicle_input
-from simpro_mj.config.models import check_cueing
 from simpro_mj.config.scenario import load_scenario, resolve_scenario
 from simpro_mj.config.telemetry import (
     TELEMETRY_COLUMNS,

@@ -27,13 +27,13 @@ from controllers.frames import GRAVITY
 from controllers.washout import ClassicalWashout
 from simpro_mj.commands.main import main
 from simpro_mj.config.datagrams import (
-    DatagramError,
     decode,
     decode_csv,
     decode_outsim,
     encode_csv,
     telemetry_datagrams,
 )
+from simpro_mj.config.games.common import DatagramError
 from simpro_mj.config.telemetry import Telemetry, read_telemetry, resample, write_telemetry
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.shipped import TELEMETRY_DIR

@@ -21,11 +21,11 @@ from simpro_mj.config.datagrams import (
     SEND_FORMATS,
     SIZES,
     AutoDecoder,
-    DatagramError,
     make_decoder,
     telemetry_datagrams,
 )
 from simpro_mj.config.games import beamng, codemasters, forza
+from simpro_mj.config.games.common import DatagramError
 from simpro_mj.config.telemetry import read_telemetry, resample
 from simpro_mj.core.shipped import TELEMETRY_DIR
 from simpro_mj.sim.udp import Receiver

@@ -9,7 +9,8 @@ import pytest
 
 from controllers.geometry import H0
 from simpro_mj.analysis.metrics import SETTLING_FLOOR, compute_metrics
-from simpro_mj.config.scenario import load_scenario, reference, scenario_hash
+from simpro_mj.config.reference import reference
+from simpro_mj.config.scenario import load_scenario, scenario_hash
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.report import results as results_mod
 from simpro_mj.report.marker import record

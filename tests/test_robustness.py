@@ -35,8 +35,8 @@ from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from simpro_mj.commands.main import main
+from simpro_mj.config.defaults import DEFAULT_SCENARIO
 from simpro_mj.config.scenario import (
-    DEFAULT_SCENARIO,
     load_scenario,
     resolve_scenario,
     scenarios_dir,

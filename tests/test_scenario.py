@@ -9,11 +9,10 @@ import pytest
 from controllers.errors import WorkspaceError
 from controllers.geometry import H0
 from controllers.kinematics import reachable
+from simpro_mj.config.defaults import DEFAULT_SCENARIO
+from simpro_mj.config.reference import SetpointError, reference
 from simpro_mj.config.scenario import (
-    DEFAULT_SCENARIO,
-    SetpointError,
     load_scenario,
-    reference,
     resolve_scenario,
     scenario_hash,
     scenarios_dir,

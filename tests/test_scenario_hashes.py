@@ -24,12 +24,8 @@ from unittest import mock
 
 import pytest
 
-from simpro_mj.config.scenario import (
-    load_scenario,
-    scenario_hash,
-    scenario_model,
-    shipped_scenarios,
-)
+from simpro_mj.config.models import scenario_model
+from simpro_mj.config.scenario import load_scenario, scenario_hash, shipped_scenarios
 from simpro_mj.config.variants import load_sweep
 
 DATA = Path(__file__).resolve().parent / "data" / "scenario_hashes.json"

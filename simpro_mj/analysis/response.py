@@ -45,7 +45,7 @@ from controllers.frequency import (
 )
 from controllers.geometry import nominal_geometry
 from controllers.kinematics import reachable
-from simpro_mj.config.scenario import MAX_DURATION_S
+from simpro_mj.config.rules import MAX_DURATION_S
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.messages import one_line
 from simpro_mj.sim.executors import Progress, run_tasks

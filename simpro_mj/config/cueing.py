@@ -20,7 +20,7 @@ components::
 ``simpro-sim response --chain`` runs, one channel and frequency at a time.
 
 The block is validated by :class:`simpro_mj.config.models.Cueing` (with the
-rest of the scenario; :func:`simpro_mj.config.models.check_cueing` for a block
+rest of the scenario; :func:`simpro_mj.config.cue_models.check_cueing` for a block
 alone). A relative ``telemetry`` path is found beside the scenario file, then
 among the shipped files (``scenarios/telemetry/``). The resolved
 scenario spells out every parameter. The vehicle input is resampled to the 1 ms

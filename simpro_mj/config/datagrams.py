@@ -44,7 +44,7 @@ driver's head, ISO 8855 vehicle frame V (x forward, y left, z up), SI.
     sends ``(5, 0, 0)`` and gives the same.
 
 A datagram that is too short, too long or does not decode to finite values
-inside :data:`MAX_SPECIFIC_FORCE` / :data:`MAX_RATE` raises
+inside :data:`~simpro_mj.config.games.common.MAX_SPECIFIC_FORCE` / ``MAX_RATE`` raises
 :class:`DatagramError` (its ``kind`` says which); the receiver counts and
 skips it, never stops for it.
 
@@ -65,7 +65,7 @@ import numpy as np
 
 from controllers.frames import GRAVITY
 from simpro_mj.config.games import beamng, codemasters, forza
-from simpro_mj.config.games.common import MAX_RATE, MAX_SPECIFIC_FORCE, DatagramError
+from simpro_mj.config.games.common import DatagramError
 from simpro_mj.config.games.common import check as _check
 from simpro_mj.config.telemetry import TELEMETRY_COLUMNS, Telemetry, resample
 
@@ -77,9 +77,6 @@ __all__ = [
     "make_decoder",
     "OUTSIM_BYTES",
     "MAX_CSV_BYTES",
-    "MAX_SPECIFIC_FORCE",
-    "MAX_RATE",
-    "DatagramError",
     "car_to_world",
     "world_to_vehicle",
     "vehicle_to_world",

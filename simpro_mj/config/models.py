@@ -36,11 +36,10 @@ from controllers.errors import DesignError
 from controllers.joint import AntiWindup, Method
 from controllers.setpoint_filter import Kind
 from controllers.task_space import Integrator, JointLag, Lag
-from simpro_mj.config.cue_models import Cueing, check_cueing
+from simpro_mj.config.cue_models import Cueing
 from simpro_mj.config.entries import Components, Faults
 from simpro_mj.config.messages import validated
 from simpro_mj.config.plant_blocks import Actuator, PlantBlock, SensorsBlock
-from simpro_mj.config.pneumatics import check_pneumatics
 from simpro_mj.config.presets import DEFAULT_PRESET
 from simpro_mj.config.rules import (
     MAX_DECIMATION,
@@ -68,15 +67,7 @@ from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.keys import value_text
 from simpro_mj.core.rates import whole_steps
 
-__all__ = [
-    "Scenario",
-    "Cueing",
-    "as_scenario",
-    "as_tree",
-    "scenario_model",
-    "check_cueing",
-    "check_pneumatics",
-]
+__all__ = ["Scenario", "as_scenario", "as_tree", "scenario_model"]
 
 #: Largest K K_I times the outer period: ten times the delay-free integrator's limit 2.
 MAX_GAIN_PERIOD = 20.0

@@ -21,11 +21,10 @@ from simpro_mj.config.rig import Rig, rig_value
 from simpro_mj.config.rules import Block, Each, Numbers, Period, Problem, Real, Whole, block, param
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.plant.model_params import DEFAULT_MODEL_PARAMS, inertia_tensor
-from simpro_mj.plant.pneumatics.params import ACTUATOR_KINDS as ACTUATOR_MODELS
 from simpro_mj.plant.pneumatics.params import ActuatorKind
 from simpro_mj.plant.sensors import DEFAULT_SENSORS, POT_BITS, POT_BITS_TEXT
 
-__all__ = ["ACTUATOR_MODELS", "Actuator", "PlantBlock", "SensorsBlock"]
+__all__ = ["Actuator", "PlantBlock", "SensorsBlock"]
 
 
 class Actuator(Block):

@@ -94,58 +94,15 @@ from typing import Any
 from simpro_mj.config.cueing import resolve_paths
 from simpro_mj.config.defaults import DEFAULT_SCENARIO
 from simpro_mj.config.defaults import merge as _merge
-from simpro_mj.config.entries import COMPONENT_TYPES, FAULT_TYPES
 from simpro_mj.config.models import Scenario, as_tree, scenario_model
-from simpro_mj.config.pneumatics import check_pneumatics as _check_pneumatics
 from simpro_mj.config.presets import scenario_overlay
-from simpro_mj.config.reference import SetpointError, check_setpoints, late_setpoints, reference
+from simpro_mj.config.reference import check_setpoints
 from simpro_mj.config.rig import rig_value
-from simpro_mj.config.rules import (
-    FAULT_SENSORS,
-    IDENTIFY_CHOICES,
-    MAX_DURATION_S,
-    MAX_PERIOD_MS,
-    MIN_DURATION_S,
-    MODES,
-    OUTER_TYPES,
-    PHYSICS_DT_S,
-)
 from simpro_mj.config.sweep import broadcast_value, count_variants
 from simpro_mj.core.cache import file_digest
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.keys import closest, key_text, parse_set, read_yaml
 from simpro_mj.core.shipped import SCENARIOS_DIR, model_digest, user_path
-
-__all__ = [
-    "Scenario",
-    "scenario_model",
-    "IDENTIFY_CHOICES",
-    "_check_pneumatics",
-    "late_setpoints",
-    "DEFAULT_SCENARIO",
-    "PHYSICS_DT_S",
-    "MODES",
-    "OUTER_TYPES",
-    "COMPONENT_TYPES",
-    "FAULT_TYPES",
-    "FAULT_SENSORS",
-    "MAX_DURATION_S",
-    "MIN_DURATION_S",
-    "MAX_PERIOD_MS",
-    "SetpointError",
-    "scenarios_dir",
-    "shipped_scenarios",
-    "find_scenario",
-    "load_scenario",
-    "resolve",
-    "resolve_scenario",
-    "scenario_with",
-    "validate_scenario",
-    "check_setpoints",
-    "reference",
-    "scenario_hash",
-]
-
 
 # ------------------------------------------------------------------ finding files
 
@@ -383,40 +340,16 @@ def _set(tree: dict, key: str, value: Any) -> None:
         node[last] = value
 
 
-#: (path of blocks, key): left out of the hash where it holds its default
-_DEFAULT_KEYS = (
-    (("controller", "outer"), "joint_lag"),
-    (("controller", "inner"), "anti_windup"),
-    (("controller", "inner"), "tracking_time_ms"),
-    (("controller", "outer", "dead_band"), "kind"),
-    (("controller", "outer", "dead_band"), "release"),
-    (("actuator", "pneumatics", "cylinder"), "stick_time_constant_ms"),
-    (("actuator", "pneumatics", "cylinder"), "stick_impedance"),
+#: dotted keys left out of the hash where they hold their default
+_HASHED_UNLESS_DEFAULT = (
+    "controller.outer.joint_lag",
+    "controller.inner.anti_windup",
+    "controller.inner.tracking_time_ms",
+    "controller.outer.dead_band.kind",
+    "controller.outer.dead_band.release",
+    "actuator.pneumatics.cylinder.stick_time_constant_ms",
+    "actuator.pneumatics.cylinder.stick_impedance",
 )
-
-
-def _default_at(path: tuple, key: str):
-    """The value of ``key`` at ``path`` in :data:`DEFAULT_SCENARIO`."""
-    node: Any = DEFAULT_SCENARIO
-    for part in path:
-        node = node[part]
-    return node[key]
-
-
-#: (path of blocks, key, its default in :data:`DEFAULT_SCENARIO`)
-_HASHED_UNLESS_DEFAULT = tuple((p, k, _default_at(p, k)) for p, k in _DEFAULT_KEYS)
-
-
-def _without_default(tree: Mapping, path: tuple, key: str, default) -> Mapping:
-    """``tree`` less ``key`` at ``path`` where it holds ``default`` (copied, not changed)."""
-    sub = tree.get(path[0])
-    if not isinstance(sub, Mapping):
-        return tree
-    if len(path) > 1:
-        return {**tree, path[0]: _without_default(sub, path[1:], key, default)}
-    if key in sub and sub[key] == default:
-        return {**tree, path[0]: {k: v for k, v in sub.items() if k != key}}
-    return tree
 
 
 def scenario_hash(resolved: Scenario | Mapping) -> str:
@@ -429,47 +362,27 @@ def scenario_hash(resolved: Scenario | Mapping) -> str:
     recording. A file that cannot be read enters by its path. The MJCF enters by its
     SHA-256 too (``SIMPRO_MODEL`` or the shipped one): a heavier rod is another run.
     """
-    resolved = as_tree(resolved)
-    cue = ((resolved.get("setpoint") or {}).get("cueing")) or {}
-    if isinstance(cue, Mapping) and cue.get("telemetry"):
+    tree = copy.deepcopy(dict(as_tree(resolved)))
+    cue = (tree.get("setpoint") or {}).get("cueing") or {}
+    if isinstance(cue, dict) and cue.get("telemetry"):
         digest = file_digest(cue["telemetry"])
         if digest is not None:
-            resolved = {**resolved, "setpoint": {**resolved["setpoint"],
-                        "cueing": {**cue, "telemetry": f"sha256:{digest}"}}}  # fmt: skip
-    plant = resolved.get("plant")
-    if isinstance(plant, Mapping) and "rig" in plant and plant["rig"] is None:
+            cue["telemetry"] = f"sha256:{digest}"
+    plant = tree.get("plant")
+    if isinstance(plant, dict) and "rig" in plant and plant["rig"] is None:
         # null is the shipped MJCF's rig, which enters by the MJCF's digest below
-        resolved = {**resolved, "plant": {k: v for k, v in plant.items() if k != "rig"}}
+        del plant["rig"]
     # a key at a default that steps as the scenario without it hashes as that
     # scenario: the same run, the same hash
-    for path, key, default in _HASHED_UNLESS_DEFAULT:
-        resolved = _without_default(resolved, path, key, default)
-    resolved = {**resolved, "mjcf": f"sha256:{model_digest()}"}  # the model it compiles
-    text = json.dumps(resolved, sort_keys=True, separators=(",", ":"), allow_nan=False)
+    for key in _HASHED_UNLESS_DEFAULT:
+        *path, last = key.split(".")
+        node: Any = tree
+        default: Any = DEFAULT_SCENARIO
+        for part in path:
+            node = node.get(part) if isinstance(node, dict) else None
+            default = default[part]
+        if isinstance(node, dict) and last in node and node[last] == default[last]:
+            del node[last]
+    tree["mjcf"] = f"sha256:{model_digest()}"  # the model it compiles
+    text = json.dumps(tree, sort_keys=True, separators=(",", ":"), allow_nan=False)
     return hashlib.sha256(text.encode("utf-8")).hexdigest()
-
-
-# ------------------------------------------------------------------ validation
-
-
-def validate_scenario(tree: Mapping) -> dict:
-    """Validate a merged scenario tree and return it normalised.
-
-    Parameters
-    ----------
-    tree : mapping
-        A scenario with every key present (defaults merged).
-
-    Returns
-    -------
-    dict
-        The normalised scenario (numbers as the defaults' types, components
-        spelled out): ``scenario_model(tree).model_dump()``. Does not check
-        reachability (:func:`check_setpoints`).
-
-    Raises
-    ------
-    UserInputError
-        Naming the dotted path of the first offending field and what is allowed.
-    """
-    return scenario_model(tree).model_dump()

@@ -16,14 +16,10 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
+from simpro_mj.config.defaults import DEFAULT_SCENARIO
+from simpro_mj.config.defaults import merge as _merge
 from simpro_mj.config.presets import scenario_overlay
-from simpro_mj.config.scenario import (
-    DEFAULT_SCENARIO,
-    _merge,
-    _set,
-    read_document,
-    resolve_scenario,
-)
+from simpro_mj.config.scenario import _set, read_document, resolve_scenario
 from simpro_mj.config.sweep import SweepSpec, _is_number, broadcast_value, expand, parse_sweep
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.keys import parse_set

@@ -76,8 +76,6 @@ from simpro_mj.plant.pneumatics.statics import holding_forces
 
 __all__ = [
     "DEFAULT_IDENTIFY_PARAMS",
-    "default_tree",
-    "check_tree",
     "paper_models",
     "document",
     "Fit",

@@ -14,8 +14,9 @@ from typing import Any
 import numpy as np
 
 from controllers.design import READINGS
+from simpro_mj.config.defaults import merge as _merge
+from simpro_mj.config.pneumatics import check_pneumatics
 from simpro_mj.config.presets import DEFAULT_PRESET, load_preset
-from simpro_mj.config.scenario import _check_pneumatics, _merge
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.keys import check_number
 from simpro_mj.plant.model_params import DEFAULT_MODEL_PARAMS
@@ -155,7 +156,7 @@ def check_tree(tree: dict | Experiment) -> Experiment:
         raise UserInputError(f"invalid value at paper_units: {units!r}; allowed: {list(READINGS)}")
     model = tree["model"]
     model.pop("preset", None)
-    pneumatics = tree["pneumatics"] = _check_pneumatics(tree["pneumatics"], "pneumatics")
+    pneumatics = tree["pneumatics"] = check_pneumatics(tree["pneumatics"], "pneumatics")
     i, s = "identify", Settings.of(tree)
     check_number(tree, f"{i}.duration_s", 0.5, 3600.0, unit=" s")
     check_number(tree, f"{i}.settle_s", 0.0, 3600.0, unit=" s")

@@ -21,7 +21,8 @@ from typing import NamedTuple
 import numpy as np
 
 from controllers.frames import GRAVITY
-from simpro_mj.config.datagrams import AutoDecoder, DatagramError, make_decoder
+from simpro_mj.config.datagrams import AutoDecoder, make_decoder
+from simpro_mj.config.games.common import DatagramError
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.interrupts import held_signals
 from simpro_mj.sim.addresses import resolve_address
