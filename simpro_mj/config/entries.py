@@ -28,7 +28,7 @@ from simpro_mj.config.rules import (
     none_as_empty,
 )
 
-__all__ = ["COMPONENTS", "FAULTS", "COMPONENT_TYPES", "FAULT_TYPES", "Components", "Faults"]
+__all__ = ["Components", "Faults"]
 
 #: Largest sensor bias of a fault: 90 deg (imu), 500 mm (a whole stroke).
 _BIAS_BOUND = {"bias_deg": 90.0, "bias_mm": 500.0}
@@ -132,7 +132,6 @@ class Table(ComponentEntry):
         return self
 
 
-COMPONENTS: dict[str, type[Entry]] = {"step": Step, "ramp": Ramp, "sine": Sine, "table": Table}
 Component = Annotated[Step | Ramp | Sine | Table, Field(discriminator="type")]
 #: A set-point axis: components such as [{type: step, time_s: 1.0, value: 3.0}] (null: none).
 Components = Annotated[list[Component], BeforeValidator(none_as_empty)]
@@ -222,21 +221,9 @@ class PotentiometerFailure(Fault):
     end_s: Real | None = None
 
 
-FAULTS: dict[str, type[Entry]] = {
-    "supply_drop": SupplyDrop,
-    "valve_stuck": ValveStuck,
-    "sensor_frozen": SensorFrozen,
-    "sensor_dropout": SensorDropout,
-    "sensor_bias": SensorBias,
-    "potentiometer_failure": PotentiometerFailure,
-}
 AnyFault = Annotated[
     SupplyDrop | ValveStuck | SensorFrozen | SensorDropout | SensorBias | PotentiometerFailure,
     Field(discriminator="type"),
 ]
 #: Scheduled faults such as [{type: supply_drop, time_s: 5.0, pressure_bar_gauge: 2.0}].
 Faults = Annotated[list[AnyFault], BeforeValidator(none_as_empty)]
-
-#: Set-point component and fault types: required keys, optional keys with their defaults.
-COMPONENT_TYPES = {k: (m.required(), m.optional()) for k, m in COMPONENTS.items()}
-FAULT_TYPES = {k: (m.required(), m.optional()) for k, m in FAULTS.items()}

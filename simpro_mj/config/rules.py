@@ -44,25 +44,18 @@ from simpro_mj.core.keys import value_text
 from simpro_mj.core.rates import PHYSICS_DT_MS, PHYSICS_DT_S, whole_steps
 
 Mode = Literal["joint_only", "task_space", "feedforward"]
-MODES: tuple[Mode, ...] = get_args(Mode)
 OuterType = Literal["I", "PI"]
-OUTER_TYPES: tuple[OuterType, ...] = get_args(OuterType)
 # controller.inner.design_plant: "auto" is "paper" on the paper preset and
 # "identified" on any other (config.models.Scenario resolves it at load)
 DesignPlant = Literal["auto", "paper", "identified"]
-DESIGN_PLANTS: tuple[DesignPlant, ...] = get_args(DesignPlant)
 # controller.inner.identify (simpro_mj.identification.auto)
 IdentifyChoice = Literal["auto", "preset", "linearised", "reduced"]
 IDENTIFY_CHOICES: tuple[IdentifyChoice, ...] = get_args(IdentifyChoice)
 DelaySamples = Literal[1, 2]
-DELAY_SAMPLES: tuple[DelaySamples, ...] = get_args(DelaySamples)
 SETPOINT_AXES = ("roll_deg", "pitch_deg", "heave_mm")
 FaultSensor = Literal["potentiometer", "height_encoder", "imu"]
-FAULT_SENSORS: tuple[FaultSensor, ...] = get_args(FaultSensor)
 FaultAxis = Literal["roll", "pitch"]
-FAULT_AXES: tuple[FaultAxis, ...] = get_args(FaultAxis)
 PotMode = Literal["open", "short"]
-POT_MODES: tuple[PotMode, ...] = get_args(PotMode)
 
 #: Longest run accepted (s): the 1 ms log of one hour is about 1 GB of memory.
 MAX_DURATION_S = 3600.0
@@ -256,14 +249,6 @@ class Entry(BaseModel):
     model_config = ConfigDict(extra="forbid")
     #: what one entry is called in a message ("a list of components")
     noun: ClassVar[str] = "entry"
-
-    @classmethod
-    def required(cls) -> tuple[str, ...]:
-        return tuple(k for k, f in cls.model_fields.items() if k != "type" and f.is_required())
-
-    @classmethod
-    def optional(cls) -> dict[str, Any]:
-        return {k: f.default for k, f in cls.model_fields.items() if not f.is_required()}
 
 
 def none_as_empty(value: Any) -> Any:

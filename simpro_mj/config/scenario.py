@@ -49,7 +49,7 @@ Faults
 ``faults`` is a list of events, each a mapping with a ``type`` and the time
 ``time_s`` (>= 0, < ``duration_s``) from which it acts; ``end_s`` (where
 allowed; ``null``: to the end of the run) ends it. Every optional key is
-spelled out in the resolved scenario (:data:`FAULT_TYPES`):
+spelled out in the resolved scenario (:mod:`simpro_mj.config.entries`):
 
 * ``{type: supply_drop, time_s, pressure_bar_gauge, ramp_s: 0}``: the supply
   pressure falls from ``actuator.pneumatics.supply_pressure_bar_gauge`` to
