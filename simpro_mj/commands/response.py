@@ -28,6 +28,7 @@ import math
 import os
 from dataclasses import fields
 from pathlib import Path
+from typing import Any
 
 from simpro_mj.core.errors import UserInputError
 
@@ -111,111 +112,21 @@ def add_arguments(parser) -> None:
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
+#: options of one kind of response only: (dest, it is --chain's, its default, the other
+#: kind's options)
+_ONE_KIND = (
+    ("amplitude_mps2", True, None, "--amplitude-deg, --amplitude-mm for the pose response"),
+    ("amplitude_deg_s", True, None, "--amplitude-deg, --amplitude-mm for the pose response"),
+    ("channels", True, "fx,fy,fz,wx,wy", "--axes"),
+    ("amplitude_deg", False, None, "--amplitude-deg-s for the chain"),
+    ("amplitude_mm", False, None, "--amplitude-mps2 for the chain"),
+    ("axes", False, "roll,pitch,heave", "--channels"),
+)
+
+
 def run(args) -> int:
     # the measurement and its prediction load python-control and scipy, the scenario
     # pydantic, the report matplotlib: imported once argparse has checked the options
-    from simpro_mj.analysis.response import check_periods, measure, plan_response
-    from simpro_mj.analysis.response_summary import ResponseRow, loop_model, summary
-    from simpro_mj.config.scenario import load_scenario
-    from simpro_mj.report.figures import loop_label
-    from simpro_mj.report.folders import claim
-    from simpro_mj.report.response import csv_text, plot, print_summary, write_result
-    from simpro_mj.sim.executors import MAX_JOBS, dask_module
-
-    jobs = args.jobs if args.jobs is not None else (os.cpu_count() or 1)
-    if not 1 <= jobs <= MAX_JOBS:
-        raise UserInputError(f"invalid value at --jobs: {jobs}; allowed: an integer 1..{MAX_JOBS}")
-    if args.chain:
-        return run_chain(args, jobs)
-    for opt in ("amplitude_mps2", "amplitude_deg_s"):
-        if getattr(args, opt) is not None:
-            flag = "--" + opt.replace("_", "-")
-            raise UserInputError(
-                f"invalid value at {flag}: only with --chain; allowed: --amplitude-deg, "
-                "--amplitude-mm for the pose response"
-            )
-    if args.channels != "fx,fy,fz,wx,wy":
-        raise UserInputError("invalid value at --channels: only with --chain; allowed: --axes")
-    args.amplitude_deg = 0.5 if args.amplitude_deg is None else args.amplitude_deg
-    args.amplitude_mm = 5.0 if args.amplitude_mm is None else args.amplitude_mm
-    args.settle_s = 4.0 if args.settle_s is None else args.settle_s
-    spec = load_scenario(args.scenario, args.sets)
-    scenario = spec.model_dump()  # the analyses' plans read the resolved dict
-    periods_ms = None if args.freq_hz is None else check_periods(args.freq_hz)
-    if args.freq_hz is not None and not args.freq_hz:
-        raise UserInputError("invalid value at --freq-hz: empty; allowed: one or more frequencies")
-    axes = tuple(a.strip() for a in args.axes.split(",") if a.strip())
-    plan = plan_response(
-        scenario,
-        periods_ms=periods_ms,
-        amplitudes={
-            "roll": args.amplitude_deg,
-            "pitch": args.amplitude_deg,
-            "heave": args.amplitude_mm,
-        },  # fmt: skip
-        axes=axes,
-        settle_s=args.settle_s,
-        periods=args.periods,
-    )
-    if args.scheduler is not None:
-        dask_module()  # say so before anything runs
-    out = Path(args.out) if args.out else Path("results") / f"{spec.name}-response"
-    with claim(out, "response", inputs=[args.scenario]):
-        model = loop_model(scenario)
-        results = measure(
-            plan,
-            jobs=min(jobs, len(plan.tasks)),
-            scheduler=args.scheduler,
-            progress=not args.quiet and not args.json,
-        )
-        resp = summary(plan, results, model)
-        loop = loop_label(scenario)
-        doc = {
-            "scenario": spec.name,
-            "mode": spec.controller.mode,
-            "loop": loop,
-            # the law as analysed: an I law by backward Euler is the PI form with c = 0
-            "analysed_law": model.mode,
-            "axes_excited": list(plan.axes),
-            "amplitude": {
-                "roll_deg": args.amplitude_deg,
-                "pitch_deg": args.amplitude_deg,
-                "heave_mm": args.amplitude_mm,
-            },  # fmt: skip
-            "settle_s": plan.settle_s,
-            "periods": plan.periods,
-            "frequencies_hz": [1000.0 / p for p in sorted(plan.periods_ms, reverse=True)],
-            **resp.to_json(),
-        }
-        title = f"{spec.name} ({loop})"
-
-        def plotter(_doc, folder: Path) -> list[str]:
-            return plot(resp, plan.axes, title, folder)
-
-        write_result(
-            out,
-            doc,
-            "response",
-            csv_text(doc["rows"], fields_of(ResponseRow)),
-            None if args.no_plots else plotter,
-        )
-    return report(args, doc, out, lambda at: print_summary(resp, title, at), resp.failed)
-
-
-def report(args, doc: dict, out: Path, printer, failed: list) -> int:
-    """``--json`` or the printed summary; exit 1 if a frequency did not run."""
-    if args.json:
-        from simpro_mj.core.jsonout import emit_json
-        from simpro_mj.report.results import jsonable
-
-        emit_json(jsonable(doc))
-    else:
-        printer(out)
-    return 0 if not failed else 1
-
-
-def run_chain(args, jobs: int) -> int:
-    # python-control and scipy.signal (the washout, the chain's prediction), as in run()
     from simpro_mj.analysis.chain_response import (
         DEFAULT_SETTLE_S,
         ChainRow,
@@ -224,82 +135,118 @@ def run_chain(args, jobs: int) -> int:
         measure_chain,
         plan_chain,
     )
-    from simpro_mj.analysis.response import check_periods
+    from simpro_mj.analysis.response import check_periods, measure, plan_response
+    from simpro_mj.analysis.response_summary import ResponseRow, loop_model, summary
     from simpro_mj.config.scenario import load_scenario
     from simpro_mj.report.figures import loop_label
     from simpro_mj.report.folders import claim
     from simpro_mj.report.response import (
         csv_text,
+        plot,
         plot_chain,
         print_chain_summary,
+        print_summary,
         write_result,
     )
-    from simpro_mj.sim.executors import dask_module
+    from simpro_mj.sim.executors import MAX_JOBS, dask_module
 
-    for opt, other in (
-        ("amplitude_deg", "--amplitude-deg-s"),
-        ("amplitude_mm", "--amplitude-mps2"),
-    ):
-        if getattr(args, opt) is not None:
-            flag = "--" + opt.replace("_", "-")
-            raise UserInputError(
-                f"invalid value at {flag}: not with --chain; allowed: {other} for the chain"
-            )
-    if args.axes != "roll,pitch,heave":
-        raise UserInputError("invalid value at --axes: not with --chain; allowed: --channels")
+    jobs = args.jobs if args.jobs is not None else (os.cpu_count() or 1)
+    if not 1 <= jobs <= MAX_JOBS:
+        raise UserInputError(f"invalid value at --jobs: {jobs}; allowed: an integer 1..{MAX_JOBS}")
+    for dest, chain, default, other in _ONE_KIND:
+        if chain != args.chain and getattr(args, dest) != default:
+            flag, where = "--" + dest.replace("_", "-"), "only with" if chain else "not with"
+            raise UserInputError(f"invalid value at {flag}: {where} --chain; allowed: {other}")
     spec = load_scenario(args.scenario, args.sets)
     scenario = spec.model_dump()  # the analyses' plans read the resolved dict
     if args.freq_hz is not None and not args.freq_hz:
         raise UserInputError("invalid value at --freq-hz: empty; allowed: one or more frequencies")
     periods_ms = None if args.freq_hz is None else check_periods(args.freq_hz)
-    channels = tuple(c.strip() for c in args.channels.split(",") if c.strip())
-    plan = plan_chain(
-        scenario,
-        periods_ms=periods_ms,
-        amplitude_mps2=args.amplitude_mps2,
-        amplitude_deg_s=args.amplitude_deg_s,
-        channels=channels,
-        settle_s=DEFAULT_SETTLE_S if args.settle_s is None else args.settle_s,
-        periods=args.periods,
-    )
+    plan: Any  # a ChainPlan or a ResponsePlan, and their summaries and drawings below
+    summ: Any
+    if args.chain:
+        channels = tuple(c.strip() for c in args.channels.split(",") if c.strip())
+        plan = plan_chain(
+            scenario,
+            periods_ms=periods_ms,
+            amplitude_mps2=args.amplitude_mps2,
+            amplitude_deg_s=args.amplitude_deg_s,
+            channels=channels,
+            settle_s=DEFAULT_SETTLE_S if args.settle_s is None else args.settle_s,
+            periods=args.periods,
+        )
+    else:
+        deg = 0.5 if args.amplitude_deg is None else args.amplitude_deg
+        mm = 5.0 if args.amplitude_mm is None else args.amplitude_mm
+        axes = tuple(a.strip() for a in args.axes.split(",") if a.strip())
+        plan = plan_response(
+            scenario,
+            periods_ms=periods_ms,
+            amplitudes={"roll": deg, "pitch": deg, "heave": mm},
+            axes=axes,
+            settle_s=4.0 if args.settle_s is None else args.settle_s,
+            periods=args.periods,
+        )
     if args.scheduler is not None:
         dask_module()  # say so before anything runs
-    out = Path(args.out) if args.out else Path("results") / f"{spec.name}-chain"
+    kind = "chain" if args.chain else "response"
+    out = Path(args.out) if args.out else Path("results") / f"{spec.name}-{kind}"
     with claim(out, "response", inputs=[args.scenario]):
-        results = measure_chain(
-            plan,
+        options = dict(
             jobs=min(jobs, len(plan.tasks)),
             scheduler=args.scheduler,
             progress=not args.quiet and not args.json,
         )
-        summ = chain_summary(plan, results)
+        if args.chain:
+            summ = chain_summary(plan, measure_chain(plan, **options))
+            part = {
+                "channels_excited": list(plan.channels),
+                "amplitude": {
+                    "f_mps2": plan.amplitudes["fx"],
+                    "w_deg_s": math.degrees(plan.amplitudes["wx"]),
+                },
+                "settle_s": plan.settle_s,
+                "periods": plan.periods,
+                "frequencies_rad_s": [2000.0 * math.pi / p for p in plan.periods_ms],
+                "washout": cue_block(scenario),
+            }
+        else:
+            model = loop_model(scenario)
+            summ = summary(plan, measure(plan, **options), model)
+            part = {
+                # the law as analysed: an I law by backward Euler is the PI form with c = 0
+                "analysed_law": model.mode,
+                "axes_excited": list(plan.axes),
+                "amplitude": {"roll_deg": deg, "pitch_deg": deg, "heave_mm": mm},
+                "settle_s": plan.settle_s,
+                "periods": plan.periods,
+                "frequencies_hz": [1000.0 / p for p in sorted(plan.periods_ms, reverse=True)],
+            }
         loop = loop_label(scenario)
         doc = {
             "scenario": spec.name,
-            "kind": "chain",
+            **({"kind": "chain"} if args.chain else {}),
             "mode": spec.controller.mode,
             "loop": loop,
-            "channels_excited": list(plan.channels),
-            "amplitude": {
-                "f_mps2": plan.amplitudes["fx"],
-                "w_deg_s": math.degrees(plan.amplitudes["wx"]),
-            },
-            "settle_s": plan.settle_s,
-            "periods": plan.periods,
-            "frequencies_rad_s": [2000.0 * math.pi / p for p in plan.periods_ms],
-            "washout": cue_block(scenario),
+            **part,
             **summ.to_json(),
         }
         title = f"{spec.name} ({loop})"
 
         def plotter(_doc, folder: Path) -> list[str]:
-            return plot_chain(summ, title, folder)
+            if args.chain:
+                return plot_chain(summ, title, folder)
+            return plot(summ, plan.axes, title, folder)
 
-        csv_body = csv_text(doc["rows"], fields_of(ChainRow))
-        write_result(out, doc, "chain", csv_body, None if args.no_plots else plotter)
-    return report(args, doc, out, lambda at: print_chain_summary(summ, title, at), summ.failed)
+        rows = csv_text(
+            doc["rows"], [f.name for f in fields(ChainRow if args.chain else ResponseRow)]
+        )
+        write_result(out, doc, kind, rows, None if args.no_plots else plotter)
+    if args.json:
+        from simpro_mj.core.jsonout import emit_json
+        from simpro_mj.report.results import jsonable
 
-
-def fields_of(record) -> list[str]:
-    """A row record's field names: its CSV's columns, in order."""
-    return [f.name for f in fields(record)]
+        emit_json(jsonable(doc))
+    else:
+        (print_chain_summary if args.chain else print_summary)(summ, title, out)
+    return 0 if not summ.failed else 1
