@@ -35,7 +35,7 @@ from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from simpro_mj.commands.main import main
-from simpro_mj.config.defaults import DEFAULT_SCENARIO
+from simpro_mj.config.models import DEFAULT_SCENARIO
 from simpro_mj.config.scenario import (
     load_scenario,
     resolve_scenario,

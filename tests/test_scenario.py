@@ -9,7 +9,7 @@ import pytest
 from controllers.errors import WorkspaceError
 from controllers.geometry import H0
 from controllers.kinematics import reachable
-from simpro_mj.config.defaults import DEFAULT_SCENARIO
+from simpro_mj.config.models import DEFAULT_SCENARIO
 from simpro_mj.config.reference import SetpointError, reference
 from simpro_mj.config.scenario import (
     load_scenario,

@@ -9,8 +9,7 @@ import yaml
 
 from simpro_mj import api
 from simpro_mj.commands.main import main
-from simpro_mj.config.parameters import parameters
-from simpro_mj.config.scenario import load_scenario
+from simpro_mj.config.scenario import load_scenario, parameters
 from simpro_mj.plant.pneumatics.params import DEFAULT_PNEUMATIC_PARAMS
 
 SUPPLY = "actuator.pneumatics.supply_pressure_bar_gauge"

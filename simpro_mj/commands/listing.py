@@ -1,6 +1,6 @@
 """``simpro-sim list``: the shipped scenarios, plant presets and telemetry files, one line each.
 
-The catalogue is :func:`simpro_mj.config.catalogue.catalogue`."""
+The catalogue is :func:`simpro_mj.config.scenario.catalogue`."""
 
 from __future__ import annotations
 
@@ -24,7 +24,7 @@ def add_arguments(parser) -> None:
 
 def run(args) -> int:
     # on use: the catalogue reads the scenario package (pydantic), not needed for --help
-    from simpro_mj.config.catalogue import catalogue
+    from simpro_mj.config.scenario import catalogue
     from simpro_mj.core.jsonout import emit_json
 
     items = catalogue()

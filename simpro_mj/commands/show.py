@@ -1,5 +1,5 @@
 """``simpro-sim show SCENARIO``: every parameter with its value, default, unit, allowed
-range and meaning (:func:`simpro_mj.config.parameters.parameters`)."""
+range and meaning (:func:`simpro_mj.config.scenario.parameters`)."""
 
 from __future__ import annotations
 
@@ -14,8 +14,7 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
-    from simpro_mj.config.parameters import parameters, text
-    from simpro_mj.config.scenario import load_scenario
+    from simpro_mj.config.scenario import load_scenario, parameters, text
     from simpro_mj.core.jsonout import emit_json
 
     scenario = load_scenario(args.scenario, args.sets)

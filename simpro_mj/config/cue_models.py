@@ -205,54 +205,50 @@ def _sine_period(value: Any) -> float:
     return float(value)
 
 
-class CueSine(CueBlock):
-    """A synthetic vehicle input: the vehicle at rest plus ``amplitude sin(2 pi t /
-    period_s)`` (SI) on one ``channel`` (:data:`~simpro_mj.config.cue_params.SINE_CHANNELS`)."""
+class _OnAChannel(CueBlock):
+    """A vehicle input on one ``channel`` (:data:`~simpro_mj.config.cue_params.SINE_CHANNELS`)
+    of ``amplitude`` (SI; ``_signed``: of either sign)."""
 
-    _listed = ("channel", "amplitude", "period_s")
-    _expected = f"a mapping with keys {list(_listed)}"
+    _signed: ClassVar[bool] = False
     channel: Annotated[str, listed(SINE_CHANNELS)] = REQUIRED
     amplitude: float = REQUIRED
-    period_s: Annotated[float, BeforeValidator(_sine_period)] = REQUIRED
 
     @field_validator("amplitude", mode="before")
     @classmethod
     def _up_to_the_channel(cls, value: Any, info: ValidationInfo) -> Any:
-        """0 < amplitude <= the channel's limit (1 g, 90 deg/s)."""
+        """0 < amplitude (signed: |amplitude|) <= the channel's limit (1 g, 90 deg/s)."""
         channel = info.data.get("channel")
         if channel is None:  # the channel's own error is the one reported
             return value
         top = SINE_CHANNELS[channel]
-        if not (_is_number(value) and 0 < value <= top):
+        if not (_is_number(value) and 0 < (abs(value) if cls._signed else value) <= top):
+            if cls._signed:
+                raise Problem.invalid(value, f"0 < |amplitude| <= {top:.4g}")
             unit = channel.split("_", 1)[1].replace("mps2", "m/s^2").replace("rad_s", "rad/s")
             raise Problem.invalid(value, f"0 < amplitude <= {top:.4g} ({unit})")
         return float(value)
 
 
-class CueStep(CueBlock):
+class CueSine(_OnAChannel):
+    """A synthetic vehicle input: the vehicle at rest plus ``amplitude sin(2 pi t /
+    period_s)`` (SI) on one ``channel`` (:data:`~simpro_mj.config.cue_params.SINE_CHANNELS`)."""
+
+    _listed = ("channel", "amplitude", "period_s")
+    _expected = f"a mapping with keys {list(_listed)}"
+    period_s: Annotated[float, BeforeValidator(_sine_period)] = REQUIRED
+
+
+class CueStep(_OnAChannel):
     """A large-signal vehicle input: the vehicle at rest plus ``amplitude`` (SI, signed)
     on one ``channel`` from ``start_s``, reached over ``ramp_s`` (0: a step), back from
     ``end_s`` (null: held) (:func:`~simpro_mj.config.cueing.step_input`)."""
 
     _listed = ("channel", "amplitude", "start_s", "ramp_s", "end_s")
     _expected = f"a mapping with keys {list(_listed)}"
-    channel: Annotated[str, listed(SINE_CHANNELS)] = REQUIRED
-    amplitude: float = REQUIRED
+    _signed = True
     start_s: Annotated[float, BeforeValidator(_finite)] = 1.0
     ramp_s: Annotated[float, BeforeValidator(_finite)] = 0.0
     end_s: float | None = None
-
-    @field_validator("amplitude", mode="before")
-    @classmethod
-    def _up_to_the_channel(cls, value: Any, info: ValidationInfo) -> Any:
-        """0 < |amplitude| <= the channel's limit (1 g, 90 deg/s)."""
-        channel = info.data.get("channel")
-        if channel is None:
-            return value
-        top = SINE_CHANNELS[channel]
-        if not (_is_number(value) and 0 < abs(value) <= top):
-            raise Problem.invalid(value, f"0 < |amplitude| <= {top:.4g}")
-        return float(value)
 
     @model_validator(mode="after")
     def _times(self):

@@ -63,6 +63,7 @@ is ``R^T (a_cg + (0, 0, g)) + dw x r + w x (w x r)``.
 
 from __future__ import annotations
 
+import importlib
 import math
 from dataclasses import dataclass
 
@@ -162,18 +163,14 @@ def available() -> bool:
 
 def _params(vehicle: str, tyre_offsets: str = "none"):
     """A fresh parameter set of ``vehicle`` with its tyres per ``tyre_offsets``."""
+    name = f"parameters_vehicle{VEHICLES[vehicle]}"
     try:  # the optional extra [vehicle]
-        from vehiclemodels import parameters_vehicle1, parameters_vehicle2, parameters_vehicle3
+        make = getattr(importlib.import_module(f"vehiclemodels.{name}"), name)
     except ImportError:
         raise ManoeuvreError(
             "manoeuvres need commonroad-vehicle-models: pip install 'simpro-sim[vehicle]' "
             "(or give a telemetry file)"
         ) from None
-    make = {
-        1: parameters_vehicle1.parameters_vehicle1,
-        2: parameters_vehicle2.parameters_vehicle2,
-        3: parameters_vehicle3.parameters_vehicle3,
-    }[VEHICLES[vehicle]]
     p = make()  # a new object per call: the change below stays in this run
     if tyre_offsets == "none":
         p.tire.p_hy1 = 0.0

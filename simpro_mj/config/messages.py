@@ -7,7 +7,7 @@ value (:mod:`simpro_mj.config.rules`: :func:`~simpro_mj.config.rules.param`),
 the choices of a ``Literal`` or a tagged union listed, the closest key or
 choice suggested. The walk over the models that finds that field
 (:func:`locate`) and the text of a range (:func:`range_text`) serve
-``simpro-sim show`` too (:mod:`simpro_mj.config.parameters`).
+``simpro-sim show`` too (:func:`simpro_mj.config.scenario.parameters`).
 """
 
 from __future__ import annotations

@@ -17,6 +17,7 @@ plain dict that ``scenario.yaml`` holds and ``scenario_hash`` hashes.
 
 from __future__ import annotations
 
+import copy
 from collections.abc import Mapping
 from typing import Annotated, Any
 
@@ -67,7 +68,7 @@ from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.keys import value_text
 from simpro_mj.core.rates import whole_steps
 
-__all__ = ["Scenario", "as_scenario", "as_tree", "scenario_model"]
+__all__ = ["Scenario", "as_scenario", "as_tree", "scenario_model", "merge", "DEFAULT_SCENARIO"]
 
 #: Largest K K_I times the outer period: ten times the delay-free integrator's limit 2.
 MAX_GAIN_PERIOD = 20.0
@@ -476,3 +477,20 @@ def as_scenario(scenario: Scenario | Mapping) -> Scenario:
 def as_tree(scenario: Scenario | Mapping) -> Mapping:
     """The resolved scenario's dict: itself when a mapping, else the model's dump."""
     return scenario.model_dump() if isinstance(scenario, Scenario) else scenario
+
+
+def merge(base: Mapping, over: Mapping) -> dict:
+    """Deep merge: a copy of ``base`` with ``over`` applied (mappings merge, others replace)."""
+    out = copy.deepcopy(dict(base))
+    for key, value in over.items():
+        if isinstance(value, Mapping) and isinstance(out.get(key), Mapping):
+            out[key] = merge(out[key], value)
+        else:
+            out[key] = copy.deepcopy(value)
+    return out
+
+
+#: Every key of a scenario with its default (the typed scenario's), as a plain dict: what
+#: a file is merged over (:func:`simpro_mj.config.scenario.load_scenario`) and what a
+#: sweep's paths are checked against (:mod:`simpro_mj.config.sweep`).
+DEFAULT_SCENARIO: dict = copy.deepcopy(dict(Scenario.defaults()))

@@ -77,6 +77,14 @@ stderr and returns the base scenario (its hash is that of the base only).
 
 Every error is a :class:`~simpro_mj.core.errors.UserInputError` whose one-line
 message reads ``<what> at <dotted.path>: <what is allowed>``.
+
+Every parameter as rows (:func:`parameters`, what ``simpro-sim show`` prints) is
+read from the typed scenario's fields: the defaults, units, constraints and one-line
+descriptions declared with :func:`~simpro_mj.config.rules.param`; nothing is written
+twice. What ships (:func:`catalogue`, ``simpro-sim list``): the scenarios, presets and
+telemetry files with the one line that says what each is, found through the functions
+that load them, so the listing is what ``run``, ``plant.preset`` and
+``setpoint.cueing.telemetry`` accept.
 """
 
 from __future__ import annotations
@@ -88,21 +96,33 @@ import os
 import re
 import sys
 from collections.abc import Iterable, Mapping
+from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal, get_args, get_origin
+
+import yaml
+from pydantic.fields import FieldInfo
 
 from simpro_mj.config.cueing import resolve_paths
-from simpro_mj.config.defaults import DEFAULT_SCENARIO
-from simpro_mj.config.defaults import merge as _merge
-from simpro_mj.config.models import Scenario, as_tree, scenario_model
-from simpro_mj.config.presets import scenario_overlay
+from simpro_mj.config.messages import (
+    is_model,
+    item_meta,
+    range_text,
+    strip,
+    tagged_members,
+    unit_of,
+)
+from simpro_mj.config.models import DEFAULT_SCENARIO, Scenario, as_tree, scenario_model
+from simpro_mj.config.models import merge as _merge
+from simpro_mj.config.presets import presets_dir, scenario_overlay, shipped_presets
 from simpro_mj.config.reference import check_setpoints
 from simpro_mj.config.rig import rig_value
-from simpro_mj.config.sweep import broadcast_value, count_variants
+from simpro_mj.config.rules import ONE_FOR_ALL, PHYSICS_DT_MS, Block, check_period
+from simpro_mj.config.sweep import broadcast_value, parse_sweep
 from simpro_mj.core.cache import file_digest
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.keys import closest, key_text, parse_set, read_yaml
-from simpro_mj.core.shipped import SCENARIOS_DIR, model_digest, user_path
+from simpro_mj.core.shipped import SCENARIOS_DIR, TELEMETRY_DIR, model_digest, user_path
 
 # ------------------------------------------------------------------ finding files
 
@@ -242,7 +262,7 @@ def load_scenario(name_or_path: str, sets: Iterable[str] = ()) -> Scenario:
     if "sweep" in doc:
         # the variants are batch's job (simpro_mj.config.variants); a run is of the base scenario
         doc = dict(doc)
-        n = count_variants(doc.pop("sweep"))
+        n = parse_sweep(doc.pop("sweep")).count
         sys.stderr.write(
             f"note: {path.name} declares {n} variants in its sweep: block; running the base "
             f"scenario (simpro-sim batch {path} runs them)\n"
@@ -386,3 +406,116 @@ def scenario_hash(resolved: Scenario | Mapping) -> str:
     tree["mjcf"] = f"sha256:{model_digest()}"  # the model it compiles
     text = json.dumps(tree, sort_keys=True, separators=(",", ":"), allow_nan=False)
     return hashlib.sha256(text.encode("utf-8")).hexdigest()
+
+
+# ------------------------------------------------------------------ every parameter
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """One parameter of a scenario."""
+
+    key: str  #: dotted path (``actuator.pneumatics.supply_pressure_bar_gauge``)
+    value: Any  #: the run's value (the resolved scenario's)
+    default: Any  #: the schema's default (before any preset or file)
+    unit: str  #: edge unit ("" for a number without one, a choice or a flag)
+    allowed: str  #: the allowed values or range
+    meaning: str  #: one line
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+
+def _allowed(field: FieldInfo) -> str:
+    tp, meta = strip(field.annotation)
+    meta = [*field.metadata, *meta]
+    if get_origin(tp) is Literal:
+        return "one of " + ", ".join(map(str, get_args(tp)))
+    if tp is bool:
+        return "true or false"
+    if tp is str:
+        return "text"
+    if any(getattr(m, "func", None) is check_period for m in meta):
+        return f"a whole number of {PHYSICS_DT_MS:g} ms steps, <= 10000"
+    rng = range_text(meta)
+    extra = field.json_schema_extra
+    if not rng and isinstance(extra, dict) and extra.get("range"):
+        rng = str(extra["range"]).split(" (", 1)[0]  # the plant's range, its reason left out
+    if get_origin(tp) is list:
+        item = get_args(tp)[0]
+        if tagged_members(item):
+            return "list of: " + ", ".join(tagged_members(item))
+        n = next((m.min_length for m in meta if hasattr(m, "min_length")), None)
+        each = range_text(item_meta(tp))
+        text = f"{n} numbers" if n else "numbers"
+        if any(m is ONE_FOR_ALL for m in meta):
+            text = f"one or {text}"
+        return f"{text}, each {each}" if each else text
+    if tp is int:
+        return f"integer {rng}".strip()
+    return rng or "number"
+
+
+def _rows(model: type[Block], value: Mapping, default: Mapping, prefix: str) -> list[Parameter]:
+    out = []
+    for name, field in model.model_fields.items():
+        if name not in value:  # a block the scenario does not have (setpoint.cueing)
+            continue
+        key = f"{prefix}{name}"
+        tp, _ = strip(field.annotation)
+        here, base = value.get(name), default.get(name)
+        if is_model(tp) and issubclass(tp, Block) and isinstance(here, Mapping):
+            out += _rows(tp, here, base if isinstance(base, Mapping) else {}, f"{key}.")
+            continue
+        out.append(
+            Parameter(key, here, base, unit_of(field), _allowed(field), field.description or "")
+        )
+    return out
+
+
+def parameters(resolved: Scenario | Mapping) -> list[Parameter]:
+    """Every parameter of a resolved scenario (:func:`~simpro_mj.config.scenario.load_scenario`),
+    in the order of the scenario's blocks."""
+    return _rows(Scenario, as_tree(resolved), Scenario.defaults(), "")
+
+
+def text(value: Any) -> str:
+    """A value as one short line (YAML-like flow: null, true, [1.0, 2.0])."""
+    return json.dumps(value, separators=(", ", ": ")) if not isinstance(value, str) else value
+
+
+# ------------------------------------------------------------------ what ships
+
+
+def _yaml_description(path: Path) -> str:
+    try:
+        doc = yaml.safe_load(path.read_text(encoding="utf-8")) or {}
+    except (OSError, yaml.YAMLError) as exc:
+        return f"(unreadable: {type(exc).__name__})"
+    text = str(doc.get("description", "") if isinstance(doc, dict) else "")
+    if isinstance(doc, dict) and isinstance(doc.get("sweep"), dict):
+        text += " [sweep: simpro-sim batch]"
+    return " ".join(text.split())
+
+
+def _csv_description(path: Path) -> str:
+    try:
+        with path.open(encoding="utf-8") as fh:
+            first = fh.readline().strip()
+    except OSError as exc:
+        return f"(unreadable: {type(exc).__name__})"
+    return first.lstrip("#").strip() if first.startswith("#") else ""
+
+
+def catalogue() -> dict[str, list[tuple[str, str]]]:
+    """``scenarios``, ``presets``, ``telemetry``: (name, one-line description) each, sorted."""
+    folder = scenarios_dir()
+    scenarios = []
+    for name in shipped_scenarios():
+        path = next(
+            folder / f"{name}{e}" for e in (".yaml", ".yml") if (folder / f"{name}{e}").is_file()
+        )
+        scenarios.append((name, _yaml_description(path)))
+    presets = [(n, _yaml_description(presets_dir() / f"{n}.yaml")) for n in shipped_presets()]
+    telemetry = [(p.name, _csv_description(p)) for p in sorted(Path(TELEMETRY_DIR).glob("*.csv"))]
+    return {"scenarios": scenarios, "presets": presets, "telemetry": telemetry}

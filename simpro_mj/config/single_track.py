@@ -41,6 +41,7 @@ from simpro_mj.config.manoeuvres import (
     TURN_S,
     VEHICLES,
     ManoeuvreError,
+    _params,
 )
 from simpro_mj.config.telemetry import Telemetry
 
@@ -73,20 +74,11 @@ def braking_turn_single_track(
 ) -> Telemetry:
     """The braking in a turn of :mod:`simpro_mj.config.manoeuvres` from the single-track
     model (module docstring): a :class:`Telemetry` at the driver's head, ``rate_hz``."""
-    try:
-        import vehiclemodels.parameters_vehicle1 as pv1
-        import vehiclemodels.parameters_vehicle2 as pv2
-        import vehiclemodels.parameters_vehicle3 as pv3
-        from vehiclemodels.vehicle_dynamics_st import vehicle_dynamics_st
-    except ImportError as exc:  # the optional extra
-        raise ManoeuvreError(
-            "the single-track drive needs commonroad-vehicle-models: "
-            'pip install "simpro-sim[vehicle]"'
-        ) from exc
     if vehicle not in VEHICLES:
         raise ManoeuvreError(f"invalid value at vehicle: {vehicle!r}; allowed: {sorted(VEHICLES)}")
-    k = VEHICLES[vehicle]
-    p = getattr({1: pv1, 2: pv2, 3: pv3}[k], f"parameters_vehicle{k}")()
+    p = _params(vehicle, "commonroad")  # the published set: no tyre of this model reads them
+    from vehiclemodels.vehicle_dynamics_st import vehicle_dynamics_st  # the optional extra
+
     v0 = speed_kmh / 3.6
     wheelbase = p.a + p.b
     steer_turn = math.atan(wheelbase * TURN_LATERAL_MPS2 / v0**2)

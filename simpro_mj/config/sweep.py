@@ -18,7 +18,7 @@ A scenario file may carry a ``sweep:`` block next to its scenario keys::
 Rules
 -----
 * **Paths** are the dotted paths of ``--set`` (``controller.outer.gains``),
-  checked against :data:`simpro_mj.config.defaults.DEFAULT_SCENARIO`; an
+  checked against :data:`simpro_mj.config.models.DEFAULT_SCENARIO`; an
   unknown one is refused with the closest valid key. ``name`` and ``sweep``
   cannot be swept. The block itself is the typed :class:`Sweep` (pydantic:
   its numbers are the scenario's :data:`~simpro_mj.config.rules.Real`).
@@ -84,8 +84,8 @@ from pydantic import (
 )
 
 from simpro_mj.config.cueing import sweep_defaults
-from simpro_mj.config.defaults import DEFAULT_SCENARIO
 from simpro_mj.config.messages import validated
+from simpro_mj.config.models import DEFAULT_SCENARIO
 from simpro_mj.config.rules import Block, Entry, Problem, Real, Whole, param
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.keys import closest, key_text
@@ -95,7 +95,6 @@ __all__ = [
     "Distribution",
     "SweepSpec",
     "parse_sweep",
-    "count_variants",
     "MAX_VARIANTS",
     "expand",
     "draw",
@@ -334,10 +333,6 @@ def _check_draw(path: str, draw: Entry, where: str) -> None:
         raise UserInputError(f"invalid value at {where}.high: {high!r}; allowed: >= low ({low!r})")
 
 
-def _distribution(path: str, draw: Uniform | Normal | Choice) -> Distribution:
-    return Distribution(path=path, draw=draw, size=_numeric_list_len(_defaults_at(path, path)))
-
-
 def parse_sweep(block: Any, where: str = "sweep") -> SweepSpec:
     """Validate a ``sweep:`` block (:class:`Sweep`).
 
@@ -359,7 +354,10 @@ def parse_sweep(block: Any, where: str = "sweep") -> SweepSpec:
     """
     sweep = validated(Sweep, block, where, context={"where": where})
     mc = sweep.monte_carlo
-    params = tuple(_distribution(p, d) for p, d in (mc.parameters if mc else {}).items())
+    params = tuple(
+        Distribution(path=p, draw=d, size=_numeric_list_len(_defaults_at(p, p)))
+        for p, d in (mc.parameters if mc else {}).items()
+    )
     spec = SweepSpec(
         grid=copy.deepcopy(sweep.grid),
         samples=mc.samples if mc else 0,
@@ -373,11 +371,6 @@ def parse_sweep(block: Any, where: str = "sweep") -> SweepSpec:
             f"at most {MAX_VARIANTS:,} variants per file"
         )
     return spec
-
-
-def count_variants(block: Any) -> int:
-    """Number of variants a ``sweep:`` block declares (validates it)."""
-    return parse_sweep(block).count
 
 
 # ------------------------------------------------------------------ names
@@ -419,12 +412,8 @@ def _labels(paths: list[str]) -> dict[str, str]:
     return out
 
 
-def _safe(text: str) -> str:
-    return _UNSAFE.sub("-", text)
-
-
 def _name(parts: list[str]) -> str:
-    name = _safe("_".join(parts)) or "base"
+    name = _UNSAFE.sub("-", "_".join(parts)) or "base"
     if len(name) > _MAX_NAME:
         digest = hashlib.sha1(name.encode("utf-8")).hexdigest()[:8]
         name = f"{name[: _MAX_NAME - 9]}-{digest}"

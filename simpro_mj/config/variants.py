@@ -6,7 +6,7 @@ every variant (:func:`simpro_mj.config.scenario.resolve_scenario`). It lives abo
 both so that imports run one way: ``variants -> scenario -> sweep``
 (:func:`simpro_mj.config.scenario.load_scenario` counts a file's variants for its
 note; the sweep's paths are checked against the scenario's defaults in
-:mod:`simpro_mj.config.defaults`).
+:data:`simpro_mj.config.models.DEFAULT_SCENARIO`).
 """
 
 from __future__ import annotations
@@ -16,8 +16,8 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
-from simpro_mj.config.defaults import DEFAULT_SCENARIO
-from simpro_mj.config.defaults import merge as _merge
+from simpro_mj.config.models import DEFAULT_SCENARIO
+from simpro_mj.config.models import merge as _merge
 from simpro_mj.config.presets import scenario_overlay
 from simpro_mj.config.scenario import _set, read_document, resolve_scenario
 from simpro_mj.config.sweep import SweepSpec, _is_number, broadcast_value, expand, parse_sweep

@@ -48,9 +48,8 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from simpro_mj.config.defaults import DEFAULT_SCENARIO
-from simpro_mj.config.defaults import merge as _merge
-from simpro_mj.config.models import Identified, Scenario, as_scenario
+from simpro_mj.config.models import DEFAULT_SCENARIO, Identified, Scenario, as_scenario
+from simpro_mj.config.models import merge as _merge
 from simpro_mj.config.presets import scenario_overlay
 from simpro_mj.config.rules import IDENTIFY_CHOICES  # values of controller.inner.identify
 from simpro_mj.core import cache, notices

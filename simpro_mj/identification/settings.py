@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from controllers.design import READINGS
-from simpro_mj.config.defaults import merge as _merge
+from simpro_mj.config.models import merge as _merge
 from simpro_mj.config.pneumatics import check_pneumatics
 from simpro_mj.config.presets import DEFAULT_PRESET, load_preset
 from simpro_mj.core.errors import UserInputError
