@@ -58,10 +58,7 @@ def plot(res: Analysis, p: AnalyzeParams, out: Path) -> list[str]:
         )
         ax.legend(fontsize=8, loc="lower left")
         ax.grid(alpha=0.3)
-        f = out / f"root_locus_{mode}.png"
-        fig.savefig(f, dpi=120)
-        plt.close(fig)
-        files.append(str(f))
+        files.append(_save(plt, fig, out / f"root_locus_{mode}.png"))
 
     fig, ax = plt.subplots(figsize=(8, 4.5))
     ri = res.outer.real_inner
@@ -91,10 +88,7 @@ def plot(res: Analysis, p: AnalyzeParams, out: Path) -> list[str]:
     ax.set_title("Outer-loop unit-step responses", fontsize=9)
     ax.legend(fontsize=8)
     ax.grid(alpha=0.3)
-    f = out / "outer_step.png"
-    fig.savefig(f, dpi=120)
-    plt.close(fig)
-    files.append(str(f))
+    files.append(_save(plt, fig, out / "outer_step.png"))
 
     fig, axes = plt.subplots(1, 2, figsize=(10, 4), sharey=True)
     for ax, act in zip(axes, ACTUATORS, strict=True):
@@ -107,10 +101,7 @@ def plot(res: Analysis, p: AnalyzeParams, out: Path) -> list[str]:
         ax.grid(alpha=0.3)
         ax.legend(fontsize=8)
     axes[0].set_ylabel("q / q_d")
-    f = out / "inner_step.png"
-    fig.savefig(f, dpi=120)
-    plt.close(fig)
-    files.append(str(f))
+    files.append(_save(plt, fig, out / "inner_step.png"))
 
     rows = res.outer.delay_assumption_sweep.rows
     if rows:
@@ -128,11 +119,15 @@ def plot(res: Analysis, p: AnalyzeParams, out: Path) -> list[str]:
         )
         ax.grid(alpha=0.3, which="both")
         ax.legend(fontsize=8)
-        f = out / "delay_assumption.png"
-        fig.savefig(f, dpi=120)
-        plt.close(fig)
-        files.append(str(f))
+        files.append(_save(plt, fig, out / "delay_assumption.png"))
     return files
+
+
+def _save(plt, fig, path: Path) -> str:
+    """Write ``fig`` at 120 dpi, close it, return its path."""
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return str(path)
 
 
 def _shipped_lines(sh: Shipped) -> list[str]:

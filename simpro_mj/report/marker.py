@@ -39,6 +39,7 @@ __all__ = [
     "manifest_of",
     "read_marker",
     "record",
+    "replacing",
     "result_hash",
     "result_kind",
     "umask",
@@ -116,31 +117,34 @@ def _entry(path: Path) -> dict:
     return {"size": path.stat().st_size, "sha256": _digest(path)}
 
 
+def _kind(path: Path) -> str:
+    """What a marker makes of ``path``: a regular file (``file``), a sub-folder
+    carrying its own marker (``result``), a plain sub-folder (``folder``), anything
+    else (``other``: links, FIFOs, devices)."""
+    if path.is_symlink():
+        return "other"
+    if path.is_dir():
+        return "result" if os.path.lexists(path / RESULT_MARKER) else "folder"
+    return "file" if path.is_file() else "other"
+
+
 def _walk(folder: Path, prefix: str = "") -> Iterator[tuple[str, Path, str]]:
-    """(relative path, path, what) of the entries of ``folder`` a marker lists:
-    regular files (``file``), sub-folders carrying their own marker (``result``),
-    anything else (``other``: links, FIFOs, devices); the marker itself and our
-    hidden temporaries are skipped; plain sub-folders are walked."""
+    """(relative path, path, :func:`_kind`) of the entries of ``folder`` a marker
+    lists, plain sub-folders walked; the marker itself and our hidden temporaries
+    are skipped."""
     try:
-        entries = sorted(os.scandir(folder), key=lambda e: e.name)
+        names = sorted(os.listdir(folder))
     except OSError:
         return
-    for e in entries:
-        rel = f"{prefix}{e.name}"
-        if e.name == RESULT_MARKER or _HIDDEN.match(e.name):
+    for name in names:
+        path, rel = Path(folder, name), f"{prefix}{name}"
+        if name == RESULT_MARKER or _HIDDEN.match(name):
             continue
-        path = Path(e.path)
-        if e.is_symlink():
-            yield rel, path, "other"
-        elif e.is_dir():
-            if os.path.lexists(path / RESULT_MARKER):
-                yield rel, path, "result"
-            else:
-                yield from _walk(path, rel + "/")
-        elif e.is_file():
-            yield rel, path, "file"
+        kind = _kind(path)
+        if kind == "folder":
+            yield from _walk(path, rel + "/")
         else:
-            yield rel, path, "other"
+            yield rel, path, kind
 
 
 def _pending(files: dict, rel: str) -> bool:
@@ -190,23 +194,15 @@ def foreign(folder, only: Iterable[str] | None = None) -> list[str]:
     """
     folder = Path(folder)
     files = manifest_of(read_marker(folder)) or {}
-    if only is None:
-        items = list(_walk(folder))
-    else:
-        items = []
-        for rel in only:
-            path = folder / rel
-            if not os.path.lexists(path):
-                continue
-            if path.is_dir() and not path.is_symlink():
-                if os.path.lexists(path / RESULT_MARKER):
-                    items.append((rel, path, "result"))
-                else:
-                    items.extend(_walk(path, rel.rstrip("/") + "/"))
-            elif path.is_file() and not path.is_symlink():
-                items.append((rel, path, "file"))
+    items = list(_walk(folder)) if only is None else []
+    for rel in only or ():
+        path = folder / rel
+        if os.path.lexists(path):
+            kind = _kind(path)
+            if kind == "folder":
+                items.extend(_walk(path, rel.rstrip("/") + "/"))
             else:
-                items.append((rel, path, "other"))
+                items.append((rel, path, kind))
     out = []
     for rel, path, what in items:
         if what == "result" and only is None:  # a result never inside another
@@ -219,20 +215,27 @@ def foreign(folder, only: Iterable[str] | None = None) -> list[str]:
     return sorted(out)
 
 
-def _write_marker_doc(folder: Path, doc: dict) -> None:
-    """The marker written whole (temporary name, then renamed): a reader never
-    sees half a list."""
-    text = json.dumps(doc, sort_keys=True)
-    fd, tmp = tempfile.mkstemp(prefix=hidden(RESULT_MARKER, "tmp"), dir=folder)
+@contextlib.contextmanager
+def replacing(path, suffix: str = "") -> Iterator[str]:
+    """A hidden temporary file beside ``path`` (:func:`hidden`, ending ``suffix``) for
+    the body to write; then given the umask's mode and renamed over ``path``, or
+    removed if the body raises: a reader never sees half a file."""
+    fd, tmp = tempfile.mkstemp(prefix=hidden(path, "tmp"), suffix=suffix, dir=Path(path).parent)
+    os.close(fd)
     try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            fh.write(text + "\n")
+        yield tmp
         os.chmod(tmp, 0o666 & ~umask())
-        os.replace(tmp, folder / RESULT_MARKER)
+        os.replace(tmp, path)
     except BaseException:
         with contextlib.suppress(OSError):
             os.unlink(tmp)
         raise
+
+
+def _write_marker_doc(folder: Path, doc: dict) -> None:
+    """The marker written whole (:func:`replacing`): a reader never sees half a list."""
+    with replacing(folder / RESULT_MARKER) as tmp:
+        Path(tmp).write_text(json.dumps(doc, sort_keys=True) + "\n", encoding="utf-8")
 
 
 def write_marker(folder, kind: str) -> None:
@@ -264,11 +267,10 @@ def record(folder, rels: Iterable[str], kind: str, pending: bool = False) -> Non
         if pending:
             files[rel] = {"pending": True}
             continue
-        if path.is_dir() and not path.is_symlink():
-            for sub, p, what in _walk(path, rel + "/"):
-                if what == "file":
-                    files[sub] = _entry(p)
-        elif path.is_file() and not path.is_symlink():
+        what = _kind(path) if os.path.lexists(path) else None
+        if what in ("folder", "result"):  # a result inside: its files listed here too
+            files.update({sub: _entry(p) for sub, p, k in _walk(path, rel + "/") if k == "file"})
+        elif what == "file":
             files[rel] = _entry(path)
     _write_marker_doc(folder, {"kind": kind, "simpro-sim": __version__, "files": files})
 

@@ -154,6 +154,32 @@ def start_offset_note(columns: Mapping, scenario: Mapping) -> str | None:
     )
 
 
+#: The per-leg figures of a run: name -> (columns a leg's panel needs, its curves
+#: (column, scale, style; the leg's colour unless the style says), y label, title)
+_LEG_FIGURES = {
+    "joints": (
+        ("q{i}_ref_m", "q{i}_m"),
+        (("q{i}_ref_m", 1e3, {"color": DESIRED, "lw": 1.4, "label": "set-point"}),
+         ("q{i}_m", 1e3, {"color": OUTPUT, "lw": 1.2, "label": "position"})),
+        "leg {i}: q{i} [mm]",
+        "joint space, slide set-points vs positions",
+    ),
+    "valves": (
+        ("u{i}_v",),
+        (("u{i}_v", 1.0, {"lw": 0.9, "label": "valve {i}"}),),
+        "u{i} [V]",
+        "valve commands (0-10 V, 5 V closed)",
+    ),
+    "pressures": (
+        ("p{i}a_pa", "p{i}b_pa"),
+        (("p{i}a_pa", 1e-5, {"lw": 1.0, "label": "cap side (a)"}),
+         ("p{i}b_pa", 1e-5, {"lw": 1.0, "ls": ":", "label": "rod side (b)"}),
+         ("supply_pa", 1e-5, {"color": "k", "lw": 0.8, "ls": "--", "label": "supply"})),
+        "leg {i} [bar abs]",
+        "chamber pressures",
+    ),
+}  # fmt: skip
+
 #: The figures of one run, by name (:func:`run_figures`), in the order they are written.
 RUN_FIGURES = ("task_space", "joints", "valves", "pressures")
 
@@ -183,61 +209,33 @@ def run_figures(
                 fig.text(0.01, 0.01, note, fontsize=7, va="bottom", wrap=True)
             figs["task_space"] = fig
 
-    if only in (None, "joints"):
-        legs = [i for i in (1, 2, 3) if _has(columns, f"q{i}_ref_m", f"q{i}_m")]
-        if legs:
-            fig = Figure(figsize=(8, 8))
-            axes = fig.subplots(len(legs), 1, sharex=True, squeeze=False)[:, 0]
-            for ax, i in zip(axes, legs, strict=True):
-                _line(ax, t, _col(columns, f"q{i}_ref_m") * 1e3, color=DESIRED, lw=1.4,
-                      label="set-point")  # fmt: skip
-                _line(ax, t, _col(columns, f"q{i}_m") * 1e3, color=OUTPUT, lw=1.2,
-                      label="position")  # fmt: skip
-                ax.set_ylabel(f"leg {i}: q{i} [mm]", color=LEG_COLOURS[i])
-                ax.grid(True, alpha=0.3)
-            axes[0].legend(loc="best", fontsize=8)
-            axes[-1].set_xlabel("time [s]")
-            fig.suptitle(_title(scenario, "joint space, slide set-points vs positions"))
-            figs["joints"] = fig
-
-    if only in (None, "valves"):
-        valves = [i for i in (1, 2, 3) if f"u{i}_v" in columns]
-        if valves:
-            # one panel per valve: legs 2 and 3 move alike in pitch, one line would hide the other
-            fig = Figure(figsize=(8, 1.2 + 1.9 * len(valves)))
-            axes = fig.subplots(len(valves), 1, sharex=True, sharey=True, squeeze=False)[:, 0]
-            for ax, i in zip(axes, valves, strict=True):
-                _line(ax, t, _col(columns, f"u{i}_v"), color=LEG_COLOURS[i], lw=0.9,
-                      label=f"valve {i}")  # fmt: skip
+    for name, (needs, curves, ylabel, what) in _LEG_FIGURES.items():
+        legs = [i for i in (1, 2, 3) if _has(columns, *(c.format(i=i) for c in needs))]
+        if only not in (None, name) or not legs:
+            continue
+        valves = name == "valves"  # one panel per valve: legs 2 and 3 move alike in pitch
+        fig = Figure(figsize=(8, 1.2 + 1.9 * len(legs) if valves else 8))
+        axes = fig.subplots(len(legs), 1, sharex=True, sharey=valves, squeeze=False)[:, 0]
+        for ax, i in zip(axes, legs, strict=True):
+            for col, scale, style in curves:
+                if col.format(i=i) in columns:
+                    style = {"color": LEG_COLOURS[i], **style, "label": style["label"].format(i=i)}
+                    _line(ax, t, _col(columns, col.format(i=i)) * scale, **style)
+            if valves:
                 ax.axhline(5.0, color="k", lw=0.6, ls="--",
-                           label="closed centre (5 V)" if i == valves[0] else None)  # fmt: skip
+                           label="closed centre (5 V)" if i == legs[0] else None)  # fmt: skip
                 ax.set_ylim(-0.3, 10.3)
-                ax.set_ylabel(f"u{i} [V]")
-                ax.grid(True, alpha=0.3)
+                ax.set_ylabel(ylabel.format(i=i))
+            else:
+                ax.set_ylabel(ylabel.format(i=i), color=LEG_COLOURS[i])
+            ax.grid(True, alpha=0.3)
+            if valves:
                 ax.legend(loc="upper right", fontsize=8)
-            axes[-1].set_xlabel("time [s]")
-            fig.suptitle(_title(scenario, "valve commands (0-10 V, 5 V closed)"))
-            figs["valves"] = fig
-
-    if only in (None, "pressures"):
-        chambers = [i for i in (1, 2, 3) if _has(columns, f"p{i}a_pa", f"p{i}b_pa")]
-        if chambers:
-            fig = Figure(figsize=(8, 8))
-            axes = fig.subplots(len(chambers), 1, sharex=True, squeeze=False)[:, 0]
-            for ax, i in zip(axes, chambers, strict=True):
-                _line(ax, t, _col(columns, f"p{i}a_pa") * 1e-5, color=LEG_COLOURS[i], lw=1.0,
-                      label="cap side (a)")  # fmt: skip
-                _line(ax, t, _col(columns, f"p{i}b_pa") * 1e-5, color=LEG_COLOURS[i], lw=1.0,
-                      ls=":", label="rod side (b)")  # fmt: skip
-                if "supply_pa" in columns:
-                    _line(ax, t, _col(columns, "supply_pa") * 1e-5, color="k", lw=0.8, ls="--",
-                          label="supply")  # fmt: skip
-                ax.set_ylabel(f"leg {i} [bar abs]", color=LEG_COLOURS[i])
-                ax.grid(True, alpha=0.3)
+        if not valves:
             axes[0].legend(loc="best", fontsize=8)
-            axes[-1].set_xlabel("time [s]")
-            fig.suptitle(_title(scenario, "chamber pressures"))
-            figs["pressures"] = fig
+        axes[-1].set_xlabel("time [s]")
+        fig.suptitle(_title(scenario, what))
+        figs[name] = fig
 
     if scenario.get("faults"):  # the typed scenario's schedule (validated once if a dict)
         spec = spec if spec is not None else as_scenario(scenario)

@@ -34,7 +34,7 @@ from tqdm import tqdm
 
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.messages import one_line
-from simpro_mj.report.marker import hidden
+from simpro_mj.report.marker import replacing
 from simpro_mj.report.recording import frame_times, ghost_poses, load_recording, nearest_rows
 from simpro_mj.report.scene import (
     CAMERAS,
@@ -339,36 +339,25 @@ def render_video(
     except BaseException:
         os.unlink(jobs_file)
         raise
-    tmp = None
     try:
-        fd, name = tempfile.mkstemp(prefix=hidden(out, "tmp"), suffix=".mp4", dir=out.parent)
-        os.close(fd)
-        tmp = Path(name)
-        bar = tqdm(total=n, unit="frame", desc="render", disable=not progress, leave=False)
-        pending: deque = deque()
-        cpu: list[float] = []  # worker CPU seconds per chunk (independent of other load)
-        starts = iter(range(0, n, chunk))
-        writer = _ffmpeg_writer(tmp, fps, len(recs) * width, height + strip_h)
-        try:
-            for s in starts:
-                pending.append(pool.submit(_render_frames, range(s, min(s + chunk, n))))
-                if len(pending) >= 2 * workers:
+        with replacing(out, suffix=".mp4") as tmp:
+            bar = tqdm(total=n, unit="frame", desc="render", disable=not progress, leave=False)
+            pending: deque = deque()
+            cpu: list[float] = []  # worker CPU seconds per chunk (independent of other load)
+            writer = _ffmpeg_writer(tmp, fps, len(recs) * width, height + strip_h)
+            try:
+                for s in range(0, n, chunk):
+                    pending.append(pool.submit(_render_frames, range(s, min(s + chunk, n))))
+                    if len(pending) >= 2 * workers:
+                        _drain(pending.popleft(), writer, bar, cpu)
+                while pending:
                     _drain(pending.popleft(), writer, bar, cpu)
-            while pending:
-                _drain(pending.popleft(), writer, bar, cpu)
-        finally:
-            writer.close()
-            bar.close()
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)  # mkstemp's 0600 -> what a plain open would give
-        os.replace(tmp, out)
-        tmp = None
+            finally:
+                writer.close()
+                bar.close()
     finally:
         pool.shutdown(cancel_futures=True)
         os.unlink(jobs_file)
-        if tmp is not None:
-            tmp.unlink(missing_ok=True)
     wall = time.perf_counter() - wall0
     return Rendered(
         out=str(out),

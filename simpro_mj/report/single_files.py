@@ -7,15 +7,13 @@ says ``--overwrite``; under a temporary name, renamed into place, then listed.
 
 from __future__ import annotations
 
-import contextlib
 import os
-import tempfile
 from pathlib import Path
 
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.safe_files import short
 from simpro_mj.report.folders import locked, out_path
-from simpro_mj.report.marker import foreign, hidden, record, result_kind, umask
+from simpro_mj.report.marker import foreign, record, replacing, result_kind
 
 __all__ = ["check_file", "record_file", "write_file"]
 
@@ -94,16 +92,8 @@ def write_file(path, data: str | bytes, overwrite: bool = False, option: str = "
     path = check_file(path, overwrite, option)
     created = not path.parent.exists()
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=hidden(path, "tmp"), dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data.encode("utf-8") if isinstance(data, str) else data)
-        os.chmod(tmp, 0o666 & ~umask())
-        os.replace(tmp, path)
-    except BaseException:
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)
-        raise
+    with replacing(path) as tmp:
+        Path(tmp).write_bytes(data.encode("utf-8") if isinstance(data, str) else data)
     record_file(path, created)
     return path
 
@@ -114,13 +104,6 @@ def write_telemetry_file(out: Path, tel, comment: str) -> None:
     the folder's marker (:func:`record_file`)."""
     from simpro_mj.config.telemetry import write_telemetry
 
-    fd, tmp = tempfile.mkstemp(prefix=hidden(out, "tmp"), dir=out.parent)
-    os.close(fd)
-    try:
+    with replacing(out) as tmp:
         write_telemetry(tmp, tel, comment)
-        os.replace(tmp, out)
-    except BaseException:
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)
-        raise
     record_file(out)

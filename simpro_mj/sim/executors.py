@@ -148,6 +148,21 @@ def _finished_meanwhile(futures: dict, reported: set, done: Callback) -> None:
             done(key, fut.result(timeout=0))
 
 
+def _collect(finished, futures: dict, done: Callback, reported: set, stop: bool = True) -> None:
+    """``done(futures[fut], result)`` of each future of ``finished`` (a task that raised,
+    or whose worker died, fails alone); with ``stop``, a task that reports
+    ``interrupted`` (Ctrl-C/SIGTERM stopped it) raises :class:`KeyboardInterrupt`."""
+    for fut in finished:
+        try:
+            result = fut.result()
+        except Exception as exc:  # noqa: BLE001 - a failing task fails its variant only
+            result = _failed(exc)
+        reported.add(fut)
+        done(futures[fut], result)
+        if stop and result.get("status") == "interrupted":
+            raise KeyboardInterrupt(result.get("reason") or "interrupted")
+
+
 def run_tasks(
     tasks: list[tuple[int, dict]],
     done: Callback,
@@ -213,15 +228,7 @@ def run_threads(tasks: list[tuple[int, dict]], jobs: int, done: Callback, fn: Wo
     try:
         futures = {pool.submit(fn, {**task, "stop": stop}): key for key, task in tasks}
         signal_ready("batch")
-        for fut in as_completed(futures):
-            try:
-                result = fut.result()
-            except Exception as exc:  # noqa: BLE001 - a failing task fails its variant only
-                result = _failed(exc)
-            reported.add(fut)
-            done(futures[fut], result)
-            if result.get("status") == "interrupted":
-                raise KeyboardInterrupt(result.get("reason") or "interrupted")
+        _collect(as_completed(futures), futures, done, reported)
     except BaseException:
         stop.set()  # the running simulations end at their next chunk
         for fut in futures:
@@ -261,13 +268,7 @@ def run_pool(
         with main_not_imported():  # the workers start while the tasks are submitted
             futures = {pool.submit(run_task, fn, task): key for key, task in tasks}
         signal_ready("batch")
-        for fut in as_completed(futures):
-            try:
-                result = fut.result()
-            except Exception as exc:  # noqa: BLE001 - a dead worker fails its variant only
-                result = _failed(exc)
-            reported.add(fut)
-            done(futures[fut], result)
+        _collect(as_completed(futures), futures, done, reported, stop=False)
     except BaseException:
         stop_pool(pool)  # the workers are gone when this returns
         _finished_meanwhile(futures, reported, done)
@@ -453,13 +454,8 @@ def run_dask(
                 ).done
             except (TimeoutError, distributed.TimeoutError):
                 finished = set()
-            for fut in finished:
-                pending.discard(fut)
-                try:
-                    result = fut.result()
-                except Exception as exc:  # noqa: BLE001 - a lost worker fails its variant only
-                    result = _failed(exc)
-                done(futures[fut], result)
+            pending -= set(finished)
+            _collect(finished, futures, done, set(), stop=False)
             if finished or client.scheduler_info().get("workers"):
                 seen_worker = time.monotonic()
             elif time.monotonic() - seen_worker > limit:
