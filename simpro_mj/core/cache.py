@@ -107,12 +107,14 @@ def _update(h, path) -> None:
             h.update(block)
 
 
-def file_digest(path) -> str | None:
-    """SHA-256 (hex) of one file's bytes, or None if it cannot be read."""
+def file_digest(path, strict: bool = False) -> str | None:
+    """SHA-256 (hex) of one file's bytes, or None if it cannot be read (``strict``: raise)."""
     h = hashlib.sha256()
     try:
         _update(h, path)
     except (OSError, TypeError, ValueError, UserInputError):
+        if strict:
+            raise
         return None
     return h.hexdigest()
 

@@ -27,7 +27,8 @@ from pathlib import Path
 
 from simpro_mj import __version__
 from simpro_mj.analysis.verdict import FINISHED_STATUSES
-from simpro_mj.core.safe_files import open_regular, read_text
+from simpro_mj.core.cache import file_digest
+from simpro_mj.core.safe_files import read_text
 
 __all__ = [
     "MAX_METRICS_BYTES",
@@ -105,16 +106,8 @@ def manifest_of(doc: dict | None) -> dict | None:
     return files if isinstance(files, dict) else None
 
 
-def _digest(path: Path) -> str:
-    h = hashlib.sha256()
-    with open_regular(path, 1 << 40, "result", binary=True) as fh:
-        for block in iter(lambda: fh.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
-
-
 def _entry(path: Path) -> dict:
-    return {"size": path.stat().st_size, "sha256": _digest(path)}
+    return {"size": path.stat().st_size, "sha256": file_digest(path, strict=True)}
 
 
 def _kind(path: Path) -> str:
@@ -165,7 +158,7 @@ def _matches(files: dict, rel: str, path: Path) -> bool:
     if not isinstance(entry, dict):
         return False
     try:
-        return entry.get("size") == path.stat().st_size and entry.get("sha256") == _digest(path)
+        return entry.get("size") == path.stat().st_size and entry.get("sha256") == file_digest(path)
     except (OSError, ValueError):
         return False
 

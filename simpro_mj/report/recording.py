@@ -179,27 +179,19 @@ def load_recording(folder) -> Recording:
     t, q, names = z["time_s"], z["qpos"], tuple(str(n) for n in z["qpos_names"])
     columns = read_timeseries(folder / "timeseries.csv", required=REPLAY_COLUMNS)
     scenario = read_yaml(folder / "scenario.yaml", "result scenario")
-    where = folder / RECORDING_FILE
-    if len(t) == 0 or len(t) != len(q) or q.shape[1] != len(names):
-        raise UserInputError(
-            f"no recorded motion at {where}: {len(t)} times, qpos {q.shape}, {len(names)} "
-            "joint names; allowed: a folder written by simpro-sim run"
-        )
-    if not (np.all(np.isfinite(t)) and np.all(np.diff(t) > 0) and np.all(np.isfinite(q))):
-        raise UserInputError(
-            f"unreadable recording at {where}: times not increasing or values not finite; "
-            "allowed: a folder written by simpro-sim run"
-        )
-    if not isinstance(scenario, dict):
-        raise UserInputError(
-            f"unreadable recording at {folder / 'scenario.yaml'}: not a mapping; allowed: a "
-            "folder written by simpro-sim run"
-        )
-    if len(columns["time_s"]) == 0:
-        raise UserInputError(
-            f"unreadable recording at {folder / 'timeseries.csv'}: no rows; allowed: a "
-            "folder written by simpro-sim run"
-        )
+    for bad, what, file, why in (
+        (len(t) == 0 or len(t) != len(q) or q.shape[1] != len(names), "no recorded motion",
+         RECORDING_FILE, f"{len(t)} times, qpos {q.shape}, {len(names)} joint names"),
+        (not (np.all(np.isfinite(t)) and np.all(np.diff(t) > 0) and np.all(np.isfinite(q))),
+         "unreadable recording", RECORDING_FILE, "times not increasing or values not finite"),
+        (not isinstance(scenario, dict), "unreadable recording", "scenario.yaml",
+         "not a mapping"),
+        (len(columns["time_s"]) == 0, "unreadable recording", "timeseries.csv", "no rows"),
+    ):  # fmt: skip
+        if bad:
+            raise UserInputError(
+                f"{what} at {folder / file}: {why}; allowed: a folder written by simpro-sim run"
+            )
     return Recording(folder.name, folder, t, q, names, columns, scenario)
 
 

@@ -112,15 +112,12 @@ class CueWorker:
 
     def step(self, f, w) -> np.ndarray:
         """Hand ``(f, w)`` to the child; the set-point of the previous period's input."""
-        conn = self._conn
-        while self._pending and conn.poll():
-            _, self._pose = conn.recv()
-            self._pending -= 1
+        self.settle(0.0)
         self.periods += 1
         if self._pending:
             self.late += 1
             self.max_behind = max(self.max_behind, self._pending)
-        conn.send((tuple(map(float, f)), tuple(map(float, w))))
+        self._conn.send((tuple(map(float, f)), tuple(map(float, w))))
         self._pending += 1
         return self._pose
 

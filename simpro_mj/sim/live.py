@@ -69,7 +69,7 @@ from simpro_mj.sim.scheduling import (
     realtime_scheduling,
     thread_switches,
 )
-from simpro_mj.sim.udp import DEFAULT_POSE_FORMAT, PoseSender, Receiver, pose_columns
+from simpro_mj.sim.udp import DEFAULT_POSE_FORMAT, PoseSender, Receiver, pose_columns, spread
 
 if TYPE_CHECKING:
     from simpro_mj.sim.result import SimResult
@@ -122,14 +122,6 @@ class LiveOptions:
     #: corner (Hz); 0 leaves the stage out
     bias_tau_s: float = 0.0
     vibration_hz: float = 0.0
-
-
-def _spread(x: np.ndarray) -> dict:
-    """The median, 99th percentile and largest of ``x`` (None each when empty)."""
-    if not x.size:
-        return {"p50": None, "p99": None, "max": None}
-    p50, p99 = np.percentile(x, [50, 99])
-    return {"p50": float(p50), "p99": float(p99), "max": float(x.max())}
 
 
 @dataclass
@@ -315,9 +307,9 @@ class Pacer:
         if self.start_wall is not None:
             drift = (steps * self.dt - (end - self.start_wall)) * 1e3
         out = {
-            "lateness_us": _spread(lat),
+            "lateness_us": spread(lat),
             "deadlines": int(st.n),
-            "chunk_compute_us": _spread(busy),
+            "chunk_compute_us": spread(busy),
             "missed_deadlines": int(st.missed),
             "chunk_steps": self.chunk,
             "drift_ms": drift,

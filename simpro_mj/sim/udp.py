@@ -38,6 +38,7 @@ __all__ = [
     "pose_columns",
     "pose_template",
     "send_datagrams",
+    "spread",
 ]
 
 #: Most datagrams read at one chunk boundary (a burst never stalls the loop).
@@ -367,14 +368,17 @@ def send_datagrams(grams, times, address: tuple[str, int], *, say=None,
                 say(f"send t {float(t):7.2f} s | sent {sent} errors {errors}")
     finally:
         sock.close()
-    lat = late[: sent + errors] * 1e6
     return {
         "sent": sent,
         "errors": errors,
         "duration_s": clock() - start,
-        "lateness_us": {
-            "p50": float(np.percentile(lat, 50)) if lat.size else None,
-            "p99": float(np.percentile(lat, 99)) if lat.size else None,
-            "max": float(lat.max()) if lat.size else None,
-        },
+        "lateness_us": spread(late[: sent + errors] * 1e6),
     }
+
+
+def spread(x: np.ndarray) -> dict:
+    """The median, 99th percentile and largest of ``x`` (None each when empty)."""
+    if not x.size:
+        return {"p50": None, "p99": None, "max": None}
+    p50, p99 = np.percentile(x, [50, 99])
+    return {"p50": float(p50), "p99": float(p99), "max": float(x.max())}
