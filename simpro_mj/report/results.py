@@ -370,10 +370,10 @@ def _write(out_dir, columns, metrics, scenario, extra, arrays) -> tuple[Path, di
         return install_folder(target, fill), doc
 
 
-def _fmt(value, scale: float = 1.0, digits: int = 3) -> str:
+def _fmt(value, scale: float = 1.0, digits: int = 3, unit: str = "") -> str:
     if value is None or (isinstance(value, float) and not math.isfinite(value)):
         return "-"
-    return f"{value * scale:.{digits}f}"
+    return f"{value * scale:.{digits}f}{unit}"
 
 
 def print_summary(metrics: Mapping, out_dir=None, file: TextIO | None = None) -> None:
@@ -413,10 +413,8 @@ def print_summary(metrics: Mapping, out_dir=None, file: TextIO | None = None) ->
         m = axes.get(axis)
         if not m:
             continue
-        sse = _fmt(m.get("steady_state_error"), scale, 4)
-        sse = f"{sse} {unit}" if sse != "-" else sse
-        over = _fmt(m.get("overshoot_pct"), 1.0, 1)
-        over = f"{over} %" if over != "-" else over
+        sse = _fmt(m.get("steady_state_error"), scale, 4, f" {unit}")
+        over = _fmt(m.get("overshoot_pct"), 1.0, 1, " %")
         print(
             f"{axis:<6} {sse:>14} {_fmt(m.get('rise_time_s')):>9} "
             f"{_fmt(m.get('settling_time_s')):>13} {over:>10}",

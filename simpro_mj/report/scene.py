@@ -258,20 +258,12 @@ class TextStamp:
     CHARS = "0123456789.-+= tsdegpitchrolavmkx/:"
 
     def __init__(self, px: int = TEXT_PX):
-        from matplotlib.backends.backend_agg import FigureCanvasAgg
-        from matplotlib.figure import Figure
-
         self.h = int(round(px * 1.5)) // 2 * 2
         self.w = int(round(px * 0.65))
-        self.cells = {}
-        for ch in dict.fromkeys(self.CHARS):
-            fig = Figure(figsize=(self.w / 100.0, self.h / 100.0), dpi=100.0,
-                         facecolor=(0.1, 0.1, 0.12))  # fmt: skip
-            canvas = FigureCanvasAgg(fig)
-            fig.text(0.5, 0.5, ch, color="white", ha="center", va="center",
-                     fontsize=px * 0.72, family="monospace")  # fmt: skip
-            canvas.draw()
-            self.cells[ch] = np.asarray(canvas.buffer_rgba())[..., :3].copy()
+        self.cells = {
+            ch: _text_image(ch, self.w, self.h, px * 0.72, family="monospace")
+            for ch in dict.fromkeys(self.CHARS)
+        }
 
     def stamp(self, image: np.ndarray, text: str, right: int, top: int) -> np.ndarray:
         """Paste ``text`` into ``image`` (in place) ending at column ``right``, row ``top``."""
@@ -286,14 +278,19 @@ class TextStamp:
 
 def label_image(text: str, height: int) -> np.ndarray:
     """A small white-on-dark RGB label (drawn once with matplotlib, pasted per frame)."""
+    h = max(int(1.6 * TEXT_PX), int(height * 0.06)) // 2 * 2
+    w = max(2 * h, int(0.62 * h * (len(text) + 1))) // 2 * 2
+    return _text_image(text, w, h, h * 0.5)
+
+
+def _text_image(text: str, w: int, h: int, fontsize: float, **font) -> np.ndarray:
+    """``text`` white, centred on a dark ``w`` x ``h`` RGB image, drawn by matplotlib."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    h = max(int(1.6 * TEXT_PX), int(height * 0.06)) // 2 * 2
-    w = max(2 * h, int(0.62 * h * (len(text) + 1))) // 2 * 2
     fig = Figure(figsize=(w / 100.0, h / 100.0), dpi=100.0, facecolor=(0.1, 0.1, 0.12))
     canvas = FigureCanvasAgg(fig)
-    fig.text(0.5, 0.5, text, color="white", ha="center", va="center", fontsize=h * 0.5)
+    fig.text(0.5, 0.5, text, color="white", ha="center", va="center", fontsize=fontsize, **font)
     canvas.draw()
     return np.asarray(canvas.buffer_rgba())[..., :3].copy()
 

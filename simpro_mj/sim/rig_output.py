@@ -88,14 +88,8 @@ class RigTemplate:
         if bits not in (8, 16):
             raise UserInputError(f"invalid value at --output-bits: {bits}; allowed: 8 or 16")
         self.bits, self.text_counts, self.full = bits, bool(text_counts), (1 << bits) - 1
-        self.ranges = {
-            "q1": (0.0, stroke),
-            "q2": (0.0, stroke),
-            "q3": (0.0, stroke),
-            "roll": (-TILT_RANGE_RAD, TILT_RANGE_RAD),
-            "pitch": (-TILT_RANGE_RAD, TILT_RANGE_RAD),
-            "heave": (-HEAVE_RANGE_M, HEAVE_RANGE_M),
-        }
+        tilt, heave = (-TILT_RANGE_RAD, TILT_RANGE_RAD), (-HEAVE_RANGE_M, HEAVE_RANGE_M)
+        self.ranges = dict(zip(TOKENS, [(0.0, stroke)] * 3 + [tilt, tilt, heave], strict=True))
         if not text.isascii():
             raise self._refuse(text, "not ASCII")
         self.pieces: list = []  # bytes, or a token name
@@ -148,14 +142,10 @@ class RigTemplate:
         """The string for ``values`` (token -> SI value)."""
         out = []
         for p in self.pieces:
-            if isinstance(p, bytes):
-                out.append(p)
-                continue
-            c = self.count(p, values[p])
-            if self.text_counts:
-                out.append(str(c).encode("ascii"))
-            else:
-                out.append(c.to_bytes(self.bits // 8, "big"))
+            if isinstance(p, str):  # a token: its count
+                c = self.count(p, values[p])
+                p = str(c).encode() if self.text_counts else c.to_bytes(self.bits // 8, "big")
+            out.append(p)
         return b"".join(out)
 
 
@@ -221,14 +211,9 @@ class RigOutput:
             from simpro_mj.sim.result import COLUMNS
 
             c = self._col = {name: j for j, name in enumerate(COLUMNS)}
-        return {
-            "q1": row[c["q1_ref_m"]],
-            "q2": row[c["q2_ref_m"]],
-            "q3": row[c["q3_ref_m"]],
-            "roll": row[c["roll_ref_rad"]],
-            "pitch": row[c["pitch_ref_rad"]],
-            "heave": row[c["heave_ref_m"]] - self.home,
-        }
+        refs = ("q1_ref_m", "q2_ref_m", "q3_ref_m", "roll_ref_rad", "pitch_ref_rad")
+        values = {t: row[c[name]] for t, name in zip(TOKENS, refs, strict=False)}
+        return values | {"heave": row[c["heave_ref_m"]] - self.home}
 
     def send(self, row) -> None:
         from simpro_mj.core.interrupts import held_signals
