@@ -89,25 +89,6 @@ def raise_or_hold(signum, frame=None):  # noqa: ARG001 - signal handler signatur
     raise _interrupt(signum)
 
 
-def _in_main_thread() -> bool:
-    return threading.current_thread() is threading.main_thread()
-
-
-def _enter() -> None:
-    global _holding
-    _holding += 1
-
-
-def _leave() -> None:
-    """End one held block; at the outermost, raise what arrived meanwhile."""
-    global _holding
-    _holding -= 1
-    if _holding == 0 and _held:
-        signum = _held[0]
-        _held.clear()
-        raise _interrupt(signum)
-
-
 @contextlib.contextmanager
 def held_signals():
     """Within the block, SIGINT/SIGTERM are held; the first is raised as
@@ -117,7 +98,8 @@ def held_signals():
     the block; an ignored signal stays ignored. Outside the main thread this is
     a no-op.
     """
-    if not _in_main_thread():
+    global _holding
+    if threading.current_thread() is not threading.main_thread():
         yield
         return
     previous = {}
@@ -125,13 +107,17 @@ def held_signals():
         h = signal.getsignal(s)
         if h is not signal.SIG_IGN and not getattr(h, "holds_signals", False):
             previous[s] = signal.signal(s, raise_or_hold)
-    _enter()
+    _holding += 1
     try:
         yield
     finally:
         for s, h in previous.items():
             signal.signal(s, h)
-        _leave()
+        _holding -= 1
+        if _holding == 0 and _held:  # the outermost block: raise what arrived meanwhile
+            signum = _held[0]
+            _held.clear()
+            raise _interrupt(signum)
 
 
 class Interrupted(KeyboardInterrupt):
@@ -167,7 +153,7 @@ def interruptible():
     The previous handlers are restored on exit; nested use is harmless.
     Outside the main thread this is a no-op.
     """
-    if not _in_main_thread():
+    if threading.current_thread() is not threading.main_thread():
         yield
         return
     previous = {s: signal.signal(s, raise_or_hold) for s in SIGNALS}
