@@ -118,7 +118,8 @@ class Result:
             ``which`` is not one of the run's figures.
         """
         # matplotlib is loaded when a figure is asked for, not by ``import simpro_mj``
-        from simpro_mj.report.plots import DPI, RUN_FIGURES, run_figures
+        from simpro_mj.report.figures import DPI
+        from simpro_mj.report.plots import RUN_FIGURES, run_figures
 
         figures = run_figures(self.columns, self.scenario, only=which)
         if which not in figures:

@@ -70,7 +70,7 @@ def test_every_command_takes_the_shared_options_that_mean_something_to_it():
 def test_progress_only_on_a_terminal(monkeypatch):
     import argparse
 
-    from simpro_mj.report.runner import show_progress
+    from simpro_mj.core.progress import show_progress
 
     monkeypatch.setattr("sys.stderr.isatty", lambda: True)
     assert show_progress(argparse.Namespace(quiet=False, json=False))

@@ -32,10 +32,11 @@ def run(args) -> int:
     # the job's modules on use: --help and argparse's refusals import none of them
     from simpro_mj.config.scenario import find_scenario, load_scenario
     from simpro_mj.core.jsonout import emit_json
+    from simpro_mj.core.progress import show_progress
     from simpro_mj.report.compare import compare, table
     from simpro_mj.report.folders import claim
     from simpro_mj.report.marker import record
-    from simpro_mj.report.runner import EXIT_INTERRUPTED, interrupted_message, show_progress
+    from simpro_mj.report.runner import EXIT_INTERRUPTED, interrupted_message
     from simpro_mj.report.video_options import video_after_run
 
     source = find_scenario(args.scenario)  # the file that runs, said first

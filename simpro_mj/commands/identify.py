@@ -48,8 +48,8 @@ def run(args) -> int:
     ex = check_tree(tree)
     # the experiment loads MuJoCo and SciPy: after every input has been checked
     from simpro_mj.identification.identify import document, identify
+    from simpro_mj.job.run import warn
     from simpro_mj.report.identify import plot, summary
-    from simpro_mj.report.runner import warn
 
     records: dict = {}
     legs = sorted(set(args.actuators))

@@ -42,14 +42,10 @@ def run(args) -> int:
     from simpro_mj.analysis.verdict import FINISHED_STATUSES
     from simpro_mj.config.scenario import find_scenario, load_scenario, scenario_hash
     from simpro_mj.core.jsonout import emit_json
+    from simpro_mj.core.progress import show_progress
     from simpro_mj.report.folders import claim, default_out, said_replacing
     from simpro_mj.report.results import print_summary
-    from simpro_mj.report.runner import (
-        EXIT_INTERRUPTED,
-        execute,
-        interrupted_message,
-        show_progress,
-    )
+    from simpro_mj.report.runner import EXIT_INTERRUPTED, execute, interrupted_message
     from simpro_mj.report.video_options import video_after_run
 
     source = find_scenario(args.scenario)  # the file that runs, said first

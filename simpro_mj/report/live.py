@@ -34,8 +34,9 @@ from simpro_mj.analysis.preflight import preflight
 from simpro_mj.config.models import Scenario
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.interrupts import writing
+from simpro_mj.job.run import warn
 from simpro_mj.report.results import write_results
-from simpro_mj.report.runner import kept_line, recording, warn
+from simpro_mj.report.runner import kept_line, recording
 from simpro_mj.sim.live import LiveOptions, run_session
 
 __all__ = ["MAX_LOG_BYTES", "actuator_tracking", "execute_live", "live_scenario"]

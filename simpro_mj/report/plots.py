@@ -40,7 +40,6 @@ __all__ = [
     "plot_compare",
     "compare_figure",
     "run_figures",
-    "DPI",
     "RUN_FIGURES",
 ]
 

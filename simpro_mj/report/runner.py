@@ -25,17 +25,14 @@ import numpy as np
 
 from simpro_mj.config.models import Scenario, as_scenario
 from simpro_mj.core.interrupts import writing
-from simpro_mj.core.progress import show_progress
 from simpro_mj.core.rates import PHYSICS_DT_S
-from simpro_mj.job.run import Run, warn
+from simpro_mj.job.run import Run
 from simpro_mj.report.results import write_run
 from simpro_mj.sim.readiness import signal_ready
 
 __all__ = [
     "EXIT_INTERRUPTED",
     "execute",
-    "show_progress",
-    "warn",
     "interrupted_message",
 ]
 
