@@ -38,34 +38,25 @@ def add_video_options(parser, out: bool) -> None:
     """The options shared by ``render`` and ``run/compare --video``."""
     from simpro_mj.report.scene import CAMERAS
 
-    parser.add_argument("--fps", default="25", help="frames per second of the video (default 25)")
-    parser.add_argument(
-        "--size", default="640x480", help="WIDTHxHEIGHT of each 3D view, even numbers (640x480)"
-    )
-    parser.add_argument(
-        "--speed", default="1", help="playback speed, < 1 is slow motion (0.25: quarter speed)"
-    )
-    parser.add_argument(
-        "--camera", default=CAMERAS[0], help=f"camera of the model: {', '.join(CAMERAS)}"
-    )
-    parser.add_argument("--start", default="0", help="first simulated second shown (default 0)")
-    parser.add_argument("--end", default=None, help="last simulated second (default: the end)")
-    if out:
-        parser.add_argument(
-            "--out", default=None, help="the MP4 to write (default RESULT_DIR/replay.mp4)"
-        )
-        parser.add_argument(
-            "--overwrite", action="store_true",
-            help="replace --out even if simpro-sim did not write it (default: refuse)",
-        )  # fmt: skip
-    parser.add_argument("--no-strip", action="store_true", help="no plot strip under the 3D view")
-    parser.add_argument("--no-ghost", action="store_true", help="no set-point ghost")
-    parser.add_argument(
-        "--shadows", action="store_true", help="cast shadows (about 3x slower per frame)"
-    )
-    parser.add_argument(
-        "--jobs", default=None, help="render worker processes (default: the CPU count)"
-    )
+    options = [
+        ("--fps", "25", "frames per second of the video (default 25)"),
+        ("--size", "640x480", "WIDTHxHEIGHT of each 3D view, even numbers (640x480)"),
+        ("--speed", "1", "playback speed, < 1 is slow motion (0.25: quarter speed)"),
+        ("--camera", CAMERAS[0], f"camera of the model: {', '.join(CAMERAS)}"),
+        ("--start", "0", "first simulated second shown (default 0)"),
+        ("--end", None, "last simulated second (default: the end)"),
+        ("--out", None, "the MP4 to write (default RESULT_DIR/replay.mp4)"),
+        ("--overwrite", False, "replace --out even if simpro-sim did not write it (default: "
+         "refuse)"),
+        ("--no-strip", False, "no plot strip under the 3D view"),
+        ("--no-ghost", False, "no set-point ghost"),
+        ("--shadows", False, "cast shadows (about 3x slower per frame)"),
+        ("--jobs", None, "render worker processes (default: the CPU count)"),
+    ]  # fmt: skip
+    for flag, default, text in options:
+        if out or flag not in ("--out", "--overwrite"):  # a default of False: a flag
+            how = {"action": "store_true"} if default is False else {"default": default}
+            parser.add_argument(flag, help=text, **how)
 
 
 def add_video_flag(parser) -> None:
