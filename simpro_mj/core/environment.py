@@ -20,21 +20,18 @@ __all__ = ["MAX_THREADS", "environment_problem", "matplotlib_home"]
 MAX_THREADS = 1024
 
 #: Read by numba as a plain count (OpenMP's own variables allow lists: left to it).
-_THREADS = ("NUMBA_NUM_THREADS",)
+_THREADS = "NUMBA_NUM_THREADS"
 
 
 def environment_problem() -> str | None:
     """The one-line problem with the environment (``invalid value at NAME: ...``), or
     None. Thread counts must be whole numbers 1..:data:`MAX_THREADS` when set."""
-    for name in _THREADS:
-        text = os.environ.get(name)
-        if text is None or text.strip() == "":
-            continue
-        if not (text.strip().isdigit() and 1 <= int(text) <= MAX_THREADS):
-            return (
-                f"invalid value at {name}: {text[:40]!r}; allowed: a whole number of "
-                f"threads 1..{MAX_THREADS}, or unset"
-            )
+    text = os.environ.get(_THREADS, "")
+    if text.strip() and not (text.strip().isdigit() and 1 <= int(text) <= MAX_THREADS):
+        return (
+            f"invalid value at {_THREADS}: {text[:40]!r}; allowed: a whole number of "
+            f"threads 1..{MAX_THREADS}, or unset"
+        )
     return None
 
 

@@ -19,10 +19,6 @@ def emit_json(obj) -> None:
 
 
 def _json_default(o):
-    import numpy as np
-
-    if isinstance(o, np.generic):
-        return o.item()
-    if isinstance(o, np.ndarray):
+    if hasattr(o, "tolist"):  # a numpy scalar (its Python number) or array (lists)
         return o.tolist()
     raise TypeError(f"not JSON serialisable: {type(o).__name__}")

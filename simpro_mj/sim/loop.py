@@ -104,8 +104,6 @@ class CoSimulation:
         poses: np.ndarray | None = None,
         identified_source: str,
     ):
-        if setpoints not in ("scenario", "external"):
-            raise ValueError(f"setpoints={setpoints!r}; allowed: 'scenario' or 'external'")
         self.external = external = setpoints == "external"
         self._resume: int | None = None
         self.identified_source = identified_source
@@ -187,9 +185,7 @@ class CoSimulation:
         self.t = np.arange(self.n_steps + 1) * dt
         if external:  # the neutral pose until write_setpoints says otherwise
             self.ref = np.tile(np.asarray(self.geometry.home, float), (self.n_steps + 1, 1))
-        else:
-            if poses is None:
-                raise ValueError("poses=None; allowed: the set-points of setpoints='scenario'")
+        else:  # Build checked setpoints and made the poses
             self.ref = np.ascontiguousarray(poses)
         # motion cueing: the vehicle side, and the head sensors to log
         self.cueing = sc.setpoint.cueing is not None
