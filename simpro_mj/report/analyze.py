@@ -42,20 +42,13 @@ def plot(res: Analysis, p: AnalyzeParams, out: Path) -> list[str]:
         ax.plot(pz.real, pz.imag, "rs", label=f"poles at K K_I = {r.gain:g}")
         lim = r.stability_limit
         pl = an.outer_poles(mode, lim, o.period_s, o.delay_samples, o.pi_zero)
-        ax.plot(
-            pl.real,
-            pl.imag,
-            "kx",
-            ms=9,
-            label=f"limit K K_I = {lim:.2f} (paper {r.paper_stability_limit:g})",
-        )
+        label = f"limit K K_I = {lim:.2f} (paper {r.paper_stability_limit:g})"
+        ax.plot(pl.real, pl.imag, "kx", ms=9, label=label)
         ax.set_aspect("equal")
         ax.set_xlabel("Re z")
         ax.set_ylabel("Im z")
-        ax.set_title(
-            f"{mode} law, T = {o.period_s * 1e3:g} ms, one-sample inner delay (cf. Fig. {fig_no})",
-            fontsize=9,
-        )
+        title = f"{mode} law, T = {o.period_s * 1e3:g} ms, one-sample inner delay"
+        ax.set_title(f"{title} (cf. Fig. {fig_no})", fontsize=9)
         ax.legend(fontsize=8, loc="lower left")
         ax.grid(alpha=0.3)
         files.append(_save(plt, fig, out / f"root_locus_{mode}.png"))
@@ -63,20 +56,9 @@ def plot(res: Analysis, p: AnalyzeParams, out: Path) -> list[str]:
     fig, ax = plt.subplots(figsize=(8, 4.5))
     ri = res.outer.real_inner
     for mode, c, r, rr in (("I", "C0", res.outer.I, ri.I), ("PI", "C1", res.outer.PI, ri.PI)):
-        ax.step(
-            r._t,
-            r._y,
-            where="post",
-            color=c,
-            label=f"{mode}, K K_I={r.gain:g}, delay model",
-        )
-        ax.plot(
-            rr._t,
-            rr._y[:, 2],
-            color=c,
-            ls="--",
-            label=f"{mode}, real inner loops ({rr.variant}), heave",
-        )
+        ax.step(r._t, r._y, where="post", color=c, label=f"{mode}, K K_I={r.gain:g}, delay model")
+        label = f"{mode}, real inner loops ({rr.variant}), heave"
+        ax.plot(rr._t, rr._y[:, 2], color=c, ls="--", label=label)
     ff = res.outer.feedforward
     lag = "lag from the joints" if ff.lag == "joints" else f"model {ff.model_tau_s * 1e3:g} ms"
     label = f"feedforward, K K_I={ff.gain:g}, {lag}, pitch"
@@ -114,9 +96,8 @@ def plot(res: Analysis, p: AnalyzeParams, out: Path) -> list[str]:
         ax.axhline(dm["PI_stability_limit"], color="C1", ls=":", label="PI, delay model")
         ax.set_xlabel("inner-loop wn (rad/s), zeta = 0.7, redesigned")
         ax.set_ylabel("largest stable K K_I")
-        ax.set_title(
-            f"When is the inner loop a one-sample delay? T = {o.period_s * 1e3:g} ms", fontsize=9
-        )
+        title = f"When is the inner loop a one-sample delay? T = {o.period_s * 1e3:g} ms"
+        ax.set_title(title, fontsize=9)
         ax.grid(alpha=0.3, which="both")
         ax.legend(fontsize=8)
         files.append(_save(plt, fig, out / "delay_assumption.png"))
