@@ -29,9 +29,8 @@ from simpro_mj.core.jsonout import emit_json
 from simpro_mj.report.folders import claim
 from simpro_mj.report.live import execute_live, live_scenario
 from simpro_mj.report.results import print_summary
-from simpro_mj.sim.addresses import parse_address
 from simpro_mj.sim.live import LiveOptions
-from simpro_mj.sim.udp import check_listen, pose_template
+from simpro_mj.sim.udp import check_listen, parse_address, pose_template
 
 HELP = "run a cueing scenario live: UDP telemetry in, paced to the wall clock, the pose out"
 

@@ -26,9 +26,8 @@ from simpro_mj.config.telemetry import read_telemetry
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.jsonout import emit_json
 from simpro_mj.core.shipped import TELEMETRY_DIR
-from simpro_mj.sim.addresses import parse_address
 from simpro_mj.sim.live_feed import FeedImpairment, biased, impair
-from simpro_mj.sim.udp import send_datagrams
+from simpro_mj.sim.udp import parse_address, send_datagrams
 
 HELP = "send a telemetry CSV as paced UDP datagrams (OutSim, Forza, ...): a game's stand-in"
 #: no scenario to override; its lines on stderr are what it sends

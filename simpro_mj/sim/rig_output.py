@@ -156,7 +156,7 @@ def open_destination(text: str, check_only: bool = False):
     kind, sep, rest = str(text).partition(":")
     allowed = "allowed: udp:HOST:PORT or serial:DEVICE[@BAUD] (e.g. serial:/dev/ttyACM0@115200)"
     if kind == "udp" and sep:
-        from simpro_mj.sim.addresses import parse_address, resolve_address
+        from simpro_mj.sim.udp import parse_address, resolve_address
 
         family, addr = resolve_address(parse_address(rest, "--output"), "--output")
         if check_only:

@@ -4,8 +4,9 @@
 without blocking, holds the newest sample and fades it to the vehicle at rest
 when it goes stale; :class:`PoseSender` sends the platform's pose as a text
 line of a checked template (:func:`pose_template`); :func:`send_datagrams`
-plays a recorded stream as a game would (``simpro-sim send``). The pacing that
-joins them to the co-simulation is :mod:`simpro_mj.sim.live`.
+plays a recorded stream as a game would (``simpro-sim send``);
+:func:`parse_address` and :func:`resolve_address` check ``HOST:PORT``. The pacing
+that joins them to the co-simulation is :mod:`simpro_mj.sim.live`.
 """
 
 from __future__ import annotations
@@ -25,7 +26,6 @@ from simpro_mj.config.datagrams import AutoDecoder, make_decoder
 from simpro_mj.config.games.common import DatagramError
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.interrupts import held_signals
-from simpro_mj.sim.addresses import resolve_address
 
 __all__ = [
     "DEFAULT_POSE_FORMAT",
@@ -34,6 +34,8 @@ __all__ = [
     "PoseSender",
     "Receiver",
     "check_listen",
+    "parse_address",
+    "resolve_address",
     "PoseColumns",
     "pose_columns",
     "pose_template",
@@ -148,6 +150,41 @@ def pose_template(text: str | None) -> str:
     except (ValueError, IndexError, KeyError) as exc:
         raise refuse(str(exc)) from None
     return tpl
+
+
+def parse_address(text: str, option: str, *, bind: bool = False) -> tuple[str, int]:
+    """``HOST:PORT`` as (host, port); a one-line :class:`UserInputError` naming ``option``.
+
+    Port 0 is allowed only where the address is bound (``bind``): the system
+    picks a free port, which the readiness file names.
+    """
+    host, sep, port = str(text).rpartition(":")
+    low = 0 if bind else 1
+    try:
+        p = int(port)
+    except ValueError:
+        p = -1
+    if not sep or not host or not low <= p <= 65535:
+        raise UserInputError(
+            f"invalid value at {option}: {text!r}; allowed: HOST:PORT with a port {low}..65535 "
+            "(e.g. 127.0.0.1:4444)"
+        )
+    return host.strip("[]"), p
+
+
+def resolve_address(address: tuple[str, int], option: str) -> tuple:
+    """The UDP socket address of ``(host, port)``: one line naming ``option`` if the host
+    does not resolve."""
+    try:
+        info = socket.getaddrinfo(address[0], address[1], type=socket.SOCK_DGRAM)
+    except (socket.gaierror, UnicodeError, OSError) as exc:
+        why = getattr(exc, "strerror", None) or str(exc)
+        raise UserInputError(
+            f"invalid value at {option}: {address[0]}:{address[1]}: the host does not "
+            f"resolve ({why}); allowed: a host name or address this machine can reach"
+        ) from None
+    family, _, _, _, sockaddr = info[0]
+    return family, sockaddr
 
 
 def _bound_socket(address: tuple[str, int]) -> socket.socket:
