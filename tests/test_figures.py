@@ -126,7 +126,7 @@ def _cue_columns() -> dict[str, np.ndarray]:
 
 
 def test_cueing_figures_legends_name_their_series():
-    from simpro_mj.report.cue_plots import cueing_figures
+    from simpro_mj.report.plots import cueing_figures
 
     figs = cueing_figures(_cue_columns(), SCENARIO)
     assert set(figs) == {"cueing", "cue_pose"}
