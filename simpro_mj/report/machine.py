@@ -53,17 +53,24 @@ _FP_FLAGS = (
 )
 
 
-def _cpu_flags() -> list[str]:
+def _cpuinfo(*keys: str) -> str | None:
+    """The value of the first line of ``/proc/cpuinfo`` keyed by one of ``keys``, or None."""
     try:
         with open("/proc/cpuinfo", encoding="utf-8") as f:
             for line in f:
                 key, _, value = line.partition(":")
-                if key.strip() in ("flags", "Features"):
-                    have = set(value.split())
-                    return [flag for flag in _FP_FLAGS if flag in have]
+                if key.strip() in keys:
+                    return value.strip()
     except OSError:
         pass
-    return [platform.processor() or "unknown"]
+    return None
+
+
+def _cpu_flags() -> list[str]:
+    have = _cpuinfo("flags", "Features")
+    if have is None:
+        return [platform.processor() or "unknown"]
+    return [flag for flag in _FP_FLAGS if flag in have.split()]
 
 
 def _numpy_simd() -> list[str]:
@@ -119,17 +126,8 @@ def describe_machine() -> dict:
     """CPU model, logical cores and the versions that set a benchmark's figures."""
     import mujoco  # its version: loaded by the bench that asks, not by every result
 
-    cpu = platform.processor() or platform.machine()
-    try:
-        with open("/proc/cpuinfo", encoding="utf-8") as fh:
-            for line in fh:
-                if line.startswith("model name"):
-                    cpu = line.split(":", 1)[1].strip()
-                    break
-    except OSError:
-        pass
     return {
-        "cpu": cpu,
+        "cpu": _cpuinfo("model name") or platform.processor() or platform.machine(),
         "cores": os.cpu_count(),
         "python": platform.python_version(),
         "mujoco": mujoco.__version__,
