@@ -84,7 +84,9 @@ def partial_sibling(out_dir: Path) -> Path:
     for i in range(1, 100):
         cand = out_dir.with_name(f"{out_dir.name}.partial" + (f"-{i}" if i > 1 else ""))
         files = manifest_of(read_marker(cand)) or {}
-        if not cand.exists() or (PARTIAL_MARKER in files and _replaceable(cand, "run")):
+        if not cand.exists() or (
+            PARTIAL_MARKER in files and result_kind(cand) == "run" and not foreign(cand)
+        ):
             return cand
     raise UserInputError(
         f"no room at {out_dir}: 99 .partial folders beside it; allowed: remove some"
@@ -120,19 +122,6 @@ def said_replacing(out: Path, digest: str) -> None:
         old, new = str(result_hash(out))[:12], digest[:12]
         same = "the same scenario" if old == new else f"scenario {old}..., now {new}..."
         sys.stderr.write(f"replacing the previous {kind} result in {short(out)} ({same})\n")
-
-
-def _lost(folder: Path, found: list[str]) -> str:
-    shown = ", ".join(found[:5]) + (f" and {len(found) - 5} more" if len(found) > 5 else "")
-    return short(shown, 400)
-
-
-def _replaceable(folder: Path, kind: str) -> bool:
-    try:
-        empty = not any(folder.iterdir())
-    except OSError:
-        return False
-    return empty or (result_kind(folder) == kind and not foreign(folder))
 
 
 def out_path(out, where: str = "--out") -> Path:
@@ -221,8 +210,10 @@ def check_out(out, kind: str = "run", inputs: Iterable = (), writes: Iterable[st
     lost = foreign(out, only=list(writes)) if kind in IN_PLACE else foreign(out)
     if lost:
         verb = "overwrite" if kind in IN_PLACE else "delete"
+        more = f" and {len(lost) - 5} more" if len(lost) > 5 else ""
         raise UserInputError(
-            f"refused --out at {short(out)}: simpro-sim did not write {_lost(out, lost)} "
+            f"refused --out at {short(out)}: simpro-sim did not write "
+            f"{short(', '.join(lost[:5]) + more, 400)} "
             f"(not in its {RESULT_MARKER} list of files); writing the {kind} result would "
             f"{verb} them; nothing was touched; allowed: move them out of the folder, or "
             "choose another --out"
