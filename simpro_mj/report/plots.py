@@ -165,7 +165,7 @@ def start_offset_note(columns: Mapping, scenario: Mapping) -> str | None:
 
 #: The per-leg figures of a run: name -> (columns a leg's panel needs, its curves
 #: (column, scale, style; the leg's colour unless the style says), y label, title)
-_LEG_FIGURES = {
+_LEG_FIGURES: dict[str, tuple[tuple[str, ...], tuple[tuple[str, float, dict], ...], str, str]] = {
     "joints": (
         ("q{i}_ref_m", "q{i}_m"),
         (("q{i}_ref_m", 1e3, {"color": DESIRED, "lw": 1.4, "label": "set-point"}),
