@@ -56,16 +56,14 @@ def _check(args) -> None:
             f"invalid value at --name: {args.name!r}; allowed: letters, digits, '_', '-', '.' "
             "(a file-name-safe word of at most 100 characters, no path separator)"
         )
-    if args.evaluations < 1 or args.evaluations > 1000:
-        raise UserInputError(
-            f"invalid value at --evaluations: {args.evaluations}; allowed: 1..1000"
-        )
-    if not (0.5 <= args.duration <= 60.0):
-        raise UserInputError(f"invalid value at --duration: {args.duration}; allowed: 0.5..60 s")
-    if not all(0.0 < a <= 5.0 for a in args.amplitudes):
-        raise UserInputError(
-            f"invalid value at --amplitudes: {args.amplitudes}; allowed: amplitudes in (0, 5] V"
-        )
+    amps = args.amplitudes
+    for flag, value, ok, allowed in (
+        ("--evaluations", args.evaluations, 1 <= args.evaluations <= 1000, "1..1000"),
+        ("--duration", args.duration, 0.5 <= args.duration <= 60.0, "0.5..60 s"),
+        ("--amplitudes", amps, all(0 < a <= 5 for a in amps), "amplitudes in (0, 5] V"),
+    ):
+        if not ok:
+            raise UserInputError(f"invalid value at {flag}: {value}; allowed: {allowed}")
 
 
 def run(args) -> int:

@@ -46,7 +46,6 @@ from simpro_mj.core.shipped import PRESETS_DIR, user_path
 __all__ = [
     "DEFAULT_PRESET",
     "PRESET_KEYS",
-    "presets_dir",
     "shipped_presets",
     "Preset",
     "load_preset",
@@ -85,20 +84,15 @@ class Preset:
     calibration: Any = None
 
 
-def presets_dir() -> Path:
-    """The folder of the shipped presets (:data:`simpro_mj.core.shipped.PRESETS_DIR`)."""
-    return PRESETS_DIR
-
-
 def shipped_presets() -> list[str]:
     """Names of the shipped presets, sorted."""
-    return sorted(p.stem for p in presets_dir().glob("*.yaml"))
+    return sorted(p.stem for p in PRESETS_DIR.glob("*.yaml"))
 
 
 def _path(name_or_path: str) -> Path:
     text = str(name_or_path)
     if text in shipped_presets():
-        return presets_dir() / f"{text}.yaml"
+        return PRESETS_DIR / f"{text}.yaml"
     p = user_path(text, "plant.preset")
     if text.endswith((".yaml", ".yml")) and p.is_file():
         return p

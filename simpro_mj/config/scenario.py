@@ -114,7 +114,7 @@ from simpro_mj.config.messages import (
 )
 from simpro_mj.config.models import DEFAULT_SCENARIO, Scenario, as_tree, scenario_model
 from simpro_mj.config.models import merge as _merge
-from simpro_mj.config.presets import presets_dir, scenario_overlay, shipped_presets
+from simpro_mj.config.presets import scenario_overlay, shipped_presets
 from simpro_mj.config.reference import check_setpoints
 from simpro_mj.config.rig import rig_value
 from simpro_mj.config.rules import ONE_FOR_ALL, PHYSICS_DT_MS, Block, check_period
@@ -122,7 +122,13 @@ from simpro_mj.config.sweep import broadcast_value, parse_sweep
 from simpro_mj.core.cache import file_digest
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.keys import closest, key_text, parse_set, read_yaml
-from simpro_mj.core.shipped import SCENARIOS_DIR, TELEMETRY_DIR, model_digest, user_path
+from simpro_mj.core.shipped import (
+    PRESETS_DIR,
+    SCENARIOS_DIR,
+    TELEMETRY_DIR,
+    model_digest,
+    user_path,
+)
 
 # ------------------------------------------------------------------ finding files
 
@@ -516,6 +522,6 @@ def catalogue() -> dict[str, list[tuple[str, str]]]:
             folder / f"{name}{e}" for e in (".yaml", ".yml") if (folder / f"{name}{e}").is_file()
         )
         scenarios.append((name, _yaml_description(path)))
-    presets = [(n, _yaml_description(presets_dir() / f"{n}.yaml")) for n in shipped_presets()]
+    presets = [(n, _yaml_description(PRESETS_DIR / f"{n}.yaml")) for n in shipped_presets()]
     telemetry = [(p.name, _csv_description(p)) for p in sorted(Path(TELEMETRY_DIR).glob("*.csv"))]
     return {"scenarios": scenarios, "presets": presets, "telemetry": telemetry}

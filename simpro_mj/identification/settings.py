@@ -129,9 +129,8 @@ def default_tree(preset: str | None = None) -> dict:
 
 
 def leg_values(x, name: str) -> np.ndarray:
-    arr = np.broadcast_to(np.asarray(x, float), (3,)).copy() if np.ndim(x) == 0 else None
-    if arr is None:
-        arr = np.asarray(x, float)
+    arr = np.asarray(x, float)
+    arr = np.full(3, arr) if arr.ndim == 0 else arr
     if arr.shape != (3,) or not np.all(np.isfinite(arr)) or np.any(arr < 0):
         raise UserInputError(
             f"invalid value at identify.{name}: {x!r}; expected a number or 3 numbers >= 0"
@@ -169,14 +168,10 @@ def check_tree(tree: dict | Experiment) -> Experiment:
         )
     check_number(tree, f"{i}.prbs_bits", 2, 24, integer=True)
     check_number(tree, f"{i}.seed", 0, 2**31, integer=True)
-    if s.excitation not in EXCITATIONS:
-        raise UserInputError(
-            f"invalid value at {i}.excitation: {s.excitation!r}; allowed: {', '.join(EXCITATIONS)}"
-        )
-    if s.fit_method not in FIT_METHODS:
-        raise UserInputError(
-            f"invalid value at {i}.fit_method: {s.fit_method!r}; allowed: {', '.join(FIT_METHODS)}"
-        )
+    for key, choices in (("excitation", EXCITATIONS), ("fit_method", FIT_METHODS)):
+        if (value := getattr(s, key)) not in choices:
+            allowed = ", ".join(choices)
+            raise UserInputError(f"invalid value at {i}.{key}: {value!r}; allowed: {allowed}")
     check_number(tree, f"{i}.fit_skip_s", 0.0, s.duration_s, hi_open=True, unit=" s")
     check_number(tree, f"{i}.loop_bound_mm", 0.0, lo_open=True, unit=" mm")
     if np.any(leg_values(s.prbs_amplitude_v, "prbs_amplitude_v") > 5.0):
