@@ -337,21 +337,17 @@ def import_recording(rec: Recording, frame: str, *, rate_hz: float = 100.0,
     if dropped:
         report.notes.append(f"{dropped} repeated samples (the same time twice) dropped")
     if frame == "vehicle":
-        sign, perm = [], []
-        for tok in _columns(axes, "--axes"):
+        rot = np.zeros((3, 3))
+        for k, tok in enumerate(_columns(axes, "--axes")):
             sg, name = (-1.0, tok[1:]) if tok.startswith("-") else (1.0, tok.lstrip("+"))
             if name not in ("x", "y", "z"):
                 raise RecordingError(
                     f"invalid value at --axes: {axes!r}; allowed: each of x, y, z once, with an "
                     "optional sign (x,-y,-z: forward-right-down)"
                 )
-            sign.append(sg)
-            perm.append("xyz".index(name))
-        if sorted(perm) != [0, 1, 2]:
+            rot["xyz".index(name), k] = sg  # the device's axis k is the car's axis
+        if np.any(np.abs(rot).sum(axis=1) != 1):
             raise RecordingError(f"invalid value at --axes: {axes!r}; allowed: x, y, z once each")
-        rot = np.zeros((3, 3))
-        for k, (sg, p) in enumerate(zip(sign, perm, strict=True)):
-            rot[p, k] = sg  # the device's axis k is the car's axis p
         f, w = a @ rot.T, g @ rot.T
     else:
         if frame == "device":
