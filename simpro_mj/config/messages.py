@@ -111,20 +111,25 @@ def _num(x: Any) -> str:
     return str(x) if isinstance(x, int) else f"{x:g}"
 
 
+def _constraints(meta: list) -> Iterable:
+    """The constraints in ``meta`` (a FieldInfo in ``Annotated`` holds its own)."""
+    for m in meta:
+        yield from getattr(m, "metadata", None) or [m]
+
+
 def range_text(meta: list, unit: str = "") -> str:
     """``0..5000 kg``, ``> 0 s``, ``> -1 and < 1`` from the constraints in ``meta``."""
     lo: tuple[str, Any] | None = None
     hi: tuple[str, Any] | None = None
-    for m in meta:
-        for c in getattr(m, "metadata", None) or [m]:  # a FieldInfo in Annotated holds its own
-            if isinstance(c, at.Ge):
-                lo = (">=", c.ge)
-            elif isinstance(c, at.Gt):
-                lo = (">", c.gt)
-            elif isinstance(c, at.Le):
-                hi = ("<=", c.le)
-            elif isinstance(c, at.Lt):
-                hi = ("<", c.lt)
+    for c in _constraints(meta):
+        if isinstance(c, at.Ge):
+            lo = (">=", c.ge)
+        elif isinstance(c, at.Gt):
+            lo = (">", c.gt)
+        elif isinstance(c, at.Le):
+            hi = ("<=", c.le)
+        elif isinstance(c, at.Lt):
+            hi = ("<", c.lt)
     if lo is None and hi is None:
         return ""
     if lo and hi and lo[0] == ">=" and hi[0] == "<=":
@@ -204,11 +209,7 @@ def _kind_text(kind: str, tp: Any, field: FieldInfo | None) -> str:
 def _fixed_length(tp: Any, field: FieldInfo | None) -> int | None:
     """The length a list must have (its ``max_length``), None when it may vary."""
     meta = strip(tp)[1] + (list(field.metadata) if field is not None else [])
-    for m in meta:
-        for c in getattr(m, "metadata", None) or [m]:  # a FieldInfo in Annotated holds its own
-            if isinstance(c, at.MaxLen):
-                return c.max_length
-    return None
+    return next((c.max_length for c in _constraints(meta) if isinstance(c, at.MaxLen)), None)
 
 
 def _tag_key(tp: Any) -> str:
@@ -328,9 +329,7 @@ def user_error(exc: ValidationError, model: type, prefix: str = "") -> UserInput
         tag = loc[-2] if len(loc) > 1 and isinstance(loc[-2], str) else "block"
         return line("missing key", f": a {tag} needs {need}")
     if kind in ("union_tag_not_found", "union_tag_invalid"):
-        members = tagged_members(tp)
-        names = list(members)
-        key = (tag_of(next(iter(members.values()))) if members else None) or "type"
+        names, key = list(tagged_members(tp)), _tag_key(tp)
         if kind == "union_tag_not_found":
             return line("missing key", f": allowed: one of {names}", f"{path}.{key}")
         given = value.get(key) if isinstance(value, Mapping) else value
