@@ -21,7 +21,6 @@ from pydantic import BeforeValidator, StrictBool, TypeAdapter, ValidationError, 
 from simpro_mj.config.messages import validated
 from simpro_mj.config.rules import Block, Problem, Real, Whole, block, param, yaml_number
 from simpro_mj.core.errors import UserInputError
-from simpro_mj.core.keys import value_text
 from simpro_mj.plant.pneumatics.params import (
     _PLAUSIBLE,
     DEFAULT_PNEUMATIC_PARAMS,
@@ -270,12 +269,4 @@ def check_pneumatics(value: Any, path: str = "actuator.pneumatics") -> dict:
     UserInputError
         One line naming the dotted key and what is allowed.
     """
-    try:
-        return validated(Pneumatics, value, path).model_dump()
-    except UserInputError:
-        raise
-    except (ValueError, TypeError, ArithmeticError) as exc:  # pragma: no cover - a plant bug
-        raise UserInputError(
-            f"invalid value at {path}: {value_text(value)}: {exc}; allowed: see "
-            "simpro_mj.plant.pneumatics"
-        ) from exc
+    return validated(Pneumatics, value, path).model_dump()

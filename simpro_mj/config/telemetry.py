@@ -95,10 +95,6 @@ class Telemetry:
     #: further columns (name -> (n,) array), written after the required ones
     extra: dict = field(default_factory=dict)
 
-    @property
-    def duration(self) -> float:
-        return float(self.t[-1] - self.t[0]) if self.t.size else 0.0
-
 
 def check_mapping(value) -> dict:
     """A column mapping, each entry spelled out ``{column, scale, offset}``.
