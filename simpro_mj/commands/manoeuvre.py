@@ -10,7 +10,7 @@ Parameters by ``--set``: ``speed_kmh``, ``vehicle``, ``deceleration_mps2``,
 
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import fields, replace
 from pathlib import Path
 from typing import Any
 
@@ -32,16 +32,11 @@ DEFAULT_SPEED_KMH = {
     "bump": 40.0,
     "braking_turn": 60.0,
 }
-DEFAULTS = {
-    "speed_kmh": 0.0,  # 0: the manoeuvre's default (DEFAULT_SPEED_KMH)
-    "vehicle": "bmw_320i",
-    "deceleration_mps2": 5.0,
-    "bump_height_m": 0.06,
-    "bump_length_m": 0.5,
-    "lead_s": 1.0,
+#: The ``--set`` keys: the spec's fields and defaults; a speed or duration of 0 is the
+#: manoeuvre's own (DEFAULT_SPEED_KMH, automatic)
+DEFAULTS = {f.name: f.default for f in fields(ManoeuvreSpec)[1:]} | {
+    "speed_kmh": 0.0,
     "duration_s": 0.0,
-    "rate_hz": 200.0,
-    "tyre_offsets": "none",  # TYRE_OFFSETS: the lateral offsets p_hy1, p_vy1 at 0
 }
 
 

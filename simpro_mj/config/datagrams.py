@@ -185,18 +185,12 @@ SIZES = {
 def make_decoder(fmt: str):
     """A callable ``data -> (time_s | None, f, w)`` for ``fmt`` (:data:`FORMATS`), raising
     :class:`DatagramError`; Codemasters' keeps state between packets (a new one per stream)."""
-    if fmt == "outsim":
-        return decode_outsim
-    if fmt == "csv":
-        return decode_csv
-    if fmt.startswith("forza_"):
-        return forza.decode  # a Dash or Horizon packet has the Sled part first
-    if fmt == "codemasters":
-        return codemasters.Decoder()
-    if fmt == "beamng":
-        return beamng.decode
-    if fmt == "auto":
-        return AutoDecoder()
+    # a Dash or Horizon packet has the Sled part first: one decoder for Forza's three
+    stateless = {"outsim": decode_outsim, "csv": decode_csv, "beamng": beamng.decode}
+    if fmt in stateless or fmt in forza.SIZES:
+        return stateless.get(fmt, forza.decode)
+    if fmt in ("codemasters", "auto"):
+        return codemasters.Decoder() if fmt == "codemasters" else AutoDecoder()
     raise ValueError(f"format {fmt!r}; allowed: {', '.join(FORMATS)}")
 
 
