@@ -12,7 +12,7 @@ import math
 from dataclasses import dataclass
 
 from .geometry import HEAD_HEIGHT_PITCH, HEAD_HEIGHT_ROLL
-from .law_params import LawParams
+from .law_params import LawParams, ranged
 
 __all__ = ["MpcParamError", "MpcParams"]
 
@@ -108,82 +108,42 @@ class MpcParams(LawParams):
     _LABEL = "mpc"
     _ERROR = MpcParamError
 
-    period: float = 0.06
-    horizon: int = 20
-    gain_x: float = 0.3
-    gain_y: float = 0.3
-    gain_z: float = 0.5
-    gain_rot: float = 1.0
-    weight_f: float = 1.0
-    weight_raw: float = 0.3
-    weight_w: float = 6.0
-    weight_tilt: float = 0.01
-    weight_jerk: float = 1e-3
-    tilt_rate_max: float = math.radians(15.0)
-    tilt_accel_max: float = math.radians(30.0)
-    heave_rate_max: float = 0.2
-    heave_accel_max: float = 3.0
-    head_height: float = HEAD_HEIGHT_ROLL
-    head_height_pitch: float = HEAD_HEIGHT_PITCH
-    preview: float = 0.0
-    heave_fraction: float = 0.25
-    stroke_margin: float = 0.01
-    box_fraction: float = 0.95
-    rotation_limit: float = 0.7
-    rotation_limit_pitch: float = 0.8
-    lead: float = 0.0
-    lead_x: float = 0.0
-    loop_omega: float = 5.0
-    loop_zeta: float = 0.72
-    loop_zero: float = 0.31
-    loop_delay: float = 0.03
-    loop_filter: float = 0.05
-    knee: float = 0.0
-    jolt_limit: float = 0.01
-    heave_washout: float = 0.5
-    weight_heave_rate: float = 0.1
-    weight_heave: float = 1.0
-    gain_y_sustained: float = 0.0
-    sustained_tau: float = 1.0
-
-    def __post_init__(self):
-        checks = {
-            "period": (lambda v: 0 < v <= 0.5, "> 0 and <= 0.5 s"),
-            "horizon": (lambda v: v == int(v) and 2 <= v <= 200, "a whole number 2..200"),
-            "gain_x": (lambda v: 0 <= v <= 2, "0..2"),
-            "gain_y": (lambda v: 0 <= v <= 2, "0..2"),
-            "gain_z": (lambda v: 0 <= v <= 2, "0..2"),
-            "gain_rot": (lambda v: 0 <= v <= 2, "0..2"),
-            "weight_f": (lambda v: v >= 0, ">= 0"),
-            "weight_raw": (lambda v: v >= 0, ">= 0"),
-            "weight_w": (lambda v: v >= 0, ">= 0"),
-            "weight_tilt": (lambda v: v >= 0, ">= 0"),
-            "weight_jerk": (lambda v: v > 0, "> 0"),
-            "tilt_rate_max": (lambda v: v > 0, "> 0 rad/s"),
-            "tilt_accel_max": (lambda v: v > 0, "> 0 rad/s^2"),
-            "heave_rate_max": (lambda v: v > 0, "> 0 m/s"),
-            "heave_accel_max": (lambda v: v > 0, "> 0 m/s^2"),
-            "head_height": (lambda v: 0 <= v <= 2, "0..2 m"),
-            "head_height_pitch": (lambda v: 0 <= v <= 2, "0..2 m"),
-            "preview": (lambda v: 0 <= v <= 10, "0..10 s"),
-            "heave_fraction": (lambda v: 0 < v <= 1, "in (0, 1]"),
-            "stroke_margin": (lambda v: 0 <= v < 0.2, "0..0.2 m"),
-            "box_fraction": (lambda v: 0 < v <= 1, "in (0, 1]"),
-            "rotation_limit": (lambda v: v >= 0, ">= 0 (0: off)"),
-            "rotation_limit_pitch": (lambda v: v >= 0, ">= 0 (0: off)"),
-            "lead": (lambda v: 0 <= v <= 0.5, "0..0.5 s"),
-            "lead_x": (lambda v: 0 <= v <= 0.5, "0..0.5 s"),
-            "loop_omega": (lambda v: v == 0 or 0.5 <= v <= 500, "0 (off) or 0.5..500 rad/s"),
-            "loop_zeta": (lambda v: 0.05 <= v <= 5, "0.05..5"),
-            "loop_zero": (lambda v: 0 <= v <= 5, "0..5 s"),
-            "loop_delay": (lambda v: 0 <= v <= 0.5, "0..0.5 s"),
-            "loop_filter": (lambda v: 0 <= v <= 0.5, "0..0.5 s"),
-            "knee": (lambda v: 0 <= v <= 5, "0 (linear) or up to 5 m/s^2"),
-            "jolt_limit": (lambda v: 0 <= v <= 5, "0 (off) or up to 5 m/s^2"),
-            "heave_washout": (lambda v: 0 <= v <= 10, "0 (off) or up to 10 rad/s"),
-            "weight_heave_rate": (lambda v: v >= 0, ">= 0"),
-            "weight_heave": (lambda v: v >= 0, ">= 0"),
-            "gain_y_sustained": (lambda v: 0 <= v <= 2, "0 (off) or up to 2"),
-            "sustained_tau": (lambda v: 0.05 <= v <= 20, "0.05..20 s"),
-        }
-        self._check(checks)
+    period: float = ranged(0.06, lambda v: 0 < v <= 0.5, "> 0 and <= 0.5 s")
+    horizon: int = ranged(20, lambda v: v == int(v) and 2 <= v <= 200, "a whole number 2..200")
+    gain_x: float = ranged(0.3, lambda v: 0 <= v <= 2, "0..2")
+    gain_y: float = ranged(0.3, lambda v: 0 <= v <= 2, "0..2")
+    gain_z: float = ranged(0.5, lambda v: 0 <= v <= 2, "0..2")
+    gain_rot: float = ranged(1.0, lambda v: 0 <= v <= 2, "0..2")
+    weight_f: float = ranged(1.0, lambda v: v >= 0, ">= 0")
+    weight_raw: float = ranged(0.3, lambda v: v >= 0, ">= 0")
+    weight_w: float = ranged(6.0, lambda v: v >= 0, ">= 0")
+    weight_tilt: float = ranged(0.01, lambda v: v >= 0, ">= 0")
+    weight_jerk: float = ranged(1e-3, lambda v: v > 0, "> 0")
+    tilt_rate_max: float = ranged(math.radians(15.0), lambda v: v > 0, "> 0 rad/s")
+    tilt_accel_max: float = ranged(math.radians(30.0), lambda v: v > 0, "> 0 rad/s^2")
+    heave_rate_max: float = ranged(0.2, lambda v: v > 0, "> 0 m/s")
+    heave_accel_max: float = ranged(3.0, lambda v: v > 0, "> 0 m/s^2")
+    head_height: float = ranged(HEAD_HEIGHT_ROLL, lambda v: 0 <= v <= 2, "0..2 m")
+    head_height_pitch: float = ranged(HEAD_HEIGHT_PITCH, lambda v: 0 <= v <= 2, "0..2 m")
+    preview: float = ranged(0.0, lambda v: 0 <= v <= 10, "0..10 s")
+    heave_fraction: float = ranged(0.25, lambda v: 0 < v <= 1, "in (0, 1]")
+    stroke_margin: float = ranged(0.01, lambda v: 0 <= v < 0.2, "0..0.2 m")
+    box_fraction: float = ranged(0.95, lambda v: 0 < v <= 1, "in (0, 1]")
+    rotation_limit: float = ranged(0.7, lambda v: v >= 0, ">= 0 (0: off)")
+    rotation_limit_pitch: float = ranged(0.8, lambda v: v >= 0, ">= 0 (0: off)")
+    lead: float = ranged(0.0, lambda v: 0 <= v <= 0.5, "0..0.5 s")
+    lead_x: float = ranged(0.0, lambda v: 0 <= v <= 0.5, "0..0.5 s")
+    loop_omega: float = ranged(
+        5.0, lambda v: v == 0 or 0.5 <= v <= 500, "0 (off) or 0.5..500 rad/s"
+    )
+    loop_zeta: float = ranged(0.72, lambda v: 0.05 <= v <= 5, "0.05..5")
+    loop_zero: float = ranged(0.31, lambda v: 0 <= v <= 5, "0..5 s")
+    loop_delay: float = ranged(0.03, lambda v: 0 <= v <= 0.5, "0..0.5 s")
+    loop_filter: float = ranged(0.05, lambda v: 0 <= v <= 0.5, "0..0.5 s")
+    knee: float = ranged(0.0, lambda v: 0 <= v <= 5, "0 (linear) or up to 5 m/s^2")
+    jolt_limit: float = ranged(0.01, lambda v: 0 <= v <= 5, "0 (off) or up to 5 m/s^2")
+    heave_washout: float = ranged(0.5, lambda v: 0 <= v <= 10, "0 (off) or up to 10 rad/s")
+    weight_heave_rate: float = ranged(0.1, lambda v: v >= 0, ">= 0")
+    weight_heave: float = ranged(1.0, lambda v: v >= 0, ">= 0")
+    gain_y_sustained: float = ranged(0.0, lambda v: 0 <= v <= 2, "0 (off) or up to 2")
+    sustained_tau: float = ranged(1.0, lambda v: 0.05 <= v <= 20, "0.05..20 s")

@@ -2,22 +2,27 @@
 
 :class:`controllers.washout.WashoutParams` and
 :class:`controllers.cue_mpc_params.MpcParams` are frozen dataclasses of numbers; each
-declares its ranges as ``{field: (test, allowed text)}`` and calls :meth:`LawParams._check`
-from ``__post_init__``. A field that is not a finite real number (a bool is not one) or
-fails its test raises the law's own error naming the field, its value and what is
-allowed.
+field declares its default and its range with :func:`ranged`, and
+``LawParams.__post_init__`` checks them in field order. A field that is not a finite
+real number (a bool is not one) or fails its test raises the law's own error naming
+the field, its value and what is allowed.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Callable, Mapping
-from typing import ClassVar, TypeVar
+from collections.abc import Callable
+from typing import Any, ClassVar, TypeVar
 
-__all__ = ["LawParams"]
+__all__ = ["LawParams", "ranged"]
 
 _P = TypeVar("_P", bound="LawParams")
+
+
+def ranged(default: float, ok: Callable[[float], bool], allowed: str) -> Any:
+    """A field with its ``default`` and its range: the test ``ok`` and its text."""
+    return dataclasses.field(default=default, metadata={"range": (ok, allowed)})
 
 
 class LawParams:
@@ -27,13 +32,14 @@ class LawParams:
     _LABEL: ClassVar[str] = "law"
     _ERROR: ClassVar[type[ValueError]] = ValueError
 
-    def _check(self, checks: Mapping[str, tuple[Callable[[float], bool], str]]) -> None:
+    def __post_init__(self) -> None:
         """Raise ``_ERROR`` for the first field that is not a finite number passing its test."""
-        for name, (ok, allowed) in checks.items():
-            v = getattr(self, name)
+        for f in dataclasses.fields(self):  # type: ignore[arg-type]
+            ok, allowed = f.metadata["range"]
+            v = getattr(self, f.name)
             bad = isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v)
             if bad or not ok(v):
-                raise self._ERROR(f"{self._LABEL} parameter {name}={v!r}: allowed {allowed}")
+                raise self._ERROR(f"{self._LABEL} parameter {f.name}={v!r}: allowed {allowed}")
 
     @classmethod
     def field_names(cls) -> list[str]:

@@ -70,7 +70,7 @@ import numpy as np
 from .filters import DiscreteFilter
 from .frames import GRAVITY
 from .geometry import HEAD_HEIGHT_PITCH, HEAD_HEIGHT_ROLL, PlatformGeometry, nominal_geometry
-from .law_params import LawParams
+from .law_params import LawParams, ranged
 from .workspace import inscribed_box, soft_limit
 
 __all__ = ["WashoutParams", "ClassicalWashout", "WashoutResult", "WashoutParamError"]
@@ -140,55 +140,30 @@ class WashoutParams(LawParams):
     _LABEL = "washout"
     _ERROR = WashoutParamError
 
-    period: float = 0.01
-    gain_x: float = 0.5
-    gain_y: float = 0.5
-    gain_z: float = 0.5
-    gain_rot: float = 1.0
-    tilt_omega: float = 5.0
-    tilt_zeta: float = 1.0
-    tilt_rate_limit: float = math.radians(3.0)
-    tilt_limit: float = math.radians(10.0)
-    tilt_accel_limit: float = math.radians(30.0)
-    head_height: float = HEAD_HEIGHT_ROLL
-    head_height_pitch: float = HEAD_HEIGHT_PITCH
-    jolt_limit: float = 0.17
-    heave_omega: float = 2.5
-    heave_zeta: float = 1.0
-    heave_omega_b: float = 0.5
-    rot_order: int = 1
-    rot_omega: float = 0.5
-    rot_zeta: float = 1.0
-    heave_fraction: float = 0.25
-    stroke_margin: float = 0.01
-    knee: float = 0.8
-
-    def __post_init__(self):
-        checks = {
-            "period": (lambda v: 0 < v <= 0.1, "> 0 and <= 0.1 s"),
-            "gain_x": (lambda v: 0 <= v <= 2, "0..2"),
-            "gain_y": (lambda v: 0 <= v <= 2, "0..2"),
-            "gain_z": (lambda v: 0 <= v <= 2, "0..2"),
-            "gain_rot": (lambda v: 0 <= v <= 2, "0..2"),
-            "tilt_omega": (lambda v: v > 0, "> 0 rad/s"),
-            "tilt_zeta": (lambda v: v > 0, "> 0"),
-            "tilt_rate_limit": (lambda v: v > 0, "> 0 rad/s"),
-            "tilt_limit": (lambda v: 0 < v < math.pi / 2, "in (0, pi/2) rad"),
-            "tilt_accel_limit": (lambda v: v > 0, "> 0 rad/s^2"),
-            "head_height": (lambda v: 0 <= v <= 2, "0..2 m"),
-            "head_height_pitch": (lambda v: 0 <= v <= 2, "0..2 m"),
-            "jolt_limit": (lambda v: v > 0, "> 0 m/s^2"),
-            "heave_omega": (lambda v: v > 0, "> 0 rad/s"),
-            "heave_zeta": (lambda v: v > 0, "> 0"),
-            "heave_omega_b": (lambda v: v > 0, "> 0 rad/s"),
-            "rot_order": (lambda v: v in (1, 2), "1 or 2"),
-            "rot_omega": (lambda v: v > 0, "> 0 rad/s"),
-            "rot_zeta": (lambda v: v > 0, "> 0"),
-            "heave_fraction": (lambda v: 0 < v <= 1, "in (0, 1]"),
-            "stroke_margin": (lambda v: 0 <= v < 0.2, "0..0.2 m"),
-            "knee": (lambda v: 0 <= v <= 1, "0..1"),
-        }
-        self._check(checks)
+    period: float = ranged(0.01, lambda v: 0 < v <= 0.1, "> 0 and <= 0.1 s")
+    gain_x: float = ranged(0.5, lambda v: 0 <= v <= 2, "0..2")
+    gain_y: float = ranged(0.5, lambda v: 0 <= v <= 2, "0..2")
+    gain_z: float = ranged(0.5, lambda v: 0 <= v <= 2, "0..2")
+    gain_rot: float = ranged(1.0, lambda v: 0 <= v <= 2, "0..2")
+    tilt_omega: float = ranged(5.0, lambda v: v > 0, "> 0 rad/s")
+    tilt_zeta: float = ranged(1.0, lambda v: v > 0, "> 0")
+    tilt_rate_limit: float = ranged(math.radians(3.0), lambda v: v > 0, "> 0 rad/s")
+    tilt_limit: float = ranged(
+        math.radians(10.0), lambda v: 0 < v < math.pi / 2, "in (0, pi/2) rad"
+    )
+    tilt_accel_limit: float = ranged(math.radians(30.0), lambda v: v > 0, "> 0 rad/s^2")
+    head_height: float = ranged(HEAD_HEIGHT_ROLL, lambda v: 0 <= v <= 2, "0..2 m")
+    head_height_pitch: float = ranged(HEAD_HEIGHT_PITCH, lambda v: 0 <= v <= 2, "0..2 m")
+    jolt_limit: float = ranged(0.17, lambda v: v > 0, "> 0 m/s^2")
+    heave_omega: float = ranged(2.5, lambda v: v > 0, "> 0 rad/s")
+    heave_zeta: float = ranged(1.0, lambda v: v > 0, "> 0")
+    heave_omega_b: float = ranged(0.5, lambda v: v > 0, "> 0 rad/s")
+    rot_order: int = ranged(1, lambda v: v in (1, 2), "1 or 2")
+    rot_omega: float = ranged(0.5, lambda v: v > 0, "> 0 rad/s")
+    rot_zeta: float = ranged(1.0, lambda v: v > 0, "> 0")
+    heave_fraction: float = ranged(0.25, lambda v: 0 < v <= 1, "in (0, 1]")
+    stroke_margin: float = ranged(0.01, lambda v: 0 <= v < 0.2, "0..0.2 m")
+    knee: float = ranged(0.8, lambda v: 0 <= v <= 1, "0..1")
 
 
 @dataclass
