@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from controllers import analysis as an
+from controllers.analysis import outer_delay as an
 from simpro_mj.analysis.analyze import ACTUATORS, VARIANTS, AnalyzeParams
 from simpro_mj.analysis.loop_records import Analysis, Shipped
 
