@@ -15,7 +15,7 @@ Two halves, numbers only (no MuJoCo):
   from: leg 1 is slower than legs 2-3); the IMU's first-order filter and
   output hold on roll and pitch; and, for the task-space modes, the outer
   law at its period ``T`` around the inner loops lifted to ``T`` (exact
-  sampled-data model, :func:`controllers.analysis.lift`).
+  sampled-data model, :func:`controllers.analysis.lifted.lift`).
 
 The sampled-data loop and its fundamental
 -----------------------------------------
@@ -51,7 +51,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .analysis import lift
+from .analysis.lifted import lift
 from .design import JointDesign, Plant
 from .joint import leg_state_space
 

@@ -7,20 +7,16 @@ import json
 import numpy as np
 import pytest
 
-from controllers import analysis as an
-from controllers.analysis import (
+from controllers.analysis.inner import companion, inner_summary, step_metrics, tf_step
+from controllers.analysis.lifted import lifted_inner, outer_closed_loop, real_inner_limit
+from controllers.analysis.outer_delay import (
     closed_form_limit,
     outer_poles,
     outer_polynomials,
-    real_inner_limit,
     root_locus,
     schur_stable,
     stability_limit,
-    step_metrics,
-    tf_step,
 )
-from controllers.analysis.inner import companion
-from controllers.analysis.lifted import lifted_inner, outer_closed_loop
 
 T = 0.06
 
@@ -245,7 +241,7 @@ def test_step_metrics_second_order():
 
 
 def test_inner_summary_corrected_cancels_plant():
-    s = an.inner_summary("actuator2", "corrected", t_end=1.0)
+    s = inner_summary("actuator2", "corrected", t_end=1.0)
     poles = s.closed_loop_poles
     plant = np.roots([1, 7.276, 1349])
     for p in plant:
@@ -343,17 +339,17 @@ def test_a_loops_limits_are_cached_on_disk_and_recomputed_when_damaged(tmp_path,
     first = st.outer_loop(s)
     assert first["limit"] == pytest.approx(11.84, abs=0.01)  # the nonlinear plant's limit
     (entry,) = (tmp_path / "stability").glob("*.json")
-    real_scan = an.real_inner_limit
+    real_scan = real_inner_limit
 
     def no_scan(*args, **kwargs):
         raise AssertionError("the limit was scanned again")
 
     st._analysed.cache_clear()  # a new process: memory empty, the file there
-    monkeypatch.setattr(an, "real_inner_limit", no_scan)
+    monkeypatch.setattr(st, "real_inner_limit", no_scan)
     assert st.outer_loop(s) == first
     entry.write_text('{"key": ')
     st._analysed.cache_clear()
-    monkeypatch.setattr(an, "real_inner_limit", real_scan)
+    monkeypatch.setattr(st, "real_inner_limit", real_scan)
     assert st.outer_loop(s) == first
     assert json.loads(entry.read_text())["limit"] == first["limit"]
     other = load_scenario("step_pitch", ["controller.outer.period_ms=30"])

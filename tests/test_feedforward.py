@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from controllers import analysis as an
+from controllers.analysis import lifted as an
 from controllers.geometry import nominal_geometry
 from controllers.kinematics import inverse_kinematics, jacobian
 from controllers.task_space import TaskSpaceController

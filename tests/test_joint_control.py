@@ -9,8 +9,7 @@ import control
 import numpy as np
 import pytest
 
-from controllers.analysis import tf_step
-from controllers.analysis.inner import companion
+from controllers.analysis.inner import companion, tf_step
 from controllers.design import (
     ACTUATORS,
     PLANTS,

@@ -95,10 +95,10 @@ def test_prediction_tracks_at_low_frequency(mode):
 
 def _simulate_linear_loop(mode, w, gains=3.0, period_steps=60, dt=1e-3, axis=1, model_tau=0.0):
     """Time-domain run of the linear multirate loop, written out independently of
-    :func:`predict`: the joint loops of :func:`controllers.analysis.inner_discrete_loop`
+    :func:`predict`: the joint loops of :func:`controllers.analysis.lifted.inner_discrete_loop`
     at 1 ms, ``q_d = J x``, the outer law every ``period_steps`` steps (output
     ``x_c[k]`` then integrate, as :class:`controllers.task_space.TaskSpaceController`)."""
-    from controllers.analysis import inner_discrete_loop
+    from controllers.analysis.lifted import inner_discrete_loop
 
     legs = [inner_discrete_loop(corrected_design(a), PLANTS[a], dt) for a in ACTS]
     jac = jacobian(nominal_geometry().home)

@@ -8,13 +8,15 @@ Floors and tolerances used here:
   *measured* error, so it cannot remove error below what the sensors resolve.
 * analysis agreement: with the linear actuator (eq. 19 with the paper's plants)
   the simulated pitch step is compared with the real-inner-loop prediction of
-  :func:`controllers.analysis.real_inner_step`; tolerance 3 % RMS of the step.
+  :func:`controllers.analysis.lifted.real_inner_step`; tolerance 3 % RMS of the step.
 """
 
 import numpy as np
 import pytest
 
-from controllers.analysis import outer_step, real_inner_step, step_metrics
+from controllers.analysis.inner import step_metrics
+from controllers.analysis.lifted import real_inner_step
+from controllers.analysis.outer_delay import outer_step
 from controllers.geometry import nominal_geometry
 from controllers.kinematics import jacobian
 from controllers.task_space import outer_law

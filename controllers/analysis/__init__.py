@@ -26,55 +26,11 @@ and the identified plant (ZOH at 1 ms), lifted to the outer period
 with the IK Jacobian at home.
 
 The modules: :mod:`.outer_delay` (the delay model above), :mod:`.inner` (one
-continuous joint loop), :mod:`.lifted` (the real inner loops, lifted). Their public
-names are exported here.
+continuous joint loop), :mod:`.lifted` (the real inner loops, lifted); each name is
+imported from the module that defines it.
 
 Imports numpy and scipy; python-control (``control``) on use, for the root
 loci and step information (``analyze``). The pieces every run's preflight
 uses stay numpy (the discretisation, the realisation, the stability
 limit): each says why and is tested against python-control.
 """
-
-from controllers.analysis.inner import inner_summary, step_metrics, tf_step
-from controllers.analysis.lifted import (
-    inner_discrete_loop,
-    lift,
-    lifted_inner,
-    outer_closed_loop,
-    real_inner_limit,
-    real_inner_step,
-    reduced,
-    spectral_radius,
-    with_setpoint_filter,
-)
-from controllers.analysis.outer_delay import (
-    closed_form_limit,
-    outer_poles,
-    outer_polynomials,
-    outer_step,
-    root_locus,
-    schur_stable,
-    stability_limit,
-)
-
-__all__ = [
-    "schur_stable",
-    "outer_polynomials",
-    "closed_form_limit",
-    "stability_limit",
-    "outer_poles",
-    "outer_step",
-    "root_locus",
-    "tf_step",
-    "step_metrics",
-    "inner_summary",
-    "inner_discrete_loop",
-    "lift",
-    "with_setpoint_filter",
-    "lifted_inner",
-    "outer_closed_loop",
-    "spectral_radius",
-    "real_inner_limit",
-    "real_inner_step",
-    "reduced",
-]

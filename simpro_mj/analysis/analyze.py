@@ -31,7 +31,22 @@ from typing import Annotated, Any, Literal, get_args
 import numpy as np
 from pydantic import Field, StrictBool, model_validator
 
-from controllers import analysis as an
+from controllers.analysis.inner import inner_summary, step_metrics
+from controllers.analysis.lifted import (
+    lifted_inner,
+    outer_closed_loop,
+    real_inner_limit,
+    real_inner_step,
+    spectral_radius,
+)
+from controllers.analysis.outer_delay import (
+    closed_form_limit,
+    outer_poles,
+    outer_polynomials,
+    outer_step,
+    schur_stable,
+    stability_limit,
+)
 from controllers.design import (
     PAPER_SPEC,
     Reading,
@@ -193,15 +208,15 @@ def _pairs(z) -> list:
 
 
 def _outer_delay(mode, gain, period, delay, pi_zero, duration, paper=None) -> DelayLoop:
-    a, b = an.outer_polynomials(mode, period, delay, pi_zero)
-    lim = an.stability_limit(a, b)
+    a, b = outer_polynomials(mode, period, delay, pi_zero)
+    lim = stability_limit(a, b)
     try:
-        closed = an.closed_form_limit(mode, period, delay, pi_zero)
+        closed = closed_form_limit(mode, period, delay, pi_zero)
     except NotImplementedError:
         closed = None
-    poles = an.outer_poles(mode, gain, period, delay, pi_zero)
+    poles = outer_poles(mode, gain, period, delay, pi_zero)
     n = int(round(duration / period)) + 1
-    y = an.outer_step(mode, gain, period, n, delay, pi_zero)
+    y = outer_step(mode, gain, period, n, delay, pi_zero)
     t = np.arange(n) * period
     return DelayLoop(
         period_s=period,
@@ -209,10 +224,10 @@ def _outer_delay(mode, gain, period, delay, pi_zero, duration, paper=None) -> De
         gain=gain,
         stability_limit=lim,
         stability_limit_closed_form=closed,
-        jury_stable_at_gain=an.schur_stable(np.polyadd(a, gain * b)),
+        jury_stable_at_gain=schur_stable(np.polyadd(a, gain * b)),
         poles=_pairs(poles),
         pole_magnitudes=[float(abs(p)) for p in poles],
-        step=an.step_metrics(t, y, final=1.0) if max(abs(poles)) < 1 else None,
+        step=step_metrics(t, y, final=1.0) if max(abs(poles)) < 1 else None,
         _t=t,
         _y=y,
         _ab=(a, b),
@@ -223,15 +238,15 @@ def _outer_delay(mode, gain, period, delay, pi_zero, duration, paper=None) -> De
 def _real(mode, gain, period, p: AnalyzeParams, spec, jac, duration) -> RealLoop:
     i = p.inner
     kw: dict[str, Any] = dict(variant=i.variant, dt=i.dt_s, method=i.method, spec=spec)
-    lifted = an.lifted_inner(period, **kw)
-    f = an.outer_closed_loop(mode, gain, period, lifted, jac, p.outer.pi_zero)[0]
-    rho = an.spectral_radius(f)
-    lim = an.real_inner_limit(mode, period, jac=jac, pi_zero=p.outer.pi_zero, **kw)
+    lifted = lifted_inner(period, **kw)
+    f = outer_closed_loop(mode, gain, period, lifted, jac, p.outer.pi_zero)[0]
+    rho = spectral_radius(f)
+    lim = real_inner_limit(mode, period, jac=jac, pi_zero=p.outer.pi_zero, **kw)
     per_leg = {
-        act: an.real_inner_limit(mode, period, actuators=(act,), pi_zero=p.outer.pi_zero, **kw)
+        act: real_inner_limit(mode, period, actuators=(act,), pi_zero=p.outer.pi_zero, **kw)
         for act in ACTUATORS
     }
-    t, y = an.real_inner_step(
+    t, y = real_inner_step(
         mode, gain, period, duration, jac=jac, pi_zero=p.outer.pi_zero, axis=2, **kw
     )
     return RealLoop(
@@ -242,7 +257,7 @@ def _real(mode, gain, period, p: AnalyzeParams, spec, jac, duration) -> RealLoop
         stability_limit_per_leg=per_leg,
         spectral_radius_at_gain=rho,
         stable_at_gain=rho < 1.0,
-        step_heave=an.step_metrics(t, y[:, 2], final=1.0) if rho < 1.0 else None,
+        step_heave=step_metrics(t, y[:, 2], final=1.0) if rho < 1.0 else None,
         _t=t,
         _y=y,
     )
@@ -270,7 +285,7 @@ def _feedforward(p: AnalyzeParams, spec: dict, jac, real_i: RealLoop) -> Feedfor
         for a, pl in zip(acts, plants, strict=True)
     ]
     kw: dict[str, Any] = dict(variant=i.variant, dt=i.dt_s, method=i.method, spec=spec)
-    t, y = an.real_inner_step(
+    t, y = real_inner_step(
         "feedforward", ff.gain, o.period_s, ff.step_duration_s, jac=jac, axis=1,
         model_tau=ff.model_tau_s, lag=ff.lag, **kw,
     )  # fmt: skip
@@ -311,7 +326,7 @@ def _feedforward(p: AnalyzeParams, spec: dict, jac, real_i: RealLoop) -> Feedfor
         stability_limit=limit,
         stability_limit_note=note,
         stable_at_gain=stable,
-        step_pitch=an.step_metrics(t, y[:, 1], final=1.0) if stable else None,
+        step_pitch=step_metrics(t, y[:, 1], final=1.0) if stable else None,
         frequency_response=freq,
         _t=t,
         _y=y,
@@ -377,9 +392,7 @@ def compute(p: AnalyzeParams | None = None, scenario: Scenario | Mapping | None 
     for act in ACTUATORS:
         inner[act] = {}
         for var in VARIANTS:
-            s = an.inner_summary(
-                act, var, t_end=i.step_duration_s, spec=spec, reading=p.paper_units
-            )
+            s = inner_summary(act, var, t_end=i.step_duration_s, spec=spec, reading=p.paper_units)
             wns, zetas = s.wn_rad_s, s.zeta
             dom = int(np.argmin(np.where(np.abs(s.closed_loop_poles.imag) > 0, wns, np.inf)))
             inner[act][var] = InnerLoop(
@@ -415,9 +428,9 @@ def compute(p: AnalyzeParams | None = None, scenario: Scenario | Mapping | None 
         )
         by_variant[var] = {
             m: Limits(
-                stability_limit=an.real_inner_limit(m, o.period_s, jac=jac, **kw),
+                stability_limit=real_inner_limit(m, o.period_s, jac=jac, **kw),
                 per_leg={
-                    act: an.real_inner_limit(m, o.period_s, actuators=(act,), **kw)
+                    act: real_inner_limit(m, o.period_s, actuators=(act,), **kw)
                     for act in ACTUATORS
                 },
             )
@@ -426,15 +439,15 @@ def compute(p: AnalyzeParams | None = None, scenario: Scenario | Mapping | None 
     rows = []
     for wn in p.sweep.wn_rad_s:
         sp = {"zeta": i.zeta, "wn": float(wn), "p1": 7.6 * wn, "p2": 5.67 * wn}
-        s = an.inner_summary("actuator2", "redesigned", t_end=i.step_duration_s, spec=sp)
+        s = inner_summary("actuator2", "redesigned", t_end=i.step_duration_s, spec=sp)
         kw = dict(variant="redesigned", dt=i.dt_s, method=i.method, spec=sp, jac=jac)
         rows.append(
             SweepRow(
                 wn_rad_s=float(wn),
                 inner_fraction_at_T=float(np.interp(o.period_s, s.t, s.y)),
                 inner_settling_time_s=s.step["settling_time_s"],
-                I_stability_limit=an.real_inner_limit("I", o.period_s, **kw),
-                PI_stability_limit=an.real_inner_limit("PI", o.period_s, **kw),
+                I_stability_limit=real_inner_limit("I", o.period_s, **kw),
+                PI_stability_limit=real_inner_limit("PI", o.period_s, **kw),
             )
         )
     outer = OuterLoops(

@@ -154,7 +154,7 @@ def step_info(
 ) -> StepFigures:
     """Rise time, overshoot and settling time of a step response.
 
-    Not :func:`controllers.analysis.step_metrics` (:func:`control.step_info`):
+    Not :func:`controllers.analysis.inner.step_metrics` (:func:`control.step_info`):
     that one reads the crossings on the sample grid and settles in a band
     proportional to the final value; a run's figures interpolate the 10 %,
     90 % and band crossings between logged rows and give the band a floor

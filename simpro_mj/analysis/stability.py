@@ -3,10 +3,10 @@
 The outer loop (eqs. 21-27, Fig. 7: the I or PI law at period T on the
 measured pose, the IK Jacobian at home mapping task to joint deviations) is
 closed around the discretised joint loops lifted to the outer period
-(:func:`controllers.analysis.lifted_inner`), each joint loop behind the
+(:func:`controllers.analysis.lifted.lifted_inner`), each joint loop behind the
 scenario's set-point filter (Fig. 13). :func:`outer_loop` returns its
 stability limit (the largest common ``K K_I`` with the closed loop's spectral
-radius below 1, :func:`controllers.analysis.real_inner_limit`), the spectral
+radius below 1, :func:`controllers.analysis.lifted.real_inner_limit`), the spectral
 radius at the scenario's gains and the limit of eq. (21)'s one-sample-delay
 model beside it.
 
@@ -45,7 +45,16 @@ from pathlib import Path
 
 import numpy as np
 
-from controllers import analysis as an
+from controllers.analysis.lifted import (
+    inner_discrete_loop,
+    lifted_inner,
+    outer_closed_loop,
+    real_inner_limit,
+    reduced,
+    spectral_radius,
+    with_setpoint_filter,
+)
+from controllers.analysis.outer_delay import closed_form_limit, outer_polynomials, stability_limit
 from controllers.design import ACTUATORS, Plant, design_for, paper_coefficients, paper_plant
 from controllers.geometry import geometry_from_rig
 from controllers.kinematics import jacobian
@@ -122,10 +131,10 @@ def _legs_of(key: tuple) -> tuple[list, str]:
     for i, a in enumerate(ACTUATORS):
         design_plant = paper_plant(a, reading) if design is None else Plant(*design[i])
         controller = design_for(a, variant, plant=design_plant, reading=reading, **spec)
-        leg = an.inner_discrete_loop(controller, Plant(*loop[i]), dt, method)
+        leg = inner_discrete_loop(controller, Plant(*loop[i]), dt, method)
         legs.append(leg)
     legs = [
-        an.with_setpoint_filter(leg, filter_state_space(sf_type, dt, t))
+        with_setpoint_filter(leg, filter_state_space(sf_type, dt, t))
         for leg, t in zip(legs, leg_times(sf_times), strict=True)
     ]
     basis = f"real inner loops: {sf_type} set-point filter, {variant} joint controllers on {what}"
@@ -142,13 +151,16 @@ def _jacobian_home(rig: str) -> tuple:
 @lru_cache(maxsize=1)
 def _code() -> str:
     """Digest of the sources that compute a loop's limits (part of the disk cache's key)."""
+    import controllers.analysis
     import controllers.design
     import controllers.kinematics
     import controllers.setpoint_filter
 
     files = [Path(str(m.__file__)) for m in (controllers.design, controllers.kinematics,
                                         controllers.setpoint_filter)]  # fmt: skip
-    files += Path(an.__file__).parent.glob("*.py")  # the whole analysis package
+    files += Path(str(controllers.analysis.__file__)).parent.glob(
+        "*.py"
+    )  # the whole analysis package
     return cache.source_digest([Path(__file__), *files])
 
 
@@ -168,11 +180,11 @@ def _limits(key: tuple, legs: list) -> tuple[float, float]:
     dt = key[0]
     mode, pi_zero, period, delay, jac = key[11:]
     jac = np.asarray(jac)
-    limit = an.real_inner_limit(mode, period, dt=dt, jac=jac, pi_zero=pi_zero, legs=legs)
+    limit = real_inner_limit(mode, period, dt=dt, jac=jac, pi_zero=pi_zero, legs=legs)
     try:  # eq. (21)'s model: the closed form where there is one, else the crossing search
-        delay_limit = an.closed_form_limit(mode, period, delay, pi_zero)
+        delay_limit = closed_form_limit(mode, period, delay, pi_zero)
     except NotImplementedError:
-        delay_limit = an.stability_limit(*an.outer_polynomials(mode, period, delay, pi_zero))
+        delay_limit = stability_limit(*outer_polynomials(mode, period, delay, pi_zero))
     limit, delay_limit = float(limit), float(delay_limit)
     cache.write_json(path, {"key": text, "limit": limit, "delay_model_limit": delay_limit})
     return limit, delay_limit
@@ -184,7 +196,7 @@ def _analysed(key: tuple):
     dt, period = key[0], key[13]
     legs, basis = _legs_of(key)
     limit, delay_limit = _limits(key, legs)
-    lifted = an.reduced(an.lifted_inner(period, dt=dt, legs=legs))  # same eigenvalues
+    lifted = reduced(lifted_inner(period, dt=dt, legs=legs))  # same eigenvalues
     return limit, delay_limit, lifted, basis
 
 
@@ -213,8 +225,8 @@ def outer_loop(scenario: Scenario | Mapping, plant: str = "actuator", dt: float 
     limit, delay_limit, lifted, basis = _analysed(key)
     mode, pi_zero, period = key[11:14]
     gains = np.asarray(sc.controller.outer.gains, float)
-    f = an.outer_closed_loop(mode, gains, period, lifted, np.asarray(key[15]), pi_zero)[0]
-    rho = an.spectral_radius(f)
+    f = outer_closed_loop(mode, gains, period, lifted, np.asarray(key[15]), pi_zero)[0]
+    rho = spectral_radius(f)
     return {
         "limit": limit,
         "basis": basis,
