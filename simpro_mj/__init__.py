@@ -16,20 +16,6 @@ The Python API (:mod:`simpro_mj.api`)::
 
 __version__ = "0.1.0"
 
-__all__ = [
-    "__version__",
-    "run",
-    "compare",
-    "load",
-    "load_scenario",
-    "sweep",
-    "Result",
-    "SweepResult",
-    "shipped_scenarios",
-    "UserInputError",
-    "SweepError",
-]
-
 _API = {
     "run": "api",
     "compare": "api",
@@ -42,6 +28,8 @@ _API = {
     "UserInputError": "core.errors",
     "SweepError": "core.errors",
 }
+
+__all__ = ["__version__", *_API]
 
 
 def __getattr__(name: str):

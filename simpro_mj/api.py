@@ -38,7 +38,6 @@ from simpro_mj.core.keys import closest
 
 __all__ = [
     "Result",
-    "SweepError",
     "SweepResult",
     "load",
     "load_scenario",
@@ -176,12 +175,8 @@ def load(scenario: str | Path | Mapping | Scenario, overrides: Mapping | None = 
     return load_scenario(str(scenario), _sets(overrides))
 
 
-def load_scenario(
-    scenario: str | Path | Mapping | Scenario, overrides: Mapping | None = None
-) -> Scenario:
-    """Resolve a scenario: the same as :func:`load` (the name the command line's
-    modules use)."""
-    return load(scenario, overrides)
+#: :func:`load` by the name the command line's modules use.
+load_scenario = load
 
 
 def run(
