@@ -35,21 +35,21 @@ from matplotlib.figure import Figure
 from controllers.geometry import H0
 from simpro_mj.analysis.cue_metrics import FLOORS
 from simpro_mj.analysis.verdict import VERDICTS
-from simpro_mj.batch.robustness import RobustnessTable, map_figure
+from simpro_mj.batch.robustness import map_figure
 from simpro_mj.batch.stability import Analytic
 from simpro_mj.batch.summary import AXES, RUN_STATUSES, Row
 from simpro_mj.batch.tables import StabilityLimit
 from simpro_mj.config.sweep import format_value
-from simpro_mj.report.figures import envelope, legend_mismatches, log_ticks, save
+from simpro_mj.report.figures import envelope, log_ticks, save
 from simpro_mj.report.results import read_timeseries
 
 __all__ = [
     "plot_summary",
-    "plot_metric_vs_param",
-    "plot_responses",
-    "plot_mc",
-    "plot_cue_tradeoff",
-    "legend_mismatches",
+    "metric_vs_param_figure",
+    "responses_figure",
+    "mc_figure",
+    "cue_comparison_figure",
+    "cue_tradeoff_figure",
 ]
 
 DPI = 110
@@ -95,21 +95,9 @@ def _colours(labels: list[str]) -> dict[str, str]:
     return {lab: f"C{i % 10}" for i, lab in enumerate(uniq)}
 
 
-def _save(fig: Figure | None, path: Path) -> Path | None:
-    return None if fig is None else save(fig, path, DPI)
-
-
-def plot_metric_vs_param(
-    rows: list[Row], info: Mapping, stability: list[StabilityLimit], out: Path
-):
-    """Metrics against the swept parameter (module docstring); None if not applicable."""
-    fig = metric_vs_param_figure(rows, info, stability)
-    label = fig.get_label() if fig is not None else ""
-    return _save(fig, out / f"{info['folder']}_vs_{label}.png")
-
-
 def metric_vs_param_figure(rows: list[Row], info: Mapping, stability: list[StabilityLimit]):
-    """The figure of :func:`plot_metric_vs_param` (its label: the swept key's last part)."""
+    """Metrics against the swept parameter (module docstring), or None if not applicable;
+    its label is the swept key's last part."""
     grid = info["grid_paths"]
     xpath = None if info["monte_carlo"] else _swept_number(rows, grid)
     if xpath is None:
@@ -220,14 +208,9 @@ def _shade_by_number(series, labels: list[str], info: Mapping):
     return colours, group_of, groups, (scale, path + (" (K K_I, 1/s)" if path == _GAIN else ""))
 
 
-def plot_responses(rows: list[Row], info: Mapping, batch_out: Path, out: Path):
-    """Task-space responses of the variants overlaid; None if none has a time series."""
-    fig = responses_figure(rows, info, batch_out)
-    return _save(fig, out / f"{info['folder']}_responses.png")
-
-
 def responses_figure(rows: list[Row], info: Mapping, batch_out: Path):
-    """The figure of :func:`plot_responses` (module docstring), or None."""
+    """Task-space responses of the variants overlaid (module docstring); None if none
+    has a time series."""
     grid = info["grid_paths"]
     runs = [r for r in rows if r.status in RUN_STATUSES and r.folder][:MAX_OVERLAY]
     series = []
@@ -322,7 +305,7 @@ def responses_figure(rows: list[Row], info: Mapping, batch_out: Path):
     return fig
 
 
-def plot_mc(rows: list[Row], info: Mapping, out: Path):
+def mc_figure(rows: list[Row], info: Mapping):
     """Distribution of |steady-state error| per axis and grid combination (Monte Carlo)."""
     if not info["monte_carlo"]:
         return None
@@ -360,16 +343,7 @@ def plot_mc(rows: list[Row], info: Mapping, out: Path):
     fig.suptitle(
         f"{info['scenario']}: steady-state error over {n} Monte Carlo samples", fontsize=10
     )
-    return _save(fig, out / f"{info['folder']}_mc_ss_error.png")
-
-
-def plot_robustness_map(rows: list[Row], tables: list[RobustnessTable], info: Mapping, out: Path):
-    """The payload x friction map of a Monte Carlo file that draws both
-    (:func:`simpro_mj.batch.robustness.map_figure`)."""
-    table = next((t for t in tables if t.scenario == info["scenario"]), None)
-    if table is None:
-        return None
-    return _save(map_figure(rows, table), out / f"{info['folder']}_map.png")
+    return fig
 
 
 def plot_summary(report, jobs) -> list[Path]:
@@ -388,20 +362,23 @@ def plot_summary(report, jobs) -> list[Path]:
         if not rows:
             continue
         stab = [s for s in report.stability if s.scenario == info["scenario"]]
-        for p in (
-            plot_metric_vs_param([r for r in rows if r.status != "invalid"], info, stab, out),
-            plot_responses(rows, info, Path(report.out), out),
-            plot_mc(rows, info, out),
-            plot_cue_tradeoff(rows, info, out),
-            plot_cue_comparison(rows, info, out),
-            plot_robustness_map(rows, report.robustness, info, out),
-        ):
-            if p is not None:
-                paths.append(p)
+        table = next((t for t in report.robustness if t.scenario == info["scenario"]), None)
+        for fig, name in (
+            (metric_vs_param_figure([r for r in rows if r.status != "invalid"], info, stab),
+             "{folder}_vs_{label}"),
+            (responses_figure(rows, info, Path(report.out)), "{folder}_responses"),
+            (mc_figure(rows, info), "{folder}_mc_ss_error"),
+            (cue_tradeoff_figure(rows, info), "{scenario}_cue_tradeoff"),
+            (cue_comparison_figure(rows, info), "{scenario}_cue_laws"),
+            (None if table is None else map_figure(rows, table), "{folder}_map"),
+        ):  # fmt: skip
+            if fig is not None:
+                name = name.format(label=fig.get_label(), **info)
+                paths.append(save(fig, out / f"{name}.png", DPI))
     return paths
 
 
-def plot_cue_comparison(rows: list[Row], info: Mapping, out: Path):
+def cue_comparison_figure(rows: list[Row], info: Mapping):
     """Cueing laws side by side: per vehicle input (the grid's telemetry) and law, the
     perceived correlation, mean lag and worst onset delay of the channel the vehicle
     drives (``cue_main_channel``) and the felt false rotation, the floors dashed.
@@ -460,7 +437,7 @@ def plot_cue_comparison(rows: list[Row], info: Mapping, out: Path):
         "(dashed: the floors)",
         fontsize=10,
     )
-    return _save(fig, out / f"{info['scenario']}_cue_laws.png")
+    return fig
 
 
 def _law_label(r: Row) -> str:
@@ -492,11 +469,6 @@ def _main(r: Row, what: str) -> float:
     side = r.cue.get("cue_main_channel") or "long"
     v = r.cue.get(f"cue_{side}_{'corr' if what == 'correlation' else what + '_s'}")
     return np.nan if v is None else float(v)
-
-
-def plot_cue_tradeoff(rows: list[Row], info: Mapping, out: Path):
-    """Cueing sweeps: :func:`cue_tradeoff_figure` as ``<scenario>_cue_tradeoff.png``."""
-    return _save(cue_tradeoff_figure(rows, info), out / f"{info['scenario']}_cue_tradeoff.png")
 
 
 def cue_tradeoff_figure(rows: list[Row], info: Mapping):
