@@ -66,6 +66,7 @@ from simpro_mj.analysis.response import (
     measure,
     run_point,
     saturated_pct,
+    sine_run,
     sine_tasks,
 )
 from simpro_mj.analysis.response_summary import Bode, loop_model
@@ -98,21 +99,9 @@ __all__ = [
 
 CHANNELS = CHAIN_CHANNELS
 #: The cueing block's ``sine.channel`` of each channel (telemetry column names).
-_SINE_CHANNEL = {
-    "fx": "fx_mps2",
-    "fy": "fy_mps2",
-    "fz": "fz_mps2",
-    "wx": "wx_rad_s",
-    "wy": "wy_rad_s",
-}
+_SINE_CHANNEL = {c: f"{c}_{'mps2' if c[0] == 'f' else 'rad_s'}" for c in CHANNELS}
 #: Edge unit and its factor to SI per channel.
-_UNITS = {
-    "fx": ("m/s^2", 1.0),
-    "fy": ("m/s^2", 1.0),
-    "fz": ("m/s^2", 1.0),
-    "wx": ("deg/s", math.pi / 180.0),
-    "wy": ("deg/s", math.pi / 180.0),
-}
+_UNITS = {c: ("m/s^2", 1.0) if c[0] == "f" else ("deg/s", math.pi / 180.0) for c in CHANNELS}
 #: OMCT pairs of a roll-pitch-heave platform: (input, output) -> name.
 PAIRS = {
     ("wy", "wy"): "pitch",
@@ -223,16 +212,10 @@ def chain_scenario(
     """The scenario driven by a vehicle sine of ``amplitude`` (SI) on ``channel`` alone,
     through its washout (or the default one), for ``settle_s`` plus ``periods`` periods,
     logged every step, faults removed."""
-    sc = copy.deepcopy(dict(scenario))
     sine = {"channel": _SINE_CHANNEL[channel], "amplitude": float(amplitude),
             "period_s": period_ms / 1000.0}  # fmt: skip
     cueing = {"telemetry": None, "manoeuvre": None, "sine": sine, **cue_block(scenario)}
-    return sc | {
-        "setpoint": {"cueing": cueing},
-        "duration_s": round(settle_s + periods * period_ms / 1000.0, 3),
-        "faults": [],
-        "logging": dict(sc.get("logging") or {}, decimation=1),
-    }
+    return sine_run(scenario, {"cueing": cueing}, period_ms, settle_s, periods)
 
 
 @dataclass
@@ -264,9 +247,7 @@ def fit_columns(columns: Mapping, task: SineTask, dt: float = 0.001) -> SineFit:
     w = 2.0 * math.pi / (task.period_ms / 1000.0)
 
     def col(side: str, ch: str) -> np.ndarray:
-        kind = "f" if ch[0] == "f" else "w"
-        unit = "mps2" if kind == "f" else "rad_s"
-        return np.asarray(columns[f"{side}_{kind}{ch[1]}_{unit}"], float)[k0:k1]
+        return np.asarray(columns[f"{side}_{_SINE_CHANNEL[ch]}"], float)[k0:k1]
 
     ref = fit_sine(t, col("veh", task.input), w)
     head = fit_sine(t, np.column_stack([col("head", c) for c in CHANNELS]), w)

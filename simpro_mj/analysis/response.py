@@ -67,6 +67,7 @@ __all__ = [
     "plan_response",
     "sine_tasks",
     "point_scenario",
+    "sine_run",
     "measure_point",
     "measure",
 ]
@@ -302,12 +303,19 @@ def point_scenario(
 ) -> dict:
     """The scenario with a sine of ``amplitude`` (edge units) on ``axis`` alone, run for
     ``settle_s`` plus ``periods`` periods, logged every step, faults removed."""
-    sc = copy.deepcopy(dict(scenario))
     sine = {"type": "sine", "amplitude": float(amplitude), "period_s": period_ms / 1000.0,
             "phase_deg": 0.0, "start_s": 0.0, "end_s": None}  # fmt: skip
     excited = _SETPOINT_KEYS[AXES.index(axis)]
+    setpoint = {key: [sine] if key == excited else [] for key in _SETPOINT_KEYS}
+    return sine_run(scenario, setpoint, period_ms, settle_s, periods)
+
+
+def sine_run(scenario: Mapping, setpoint: dict, period_ms: int, settle_s: float, periods: int):
+    """``scenario`` with ``setpoint``, run for ``settle_s`` plus ``periods`` periods of
+    ``period_ms``, logged every step, faults removed."""
+    sc = copy.deepcopy(dict(scenario))
     return sc | {
-        "setpoint": {key: [sine] if key == excited else [] for key in _SETPOINT_KEYS},
+        "setpoint": setpoint,
         "duration_s": round(settle_s + periods * period_ms / 1000.0, 3),
         "faults": [],
         "logging": dict(sc.get("logging") or {}, decimation=1),
