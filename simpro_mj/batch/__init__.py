@@ -1,4 +1,4 @@
-"""Many runs: a sweep file's variants planned, run and tabulated; the speed bench.
+"""Many runs: a sweep file's variants planned, run and tabulated.
 
 - :mod:`.plan`: the inputs expanded into rows (variants to run, invalid entries).
 - :mod:`.worker`: one variant run headless into its result folder.
@@ -7,5 +7,4 @@
 - :mod:`.summary`, :mod:`.tables`: the rows, ``summary.csv``/``summary.json``; the
   stability-limit and Monte Carlo tables and the printed summary.
 - :mod:`.plots`: the sweep figures.
-- :mod:`.bench`: the measurements of ``simpro-sim bench``.
 """

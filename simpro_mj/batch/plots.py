@@ -38,7 +38,7 @@ from simpro_mj.analysis.verdict import VERDICTS
 from simpro_mj.batch.robustness import map_figure
 from simpro_mj.batch.stability import Analytic
 from simpro_mj.batch.summary import AXES, RUN_STATUSES, Row
-from simpro_mj.batch.tables import StabilityLimit
+from simpro_mj.batch.tables import StabilityLimit, number
 from simpro_mj.config.sweep import format_value
 from simpro_mj.report.figures import envelope, log_ticks, save
 from simpro_mj.report.results import read_timeseries
@@ -57,27 +57,11 @@ MAX_OVERLAY = 100
 _GAIN = "controller.outer.gains"
 
 
-def _x(value) -> float | None:
-    """A swept value as a number: a number, or a list of equal numbers."""
-    if isinstance(value, bool):
-        return None
-    if isinstance(value, (int, float)):
-        return float(value)
-    if (
-        isinstance(value, list)
-        and value
-        and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value)
-    ):
-        if len({float(v) for v in value}) == 1:
-            return float(value[0])
-    return None
-
-
 def _swept_number(rows: list[Row], grid) -> str | None:
     """The grid path drawn along x: the gain if swept, else the numeric path with the
     most values (None: no path is a number with two values or more)."""
-    count = {p: len({_x(r.values.get(p)) for r in rows}) for p in grid}
-    numeric = [p for p in grid if count[p] >= 2 and all(_x(r.values.get(p)) is not None
+    count = {p: len({number(r.values.get(p)) for r in rows}) for p in grid}
+    numeric = [p for p in grid if count[p] >= 2 and all(number(r.values.get(p)) is not None
                                                           for r in rows)]  # fmt: skip
     if not numeric:
         return None
@@ -114,8 +98,8 @@ def metric_vs_param_figure(rows: list[Row], info: Mapping, stability: list[Stabi
     axes = fig.subplots(n, 1, sharex=True)
     ringed = False
     for name, members in groups.items():
-        members = sorted(members, key=lambda r: _x(r.values[xpath]) or math.inf)
-        xs = np.array([_x(r.values[xpath]) for r in members])
+        members = sorted(members, key=lambda r: number(r.values[xpath]) or math.inf)
+        xs = np.array([number(r.values[xpath]) for r in members])
         bad = np.array([r.stable is False or r.status != "ok" for r in members])
         col = colours[name]
         for i, ax in enumerate(axes[:3]):
@@ -198,7 +182,7 @@ def _shade_by_number(series, labels: list[str], info: Mapping):
     from matplotlib.cm import ScalarMappable
     from matplotlib.colors import Normalize
 
-    xs = [_x(r.values[path]) or 0.0 for r, _ in series]  # path's values are numbers
+    xs = [number(r.values[path]) or 0.0 for r, _ in series]  # path's values are numbers
     norm = Normalize(min(xs), max(xs))
     cmap = colormaps["viridis"]
     colours = {lab: cmap(norm(x)) for lab, x in zip(labels, xs, strict=True)}

@@ -20,6 +20,7 @@ neither a success nor a failure; the table counts those apart as ``unfinished``.
 
 from __future__ import annotations
 
+from collections import Counter
 from dataclasses import asdict, dataclass, field
 from typing import TYPE_CHECKING
 
@@ -152,9 +153,7 @@ def robustness_table(rows: list[Row], name: str) -> RobustnessTable | None:
         return None
     pts = [(r, p) for r, p in drawn if r.status not in UNFINISHED]
     met = [meets_floors(r) for r, _ in pts]
-    statuses: dict[str, int] = {}
-    for r, _ in pts:
-        statuses[r.status] = statuses.get(r.status, 0) + 1
+    statuses = dict(Counter(r.status for r, _ in pts))
     cells = []
     pay_edges = _edges(PAYLOAD_EDGES, [p[0] for _, p in drawn])
     cou_edges = _edges(COULOMB_EDGES, [p[1] for _, p in drawn])

@@ -71,9 +71,7 @@ SETTLE_AFTER_S = 1.0
 HELD_FRACTION = 0.5
 
 _TS_COLUMNS = {
-    "roll": ("roll_ref_rad", "roll_rad"),
-    "pitch": ("pitch_ref_rad", "pitch_rad"),
-    "heave": ("heave_ref_m", "heave_m"),
+    a: (f"{a}_ref_{u}", f"{a}_{u}") for a, u in dict(roll="rad", pitch="rad", heave="m").items()
 }
 
 

@@ -20,7 +20,6 @@ limits (``stable <=`` by the growth, ``settled <=`` by the verdict).
 from __future__ import annotations
 
 import sys
-from collections.abc import Mapping
 from dataclasses import asdict, dataclass
 from typing import Any
 
@@ -39,6 +38,7 @@ __all__ = [
     "SpreadGroup",
     "StabilityLimit",
     "monte_carlo_table",
+    "number",
     "print_report",
     "stability_table",
 ]
@@ -118,13 +118,18 @@ def _gain_list(gains: list[float]) -> str:
     return ", ".join(f"{g:g}" for g in gains)
 
 
-def _gain(values: Mapping) -> float | None:
-    """The common K K_I of a variant's swept gains, or None (unequal per-axis gains)."""
-    g = values.get(GAIN_PATH)
-    if isinstance(g, (int, float)) and not isinstance(g, bool):
-        return float(g)
-    if isinstance(g, list) and g and len({float(x) for x in g}) == 1:
-        return float(g[0])
+def number(value) -> float | None:
+    """A swept value as a number: a number, or a list of equal numbers (a common K K_I
+    of the per-axis gains); None otherwise."""
+    if isinstance(value, bool):
+        return None
+    if isinstance(value, (int, float)):
+        return float(value)
+    numbers = isinstance(value, list) and all(
+        isinstance(v, (int, float)) and not isinstance(v, bool) for v in value
+    )
+    if numbers and value and len({float(v) for v in value}) == 1:
+        return float(value[0])
     return None
 
 
@@ -135,7 +140,7 @@ def stability_table(rows: list[Row], jobs: list[Job]) -> list[StabilityLimit]:
     for row, job in zip(rows, jobs, strict=True):
         if not job.gain_sweep or job.mc or row.stable is None:
             continue
-        g = _gain(job.values)
+        g = number(job.values.get(GAIN_PATH))
         if g is None:
             continue
         others = tuple((p, format_value(job.values[p])) for p in job.grid_paths if p != GAIN_PATH)
