@@ -192,10 +192,6 @@ def loop_model(scenario: Scenario | Mapping) -> LoopModel:
     )
 
 
-def _complex(pair) -> complex:
-    return complex(pair[0], pair[1])
-
-
 def _in_edge(axis_in: str, axis_out: str, h: complex) -> complex:
     """An SI ratio expressed in the edge units (deg/deg, mm/deg, deg/mm, mm/mm)."""
     return h * _UNITS[axis_in][1] / _UNITS[axis_out][1]
@@ -243,8 +239,8 @@ def summary(plan: ResponsePlan, results: list, model: LoopModel | None) -> PoseR
             h = np.full((len(periods), 3), np.nan + 0j)
             for i in ok:
                 r = by_key[(axis_in, periods[i])]
-                ref = _complex(r.ref)
-                h[i] = [_complex(v) / ref for v in (r.true if sig == "true" else r.measured)]
+                ref = complex(*r.ref)
+                h[i] = [complex(*v) / ref for v in (r.true if sig == "true" else r.measured)]
             curves[sig] = h
         diag_phase = {}
         for sig in ("true", "measured"):
