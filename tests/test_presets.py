@@ -10,7 +10,8 @@ import math
 import pytest
 import yaml
 
-from simpro_mj.analysis.calibrate import TOLERANCES, load_targets, paper_targets, residuals
+from simpro_mj.analysis.calibrate import TOLERANCES, paper_targets, residuals
+from simpro_mj.analysis.targets import load_targets
 from simpro_mj.commands import main as cli
 from simpro_mj.config.presets import load_preset, shipped_presets
 from simpro_mj.config.scenario import load_scenario

@@ -6,7 +6,7 @@ same models -> simulate. The targets are eq. (19)'s natural frequency
 ``wn = sqrt(a0)``, damping ratio ``zeta = a1 / (2 wn)`` and velocity gain
 ``b / a0`` per actuator: by default eqs. (34)-(35) in SI under the
 ``paper_units`` reading (``b / 20`` for potentiometer volts), or a rig
-owner's YAML file (:func:`load_targets`).
+owner's YAML file (:func:`simpro_mj.analysis.targets.load_targets`).
 
 What is fitted, and why these (everything else is a catalogue value or the
 geometry of section 5.2.1):
@@ -52,7 +52,6 @@ from typing import Any
 import numpy as np
 from scipy.optimize import least_squares
 
-from simpro_mj.analysis.targets import load_targets
 from simpro_mj.config.pneumatics import Pneumatics
 from simpro_mj.core.errors import PhysicsError, UserInputError
 from simpro_mj.identification.identify import Fit, identify, paper_models
@@ -64,7 +63,6 @@ __all__ = [
     "TOLERANCES",
     "PARAMETERS",
     "paper_targets",
-    "load_targets",
     "residuals",
     "Calibration",
     "calibrate",
