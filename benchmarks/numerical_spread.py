@@ -20,6 +20,11 @@ allows (the other way is its own limit, where the shipped value sits):
   MuJoCo's greatest);
 * ``integration.substeps`` 1 -> 2 (the pressure step halved).
 
+and, as a control that is not numerics, ``coulomb_plus_1mN`` (``--variants``):
+every seal's Coulomb force 1 mN higher (2 ppm of 450 N, far below what any
+catalogue or measurement resolves), which shows how far the plant itself
+carries a perturbation that small.
+
 Prints one JSON document: per variant, scenario and axis, the overshoot (%) and
 2 % settling time (s) of ``metrics.json`` at every seed, their median, range
 and the number of runs that meet the cabin's floors (overshoot <= 10 %,
@@ -55,6 +60,9 @@ VARIANTS = {
     "stick_yield_x2": {f"{CYL}.stick_impedance": 0.9998},
     "substeps_x2": {"actuator.pneumatics.integration.substeps": 2},
 }
+#: Not numerics: a physical change far below anything measurable, the control that
+#: shows how far the plant itself carries a micro-perturbation (1 mN on 450 N: 2 ppm)
+CONTROLS = {"coulomb_plus_1mN": 1e-3}
 SCENARIOS = {"step_pitch": 3.0, "step_all": 4.0}  # their settling floors, s
 OVERSHOOT_FLOOR = 10.0  # %
 LAST_S = 3.0  # s: the window whose swing an ok run keeps within SWING
@@ -67,10 +75,10 @@ def _one(job: tuple) -> tuple:
     from simpro_mj.api import run
 
     numerics = VARIANTS.get(variant, {})  # the null variant: the shipped numerics
-
+    coulomb = seals[0] + CONTROLS.get(variant, 0.0)
     sets = {
         "plant.preset": "heavy_cabin",
-        f"{CYL}.coulomb_friction_n": [seals[0]] * 3,
+        f"{CYL}.coulomb_friction_n": [coulomb] * 3,
         f"{CYL}.breakaway_friction_n": [seals[1]] * 3,
         "seed": seed,
         **numerics,
@@ -158,12 +166,30 @@ def measure(seeds, seals=(450.0, 750.0), jobs: int = 2, null_seeds=(), variants=
                 fig["overshoot_p"] = float(
                     mannwhitneyu(fig["overshoot_pct"], ref["overshoot_pct"]).pvalue
                 )
+                if v != NULL:  # run by run, the same seed: within 10 % or not
+                    fig["per_run_within"] = _per_run(ref, fig)
     if null_seeds:  # the ratio two halves of the shipped runs give, 95 % of the splits
         for name in SCENARIOS:
             for axis, ref in base[name]["axes"].items():
                 pool = ref["settling_s"] + out["variants"][NULL][name]["axes"][axis]["settling_s"]
                 ref["seed_ratio_95"] = _split_ratios(pool, len(seeds))
     return out
+
+
+def _per_run(ref: dict, fig: dict) -> list:
+    """How many of the runs' figures lie within 10 % of the same seed's shipped run.
+
+    Settling within 10 %; overshoot within 10 % or, under 5 %, within 0.5 points (10 %
+    of the 5 % that a step response's overshoot is usually judged against). Returns
+    [within, compared].
+    """
+    n = k = 0
+    for a, b in zip(ref["settling_s"], fig["settling_s"], strict=True):
+        n, k = n + 1, k + (abs(b - a) <= 0.1 * abs(a))
+    for a, b in zip(ref["overshoot_pct"], fig["overshoot_pct"], strict=True):
+        tol = 0.5 if max(a, b) < 5.0 else 0.1 * abs(a)
+        n, k = n + 1, k + (abs(b - a) <= tol)
+    return [k, n]
 
 
 def _split_ratios(pool: list, n: int, draws: int = 4000) -> list:
@@ -185,7 +211,8 @@ def main(argv=None) -> int:
                    metavar=("COULOMB_N", "BREAKAWAY_N"))  # fmt: skip
     p.add_argument("--jobs", type=int, default=2)
     p.add_argument("--null-seeds", type=int, nargs="*", default=[])
-    p.add_argument("--variants", nargs="+", choices=list(VARIANTS), default=list(VARIANTS))
+    p.add_argument("--variants", nargs="+", choices=[*VARIANTS, *CONTROLS],
+                   default=list(VARIANTS))  # fmt: skip
     a = p.parse_args(argv)
     if len(a.seeds) < 3 or any(not 0 <= s < 2**31 for s in a.seeds):
         print("error: invalid value at --seeds: allowed: three or more of 0..2^31-1",
