@@ -64,7 +64,7 @@ from .design import (
     printed_design,
     redesigned_design,
 )
-from .step_functions import JC, JX, joint_step
+from .step_functions import JC, JS, JX, joint_step
 
 __all__ = [
     "JointControllers",
@@ -218,6 +218,10 @@ class JointControllers:
         (:func:`controllers.dead_band.dead_band`): the integrator takes
         ``e -+ w`` outside the band and holds inside it, while the rest of the
         controller sees the whole error. Default 0 (none).
+    dead_band_release : float
+        Once a leg's error has entered its band, the band holds its integrator
+        until the error leaves ``dead_band_release`` bands (a hysteresis; >= 1,
+        default 1: none).
     """
 
     def __init__(
@@ -236,6 +240,7 @@ class JointControllers:
         plants=None,
         reading: str = DEFAULT_READING,
         dead_band=0.0,
+        dead_band_release: float = 1.0,
     ):
         paper_scale(reading)  # raises DesignError (a ValueError) naming the readings
         if variant not in VARIANTS:
@@ -250,6 +255,8 @@ class JointControllers:
             raise ValueError(f"tracking_time must be > 0 s, got {tracking_time!r}")
         if not (u_min < u_max):
             raise ValueError(f"need u_min < u_max, got {u_min} and {u_max}")
+        if not (np.isfinite(dead_band_release) and dead_band_release >= 1.0):
+            raise ValueError(f"dead_band_release must be >= 1, got {dead_band_release!r}")
         if spec is not None and variant != "redesigned":
             raise ValueError("spec is only used with variant='redesigned'")
         spec = dict(spec or {})
@@ -297,14 +304,14 @@ class JointControllers:
         aw = ANTI_WINDUP.index(anti_windup)
         self.step_constants = JC.pack(
             off=u_offset, lo=u_min, hi=u_max, kind=aw, aw=self.dt / self.tracking_time,
-            gain=self._int_gain, band=db, m=blocks,
+            gain=self._int_gain, band=db, rel=dead_band_release, m=blocks,
         )  # fmt: skip
-        self._x = np.zeros(3 * JX.LEN)
+        self._x = np.zeros(JS.LEN)
 
     @property
     def integrator(self) -> np.ndarray:
         """The integrator state of each leg, volts (copy)."""
-        return self._x[JX.i :: JX.LEN].copy()
+        return self._x[JS.x + JX.i : JS.x + 3 * JX.LEN : JX.LEN].copy()
 
     def reset(self) -> None:
         """Zero every state: the next command is ``u_offset`` for zero error."""

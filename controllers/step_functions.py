@@ -235,10 +235,14 @@ def filter_step(fc, q0, q1, q2, fs, ring, out):
 JX = layout("JointLegState", r1=1, r2=1, i=1)
 #: one leg's [[A, B], [C, D]] (the state and the error in, the state and the volts out)
 JM = (JX.LEN + 1) ** 2
+# The joint controllers' state: the three legs' JX, then per leg whether its dead band
+# holds the integrator (the band's release)
+JS = layout("JointState", x=3 * JX.LEN, held=3)
 # The joint controllers' constants ``jc``: u_offset, u_min, u_max, the anti-windup kind
 # (0 back-calculation, 1 conditional, 2 none), T / T_t; per leg r0 T of the integrator
-# and its dead band (m; 0: none); per leg [[A, B], [C, D]] (JM entries, row-major)
-JC = layout("JointConstants", off=1, lo=1, hi=1, kind=1, aw=1, gain=3, band=3, m=3 * JM)
+# and its dead band (m; 0: none); the band's release (the error that ends a hold, in
+# band widths; 1: none); per leg [[A, B], [C, D]] (JM entries, row-major)
+JC = layout("JointConstants", off=1, lo=1, hi=1, kind=1, aw=1, gain=3, band=3, rel=1, m=3 * JM)
 
 
 def _row(jc, k, a, b, c, e):
@@ -246,20 +250,43 @@ def _row(jc, k, a, b, c, e):
     return jc[k + JX.r1] * a + jc[k + JX.r2] * b + jc[k + JX.i] * c + jc[k + JX.LEN] * e
 
 
+def _joint_banded(e, w, r, x, k):
+    """A leg's error as its integrator takes it through its dead band ``w``.
+
+    Without a release (``r`` 1) :func:`~controllers.dead_band.dead_band` of ``e``.
+    With ``r > 1`` the band holds from the step the error enters ``[-w, w]``
+    until it leaves ``[-r w, r w]`` (``x[k]``): a leg that passed its set-point
+    and stopped within ``r w`` beyond it is not pushed back through its seals,
+    a push whose slip would land anywhere within the band again.
+    """
+    if r > 1.0:
+        if x[k] != 0.0:
+            if -r * w <= e <= r * w:
+                return 0.0
+            x[k] = 0.0
+        elif -w <= e <= w:
+            x[k] = 1.0
+            return 0.0
+    return dead_band(e, w)
+
+
 def joint_step(x, jc, e0, e1, e2, f0, f1, f2, v_out):
     """The three joint controllers (eq. 28) for one step; valve volts into ``v_out``.
 
-    ``x`` (9,): states of legs 1-3 (each a :data:`JX`: two of the remainder,
-    the integrator last), updated in place; ``jc`` their constants (:data:`JC`). An
-    integrator with a dead band ``w`` takes ``e -+ w`` outside ``[-w, w]``
-    and holds inside (:func:`controllers.dead_band.dead_band`). ``f`` is the
-    velocity feed-forward added before saturation.
+    ``x`` (:data:`JS`): states of legs 1-3 (each a :data:`JX`: two of the
+    remainder, the integrator last) and their bands' holds, updated in place;
+    ``jc`` their constants (:data:`JC`). An integrator with a dead band ``w``
+    takes ``e -+ w`` outside ``[-w, w]`` and holds inside
+    (:func:`controllers.dead_band.dead_band`); with a release ``r > 1`` it holds
+    from the step the error enters ``[-w, w]`` until it leaves ``[-r w, r w]``
+    (:func:`_joint_banded`). ``f`` is the velocity feed-forward added before
+    saturation.
     """
     off, lo, hi, kind, aw = jc[JC.off], jc[JC.lo], jc[JC.hi], jc[JC.kind], jc[JC.aw]
     for i in range(3):
         e = e0 if i == 0 else (e1 if i == 1 else e2)
         f = f0 if i == 0 else (f1 if i == 1 else f2)
-        o = JX.LEN * i
+        o = JS.x + JX.LEN * i
         a, b, c = x[o + JX.r1], x[o + JX.r2], x[o + JX.i]
         m, w = JC.m + JM * i, JX.LEN + 1  # the leg's matrix, its row length
         n0 = _row(jc, m + w * JX.r1, a, b, c, e)
@@ -268,7 +295,7 @@ def joint_step(x, jc, e0, e1, e2, f0, f1, f2, v_out):
         u = _row(jc, m + w * JX.LEN, a, b, c, e)  # the output row: C and D
         gain, band = jc[JC.gain + i], jc[JC.band + i]
         if band > 0.0:  # the integrator takes the error beyond its band only
-            n2 = n2 - gain * (e - dead_band(e, band))
+            n2 = n2 - gain * (e - _joint_banded(e, band, jc[JC.rel], x, JS.held + i))
         v = u + off + f
         vs = v
         if vs < lo:  # comparisons: a NaN passes through

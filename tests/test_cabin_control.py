@@ -106,6 +106,30 @@ def test_a_band_with_a_release_holds_until_the_error_leaves_release_times_the_ba
         TaskSpaceController("I", band_release=0.5)
 
 
+def test_a_joint_band_with_a_release_holds_a_leg_past_its_set_point_within_release_bands():
+    # a leg that passed its set-point and stopped 1.3 mm beyond it, with a 1 mm band:
+    # without a release the integrator ramps it back on 0.3 mm; with 1.5 it holds
+    held = JointControllers(dead_band=1e-3, anti_windup="none", dead_band_release=1.5)
+    plain = JointControllers(dead_band=1e-3, anti_windup="none")
+    for ctl in (held, plain):
+        ctl.update([2e-3, 0.0, 0.0], [0.0] * 3)  # approaching: beyond the band
+        ctl.update([0.5e-3, 0.0, 0.0], [0.0] * 3)  # entered it: held from here
+    before_h, before_p = held.integrator, plain.integrator
+    for _ in range(100):
+        held.update([-1.3e-3, 0.0, 0.0], [0.0] * 3)
+        plain.update([-1.3e-3, 0.0, 0.0], [0.0] * 3)
+    assert held.integrator[0] == before_h[0]  # within 1.5 bands: held
+    ramp = plain._int_gain[0] * -0.3e-3 * 100  # each step r0 T (e + w)
+    assert plain.integrator[0] - before_p[0] == pytest.approx(ramp, rel=1e-6)
+    held.update([-1.6e-3, 0.0, 0.0], [0.0] * 3)  # beyond 1.5 bands: released
+    assert held.integrator[0] < before_h[0]
+    held.reset()  # a reset releases the hold
+    held.update([-1.3e-3, 0.0, 0.0], [0.0] * 3)
+    assert held.integrator[0] < 0.0
+    with pytest.raises(ValueError, match="dead_band_release"):
+        JointControllers(dead_band=1e-3, dead_band_release=0.5)
+
+
 def test_design_plant_auto_is_the_paper_plant_on_paper_and_identified_on_other_presets():
     assert load_scenario("step_pitch").controller.inner.design_plant == "paper"
     heavy = load_scenario("step_pitch", [HEAVY])

@@ -222,6 +222,15 @@ class Inner(Block):
     dead_band_mm: Numbers[list[float], Each(3, one=True, ge=0, le=50)] = param(
         [0.0, 0.0, 0.0], "mm", "dead band on each leg's error (controllers.dead_band)"
     )
+    dead_band_release: Real = param(
+        1.0,
+        "",
+        "once a leg's error has entered its dead band the band holds the leg's integrator "
+        "until the error leaves this many bands (a hysteresis; 1: none; "
+        "controllers.step_functions.joint_step)",
+        ge=1,
+        le=10,
+    )
     dither_v: Real = param(
         0.0,
         "V",

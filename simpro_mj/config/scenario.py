@@ -371,6 +371,7 @@ _HASHED_UNLESS_DEFAULT = (
     "controller.outer.joint_lag",
     "controller.inner.anti_windup",
     "controller.inner.tracking_time_ms",
+    "controller.inner.dead_band_release",
     "controller.outer.dead_band.kind",
     "controller.outer.dead_band.release",
     "actuator.pneumatics.cylinder.stick_time_constant_ms",

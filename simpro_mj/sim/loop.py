@@ -161,6 +161,7 @@ class CoSimulation:
             spec=spec,
             reading=sc.paper_units,
             dead_band=[w * 1e-3 for w in inner.dead_band_mm],
+            dead_band_release=inner.dead_band_release,
             anti_windup=inner.anti_windup,
             tracking_time=inner.tracking_time_ms * 1e-3,
         )

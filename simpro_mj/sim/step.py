@@ -75,7 +75,7 @@ MAX_PAIRS = 8
 ST = layout(
     "StepState", k=1, status=1, err=1, err_k=1, rows=1, worst=1, flags=1, noise_k0=1,
     walk_m=1, walk_m0=1, q=3, qd=3, pose=3, qm=3, pm=3, loop=1, yq=3, yp=3, qdes=3, qr=3,
-    u=3, ua=3, f=3, pcmd=3, sat=1, ss=ps.SS.LEN, ts=cs.TS.LEN, jx=3 * cs.JX.LEN, fs=cs.FS.LEN,
+    u=3, ua=3, f=3, pcmd=3, sat=1, ss=ps.SS.LEN, ts=cs.TS.LEN, jx=cs.JS.LEN, fs=cs.FS.LEN,
     ast=ps.ACT.LEN, ring=None,
 )  # fmt: skip
 
@@ -179,7 +179,7 @@ def control(k, S, C, ref, qj, uff):
         f0, f1, f2 = uff[k, 0], uff[k, 1], uff[k, 2]
     jc, u = C[CT.jc : CT.jc + cs.JC.LEN], S[ST.u : ST.u + 3]
     cs.joint_step(
-        S[ST.jx : ST.jx + 3 * cs.JX.LEN], jc, qr[0] - m0, qr[1] - m1, qr[2] - m2, f0, f1, f2, u
+        S[ST.jx : ST.jx + cs.JS.LEN], jc, qr[0] - m0, qr[1] - m1, qr[2] - m2, f0, f1, f2, u
     )
     lo, hi = jc[cs.JC.lo], jc[cs.JC.hi]
     S[ST.ua : ST.ua + 3] = u
