@@ -118,8 +118,8 @@ def _coefficients(theta, dt):
         up, dn = list(theta), list(theta)
         up[j] += h
         dn[j] -= h
-        nu, du = zoh_velocity_filter(*up, dt)
-        nd, dd = zoh_velocity_filter(*dn, dt)
+        nu, du = zoh_velocity_filter(up[0], up[1], up[2], dt)
+        nd, dd = zoh_velocity_filter(dn[0], dn[1], dn[2], dt)
         dnum[j] = (nu - nd) / (2 * h)
         dden[j] = (du - dd) / (2 * h)
     return num, den, dnum, dden
