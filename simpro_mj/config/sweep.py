@@ -91,7 +91,6 @@ from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.keys import closest, key_text
 
 __all__ = [
-    "DISTRIBUTIONS",
     "Distribution",
     "SweepSpec",
     "parse_sweep",
@@ -102,12 +101,6 @@ __all__ = [
     "broadcast_value",
 ]
 
-#: Distribution name -> (required keys, optional keys).
-DISTRIBUTIONS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
-    "uniform": (("low", "high"), ()),
-    "normal": (("mean", "std"), ("low", "high")),
-    "choice": (("values",), ()),
-}
 _NOT_SWEPT = ("name", "sweep")
 #: Most variants of one file (grid product times samples) and of one batch.
 MAX_VARIANTS = 10_000

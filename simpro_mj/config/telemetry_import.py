@@ -62,7 +62,6 @@ from simpro_mj.core.errors import UserInputError
 
 __all__ = [
     "FRAMES",
-    "FORMATS",
     "RecordingError",
     "Recording",
     "ImportReport",
@@ -73,8 +72,6 @@ __all__ = [
 
 #: The frames a recording's axes may be given in.
 FRAMES = ("vehicle", "device", "level", "earth")
-#: The layouts read.
-FORMATS = ("csv", "comma2k19")
 #: Yaw rate below which the car counts as driving straight (rad/s): 0.03 rad/s is a
 #: 1 km radius at 30 m/s, whose lateral force (0.9 m/s^2) is still small.
 STRAIGHT_YAW_RATE = 0.03
