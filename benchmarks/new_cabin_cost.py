@@ -1,6 +1,7 @@
 """Where a new cabin's CPU time goes: one variant of a Monte Carlo, profiled.
 
     python benchmarks/new_cabin_cost.py [--variant mc004] [--warm mc005] [--as-shipped] [--plots]
+        [--identify auto|reduced]
 
 Runs two variants of ``scenarios/sweep_robustness.yaml`` with ``--set
 controller.inner.identify=auto`` (each draw's joint loops placed on its own
@@ -14,7 +15,10 @@ prints one JSON document, CPU seconds:
 * ``total``: the variant (identification, design, analysis, run, result folder);
 * ``identification``: the Fig. 12 experiment on its three legs with their fits,
   of which ``experiment`` (the stepping, :func:`simpro_mj.sim.experiment.step_experiment`)
-  and ``fit`` (:func:`simpro_mj.identification.identify.fit_eq19`);
+  and ``fit`` (:func:`simpro_mj.identification.identify.fit_eq19`); with
+  ``--identify reduced`` the experiment on the reduced chain
+  (:func:`simpro_mj.identification.reduced_experiment.identify_reduced`), its records
+  (``run_reduced``) and fits (:func:`simpro_mj.identification.sensitivity_fit.fit_sensitivity`);
 * ``stability_limit`` (the loop analysis), ``run`` (the run's own stepping,
   ``CoSimulation.run``), ``result_folder`` (writing it);
 * ``figures`` (the run's PNGs, :func:`simpro_mj.report.plots.plot_run`: with
@@ -52,6 +56,12 @@ ROOT = Path(__file__).resolve().parents[1]
 SCENARIO = ROOT / "scenarios" / "sweep_robustness.yaml"
 #: every variant's joint loops placed on its own plant's identified models
 AUTO = "controller.inner.identify=auto"
+#: the parts under ``--identify reduced``: the reduced experiment's
+REDUCED = {
+    "identification": ("identification/reduced_experiment.py", "identify_reduced"),
+    "experiment": ("identification/reduced_experiment.py", "run_reduced"),
+    "fit": ("identification/sensitivity_fit.py", "fit_sensitivity"),
+}
 
 #: The parts, as (a path's ending, function name) of the function whose cumulative
 #: time is the part's.
@@ -70,7 +80,11 @@ PARTS = {
 
 
 def measure(
-    variant: str = "mc004", warm: str = "mc005", as_shipped: bool = False, plots: bool = False
+    variant: str = "mc004",
+    warm: str = "mc005",
+    as_shipped: bool = False,
+    plots: bool = False,
+    identify: str = "auto",
 ) -> dict:
     """Profile ``variant`` after ``warm`` (module docstring); the figures."""
     with tempfile.TemporaryDirectory(prefix="simpro-cabin-cost-") as tmp:
@@ -80,10 +94,11 @@ def measure(
 
         # each draw's loops placed on its own identification (the shipped sweep runs
         # the cabin's one controller on every draw)
-        jobs = {j.variant: j for j in plan([str(SCENARIO)], [] if as_shipped else [AUTO]).jobs}
+        sets = [] if as_shipped else [AUTO.replace("=auto", f"={identify}")]
+        jobs = {j.variant: j for j in plan([str(SCENARIO)], sets).jobs}
         from simpro_mj.identification.auto import experiment_s
 
-        if not as_shipped and not experiment_s(jobs[variant].scenario) > 0.0:
+        if not as_shipped and identify == "auto" and not experiment_s(jobs[variant].scenario) > 0:
             raise RuntimeError(f"{variant} would run no identification experiment")
 
         def task(v):
@@ -98,8 +113,9 @@ def measure(
         cpu_s = run_variant(task(again))["cpu_s"]
     stats = pstats.Stats(prof).stats  # type: ignore[attr-defined]  # pstats' own table
     out: dict = {"variant": variant, "status": result["status"], "as_shipped": as_shipped,
-                 "plots": plots}  # fmt: skip
-    for part, (path, name) in PARTS.items():
+                 "plots": plots, "identify": identify}  # fmt: skip
+    parts = PARTS | (REDUCED if identify == "reduced" else {})
+    for part, (path, name) in parts.items():
         out[part] = sum(v[3] for (f, _, n), v in stats.items() if n == name and f.endswith(path))
     scenario = jobs[variant].scenario
     from simpro_mj.identification.auto import plant_tree
@@ -118,6 +134,7 @@ def main(argv=None) -> int:
     p.add_argument("--warm", default="mc005")
     p.add_argument("--as-shipped", action="store_true", help="the one controller, no experiment")
     p.add_argument("--plots", action="store_true", help="with the run's figures")
+    p.add_argument("--identify", choices=["auto", "reduced"], default="auto")
     a = p.parse_args(argv)
     samples = int(re.search(r"samples: (\d+)", SCENARIO.read_text()).group(1))  # type: ignore[union-attr]
     names = {f"mc{i:03d}" for i in range(samples)}
@@ -128,7 +145,7 @@ def main(argv=None) -> int:
             file=sys.stderr,
         )
         return 2
-    print(json.dumps(measure(a.variant, a.warm, a.as_shipped, a.plots), indent=2))
+    print(json.dumps(measure(a.variant, a.warm, a.as_shipped, a.plots, a.identify), indent=2))
     return 0
 
 
