@@ -42,7 +42,7 @@ def test_the_jacobian_is_the_residuals_derivative():
     jtj, jtr = np.zeros((4, 4)), np.zeros(4)
 
     def cost(t):
-        num, den, dnum, dden = sfit._coefficients(t[:3], DT)
+        num, den, dnum, dden = sfit.coefficients(t[:3].copy(), DT, sfit.COEF_STEP)
         return sfit.normal_equations(num, den, dnum, dden, u - 5.0 - t[3], v, 100, jtj, jtr)
 
     cost(theta)

@@ -15,23 +15,27 @@ differences of the filter's closed form), the residual, :math:`J^T J` (4 x 4) an
 :math:`J^T r` accumulated in one compiled pass over the record. An iteration costs
 one pass instead of five simulations and an SVD. It stops as the trust region does,
 when a step lowers the cost by less than :data:`FTOL` (1e-8) of it: the same minimum
-within the flatness of its valley. On the reduced experiment's records of ``paper``
-and ``heavy_cabin`` (six legs) b, a1, a0 land within 1.2e-4 of the trust region's;
-on the 450/750 N cabin's legs 2 and 3 (fit 5 %, the flattest valley seen) within
-0.9 %, where the experiment's seeds spread them by 30 %. CPU for those nine legs
-0.43 s against 1.63 s (one loaded machine, the same process).
+within the flatness of its valley. On the reduced experiment's records of ``paper``,
+``heavy_cabin`` and the 450/750 N cabin (nine legs) b, a1, a0 land within 3e-4 of
+the trust region's but on that cabin's legs 2 and 3 (fit 5 %, the flattest valley
+seen): 0.9 %, where the experiment's seeds spread them by 30 %. The pass, the
+filter's coefficients and their matrix exponential are compiled (the last two from
+:mod:`~simpro_mj.identification.identify`'s own source): CPU for those nine legs
+0.30 s against the trust region's 1.76 s (one loaded machine, the same process).
 """
 
 from __future__ import annotations
 
 import math
 import threading
+import types as pytypes
 
 import numpy as np
 
+from simpro_mj.identification import identify
 from simpro_mj.identification.identify import Fit, _arx_guess, zoh_velocity_filter
 
-__all__ = ["FTOL", "fit_sensitivity", "normal_equations"]
+__all__ = ["FTOL", "coefficients", "fit_sensitivity", "normal_equations"]
 
 #: A step that lowers the cost by less than this share of it ends the fit (the trust
 #: region's ``ftol``).
@@ -88,41 +92,57 @@ def normal_equations(num, den, dnum, dden, x, v, skip, out_jtj, out_jtr):
     return 0.5 * cost
 
 
+def coefficients(theta, dt, step):
+    """The filter of ``theta`` (b, a1, a0) and its coefficients' derivatives in each
+    (3, 3 each; central differences of relative ``step``)."""
+    num, den = zoh_velocity_filter(theta[0], theta[1], theta[2], dt)
+    dnum, dden = np.zeros((3, 3)), np.zeros((3, 3))
+    for j in range(3):
+        h = step * max(abs(theta[j]), 1e-3)
+        up, dn = theta.copy(), theta.copy()
+        up[j] += h
+        dn[j] -= h
+        nu, du = zoh_velocity_filter(up[0], up[1], up[2], dt)
+        nd, dd = zoh_velocity_filter(dn[0], dn[1], dn[2], dt)
+        for i in range(3):
+            dnum[j, i] = (nu[i] - nd[i]) / (2 * h)
+            dden[j, i] = (du[i] - dd[i]) / (2 * h)
+    return num, den, dnum, dden
+
+
 _compiled = None
 _lock = threading.Lock()
 
 
-def _pass():
-    """:func:`normal_equations` compiled (numba, cached), or interpreted without numba."""
+def _functions():
+    """``(coefficients, normal_equations)``: compiled (numba, cached beside the step's;
+    the filter's closed form and its matrix exponential compiled from
+    :mod:`simpro_mj.identification.identify`'s own source), or interpreted without numba."""
     global _compiled
     from simpro_mj.plant.kernels import kernel_choice
 
     if kernel_choice() != "numba":
-        return normal_equations
+        return coefficients, normal_equations
     with _lock:
         if _compiled is None:
             from simpro_mj.sim.numba_cache import jit
             from simpro_mj.sim.step import compiled
 
-            _compiled = jit(compiled().cache_folder + "-fit")(normal_equations)
+            folder = compiled().cache_folder + "-fit"
+            expm = jit(folder)(_clone(identify._expm3, {}))
+            zoh = jit(folder)(_clone(zoh_velocity_filter, {"_expm3": expm}))
+            coef = jit(folder)(_clone(coefficients, {"zoh_velocity_filter": zoh}))
+            _compiled = (coef, jit(folder)(normal_equations))
         return _compiled
 
 
-def _coefficients(theta, dt):
-    """The filter of ``theta`` (b, a1, a0) and its coefficients' derivatives (3, 3 each)."""
-    b, a1, a0 = theta
-    num, den = zoh_velocity_filter(b, a1, a0, dt)
-    dnum, dden = np.zeros((3, 3)), np.zeros((3, 3))
-    for j in range(3):
-        h = COEF_STEP * max(abs(theta[j]), 1e-3)
-        up, dn = list(theta), list(theta)
-        up[j] += h
-        dn[j] -= h
-        nu, du = zoh_velocity_filter(up[0], up[1], up[2], dt)
-        nd, dd = zoh_velocity_filter(dn[0], dn[1], dn[2], dt)
-        dnum[j] = (nu - nd) / (2 * h)
-        dden[j] = (du - dd) / (2 * h)
-    return num, den, dnum, dden
+def _clone(f, bound: dict):
+    """``f`` with the names in ``bound`` bound to other (compiled) functions."""
+    glob = dict(f.__globals__)
+    glob.update(bound)
+    clone = pytypes.FunctionType(f.__code__, glob, f.__name__, f.__defaults__)
+    clone.__qualname__, clone.__module__ = f.__qualname__, f.__module__
+    return clone
 
 
 def fit_sensitivity(u, qdot, dt: float, skip: int = 0) -> Fit:
@@ -137,11 +157,11 @@ def fit_sensitivity(u, qdot, dt: float, skip: int = 0) -> Fit:
     lo = np.array([1e-6, 0.0, 1e-6, -5.0])
     hi = np.array([np.inf, np.inf, np.inf, 5.0])
     th = np.clip(np.array([b0, a10, a00, d0]), lo, hi)
-    step_pass = _pass()
+    coef, step_pass = _functions()
     jtj, jtr = np.zeros((4, 4)), np.zeros(4)
 
     def at(t):
-        num, den, dnum, dden = _coefficients(t[:3], dt)
+        num, den, dnum, dden = coef(t[:3].copy(), dt, COEF_STEP)
         x = np.ascontiguousarray(u - t[3])
         return step_pass(num, den, dnum, dden, x, v, skip, jtj, jtr)
 
