@@ -180,7 +180,8 @@ class Run(Build):
         ``design_plant`` (``paper``: eqs. 34-35; ``identified``: the models below),
         ``source`` of the models (``preset``: the scenario's ``controller.inner.
         identified``; ``identified``: the Fig. 12 experiment on this run's own plant,
-        run now or cached; ``linearised``: the plant model's linearisation) and the
+        run now or cached; ``linearised``: the plant model's linearisation; ``reduced``:
+        the experiment on the reduced chain, run now or cached) and the
         models, m/(s^3 V), 1/s, 1/s^2. ``scenario.yaml`` keeps the scenario as given,
         so under ``identify: auto`` this is where a plant's own models are written.
         """
