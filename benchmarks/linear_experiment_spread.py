@@ -112,6 +112,16 @@ def _record(u, v) -> list:
     return [rest, float(1e3 * np.sqrt(np.mean(v**2))), float(np.std(u))]
 
 
+def _timed(identify_fn, tree: dict, seed: int) -> tuple[dict, dict, float]:
+    """``identify_fn`` on ``tree`` at sequence ``seed``: its fits, records, CPU seconds."""
+    t = copy.deepcopy(tree)
+    t["identify"]["seed"] = seed
+    recs: dict = {}
+    c0 = time.process_time()
+    got = identify_fn(t, records=recs)
+    return got, recs, time.process_time() - c0
+
+
 def _model(kind: str, tree: dict, seeds, stats: dict) -> tuple[dict, float]:
     """The model's fits (the first seed's; ``reduced``: per seed, its spread in ``stats``)
     and its CPU seconds (the first seed's)."""
@@ -126,13 +136,9 @@ def _model(kind: str, tree: dict, seeds, stats: dict) -> tuple[dict, float]:
 
     first, cpu = None, 0.0
     for seed in seeds:
-        t = copy.deepcopy(tree)
-        t["identify"]["seed"] = seed
-        recs: dict = {}
-        c0 = time.process_time()
-        got = identify_reduced(t, records=recs)
+        got, recs, took = _timed(identify_reduced, tree, seed)
         if first is None:
-            first, cpu = got, time.process_time() - c0
+            first, cpu = got, took
         for a, rec in recs.items():
             j = int(a[-1]) - 1
             row = stats.setdefault(a, {})
@@ -155,12 +161,8 @@ def measure(cabins, seeds=(1, 2, 3), responses: bool = False, kind: str = "linea
                 tree0 = plant_tree(sc)
                 fits, cpu, stats = {}, [], {}
                 for seed in seeds:
-                    tree = copy.deepcopy(tree0)
-                    tree["identify"]["seed"] = seed
-                    recs: dict = {}
-                    c0 = time.process_time()
-                    got = identify(tree, records=recs)
-                    cpu.append(time.process_time() - c0)
+                    got, recs, took = _timed(identify, tree0, seed)
+                    cpu.append(took)
                     fits[seed] = {a: {k: float(getattr(got[a], k)) for k in KEYS} for a in got}
                     for a, rec in recs.items():
                         stats.setdefault(a, {}).setdefault("record", []).append(
