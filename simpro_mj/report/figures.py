@@ -12,10 +12,13 @@ green.
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
+
+from controllers.geometry import H0
 
 if TYPE_CHECKING:  # matplotlib is loaded by whoever draws, not by importing this module
     from matplotlib.figure import Figure
@@ -26,6 +29,7 @@ __all__ = [
     "LEG_COLOURS",
     "MEASURED",
     "OUTPUT",
+    "TASK_AXES",
     "envelope",
     "legend_mismatches",
     "log_ticks",
@@ -40,6 +44,14 @@ MEASURED = "0.55"
 #: leg (cylinder and valve) i -> its colour, the same in every figure and the video
 LEG_COLOURS = {1: "tab:orange", 2: "tab:purple", 3: "tab:brown"}
 DPI = 120
+#: The task axes as drawn: (title, ref column, true column, measured column, scale to the
+#: display unit, unit, zero); heave from the home height H0, as the summary's table and
+#: metrics.json give it
+TASK_AXES = (
+    ("a) Roll", "roll_ref_rad", "roll_rad", "roll_meas_rad", 180.0 / math.pi, "deg", 0.0),
+    ("b) Pitch", "pitch_ref_rad", "pitch_rad", "pitch_meas_rad", 180.0 / math.pi, "deg", 0.0),
+    ("c) Heave from home", "heave_ref_m", "heave_m", "heave_meas_m", 1e3, "mm", H0),
+)
 #: Buckets of :func:`envelope`: more than the pixel columns of any figure's axes
 #: at :data:`DPI` (a 12-inch figure is 1440 px wide), so the decimated curve
 #: draws the same pixels as the full one.

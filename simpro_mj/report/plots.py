@@ -28,7 +28,6 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
-from controllers.geometry import H0
 from simpro_mj.analysis.cue_metrics import CHANNELS, perceived
 from simpro_mj.config.models import Scenario, as_scenario, as_tree
 from simpro_mj.plant.faults import fault_intervals
@@ -38,6 +37,7 @@ from simpro_mj.report.figures import (
     LEG_COLOURS,
     MEASURED,
     OUTPUT,
+    TASK_AXES,
     envelope,
     loop_label,
     margins,
@@ -52,14 +52,6 @@ __all__ = [
     "run_figures",
     "RUN_FIGURES",
 ]
-
-#: (title, ref column, true column, measured column, scale to display unit, unit, zero);
-#: heave from the home height H0, as the summary's table and metrics.json give it
-_TASK = (
-    ("a) Roll", "roll_ref_rad", "roll_rad", "roll_meas_rad", 180.0 / math.pi, "deg", 0.0),
-    ("b) Pitch", "pitch_ref_rad", "pitch_rad", "pitch_meas_rad", 180.0 / math.pi, "deg", 0.0),
-    ("c) Heave from home", "heave_ref_m", "heave_m", "heave_meas_m", 1e3, "mm", H0),
-)
 
 
 def _has(columns: Mapping, *names: str) -> bool:
@@ -111,7 +103,7 @@ def _task_axes(columns: Mapping, axes):
     """Draw the three task-space panels into ``axes`` (three, one above the other)."""
     t = _col(columns, "time_s")
     drawn = []
-    for ax, (title, ref, true, meas, scale, unit, zero) in zip(axes, _TASK, strict=True):
+    for ax, (title, ref, true, meas, scale, unit, zero) in zip(axes, TASK_AXES, strict=True):
         if not _has(columns, ref, true):
             ax.set_visible(False)
             continue
@@ -143,7 +135,7 @@ def start_offset_note(columns: Mapping, scenario: Mapping) -> str | None:
     the first step; joint control alone keeps it (the paper's Fig. 15a).
     """
     off = []
-    for (_t, ref, true, _m, scale, unit, _z), floor in zip(_TASK, _START_NOTED, strict=True):
+    for (_t, ref, true, _m, scale, unit, _z), floor in zip(TASK_AXES, _START_NOTED, strict=True):
         if not _has(columns, ref, true) or len(columns[true]) == 0:
             continue
         d = float(_col(columns, true)[0] - _col(columns, ref)[0])
@@ -387,22 +379,17 @@ def cueing_figures(columns: Mapping, scenario: Mapping) -> dict[str, Figure]:
     box = scenario_box(scenario)
     algorithm = (scenario.get("setpoint", {}).get("cueing") or {}).get("algorithm")
     law = _LAW_NAMES.get(algorithm or "", "cueing")
-    for ax, (axis, unit, scale, disp) in zip(
-        axes[:3],
-        (("roll", "rad", 180 / math.pi, "deg"), ("pitch", "rad", 180 / math.pi, "deg"),
-         ("heave", "m", 1e3, "mm")),
-        strict=True,
-    ):  # fmt: skip
-        off = H0 if axis == "heave" else 0.0
-        ax.plot(*envelope(t, (np.asarray(columns[f"{axis}_ref_{unit}"], float) - off) * scale),
+    for ax, (title, ref, true, _m, scale, unit, off) in zip(axes[:3], TASK_AXES, strict=True):
+        axis = ref.split("_")[0]
+        ax.plot(*envelope(t, (np.asarray(columns[ref], float) - off) * scale),
                 color=DESIRED, lw=1.3, label=f"{law} set-point")  # fmt: skip
-        ax.plot(*envelope(t, (np.asarray(columns[f"{axis}_{unit}"], float) - off) * scale),
+        ax.plot(*envelope(t, (np.asarray(columns[true], float) - off) * scale),
                 color=OUTPUT, lw=1.1, label="platform")  # fmt: skip
         if box is not None:
             for k, v in enumerate(box[axis]):
                 label = "workspace box" if axis == "roll" and k == 0 else None
                 ax.axhline((v - off) * scale, color="k", ls="--", lw=0.7, label=label)
-        ax.set_ylabel(f"{axis} from home [{disp}]" if axis == "heave" else f"{axis} [{disp}]")
+        ax.set_ylabel(f"{title.split(') ')[1].lower()} [{unit}]")
         ax.grid(True, alpha=0.3)
     for i in (1, 2, 3):
         axes[3].plot(*envelope(t, np.asarray(columns[f"q{i}_m"], float) * 1e3),

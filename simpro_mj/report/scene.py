@@ -13,7 +13,6 @@ and a render worker must set ``MUJOCO_GL`` before MuJoCo is first imported.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 
 import numpy as np
@@ -193,8 +192,7 @@ def plot_strip(rec: Recording, width: int, height: int, t0: float, t1: float):
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    from controllers.geometry import H0
-    from simpro_mj.report.figures import DESIRED, LEG_COLOURS, OUTPUT, envelope
+    from simpro_mj.report.figures import DESIRED, LEG_COLOURS, OUTPUT, TASK_AXES, envelope
 
     dpi = 100.0
     fig = Figure(figsize=(width / dpi, height / dpi), dpi=dpi)
@@ -203,19 +201,13 @@ def plot_strip(rec: Recording, width: int, height: int, t0: float, t1: float):
     sel = (t >= t0 - 1e-9) & (t <= t1 + 1e-9)
     px = text_px(width, 2 * height)  # the strip is half a view high
     pt = px * 72.0 / dpi  # points of a px-pixel font
-    panels = [
-        ("roll [deg]", "roll_ref_rad", "roll_rad", 180.0 / math.pi),
-        ("pitch [deg]", "pitch_ref_rad", "pitch_rad", 180.0 / math.pi),
-        ("heave from home [mm]", "heave_ref_m", "heave_m", 1e3),
-    ]
-    home = {"heave_ref_m": H0, "heave_m": H0}
     axes = fig.subplots(1, 4)
-    for ax, (label, ref, real, scale) in zip(axes[:3], panels, strict=True):
-        ax.plot(*envelope(t[sel], (c[ref][sel] - home.get(ref, 0.0)) * scale), color=DESIRED,
+    for ax, (title, ref, real, _m, scale, unit, zero) in zip(axes[:3], TASK_AXES, strict=True):
+        ax.plot(*envelope(t[sel], (c[ref][sel] - zero) * scale), color=DESIRED,
                 lw=1.0, ls="--", label="set-point (ghost)")  # fmt: skip
-        ax.plot(*envelope(t[sel], (c[real][sel] - home.get(real, 0.0)) * scale), color=OUTPUT,
+        ax.plot(*envelope(t[sel], (c[real][sel] - zero) * scale), color=OUTPUT,
                 lw=1.2, label="pose")  # fmt: skip
-        ax.set_title(label, fontsize=pt, pad=2)
+        ax.set_title(f"{title.split(') ')[1].lower()} [{unit}]", fontsize=pt, pad=2)
     for i, lw, ls in ((1, 0.8, "-"), (2, 1.6, "-"), (3, 0.9, (0, (3, 2)))):
         axes[3].plot(*envelope(t[sel], c[f"u{i}_v"][sel]), color=LEG_COLOURS[i], lw=lw, ls=ls,
                      label=f"u{i}")  # fmt: skip
