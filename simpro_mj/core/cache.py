@@ -42,13 +42,6 @@ def cache_dir(kind: str) -> Path:
 MAX_BYTES = 1_000_000
 
 
-def _finite(text: str) -> float:
-    value = float(text)
-    if value != value:
-        raise ValueError("NaN")
-    return value
-
-
 def _no_nan(name: str) -> float:
     if name == "NaN":
         raise ValueError("NaN")
@@ -69,9 +62,7 @@ def read_json(path: Path, check: Callable[[Any], Any] | None = None):
     if not os.path.lexists(path):
         return None
     try:
-        doc = json.loads(
-            read_text(path, MAX_BYTES, "cache"), parse_float=_finite, parse_constant=_no_nan
-        )
+        doc = json.loads(read_text(path, MAX_BYTES, "cache"), parse_constant=_no_nan)
         return doc if check is None else check(doc)
     except (OSError, UserInputError, ValueError, KeyError, TypeError, RecursionError) as exc:
         why = one_line(str(exc) or type(exc).__name__).split("; allowed")[0]

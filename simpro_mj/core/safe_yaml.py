@@ -268,10 +268,10 @@ def read_file(path: Path, what: str = "scenario") -> Any:
     OSError, UnicodeDecodeError
         The file cannot be read as UTF-8.
     """
-    from simpro_mj.core.safe_files import UnreadableFile, open_regular
+    from simpro_mj.core.safe_files import UnreadableFile, read_bytes
 
     try:
-        fh = open_regular(path, MAX_FILE_BYTES, what, binary=True)
+        data = read_bytes(path, MAX_FILE_BYTES, what)
     except UnreadableFile as exc:
         if str(exc).startswith("file too large"):
             size = Path(path).stat().st_size
@@ -279,13 +279,6 @@ def read_file(path: Path, what: str = "scenario") -> Any:
                 f"a file of {size:,} bytes", f"a {what} file of at most {MAX_FILE_BYTES:,} bytes"
             ) from None
         raise
-    with fh:
-        data = fh.read(MAX_FILE_BYTES + 1)
-    if len(data) > MAX_FILE_BYTES:
-        raise YAMLLimitError(
-            f"a file of over {MAX_FILE_BYTES:,} bytes",
-            f"a {what} file of at most {MAX_FILE_BYTES:,} bytes",
-        )
     doc = load(data.decode("utf-8"))
     if doc is None:
         raise YAMLLimitError(

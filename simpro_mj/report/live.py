@@ -77,11 +77,6 @@ def actuator_tracking(columns) -> dict:
     return out
 
 
-def _at_home(scenario: Scenario) -> dict:
-    """The scenario with its set-points at home: what the preflight can check in advance."""
-    return scenario.model_dump() | {"setpoint": {"roll_deg": [], "pitch_deg": [], "heave_mm": []}}
-
-
 def execute_live(scenario: Scenario, options: LiveOptions, out, plots: bool = True, *,
                  say=None, quiet: bool = False):  # fmt: skip
     """Run a live session of a resolved scenario (:func:`live_scenario`) and write its folder.
@@ -92,7 +87,8 @@ def execute_live(scenario: Scenario, options: LiveOptions, out, plots: bool = Tr
         The result (``folder`` set) and what ``metrics.json`` holds.
     """
     out = Path(out)
-    home = _at_home(scenario)
+    # the scenario with its set-points at home: what the preflight can check in advance
+    home = scenario.model_dump() | {"setpoint": {"roll_deg": [], "pitch_deg": [], "heave_mm": []}}
     warnings: list[str] = []
     figures: dict = {}
 

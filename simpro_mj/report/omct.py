@@ -91,8 +91,10 @@ def plot_omct(res: Omct, folder: Path) -> list[str]:
             v = res.fidelity_at_1_rad_s[law]
             for test in names:
                 if test in v:
-                    ax.plot(v[test].gain, _distortion(v[test].phase_deg), markers[test],
-                            color=colours[law], ms=7, label=f"{law}: {test}")  # fmt: skip
+                    # the phase's distance from 0, whatever its branch (deg, 0..180)
+                    distortion = abs((v[test].phase_deg + 180.0) % 360.0 - 180.0)
+                    ax.plot(v[test].gain, distortion, markers[test], color=colours[law], ms=7,
+                            label=f"{law}: {test}")  # fmt: skip
         ax.text(0.05, 170, "low fidelity elsewhere", fontsize=7, va="top")
         ax.set_xlim(0, 1.6)
         ax.set_ylim(0, 180)
@@ -110,11 +112,6 @@ def plot_omct(res: Omct, folder: Path) -> list[str]:
     files.append(save(fig, folder / "omct_fidelity.png", 100).name)
     plt.close(fig)
     return files
-
-
-def _distortion(phase_deg: float) -> float:
-    """The phase's distance from 0, whatever its branch (deg, 0..180)."""
-    return abs((phase_deg + 180.0) % 360.0 - 180.0)
 
 
 def print_omct_summary(res: Omct, folder, files=(), file=None) -> None:

@@ -219,16 +219,12 @@ def _render_frames(indices) -> tuple[list[np.ndarray], float]:
     return frames, time.process_time() - cpu0
 
 
-def _gl_candidates() -> tuple[str, ...]:
-    user = os.environ.get("MUJOCO_GL", "").strip().lower()
-    return (user,) if user else GL_BACKENDS
-
-
 def _start_pool(jobs_file: str, width, height, camera, ghost, shadows, workers: int):
     """A spawned pool whose workers can all render; tries the GL backends in order."""
     ctx = multiprocessing.get_context("spawn")  # a fresh interpreter: MUJOCO_GL applies
     why = []
-    for gl in _gl_candidates():
+    user = os.environ.get("MUJOCO_GL", "").strip().lower()
+    for gl in (user,) if user else GL_BACKENDS:
         pool = ProcessPoolExecutor(
             max_workers=workers,
             mp_context=ctx,

@@ -224,9 +224,7 @@ def read_timeseries(path, required=()) -> dict[str, np.ndarray]:
 def _sim_block(sim: Mapping | None) -> dict:
     sim = dict(sim or {})
     wall = dict(sim.pop("wall_clock", {}) or {})
-    for key in list(sim):
-        if key in WALL_CLOCK_KEYS:
-            wall[key] = sim.pop(key)
+    wall.update({key: sim.pop(key) for key in list(sim) if key in WALL_CLOCK_KEYS})
     sim["wall_clock"] = wall
     # metrics.json's first layout named sim.realtime_factor; it is a wall-clock figure, so it
     # is also kept under sim.wall_clock with the others (compare runs without both)

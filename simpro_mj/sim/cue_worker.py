@@ -37,20 +37,15 @@ __all__ = ["CueWorker", "START_TIMEOUT_S"]
 START_TIMEOUT_S = 120.0
 
 
-def _pin_process(cpus) -> None:
-    """Every thread of this process (the interpreter's, BLAS's) on ``cpus``."""
-    os.sched_setaffinity(0, cpus)  # threads started from now on inherit it
-    for tid in os.listdir("/proc/self/task"):
-        with contextlib.suppress(OSError, ValueError):
-            os.sched_setaffinity(int(tid), cpus)
-
-
 def _serve(conn, params, geometry, period: float, cpus=None) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_IGN)
-    if cpus:
+    if cpus:  # every thread of this process (the interpreter's, BLAS's) on cpus
         with contextlib.suppress(OSError, AttributeError):
-            _pin_process(cpus)
+            os.sched_setaffinity(0, cpus)  # threads started from now on inherit it
+            for tid in os.listdir("/proc/self/task"):
+                with contextlib.suppress(OSError, ValueError):
+                    os.sched_setaffinity(int(tid), cpus)
     from controllers.mpc_cueing import ModelPredictiveCueing
 
     law = ModelPredictiveCueing(params, geometry=geometry)

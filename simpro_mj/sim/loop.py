@@ -150,9 +150,7 @@ class CoSimulation:
         identified = inner.identified.plants()
         # design_plant paper: eqs. (34)-(35) in SI under the paper_units reading
         plants = identified if inner.design_plant == "identified" else None
-        spec = None
-        if inner.variant == "redesigned":
-            spec = {"zeta": inner.zeta, "wn": inner.wn_rad_s}
+        spec = {"zeta": inner.zeta, "wn": inner.wn_rad_s} if inner.variant == "redesigned" else None
         self.joint = JointControllers(
             variant=inner.variant,
             dt=dt,

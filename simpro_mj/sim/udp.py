@@ -305,15 +305,9 @@ class Receiver:
         return chosen or self.fmt
 
     def counts(self) -> dict:
-        return {
-            "format": self.format,
-            "received": self.received,
-            "bad": self.bad,
-            "late": self.late,
-            "idle": self.idle,
-            "bad_kinds": dict(self.bad_kinds),
-            "restarts": self.restarts,
-        }
+        counts = {k: getattr(self, k) for k in ("received", "bad", "late", "idle")}
+        return {"format": self.format, **counts, "bad_kinds": dict(self.bad_kinds),
+                "restarts": self.restarts}  # fmt: skip
 
     def close(self) -> None:
         self.sock.close()
