@@ -82,3 +82,15 @@ def test_on_a_stick_slip_record_it_is_the_trust_regions_fit():
     ref = fit_eq19(u, v, rec.dt, skip=200)
     for k in ("b", "a1", "a0"):
         assert getattr(got, k) == pytest.approx(getattr(ref, k), rel=0.01)
+
+
+def test_the_coefficients_difference_step_does_not_move_the_fit(monkeypatch):
+    """Halving and doubling the central differences' step of the filter's coefficients
+    (1e-6 relative) moves no fitted parameter by more than 1e-6 relative."""
+    u, v = _record()
+    base = sfit.fit_sensitivity(u, v, DT, skip=200)
+    for step in (sfit.COEF_STEP / 2, sfit.COEF_STEP * 2):
+        monkeypatch.setattr(sfit, "COEF_STEP", step)
+        got = sfit.fit_sensitivity(u, v, DT, skip=200)
+        for k in ("b", "a1", "a0", "offset_v"):
+            assert getattr(got, k) == pytest.approx(getattr(base, k), rel=1e-6)

@@ -174,9 +174,10 @@ def excitation(rm: ReducedModel, legs: tuple) -> tuple[np.ndarray, int]:
 
 
 def reduced_steps(n, dt, xc, exc, ast, ac, q0, fhold, stiff, damp, minv, lhs_inv, dry, b_ref,
-                  r_reg, q, v, fc, u_log, q_log, v_log):  # fmt: skip
+                  r_reg, q, v, fc, u_log, q_log, v_log, sweeps, tol):  # fmt: skip
     """Step the reduced experiment ``n`` times from ``q``, ``v`` (changed in place),
-    logging each step's start; the steps done (fewer on a non-finite state)."""
+    logging each step's start; the steps done (fewer on a non-finite state). The
+    friction solve runs at most ``sweeps`` sweeps, to ``tol`` of each breakaway force."""
     u = np.zeros(3)
     f = np.zeros(3)
     fs = np.zeros(3)
@@ -199,7 +200,7 @@ def reduced_steps(n, dt, xc, exc, ast, ac, q0, fhold, stiff, damp, minv, lhs_inv
             for j in range(3):
                 a += minv[i, j] * fs[j]
             g[i] = a + b_ref[i] * v[i]
-        for _ in range(PGS_SWEEPS):  # MuJoCo's dual: a box QP, projected Gauss-Seidel
+        for _ in range(sweeps):  # MuJoCo's dual: a box QP, projected Gauss-Seidel
             moved = 0.0
             for i in range(3):
                 if dry[i] <= 0.0:
@@ -214,7 +215,7 @@ def reduced_steps(n, dt, xc, exc, ast, ac, q0, fhold, stiff, damp, minv, lhs_inv
                 if dm > moved:
                     moved = dm
                 fc[i] = new
-            if moved < PGS_TOL:
+            if moved < tol:
                 break
         ok = True
         for i in range(3):
@@ -272,9 +273,12 @@ def _view(module, **compiled):
     return view
 
 
-def run_reduced(rm: ReducedModel, legs: tuple) -> ReducedRecord:
+def run_reduced(
+    rm: ReducedModel, legs: tuple, sweeps: int = PGS_SWEEPS, tol: float = PGS_TOL
+) -> ReducedRecord:
     """The experiment exciting ``legs`` (one leg, or all three) on the reduced chain;
-    its record from the end of the settling (module docstring)."""
+    its record from the end of the settling (module docstring); ``sweeps`` and ``tol``
+    the friction solve's (:data:`PGS_SWEEPS`, :data:`PGS_TOL`)."""
     em = rm.em
     exc, n_settle = excitation(rm, legs)
     n = exc.shape[0] - 1
@@ -290,7 +294,7 @@ def run_reduced(rm: ReducedModel, legs: tuple) -> ReducedRecord:
     u_log, q_log, v_log = np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, 3))
     done = _stepper()(
         n, dt, xc, exc, ast, ac, rm.q0, rm.f_hold, em.stiffness, em.damping, minv, lhs_inv,
-        rm.dry, rm.b_ref, rm.r_reg, q, v, fc, u_log, q_log, v_log,
+        rm.dry, rm.b_ref, rm.r_reg, q, v, fc, u_log, q_log, v_log, int(sweeps), float(tol),
     )  # fmt: skip
     if done != n:
         from simpro_mj.core.errors import PhysicsError
