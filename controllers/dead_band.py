@@ -24,7 +24,7 @@ from __future__ import annotations
 
 from typing import Literal
 
-__all__ = ["dead_band", "gap", "BandKind"]
+__all__ = ["dead_band", "gap", "held", "BandKind"]
 
 #: How a band shapes the error an integrator takes: :func:`dead_band` (``subtract``)
 #: or :func:`gap`.
@@ -62,3 +62,26 @@ def gap(e: float, width: float) -> float:
     if width > 0.0 and -width <= e <= width:
         return 0.0
     return e
+
+
+def held(e: float, width: float, release: float, flags, k: int) -> bool:
+    """Whether a band with a release holds ``e``; ``flags[k]`` is the hold's state.
+
+    With ``release`` r > 1 the band holds from the step the error enters
+    ``[-width, width]`` until it leaves ``[-r width, r width]`` (a hysteresis):
+    a seal's slip that lands within ``r width`` does not restart the integrator
+    whose push would cause the next slip, landing anywhere within the band again
+    (Armstrong-Hélouvry, Dupont & Canudas de Wit 1994, section 6). ``r`` 1: never
+    held here (the caller's band alone). ``flags[k]`` is set while held, cleared on
+    release.
+    """
+    if release <= 1.0:
+        return False
+    if flags[k] != 0.0:
+        if -release * width <= e <= release * width:
+            return True
+        flags[k] = 0.0
+    elif -width <= e <= width:
+        flags[k] = 1.0
+        return True
+    return False

@@ -16,7 +16,7 @@ import math
 
 import numpy as np
 
-from .dead_band import dead_band, gap
+from .dead_band import dead_band, gap, held
 from .layout import layout
 
 __all__ = [
@@ -250,26 +250,6 @@ def _row(jc, k, a, b, c, e):
     return jc[k + JX.r1] * a + jc[k + JX.r2] * b + jc[k + JX.i] * c + jc[k + JX.LEN] * e
 
 
-def _joint_banded(e, w, r, x, k):
-    """A leg's error as its integrator takes it through its dead band ``w``.
-
-    Without a release (``r`` 1) :func:`~controllers.dead_band.dead_band` of ``e``.
-    With ``r > 1`` the band holds from the step the error enters ``[-w, w]``
-    until it leaves ``[-r w, r w]`` (``x[k]``): a leg that passed its set-point
-    and stopped within ``r w`` beyond it is not pushed back through its seals,
-    a push whose slip would land anywhere within the band again.
-    """
-    if r > 1.0:
-        if x[k] != 0.0:
-            if -r * w <= e <= r * w:
-                return 0.0
-            x[k] = 0.0
-        elif -w <= e <= w:
-            x[k] = 1.0
-            return 0.0
-    return dead_band(e, w)
-
-
 def joint_step(x, jc, e0, e1, e2, f0, f1, f2, v_out):
     """The three joint controllers (eq. 28) for one step; valve volts into ``v_out``.
 
@@ -279,8 +259,9 @@ def joint_step(x, jc, e0, e1, e2, f0, f1, f2, v_out):
     takes ``e -+ w`` outside ``[-w, w]`` and holds inside
     (:func:`controllers.dead_band.dead_band`); with a release ``r > 1`` it holds
     from the step the error enters ``[-w, w]`` until it leaves ``[-r w, r w]``
-    (:func:`_joint_banded`). ``f`` is the velocity feed-forward added before
-    saturation.
+    (:func:`controllers.dead_band.held`): a leg that passed its set-point and
+    stopped within ``r w`` beyond it is not pushed back through its seals. ``f``
+    is the velocity feed-forward added before saturation.
     """
     off, lo, hi, kind, aw = jc[JC.off], jc[JC.lo], jc[JC.hi], jc[JC.kind], jc[JC.aw]
     for i in range(3):
@@ -295,7 +276,8 @@ def joint_step(x, jc, e0, e1, e2, f0, f1, f2, v_out):
         u = _row(jc, m + w * JX.LEN, a, b, c, e)  # the output row: C and D
         gain, band = jc[JC.gain + i], jc[JC.band + i]
         if band > 0.0:  # the integrator takes the error beyond its band only
-            n2 = n2 - gain * (e - _joint_banded(e, band, jc[JC.rel], x, JS.held + i))
+            db = 0.0 if held(e, band, jc[JC.rel], x, JS.held + i) else dead_band(e, band)
+            n2 = n2 - gain * (e - db)
         v = u + off + f
         vs = v
         if vs < lo:  # comparisons: a NaN passes through
@@ -491,18 +473,10 @@ def _banded(e, w, j, ts, tc):
     Without a release (``TC.dbrel`` 1) :func:`~controllers.dead_band.dead_band` or
     :func:`~controllers.dead_band.gap` of ``e``. With a release ``r > 1`` the band
     holds the law from the step the error enters ``[-w, w]`` until it leaves
-    ``[-r w, r w]`` (``TS.held``): a seal's slip that lands the pose within ``r w``
-    does not restart the law that the slip would answer with the next slip.
+    ``[-r w, r w]`` (:func:`~controllers.dead_band.held`, ``TS.held``).
     """
-    r = tc[TC.dbrel]
-    if r > 1.0:
-        if ts[TS.held + j] != 0.0:
-            if -r * w <= e <= r * w:
-                return 0.0
-            ts[TS.held + j] = 0.0
-        elif -w <= e <= w:
-            ts[TS.held + j] = 1.0
-            return 0.0
+    if held(e, w, tc[TC.dbrel], ts, TS.held + j):
+        return 0.0
     return gap(e, w) if tc[TC.dbgap] else dead_band(e, w)
 
 
