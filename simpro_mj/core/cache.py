@@ -25,8 +25,6 @@ from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.messages import one_line
 from simpro_mj.core.safe_files import open_regular, read_text
 
-__all__ = ["cache_dir", "file_digest", "notice", "read_json", "source_digest", "write_json"]
-
 
 def cache_dir(kind: str) -> Path:
     """The folder of cached results of one ``kind`` (module docstring)."""

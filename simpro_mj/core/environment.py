@@ -14,8 +14,6 @@ import shutil
 import tempfile
 from pathlib import Path
 
-__all__ = ["MAX_THREADS", "environment_problem", "matplotlib_home"]
-
 #: Largest thread count accepted from the environment.
 MAX_THREADS = 1024
 

@@ -41,16 +41,6 @@ import importlib
 import signal
 import threading
 
-__all__ = [
-    "Interrupted",
-    "held_signals",
-    "hold_aware",
-    "hung_up",
-    "import_module",
-    "interruptible",
-    "raise_or_hold",
-]
-
 SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 
 _holding = 0  # open held blocks in the main thread

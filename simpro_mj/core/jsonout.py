@@ -9,8 +9,6 @@ from __future__ import annotations
 import json
 import sys
 
-__all__ = ["emit_json"]
-
 
 def emit_json(obj) -> None:
     """Print one JSON object on stdout (numpy scalars and arrays as plain numbers)."""

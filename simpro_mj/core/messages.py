@@ -7,8 +7,6 @@ or response task's ``reason`` (``Type: message``), an invalid variant's reason.
 
 from __future__ import annotations
 
-__all__ = ["MAX_MESSAGE_CHARS", "one_line"]
-
 #: Longest error line printed (characters); a longer one keeps its start and its
 #: end (where "allowed: ..." is) around "...". Fields echo cut values already.
 MAX_MESSAGE_CHARS = 1000

@@ -14,8 +14,6 @@ import contextlib
 import threading
 from collections.abc import Callable, Iterator
 
-__all__ = ["Collector", "collecting", "phase", "say"]
-
 _local = threading.local()
 
 

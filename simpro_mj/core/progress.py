@@ -10,8 +10,6 @@ from __future__ import annotations
 
 import sys
 
-__all__ = ["Phases", "show_progress"]
-
 
 def show_progress(args) -> bool:
     """A command's progress bar is drawn on a terminal only: not with ``--quiet`` or

@@ -16,8 +16,6 @@ import math
 
 from simpro_mj.core.errors import UserInputError
 
-__all__ = ["PHYSICS_DT_MS", "PHYSICS_DT_S", "steps_per_period", "whole_steps"]
-
 #: The physics timestep (s, and ms), that of the shipped MJCF.
 PHYSICS_DT_S = 0.001
 PHYSICS_DT_MS = 1

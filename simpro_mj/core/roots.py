@@ -19,8 +19,6 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 
-__all__ = ["RTOL_MIN", "brentq"]
-
 #: the smallest relative tolerance accepted (four units in the last place)
 RTOL_MIN = 4 * 2.220446049250313e-16
 

@@ -28,8 +28,6 @@ from pathlib import Path
 
 from simpro_mj.core.errors import UserInputError
 
-__all__ = ["UnreadableFile", "kind_of", "open_regular", "read_bytes", "read_text", "short"]
-
 
 class UnreadableFile(UserInputError):
     """A file that is not a regular file, is over its size bound, or cannot be opened."""

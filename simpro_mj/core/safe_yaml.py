@@ -44,17 +44,6 @@ from yaml.events import (
 )
 from yaml.nodes import MappingNode, SequenceNode
 
-__all__ = [
-    "MAX_FILE_BYTES",
-    "MAX_DEPTH",
-    "MAX_NODES",
-    "MAX_NUMBER_CHARS",
-    "YAMLLimitError",
-    "BoundedLoader",
-    "load",
-    "read_file",
-]
-
 #: Largest scenario file read (bytes): 20 times the largest shipped scenario's
 #: table room; the reader parses it in about a second.
 MAX_FILE_BYTES = 500_000

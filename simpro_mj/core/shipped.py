@@ -24,17 +24,6 @@ from pathlib import Path
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.safe_files import open_regular, read_bytes
 
-__all__ = [
-    "shipped_dir",
-    "model_digest",
-    "model_path",
-    "user_path",
-    "MODEL_DIR",
-    "SCENARIOS_DIR",
-    "TELEMETRY_DIR",
-    "PRESETS_DIR",
-]
-
 _PACKAGE = Path(__file__).resolve().parents[1]  # simpro_mj/
 _CHECKOUT = _PACKAGE.parent
 

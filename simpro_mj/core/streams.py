@@ -17,8 +17,6 @@ from collections.abc import Iterator
 
 from simpro_mj.core.interrupts import hung_up
 
-__all__ = ["StreamError", "standard_streams"]
-
 
 class StreamError(OSError):
     """A write to stdout or stderr failed; ``filename`` is ``<stdout>`` or ``<stderr>``."""

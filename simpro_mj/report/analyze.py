@@ -15,8 +15,6 @@ from controllers.analysis import outer_delay as an
 from simpro_mj.analysis.analyze import ACTUATORS, VARIANTS, AnalyzeParams
 from simpro_mj.analysis.loop_records import Analysis, Shipped
 
-__all__ = ["plot", "summary"]
-
 
 def plot(res: Analysis, p: AnalyzeParams, out: Path) -> list[str]:
     """Root loci (Figs. 8-9), step responses and the delay-assumption plot as PNG."""

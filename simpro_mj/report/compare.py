@@ -13,8 +13,6 @@ from simpro_mj.config.models import Scenario
 from simpro_mj.job.run import Run, warn
 from simpro_mj.report.runner import execute
 
-__all__ = ["MODES", "compare", "table"]
-
 #: The two runs of a comparison, in order.
 MODES = ("joint_only", "task_space")
 

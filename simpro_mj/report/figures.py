@@ -23,21 +23,6 @@ from controllers.geometry import H0
 if TYPE_CHECKING:  # matplotlib is loaded by whoever draws, not by importing this module
     from matplotlib.figure import Figure
 
-__all__ = [
-    "DESIRED",
-    "DPI",
-    "LEG_COLOURS",
-    "MEASURED",
-    "OUTPUT",
-    "TASK_AXES",
-    "envelope",
-    "legend_mismatches",
-    "log_ticks",
-    "loop_label",
-    "margins",
-    "save",
-]
-
 DESIRED = "tab:blue"  # "in blue the wanted value" (Fig. 14)
 OUTPUT = "tab:green"  # "in green the output"
 MEASURED = "0.55"

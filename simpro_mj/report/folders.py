@@ -62,20 +62,6 @@ from simpro_mj.report.marker import (
     write_marker,
 )
 
-__all__ = [
-    "out_path",
-    "check_free",
-    "check_out",
-    "claim",
-    "default_out",
-    "folder_name",
-    "install_figures",
-    "install_folder",
-    "locked",
-    "partial_sibling",
-    "said_replacing",
-]
-
 
 def partial_sibling(out_dir: Path) -> Path:
     """``<name>.partial`` beside ``out_dir`` (``.partial-2``, ... if that is not ours):

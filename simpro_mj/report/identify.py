@@ -15,8 +15,6 @@ from scipy.signal import lti, step
 from controllers.design import paper_units_info
 from simpro_mj.identification.identify import paper_models, simulate_velocity
 
-__all__ = ["plot", "summary"]
-
 
 def summary(results: dict, reading: str = "volts", preset: str = "") -> str:
     """Table of fitted vs paper coefficients (ω_n, ζ, b/a0), the paper's in SI

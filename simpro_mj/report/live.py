@@ -39,8 +39,6 @@ from simpro_mj.report.results import write_results
 from simpro_mj.report.runner import kept_line, recording
 from simpro_mj.sim.live import LiveOptions, run_session
 
-__all__ = ["MAX_LOG_BYTES", "actuator_tracking", "execute_live", "live_scenario"]
-
 #: Largest log a session may preallocate (bytes): beyond, raise logging.decimation.
 MAX_LOG_BYTES = 1 << 30
 

@@ -27,8 +27,6 @@ import numpy as np
 
 from simpro_mj.plant.kernels import kernel_label
 
-__all__ = ["describe_machine", "dist_version", "fingerprint_id", "machine_fingerprint"]
-
 #: CPU flags (``/proc/cpuinfo``) that select floating-point code paths: vector
 #: widths and fused multiply-add. Other flags (virtualisation, power) do not
 #: change a result and would split identical machines.

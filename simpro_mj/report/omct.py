@@ -11,8 +11,6 @@ from simpro_mj.report.figures import log_ticks, save
 if TYPE_CHECKING:  # the analysis loads the laws: when the OMCT runs
     from simpro_mj.analysis.omct import Omct
 
-__all__ = ["CSV_COLUMNS", "plot_omct", "print_omct_summary"]
-
 CSV_COLUMNS = (
     "law",
     "test",

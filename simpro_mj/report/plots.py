@@ -44,15 +44,6 @@ from simpro_mj.report.figures import (
     save,
 )
 
-__all__ = [
-    "plot_run",
-    "plot_compare",
-    "compare_figure",
-    "cueing_figures",
-    "run_figures",
-    "RUN_FIGURES",
-]
-
 
 def _has(columns: Mapping, *names: str) -> bool:
     return all(n in columns for n in names)

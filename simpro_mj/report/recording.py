@@ -22,19 +22,6 @@ from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.messages import one_line
 from simpro_mj.report.results import read_timeseries
 
-__all__ = [
-    "MAX_RUNS",
-    "RECORDING_FILE",
-    "Recording",
-    "find_runs",
-    "frame_times",
-    "ghost_poses",
-    "load_recording",
-    "read_npz",
-    "nearest_rows",
-    "recording_of",
-]
-
 RECORDING_FILE = "qpos.npz"
 #: Most runs drawn side by side (a batch folder holds many: render one of them).
 MAX_RUNS = 4

@@ -46,8 +46,6 @@ from simpro_mj.report.scene import (
     text_px,
 )
 
-__all__ = ["GL_BACKENDS", "GL_LIBRARIES", "VIDEO_HINT", "Rendered", "render_video", "require_video"]
-
 #: What the user runs when imageio or its ffmpeg is missing.
 VIDEO_HINT = "pip install 'simpro-sim[video]' (imageio and imageio-ffmpeg)"
 #: Backends tried in order when ``MUJOCO_GL`` is not set.

@@ -24,17 +24,6 @@ if TYPE_CHECKING:  # the records' module loads the analysis: when a response is 
     from simpro_mj.analysis.chain_response import ChainSummary
     from simpro_mj.analysis.response_summary import CurveFigures, PoseResponse
 
-__all__ = [
-    "bode_figures",
-    "chain_figure",
-    "csv_text",
-    "plot",
-    "plot_chain",
-    "print_chain_summary",
-    "print_summary",
-    "write_result",
-]
-
 
 def _cell(v) -> str:
     if v is None:

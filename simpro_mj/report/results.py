@@ -50,18 +50,6 @@ from simpro_mj.report.folders import install_folder, locked, partial_sibling
 from simpro_mj.report.machine import dist_version, fingerprint_id
 from simpro_mj.report.marker import PARTIAL_MARKER, is_complete
 
-__all__ = [
-    "write_results",
-    "write_run",
-    "write_timeseries",
-    "read_timeseries",
-    "versions",
-    "print_summary",
-    "STATUSES",
-    "WALL_CLOCK_KEYS",
-    "jsonable",
-]
-
 #: ``ok``: ran to the end and settled; ``limit_cycle`` / ``not_settled``: ran to
 #: the end, but the pose still oscillates or drifts there
 #: (:mod:`simpro_mj.analysis.verdict`); ``diverged``: stopped by the divergence

@@ -30,12 +30,6 @@ from simpro_mj.job.run import Run
 from simpro_mj.report.results import write_run
 from simpro_mj.sim.readiness import signal_ready
 
-__all__ = [
-    "EXIT_INTERRUPTED",
-    "execute",
-    "interrupted_message",
-]
-
 #: Exit status of an interrupted run (128 + SIGINT, the shell's convention).
 EXIT_INTERRUPTED = 130
 

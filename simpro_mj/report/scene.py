@@ -20,19 +20,6 @@ import numpy as np
 from simpro_mj.config.models import Scenario
 from simpro_mj.report.recording import Recording
 
-__all__ = [
-    "CAMERAS",
-    "GHOST_RGBA",
-    "ReplayScene",
-    "TextStamp",
-    "text_px",
-    "draw_cursor",
-    "label_image",
-    "plot_strip",
-    "pose_data",
-    "replay_model",
-]
-
 #: Named cameras of the MJCF, the first the default.
 CAMERAS = ("three_quarter", "side", "driver")
 #: The set-point ghost in the set-point's blue (the figures' and the strip's), against the

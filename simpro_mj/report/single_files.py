@@ -15,8 +15,6 @@ from simpro_mj.core.safe_files import short
 from simpro_mj.report.folders import locked, out_path
 from simpro_mj.report.marker import foreign, record, replacing, result_kind
 
-__all__ = ["check_file", "record_file", "write_file"]
-
 
 def check_file(path, overwrite: bool = False, option: str = "--out") -> Path:
     """Refuse a file path that is not simpro-sim's to write; return it absolute.

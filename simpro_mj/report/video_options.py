@@ -21,15 +21,6 @@ if TYPE_CHECKING:
 # the renderer (report.render, report.scene: MuJoCo's GL context, imageio) is imported
 # by the functions that render, so that a run without --video never loads it
 
-__all__ = [
-    "MAX_SIDE",
-    "add_video_flag",
-    "add_video_options",
-    "number",
-    "video_after_run",
-    "video_options",
-]
-
 #: Largest video side accepted (pixels).
 MAX_SIDE = 4096
 

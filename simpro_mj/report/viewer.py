@@ -32,8 +32,6 @@ from simpro_mj.report.recording import (
 )
 from simpro_mj.report.scene import pose_data
 
-__all__ = ["check_display", "overlay", "play", "recording_for"]
-
 
 def check_display() -> None:
     """Raise :class:`UserInputError` (one line) when no window can be opened."""

@@ -37,8 +37,6 @@ if TYPE_CHECKING:  # the loop loads MuJoCo: when a build is made, not on import
     from simpro_mj.sim.loop import CoSimulation
     from simpro_mj.sim.result import SimResult
 
-__all__ = ["Build", "simulate"]
-
 
 class Build:
     """One scenario, built once: compiled plant, set-points, design plants.

@@ -32,8 +32,6 @@ from numba.extending import intrinsic
 from simpro_mj.sim import step as st
 from simpro_mj.sim.numba_cache import cfunc, jit
 
-__all__ = ["entry", "frozen_clock", "install_pointer"]
-
 _body = st.compiled().callback_step
 _FOLDER = st.compiled().cache_folder  # the step's cache, passed to each function below
 

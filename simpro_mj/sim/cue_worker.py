@@ -31,8 +31,6 @@ import signal
 
 import numpy as np
 
-__all__ = ["CueWorker", "START_TIMEOUT_S"]
-
 #: Longest wait for the child to build the law (s): imports and matrices, on a busy machine.
 START_TIMEOUT_S = 120.0
 

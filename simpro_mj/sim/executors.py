@@ -28,19 +28,6 @@ from simpro_mj.core.messages import one_line
 from simpro_mj.sim.readiness import signal_ready
 from simpro_mj.sim.workers import init_worker, main_not_imported, run_task, stop_pool
 
-__all__ = [
-    "MAX_JOBS",
-    "NO_WORKERS_S",
-    "NoWorkers",
-    "Progress",
-    "dask_module",
-    "run_dask",
-    "run_here",
-    "run_pool",
-    "run_tasks",
-    "run_threads",
-]
-
 #: A Dask run whose cluster has had no live worker this long (s) ends with an error.
 NO_WORKERS_S = 60.0
 #: Most worker processes (``--jobs``); a run never starts more than it has tasks.

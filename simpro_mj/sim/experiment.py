@@ -22,8 +22,6 @@ from simpro_mj.plant.sensors import DEFAULT_SENSORS, SensorConfig
 from simpro_mj.sim import step
 from simpro_mj.sim.stages import Log
 
-__all__ = ["CHECK_EVERY", "step_experiment"]
-
 #: Steps between two checks of the experiment's state (MuJoCo's, the loops' closure)
 CHECK_EVERY = 250
 

@@ -75,15 +75,6 @@ if TYPE_CHECKING:
     from simpro_mj.sim.result import SimResult
     from simpro_mj.sim.rig_output import RigTemplate
 
-__all__ = [
-    "HOME_S",
-    "MAX_BEHIND_S",
-    "LiveOptions",
-    "Pacer",
-    "Session",
-    "run_session",
-]
-
 #: Behind the wall clock by more than this (s), the session re-anchors its clock.
 MAX_BEHIND_S = 0.1
 #: Once the input is stale, the set-point is blended to home over this (s), and back to

@@ -22,8 +22,6 @@ import numpy as np
 from simpro_mj.config.telemetry import Telemetry
 from simpro_mj.core.errors import UserInputError
 
-__all__ = ["FeedImpairment", "biased", "impair"]
-
 
 @dataclass(frozen=True)
 class FeedImpairment:

@@ -63,8 +63,6 @@ from simpro_mj.sim.result import COLUMNS, SimResult, qpos_names
 from simpro_mj.sim.snapshot import Snapshot, model_digest, put_back, take
 from simpro_mj.sim.stages import CHUNK, FaultHooks, Log, NoiseBlock, Profile
 
-__all__ = ["LOOP_OPEN_BOUND", "CoSimulation"]
-
 #: Divergence bound on the loop-closure error (m): far above the 0.5 mm of
 #: normal motion, well below anything physical.
 LOOP_OPEN_BOUND = 5e-3

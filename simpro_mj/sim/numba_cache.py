@@ -42,8 +42,6 @@ except ImportError:  # pragma: no cover - Windows: no lock, each process compile
 
 from simpro_mj.core.cache import notice
 
-__all__ = ["COMPLETE", "WAIT_NOTE", "cache_base", "cfunc", "first_compile", "heal", "jit"]
-
 #: The file that marks a cache folder complete: every function of the step was
 #: compiled (or loaded) into it by a process that then finished its import.
 COMPLETE = "complete"

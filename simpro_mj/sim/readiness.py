@@ -11,8 +11,6 @@ from __future__ import annotations
 
 import os
 
-__all__ = ["ENV", "signal_ready"]
-
 #: Environment variable naming the readiness file.
 ENV = "SIMPRO_READY_FILE"
 

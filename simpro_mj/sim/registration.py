@@ -18,8 +18,6 @@ import numpy as np
 
 from simpro_mj.sim import step as st
 
-__all__ = ["Registration"]
-
 _reg_lock = threading.Lock()
 
 

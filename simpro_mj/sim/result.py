@@ -10,8 +10,6 @@ import numpy as np
 
 from simpro_mj.plant.faults import FAULT_COLUMNS
 
-__all__ = ["COLUMNS", "SimResult", "qpos_names"]
-
 #: Logged columns (SI, units in the names), in CSV order.
 COLUMNS = (
     ["time_s"]

@@ -47,16 +47,6 @@ import socket
 
 from simpro_mj.core.errors import UserInputError
 
-__all__ = [
-    "TOKENS",
-    "TILT_RANGE_RAD",
-    "HEAVE_RANGE_M",
-    "MAX_STRING_BYTES",
-    "RigTemplate",
-    "RigOutput",
-    "open_destination",
-]
-
 #: Range of the roll and pitch tokens (rad): +-30 deg, beyond the platform's reach.
 TILT_RANGE_RAD = math.radians(30.0)
 #: Range of the heave token (m) about home: +-0.25 m, the half stroke.

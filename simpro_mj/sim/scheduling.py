@@ -15,15 +15,6 @@ import gc
 import os
 from pathlib import Path
 
-__all__ = [
-    "cpu_split",
-    "frozen_gc",
-    "pinned",
-    "realtime_scheduling",
-    "request_realtime",
-    "thread_switches",
-]
-
 _PR_SET_TIMERSLACK, _PR_GET_TIMERSLACK = 29, 30  # prctl(2)
 
 

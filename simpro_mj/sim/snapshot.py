@@ -23,8 +23,6 @@ import numpy as np
 
 from simpro_mj.sim import step
 
-__all__ = ["Snapshot", "model_digest", "scenario_digest", "NoiseState", "take", "put_back"]
-
 #: the set-point arrays a live run writes (a snapshot of it keeps them)
 SETPOINTS = ("ref", "q_joint_only", "veh_f", "veh_w")
 

@@ -12,8 +12,6 @@ from simpro_mj.plant.faults import FaultSchedule
 from simpro_mj.sim import step
 from simpro_mj.sim.result import COLUMNS
 
-__all__ = ["CHUNK", "Log", "NoiseBlock", "FaultHooks", "Profile"]
-
 #: Steps MuJoCo takes between two looks from Python in a compiled run (50 ms at
 #: 1 ms): the interrupt, divergence, the live driver and progress are checked there.
 CHUNK = 50

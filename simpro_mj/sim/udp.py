@@ -27,22 +27,6 @@ from simpro_mj.config.games.common import DatagramError
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.interrupts import held_signals
 
-__all__ = [
-    "DEFAULT_POSE_FORMAT",
-    "MAX_DRAIN",
-    "POSE_FIELDS",
-    "PoseSender",
-    "Receiver",
-    "check_listen",
-    "parse_address",
-    "resolve_address",
-    "PoseColumns",
-    "pose_columns",
-    "pose_template",
-    "send_datagrams",
-    "spread",
-]
-
 #: Most datagrams read at one chunk boundary (a burst never stalls the loop).
 MAX_DRAIN = 256
 #: A game's time going back by more than this (s) is a new stream (a restart), not disorder.

@@ -36,17 +36,6 @@ import time
 from simpro_mj.core.interrupts import hold_aware, raise_or_hold
 from simpro_mj.sim.readiness import ENV
 
-__all__ = [
-    "POLL_S",
-    "GRACE_S",
-    "activity_queue",
-    "init_worker",
-    "main_not_imported",
-    "run_task",
-    "stop_pool",
-    "watch_parent",
-]
-
 #: How often a worker checks that its parent is alive (s).
 POLL_S = 0.5
 #: How long a stopped worker may take to write its partial result (s) before SIGKILL.
