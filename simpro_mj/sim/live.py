@@ -172,7 +172,8 @@ class Pacer:
         self.home = np.asarray(washout.geometry.home, float)
         self._home_weight = 1.0  # at home until samples come (a soft start)
         self._last_console = 0
-        self._col = pose_columns()
+        c = pose_columns()  # the pose in a logged row, for the console
+        self._pose = [c[name] for name in ("roll_rad", "pitch_rad", "heave_m")]
         #: the collector's passes per generation from the anchor on (filled by
         #: :func:`frozen_gc` in a session; None: not counted, nothing frozen)
         self.gc_counts: list | None = None
@@ -277,12 +278,13 @@ class Pacer:
         st = self.stats
         recent = st.lateness_s[max(0, st.n - 1000 // self.chunk) : st.n]
         p99 = float(np.percentile(recent, 99)) * 1e6 if recent.size else 0.0
-        rx, c = self.rx, self._col
+        rx = self.rx
+        roll, pitch, heave = (row[j] for j in self._pose)
         _, _, stale = rx.sample(self.clock())
         return (
-            f"live t {k * self.dt:7.2f} s | roll {math.degrees(row[c.roll_rad]):+6.2f} "
-            f"pitch {math.degrees(row[c.pitch_rad]):+6.2f} deg heave "
-            f"{(row[c.heave_m] - self.washout.geometry.home[2]) * 1e3:+6.1f} mm | late p99 "
+            f"live t {k * self.dt:7.2f} s | roll {math.degrees(roll):+6.2f} "
+            f"pitch {math.degrees(pitch):+6.2f} deg heave "
+            f"{(heave - self.washout.geometry.home[2]) * 1e3:+6.1f} mm | late p99 "
             f"{p99:6.0f} us missed {st.missed} | rx {rx.received} bad {rx.bad} late {rx.late}"
             + (" | input stale" if stale else "")
         )

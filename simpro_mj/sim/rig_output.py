@@ -196,11 +196,9 @@ class RigOutput:
         self._col: dict[str, int] | None = None
 
     def values(self, row) -> dict:
-        c = self._col
-        if c is None:  # on use: sim.result loads MuJoCo
-            from simpro_mj.sim.result import COLUMNS
+        from simpro_mj.sim.udp import pose_columns  # on use: it loads MuJoCo
 
-            c = self._col = {name: j for j, name in enumerate(COLUMNS)}
+        c = self._col = self._col or pose_columns()
         refs = ("q1_ref_m", "q2_ref_m", "q3_ref_m", "roll_ref_rad", "pitch_ref_rad")
         values = {t: row[c[name]] for t, name in zip(TOKENS, refs, strict=False)}
         return values | {"heave": row[c["heave_ref_m"]] - self.home}

@@ -17,7 +17,6 @@ import re
 import socket
 import string
 import time
-from typing import NamedTuple
 
 import numpy as np
 
@@ -36,45 +35,32 @@ RCVBUF_BYTES = 1 << 20
 #: Largest datagram read whole; anything longer is oversized in both formats.
 _RECV_BYTES = 2048
 
-#: The fields a pose line may hold (``--send-format``), degrees and millimetres.
-POSE_FIELDS = (
-    "t_s",
-    "roll_deg",
-    "pitch_deg",
-    "heave_mm",
-    "q1_mm",
-    "q2_mm",
-    "q3_mm",
-    "roll_ref_deg",
-    "pitch_ref_deg",
-    "heave_ref_mm",
-)
+#: The fields a pose line may hold (``--send-format``), degrees and millimetres: each the
+#: logged column it shows, its scale, and whether it is measured from the home height.
+POSE_FIELDS = {
+    "t_s": ("time_s", 1.0, False),
+    "roll_deg": ("roll_rad", 180.0 / math.pi, False),
+    "pitch_deg": ("pitch_rad", 180.0 / math.pi, False),
+    "heave_mm": ("heave_m", 1e3, True),
+    "q1_mm": ("q1_ref_m", 1e3, False),
+    "q2_mm": ("q2_ref_m", 1e3, False),
+    "q3_mm": ("q3_ref_m", 1e3, False),
+    "roll_ref_deg": ("roll_ref_rad", 180.0 / math.pi, False),
+    "pitch_ref_deg": ("pitch_ref_rad", 180.0 / math.pi, False),
+    "heave_ref_mm": ("heave_ref_m", 1e3, True),
+}
 #: The pose line sent by default: the platform's pose and the leg set-points.
 DEFAULT_POSE_FORMAT = (
     "{t_s:.3f},{roll_deg:.4f},{pitch_deg:.4f},{heave_mm:.3f},{q1_mm:.3f},{q2_mm:.3f},{q3_mm:.3f}\n"
 )
 
 
-class PoseColumns(NamedTuple):
-    """Where the pose, its set-point and the leg set-points sit in a logged row."""
-
-    time_s: int
-    roll_rad: int
-    pitch_rad: int
-    heave_m: int
-    q1_ref_m: int
-    q2_ref_m: int
-    q3_ref_m: int
-    roll_ref_rad: int
-    pitch_ref_rad: int
-    heave_ref_m: int
-
-
-def pose_columns() -> PoseColumns:
-    """The :class:`PoseColumns` of ``simpro_mj.sim.result.COLUMNS`` (on use: it loads MuJoCo)."""
+def pose_columns() -> dict[str, int]:
+    """Logged column name -> its index in ``simpro_mj.sim.result.COLUMNS`` (on use: it
+    loads MuJoCo)."""
     from simpro_mj.sim.result import COLUMNS
 
-    return PoseColumns(*(COLUMNS.index(name) for name in PoseColumns._fields))
+    return {name: j for j, name in enumerate(COLUMNS)}
 
 
 #: Longest ``--send-format`` template (characters), and the widest field and most digits.
@@ -313,24 +299,13 @@ class PoseSender:
         self.sock.setblocking(False)
         self.address, self.template, self.home = address, template, float(home_heave_m)
         self.sent = self.errors = 0
-        self._col = pose_columns()
+        c = pose_columns()
+        self._fields = [(name, c[col], scale, self.home if home else 0.0)
+                        for name, (col, scale, home) in POSE_FIELDS.items()]  # fmt: skip
 
     def send(self, row) -> None:
         """Send the pose of one logged row (``simpro_mj.sim.result.COLUMNS`` order)."""
-        d = math.degrees
-        c = self._col
-        line = self.template.format(
-            t_s=row[c.time_s],
-            roll_deg=d(row[c.roll_rad]),
-            pitch_deg=d(row[c.pitch_rad]),
-            heave_mm=(row[c.heave_m] - self.home) * 1e3,
-            q1_mm=row[c.q1_ref_m] * 1e3,
-            q2_mm=row[c.q2_ref_m] * 1e3,
-            q3_mm=row[c.q3_ref_m] * 1e3,
-            roll_ref_deg=d(row[c.roll_ref_rad]),
-            pitch_ref_deg=d(row[c.pitch_ref_rad]),
-            heave_ref_mm=(row[c.heave_ref_m] - self.home) * 1e3,
-        )
+        line = self.template.format(**{n: float(row[j] - z) * s for n, j, s, z in self._fields})
         with held_signals():  # a signal never falls between the send and its count
             try:
                 self.sock.sendto(line.encode("ascii"), self.address)
