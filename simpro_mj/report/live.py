@@ -25,7 +25,6 @@ SIGINT or SIGTERM is a session that ended: status ``ok``, ``realtime.ended``
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 from simpro_mj.analysis.cue_metrics import cue_metrics
@@ -35,7 +34,7 @@ from simpro_mj.config.models import Scenario
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.interrupts import writing
 from simpro_mj.job.run import warn
-from simpro_mj.report.results import write_results
+from simpro_mj.report.results import write_folder
 from simpro_mj.report.runner import kept_line, recording
 from simpro_mj.sim.live import LiveOptions, run_session
 
@@ -154,5 +153,5 @@ def execute_live(scenario: Scenario, options: LiveOptions, out, plots: bool = Tr
             "plots": plots,
         }
         arrays = dict(recording(res), **{"realtime.npz": session.lateness})
-        res.folder = write_results(out, res.columns, metrics, scenario, extra, arrays=arrays)
-    return res, json.loads((res.folder / "metrics.json").read_text(encoding="utf-8"))
+        res.folder, doc = write_folder(out, res.columns, metrics, scenario, extra, arrays)
+    return res, doc

@@ -266,40 +266,12 @@ def write_results(
     ValueError
         Unknown status, or unequal column lengths.
     """
-    return _write(out_dir, columns, metrics, scenario, extra, arrays)[0]
+    return write_folder(out_dir, columns, metrics, scenario, extra, arrays)[0]
 
 
-def write_run(out_dir, outcome, scenario: Scenario | Mapping, *, plots: bool = True, arrays=None):
-    """Write a run's result folder (:func:`write_results`) from what
-    :meth:`simpro_mj.job.run.Run.execute` returned.
-
-    Parameters
-    ----------
-    out_dir : path
-        The folder.
-    outcome : simpro_mj.job.run.RunOutcome
-        The run, measured.
-    scenario : Scenario or mapping
-        The resolved scenario as the user gave it (``scenario.yaml`` and the
-        hash ``--resume`` compares).
-    plots : bool
-        Write the PNG figures.
-    arrays : mapping, optional
-        As :func:`write_results` (``qpos.npz``).
-
-    Returns
-    -------
-    (Path, dict)
-        Where the folder went and the ``metrics.json`` document as written
-        (JSON types), so that nothing reads the file back.
-    """
-    extra = dict(outcome.extra(), plots=plots)
-    columns = outcome.result.columns
-    return _write(out_dir, columns, outcome.metrics, scenario, extra, arrays)
-
-
-def _write(out_dir, columns, metrics, scenario, extra, arrays) -> tuple[Path, dict]:
-    """:func:`write_results`; returns the folder and the ``metrics.json`` document."""
+def write_folder(out_dir, columns, metrics, scenario, extra=None, arrays=None) -> tuple[Path, dict]:
+    """:func:`write_results`, returning where the folder went and the ``metrics.json``
+    document as written (JSON types), so that nothing reads the file back."""
     scenario = as_tree(scenario)  # the record of the scenario, typed or not
     extra = dict(extra or {})
     out_dir = Path(out_dir).expanduser().absolute()

@@ -3,7 +3,7 @@
 :func:`execute` builds a :class:`simpro_mj.job.run.Run` (the design plants,
 the compiled plant and the set-points, once), runs it (the preflight, the
 co-simulation, the metrics) and writes what it returns
-(:func:`simpro_mj.report.results.write_run`). ``run``, ``compare``,
+(:func:`simpro_mj.report.results.write_folder`). ``run``, ``compare``,
 ``batch``, ``bench --video`` and the Python API call it; it lives here,
 outside the command modules, so that none of them imports another command
 (imports run one way, see docs/architecture.md).
@@ -27,7 +27,7 @@ from simpro_mj.config.models import Scenario, as_scenario
 from simpro_mj.core.interrupts import writing
 from simpro_mj.core.rates import PHYSICS_DT_S
 from simpro_mj.job.run import Run
-from simpro_mj.report.results import write_run
+from simpro_mj.report.results import write_folder
 from simpro_mj.sim.readiness import signal_ready
 
 #: Exit status of an interrupted run (128 + SIGINT, the shell's convention).
@@ -93,8 +93,9 @@ def execute(
     res = outcome.result
     res.folder = None
     with writing(lambda: kept_line(res)):  # a folder is always written whole
-        res.folder, doc = write_run(
-            Path(out), outcome, scenario, plots=plots, arrays=recording(res)
+        extra = dict(outcome.extra(), plots=plots)
+        res.folder, doc = write_folder(
+            Path(out), res.columns, outcome.metrics, scenario, extra, recording(res)
         )
     return res, doc
 
