@@ -165,6 +165,8 @@ def allowed_text(
         first = f"{bound} {unit}".strip()
         rng = first if rng in ("", first) else f"{first}, within {rng}"
     doc = (field.description or "") if field is not None else ""
+    if rng and isinstance(extra, dict) and extra.get("why"):  # why the range is plausible
+        doc = str(extra["why"])
     if rng and doc:
         return f"{rng} ({doc})"
     return rng or doc or "see simpro-sim show"

@@ -23,16 +23,13 @@ that name another field).
 
 from __future__ import annotations
 
-import copy
 import math
 import re
 import types
-from collections.abc import Mapping
 from typing import TYPE_CHECKING, Annotated, Any, ClassVar, Literal, get_args
 
 from pydantic import (
     AfterValidator,
-    AllowInfNan,
     BaseModel,
     BeforeValidator,
     ConfigDict,
@@ -40,7 +37,17 @@ from pydantic import (
     Strict,
 )
 
-from simpro_mj.core.keys import value_text
+# the leaf types, blocks and refusals live in core.keys, where the plant's blocks reach them
+from simpro_mj.core.keys import (  # noqa: F401
+    Block,
+    Problem,
+    Real,
+    Whole,
+    block,
+    integral,
+    param,
+    yaml_number,
+)
 from simpro_mj.core.rates import PHYSICS_DT_MS, PHYSICS_DT_S, whole_steps
 
 Mode = Literal["joint_only", "task_space", "feedforward"]
@@ -69,54 +76,12 @@ MAX_DECIMATION = 10_000
 SINE_PERIOD_RANGE_S = (0.002, 1e6)
 
 NAME_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
-# YAML 1.1 reads 5e-3 (no dot) as a string; accept it in numeric fields
-_EXP_RE = re.compile(r"^[-+]?(\d+\.?\d*|\.\d+)[eE][-+]?\d+$")
 
 
 # ------------------------------------------------------------------ a rule's refusal
 
 
-class Problem(ValueError):
-    """A rule's refusal, relative to where the rule sits.
-
-    The message is ``<head> at <path><suffix><rest>``, ``path`` the dotted
-    location pydantic reports (:func:`~simpro_mj.config.messages.user_error` fills
-    it in): ``suffix`` names a key below it (``.time_s``), ``rest`` says what is
-    allowed.
-    """
-
-    def __init__(self, head: str, rest: str, suffix: str = "") -> None:
-        super().__init__(f"{head} at <here>{suffix}{rest}")
-        self.head, self.rest, self.suffix = head, rest, suffix
-
-    @classmethod
-    def wrong_type(cls, value: Any, allowed: str, suffix: str = "") -> Problem:
-        kind = "null" if value is None else type(value).__name__
-        return cls("wrong type", f": got {kind} {value_text(value)}; allowed: {allowed}", suffix)
-
-    @classmethod
-    def invalid(cls, value: Any, allowed: str, suffix: str = "") -> Problem:
-        return cls("invalid value", f": {value_text(value)}; allowed: {allowed}", suffix)
-
-
 # ------------------------------------------------------------------ leaf types
-
-
-def yaml_number(value: Any) -> Any:
-    """``'5e-3'`` (a string to YAML 1.1) as the number it means; anything else as given."""
-    if isinstance(value, str) and _EXP_RE.match(value.strip()):
-        return float(value)
-    return value
-
-
-def integral(value: Any) -> Any:
-    """An integral float as its int (``60.0`` -> 60); ``2.5`` refused; anything else as given."""
-    value = yaml_number(value)
-    if isinstance(value, float) and math.isfinite(value):
-        if value != int(value):
-            raise Problem.invalid(value, "an integer")
-        return int(value)
-    return value
 
 
 def check_period(value: float) -> Any:
@@ -138,10 +103,6 @@ def period_before(value: Any) -> Any:
     return integral(value)
 
 
-#: A finite number (an int is taken and becomes a float; booleans, strings refused).
-Real = Annotated[float, BeforeValidator(yaml_number), Strict(), AllowInfNan(False)]
-#: An integer (an integral float is taken; booleans, strings refused).
-Whole = Annotated[int, BeforeValidator(integral), Strict()]
 #: A period in ms: a positive whole number of physics steps, at most MAX_PERIOD_MS.
 Period = Annotated[int, BeforeValidator(period_before), Strict(), AfterValidator(check_period)]
 
@@ -194,52 +155,7 @@ else:
             return args[1].annotation()
 
 
-def param(
-    default: Any, unit: str = "", doc: str = "", *, note: str = "", **constraints: Any
-) -> Any:
-    """A field of a block: its default, unit, one line of meaning and pydantic's constraints.
-
-    ``unit`` and ``doc`` are what ``simpro-sim show`` prints and what a refusal's
-    "allowed" says beside the range (``ge``, ``gt``, ``le``, ``lt``); ``note``: the
-    allowed range in words where another module checks it (the plant's pneumatics).
-    """
-    extra: dict[str, Any] | None = {k: v for k, v in (("unit", unit), ("range", note)) if v}
-    extra = extra or None
-    if isinstance(default, list | dict):
-        return Field(
-            default_factory=lambda d=default: copy.deepcopy(d),
-            description=doc or None,
-            json_schema_extra=extra,
-            **constraints,
-        )
-    return Field(default, description=doc or None, json_schema_extra=extra, **constraints)
-
-
-def block(model: type, doc: str = "") -> Any:
-    """A sub-block field: the model's defaults, ``doc`` (default: the model's first line)."""
-    line = doc or (model.__doc__ or "").strip().split("\n\n")[0].replace("\n", " ")
-    return Field(default_factory=model, description=line or None)
-
-
 # ------------------------------------------------------------------ blocks
-
-
-_DEFAULTS: dict[type, dict] = {}
-
-
-class Block(BaseModel):
-    """A block of the scenario: its fields are its keys, each with its default;
-    a key it does not have is refused (``extra="forbid"``)."""
-
-    model_config = ConfigDict(extra="forbid", protected_namespaces=(), validate_assignment=False)
-
-    @classmethod
-    def defaults(cls) -> Mapping:
-        """The block's keys with their defaults, as a plain tree (computed once)."""
-        tree = _DEFAULTS.get(cls)
-        if tree is None:
-            tree = _DEFAULTS[cls] = cls.model_construct().model_dump()
-        return tree
 
 
 class Entry(BaseModel):

@@ -1,4 +1,4 @@
-"""Nested parameter trees and ``--set KEY=VALUE`` overrides.
+"""Nested parameter trees, their typed blocks and ``--set KEY=VALUE`` overrides.
 
 A parameter tree is a plain nested ``dict`` whose leaves are numbers, strings,
 booleans or lists. Units live in the key names at this edge (``pitch_deg``,
@@ -13,9 +13,10 @@ import math
 import re
 from collections.abc import Iterable, Mapping
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any
 
 import yaml
+from pydantic import AllowInfNan, BaseModel, BeforeValidator, ConfigDict, Field, Strict
 
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.safe_yaml import YAMLLimitError, load, read_file
@@ -34,6 +35,8 @@ __all__ = [
 ]
 
 
+# YAML 1.1 reads 5e-3 (no dot) as a string; a numeric field takes it
+_EXP_RE = re.compile(r"^[-+]?(\d+\.?\d*|\.\d+)[eE][-+]?\d+$")
 _PLAIN_KEY = re.compile(r"^[A-Za-z0-9_.\-]+$")
 #: Longest key or value echoed whole in a message (characters); longer ones are cut.
 ECHO_CHARS = 60
@@ -238,6 +241,111 @@ def check_number(
             f"invalid value at {path}: {value_text(value)}; allowed: {allowed.strip()}"
         )
     return int(x) if integer else x
+
+
+# ------------------------------------------------------------------ typed blocks
+# The vocabulary of a typed parameter tree (the scenario's blocks, the plant's
+# pneumatics): a block is a pydantic model refusing unknown keys, its fields
+# declared with :func:`param`; a rule's refusal is a :class:`Problem`.
+
+
+class Problem(ValueError):
+    """A rule's refusal, relative to where the rule sits.
+
+    The message is ``<head> at <path><suffix><rest>``, ``path`` the dotted
+    location pydantic reports (:func:`~simpro_mj.config.messages.user_error` fills
+    it in): ``suffix`` names a key below it (``.time_s``), ``rest`` says what is
+    allowed.
+    """
+
+    def __init__(self, head: str, rest: str, suffix: str = "") -> None:
+        super().__init__(f"{head} at <here>{suffix}{rest}")
+        self.head, self.rest, self.suffix = head, rest, suffix
+
+    @classmethod
+    def wrong_type(cls, value: Any, allowed: str, suffix: str = "") -> Problem:
+        kind = "null" if value is None else type(value).__name__
+        return cls("wrong type", f": got {kind} {value_text(value)}; allowed: {allowed}", suffix)
+
+    @classmethod
+    def invalid(cls, value: Any, allowed: str, suffix: str = "") -> Problem:
+        return cls("invalid value", f": {value_text(value)}; allowed: {allowed}", suffix)
+
+
+def yaml_number(value: Any) -> Any:
+    """``'5e-3'`` (a string to YAML 1.1) as the number it means; anything else as given."""
+    if isinstance(value, str) and _EXP_RE.match(value.strip()):
+        return float(value)
+    return value
+
+
+def integral(value: Any) -> Any:
+    """An integral float as its int (``60.0`` -> 60); ``2.5`` refused; anything else as given."""
+    value = yaml_number(value)
+    if isinstance(value, float) and math.isfinite(value):
+        if value != int(value):
+            raise Problem.invalid(value, "an integer")
+        return int(value)
+    return value
+
+
+#: A finite number (an int is taken and becomes a float; booleans, strings refused).
+Real = Annotated[float, BeforeValidator(yaml_number), Strict(), AllowInfNan(False)]
+#: An integer (an integral float is taken; booleans, strings refused).
+Whole = Annotated[int, BeforeValidator(integral), Strict()]
+
+
+def param(
+    default: Any,
+    unit: str = "",
+    doc: str = "",
+    *,
+    note: str = "",
+    why: str = "",
+    **constraints: Any,
+) -> Any:
+    """A field of a block: its default, unit, one line of meaning and pydantic's constraints.
+
+    ``unit`` and ``doc`` are what ``simpro-sim show`` prints and what a refusal's
+    "allowed" says beside the range (``ge``, ``gt``, ``le``, ``lt``); ``note``: the
+    allowed range in words where a rule of its own checks it; ``why``: why the range
+    is plausible, said in a refusal in place of ``doc``.
+    """
+    pairs = (("unit", unit), ("range", note), ("why", why))
+    extra: dict[str, Any] | None = {k: v for k, v in pairs if v}
+    extra = extra or None
+    if isinstance(default, list | dict):
+        return Field(
+            default_factory=lambda d=default: copy.deepcopy(d),
+            description=doc or None,
+            json_schema_extra=extra,
+            **constraints,
+        )
+    return Field(default, description=doc or None, json_schema_extra=extra, **constraints)
+
+
+def block(model: type, doc: str = "") -> Any:
+    """A sub-block field: the model's defaults, ``doc`` (default: the model's first line)."""
+    line = doc or (model.__doc__ or "").strip().split("\n\n")[0].replace("\n", " ")
+    return Field(default_factory=model, description=line or None)
+
+
+_DEFAULTS: dict[type, dict] = {}
+
+
+class Block(BaseModel):
+    """A block of the scenario: its fields are its keys, each with its default;
+    a key it does not have is refused (``extra="forbid"``)."""
+
+    model_config = ConfigDict(extra="forbid", protected_namespaces=(), validate_assignment=False)
+
+    @classmethod
+    def defaults(cls) -> Mapping:
+        """The block's keys with their defaults, as a plain tree (computed once)."""
+        tree = _DEFAULTS.get(cls)
+        if tree is None:
+            tree = _DEFAULTS[cls] = cls.model_construct().model_dump()
+        return tree
 
 
 # ------------------------------------------------------------------ YAML files

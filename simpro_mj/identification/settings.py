@@ -14,13 +14,13 @@ from typing import Any
 import numpy as np
 
 from controllers.design import READINGS
+from simpro_mj.config.messages import validated
 from simpro_mj.config.models import merge as _merge
-from simpro_mj.config.pneumatics import check_pneumatics
 from simpro_mj.config.presets import DEFAULT_PRESET, load_preset
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.keys import check_number
 from simpro_mj.plant.model_params import DEFAULT_MODEL_PARAMS
-from simpro_mj.plant.pneumatics.params import DEFAULT_PNEUMATIC_PARAMS
+from simpro_mj.plant.pneumatics.params import DEFAULT_PNEUMATIC_PARAMS, Pneumatics
 
 __all__ = [
     "DEFAULT_IDENTIFY_PARAMS",
@@ -155,7 +155,8 @@ def check_tree(tree: dict | Experiment) -> Experiment:
         raise UserInputError(f"invalid value at paper_units: {units!r}; allowed: {list(READINGS)}")
     model = tree["model"]
     model.pop("preset", None)
-    pneumatics = tree["pneumatics"] = check_pneumatics(tree["pneumatics"], "pneumatics")
+    pneumatics = validated(Pneumatics, tree["pneumatics"], "pneumatics").model_dump()
+    tree["pneumatics"] = pneumatics
     i, s = "identify", Settings.of(tree)
     check_number(tree, f"{i}.duration_s", 0.5, 3600.0, unit=" s")
     check_number(tree, f"{i}.settle_s", 0.0, 3600.0, unit=" s")

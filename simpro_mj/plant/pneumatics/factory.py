@@ -2,7 +2,7 @@
 
 Two models share one interface::
 
-    act = make_actuators("nonlinear", params_tree)   # or "linear"
+    act = make_actuators("nonlinear", pneumatics)    # or "linear"
     act.reset(q, qdot, force=holding_force)          # static equilibrium
     for each 1 ms step:
         force = act.step(u_volts, q, qdot, dt)       # (3,) N
@@ -23,7 +23,7 @@ from simpro_mj.core.keys import closest
 from simpro_mj.plant.model import assemble, load_model
 from simpro_mj.plant.pneumatics.linear import LinearActuators
 from simpro_mj.plant.pneumatics.nonlinear import NonlinearActuators
-from simpro_mj.plant.pneumatics.params import ACTUATOR_KINDS, PneumaticParams, fill_linear
+from simpro_mj.plant.pneumatics.params import ACTUATOR_KINDS, PneumaticParams, fill_linear, typed
 from simpro_mj.plant.pneumatics.statics import (
     holding_stiffness,
     slide_damping_matrix,
@@ -33,24 +33,14 @@ from simpro_mj.plant.pneumatics.statics import (
 __all__ = ["make_actuators"]
 
 
-def _pneu_tree(params_tree):
-    if params_tree is None:
-        return None
-    if isinstance(params_tree, PneumaticParams):
-        return params_tree
-    if "pneumatics" in params_tree:
-        return params_tree["pneumatics"]
-    return params_tree
-
-
 def make_actuators(kind: str, params_tree=None, *, model=None, linear_plants=None):
     """Build the actuators of one kind.
 
     Parameters
     ----------
     kind : {"nonlinear", "linear"}
-    params_tree : dict, optional
-        The ``pneumatics`` tree, or a whole scenario tree with a ``pneumatics`` key.
+    params_tree : dict, Pneumatics or PneumaticParams, optional
+        The ``pneumatics`` tree or block (:class:`~.params.Pneumatics`; None: defaults).
     model : mujoco.MjModel, optional
         For ``"linear"`` without ``linear.effective_mass_kg``: the effective
         slide masses are taken from this model at the home pose (mid-stroke).
@@ -68,10 +58,9 @@ def make_actuators(kind: str, params_tree=None, *, model=None, linear_plants=Non
             f"unknown actuator kind '{kind}': allowed values are {list(ACTUATOR_KINDS)}"
             f"{closest(str(kind), ACTUATOR_KINDS)}"
         )
-    tree = _pneu_tree(params_tree)
+    P = params_tree if isinstance(params_tree, PneumaticParams) else typed(params_tree).params()
     if kind == "nonlinear":
-        return NonlinearActuators(tree)
-    P = tree if isinstance(tree, PneumaticParams) else PneumaticParams.from_tree(tree)
+        return NonlinearActuators(P)
     P = fill_linear(P, linear_plants)
     if P.lin_mass is not None:
         return LinearActuators(P, mass_matrix=P.lin_mass)

@@ -1,189 +1,527 @@
-"""Parameters of the electro-pneumatic actuators: defaults, the SI record, checks.
+"""Parameters of the electro-pneumatic actuators: the typed block and its SI record.
 
-Every number of the valve + cylinder model lives here, edge units in the key
-names (:data:`DEFAULT_PNEUMATIC_PARAMS`); :meth:`PneumaticParams.from_tree`
-validates a ``pneumatics`` tree against it (one-line errors naming the path)
-and converts it to SI. The scenario (``simpro_mj.config``) validates its
-``actuator.pneumatics`` block with it, so this module must not import MuJoCo
-(``tests/test_api.py`` checks it).
+:class:`Pneumatics` is the ``pneumatics`` block (the scenario's
+``actuator.pneumatics``): every number of the valve + cylinder model as a
+pydantic field with its default, edge unit, plausible range (native
+constraints, and why) and meaning; the rules across fields are its model
+validators. :meth:`Pneumatics.params` converts a validated block to the SI
+record :class:`PneumaticParams` the actuators are built from. A per-leg value
+is one number (every leg's) or three, kept as given. This module must not
+import MuJoCo: the scenario validates with it (``tests/test_api.py``).
 """
 
 from __future__ import annotations
 
-import copy
 import math
-from collections.abc import Mapping
 from dataclasses import dataclass, replace
-from typing import Any, Literal, get_args
+from typing import Annotated, Any, Literal, get_args
 
+import annotated_types as at
 import numpy as np
+from pydantic import BeforeValidator, StrictBool, TypeAdapter, ValidationError, model_validator
+from pydantic_core import PydanticKnownError, core_schema
 
 from simpro_mj.core.errors import UserInputError
-from simpro_mj.core.keys import apply_overrides, check_keys
+from simpro_mj.core.keys import (
+    Block,
+    Problem,
+    Real,
+    Whole,
+    apply_overrides,
+    block,
+    closest,
+    param,
+    value_text,
+    yaml_number,
+)
 from simpro_mj.plant.pneumatics.flow import RHO_REF  # ISO 6358's reference = ANR
-
-__all__ = [
-    "DEFAULT_PNEUMATIC_PARAMS",
-    "ACTUATOR_KINDS",
-    "FRICTION_MODELS",
-    "THERMAL_MODELS",
-    "SUPPLY_MODELS",
-    "U_CENTRE",
-    "U_MAX",
-    "PneumaticParams",
-    "pneumatic_params",
-    "fill_linear",
-]
 
 U_CENTRE = 5.0  # V, closed centre of the MPYE
 U_MAX = 10.0  # V
 
 ActuatorKind = Literal["nonlinear", "linear"]
 ACTUATOR_KINDS: tuple[ActuatorKind, ...] = get_args(ActuatorKind)
-
 #: ``cylinder.friction_model``'s values (:mod:`simpro_mj.plant.friction`)
 FrictionModel = Literal["stick", "regularised"]
-FRICTION_MODELS: tuple[FrictionModel, ...] = get_args(FrictionModel)
-
 #: ``supply.model``'s values (:func:`simpro_mj.plant.step_functions.supply_step`)
 SupplyModel = Literal["ideal", "receiver"]
-SUPPLY_MODELS: tuple[SupplyModel, ...] = get_args(SupplyModel)
-
 #: ``thermal.model``'s values (:func:`simpro_mj.plant.step_functions.chamber_energy`)
 ThermalModel = Literal["polytropic", "energy"]
-THERMAL_MODELS: tuple[ThermalModel, ...] = get_args(ThermalModel)
 
-#: Parameters of the actuators, edge units in the key names. Per-leg values
-#: are lists [leg1, leg2, leg3]; a scalar applies to all three legs.
-DEFAULT_PNEUMATIC_PARAMS: dict = {
-    # FESTO MPYE: 6 bar gauge typical supply (brief; Festo operating range 0-10 bar)
-    "supply_pressure_bar_gauge": 6.0,
-    "atmospheric_pressure_kpa": 101.325,  # ISO 2533 sea level
-    "temperature_c": 20.0,  # supply and chamber gas temperature (assumption)
-    "gas_constant_j_per_kg_k": 287.05,  # dry air
-    # Polytropic index of the chamber gas. 1.4 (adiabatic): the small-signal
-    # oscillation (1-6 Hz) is much faster than the wall heat exchange of a
-    # 125 mm chamber (seconds), Richer & Hurmuzlu 2000 sec. 2.2. Calibrated
-    # (the stiffest physical choice, see docs/paper-notes.md (pneumatics)).
-    "polytropic_index": 1.4,
-    # The chamber gas: "polytropic", p V^n with polytropic_index and the gas at
-    # temperature_c (the calibrated paper preset's); "energy", each chamber's energy
-    # equation with its temperature as a state and heat exchanged with the wall at
-    # temperature_c (simpro_mj.plant.step_functions.chamber_energy; Richer & Hurmuzlu
-    # 2000, Carneiro & de Almeida 2006): charging near adiabatic, discharging cooler,
-    # the polytropic behaviour emerging from the heat flow
-    "thermal": {
-        "model": "polytropic",
-        "ratio_of_specific_heats": 1.4,  # dry air
-        # convective coefficient gas-to-wall (assumption: forced convection of a
-        # charging chamber is tens of W/(m^2 K); the effect of 10 and 100 is shown in
-        # docs/paper-notes.md, chamber thermodynamics)
-        "heat_transfer_w_per_m2_k": 30.0,
-    },
-    # The compressed-air supply at the valves: "ideal", a source held at
-    # supply_pressure_bar_gauge whatever the valves draw; "receiver", as built: a
-    # compressor with a pressure switch fills a receiver, a regulator set to
-    # supply_pressure_bar_gauge feeds the line to the valves (simpro_mj.plant.
-    # step_functions.supply_step). Assumptions, a workshop installation of the size
-    # a 3-4 kW piston compressor makes (no figures of the SIMPRO rig at hand):
-    "supply": {
-        "model": "ideal",
-        "compressor_flow_l_per_min": 400.0,  # free air delivered (ANR)
-        "receiver_volume_l": 100.0,
-        "cut_in_bar_gauge": 7.0,  # the pressure switch starts the compressor below it
-        "cut_out_bar_gauge": 8.0,  # and stops it above it
-        # the regulator and line: flow at 1 bar of droop, l/min ANR (a G 1/2
-        # regulator's catalogue order), and the hoses' volume to the three valves
-        "regulator_flow_l_per_min_per_bar": 2000.0,
-        "line_volume_l": 2.0,
-    },
-    "cylinder": {
-        # DNC-125-500 (ISO 15552): bore 125 mm, stroke 500 mm (type code)
-        "bore_mm": 125.0,
-        # ISO 15552 rod for 125 bore (assumption, not read from a datasheet)
-        "rod_mm": 32.0,
-        "stroke_mm": 500.0,
-        # Dead volume per chamber: end-cap cushioning + port + valve-to-cylinder
-        # hose (3/8" hose, ID ~ 10 mm). Calibrated, see docs/paper-notes.md (pneumatics).
-        "dead_volume_cap_l": [0.10, 0.10, 0.10],
-        "dead_volume_rod_l": [0.10, 0.10, 0.10],
-        # Viscous friction coefficient, N s/m. Calibrated per leg (damping
-        # ratio of eqs. 34/35), see docs/paper-notes.md (pneumatics).
-        "viscous_friction_n_s_per_m": [11000.0, 600.0, 600.0],
-        # Coulomb (seal) friction, N: low-friction seals (assumption, kept low:
-        # its describing-function damping at PRBS speeds would dominate the
-        # paper's small damping of legs 2-3, see docs/paper-notes.md (pneumatics))
-        "coulomb_friction_n": [20.0, 20.0, 20.0],
-        # Static (breakaway) friction, N, >= the Coulomb force; null: equal to it
-        # (no Stribeck peak). The seal law is simpro_mj.plant.friction.seal_friction.
-        "breakaway_friction_n": None,
-        # breakaway / Coulomb force, used when breakaway_friction_n is null: a
-        # seal's breakaway follows its running friction (a sweep over the Coulomb
-        # force then draws whole seals); 1: no Stribeck peak
-        "breakaway_ratio": 1.0,
-        # Stribeck velocity, mm/s: where the breakaway peak has fallen to 1/e
-        # (assumption; only a breakaway_friction_n above the Coulomb force uses it)
-        "stribeck_velocity_mm_per_s": 10.0,
-        # How the dry friction acts. "stick": MuJoCo's joint dry friction
-        # (frictionloss, solved with the constraints) carries the breakaway force, so
-        # a seal under a smaller load sticks; the drop to the Coulomb force with speed
-        # (Stribeck) is added explicitly (simpro_mj.plant.friction). "regularised":
-        # the whole map in the pneumatic force, tanh over coulomb_smoothing_mm_per_s
-        # (a seal under any load creeps)
-        "friction_model": "stick",
-        # regularising velocity of the "regularised" dry friction (tanh), mm/s: below
-        # it the seal acts as a damper of slope breakaway / velocity (assumption)
-        "coulomb_smoothing_mm_per_s": 5.0,
-        # the "stick" model's constraint softness (MuJoCo's solreffriction time
-        # constant and solimpfriction impedance): a stuck seal yields by about
-        # (1 - impedance) of what it holds and recovers within the time constant;
-        # 2 ms (two 1 ms steps) and 0.9999 are the stiffest MuJoCo integrates and
-        # accepts (numerical choices: halving or doubling them is checked in
-        # docs/paper-notes.md, numerical parameters)
-        "stick_time_constant_ms": 2.0,
-        "stick_impedance": 0.9999,
-    },
-    "valve": {
-        # Sonic conductance C of one fully open metering edge, dm^3/(s bar).
-        # From the MPYE-5-3/8 nominal flow 2000 l/min (ANR, 6 -> 5 bar gauge,
-        # Festo catalogue; assumption, no datasheet at hand) with b = 0.3:
-        # C = qn / (p1 sqrt(1 - ((6/7 - b)/(1 - b))^2)) = 7.87 dm^3/(s bar).
-        "sonic_conductance_dm3_per_s_bar": 7.87,
-        # ISO 6358 critical pressure ratio b (assumption; spool valves 0.2-0.45)
-        "critical_pressure_ratio": 0.3,
-        # start of the laminar (linearised) region, ISO 6358-3 uses 0.999
-        "laminar_pressure_ratio": 0.999,
-        # Underlap of each metering edge as a fraction of the full opening
-        # (Rubio 2009's underlap leakage). Calibrated per leg.
-        "underlap_fraction": [0.02, 0.02, 0.02],
-        # Clearance leakage of a covered edge, fraction of full opening (assumption)
-        "leakage_fraction": 0.002,
-        # Spool response: 1 (first-order lag) or 2 (second order), bandwidth and
-        # damping (assumption: MPYE data not at hand; Project Chrono's valve 35 Hz,
-        # servo-valves 50-120 Hz)
-        "spool_order": 1,
-        "spool_bandwidth_hz": 60.0,
-        "spool_damping_ratio": 0.8,
-    },
-    "integration": {
-        # pressure sub-steps per call of step() (linearly implicit Euler each)
-        "substeps": 1,
-    },
-    "linear": {
-        # eq. (19) coefficients per leg in SI (slide metres per valve volt). null:
-        # eq. (34) actuator 1, eq. (35) actuators 2, 3 in SI under the scenario's
-        # paper_units reading (b / 20 for "volts"), filled in by the caller
-        # (make_actuators(..., linear_plants=...)); the plant knows no paper reading
-        "b_m_per_s3_v": None,
-        "a1_per_s": None,
-        "a0_per_s2": None,
-        # effective mass at each slide, kg (diagonal); null: MuJoCo's full mass
-        # matrix reduced to the slides at home (computed by make_actuators)
-        "effective_mass_kg": None,
-        # force of the linear model is bounded by the cylinder's (same as nonlinear)
-        "saturate_force": True,
-    },
-}
+_REAL = TypeAdapter(Real)
+_PER_LEG = "a number or a list of 3 numbers (one per leg)"
+
+
+def _number(value: Any) -> float:
+    try:
+        return _REAL.validate_python(value)
+    except ValidationError as exc:
+        if exc.errors()[0]["type"] == "finite_number":
+            raise Problem.invalid(value, f"a finite number; {_PER_LEG}") from None
+        raise Problem.wrong_type(value, _PER_LEG) from None
+
+
+def _per_leg(value: Any) -> Any:
+    """One number for every leg, or three; kept as given (the record broadcasts)."""
+    value = yaml_number(value)
+    if isinstance(value, list | tuple):
+        if len(value) != 3:
+            raise Problem.wrong_type(value, _PER_LEG)
+        return [_number(v) for v in value]
+    return _number(value)
+
+
+class Legs:
+    """The range of each leg's value (``Annotated[PerLeg, Legs(ge=0, le=5000)]``):
+    pydantic's own bound errors, the bounds where the error formatter and
+    ``simpro-sim show`` read them (``metadata``)."""
+
+    _ERRORS: dict[str, Literal["greater_than", "greater_than_equal", "less_than_equal"]] = {
+        "gt": "greater_than",
+        "ge": "greater_than_equal",
+        "le": "less_than_equal",
+    }
+
+    def __init__(self, **bounds: float) -> None:
+        self.bounds = bounds
+        self.metadata = list(at.Interval(**bounds))
+
+    def __get_pydantic_core_schema__(self, source: Any, handler: Any) -> Any:
+        return core_schema.no_info_after_validator_function(self._check, handler(source))
+
+    def _check(self, value: Any) -> Any:
+        for x in [] if value is None else np.atleast_1d(value):
+            for key, bound in self.bounds.items():
+                if not {"gt": x > bound, "ge": x >= bound, "le": x <= bound}[key]:
+                    raise PydanticKnownError(self._ERRORS[key], {key: bound})
+        return value
+
+
+#: A per-leg value: one number or three (``OptionalPerLeg``: or null).
+PerLeg = Annotated[float | list[float], BeforeValidator(_per_leg)]
+OptionalPerLeg = Annotated[
+    float | list[float] | None, BeforeValidator(lambda v: v if v is None else _per_leg(v))
+]
+
+
+class Thermal(Block):
+    """The chamber gas: polytropic, or each chamber's energy equation with wall heat.
+
+    "polytropic": p V^n with polytropic_index and the gas at temperature_c (the
+    calibrated paper preset's); "energy": each chamber's energy equation with its
+    temperature as a state and heat exchanged with the wall at temperature_c
+    (simpro_mj.plant.step_functions.chamber_energy; Richer & Hurmuzlu 2000,
+    Carneiro & de Almeida 2006): charging near adiabatic, discharging cooler, the
+    polytropic behaviour emerging from the heat flow.
+    """
+
+    model: ThermalModel = param(
+        "polytropic",
+        "",
+        "polytropic: p V^n with polytropic_index at temperature_c; energy: each chamber's "
+        "energy equation, heat exchanged with the wall at temperature_c",
+    )
+    ratio_of_specific_heats: Real = param(
+        1.4, "", "gamma of the gas (dry air 1.4; energy model)", gt=1.0, le=1.67
+    )
+    # forced convection of a charging chamber is tens of W/(m^2 K) (assumption; the
+    # effect of 10 and 100 is shown in docs/paper-notes.md, chamber thermodynamics)
+    heat_transfer_w_per_m2_k: Real = param(
+        30.0,
+        "W/(m^2 K)",
+        "convective coefficient gas to wall (energy model; assumption)",
+        ge=0.0,
+        le=1e4,
+    )
+
+
+class Supply(Block):
+    """The compressed-air supply at the valves: ideal, or compressor, receiver, regulator.
+
+    "ideal": a source held at supply_pressure_bar_gauge whatever the valves draw;
+    "receiver", as built: a compressor with a pressure switch fills a receiver, a
+    regulator set to supply_pressure_bar_gauge feeds the line to the valves
+    (simpro_mj.plant.step_functions.supply_step). The numbers are assumptions, a
+    workshop installation of the size a 3-4 kW piston compressor makes (no figures
+    of the SIMPRO rig at hand); the regulator's flow is a G 1/2 regulator's
+    catalogue order.
+    """
+
+    model: SupplyModel = param(
+        "ideal",
+        "",
+        "ideal: held at supply_pressure_bar_gauge; receiver: a compressor with a pressure "
+        "switch fills a receiver, a regulator feeds the line (assumptions)",
+    )
+    compressor_flow_l_per_min: Real = param(
+        400.0, "l/min ANR", "free air the compressor delivers", ge=0.0, le=1e5
+    )
+    receiver_volume_l: Real = param(100.0, "l", "receiver volume", gt=0.0, le=1e5)
+    cut_in_bar_gauge: Real = param(
+        7.0, "bar gauge", "the pressure switch starts the compressor below", gt=0.0, le=16.0
+    )
+    cut_out_bar_gauge: Real = param(
+        8.0, "bar gauge", "and stops it above (> cut_in_bar_gauge)", gt=0.0, le=16.0
+    )
+    regulator_flow_l_per_min_per_bar: Real = param(
+        2000.0,
+        "l/min ANR per bar",
+        "the regulator and line's flow at 1 bar of droop",
+        gt=0.0,
+        le=1e6,
+    )
+    line_volume_l: Real = param(2.0, "l", "the hoses' volume to the valves", gt=0.0, le=1e3)
+
+    @model_validator(mode="after")
+    def _switch(self) -> Supply:
+        """The pressure switch stops the compressor above where it starts it."""
+        if self.cut_out_bar_gauge <= self.cut_in_bar_gauge:
+            raise Problem.invalid(
+                self.cut_out_bar_gauge,
+                f"above supply.cut_in_bar_gauge ({self.cut_in_bar_gauge!r})",
+                ".cut_out_bar_gauge",
+            )
+        return self
+
+
+_DEAD = "the port and hose volume, 0.1 l here; 10 l is a tank"
+_SEAL = "5 kN is 40 % of the cylinder's force"
+
+
+class Cylinder(Block):
+    """The DNC-125-500 cylinder (ISO 15552) and its seals.
+
+    The dead volume of a chamber is its end-cap cushioning, port and
+    valve-to-cylinder hose (3/8", ID ~ 10 mm); it and the viscous friction (the
+    damping ratio of eqs. 34/35) are calibrated per leg, docs/paper-notes.md
+    (pneumatics). The Coulomb force is kept low: its describing-function damping
+    at PRBS speeds would dominate the paper's small damping of legs 2-3. The seal
+    law is simpro_mj.plant.friction.seal_friction. "stick": MuJoCo's joint dry
+    friction (frictionloss, solved with the constraints) carries the breakaway
+    force, so a seal under a smaller load sticks, the drop to the Coulomb force
+    with speed (Stribeck) added explicitly; "regularised": the whole map in the
+    pneumatic force, tanh over coulomb_smoothing_mm_per_s (a seal under any load
+    creeps). The stick model's constraint yields by about (1 - impedance) of what
+    it holds and recovers within its time constant; 2 ms (two 1 ms steps) and
+    0.9999 are the stiffest MuJoCo integrates and accepts (halving or doubling
+    them: docs/paper-notes.md, numerical parameters).
+    """
+
+    bore_mm: Real = param(
+        125.0,
+        "mm",
+        "bore (DNC-125-500: 125 mm, type code)",
+        why="ISO 15552 and catalogue bores",
+        ge=8.0,
+        le=320.0,
+    )
+    # ISO 15552 rod for a 125 bore (assumption, not read from a datasheet)
+    rod_mm: Real = param(32.0, "mm", "rod diameter (ISO 15552 for a 125 bore)", gt=0.0)
+    stroke_mm: Real = param(
+        500.0,
+        "mm",
+        "stroke (type code: 500 mm)",
+        why="catalogue strokes; the model has 500",
+        ge=10.0,
+        le=3000.0,
+    )
+    dead_volume_cap_l: Annotated[PerLeg, Legs(ge=1e-4, le=10.0)] = param(
+        [0.10, 0.10, 0.10], "l", "dead volume, cap side: cushioning, port, hose", why=_DEAD
+    )
+    dead_volume_rod_l: Annotated[PerLeg, Legs(ge=1e-4, le=10.0)] = param(
+        [0.10, 0.10, 0.10], "l", "dead volume, rod side: cushioning, port, hose", why=_DEAD
+    )
+    viscous_friction_n_s_per_m: Annotated[PerLeg, Legs(ge=0.0, le=1e5)] = param(
+        [11000.0, 600.0, 600.0],
+        "N s/m",
+        "viscous friction (calibrated per leg)",
+        why="seal friction of a DNC-125 is hundreds to about 10,000; at 1e5 N s/m 0.1 m/s "
+        "takes 10 kN, nearly all the cylinder makes",
+    )
+    coulomb_friction_n: Annotated[PerLeg, Legs(ge=0.0, le=5000.0)] = param(
+        [20.0, 20.0, 20.0],
+        "N",
+        "Coulomb (running) seal friction",
+        why=f"tens to a few hundred for a DNC-125; {_SEAL}",
+    )
+    breakaway_friction_n: Annotated[OptionalPerLeg, Legs(ge=0.0, le=5000.0)] = param(
+        None,
+        "N",
+        "static (breakaway) seal friction, >= the Coulomb force; null: Coulomb x breakaway_ratio",
+        why=f"at least the Coulomb force; {_SEAL}",
+    )
+    # a seal's breakaway follows its running friction: a sweep over the Coulomb force
+    # then draws whole seals
+    breakaway_ratio: Real = param(
+        1.0,
+        "",
+        "breakaway / Coulomb force (breakaway_friction_n null)",
+        why="1 (no peak) to about 2 for lip seals",
+        ge=1.0,
+        le=10.0,
+    )
+    stribeck_velocity_mm_per_s: Real = param(
+        10.0,
+        "mm/s",
+        "where the breakaway peak has fallen to 1/e",
+        why="where the breakaway peak decays, a few to tens of mm/s (assumption)",
+        gt=1e-3,
+        le=1000.0,
+    )
+    friction_model: FrictionModel = param(
+        "stick",
+        "",
+        "stick: MuJoCo's joint dry friction carries the breakaway (a seal under a smaller "
+        "load sticks); regularised: tanh over coulomb_smoothing_mm_per_s (a loaded seal creeps)",
+    )
+    coulomb_smoothing_mm_per_s: Real = param(
+        5.0,
+        "mm/s",
+        "regularising velocity (regularised only)",
+        why="the speed over which the friction changes sign (assumption)",
+        ge=1e-3,
+        le=1000.0,
+    )
+    stick_time_constant_ms: Real = param(
+        2.0,
+        "ms",
+        "stick only: the time constant of MuJoCo's dry-friction constraint (solreffriction)",
+        why="two 1 ms steps is the stiffest MuJoCo integrates",
+        ge=2.0,
+        le=100.0,
+    )
+    stick_impedance: Real = param(
+        0.9999,
+        "",
+        "stick only: the impedance of MuJoCo's dry-friction constraint (solimpfriction)",
+        why="MuJoCo's impedance: at most 0.9999, its own limit",
+        ge=0.9,
+        le=0.9999,
+    )
+
+    @model_validator(mode="after")
+    def _seals(self) -> Cylinder:
+        """The rod inside the bore; the breakaway force given once, at least the Coulomb's."""
+        if self.rod_mm > self.bore_mm * 0.999:
+            rest = f"> 0 and <= {self.bore_mm * 0.999:g} (inside the bore)"
+            raise Problem.invalid(self.rod_mm, rest, ".rod_mm")
+        if self.breakaway_friction_n is None:
+            return self
+        if self.breakaway_ratio != 1.0:
+            raise Problem.invalid(
+                self.breakaway_ratio,
+                "1 when cylinder.breakaway_friction_n is set (set one of the two)",
+                ".breakaway_ratio",
+            )
+        coulomb = np.broadcast_to(np.asarray(self.coulomb_friction_n, float), (3,))
+        if np.any(np.asarray(self.breakaway_friction_n, float) < coulomb):
+            raise Problem.invalid(
+                self.breakaway_friction_n,
+                f"null or, per leg, at least cylinder.coulomb_friction_n ({coulomb.tolist()})",
+                ".breakaway_friction_n",
+            )
+        return self
+
+
+class Valve(Block):
+    """The FESTO MPYE-5-3/8 proportional valve (ISO 6358 flow).
+
+    The sonic conductance of one fully open metering edge follows from the
+    MPYE-5-3/8 nominal flow 2000 l/min (ANR, 6 -> 5 bar gauge, Festo catalogue;
+    assumption, no datasheet at hand) with b = 0.3:
+    C = qn / (p1 sqrt(1 - ((6/7 - b)/(1 - b))^2)) = 7.87 dm^3/(s bar). The
+    critical pressure ratio is an assumption (spool valves 0.2-0.45); ISO 6358-3
+    starts the laminar region at 0.999. The underlap (Rubio 2009's underlap
+    leakage) is calibrated per leg; the clearance leakage is an assumption. The
+    spool (MPYE data not at hand): Project Chrono's valve 35 Hz, servo-valves
+    50-120 Hz.
+    """
+
+    sonic_conductance_dm3_per_s_bar: Real = param(
+        7.87,
+        "dm^3/(s bar)",
+        "sonic conductance C of one fully open metering edge",
+        why="the MPYE-5-3/8 has 7.87; 100 is a valve far beyond the cylinder's ports",
+        ge=0.01,
+        le=100.0,
+    )
+    critical_pressure_ratio: Real = param(
+        0.3, "", "ISO 6358 critical pressure ratio b", ge=0.0, le=0.528
+    )
+    laminar_pressure_ratio: Real = param(
+        0.999, "", "start of the laminar region", gt=0.9, le=0.99999
+    )
+    underlap_fraction: Annotated[PerLeg, Legs(ge=0.0, le=0.5)] = param(
+        [0.02, 0.02, 0.02], "", "underlap of each metering edge, fraction of the opening"
+    )
+    leakage_fraction: Real = param(
+        0.002, "", "clearance leakage of a covered edge, fraction of opening", gt=0.0, le=0.5
+    )
+    spool_order: Whole = param(1, "", "spool response: 1 (first order) or 2", ge=1, le=2)
+    spool_bandwidth_hz: Real = param(
+        60.0, "Hz", "spool bandwidth", why="the MPYE's spool, about 60-100", ge=1.0, le=1000.0
+    )
+    spool_damping_ratio: Real = param(
+        0.8, "", "a 2nd-order spool's damping", why="a second-order spool's damping", ge=0.01,
+        le=10.0,
+    )  # fmt: skip
+
+
+class Integration(Block):
+    """How the chamber pressures are integrated."""
+
+    substeps: Whole = param(
+        1, "", "pressure sub-steps per 1 ms step (linearly implicit Euler)", gt=0, le=1000
+    )
+
+
+class Linear(Block):
+    """The linear model of eq. (19) (``actuator.model: linear``).
+
+    Null coefficients: eq. (34) for actuator 1 and eq. (35) for actuators 2, 3 in
+    SI under the scenario's paper_units reading, filled in by the caller
+    (:func:`fill_linear`; the plant knows no paper reading). A null mass: MuJoCo's
+    full mass matrix reduced to the slides at home (make_actuators).
+    """
+
+    b_m_per_s3_v: Annotated[OptionalPerLeg, Legs(ge=0.0)] = param(
+        None, "m/(s^3 V)", "eq. (19)'s b per leg; null: eqs. (34)-(35)"
+    )
+    a1_per_s: Annotated[OptionalPerLeg, Legs(ge=0.0)] = param(
+        None, "1/s", "eq. (19)'s a1; null: eqs. (34)-(35)"
+    )
+    a0_per_s2: Annotated[OptionalPerLeg, Legs(gt=0.0)] = param(
+        None, "1/s^2", "eq. (19)'s a0; null: eqs. (34)-(35)"
+    )
+    effective_mass_kg: Annotated[OptionalPerLeg, Legs(gt=0.0)] = param(
+        None, "kg", "mass at each slide; null: MuJoCo's, reduced at home"
+    )
+    saturate_force: StrictBool = param(
+        True, "", "bound the force by the cylinder's, as the nonlinear model"
+    )
+
+
+def _legs(value: Any) -> Any:
+    """A per-leg value as 3 floats; None stays None."""
+    if value is None:
+        return None
+    arr = np.asarray(value, dtype=float)
+    return np.full(3, float(arr)) if arr.ndim == 0 else arr
+
+
+class Pneumatics(Block):
+    """Valve + cylinder of every leg (simpro_mj.plant.pneumatics), edge units in the keys.
+
+    The supply: a FESTO MPYE's typical 6 bar gauge (Festo operating range
+    0-10 bar). The polytropic index 1.4 (adiabatic): the small-signal oscillation
+    (1-6 Hz) is much faster than the wall heat exchange of a 125 mm chamber
+    (seconds), Richer & Hurmuzlu 2000 sec. 2.2; calibrated, the stiffest physical
+    choice (docs/paper-notes.md, pneumatics).
+    """
+
+    supply_pressure_bar_gauge: Real = param(
+        6.0,
+        "bar gauge",
+        "supply pressure at the valves (MPYE: 6 typical)",
+        why="the MPYE valve and DNC cylinders are rated to 10-12 bar",
+        gt=0.0,
+        le=12.0,
+    )
+    atmospheric_pressure_kpa: Real = param(
+        101.325,
+        "kPa",
+        "ambient pressure (ISO 2533 sea level)",
+        why="from the top of Mount Everest (33) to below sea level (107)",
+        ge=30.0,
+        le=110.0,
+    )
+    temperature_c: Real = param(
+        20.0,
+        "deg C",
+        "supply and chamber gas temperature",
+        why="the seals' and the valve's rating",
+        ge=-40.0,
+        le=100.0,
+    )
+    gas_constant_j_per_kg_k: Real = param(
+        287.05,
+        "J/(kg K)",
+        "specific gas constant (dry air)",
+        why="air 287, nitrogen 297; the model is for such gases",
+        ge=200.0,
+        le=500.0,
+    )
+    polytropic_index: Real = param(
+        1.4,
+        "",
+        "chamber gas polytropic index: 1 isothermal .. 1.4 adiabatic",
+        why="isothermal 1 .. adiabatic monatomic 1.67",
+        ge=1.0,
+        le=1.67,
+    )
+    thermal: Thermal = block(Thermal)
+    supply: Supply = block(Supply)
+    cylinder: Cylinder = block(Cylinder)
+    valve: Valve = block(Valve)
+    integration: Integration = block(Integration)
+    linear: Linear = block(Linear)
+
+    def params(self) -> PneumaticParams:
+        """The plant's parameter record of this block (SI)."""
+        cyl, valve, sup, lin = self.cylinder, self.valve, self.supply, self.linear
+        p_atm = self.atmospheric_pressure_kpa * 1e3
+        bore, rod = cyl.bore_mm * 1e-3, cyl.rod_mm * 1e-3
+        a1 = math.pi / 4 * bore**2
+        coulomb = _legs(cyl.coulomb_friction_n)
+        breakaway = _legs(cyl.breakaway_friction_n)
+        return PneumaticParams(
+            p_supply=self.supply_pressure_bar_gauge * 1e5 + p_atm,
+            p_atm=p_atm,
+            temperature=self.temperature_c + 273.15,
+            gas_constant=self.gas_constant_j_per_kg_k,
+            n_poly=self.polytropic_index,
+            area_cap=a1,
+            area_rod_side=a1 - math.pi / 4 * rod**2,
+            stroke=cyl.stroke_mm * 1e-3,
+            dead_cap=_legs(cyl.dead_volume_cap_l) * 1e-3,
+            dead_rod=_legs(cyl.dead_volume_rod_l) * 1e-3,
+            viscous=_legs(cyl.viscous_friction_n_s_per_m),
+            coulomb=coulomb,
+            breakaway=coulomb * cyl.breakaway_ratio if breakaway is None else breakaway,
+            v_stribeck=cyl.stribeck_velocity_mm_per_s * 1e-3,
+            v_smooth=cyl.coulomb_smoothing_mm_per_s * 1e-3,
+            friction_model=cyl.friction_model,
+            stick_solref=cyl.stick_time_constant_ms * 1e-3,
+            stick_solimp=cyl.stick_impedance,
+            thermal_model=self.thermal.model,
+            supply_model=sup.model,
+            compressor_flow=sup.compressor_flow_l_per_min * RHO_REF / 60e3,
+            receiver_volume=sup.receiver_volume_l * 1e-3,
+            line_volume=sup.line_volume_l * 1e-3,
+            cut_in=sup.cut_in_bar_gauge * 1e5 + p_atm,
+            cut_out=sup.cut_out_bar_gauge * 1e5 + p_atm,
+            regulator_conductance=sup.regulator_flow_l_per_min_per_bar * RHO_REF / 60e3 / 1e5,
+            gamma=self.thermal.ratio_of_specific_heats,
+            heat_transfer=self.thermal.heat_transfer_w_per_m2_k,
+            conductance=valve.sonic_conductance_dm3_per_s_bar * 1e-3 / 1e5,
+            b_crit=valve.critical_pressure_ratio,
+            r_laminar=valve.laminar_pressure_ratio,
+            underlap=_legs(valve.underlap_fraction),
+            leakage=valve.leakage_fraction,
+            spool_order=valve.spool_order,
+            spool_omega=2 * math.pi * valve.spool_bandwidth_hz,
+            spool_zeta=valve.spool_damping_ratio,
+            substeps=self.integration.substeps,
+            lin_b=_legs(lin.b_m_per_s3_v),
+            lin_a1=_legs(lin.a1_per_s),
+            lin_a0=_legs(lin.a0_per_s2),
+            lin_mass=_legs(lin.effective_mass_kg),
+            lin_saturate=lin.saturate_force,
+        )
+
+
+#: The block's defaults as a plain tree, edge units in the key names.
+DEFAULT_PNEUMATIC_PARAMS: dict = dict(Pneumatics.defaults())
 
 
 def pneumatic_params(overrides=None, base: dict | None = None) -> dict:
@@ -191,131 +529,43 @@ def pneumatic_params(overrides=None, base: dict | None = None) -> dict:
     return apply_overrides(DEFAULT_PNEUMATIC_PARAMS if base is None else base, overrides or [])
 
 
-def _range_text(lo: float, hi: float, open_lo: bool, why: str) -> str:
-    rng = f"{'>' if open_lo else '>='} {lo:g}" + (f" and <= {hi:g}" if hi < math.inf else "")
-    return rng + (f" ({why})" if why else "")
+def typed(tree: Any = None) -> Pneumatics:
+    """A ``pneumatics`` tree (None: the defaults) as the typed block, or one line.
 
+    The scenario validates its block with the scenario's formatter; this one
+    serves a tree handed to the plant directly.
 
-def _per_leg(
-    tree: Mapping, path: str, lo: float = 0.0, hi: float = math.inf, open_lo=False, why: str = ""
-):
-    if not why:
-        lo, hi, open_lo, why = _PLAUSIBLE.get(path, (lo, hi, open_lo, why))
-    node = tree
-    for part in path.split("."):
-        node = node[part]
-    arr = np.asarray(node, dtype=float)
-    if arr.ndim == 0:
-        arr = np.full(3, float(arr))
-    ok = arr.shape == (3,) and np.all(np.isfinite(arr))
-    ok = ok and np.all(arr > lo if open_lo else arr >= lo) and np.all(arr <= hi)
-    if not ok:
-        raise UserInputError(
-            f"invalid value at pneumatics.{path}: {node!r}; allowed: a number or a list of 3 "
-            f"numbers {_range_text(lo, hi, open_lo, why)}"
-        )
-    return arr
-
-
-def _per_leg_or_none(tree: Mapping, path: str, lo: float = 0.0, open_lo=False):
-    node = tree
-    for part in path.split("."):
-        node = node[part]
-    return None if node is None else _per_leg(tree, path, lo, open_lo=open_lo)
-
-
-def _scalar(
-    tree: Mapping, path: str, lo: float, hi: float = math.inf, open_lo=True, why: str = ""
-) -> float:
-    if not why:
-        lo, hi, open_lo, why = _PLAUSIBLE.get(path, (lo, hi, open_lo, why))
-    node: Any = tree
-    for part in path.split("."):
-        node = node[part]
+    Raises
+    ------
+    UserInputError
+        ``<what> at pneumatics.<dotted key>: <value>; allowed: ...``.
+    """
+    if isinstance(tree, Pneumatics):
+        return tree
     try:
-        x = float(node)
-    except (TypeError, ValueError):
-        x = math.nan
-    if not (math.isfinite(x) and (x > lo if open_lo else x >= lo) and x <= hi):
-        raise UserInputError(
-            f"invalid value at pneumatics.{path}: {node!r}; allowed: "
-            f"{_range_text(lo, hi, open_lo, why)}"
-        )
-    return x
-
-
-def _choice(tree: Mapping, path: str, allowed: tuple) -> str:
-    node = tree
-    for part in path.split("."):
-        node = node[part]
-    if node not in allowed:
-        raise UserInputError(
-            f"invalid value at pneumatics.{path}: {node!r}; allowed: "
-            + ", ".join(repr(a) for a in allowed)
-        )
-    return str(node)
-
-
-#: Physically plausible range of each parameter: path -> (low, high, low open, why).
-#: A value outside is refused before the simulation, the reason in the message.
-_PLAUSIBLE = {
-    "atmospheric_pressure_kpa": (
-        30.0, 110.0, False, "kPa: from the top of Mount Everest (33) to below sea level (107)"
-    ),
-    "supply_pressure_bar_gauge": (
-        0.0, 12.0, True, "bar: the MPYE valve and DNC cylinders are rated to 10-12 bar"
-    ),
-    "temperature_c": (-40.0, 100.0, False, "deg C: beyond the seals' and the valve's rating"),
-    "gas_constant_j_per_kg_k": (
-        200.0, 500.0, False, "J/(kg K): air 287, nitrogen 297; the model is for such gases"
-    ),
-    "polytropic_index": (1.0, 1.67, False, "isothermal 1 .. adiabatic monatomic 1.67"),
-    "cylinder.bore_mm": (8.0, 320.0, False, "mm: ISO 15552 and catalogue bores, 8..320"),
-    "cylinder.stroke_mm": (10.0, 3000.0, False, "mm: catalogue strokes; the model has 500"),
-    "cylinder.dead_volume_cap_l": (
-        1e-4, 10.0, False, "l: the port and hose volume, 0.1 l here; 10 l is a tank"
-    ),
-    "cylinder.dead_volume_rod_l": (
-        1e-4, 10.0, False, "l: the port and hose volume, 0.1 l here; 10 l is a tank"
-    ),
-    "cylinder.viscous_friction_n_s_per_m": (
-        0.0, 1e5, False,
-        "N s/m: seal friction of a DNC-125 is hundreds to about 10,000; at 1e5 N s/m "
-        "0.1 m/s takes 10 kN, nearly all the cylinder makes",
-    ),
-    "cylinder.coulomb_friction_n": (
-        0.0, 5000.0, False, "N: tens to a few hundred for a DNC-125; 5 kN is 40 % of its force"
-    ),
-    "cylinder.breakaway_friction_n": (
-        0.0, 5000.0, False, "N: at least the Coulomb force; 5 kN is 40 % of the cylinder's force"
-    ),
-    "cylinder.breakaway_ratio": (
-        1.0, 10.0, False, "breakaway / Coulomb force: 1 (no peak) to about 2 for lip seals"
-    ),
-    "cylinder.stribeck_velocity_mm_per_s": (
-        1e-3, 1000.0, True, "mm/s: where the breakaway peak decays, a few to tens of mm/s"
-    ),
-    "cylinder.coulomb_smoothing_mm_per_s": (
-        1e-3, 1000.0, False, "mm/s: the speed over which the friction changes sign"
-    ),
-    "cylinder.stick_time_constant_ms": (
-        2.0, 100.0, False, "ms: two 1 ms steps is the stiffest MuJoCo integrates"
-    ),
-    "cylinder.stick_impedance": (
-        0.9, 0.9999, False, "MuJoCo's impedance: at most 0.9999, its own limit"
-    ),
-    "valve.sonic_conductance_dm3_per_s_bar": (
-        0.01, 100.0, False, "dm^3/(s bar): the MPYE-5-3/8 has 7.87; 100 is a valve far "
-        "beyond the cylinder's ports",
-    ),
-    "valve.spool_bandwidth_hz": (1.0, 1000.0, False, "Hz: the MPYE's spool, about 60-100"),
-    "valve.spool_damping_ratio": (0.01, 10.0, False, "a second-order spool's damping"),
-}  # fmt: skip
+        return Pneumatics.model_validate({} if tree is None else tree)
+    except ValidationError as exc:
+        errors = exc.errors(include_url=False)
+        err = next((e for e in errors if e["type"] == "extra_forbidden"), errors[0])
+        where = ".".join(map(str, ("pneumatics", *err["loc"])))
+        cause = (err.get("ctx") or {}).get("error")
+        if isinstance(cause, Problem):
+            raise UserInputError(f"{cause.head} at {where}{cause.suffix}{cause.rest}") from None
+        kind, allowed = err["type"], str(err["msg"])
+        head = "wrong type" if kind.endswith("_type") else "invalid value"
+        if kind == "extra_forbidden":
+            model: Any = Pneumatics
+            for part in err["loc"][:-1]:
+                model = model.model_fields[part].annotation
+            head, key = "unknown key", str(err["loc"][-1])
+            allowed = f"one of {sorted(model.model_fields)}{closest(key, model.model_fields)}"
+        got = value_text(err.get("input"))
+        raise UserInputError(f"{head} at {where}: {got}; allowed: {allowed}") from None
 
 
 @dataclass(frozen=True)
 class PneumaticParams:
-    """Actuator parameters in SI units (built from the tree by :meth:`from_tree`).
+    """Actuator parameters in SI units (:meth:`Pneumatics.params`).
 
     Arrays have one entry per leg.
     """
@@ -364,114 +614,15 @@ class PneumaticParams:
     lin_saturate: bool
 
     @classmethod
-    def from_tree(cls, tree: Mapping | None = None) -> PneumaticParams:
-        """Validate a parameter tree (defaults filled in) and convert to SI.
+    def from_tree(cls, tree: Any = None) -> PneumaticParams:
+        """The record of a ``pneumatics`` tree or block (:func:`typed`; None: defaults).
 
         Raises
         ------
         UserInputError
             For unknown keys or out-of-range values (the message names the path).
         """
-        t = copy.deepcopy(DEFAULT_PNEUMATIC_PARAMS)
-        if tree is not None:
-            check_keys(tree, DEFAULT_PNEUMATIC_PARAMS, "pneumatics")
-            for k, v in tree.items():
-                if isinstance(v, Mapping):
-                    t[k].update(copy.deepcopy(dict(v)))
-                else:
-                    t[k] = copy.deepcopy(v)
-        p_atm = _scalar(t, "atmospheric_pressure_kpa", 0.0) * 1e3
-        p_s = _scalar(t, "supply_pressure_bar_gauge", 0.0, 12.0) * 1e5 + p_atm
-        bore = _scalar(t, "cylinder.bore_mm", 0.0) * 1e-3
-        rod = _scalar(t, "cylinder.rod_mm", 0.0, bore * 1e3 * 0.999) * 1e-3
-        a1 = math.pi / 4 * bore**2
-        a2 = a1 - math.pi / 4 * rod**2
-        order = _scalar(t, "valve.spool_order", 0.0, 2.0)
-        if order not in (1.0, 2.0):
-            raise UserInputError(
-                f"invalid value at pneumatics.valve.spool_order: {order}; allowed 1 or 2"
-            )
-        sub = _scalar(t, "integration.substeps", 0.0, 1000.0)
-        if sub != int(sub):
-            raise UserInputError("invalid value at pneumatics.integration.substeps: an integer")
-        coulomb = _per_leg(t, "cylinder.coulomb_friction_n")
-        ratio = _scalar(t, "cylinder.breakaway_ratio", 1.0)
-        if t["cylinder"]["breakaway_friction_n"] is None:
-            breakaway = coulomb * ratio
-        elif ratio != 1.0:
-            raise UserInputError(
-                f"invalid value at pneumatics.cylinder.breakaway_ratio: {ratio}; allowed: 1 "
-                "when pneumatics.cylinder.breakaway_friction_n is set (set one of the two)"
-            )
-        else:
-            breakaway = _per_leg(t, "cylinder.breakaway_friction_n")
-            if np.any(breakaway < coulomb):
-                raise UserInputError(
-                    "invalid value at pneumatics.cylinder.breakaway_friction_n: "
-                    f"{t['cylinder']['breakaway_friction_n']!r}; allowed: null or, per leg, at "
-                    f"least pneumatics.cylinder.coulomb_friction_n ({coulomb.tolist()})"
-                )
-        cut_in = _scalar(t, "supply.cut_in_bar_gauge", 0.0, 16.0)
-        cut_out = _scalar(t, "supply.cut_out_bar_gauge", 0.0, 16.0)
-        if cut_out <= cut_in:
-            raise UserInputError(
-                f"invalid value at pneumatics.supply.cut_out_bar_gauge: "
-                f"{t['supply']['cut_out_bar_gauge']!r}; allowed: above "
-                f"pneumatics.supply.cut_in_bar_gauge ({t['supply']['cut_in_bar_gauge']!r})"
-            )
-        lin_m = t["linear"]["effective_mass_kg"]
-        sat = t["linear"]["saturate_force"]
-        if not isinstance(sat, bool):
-            raise UserInputError("wrong type at pneumatics.linear.saturate_force: a boolean")
-        return cls(
-            p_supply=p_s,
-            p_atm=p_atm,
-            temperature=_scalar(t, "temperature_c", -273.15) + 273.15,
-            gas_constant=_scalar(t, "gas_constant_j_per_kg_k", 0.0),
-            n_poly=_scalar(t, "polytropic_index", 1.0, 1.67, open_lo=False),
-            area_cap=a1,
-            area_rod_side=a2,
-            stroke=_scalar(t, "cylinder.stroke_mm", 0.0) * 1e-3,
-            dead_cap=_per_leg(t, "cylinder.dead_volume_cap_l", 0.0, open_lo=True) * 1e-3,
-            dead_rod=_per_leg(t, "cylinder.dead_volume_rod_l", 0.0, open_lo=True) * 1e-3,
-            viscous=_per_leg(t, "cylinder.viscous_friction_n_s_per_m"),
-            coulomb=coulomb,
-            breakaway=breakaway,
-            v_stribeck=_scalar(t, "cylinder.stribeck_velocity_mm_per_s", 0.0) * 1e-3,
-            v_smooth=_scalar(t, "cylinder.coulomb_smoothing_mm_per_s", 0.0) * 1e-3,
-            friction_model=_choice(t, "cylinder.friction_model", FRICTION_MODELS),
-            stick_solref=_scalar(t, "cylinder.stick_time_constant_ms", 2.0) * 1e-3,
-            stick_solimp=_scalar(t, "cylinder.stick_impedance", 0.9),
-            thermal_model=_choice(t, "thermal.model", THERMAL_MODELS),
-            supply_model=_choice(t, "supply.model", SUPPLY_MODELS),
-            compressor_flow=_scalar(t, "supply.compressor_flow_l_per_min", 0.0, 1e5, False)
-            * RHO_REF
-            / 60e3,
-            receiver_volume=_scalar(t, "supply.receiver_volume_l", 0.0, 1e5) * 1e-3,
-            line_volume=_scalar(t, "supply.line_volume_l", 0.0, 1e3) * 1e-3,
-            cut_in=cut_in * 1e5 + p_atm,
-            cut_out=cut_out * 1e5 + p_atm,
-            regulator_conductance=_scalar(t, "supply.regulator_flow_l_per_min_per_bar", 0.0, 1e6)
-            * RHO_REF
-            / 60e3
-            / 1e5,
-            gamma=_scalar(t, "thermal.ratio_of_specific_heats", 1.0, 1.67, open_lo=True),
-            heat_transfer=_scalar(t, "thermal.heat_transfer_w_per_m2_k", 0.0, 1e4, open_lo=False),
-            conductance=_scalar(t, "valve.sonic_conductance_dm3_per_s_bar", 0.0) * 1e-3 / 1e5,
-            b_crit=_scalar(t, "valve.critical_pressure_ratio", 0.0, 0.528, open_lo=False),
-            r_laminar=_scalar(t, "valve.laminar_pressure_ratio", 0.9, 0.99999),
-            underlap=_per_leg(t, "valve.underlap_fraction", 0.0, 0.5),
-            leakage=_scalar(t, "valve.leakage_fraction", 0.0, 0.5),
-            spool_order=int(order),
-            spool_omega=2 * math.pi * _scalar(t, "valve.spool_bandwidth_hz", 0.0),
-            spool_zeta=_scalar(t, "valve.spool_damping_ratio", 0.0),
-            substeps=int(sub),
-            lin_b=_per_leg_or_none(t, "linear.b_m_per_s3_v"),
-            lin_a1=_per_leg_or_none(t, "linear.a1_per_s"),
-            lin_a0=_per_leg_or_none(t, "linear.a0_per_s2", 0.0, open_lo=True),
-            lin_mass=None if lin_m is None else _per_leg(t, "linear.effective_mass_kg", 0.0, True),
-            lin_saturate=sat,
-        )
+        return typed(tree).params()
 
     @property
     def area_rod(self) -> float:
