@@ -8,7 +8,14 @@ import numpy as np
 import pytest
 
 from controllers.analysis.inner import companion, inner_summary, step_metrics, tf_step
-from controllers.analysis.lifted import lifted_inner, outer_closed_loop, real_inner_limit
+from controllers.analysis.lifted import (
+    closed_loops,
+    lifted_inner,
+    outer_closed_loop,
+    real_inner_limit,
+    reduced,
+    spectral_radius,
+)
 from controllers.analysis.outer_delay import (
     closed_form_limit,
     outer_poles,
@@ -189,6 +196,33 @@ def test_lifted_pure_delay_reproduces_delay_model(mode, gain):
     np.testing.assert_allclose(np.sort_complex(ev), np.sort_complex(want), atol=1e-12)
     assert real_inner_limit(mode, T, legs=[(0.0, 1.0, 1.0)]) == pytest.approx(
         stability_limit(*outer_polynomials(mode, T)), rel=1e-6
+    )
+
+
+@pytest.mark.parametrize("mode", ["I", "PI"])
+@pytest.mark.parametrize("period", [0.02, 0.06, 0.1])
+def test_the_limits_block_scan_is_the_one_gain_at_a_time_scan(mode, period):
+    """The scan solves its gains' closed loops a block at a time: the same matrices, the
+    same spectral radii and the same limit, to the bit, as one gain at a time (the
+    paper's joint loops behind the shipped ramps, the IK Jacobian at home)."""
+    from controllers.geometry import geometry_from_rig
+    from controllers.kinematics import jacobian
+
+    geo = geometry_from_rig(None)
+    jac = jacobian(geo.home, geo)
+    ramps = ("ramp", (0.06, 0.03, 0.03))
+    lifted = reduced(lifted_inner(period, setpoint_filter=ramps))
+    grid = np.geomspace(1e-3, 200.0, 200)
+    stacked = closed_loops(mode, grid, period, lifted, jac)
+    one = np.stack([outer_closed_loop(mode, g, period, lifted, jac)[0] for g in grid])
+    assert np.array_equal(stacked, one)
+    rho = np.array([spectral_radius(f) for f in one])
+    first = int(np.argmax(rho >= 1.0))
+    assert rho[first] >= 1.0 > rho[first - 1]  # a crossing inside the grid
+    lim = real_inner_limit(mode, period, jac=jac, setpoint_filter=ramps)
+    assert grid[first - 1] < lim <= grid[first]
+    assert spectral_radius(outer_closed_loop(mode, lim, period, lifted, jac)[0]) == (
+        pytest.approx(1.0, abs=1e-8)
     )
 
 

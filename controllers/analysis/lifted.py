@@ -212,6 +212,34 @@ def outer_closed_loop(mode: str, gain, period: float, lifted, jac=None, pi_zero:
     return f, gr, h
 
 
+def closed_loops(mode: str, gains, period: float, lifted, jac=None, pi_zero: float = 0.2):
+    """:func:`outer_closed_loop`'s ``F`` at each common gain of ``gains``, stacked
+    ``(len(gains), n, n)``, element for element the same numbers.
+
+    Under the I law ``F`` is affine in the gain: its one gain block, ``-g H_y``
+    (``g = K K_I T``), is each gain times ``H_y`` rounded once, as the product by the
+    diagonal ``g`` rounds it. The PI law's products of the gain with ``Gamma J`` are
+    built one gain at a time.
+    """
+    gains = np.asarray(gains, float)
+    if mode != "I":
+        return np.stack(
+            [outer_closed_loop(mode, g, period, lifted, jac, pi_zero)[0] for g in gains]
+        )
+    phi, _, cq = lifted
+    m, nx = cq.shape[0], phi.shape[0]
+    hy = np.linalg.inv(np.eye(m) if jac is None else np.asarray(jac, float)) @ cq
+    f = np.repeat(
+        outer_closed_loop(mode, 0.0, period, lifted, jac, pi_zero)[0][None], gains.size, 0
+    )
+    f[:, nx:, :nx] = -((gains * period)[:, None, None] * hy)
+    return f
+
+
+#: Gains of the stability scan whose closed loops are solved in one call.
+_SCAN_BLOCK = 40
+
+
 def spectral_radius(f) -> float:
     return float(np.max(np.abs(np.linalg.eigvals(f))))
 
@@ -246,8 +274,16 @@ def real_inner_limit(
         return spectral_radius(outer_closed_loop(mode, g, period, lifted, jac, pi_zero)[0])
 
     grid = np.geomspace(1e-3, g_max, 200)
-    # up to the first unstable gain only: the grid beyond it cannot move the crossing
-    i = next((i for i, g in enumerate(grid) if rho(g) >= 1.0), None)
+    # up to the first unstable gain only: the grid beyond it cannot move the crossing. A
+    # block of gains at a time, their eigenvalue problems in one call: the same numbers
+    # as one gain at a time (closed_loops), for about half the CPU
+    i = None
+    for start in range(0, grid.size, _SCAN_BLOCK):
+        f = closed_loops(mode, grid[start : start + _SCAN_BLOCK], period, lifted, jac, pi_zero)
+        unstable = np.flatnonzero(np.max(np.abs(np.linalg.eigvals(f)), axis=-1) >= 1.0)
+        if unstable.size:
+            i = start + int(unstable[0])
+            break
     if i is None:
         return float("inf")
     if i == 0:
