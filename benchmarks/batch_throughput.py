@@ -1,7 +1,7 @@
 """A batch's throughput: variants per minute and the ratio to the step's own cost.
 
     python benchmarks/batch_throughput.py [--samples 20] [--jobs 2] [--keep-cache] [--threads]
-        [--identify auto|reduced]
+        [--identify auto|reduced] [--timeseries all|failing|none]
 
 Runs a Monte Carlo of ``--samples`` new cabins (``scenarios/sweep_robustness.yaml``
 with its sample count replaced: every variant a plant not seen before) as
@@ -11,6 +11,8 @@ an empty identification cache unless ``--keep-cache``, and prints one JSON docum
 Each cabin's joint loops are placed on its own models: ``--identify auto`` (the
 default, the Fig. 12 experiment in MuJoCo) or ``reduced`` (the same experiment on
 the reduced chain, :mod:`simpro_mj.identification.reduced_experiment`).
+``--timeseries`` is the batch's (``simpro-sim batch --timeseries``: whose
+``timeseries.csv`` the variants write; default ``all``).
 
 Before the clock starts one cabin of another draw runs in this process, so that
 numba's cache holds the compiled step (a change of the step's sources costs a
@@ -51,6 +53,7 @@ def measure(
     keep_cache: bool = False,
     processes: bool = True,
     identify: str = "auto",
+    timeseries: str = "all",
 ) -> dict:
     """Run the batch and return the figures of the module docstring."""
     with tempfile.TemporaryDirectory(prefix="simpro-throughput-") as tmp:
@@ -81,7 +84,8 @@ def measure(
 
         wall0 = time.perf_counter()
         report = run_batch([str(tmp / "throughput.yaml")], tmp / "out", jobs=jobs,
-                           plots=False, summary_plots=False, processes=processes)  # fmt: skip
+                           plots=False, summary_plots=False, processes=processes,
+                           timeseries=timeseries)  # fmt: skip
         wall = time.perf_counter() - wall0
     rows = [r for r in report.rows if r.realtime_factor]
     duration = float(text.split("duration_s:")[1].split()[0])
@@ -91,6 +95,7 @@ def measure(
         "samples": samples,
         "jobs": jobs,
         "identify": identify,
+        "timeseries": timeseries,
         "processes": processes,
         "finished": len(rows),
         "counts": {k: v for k, v in report.counts.items() if v},
@@ -111,11 +116,13 @@ def main(argv=None) -> int:
     p.add_argument("--keep-cache", action="store_true")
     p.add_argument("--threads", action="store_true", help="threads instead of worker processes")
     p.add_argument("--identify", choices=["auto", "reduced"], default="auto")
+    p.add_argument("--timeseries", choices=["all", "failing", "none"], default="all")
     a = p.parse_args(argv)
     if not (1 <= a.samples <= 1000 and 1 <= a.jobs <= 64):
         print("error: invalid value at --samples/--jobs: allowed 1..1000 / 1..64", file=sys.stderr)
         return 2
-    print(json.dumps(measure(a.samples, a.jobs, a.keep_cache, not a.threads, a.identify), indent=2))
+    figures = measure(a.samples, a.jobs, a.keep_cache, not a.threads, a.identify, a.timeseries)
+    print(json.dumps(figures, indent=2))
     return 0
 
 

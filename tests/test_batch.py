@@ -328,6 +328,71 @@ def test_plots_drawn_for_examples_and_failing_variants_only(tmp_path):
     assert csvs[0] == csvs[1] == csvs[2]
 
 
+def test_timeseries_written_as_asked_rows_and_resume_the_same(tmp_path, monkeypatch):
+    """``--timeseries failing`` writes the CSV of the variant not ok only (gain 30, past
+    the outer loop's limit), ``none`` none: every folder is complete all the same, its
+    ``metrics.json`` holds the measured stability, the rows are those of ``all``, and
+    ``--resume`` reruns nothing. A folder without the CSV whose ``metrics.json`` does
+    not say it was not asked for is incomplete (rerun); a folder without the stored
+    stability takes it from its CSV, the same row."""
+    import simpro_mj.sim.loop as sim_mod
+    from simpro_mj.batch.worker import MEASURED_STABILITY
+    from simpro_mj.report.marker import TIMESERIES_WRITTEN, record
+
+    real, calls = sim_mod.CoSimulation.run, []
+
+    def counting(self, progress=None, **kwargs):
+        calls.append(self.scenario["controller"]["outer"]["gains"][0])
+        return real(self, progress, **kwargs)
+
+    monkeypatch.setattr(sim_mod.CoSimulation, "run", counting)
+    path = _grid_file(tmp_path, **{"controller.outer.gains": [2, 4, 30]})
+    common = [str(path), "--set", "duration_s=3", "--jobs", "1", "--no-plots"]
+    out = {w: tmp_path / w for w in ("all", "failing", "none")}
+    for which, folder in out.items():
+        assert main(["batch", *common, "--out", str(folder), "--timeseries", which]) == 1
+    status = {r["variant"]: r["status"] for r in _read_csv(out["all"] / "summary.csv")}
+    assert status["gains=30"] != "ok" and status["gains=2"] == status["gains=4"] == "ok"
+    for which, folder in out.items():
+        for variant, verdict in status.items():
+            v = folder / "g" / variant
+            want = which == "all" or (which == "failing" and verdict != "ok")
+            assert (v / "timeseries.csv").is_file() == want, (which, variant)
+            doc = json.loads((v / "metrics.json").read_text())
+            assert doc.get(TIMESERIES_WRITTEN, True) is want
+            assert doc[MEASURED_STABILITY]["stable"] is (variant != "gains=30")
+            assert marker.is_complete(v)
+    first = [_drop_wall_clock((o / "summary.csv").read_text()) for o in out.values()]
+    assert first[0] == first[1] == first[2]
+    # the responses figure overlays the series there are
+    assert (out["all"] / "plots" / "g_responses.png").is_file()
+    assert not (out["none"] / "plots" / "g_responses.png").exists()
+    calls.clear()
+    for which, folder in out.items():
+        argv = ["batch", *common, "--out", str(folder), "--timeseries", which, "--resume"]
+        assert main(argv) == 1
+        assert _drop_wall_clock((folder / "summary.csv").read_text()) == first[0]
+    assert calls == []
+    # no CSV and no word that it was not asked for: incomplete, rerun
+    v = out["none"] / "g" / "gains=4"
+    doc = json.loads((v / "metrics.json").read_text())
+    del doc[TIMESERIES_WRITTEN]
+    (v / "metrics.json").write_text(json.dumps(doc))
+    record(v, ["metrics.json"], "run")
+    assert not marker.is_complete(v)
+    # an earlier batch's folder without the stored stability: read from its CSV
+    v = out["all"] / "g" / "gains=30"
+    doc = json.loads((v / "metrics.json").read_text())
+    del doc[MEASURED_STABILITY]
+    (v / "metrics.json").write_text(json.dumps(doc))
+    record(v, ["metrics.json"], "run")
+    for which in ("none", "all"):
+        argv = ["batch", *common, "--out", str(out[which]), "--timeseries", which, "--resume"]
+        assert main(argv) == 1
+        assert _drop_wall_clock((out[which] / "summary.csv").read_text()) == first[0]
+    assert calls == [4.0]
+
+
 def _batch_exit(out) -> int:
     """A batch's exit status from its summary: 0 when every variant is ok, else 1."""
     rows = _read_csv(out / "summary.csv")

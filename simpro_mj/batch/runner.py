@@ -43,6 +43,15 @@ atomic) and returns a small dict. No model is ever pickled.
   (``OUT/plots``) are always drawn. A variant without figures can be drawn again
   with ``simpro-sim run OUT/<scenario>/<variant>/scenario.yaml`` (the same run: its
   seed is in the file).
+* Per-variant time series (``--timeseries``, :data:`TIMESERIES`): ``all`` (default)
+  writes every variant's ``timeseries.csv``, so every folder is a whole run result
+  (``analyze``, ``compare``, ``render`` and the responses figure read it); ``failing``
+  only those whose status is not ``ok``; ``none`` none. Writing it costs about two
+  thirds of a 15 s run's stepping, which a Monte Carlo of hundreds of variants, read
+  through its summary, need not pay. A folder without it is complete all the same
+  (its ``metrics.json`` says the file was not asked for, and holds the measured
+  stability its row is rebuilt from); the same run writes it again from its
+  ``scenario.yaml``.
 * The variants start in order of their expected cost, the dearest first (a
   long tail of one dear variant on one worker while the others idle is what
   file order gives): :func:`expected_cost`, the simulated seconds of the run and
@@ -92,9 +101,11 @@ handlers are installed and the variants submitted.
 
 ``--resume`` skips a variant whose folder is complete
 (:func:`simpro_mj.report.marker.is_complete`: the result marker, ``metrics.json``
-with status ``ok`` or ``diverged``, a non-empty ``timeseries.csv``, no
-``PARTIAL``) and whose ``scenario.hash`` equals the variant's
-:func:`~simpro_mj.config.scenario.scenario_hash`. Anything else is recomputed.
+with status ``ok`` or ``diverged``, a non-empty ``timeseries.csv`` unless it was not
+asked for, no ``PARTIAL``) and whose ``scenario.hash`` equals the variant's
+:func:`~simpro_mj.config.scenario.scenario_hash`; its row's measured stability is the
+one ``metrics.json`` holds (a folder of an earlier batch without it: read from its
+``timeseries.csv``). Anything else is recomputed.
 
 ``--out`` must be new, empty or an earlier batch's folder (its
 ``.simpro-result`` marker of kind ``batch``); anything else is refused (exit
@@ -123,10 +134,10 @@ from pathlib import Path
 
 from simpro_mj.batch.plan import plan, scenario_files
 from simpro_mj.batch.robustness import robustness_table
-from simpro_mj.batch.stability import stability_of_folder
+from simpro_mj.batch.stability import Stability, stability_of_folder
 from simpro_mj.batch.summary import Report, Row, summary_row, write_summary
 from simpro_mj.batch.tables import monte_carlo_table, stability_table
-from simpro_mj.batch.worker import ACTIVITY, install, run_variant
+from simpro_mj.batch.worker import ACTIVITY, MEASURED_STABILITY, TIMESERIES, install, run_variant
 from simpro_mj.config.scenario import scenario_hash
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.safe_files import read_text
@@ -148,6 +159,7 @@ __all__ = [
     "NO_WORKERS_S",
     "PLOTS",
     "SUMMARY_FILES",
+    "TIMESERIES",
     "expected_cost",
     "run_batch",
 ]
@@ -182,11 +194,13 @@ def run_batch(
     progress: bool = False,
     summary_plots: bool = True,
     processes: bool = True,
+    timeseries: str = "all",
 ) -> Report:
     """Plan, run and summarise a batch (see the module docstring).
 
     ``plots`` is one of :data:`PLOTS` (``True``: ``all``, ``False``: ``none``);
-    ``processes``: ``jobs > 1`` variants in worker processes, else on threads.
+    ``processes``: ``jobs > 1`` variants in worker processes, else on threads;
+    ``timeseries`` one of :data:`TIMESERIES`.
 
     Raises
     ------
@@ -201,6 +215,10 @@ def run_batch(
     plots = {True: "all", False: "none"}.get(plots, plots) if isinstance(plots, bool) else plots
     if plots not in PLOTS:
         raise UserInputError(f"invalid value at --plots: {plots!r}; allowed: {', '.join(PLOTS)}")
+    if timeseries not in TIMESERIES:
+        raise UserInputError(
+            f"invalid value at --timeseries: {timeseries!r}; allowed: {', '.join(TIMESERIES)}"
+        )
     inputs = [f for f, _ in scenario_files(paths)]
 
     if scheduler is not None:  # before the output folder is made
@@ -209,12 +227,12 @@ def run_batch(
             probe_scheduler(scheduler)  # a closed, silent or foreign server: refused now
     with claim(out, "batch", inputs=inputs, writes=SUMMARY_FILES):
         args = (paths, out, sets, jobs, resume, strict, scheduler, plots, progress, summary_plots)
-        return _run_batch(*args, wall0, processes)
+        return _run_batch(*args, wall0, processes, timeseries)
 
 
 def _run_batch(
     paths, out, sets, jobs, resume, strict, scheduler, plots, progress, summary_plots, wall0,
-    processes=False,
+    processes=False, timeseries="all",
 ) -> Report:  # fmt: skip
 
     p = plan(paths, sets)
@@ -238,7 +256,7 @@ def _run_batch(
                 "status": doc["status"],
                 "reason": doc.get("reason"),
                 "metrics": doc,
-                "stability": stability_of_folder(folder, doc["status"]),
+                "stability": _stability(folder, doc),
             }
             rows[job.index] = summary_row(job, result, skipped=True)
             skipped += 1
@@ -252,7 +270,8 @@ def _run_batch(
             )
             continue
         draw = _draw(plots, job.index in examples)
-        task = {"scenario": job.scenario, "out": str(folder), "plots": draw, "label": job.variant}
+        task = {"scenario": job.scenario, "out": str(folder), "plots": draw,
+                "label": job.variant, "timeseries": timeseries}  # fmt: skip
         tasks.append((job.index, task))
     if skipped and progress:
         sys.stderr.write(f"resume: {skipped} complete variant(s) skipped\n")
@@ -378,11 +397,23 @@ def _finished_row(job, out: Path) -> Row:
             "status": doc["status"],
             "reason": doc.get("reason"),
             "metrics": doc,
-            "stability": stability_of_folder(out / job.folder, doc["status"]),
+            "stability": _stability(out / job.folder, doc),
         }
     except (OSError, ValueError):  # unreadable after all: not counted as finished
         return summary_row(job, None)
     return summary_row(job, result)
+
+
+def _stability(folder: Path, doc: Mapping) -> Stability:
+    """A complete folder's measured stability: the one its ``metrics.json`` holds,
+    else (a folder written without it) read from its ``timeseries.csv``."""
+    held = doc.get(MEASURED_STABILITY)
+    if isinstance(held, dict):
+        try:
+            return Stability(**held)
+        except TypeError:  # other fields: read from the file below
+            pass
+    return stability_of_folder(folder, doc["status"])
 
 
 def _complete(folder: Path, scenario: Mapping) -> dict | None:

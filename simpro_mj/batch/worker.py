@@ -13,10 +13,16 @@ A variant draws its run's figures (the PNG files of
 ``ok``: drawn after the run into a temporary folder beside the result and moved
 in, each file whole) or ``none``.
 
+A variant writes its ``timeseries.csv`` as its task says (:data:`TIMESERIES`):
+``all``, ``failing`` (only when its status is not ``ok``) or ``none``; a folder
+without it says so in ``metrics.json`` and is complete
+(:func:`simpro_mj.report.marker.is_complete`).
+
 A variant's measured stability (:func:`simpro_mj.batch.stability.stability_of`) is
 taken from its run's columns in memory, each number rounded as ``timeseries.csv``
-writes it (:class:`AsWritten`): the figures a resumed batch reads back from the
-folder, without reading the file.
+writes it (:class:`AsWritten`), and written into ``metrics.json``
+(:data:`MEASURED_STABILITY`) with the folder: a resumed batch reads it there, the
+same figures as the file's, with or without the file.
 
 The notices a run would print (the identification line) are gathered
 (:mod:`simpro_mj.core.notices`) and returned, so the batch says each once with a
@@ -34,6 +40,7 @@ import tempfile
 import threading
 import time
 from collections.abc import Mapping
+from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
@@ -48,11 +55,20 @@ from simpro_mj.report.results import NUMBER_FORMAT
 from simpro_mj.report.runner import execute
 from simpro_mj.sim.workers import activity_queue
 
-__all__ = ["ACTIVITY", "DRAW", "AsWritten", "install", "run_variant"]
+__all__ = ["ACTIVITY", "DRAW", "MEASURED_STABILITY", "TIMESERIES", "AsWritten", "install",
+           "run_variant"]  # fmt: skip
 
 #: What a variant's task may ask to draw (``plots``; ``True`` is ``all``, ``False``
 #: ``none``): every run's figures, only a run whose status is not ``ok``, or none.
 DRAW = ("all", "failing", "none")
+
+#: Whose ``timeseries.csv`` a variant's task may ask for (``timeseries``): every run's,
+#: only a run whose status is not ``ok``, or none.
+TIMESERIES = ("all", "failing", "none")
+
+#: Key of a variant's ``metrics.json`` holding its measured stability (the fields of
+#: :class:`simpro_mj.batch.stability.Stability`).
+MEASURED_STABILITY = "measured_stability"
 
 #: Worker (a thread's name, or ``pid N`` of a pool worker) -> (variant label, phase,
 #: time.monotonic() the phase began), of the running variants (the progress line reads
@@ -67,7 +83,8 @@ def run_variant(task: Mapping) -> dict:
     ----------
     task : mapping
         ``scenario`` (resolved, plain data), ``out`` (its folder), ``plots``
-        (one of :data:`DRAW`, or a bool: ``all``/``none``), ``ship`` (bool: write
+        (one of :data:`DRAW`, or a bool: ``all``/``none``), ``timeseries`` (one of
+        :data:`TIMESERIES`, default ``all``), ``ship`` (bool: write
         into a temporary folder and return the files' bytes, for workers that may
         not share this file system).
 
@@ -119,6 +136,23 @@ def _run_variant(task: Mapping) -> dict:
     try:
         folder = tmp / "variant" if tmp is not None else Path(task["out"])
         draw = draw_choice(task.get("plots", True))
+        series = task.get("timeseries", "all")
+        if series not in TIMESERIES:
+            raise ValueError(f"invalid timeseries: {series!r}; allowed: {', '.join(TIMESERIES)}")
+        measured = []
+
+        def stability(outcome) -> dict:
+            # from the columns in memory, each number as timeseries.csv holds it: the
+            # same figures as the file read back, written with the folder
+            status = outcome.metrics.get("status", "ok")
+            measured.append(stability_of(AsWritten(outcome.result.columns), status))
+            return {MEASURED_STABILITY: asdict(measured[-1])}
+
+        def keep(outcome) -> bool:
+            return series == "all" or (
+                series == "failing" and outcome.metrics.get("status", "ok") != "ok"
+            )
+
         # warnings go to metrics.json only: many workers on one stderr would be noise
         res, doc = execute(
             task["scenario"],
@@ -126,6 +160,8 @@ def _run_variant(task: Mapping) -> dict:
             plots=draw == "all",
             quiet=True,
             stop=task.get("stop"),
+            timeseries=keep,
+            more=stability,
         )
         folder = res.folder
         if draw == "failing" and doc.get("status", "ok") not in ("ok", "interrupted"):
@@ -134,9 +170,7 @@ def _run_variant(task: Mapping) -> dict:
             "status": doc.get("status", "ok"),
             "reason": doc.get("reason"),
             "metrics": doc,
-            # from the columns in memory, each number as timeseries.csv holds it: the
-            # same figures as the folder read back (a resumed batch's), without reading
-            "stability": stability_of(AsWritten(res.columns), doc.get("status")),
+            "stability": measured[-1],
         }
         if ship:
             out["files"] = {p.name: p.read_bytes() for p in sorted(folder.iterdir())}

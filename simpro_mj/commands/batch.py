@@ -11,7 +11,7 @@ import sys
 from pathlib import Path
 
 from simpro_mj.batch.plan import scenario_files
-from simpro_mj.batch.runner import PLOTS, run_batch
+from simpro_mj.batch.runner import PLOTS, TIMESERIES, run_batch
 from simpro_mj.batch.tables import print_report
 from simpro_mj.config.scenario import read_document, resolve_scenario
 from simpro_mj.core.errors import UserInputError
@@ -81,6 +81,13 @@ def add_arguments(parser) -> None:
         dest="plots",
         help="no variant's figures (--plots none; the batch's own figures stay)",
     )
+    parser.add_argument(
+        "--timeseries",
+        choices=TIMESERIES,
+        default="all",
+        help="whose timeseries.csv to write: every variant's (all, the default), only those "
+        "not ok (failing) or none; a folder without it is complete, its row the same",
+    )
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
@@ -127,6 +134,7 @@ def run(args) -> int:
         plots=args.plots,
         progress=not args.quiet and not args.json,
         processes=not args.threads,
+        timeseries=args.timeseries,
     )
     if args.json:
         emit_json(report.document())

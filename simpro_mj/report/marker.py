@@ -10,8 +10,8 @@ and the atomic install are :mod:`simpro_mj.report.folders`'.
 A folder is *complete* (:func:`is_complete`, what ``batch --resume`` may
 trust) when its marker lists its files and they are all there and ours, its
 ``metrics.json`` reads with status ``ok`` or ``diverged`` and the blocks a
-summary row needs, its ``timeseries.csv`` is not empty and there is no
-``PARTIAL`` file.
+summary row needs, its ``timeseries.csv`` is not empty (or ``metrics.json`` says it
+was not asked for: :data:`TIMESERIES_WRITTEN`) and there is no ``PARTIAL`` file.
 """
 
 from __future__ import annotations
@@ -34,6 +34,7 @@ __all__ = [
     "MAX_METRICS_BYTES",
     "PARTIAL_MARKER",
     "RESULT_MARKER",
+    "TIMESERIES_WRITTEN",
     "foreign",
     "hidden",
     "is_complete",
@@ -51,6 +52,9 @@ __all__ = [
 PARTIAL_MARKER = "PARTIAL"
 #: File name of the marker of a folder simpro-sim wrote (and may replace).
 RESULT_MARKER = ".simpro-result"
+#: Key of ``metrics.json``, false when the run's ``timeseries.csv`` was not asked for
+#: (a batch's ``--timeseries``); absent when it was written.
+TIMESERIES_WRITTEN = "timeseries_written"
 #: Largest marker read (bytes): a list of a few hundred files.
 MARKER_MAX_BYTES = 1_000_000
 #: Largest ``metrics.json`` read back (bytes).
@@ -278,7 +282,8 @@ def is_complete(folder) -> bool:
     """Whether ``folder`` holds a complete result (the one check ``--resume`` uses).
 
     Complete: the :data:`RESULT_MARKER` of a run listing ``metrics.json`` and a
-    non-empty ``timeseries.csv``, every file it lists present and every file in
+    non-empty ``timeseries.csv`` (none, when ``metrics.json`` has
+    :data:`TIMESERIES_WRITTEN` false), every file it lists present and every file in
     the folder as simpro-sim wrote it (:func:`foreign` finds none), a
     ``metrics.json`` that reads with the status of a finished run (``ok``,
     ``limit_cycle``, ``not_settled``, ``diverged``) and the
@@ -291,7 +296,8 @@ def is_complete(folder) -> bool:
         return False
     files = manifest_of(read_marker(folder)) or {}
     listed = files.get("timeseries.csv")
-    if not isinstance(listed, dict) or not listed.get("size") or "metrics.json" not in files:
+    written = isinstance(listed, dict) and bool(listed.get("size"))
+    if "metrics.json" not in files or (listed is not None and not written):
         return False
     if foreign(folder) or not all(os.path.isfile(folder / rel) for rel in files):
         return False  # a stranger's file, or one of ours gone
@@ -301,6 +307,7 @@ def is_complete(folder) -> bool:
         return False
     return (
         isinstance(doc, dict)
+        and (written or doc.get(TIMESERIES_WRITTEN) is False)
         and doc.get("status") in FINISHED_STATUSES
         and isinstance(doc.get("scenario"), dict)
         and isinstance(doc["scenario"].get("hash"), str)

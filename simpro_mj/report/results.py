@@ -48,7 +48,7 @@ from simpro_mj.core.shipped import model_path
 from simpro_mj.plant import kernels
 from simpro_mj.report.folders import install_folder, locked, partial_sibling
 from simpro_mj.report.machine import dist_version, fingerprint_id
-from simpro_mj.report.marker import PARTIAL_MARKER, is_complete
+from simpro_mj.report.marker import PARTIAL_MARKER, TIMESERIES_WRITTEN, is_complete
 
 #: ``ok``: ran to the end and settled; ``limit_cycle`` / ``not_settled``: ran to
 #: the end, but the pose still oscillates or drifts there
@@ -246,7 +246,11 @@ def write_results(
         "ok"), ``reason`` (why it diverged or stopped; default ``metrics["reason"]``),
         ``sim`` (figures of the simulation: steps, physics step, ...; wall-clock
         keys go to ``sim.wall_clock``), ``plots`` (False: no PNGs). Any other
-        key is copied into ``metrics.json`` as is.
+        key is copied into ``metrics.json`` as is; ``timeseries_written`` False
+        (:data:`~simpro_mj.report.marker.TIMESERIES_WRITTEN`, a batch's
+        ``--timeseries``) leaves ``timeseries.csv`` (and a cueing run's
+        ``perceived.csv``) out, and the folder is complete without it
+        (:func:`~simpro_mj.report.marker.is_complete`).
     arrays : mapping, optional
         File name -> named arrays, each written with ``numpy.savez`` (stored: joint
         angles sampled finely deflate by only about a sixth, for six times the time)
@@ -301,8 +305,10 @@ def write_folder(out_dir, columns, metrics, scenario, extra=None, arrays=None) -
                 "see metrics.json (status interrupted)\n",
                 encoding="utf-8",
             )
-        write_timeseries(tmp / "timeseries.csv", columns)
-        if "head_fx_mps2" in columns and "veh_fx_mps2" in columns:
+        series = doc.get(TIMESERIES_WRITTEN, True)  # false: not asked for (a batch's)
+        if series:
+            write_timeseries(tmp / "timeseries.csv", columns)
+        if series and "head_fx_mps2" in columns and "veh_fx_mps2" in columns:
             # a cueing run: what the driver perceives, from the logged head signals
             from simpro_mj.analysis.cue_metrics import perceived_columns
 

@@ -27,6 +27,7 @@ from simpro_mj.config.models import Scenario, as_scenario
 from simpro_mj.core.interrupts import writing
 from simpro_mj.core.rates import PHYSICS_DT_S
 from simpro_mj.job.run import Run
+from simpro_mj.report.marker import TIMESERIES_WRITTEN
 from simpro_mj.report.results import write_folder
 from simpro_mj.sim.readiness import signal_ready
 
@@ -44,6 +45,8 @@ def execute(
     progress: bool = False,
     label: str | None = None,
     stop=None,
+    timeseries=True,
+    more=None,
 ):
     """Run a resolved scenario and write its result folder.
 
@@ -63,6 +66,11 @@ def execute(
         A tqdm bar of the simulated seconds on stderr (``label`` before it).
     stop : threading.Event, optional
         The run's stop token (:meth:`simpro_mj.sim.loop.CoSimulation.run`).
+    timeseries : bool or callable
+        Write ``timeseries.csv`` (:func:`~simpro_mj.report.results.write_results`); a
+        callable is asked with the run's outcome (:class:`simpro_mj.job.run.RunOutcome`).
+    more : callable, optional
+        The outcome -> more keys for ``metrics.json``, written with the folder.
 
     Returns
     -------
@@ -93,7 +101,9 @@ def execute(
     res = outcome.result
     res.folder = None
     with writing(lambda: kept_line(res)):  # a folder is always written whole
-        extra = dict(outcome.extra(), plots=plots)
+        extra = dict(outcome.extra(), plots=plots, **(more(outcome) if more is not None else {}))
+        if not (timeseries(outcome) if callable(timeseries) else timeseries):
+            extra[TIMESERIES_WRITTEN] = False
         res.folder, doc = write_folder(
             Path(out), res.columns, outcome.metrics, scenario, extra, recording(res)
         )
