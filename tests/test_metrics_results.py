@@ -283,3 +283,26 @@ def test_metrics_record_the_kernel_and_the_model_file(tmp_path):
         "sha256": hashlib.sha256(mjcf.read_bytes()).hexdigest(),
     }
     assert v["model"]["sha256"] != hashlib.sha256(shipped.read_bytes()).hexdigest()
+
+
+def test_dataclass_records_become_json(capsys):
+    """A dataclass record goes into metrics.json or --json as its fields, numpy and
+    non-finite numbers converted, without a to_json of its own."""
+    from dataclasses import dataclass
+
+    from simpro_mj.core.jsonout import emit_json
+
+    @dataclass
+    class Row:
+        name: str
+        gain: float
+        poles: np.ndarray
+
+    row = Row("pitch", np.float64(math.inf), np.array([0.5, 0.25]))
+    assert results_mod.jsonable({"rows": [row]}) == {
+        "rows": [{"name": "pitch", "gain": None, "poles": [0.5, 0.25]}]
+    }
+    emit_json({"row": Row("roll", 2.0, np.array([1.0]))})
+    assert json.loads(capsys.readouterr().out) == {
+        "row": {"name": "roll", "gain": 2.0, "poles": [1.0]}
+    }

@@ -33,6 +33,7 @@ import platform
 import sys
 import warnings
 from collections.abc import Mapping
+from dataclasses import asdict, is_dataclass
 from pathlib import Path
 from typing import Any, TextIO
 
@@ -95,9 +96,11 @@ def versions(resolved: Mapping | None = None) -> dict:
 
 def jsonable(obj: Any) -> Any:
     """Plain JSON types: numpy scalars/arrays converted, NaN and inf as null, a typed
-    record by its ``to_json()``."""
+    record by its ``to_json()``, else a dataclass by its fields."""
     if callable(getattr(obj, "to_json", None)):
         return jsonable(obj.to_json())
+    if is_dataclass(obj) and not isinstance(obj, type):
+        return jsonable(asdict(obj))
     if isinstance(obj, Mapping):
         return {str(k): jsonable(v) for k, v in obj.items()}
     if isinstance(obj, (list, tuple)):
