@@ -93,9 +93,6 @@ def check_joints(rec) -> None:
         )
 
 
-# ---------------------------------------------------------------- workers
-
-
 @dataclass
 class PanelJob:
     """One run's panel of the video, per frame: what a worker draws (pickled to it)."""
@@ -243,9 +240,6 @@ def _start_pool(jobs_file: str, width, height, camera, ghost, shadows, workers: 
         "cannot render offscreen: " + "; ".join(why) + "; allowed: a machine with Mesa's EGL "
         "or OSMesa (apt-get install libegl1 libgl1-mesa-dri, or libosmesa6)"
     )
-
-
-# ---------------------------------------------------------------- the video
 
 
 def render_video(

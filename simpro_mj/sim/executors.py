@@ -179,22 +179,17 @@ def run_tasks(
         return
     if scheduler is not None:
         run_dask(tasks, scheduler, jobs, done, fn=fn, no_workers_s=no_workers_s)
-    elif jobs == 1:
-        run_here(tasks, done, fn=fn)
+    elif jobs == 1:  # one after the other in this process
+        signal_ready("batch")
+        for key, task in tasks:
+            result = fn(task)
+            done(key, result)
+            if result.get("status") == "interrupted":  # Ctrl-C/SIGTERM stopped this variant
+                raise KeyboardInterrupt(result.get("reason") or "interrupted")
     elif threads:
         run_threads(tasks, jobs, done, fn=fn)
     else:
         run_pool(tasks, jobs, done, fn=fn, activity=activity)
-
-
-def run_here(tasks: list[tuple[int, dict]], done: Callback, fn: Worker) -> None:
-    """The tasks one after the other in this process."""
-    signal_ready("batch")
-    for key, task in tasks:
-        result = fn(task)
-        done(key, result)
-        if result.get("status") == "interrupted":  # Ctrl-C/SIGTERM stopped this variant
-            raise KeyboardInterrupt(result.get("reason") or "interrupted")
 
 
 def run_threads(tasks: list[tuple[int, dict]], jobs: int, done: Callback, fn: Worker) -> None:

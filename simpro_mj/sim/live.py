@@ -179,7 +179,6 @@ class Pacer:
         self.gc_counts: list | None = None
         self._switches: list = [None, None]  # the pacing thread's, at the anchor and the end
 
-    # the callback ---------------------------------------------------------
     def __call__(self, k: int, log) -> int:
         now = self.clock()
         st = self.stats
@@ -289,7 +288,6 @@ class Pacer:
             + (" | input stale" if stale else "")
         )
 
-    # the figures -----------------------------------------------------------
     def realtime(self, steps: int) -> dict:
         """The ``realtime`` block of ``metrics.json`` after the run stopped at ``steps``."""
         st = self.stats

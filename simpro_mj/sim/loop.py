@@ -227,7 +227,6 @@ class CoSimulation:
             # (reference() has already clamped the set-points if the scenario asks)
             self.q_joint_only = inverse_kinematics(self.ref, self.geometry, check=False)
 
-    # ------------------------------------------------------------------ live
     def write_setpoints(self, k: int, poses, f=None, w=None) -> None:
         """Write rows ``k, k + 1, ...`` of the set-point buffer, in place.
 
@@ -254,7 +253,6 @@ class CoSimulation:
             if self.cueing and v is not None:
                 getattr(self, name)[rows] = np.atleast_2d(np.asarray(v, float))[:m]
 
-    # ------------------------------------------------------------- snapshot
     def snapshot(self) -> Snapshot:
         """The run as it stands before step ``k``, to resume exactly (:meth:`restore`;
         :func:`simpro_mj.sim.snapshot.take`)."""
@@ -269,7 +267,6 @@ class CoSimulation:
     def _model_digest(self) -> str:
         return model_digest(self.model)
 
-    # ------------------------------------------------------------------ setup
     def _initial_state(self) -> None:
         """Start at rest at the first set-point, as the controller believes it.
 
@@ -290,7 +287,6 @@ class CoSimulation:
         self.S, self.C = step.build(self, LOOP_OPEN_BOUND, self.noise.rows[0], self.walk.rows[0])
         self._log = Log(self.n_steps // self.decimation + 1, self.model.nq, self.cueing)
 
-    # ------------------------------------------------------------------ run
     def run(
         self,
         progress=None,
