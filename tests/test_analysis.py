@@ -199,12 +199,13 @@ def test_lifted_pure_delay_reproduces_delay_model(mode, gain):
     )
 
 
-@pytest.mark.parametrize("mode", ["I", "PI"])
+@pytest.mark.parametrize("mode, c", [("I", 0.2), ("PI", 0.2), ("PI", 0.0)])
 @pytest.mark.parametrize("period", [0.02, 0.06, 0.1])
-def test_the_limits_block_scan_is_the_one_gain_at_a_time_scan(mode, period):
+def test_the_limits_block_scan_is_the_one_gain_at_a_time_scan(mode, c, period):
     """The scan solves its gains' closed loops a block at a time: the same matrices, the
     same spectral radii and the same limit, to the bit, as one gain at a time (the
-    paper's joint loops behind the shipped ramps, the IK Jacobian at home)."""
+    paper's joint loops behind the shipped ramps, the IK Jacobian at home; PI with
+    c = 0 is the shipped I law's backward integrator)."""
     from controllers.geometry import geometry_from_rig
     from controllers.kinematics import jacobian
 
@@ -213,15 +214,15 @@ def test_the_limits_block_scan_is_the_one_gain_at_a_time_scan(mode, period):
     ramps = ("ramp", (0.06, 0.03, 0.03))
     lifted = reduced(lifted_inner(period, setpoint_filter=ramps))
     grid = np.geomspace(1e-3, 200.0, 200)
-    stacked = closed_loops(mode, grid, period, lifted, jac)
-    one = np.stack([outer_closed_loop(mode, g, period, lifted, jac)[0] for g in grid])
+    stacked = closed_loops(mode, grid, period, lifted, jac, c)
+    one = np.stack([outer_closed_loop(mode, g, period, lifted, jac, c)[0] for g in grid])
     assert np.array_equal(stacked, one)
     rho = np.array([spectral_radius(f) for f in one])
     first = int(np.argmax(rho >= 1.0))
     assert rho[first] >= 1.0 > rho[first - 1]  # a crossing inside the grid
-    lim = real_inner_limit(mode, period, jac=jac, setpoint_filter=ramps)
+    lim = real_inner_limit(mode, period, jac=jac, setpoint_filter=ramps, pi_zero=c)
     assert grid[first - 1] < lim <= grid[first]
-    assert spectral_radius(outer_closed_loop(mode, lim, period, lifted, jac)[0]) == (
+    assert spectral_radius(outer_closed_loop(mode, lim, period, lifted, jac, c)[0]) == (
         pytest.approx(1.0, abs=1e-8)
     )
 

@@ -514,6 +514,7 @@ def test_variant_stability_from_memory_is_the_folders(tmp_path):
     outer loop's limit) gives a growth rate and an oscillation to compare."""
     from simpro_mj.batch.stability import stability_of_folder
     from simpro_mj.batch.worker import AsWritten, run_variant
+    from simpro_mj.report.results import NUMBER_FORMAT
 
     scenario = load_scenario(
         str(_grid_file(tmp_path)), ["duration_s=3", "controller.outer.gains=30"]
@@ -526,6 +527,12 @@ def test_variant_stability_from_memory_is_the_folders(tmp_path):
     cols = AsWritten({"x": np.array([1 / 3, np.nan, -2.0e-7 / 3, 1e300])})
     assert cols["x"][0] == 0.333333333333 and np.isnan(cols["x"][1])
     assert cols["x"][2] == -6.66666666667e-08 and cols["x"][3] == 1e300
+    # each distinct value formatted once, every sample mapped back (-0.0 kept)
+    x = np.array([0.5, -0.0, 2 / 3, 0.0, 2 / 3, 0.5, np.nan, 1 / 7])
+    read = AsWritten({"x": x})["x"]
+    assert [float(NUMBER_FORMAT % v) for v in x[[0, 2, 5, 7]]] == list(read[[0, 2, 5, 7]])
+    assert read[2] == read[4] == 0.666666666667 and np.isnan(read[6])
+    assert np.signbit(read[1]) and not np.signbit(read[3])
 
 
 def test_jobs_and_paths_errors(tmp_path, capsys):

@@ -216,23 +216,29 @@ def closed_loops(mode: str, gains, period: float, lifted, jac=None, pi_zero: flo
     """:func:`outer_closed_loop`'s ``F`` at each common gain of ``gains``, stacked
     ``(len(gains), n, n)``, element for element the same numbers.
 
-    Under the I law ``F`` is affine in the gain: its one gain block, ``-g H_y``
-    (``g = K K_I T``), is each gain times ``H_y`` rounded once, as the product by the
-    diagonal ``g`` rounds it. The PI law's products of the gain with ``Gamma J`` are
-    built one gain at a time.
+    ``F`` is the gain-free loop plus the gain's blocks, each built as
+    :func:`outer_closed_loop` rounds it: a product by the diagonal ``g = K K_I T``
+    is each gain times the other factor rounded once (``-g H_y``; the PI law's
+    ``c (Gamma J) g`` and ``c g``), and the PI law's ``(Gamma J g) H_y`` is the same
+    matrix product, one gain's at a time in one stacked ``matmul``.
     """
     gains = np.asarray(gains, float)
-    if mode != "I":
-        return np.stack(
-            [outer_closed_loop(mode, g, period, lifted, jac, pi_zero)[0] for g in gains]
-        )
-    phi, _, cq = lifted
+    if mode not in ("I", "PI"):
+        raise ValueError(f"mode must be 'I' or 'PI', got {mode!r}")
+    phi, gam, cq = lifted
     m, nx = cq.shape[0], phi.shape[0]
-    hy = np.linalg.inv(np.eye(m) if jac is None else np.asarray(jac, float)) @ cq
+    jac = np.eye(m) if jac is None else np.asarray(jac, float)
+    hy = np.linalg.inv(jac) @ cq
+    gp = (gains * period)[:, None, None]
     f = np.repeat(
         outer_closed_loop(mode, 0.0, period, lifted, jac, pi_zero)[0][None], gains.size, 0
     )
-    f[:, nx:, :nx] = -((gains * period)[:, None, None] * hy)
+    f[:, nx : nx + m, :nx] = -(gp * hy)
+    if mode == "PI":
+        gj = gam @ jac
+        f[:, :nx, :nx] = phi - np.matmul(gj * gp, hy)
+        f[:, :nx, nx + m :] = (pi_zero * gj) * gp
+        f[:, nx : nx + m, nx + m :] = (pi_zero * gp) * np.eye(m)
     return f
 
 

@@ -187,7 +187,8 @@ def _run_variant(task: Mapping) -> dict:
 class AsWritten(Mapping):
     """A run's columns read as ``timeseries.csv`` holds them: each number formatted
     with :data:`simpro_mj.report.results.NUMBER_FORMAT` and parsed back, a column at a
-    time as it is first read (the stability reads 7 of the run's columns)."""
+    time as it is first read (the stability reads 7 of the run's columns), each distinct
+    value once (the set-points hold a few values for thousands of samples)."""
 
     def __init__(self, columns: Mapping):
         self._columns = columns
@@ -195,9 +196,12 @@ class AsWritten(Mapping):
 
     def __getitem__(self, name: str) -> np.ndarray:
         if name not in self._read:
-            values = np.asarray(self._columns[name], dtype=float).ravel().tolist()
+            column = np.asarray(self._columns[name], dtype=float).ravel()
+            # distinct bit patterns: -0.0 and each NaN kept as they are
+            bits, where = np.unique(column.view(np.int64), return_inverse=True)
+            values = bits.view(float).tolist()
             text = (NUMBER_FORMAT + "\n") * len(values) % tuple(values)
-            self._read[name] = np.array(text.split(), dtype=float)
+            self._read[name] = np.array(text.split(), dtype=float)[where.ravel()]
         return self._read[name]
 
     def __iter__(self):
