@@ -1,7 +1,7 @@
 """Where a new cabin's CPU time goes: one variant of a Monte Carlo, profiled.
 
     python benchmarks/new_cabin_cost.py [--variant mc004] [--warm mc005] [--as-shipped] [--plots]
-        [--identify auto|reduced]
+        [--identify auto|reduced] [--timeseries all|failing|none]
 
 Runs two variants of ``scenarios/sweep_robustness.yaml`` with ``--set
 controller.inner.identify=auto`` (each draw's joint loops placed on its own
@@ -31,7 +31,8 @@ prints one JSON document, CPU seconds:
 
 ``--as-shipped``: the sweep as shipped (the cabin's one controller on every draw,
 no experiment): what outside the step a sweep's variant costs. ``--plots``: with
-its figures, as ``simpro-sim batch --plots all`` draws them.
+its figures, as ``simpro-sim batch --plots all`` draws them. ``--timeseries``: the
+batch's (``simpro-sim batch --timeseries``; default ``all``).
 
 cProfile counts Python calls, so it inflates a loop of many small calls more
 than one ``mj_step`` of many steps: read the parts against each other, and the
@@ -72,7 +73,7 @@ PARTS = {
     "fit": ("identification/identify.py", "fit_eq19"),
     "stability_limit": ("analysis/preflight.py", "stability_limit"),
     "run": ("sim/loop.py", "run"),
-    "result_folder": ("report/results.py", "write_run"),
+    "result_folder": ("report/results.py", "write_folder"),
     "figures": ("report/plots.py", "plot_run"),
     "timeseries_csv": ("report/results.py", "write_timeseries"),
     "stability": ("batch/stability.py", "stability_of"),
@@ -85,6 +86,7 @@ def measure(
     as_shipped: bool = False,
     plots: bool = False,
     identify: str = "auto",
+    timeseries: str = "all",
 ) -> dict:
     """Profile ``variant`` after ``warm`` (module docstring); the figures."""
     with tempfile.TemporaryDirectory(prefix="simpro-cabin-cost-") as tmp:
@@ -102,7 +104,8 @@ def measure(
             raise RuntimeError(f"{variant} would run no identification experiment")
 
         def task(v):
-            return {"scenario": jobs[v].scenario, "out": f"{tmp}/{v}", "plots": plots, "label": v}
+            return {"scenario": jobs[v].scenario, "out": f"{tmp}/{v}", "plots": plots,
+                    "label": v, "timeseries": timeseries}  # fmt: skip
 
         run_variant(task(warm))
         prof = cProfile.Profile(time.process_time)
@@ -113,7 +116,7 @@ def measure(
         cpu_s = run_variant(task(again))["cpu_s"]
     stats = pstats.Stats(prof).stats  # type: ignore[attr-defined]  # pstats' own table
     out: dict = {"variant": variant, "status": result["status"], "as_shipped": as_shipped,
-                 "plots": plots, "identify": identify}  # fmt: skip
+                 "plots": plots, "identify": identify, "timeseries": timeseries}  # fmt: skip
     parts = PARTS | (REDUCED if identify == "reduced" else {})
     for part, (path, name) in parts.items():
         out[part] = sum(v[3] for (f, _, n), v in stats.items() if n == name and f.endswith(path))
@@ -135,6 +138,7 @@ def main(argv=None) -> int:
     p.add_argument("--as-shipped", action="store_true", help="the one controller, no experiment")
     p.add_argument("--plots", action="store_true", help="with the run's figures")
     p.add_argument("--identify", choices=["auto", "reduced"], default="auto")
+    p.add_argument("--timeseries", choices=["all", "failing", "none"], default="all")
     a = p.parse_args(argv)
     samples = int(re.search(r"samples: (\d+)", SCENARIO.read_text()).group(1))  # type: ignore[union-attr]
     names = {f"mc{i:03d}" for i in range(samples)}
@@ -145,7 +149,8 @@ def main(argv=None) -> int:
             file=sys.stderr,
         )
         return 2
-    print(json.dumps(measure(a.variant, a.warm, a.as_shipped, a.plots, a.identify), indent=2))
+    figures = measure(a.variant, a.warm, a.as_shipped, a.plots, a.identify, a.timeseries)
+    print(json.dumps(figures, indent=2))
     return 0
 
 

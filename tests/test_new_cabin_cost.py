@@ -39,5 +39,6 @@ def test_the_parts_fit_inside_the_variant(monkeypatch, tmp_path):
     # the experiment and the fits are inside the identification, all inside the variant
     assert r["total"] >= r["identification"] >= r["experiment"] + r["fit"] > 0.0
     assert r["total"] >= r["identification"] + r["run"] + r["result_folder"]
+    assert r["result_folder"] >= r["timeseries_csv"] > 0.0  # each part found by its name
     assert r["experiment_us_per_step"] > 0.0 and r["run_us_per_step"] > 0.0
     assert r["status"] in ("ok", "not_settled", "limit_cycle")
