@@ -45,7 +45,8 @@ def strip(tp: Any) -> tuple[Any, list]:
 
 
 def is_model(tp: Any) -> bool:
-    return isinstance(tp, type) and issubclass(tp, BaseModel)
+    """A pydantic model or pydantic dataclass (a type with pydantic's fields)."""
+    return isinstance(tp, type) and hasattr(tp, "__pydantic_fields__")
 
 
 #: The keys that tag an entry of a discriminated union.
@@ -54,7 +55,7 @@ TAGS = ("type", "distribution")
 
 def tag_of(model: type[BaseModel]) -> str | None:
     """The key that tags ``model`` in its union (``type``), or None."""
-    return next((t for t in TAGS if t in model.model_fields), None)
+    return next((t for t in TAGS if t in model.__pydantic_fields__), None)
 
 
 def tagged_members(tp: Any) -> dict[str, type]:
@@ -65,7 +66,7 @@ def tagged_members(tp: Any) -> dict[str, type]:
         for member in get_args(tp):
             member, _ = strip(member)
             if is_model(member) and tag_of(member):
-                (tag,) = get_args(member.model_fields[tag_of(member)].annotation)
+                (tag,) = get_args(member.__pydantic_fields__[tag_of(member)].annotation)
                 out[tag] = member
     return out
 
@@ -92,9 +93,9 @@ def locate(model: type, loc: tuple) -> tuple[Any, FieldInfo | None, list, set]:
             tp, meta = members[part], []
             tags.add(i)
             continue
-        if not is_model(tp) or part not in tp.model_fields:
+        if not is_model(tp) or part not in tp.__pydantic_fields__:
             return None, None, [], tags
-        field = tp.model_fields[part]
+        field = tp.__pydantic_fields__[part]
         tp, meta = field.annotation, list(field.metadata)
     return tp, field, meta, tags
 
@@ -321,12 +322,12 @@ def user_error(exc: ValidationError, model: type, prefix: str = "") -> UserInput
         return line(cause.head, cause.rest, where)
     if kind == "extra_forbidden":
         parent = locate(model, loc[:-1])[0]
-        names = sorted(strip(parent)[0].model_fields) if is_model(strip(parent)[0]) else []
+        names = sorted(strip(parent)[0].__pydantic_fields__) if is_model(strip(parent)[0]) else []
         key = str(loc[-1])
         return line("unknown key", f": allowed keys are {names}{closest(key, names)}")
     if kind == "missing":
         parent = strip(locate(model, loc[:-1])[0])[0]
-        fields = parent.model_fields.items() if is_model(parent) else ()
+        fields = parent.__pydantic_fields__.items() if is_model(parent) else ()
         need = [k for k, f in fields if f.is_required() and k not in TAGS]
         tag = loc[-2] if len(loc) > 1 and isinstance(loc[-2], str) else "block"
         return line("missing key", f": a {tag} needs {need}")

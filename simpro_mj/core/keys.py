@@ -25,10 +25,7 @@ __all__ = [
     "parse_set",
     "apply_overrides",
     "set_path",
-    "get_path",
     "closest",
-    "check_keys",
-    "check_number",
     "key_text",
     "short_text",
     "value_text",
@@ -109,15 +106,6 @@ def parse_set(expr: str) -> tuple[str, Any]:
     return key, value
 
 
-def get_path(tree: Mapping, path: str) -> Any:
-    node: Any = tree
-    for part in path.split("."):
-        if not isinstance(node, Mapping) or part not in node:
-            raise KeyError(path)
-        node = node[part]
-    return node
-
-
 def set_path(tree: dict, path: str, value: Any) -> None:
     """Set a dotted path in a nested dict.
 
@@ -172,75 +160,6 @@ def apply_overrides(tree: Mapping, sets: Iterable[str]) -> dict:
         key, value = parse_set(expr)
         set_path(out, key, value)
     return out
-
-
-def check_keys(tree: Mapping, ref: Mapping, path: str) -> None:
-    """Refuse keys of ``tree`` that ``ref`` does not have, recursively.
-
-    Only key names and the mapping/leaf shape are checked (values are the
-    owner's job). ``path`` is the dotted prefix used in the messages.
-
-    Raises
-    ------
-    UserInputError
-        ``unknown key at <path>: allowed keys are [...] (did you mean ...?)`` or
-        ``wrong type at <path>: expected a mapping``.
-    """
-    for key, sub in tree.items():
-        here = f"{path}.{key_text(key)}" if path else key_text(key)
-        if key not in ref:
-            raise UserInputError(
-                f"unknown key at {here}: allowed keys are {sorted(ref)}{closest(str(key), ref)}"
-            )
-        if isinstance(ref[key], Mapping):
-            if not isinstance(sub, Mapping):
-                raise UserInputError(
-                    f"wrong type at {here}: got {type(sub).__name__} {value_text(sub)}; "
-                    "allowed: a mapping"
-                )
-            check_keys(sub, ref[key], here)
-
-
-def check_number(
-    tree: Mapping,
-    path: str,
-    lo: float = -math.inf,
-    hi: float = math.inf,
-    *,
-    lo_open: bool = False,
-    hi_open: bool = False,
-    integer: bool = False,
-    unit: str = "",
-) -> float:
-    """The number at dotted ``path`` of ``tree``, checked to be finite and in range.
-
-    Raises
-    ------
-    UserInputError
-        ``wrong type at <path>: ...`` for a non-number (booleans included) or
-        ``invalid value at <path>: <value>; allowed: <range>`` for NaN, inf,
-        a value out of range or (``integer``) a fractional one.
-    """
-    value = get_path(tree, path)
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise UserInputError(
-            f"wrong type at {path}: got {type(value).__name__} {value_text(value)}; "
-            "allowed: a number"
-        )
-    x = float(value)
-    lo_ok = x > lo if lo_open else x >= lo
-    hi_ok = x < hi if hi_open else x <= hi
-    if not (math.isfinite(x) and lo_ok and hi_ok and (not integer or x == int(x))):
-        parts = []
-        if lo > -math.inf:
-            parts.append(f"{'>' if lo_open else '>='} {lo:g}{unit}")
-        if hi < math.inf:
-            parts.append(f"{'<' if hi_open else '<='} {hi:g}{unit}")
-        allowed = ("an integer " if integer else "a finite number ") + " and ".join(parts)
-        raise UserInputError(
-            f"invalid value at {path}: {value_text(value)}; allowed: {allowed.strip()}"
-        )
-    return int(x) if integer else x
 
 
 # ------------------------------------------------------------------ typed blocks

@@ -8,19 +8,21 @@ before either is imported.
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field
-from typing import Any
+from dataclasses import asdict, dataclass
+from typing import Annotated, Any
 
 import numpy as np
+from pydantic import AfterValidator, ConfigDict, ValidationError
+from pydantic.dataclasses import dataclass as pydantic_dataclass
 
 from controllers.design import READINGS
-from simpro_mj.config.messages import validated
+from simpro_mj.config.messages import user_error, validated
 from simpro_mj.config.models import merge as _merge
 from simpro_mj.config.presets import DEFAULT_PRESET, load_preset
 from simpro_mj.core.errors import UserInputError
-from simpro_mj.core.keys import check_number
+from simpro_mj.core.keys import Problem, Real, Whole, param
 from simpro_mj.plant.model_params import DEFAULT_MODEL_PARAMS
-from simpro_mj.plant.pneumatics.params import DEFAULT_PNEUMATIC_PARAMS, Pneumatics
+from simpro_mj.plant.pneumatics.params import DEFAULT_PNEUMATIC_PARAMS, Legs, PerLeg, Pneumatics
 
 __all__ = [
     "DEFAULT_IDENTIFY_PARAMS",
@@ -40,47 +42,78 @@ EXCITATIONS = ("one_leg", "all_legs")
 FIT_METHODS = ("trust_region", "levenberg_marquardt")
 
 
-@dataclass(frozen=True)
+def _one_of(*choices: str) -> Any:
+    def check(value: str) -> str:
+        if value not in choices:
+            raise Problem.invalid(value, ", ".join(choices))
+        return value
+
+    return AfterValidator(check)
+
+
+_LEGS = "a number or 3 numbers >= 0"
+
+
+@pydantic_dataclass(frozen=True, config=ConfigDict(extra="forbid"))
 class Settings:
     """The experiment's settings, ``identify.*`` of the tree (the paper does not print
-    them: our choices); :data:`DEFAULT_IDENTIFY_PARAMS` is the defaults' dict."""
+    them: our choices); :data:`DEFAULT_IDENTIFY_PARAMS` is the defaults' dict.
 
-    duration_s: float = 20.0  # excitation time per actuator
-    settle_s: float = 1.0  # P loops alone before the PRBS starts
-    position_mm: float = 250.0  # operating point: mid-stroke
-    # P gains (V/m). Low enough for the loop to stay stable with the paper's
-    # plants too (eq. 35 needs K_p b < a1 a0: K_p < 4.9 V/m).
-    kp_v_per_m: Any = field(default_factory=lambda: [15.0, 3.0, 3.0])
-    # PRBS: ±amplitude on the excited valve, one bit per clock; a 20 ms clock
-    # gives a flat spectrum up to ~ 0.44/20 ms = 22 Hz (> the 2.5-6 Hz of ω_n)
-    prbs_amplitude_v: Any = field(default_factory=lambda: [0.3, 0.3, 0.3])
-    prbs_clock_ms: float = 20.0
-    prbs_bits: int = 10  # sequence period 1023 bits = 20.5 s
-    # the valves' dither during the experiment (controllers.dither), V and ms: a run
-    # identifies its plant with its own joint loops' dither (plant_tree), so that the
-    # model is of the plant the loops drive; 0: none
-    dither_v: float = 0.0
-    dither_period_ms: float = 40.0
-    seed: int = 1  # shift of the sequence
-    # one_leg: each leg in turn, the others held (the paper's Fig. 12: three records);
-    # all_legs: the three at once, each its own shift of the sequence (a third of the
-    # sequence's period apart: uncorrelated), one record
-    excitation: str = "one_leg"
+    The P gains are low enough for the loop to stay stable with the paper's plants
+    too (eq. 35 needs K_p b < a1 a0: K_p < 4.9 V/m). A 20 ms PRBS clock gives a flat
+    spectrum up to ~ 0.44/20 ms = 22 Hz (> the 2.5-6 Hz of omega_n). A run identifies
+    its plant with its own joint loops' dither (plant_tree), so that the model is of
+    the plant the loops drive. ``all_legs`` excites the three legs at once, each its
+    own shift of the sequence (a third of its period apart: uncorrelated), one record.
+    The Levenberg-Marquardt fit (identify.levenberg_marquardt) finds the same minimum
+    within 0.5 % in about half the CPU; not the default: docs there.
+    """
+
+    duration_s: Real = param(20.0, "s", "excitation time per actuator", ge=0.5, le=3600.0)
+    settle_s: Real = param(1.0, "s", "P loops alone before the PRBS starts", ge=0.0, le=3600.0)
+    position_mm: Real = param(250.0, "mm", "operating point: mid-stroke", ge=50.0, le=450.0)
+    kp_v_per_m: Annotated[PerLeg, Legs(ge=0.0)] = param(
+        [15.0, 3.0, 3.0], "V/m", "P gain of each leg's loop", why=_LEGS
+    )
+    prbs_amplitude_v: Annotated[PerLeg, Legs(ge=0.0, le=5.0)] = param(
+        [0.3, 0.3, 0.3], "V", "+-amplitude on the excited valve", why="the valve's half range"
+    )
+    prbs_clock_ms: Real = param(20.0, "ms", "one PRBS bit per clock", ge=1.0, le=1e6)
+    prbs_bits: Whole = param(10, "", "register length, an integer (10: 1023 bits)", ge=2, le=24)
+    dither_v: Real = param(0.0, "V", "the valves' dither (controllers.dither); 0: none", ge=0.0,
+                           le=5.0)  # fmt: skip
+    dither_period_ms: Real = param(40.0, "ms", "the dither's period", ge=2.0, le=1e6)
+    seed: Whole = param(1, "", "shift of the sequence", ge=0, le=2**31)
+    excitation: Annotated[str, _one_of(*EXCITATIONS)] = param(
+        "one_leg", "", "one_leg: each leg in turn, the others held (Fig. 12); all_legs"
+    )
     actuator_kind: str = "nonlinear"
-    # discard the first part of the record in the fit (initial transient), s
-    fit_skip_s: float = 0.2
-    # the fit's solver (FIT_METHODS): scipy's bounded trust region, or our
-    # Levenberg-Marquardt (identify.levenberg_marquardt: the same minimum within
-    # 0.5 %, about half the CPU; not the default: docs there)
-    fit_method: str = "trust_region"
-    # loop-closure bound checked during the run, mm
-    loop_bound_mm: float = 1.0
+    fit_skip_s: Real = param(0.2, "s", "the record's start left out of the fit", ge=0.0)
+    fit_method: Annotated[str, _one_of(*FIT_METHODS)] = param(
+        "trust_region", "", "the fit's solver: scipy's bounded trust region or ours"
+    )
+    loop_bound_mm: Real = param(1.0, "mm", "loop-closure bound checked in the run", gt=0.0)
+
+    def __post_init__(self) -> None:
+        """The rules across the keys and on the 1 ms grid."""
+        if self.prbs_clock_ms != round(self.prbs_clock_ms):
+            rest = "a positive integer multiple of the 1 ms physics step"
+            raise Problem.invalid(self.prbs_clock_ms, rest, ".prbs_clock_ms")
+        if self.fit_skip_s >= self.duration_s:
+            rest = f">= 0 s and < {self.duration_s:g} s (identify.duration_s)"
+            raise Problem.invalid(self.fit_skip_s, rest, ".fit_skip_s")
+        period = self.dither_period_ms
+        if period != round(period) or round(period) % 2:
+            rest = "an even number of 1 ms physics steps"
+            raise Problem.invalid(period, rest, ".dither_period_ms")
 
     @classmethod
     def of(cls, tree: dict) -> Settings:
-        """The settings of an identify tree (its keys are the fields: ``--set`` and
-        the presets refuse any other)."""
-        return cls(**tree["identify"])
+        """The settings of an identify tree, checked (one line naming the key)."""
+        try:
+            return cls(**tree["identify"])
+        except ValidationError as exc:
+            raise user_error(exc, cls, "identify") from None
 
 
 #: The experiment's default settings as the tree's ``identify`` block.
@@ -157,35 +190,5 @@ def check_tree(tree: dict | Experiment) -> Experiment:
     model.pop("preset", None)
     pneumatics = validated(Pneumatics, tree["pneumatics"], "pneumatics").model_dump()
     tree["pneumatics"] = pneumatics
-    i, s = "identify", Settings.of(tree)
-    check_number(tree, f"{i}.duration_s", 0.5, 3600.0, unit=" s")
-    check_number(tree, f"{i}.settle_s", 0.0, 3600.0, unit=" s")
-    check_number(tree, f"{i}.position_mm", 50.0, 450.0, unit=" mm")
-    ms = check_number(tree, f"{i}.prbs_clock_ms", 1.0, 10**6, unit=" ms")
-    if ms != round(ms):
-        raise UserInputError(
-            f"invalid value at {i}.prbs_clock_ms: {ms:g}; allowed: a positive integer "
-            "multiple of the 1 ms physics step"
-        )
-    check_number(tree, f"{i}.prbs_bits", 2, 24, integer=True)
-    check_number(tree, f"{i}.seed", 0, 2**31, integer=True)
-    for key, choices in (("excitation", EXCITATIONS), ("fit_method", FIT_METHODS)):
-        if (value := getattr(s, key)) not in choices:
-            allowed = ", ".join(choices)
-            raise UserInputError(f"invalid value at {i}.{key}: {value!r}; allowed: {allowed}")
-    check_number(tree, f"{i}.fit_skip_s", 0.0, s.duration_s, hi_open=True, unit=" s")
-    check_number(tree, f"{i}.loop_bound_mm", 0.0, lo_open=True, unit=" mm")
-    if np.any(leg_values(s.prbs_amplitude_v, "prbs_amplitude_v") > 5.0):
-        raise UserInputError(
-            f"invalid value at {i}.prbs_amplitude_v: {s.prbs_amplitude_v!r}; "
-            "allowed: <= 5 V (the valve's half range)"
-        )
-    leg_values(s.kp_v_per_m, "kp_v_per_m")
-    check_number(tree, f"{i}.dither_v", 0.0, 5.0, unit=" V")
-    period = check_number(tree, f"{i}.dither_period_ms", 2.0, 10**6, unit=" ms")
-    if period != round(period) or round(period) % 2:
-        raise UserInputError(
-            f"invalid value at {i}.dither_period_ms: {period:g}; allowed: an even number of "
-            "1 ms physics steps"
-        )
+    s = Settings.of(tree)
     return Experiment(model, pneumatics, s, units, tree.get("preset"))
