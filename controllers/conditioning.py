@@ -39,8 +39,6 @@ import numpy as np
 from controllers.filters import DiscreteFilter
 from controllers.frames import GRAVITY
 
-__all__ = ["BIAS_TAU_S", "VIBRATION_HZ", "InputConditioner"]
-
 #: Default time constant of the bias removal (s).
 BIAS_TAU_S = 10.0
 #: Default corner of the vibration filter (Hz).

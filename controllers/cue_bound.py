@@ -40,8 +40,6 @@ from .cue_mpc_params import MpcParams
 from .frames import GRAVITY
 from .mpc_cueing import WITHOUT, ModelPredictiveCueing
 
-__all__ = ["CueBound", "cue_bound"]
-
 
 @dataclass
 class CueBound:

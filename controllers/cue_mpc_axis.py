@@ -19,8 +19,6 @@ from .cue_mpc_params import MpcParams
 from .frames import GRAVITY
 from .vestibular import CanalModel, OtolithModel
 
-__all__ = ["AxisPrediction", "MpcAxis", "discretise"]
-
 
 def discretise(a: np.ndarray, b: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
     """Zero-order-hold discretisation by the block matrix exponential."""

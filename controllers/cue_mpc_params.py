@@ -14,8 +14,6 @@ from dataclasses import dataclass
 from .geometry import HEAD_HEIGHT_PITCH, HEAD_HEIGHT_ROLL
 from .law_params import LawParams, ranged
 
-__all__ = ["MpcParamError", "MpcParams"]
-
 
 class MpcParamError(ValueError):
     """An MPC cueing parameter out of its allowed range; the message names the field."""

@@ -24,8 +24,6 @@ from __future__ import annotations
 
 from typing import Literal
 
-__all__ = ["dead_band", "gap", "held", "BandKind"]
-
 #: How a band shapes the error an integrator takes: :func:`dead_band` (``subtract``)
 #: or :func:`gap`.
 BandKind = Literal["subtract", "gap"]

@@ -21,8 +21,6 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["dither_signal"]
-
 
 def dither_signal(n: int, dt: float, amplitude_v: float, period_s: float) -> np.ndarray:
     """The dither of ``n`` steps of ``dt`` s on the three valves, ``(n, 3)`` volts.

@@ -21,8 +21,6 @@ from __future__ import annotations
 
 from .layout import layout
 
-__all__ = ["XC", "experiment_volts"]
-
 #: The experiment's constants: on (1) or not (0: the joint controllers act), the leg
 #: under test (0-2; 3: all three at once), q_ref (m), per leg K_p (V/m) and the holding
 #: voltage (V), the valves' range (V)

@@ -27,9 +27,6 @@ def _signal():
     return signal
 
 
-__all__ = ["DiscreteFilter", "FilterError"]
-
-
 class FilterError(ValueError):
     """A filter specification that cannot be discretised (non-finite, improper, bad period)."""
 

@@ -33,16 +33,6 @@ import numpy as np
 
 from .geometry import H0
 
-__all__ = [
-    "GRAVITY",
-    "T_VB",
-    "base_to_vehicle",
-    "vehicle_to_base",
-    "pose_iso_to_base",
-    "pose_base_to_iso",
-    "static_specific_force",
-]
-
 #: Standard gravity (m/s^2), ISO 80000-3; the cueing's tilt coordination divides by it.
 GRAVITY = 9.80665
 

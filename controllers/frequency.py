@@ -55,21 +55,6 @@ from .analysis.lifted import lift
 from .design import JointDesign, Plant
 from .joint import leg_state_space
 
-__all__ = [
-    "OMCT_RAD_S",
-    "RESPONSE_MODES",
-    "LoopModel",
-    "fit_sine",
-    "predict",
-    "hold_factor",
-    "bandwidth_3db",
-    "equivalent_delay",
-    "phase_at",
-    "CHAIN_CHANNELS",
-    "head_response",
-    "chain_response",
-]
-
 #: Vehicle-input and head channels of the whole cueing chain (V frame, ISO 8855): specific
 #: force x, y, z (m/s^2) and roll and pitch rates (rad/s).
 CHAIN_CHANNELS = ("fx", "fy", "fz", "wx", "wy")

@@ -43,15 +43,6 @@ import numpy as np
 HEAD_HEIGHT_ROLL = 0.75
 HEAD_HEIGHT_PITCH = 1.21
 
-__all__ = [
-    "PlatformGeometry",
-    "PAPER_POINTS_MM",
-    "PAPER_RIG_MM",
-    "H0",
-    "nominal_geometry",
-    "geometry_from_rig",
-]
-
 #: Initial elevation of the platform (paper section 5.2.1), m.
 H0 = 1265.0 * 1e-3
 

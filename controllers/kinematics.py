@@ -26,21 +26,6 @@ import numpy as np
 from .errors import ConvergenceError, KinematicsError, WorkspaceError
 from .geometry import PlatformGeometry, nominal_geometry
 
-__all__ = [
-    "rotation",
-    "line_circle_intersection",
-    "platform_position",
-    "attachment_points",
-    "leg_lengths",
-    "inverse_kinematics",
-    "jacobian",
-    "forward_kinematics",
-    "check_reachable",
-    "reachable",
-    "paper_leg_lengths",
-    "paper_inverse_kinematics",
-]
-
 _NOMINAL = nominal_geometry()
 AXIS_NAMES = ("roll", "pitch", "heave")
 

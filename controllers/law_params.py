@@ -15,8 +15,6 @@ import math
 from collections.abc import Callable
 from typing import Any, ClassVar, TypeVar
 
-__all__ = ["LawParams", "ranged"]
-
 _P = TypeVar("_P", bound="LawParams")
 
 

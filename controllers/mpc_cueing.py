@@ -73,8 +73,6 @@ from .geometry import PlatformGeometry, nominal_geometry
 from .vestibular import CanalModel, OtolithModel
 from .workspace import inscribed_box
 
-__all__ = ["ModelPredictiveCueing", "MpcResult", "MpcStream"]
-
 #: What a solve's status adds when the QP was solved again with limits given up, in turn.
 WITHOUT = (" without the jolt limit", " without the rotation and jolt limits")
 

@@ -38,8 +38,6 @@ import numpy as np
 
 from .step_functions import FC, FS, filter_step
 
-__all__ = ["KINDS", "SetpointFilter", "filter_state_space", "leg_times"]
-
 Kind = Literal["none", "first_order", "ramp", "zero_cancel"]
 KINDS: tuple[Kind, ...] = get_args(Kind)
 #: k_i of eqs. (36)-(37) (rad/s): the zero of eq. (29) that "zero_cancel" cancels.

@@ -85,8 +85,6 @@ from .errors import WorkspaceError
 from .geometry import PlatformGeometry, nominal_geometry
 from .kinematics import check_reachable
 
-__all__ = ["TaskSpaceController", "SamplingError", "MODES", "LAGS", "INTEGRATORS", "outer_law"]
-
 #: Discretisations of eq. (22)'s integral for the I law (docs/paper-notes.md,
 #: closed loop): "forward" ``T/(z - 1)`` as Fig. 7 prints it, "backward" ``T z/(z - 1)``.
 Integrator = Literal["forward", "backward"]

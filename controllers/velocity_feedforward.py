@@ -30,8 +30,6 @@ from .design import Plant
 from .geometry import PlatformGeometry, nominal_geometry
 from .kinematics import jacobian
 
-__all__ = ["velocity_gains", "leg_rates", "leg_velocity_feedforward"]
-
 
 def velocity_gains(plants: Sequence[Plant]) -> np.ndarray:
     """``a0 / b`` per leg (V per m/s): the inverse of each plant's velocity gain.

@@ -82,16 +82,6 @@ import numpy as np
 from .filters import DiscreteFilter
 from .frames import GRAVITY
 
-__all__ = [
-    "OtolithModel",
-    "CanalModel",
-    "VestibularModel",
-    "Perception",
-    "OTOLITH_THRESHOLDS",
-    "CANAL_THRESHOLDS",
-    "CANAL_PER_AXIS_ALTERNATIVE",
-]
-
 #: Otolith thresholds (m/s^2): x, y, z (Zacharias 1978; Reid & Nahon 1986).
 OTOLITH_THRESHOLDS = (0.17, 0.17, 0.28)
 #: Canal thresholds (rad/s): roll 3.0, pitch 3.6, yaw 2.6 deg/s (Reid & Nahon 1986).

@@ -73,8 +73,6 @@ from .geometry import HEAD_HEIGHT_PITCH, HEAD_HEIGHT_ROLL, PlatformGeometry, nom
 from .law_params import LawParams, ranged
 from .workspace import inscribed_box, soft_limit
 
-__all__ = ["WashoutParams", "ClassicalWashout", "WashoutResult", "WashoutParamError"]
-
 
 class WashoutParamError(ValueError):
     """A washout parameter out of its allowed range; the message names the field."""

@@ -16,8 +16,6 @@ import numpy as np
 from .geometry import PlatformGeometry, nominal_geometry
 from .kinematics import AXIS_NAMES, reachable
 
-__all__ = ["axis_range", "workspace_ranges", "combined_ranges"]
-
 
 def axis_range(
     axis: int,

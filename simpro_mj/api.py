@@ -36,16 +36,6 @@ from simpro_mj.config.variants import load_sweep
 from simpro_mj.core.errors import SweepError, UserInputError
 from simpro_mj.core.keys import closest
 
-__all__ = [
-    "Result",
-    "SweepResult",
-    "load",
-    "load_scenario",
-    "run",
-    "compare",
-    "sweep",
-]
-
 
 @dataclass(frozen=True)
 class Result:

@@ -59,16 +59,6 @@ from simpro_mj.identification.settings import Experiment, check_tree
 from simpro_mj.plant.model_params import DEFAULT_MODEL_PARAMS
 from simpro_mj.plant.pneumatics.params import DEFAULT_PNEUMATIC_PARAMS
 
-__all__ = [
-    "TOLERANCES",
-    "PARAMETERS",
-    "paper_targets",
-    "residuals",
-    "Calibration",
-    "calibrate",
-    "calibrate_preset",
-]
-
 #: Acceptance band of the fit: relative on wn and b/a0, absolute on zeta.
 TOLERANCES = {"wn_rad_s": 0.15, "zeta": 0.1, "velocity_gain_m_s_per_v": 0.15}
 

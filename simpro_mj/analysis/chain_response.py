@@ -78,25 +78,6 @@ from simpro_mj.core.errors import UserInputError
 from simpro_mj.plant.model import assemble
 from simpro_mj.sim.build import Build
 
-__all__ = [
-    "CHANNELS",
-    "PAIRS",
-    "DEFAULT_AMPLITUDES",
-    "ChainPlan",
-    "omct_periods_ms",
-    "plan_chain",
-    "chain_scenario",
-    "cue_block",
-    "fit_columns",
-    "measure_chain_point",
-    "measure_chain",
-    "predictions",
-    "ChainCurve",
-    "ChainRow",
-    "ChainSummary",
-    "chain_summary",
-]
-
 CHANNELS = CHAIN_CHANNELS
 #: The cueing block's ``sine.channel`` of each channel (telemetry column names).
 _SINE_CHANNEL = {c: f"{c}_{'mps2' if c[0] == 'f' else 'rad_s'}" for c in CHANNELS}

@@ -18,8 +18,6 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["SHIPPED", "CorpusRow", "judge", "judge_drive", "table"]
-
 #: The shipped cueing scenarios judged with their own law and input.
 SHIPPED = ("cue_braking", "cue_lane_change", "cue_braking_turn", "cue_step_fx", "cue_ramp_fx")
 #: The scenario whose law a recording is played through.

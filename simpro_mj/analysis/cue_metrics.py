@@ -28,20 +28,6 @@ from simpro_mj.analysis.cue_signals import (
 from simpro_mj.config.cueing import CUE_COLUMNS, vehicle_input
 from simpro_mj.config.models import Scenario
 
-__all__ = [
-    "CHANNELS",
-    "FLOORS",
-    "FloorVerdict",
-    "Floors",
-    "SUMMARY_COLUMNS",
-    "cue_floors",
-    "cue_metrics",
-    "perceived_columns",
-    "bound_block",
-    "perceived",
-    "summary_columns",
-]
-
 #: Channels compared: (name, vehicle column, simulator column, kind, axis).
 CHANNELS = (
     ("longitudinal_f", "veh_fx_mps2", "head_fx_mps2", "f", 0),

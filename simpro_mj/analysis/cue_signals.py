@@ -14,20 +14,6 @@ from collections.abc import Mapping
 
 import numpy as np
 
-__all__ = [
-    "LAG_STEP_S",
-    "LAG_WINDOW_S",
-    "bound_share",
-    "correlation",
-    "false_rotation",
-    "mean_lag",
-    "onset_block",
-    "onsets",
-    "shift_correlations",
-    "strength",
-]
-
-
 #: The mean-lag search starts over shifts 0..LAG_WINDOW_S and doubles its window while
 #: the best shift sits at the window's edge, up to half the record (the compared overlap
 #: never shorter than half the run); a best shift still at that edge is a lower bound.

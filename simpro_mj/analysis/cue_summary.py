@@ -14,8 +14,6 @@ import numpy as np
 
 from simpro_mj.analysis.cue_metrics import cue_floors
 
-__all__ = ["print_cue_summary", "print_strength"]
-
 
 def _cell(v, fmt: str) -> str:
     """``v`` formatted by ``fmt``, or a dash as wide for None."""

@@ -12,24 +12,6 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-__all__ = [
-    "Analysis",
-    "DelayLoop",
-    "DelaySweep",
-    "FeedforwardLoop",
-    "InnerLoop",
-    "Limits",
-    "OuterLoops",
-    "PlantLimit",
-    "RealLoop",
-    "RealLoops",
-    "Record",
-    "Shipped",
-    "ShippedLoop",
-    "SweepRow",
-    "json_value",
-]
-
 
 def json_value(obj: Any) -> Any:
     """``obj`` for JSON: records as their :meth:`~Record.to_json`, private ``_`` keys

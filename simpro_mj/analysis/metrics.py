@@ -41,20 +41,6 @@ from simpro_mj.analysis.cue_metrics import cue_metrics  # vehicle vs simulator, 
 from simpro_mj.config.entries import Step
 from simpro_mj.config.models import Scenario, as_scenario
 
-__all__ = [
-    "AXES",
-    "UNITS",
-    "FINAL_WINDOW_S",
-    "FINAL_WINDOW_FRACTION",
-    "SETTLING_BAND",
-    "SETTLING_FLOOR",
-    "AxisMetrics",
-    "StepFigures",
-    "compute_metrics",
-    "final_window",
-    "step_info",
-]
-
 AXES = ("roll", "pitch", "heave")
 UNITS = {"roll": "rad", "pitch": "rad", "heave": "m"}
 _TRUE = {"roll": "roll_rad", "pitch": "pitch_rad", "heave": "heave_m"}

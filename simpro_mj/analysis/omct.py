@@ -39,22 +39,6 @@ from controllers.frequency import CHAIN_CHANNELS, OMCT_RAD_S, fit_sine
 from controllers.geometry import HEAD_HEIGHT_PITCH, HEAD_HEIGHT_ROLL
 from controllers.washout import WashoutParams
 
-__all__ = [
-    "CHAIN",
-    "FIDELITY_REGIONS",
-    "FIDELITY_SOURCE",
-    "OMCT_TESTS",
-    "LAWS",
-    "Fidelity",
-    "Omct",
-    "OmctRow",
-    "fidelity",
-    "law_blocks",
-    "law_response",
-    "model_chain_metrics",
-    "omct",
-]
-
 #: OMCT tests a roll-pitch-heave platform has: name -> (input, output) channel.
 OMCT_TESTS = {
     "surge": ("fx", "fx"),

@@ -45,8 +45,6 @@ from simpro_mj.plant.pneumatics.factory import make_actuators
 from simpro_mj.plant.pneumatics.flow import RHO_REF, iso6358_mass_flow
 from simpro_mj.plant.step_functions import AC, ACT, CH
 
-__all__ = ["Check", "check_plant", "table"]
-
 
 @dataclass(frozen=True)
 class Check:

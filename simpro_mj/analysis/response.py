@@ -50,28 +50,6 @@ from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.messages import one_line
 from simpro_mj.sim.executors import Progress, run_tasks
 
-__all__ = [
-    "AXES",
-    "DEFAULT_AMPLITUDES",
-    "ResponsePlan",
-    "default_periods_ms",
-    "check_periods",
-    "check_amplitudes",
-    "check_settle_periods",
-    "check_run_length",
-    "failures",
-    "Failed",
-    "Outcome",
-    "PoseFit",
-    "SineTask",
-    "plan_response",
-    "sine_tasks",
-    "point_scenario",
-    "sine_run",
-    "measure_point",
-    "measure",
-]
-
 AXES = ("roll", "pitch", "heave")
 _SETPOINT_KEYS = ("roll_deg", "pitch_deg", "heave_mm")
 #: Edge units per axis and their scale to SI.

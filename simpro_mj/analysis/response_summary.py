@@ -32,19 +32,6 @@ from controllers.velocity_feedforward import velocity_gains
 from simpro_mj.analysis.response import _UNITS, AXES, Failed, ResponsePlan, failures
 from simpro_mj.config.models import Scenario
 
-__all__ = [
-    "Agreement",
-    "AxisFigures",
-    "Bode",
-    "CurveFigures",
-    "PoseResponse",
-    "PredictedCurve",
-    "ResponseRow",
-    "figures",
-    "loop_model",
-    "summary",
-]
-
 
 @dataclass
 class CurveFigures:

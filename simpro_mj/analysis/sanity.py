@@ -25,16 +25,6 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 
-__all__ = [
-    "FIT_WARN_PERCENT",
-    "FZ_TOLERANCE_MPS2",
-    "RADIANS_BELOW_DEG",
-    "fit_warnings",
-    "radians_warnings",
-    "telemetry_warnings",
-    "unit_warnings",
-]
-
 RADIANS_BELOW_DEG = 0.2
 FZ_TOLERANCE_MPS2 = 3.0
 FIT_WARN_PERCENT = 80.0

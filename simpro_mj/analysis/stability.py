@@ -64,8 +64,6 @@ from simpro_mj.config.models import Scenario, as_scenario
 from simpro_mj.core import cache
 from simpro_mj.plant.pneumatics.params import fill_linear
 
-__all__ = ["PLANTS", "outer_loop"]
-
 #: The plant assumptions of the analysis (module docstring).
 PLANTS = ("actuator", "paper")
 

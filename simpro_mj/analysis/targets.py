@@ -15,8 +15,6 @@ from pathlib import Path
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.keys import read_yaml
 
-__all__ = ["PLAUSIBLE", "load_targets"]
-
 #: Allowed range of each target and why. Eqs. (34)-(35) give wn 15.9 and 36.7 rad/s,
 #: zeta 0.87 and 0.10, b/a0 0.049 and 0.074 m/s/V.
 PLAUSIBLE = {

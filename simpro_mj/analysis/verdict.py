@@ -42,8 +42,6 @@ import numpy as np
 
 from simpro_mj.analysis.metrics import AXES, SETTLING_FLOOR, final_window
 
-__all__ = ["VERDICTS", "FINISHED_STATUSES", "MIN_CYCLES", "FLOOR_FACTOR", "verdict", "thresholds"]
-
 #: What a run that ran to its end can be.
 VERDICTS = ("ok", "limit_cycle", "not_settled")
 #: The statuses of a run that finished (judged, or stopped by a divergence).

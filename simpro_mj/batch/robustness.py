@@ -29,23 +29,6 @@ import numpy as np
 if TYPE_CHECKING:
     from simpro_mj.batch.summary import Row
 
-__all__ = [
-    "OVERSHOOT_PCT",
-    "SETTLING_S",
-    "PAYLOAD",
-    "COULOMB",
-    "UNFINISHED",
-    "Cell",
-    "Floors",
-    "RobustnessTable",
-    "meets_floors",
-    "worst",
-    "robustness_table",
-    "table_lines",
-    "fraction_text",
-    "map_figure",
-]
-
 #: The floors: overshoot (%) and 2 % settling time (s) of every stepped axis.
 OVERSHOOT_PCT = 15.0
 SETTLING_S = 4.0

@@ -52,16 +52,6 @@ from simpro_mj.analysis.stability import outer_loop
 from simpro_mj.config.models import Scenario, as_scenario
 from simpro_mj.report.results import read_timeseries
 
-__all__ = [
-    "BLOCK_S",
-    "GROWTH_LIMIT_1_S",
-    "Analytic",
-    "Stability",
-    "analytic",
-    "stability_of",
-    "stability_of_folder",
-]
-
 #: Stability criterion (module docstring).
 BLOCK_S = 0.5
 GROWTH_LIMIT_1_S = 0.1

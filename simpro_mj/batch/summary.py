@@ -38,22 +38,6 @@ if TYPE_CHECKING:
     from simpro_mj.batch.robustness import RobustnessTable
     from simpro_mj.batch.tables import MonteCarloSpread, StabilityLimit
 
-__all__ = [
-    "AXES",
-    "RUN_STATUSES",
-    "SMALL_SIGNAL_ONLY",
-    "STATUSES",
-    "AxisRow",
-    "Report",
-    "Row",
-    "csv_columns",
-    "metric_columns",
-    "summary_row",
-    "summary_csv_text",
-    "verdict_note",
-    "write_summary",
-]
-
 #: Variant statuses, and those a finished run can have.
 STATUSES = (*FINISHED_STATUSES, "interrupted", "failed", "invalid", "cancelled")
 RUN_STATUSES = FINISHED_STATUSES

@@ -32,17 +32,6 @@ from simpro_mj.batch.summary import AXES, SMALL_SIGNAL_ONLY, Report, Row, verdic
 from simpro_mj.config.models import as_scenario
 from simpro_mj.config.sweep import format_value
 
-__all__ = [
-    "ErrorSpread",
-    "MonteCarloSpread",
-    "SpreadGroup",
-    "StabilityLimit",
-    "monte_carlo_table",
-    "number",
-    "print_report",
-    "stability_table",
-]
-
 
 @dataclass
 class StabilityLimit:

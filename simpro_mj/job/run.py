@@ -34,8 +34,6 @@ from simpro_mj.sim.readiness import signal_ready
 if TYPE_CHECKING:  # the result module loads MuJoCo: when a run is built, not on import
     from simpro_mj.sim.result import SimResult
 
-__all__ = ["Run", "RunOutcome", "end_stop_warnings", "warn"]
-
 
 def warn(lines, quiet: bool) -> None:
     """Print warnings on stderr as ``warning: ...`` lines, unless ``quiet``."""
