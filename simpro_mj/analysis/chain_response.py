@@ -46,7 +46,6 @@ acted (not a small-signal point: lower the amplitude).
 
 from __future__ import annotations
 
-import copy
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass, field
@@ -54,20 +53,27 @@ from dataclasses import asdict, dataclass, field
 import mujoco
 import numpy as np
 
-from controllers.frequency import CHAIN_CHANNELS, OMCT_RAD_S, chain_response, fit_sine, predict
+from controllers.frequency import CHAIN_CHANNELS, chain_response, fit_sine, predict
 from controllers.kinematics import inverse_kinematics
 from controllers.washout import ClassicalWashout, WashoutParams
+from simpro_mj.analysis.omct import OMCT_TESTS
 from simpro_mj.analysis.response import (
+    UNITS,
     Failed,
+    SinePlan,
     SineTask,
-    check_run_length,
     check_settle_periods,
+    db,
+    default_periods_ms,
+    dense_grid,
     failures,
+    fits,
+    in_edge,
     measure,
     run_point,
     saturated_pct,
+    sine_plan,
     sine_run,
-    sine_tasks,
 )
 from simpro_mj.analysis.response_summary import Bode, loop_model
 from simpro_mj.config.cue_models import Cueing
@@ -81,20 +87,9 @@ from simpro_mj.sim.build import Build
 CHANNELS = CHAIN_CHANNELS
 #: The cueing block's ``sine.channel`` of each channel (telemetry column names).
 _SINE_CHANNEL = {c: f"{c}_{'mps2' if c[0] == 'f' else 'rad_s'}" for c in CHANNELS}
-#: Edge unit and its factor to SI per channel.
-_UNITS = {c: ("m/s^2", 1.0) if c[0] == "f" else ("deg/s", math.pi / 180.0) for c in CHANNELS}
-#: OMCT pairs of a roll-pitch-heave platform: (input, output) -> name.
-PAIRS = {
-    ("wy", "wy"): "pitch",
-    ("wx", "wx"): "roll",
-    ("fx", "fx"): "surge",
-    ("fy", "fy"): "sway",
-    ("fz", "fz"): "heave",
-    ("wy", "fx"): "pitch-to-surge",
-    ("wx", "fy"): "roll-to-sway",
-    ("fx", "wy"): "surge-to-pitch",
-    ("fy", "wx"): "sway-to-roll",
-}
+#: The OMCT tests (:data:`simpro_mj.analysis.omct.OMCT_TESTS`) as (input, output) -> name,
+#: the rotations first.
+PAIRS = {OMCT_TESTS[name]: name for name in ("pitch", "roll", *OMCT_TESTS)}
 #: Small-signal amplitudes (edge units). 0.3 m/s^2 keeps the tilt rate of the default
 #: washout below its 3 deg/s limit at every frequency (peak w |LP(jw)| k_x a / g =
 #: 2.5 * 0.5 * 0.3 / 9.81 = 2.2 deg/s at w_t = 5 rad/s) and the heave within
@@ -106,20 +101,7 @@ DEFAULT_SETTLE_S = 10.0
 
 def omct_periods_ms() -> list[int]:
     """The twelve OMCT frequencies on the 1 ms period grid, longest period first."""
-    return sorted({int(round(2000.0 * math.pi / w)) for w in OMCT_RAD_S}, reverse=True)
-
-
-@dataclass
-class ChainPlan:
-    """What :func:`measure_chain` runs: one task per (channel, period)."""
-
-    scenario: dict
-    channels: tuple
-    periods_ms: list
-    amplitudes: dict  # SI per channel
-    settle_s: float
-    periods: int
-    tasks: list[SineTask] = field(default_factory=list)
+    return default_periods_ms(extra_hz=())
 
 
 def _check_amplitude(value, kind: str) -> float:
@@ -147,7 +129,7 @@ def plan_chain(
     channels: Sequence[str] = CHANNELS,
     settle_s: float = DEFAULT_SETTLE_S,
     periods: int = 2,
-) -> ChainPlan:
+) -> SinePlan:
     """Check the test's parameters and build its tasks (plain data for the workers)."""
     af, aw = _check_amplitude(amplitude_mps2, "f"), _check_amplitude(amplitude_deg_s, "w")
     if not channels:
@@ -161,22 +143,12 @@ def plan_chain(
         )
     check_settle_periods(settle_s, periods)
     periods_ms = omct_periods_ms() if periods_ms is None else sorted(periods_ms, reverse=True)
-    check_run_length(settle_s, periods, periods_ms)
     amps = {c: (af if c[0] == "f" else aw * math.pi / 180.0) for c in CHANNELS}
-    plan = ChainPlan(
-        scenario=copy.deepcopy(dict(scenario)),
-        channels=tuple(channels),
-        periods_ms=list(periods_ms),
-        amplitudes=amps,
-        settle_s=float(settle_s),
-        periods=int(periods),
-    )
 
     def run_of(c: str, p: int) -> dict:
         return chain_scenario(scenario, c, p, amps[c], settle_s, periods)
 
-    plan.tasks = sine_tasks(plan.channels, plan.periods_ms, settle_s, periods, run_of)
-    return plan
+    return sine_plan(scenario, channels, periods_ms, amps, settle_s, periods, run_of)
 
 
 def cue_block(scenario: Scenario | Mapping) -> dict:
@@ -254,7 +226,7 @@ def measure_chain_point(envelope: Mapping) -> dict:
     return run_point(envelope, _fit_chain)
 
 
-def measure_chain(plan: ChainPlan, *, jobs: int = 1, scheduler=None, progress: bool = False):
+def measure_chain(plan: SinePlan, *, jobs: int = 1, scheduler=None, progress: bool = False):
     """Run every task of ``plan``; results in task order (:func:`measure_chain_point`)."""
     return measure(
         plan,
@@ -305,7 +277,7 @@ class ChainPrediction:
     note: str | None = None
 
 
-def predictions(plan: ChainPlan, omega) -> ChainPrediction:
+def predictions(plan: SinePlan, omega) -> ChainPrediction:
     """The :class:`ChainPrediction` of ``plan``'s washout and loop at ``omega``."""
 
     sc = plan.tasks[0].scenario if plan.tasks else plan.scenario
@@ -324,10 +296,6 @@ def predictions(plan: ChainPlan, omega) -> ChainPrediction:
     except Exception as exc:  # noqa: BLE001 - the measurement stands without it
         out.note = f"no loop prediction: {type(exc).__name__}: {exc}"
     return out
-
-
-def _edge(cin: str, cout: str, h: complex) -> complex:
-    return h * _UNITS[cin][1] / _UNITS[cout][1]
 
 
 def _unwrapped(h_dense: np.ndarray) -> np.ndarray:
@@ -397,54 +365,52 @@ class ChainSummary:
         }
 
 
-def chain_summary(plan: ChainPlan, results: list) -> ChainSummary:
+def chain_summary(plan: SinePlan, results: list) -> ChainSummary:
     """Rows (one per OMCT pair and frequency), the failures, and ``curves``: per OMCT
     pair the washout alone and the linear chain (None without a loop model) on a
     dense grid between the lowest and highest measured frequency."""
     periods = sorted(plan.periods_ms, reverse=True)
     omega = 2 * np.pi * 1000.0 / np.array(periods, float)
-    # the predictions on a dense grid from well below, so that their phase unwraps from
-    # the low-frequency asymptote whatever frequencies were asked for
-    dense = np.unique(np.r_[np.geomspace(omega.min() / 20, omega.max(), 300), omega])
-    at = np.searchsorted(dense, omega)
+    dense, at, span = dense_grid(omega, 300)
     pred = predictions(plan, dense)
-    by_key = {
-        (t.input, t.period_ms): r.fit
-        for t, r in zip(plan.tasks, results, strict=True)
-        if r.status == "ok"
-    }
+    by_key = fits(plan.tasks, results)
     out = ChainSummary(failed=failures(plan.tasks, results), prediction_note=pred.note)
     for (cin, cout), name in PAIRS.items():
-        if cin not in plan.channels:
+        if cin not in plan.inputs:
             continue
         i, o = CHANNELS.index(cin), CHANNELS.index(cout)
-        hw = pred.washout[:, o, i] if pred.washout is not None else None
-        ph_w = _unwrapped(hw)[at] if hw is not None else None
-        hp = pred.predicted[:, o, i] if pred.predicted is not None else None
-        ph_p = _unwrapped(hp)[at] if hp is not None else None
+        curve = out.curves[name] = ChainCurve(dense[span].tolist())
+        h_of, ph_of = {}, {}
+        for key in ("washout", "predicted"):
+            if (h_all := getattr(pred, key)) is not None:
+                h_of[key] = h = h_all[:, o, i]
+                unwrapped = _unwrapped(h)
+                ph_of[key] = unwrapped[at]
+                setattr(curve, key, Bode.of(in_edge(cin, cout, np.abs(h[span])), unwrapped[span]))
+        hw, ph_w = h_of.get("washout"), ph_of.get("washout")
+        hp, ph_p = h_of.get("predicted"), ph_of.get("predicted")
         for n, p in enumerate(periods):
-            r = by_key.get((cin, p))
-            if r is None:
+            if (r := by_key.get((cin, p))) is None:
                 continue
             hm = complex(*r.head[o]) / complex(*r.ref)
             raw = math.degrees(np.angle(hm))
             near = ph_p[n] if ph_p is not None else ph_w[n] if ph_w is not None else raw
             phase = raw + 360.0 * round((near - raw) / 360.0)  # the branch of the prediction
-            g = abs(_edge(cin, cout, hm))
-            gw = abs(_edge(cin, cout, hw[at[n]])) if hw is not None else None
+            g = abs(in_edge(cin, cout, hm))
+            gw = abs(in_edge(cin, cout, hw[at[n]])) if hw is not None else None
             row = ChainRow(
                 test=name,
                 input=cin,
                 output=cout,
-                unit=f"{_UNITS[cout][0]} per {_UNITS[cin][0]}",
+                unit=f"{UNITS[cout][0]} per {UNITS[cin][0]}",
                 frequency_hz=float(omega[n] / (2 * np.pi)),
                 omega_rad_s=float(omega[n]),
                 period_ms=p,
-                amplitude=plan.amplitudes[cin] / _UNITS[cin][1],
+                amplitude=plan.amplitudes[cin] / UNITS[cin][1],
                 gain=g,
-                gain_db=20 * math.log10(max(g, 1e-300)),
+                gain_db=db(g),
                 phase_deg=float(phase),
-                washout_gain_db=None if gw is None else 20 * math.log10(max(gw, 1e-300)),
+                washout_gain_db=None if gw is None else db(gw),
                 washout_phase_deg=None if ph_w is None else float(ph_w[n]),
                 platform_db=None
                 if gw is None
@@ -455,29 +421,10 @@ def chain_summary(plan: ChainPlan, results: list) -> ChainSummary:
                 softened_pct=r.softened_pct,
             )
             if hp is not None and ph_p is not None:
-                gp = abs(_edge(cin, cout, hp[at[n]]))
-                row.predicted_gain_db = 20 * math.log10(max(gp, 1e-300))
+                row.predicted_gain_db = db(abs(in_edge(cin, cout, hp[at[n]])))
                 row.predicted_phase_deg = float(ph_p[n])
             out.rows.append(row)
     out.not_small_signal = sorted(
         {r.test for r in out.rows if r.rate_limited_pct > 0 or r.softened_pct > 0}
     )
-    # the washout alone and the linear chain between the measured frequencies, to draw
-    # as curves (the rows hold them at the measured frequencies only)
-    span = (dense >= omega.min() * (1 - 1e-9)) & (dense <= omega.max() * (1 + 1e-9))
-    for (cin, cout), name in PAIRS.items():
-        if cin not in plan.channels:
-            continue
-        i, o = CHANNELS.index(cin), CHANNELS.index(cout)
-        curve = out.curves[name] = ChainCurve(dense[span].tolist())
-        for key in ("washout", "predicted"):
-            h_all = getattr(pred, key)
-            if h_all is not None:
-                h = h_all[:, o, i]
-                gain = np.abs(h[span]) * _UNITS[cin][1] / _UNITS[cout][1]
-                bode = Bode(
-                    gain_db=(20 * np.log10(np.maximum(gain, 1e-300))).tolist(),
-                    phase_deg=_unwrapped(h)[span].tolist(),
-                )
-                setattr(curve, key, bode)
     return out

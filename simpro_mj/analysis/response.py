@@ -34,15 +34,12 @@ from __future__ import annotations
 import copy
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any, NamedTuple
 
 import numpy as np
 
-from controllers.frequency import (
-    OMCT_RAD_S,
-    fit_sine,
-)
+from controllers.frequency import CHAIN_CHANNELS, OMCT_RAD_S, fit_sine
 from controllers.geometry import nominal_geometry
 from controllers.kinematics import reachable
 from simpro_mj.config.rules import MAX_DURATION_S
@@ -52,12 +49,9 @@ from simpro_mj.sim.executors import Progress, run_tasks
 
 AXES = ("roll", "pitch", "heave")
 _SETPOINT_KEYS = ("roll_deg", "pitch_deg", "heave_mm")
-#: Edge units per axis and their scale to SI.
-_UNITS = {
-    "roll": ("deg", math.pi / 180.0),
-    "pitch": ("deg", math.pi / 180.0),
-    "heave": ("mm", 1e-3),
-}
+#: Edge unit and its factor to SI per task axis and per vehicle channel (``response --chain``).
+UNITS = {"roll": ("deg", math.pi / 180.0), "pitch": ("deg", math.pi / 180.0), "heave": ("mm", 1e-3)}
+UNITS |= {c: ("m/s^2", 1.0) if c[0] == "f" else ("deg/s", math.pi / 180.0) for c in CHAIN_CHANNELS}
 #: Small-signal amplitudes (edge units): well inside the valves' linear range.
 DEFAULT_AMPLITUDES = {"roll": 0.5, "pitch": 0.5, "heave": 5.0}
 #: Frequencies where the summary reads the phase (Hz); measured by default.
@@ -68,11 +62,29 @@ MAX_PERIODS = 100
 MAX_SETTLE_S = 600.0
 
 
-def default_periods_ms() -> list[int]:
-    """OMCT frequencies on the 1 ms period grid, plus 0.5 and 1 Hz (longest period first)."""
+def default_periods_ms(extra_hz: Sequence[float] = PHASE_POINTS_HZ) -> list[int]:
+    """OMCT frequencies on the 1 ms period grid, plus ``extra_hz`` (longest period first)."""
     periods = {int(round(2000.0 * math.pi / w)) for w in OMCT_RAD_S}
-    periods |= {int(round(1000.0 / f)) for f in PHASE_POINTS_HZ}
-    return sorted(periods, reverse=True)
+    return sorted(periods | {int(round(1000.0 / f)) for f in extra_hz}, reverse=True)
+
+
+def in_edge(cin: str, cout: str, h):
+    """An SI ratio from ``cin`` to ``cout`` in their edge units (:data:`UNITS`)."""
+    return h * UNITS[cin][1] / UNITS[cout][1]
+
+
+def db(gain: float) -> float:
+    """``gain`` in dB (a zero gain as -6000 dB, finite for JSON)."""
+    return 20 * math.log10(max(gain, 1e-300))
+
+
+def dense_grid(omega: np.ndarray, n: int):
+    """``n`` frequencies from ``omega.min() / 20`` (a prediction's phase unwraps from the
+    low-frequency asymptote) to ``omega.max()`` with ``omega`` among them: the grid, the
+    indices of ``omega`` in it, and the mask of the span between the measured ones."""
+    dense = np.unique(np.r_[np.geomspace(omega.min() / 20, omega.max(), n), omega])
+    span = (dense >= omega.min() * (1 - 1e-9)) & (dense <= omega.max() * (1 + 1e-9))
+    return dense, np.searchsorted(dense, omega), span
 
 
 def check_periods(freq_hz: Sequence[float], where: str = "--freq-hz") -> list[int]:
@@ -128,7 +140,7 @@ def check_amplitudes(amplitudes: Mapping[str, float]) -> dict:
     geometry = nominal_geometry()
     out = {}
     for j, axis in enumerate(AXES):
-        unit, scale = _UNITS[axis]
+        unit, scale = UNITS[axis]
         where = "--amplitude-mm" if axis == "heave" else "--amplitude-deg"
         a = amplitudes[axis]
         limit = _max_amplitude(j, geometry) / scale
@@ -218,17 +230,38 @@ def failures(tasks: Sequence[SineTask], results: Sequence[Outcome]) -> list[Fail
     ]
 
 
+def fits(tasks: Sequence[SineTask], results: Sequence[Outcome]) -> dict:
+    """The fits of the tasks that ran ``ok``, by (input, period_ms)."""
+    ok = zip(tasks, results, strict=True)
+    return {(t.input, t.period_ms): r.fit for t, r in ok if r.status == "ok"}
+
+
 @dataclass
-class ResponsePlan:
-    """What :func:`measure` runs: one task per (axis, period)."""
+class SinePlan:
+    """What :func:`measure` runs: one task per (input, period); ``inputs`` the task axes
+    (:func:`plan_response`) or the vehicle channels (``plan_chain``)."""
 
     scenario: dict
-    axes: tuple
+    inputs: tuple
     periods_ms: list
-    amplitudes: dict  # SI per axis
+    amplitudes: dict  # SI per input
     settle_s: float
     periods: int
-    tasks: list[SineTask] = field(default_factory=list)
+    tasks: list[SineTask]
+
+
+def sine_plan(scenario: Mapping, inputs, periods_ms, amplitudes: dict, settle_s: float,
+              periods: int, scenario_of) -> SinePlan:  # fmt: skip
+    """The plan of one task per input and period, ``scenario_of(input, period_ms)`` run
+    for ``settle_s`` and ``periods`` whole periods, once the longest run is checked."""
+    check_run_length(settle_s, periods, periods_ms)
+    tasks = [
+        SineTask(scenario_of(x, p), x, int(p), float(settle_s), int(periods))
+        for x in inputs
+        for p in periods_ms
+    ]
+    return SinePlan(copy.deepcopy(dict(scenario)), tuple(inputs), list(periods_ms), amplitudes,
+                    float(settle_s), int(periods), tasks)  # fmt: skip
 
 
 def plan_response(
@@ -239,7 +272,7 @@ def plan_response(
     axes: Sequence[str] = AXES,
     settle_s: float = 4.0,
     periods: int = 2,
-) -> ResponsePlan:
+) -> SinePlan:
     """Check the test's parameters and build its tasks (plain data for the workers)."""
     amps = dict(DEFAULT_AMPLITUDES)
     amps.update(amplitudes or {})
@@ -249,31 +282,11 @@ def plan_response(
         if a not in AXES:
             raise UserInputError(f"invalid value at --axes: {a!r}; allowed: {list(AXES)}")
     periods_ms = default_periods_ms() if periods_ms is None else list(periods_ms)
-    check_run_length(settle_s, periods, periods_ms)
-    plan = ResponsePlan(
-        scenario=copy.deepcopy(dict(scenario)),
-        axes=tuple(axes),
-        periods_ms=periods_ms,
-        amplitudes=amp_si,
-        settle_s=float(settle_s),
-        periods=int(periods),
-    )
 
     def run_of(a: str, p: int) -> dict:
         return point_scenario(scenario, a, p, amps[a], settle_s, periods)
 
-    plan.tasks = sine_tasks(plan.axes, periods_ms, settle_s, periods, run_of)
-    return plan
-
-
-def sine_tasks(inputs, periods_ms, settle_s: float, periods: int, scenario_of) -> list[SineTask]:
-    """One task per input (axis or channel) and period: ``scenario_of(input, period_ms)``
-    run for ``settle_s`` and ``periods``."""
-    return [
-        SineTask(scenario_of(x, p), x, int(p), float(settle_s), int(periods))
-        for x in inputs
-        for p in periods_ms
-    ]
+    return sine_plan(scenario, axes, periods_ms, amp_si, settle_s, periods, run_of)
 
 
 def point_scenario(

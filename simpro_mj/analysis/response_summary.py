@@ -10,7 +10,6 @@ at home, the IMU filter, the outer law, gains and period.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from dataclasses import asdict, dataclass, field
 
@@ -29,7 +28,17 @@ from controllers.kinematics import jacobian
 from controllers.setpoint_filter import filter_state_space, leg_times
 from controllers.task_space import outer_law
 from controllers.velocity_feedforward import velocity_gains
-from simpro_mj.analysis.response import _UNITS, AXES, Failed, ResponsePlan, failures
+from simpro_mj.analysis.response import (
+    AXES,
+    UNITS,
+    Failed,
+    SinePlan,
+    db,
+    dense_grid,
+    failures,
+    fits,
+    in_edge,
+)
 from simpro_mj.config.models import Scenario
 
 
@@ -100,6 +109,11 @@ class Bode:
 
     gain_db: list[float]
     phase_deg: list[float]
+
+    @classmethod
+    def of(cls, gain: np.ndarray, phase_deg: np.ndarray) -> Bode:
+        """The curve of a gain (a ratio) and a phase (deg) on a grid."""
+        return cls((20 * np.log10(np.maximum(gain, 1e-300))).tolist(), phase_deg.tolist())
 
 
 @dataclass
@@ -179,12 +193,7 @@ def loop_model(scenario: Scenario | Mapping) -> LoopModel:
     )
 
 
-def _in_edge(axis_in: str, axis_out: str, h: complex) -> complex:
-    """An SI ratio expressed in the edge units (deg/deg, mm/deg, deg/mm, mm/mm)."""
-    return h * _UNITS[axis_in][1] / _UNITS[axis_out][1]
-
-
-def summary(plan: ResponsePlan, results: list, model: LoopModel | None) -> PoseResponse:
+def summary(plan: SinePlan, results: list, model: LoopModel | None) -> PoseResponse:
     """Tables and per-axis figures from the measurements and the prediction.
 
     Returns the :class:`PoseResponse`: ``rows`` (one per input axis, output axis,
@@ -199,25 +208,18 @@ def summary(plan: ResponsePlan, results: list, model: LoopModel | None) -> PoseR
     freq = np.array([1000.0 / p for p in periods])
     omega = 2 * np.pi * freq
     pred = None
+    dense, at, span = dense_grid(omega, 400)
     if model is not None:
-        # on a dense grid from well below the lowest frequency, so that the
-        # predicted phase unwraps from ~0 deg whatever frequencies were asked for
-        dense = np.unique(np.r_[np.geomspace(omega.min() / 20, omega.max(), 400), omega])
         full = predict(model, dense)
-        at = np.searchsorted(dense, omega)
         pred = {sig: full[sig][at] for sig in ("true", "measured")}
         pred_phase = {
             sig: np.degrees(np.unwrap(np.angle(full[sig]), axis=0))[at]
             for sig in ("true", "measured")
         }
-    by_key = {
-        (t.input, t.period_ms): r.fit
-        for t, r in zip(plan.tasks, results, strict=True)
-        if r.status == "ok"
-    }
+    by_key = fits(plan.tasks, results)
     out = PoseResponse(failed=failures(plan.tasks, results))
     rows, axes = out.rows, out.axes
-    for axis_in in plan.axes:
+    for axis_in in plan.inputs:
         j = AXES.index(axis_in)
         ok = [i for i, p in enumerate(periods) if (axis_in, p) in by_key]
         f_ok = freq[ok]
@@ -246,7 +248,7 @@ def summary(plan: ResponsePlan, results: list, model: LoopModel | None) -> PoseR
                     diag_phase[sig] = ph_m
                 for n, i in enumerate(ok):
                     r = by_key[(axis_in, periods[i])]
-                    g = abs(_in_edge(axis_in, axis_out, hm[n]))
+                    g = abs(in_edge(axis_in, axis_out, hm[n]))
                     row = ResponseRow(
                         input_axis=axis_in,
                         output_axis=axis_out,
@@ -254,15 +256,14 @@ def summary(plan: ResponsePlan, results: list, model: LoopModel | None) -> PoseR
                         frequency_hz=freq[i],
                         omega_rad_s=omega[i],
                         period_ms=periods[i],
-                        amplitude=plan.amplitudes[axis_in] / _UNITS[axis_in][1],
+                        amplitude=plan.amplitudes[axis_in] / UNITS[axis_in][1],
                         gain=g,
-                        gain_db=20 * math.log10(max(g, 1e-300)),
+                        gain_db=db(g),
                         phase_deg=float(ph_m[n]),
                         saturated_pct=r.saturated_pct,
                     )
                     if hp is not None and ph_p is not None:
-                        gp = abs(_in_edge(axis_in, axis_out, hp[i]))
-                        row.predicted_gain_db = 20 * math.log10(max(gp, 1e-300))
+                        row.predicted_gain_db = db(abs(in_edge(axis_in, axis_out, hp[i])))
                         row.predicted_phase_deg = float(ph_p[i])
                         row.diff_db = row.gain_db - row.predicted_gain_db
                         row.diff_deg = float(np.degrees(np.angle(hm[n] / hp[i])))
@@ -293,17 +294,15 @@ def summary(plan: ResponsePlan, results: list, model: LoopModel | None) -> PoseR
                 for sig in ("true", "measured")
             }
     if pred is not None:  # the prediction between the measured frequencies, to draw as curves
-        span = (dense >= omega.min() * (1 - 1e-9)) & (dense <= omega.max() * (1 + 1e-9))
-        for axis_in in plan.axes:
+        for axis_in in plan.inputs:
             j = AXES.index(axis_in)
-            bode = {}
-            for sig in ("true", "measured"):
-                h = full[sig][span, j, j]
-                phase = np.degrees(np.unwrap(np.angle(full[sig][:, j, j])))[span]
-                bode[sig] = Bode(
-                    gain_db=(20 * np.log10(np.maximum(np.abs(h), 1e-300))).tolist(),
-                    phase_deg=phase.tolist(),
+            bode = {
+                sig: Bode.of(
+                    np.abs(full[sig][span, j, j]),
+                    np.degrees(np.unwrap(np.angle(full[sig][:, j, j])))[span],
                 )
+                for sig in ("true", "measured")
+            }
             out.predicted_curves[axis_in] = PredictedCurve(
                 (dense[span] / (2 * np.pi)).tolist(), bode["true"], bode["measured"]
             )

@@ -162,7 +162,7 @@ def run(args) -> int:
     if args.freq_hz is not None and not args.freq_hz:
         raise UserInputError("invalid value at --freq-hz: empty; allowed: one or more frequencies")
     periods_ms = None if args.freq_hz is None else check_periods(args.freq_hz)
-    plan: Any  # a ChainPlan or a ResponsePlan, and their summaries and drawings below
+    plan: Any  # a SinePlan of either kind, and their summaries and drawings below
     summ: Any
     if args.chain:
         channels = tuple(c.strip() for c in args.channels.split(",") if c.strip())
@@ -200,7 +200,7 @@ def run(args) -> int:
         if args.chain:
             summ = chain_summary(plan, measure_chain(plan, **options))
             part = {
-                "channels_excited": list(plan.channels),
+                "channels_excited": list(plan.inputs),
                 "amplitude": {
                     "f_mps2": plan.amplitudes["fx"],
                     "w_deg_s": math.degrees(plan.amplitudes["wx"]),
@@ -216,7 +216,7 @@ def run(args) -> int:
             part = {
                 # the law as analysed: an I law by backward Euler is the PI form with c = 0
                 "analysed_law": model.mode,
-                "axes_excited": list(plan.axes),
+                "axes_excited": list(plan.inputs),
                 "amplitude": {"roll_deg": deg, "pitch_deg": deg, "heave_mm": mm},
                 "settle_s": plan.settle_s,
                 "periods": plan.periods,
@@ -236,7 +236,7 @@ def run(args) -> int:
         def plotter(_doc, folder: Path) -> list[str]:
             if args.chain:
                 return plot_chain(summ, title, folder)
-            return plot(summ, plan.axes, title, folder)
+            return plot(summ, plan.inputs, title, folder)
 
         rows = csv_text(
             doc["rows"], [f.name for f in fields(ChainRow if args.chain else ResponseRow)]
