@@ -329,9 +329,6 @@ class ChainRow:
     rate_limited_pct: float = 0.0
     softened_pct: float = 0.0
 
-    def to_json(self) -> dict:
-        return asdict(self)
-
 
 @dataclass
 class ChainCurve:
@@ -357,7 +354,7 @@ class ChainSummary:
 
     def to_json(self) -> dict:
         return {
-            "rows": [r.to_json() for r in self.rows],
+            "rows": [asdict(r) for r in self.rows],
             "failed": [f.as_json("channel") for f in self.failed],
             "prediction_note": self.prediction_note,
             "not_small_signal": self.not_small_signal,

@@ -91,9 +91,6 @@ class ResponseRow:
     diff_deg: float | None = None
     saturated_pct: float = 0.0
 
-    def to_json(self) -> dict:
-        return asdict(self)
-
 
 @dataclass
 class Agreement:
@@ -141,7 +138,7 @@ class PoseResponse:
 
     def to_json(self) -> dict:
         return {
-            "rows": [r.to_json() for r in self.rows],
+            "rows": [asdict(r) for r in self.rows],
             "axes": {a: v.to_json() for a, v in self.axes.items()},
             "agreement": {
                 a: {sig: asdict(x) for sig, x in v.items()} for a, v in self.agreement.items()
