@@ -46,9 +46,6 @@ def base_to_vehicle(v) -> np.ndarray:
     return v * np.array([-1.0, -1.0, 1.0])
 
 
-vehicle_to_base = base_to_vehicle  # T_VB is its own inverse
-
-
 def pose_iso_to_base(roll_iso, pitch_iso, heave, h0: float = H0) -> np.ndarray:
     """Cabin attitude in ISO angles and heave from home -> platform pose (roll, pitch, h) in B.
 

@@ -53,6 +53,7 @@ from dataclasses import asdict, dataclass, field
 import mujoco
 import numpy as np
 
+from controllers.frames import T_VB
 from controllers.frequency import CHAIN_CHANNELS, chain_response, fit_sine, predict
 from controllers.kinematics import inverse_kinematics
 from controllers.washout import ClassicalWashout, WashoutParams
@@ -257,13 +258,12 @@ def head_jacobian(scenario: Mapping, step: float = 1e-4) -> np.ndarray:
         mujoco.mj_kinematics(m, d)
         return d.site("head").xpos.copy()
 
-    t = np.diag([-1.0, -1.0, 1.0])  # base <-> ISO (vectors and angles, controllers.frames)
     jac = np.empty((3, 3))
     for j in range(3):
         e = np.zeros(3)
         e[j] = step
         jac[:, j] = (head(home + e) - head(home - e)) / (2 * step)
-    return t @ jac @ t
+    return T_VB @ jac @ T_VB  # base <-> ISO: T_VB is its own inverse
 
 
 @dataclass
@@ -291,8 +291,8 @@ def predictions(plan: SinePlan, omega) -> ChainPrediction:
     out = ChainPrediction(washout=chain_response(wash, omega))
     try:
         loop = predict(loop_model(sc), omega)["true"]
-        t = np.diag([-1.0, -1.0, 1.0])  # base <-> ISO angles (controllers.frames)
-        out.predicted = chain_response(wash, omega, pose=t @ loop @ t, head_jac=head_jacobian(sc))
+        pose = T_VB @ loop @ T_VB  # base <-> ISO angles
+        out.predicted = chain_response(wash, omega, pose=pose, head_jac=head_jacobian(sc))
     except Exception as exc:  # noqa: BLE001 - the measurement stands without it
         out.note = f"no loop prediction: {type(exc).__name__}: {exc}"
     return out
