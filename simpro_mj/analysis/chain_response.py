@@ -298,10 +298,6 @@ def predictions(plan: SinePlan, omega) -> ChainPrediction:
     return out
 
 
-def _unwrapped(h_dense: np.ndarray) -> np.ndarray:
-    return np.degrees(np.unwrap(np.angle(h_dense)))
-
-
 @dataclass
 class ChainRow:
     """One OMCT pair at one frequency: the head's measured response (edge units, the
@@ -381,7 +377,7 @@ def chain_summary(plan: SinePlan, results: list) -> ChainSummary:
         for key in ("washout", "predicted"):
             if (h_all := getattr(pred, key)) is not None:
                 h_of[key] = h = h_all[:, o, i]
-                unwrapped = _unwrapped(h)
+                unwrapped = np.degrees(np.unwrap(np.angle(h)))
                 ph_of[key] = unwrapped[at]
                 setattr(curve, key, Bode.of(in_edge(cin, cout, np.abs(h[span])), unwrapped[span]))
         hw, ph_w = h_of.get("washout"), ph_of.get("washout")

@@ -103,10 +103,6 @@ class MonteCarloSpread:
         return asdict(self)
 
 
-def _gain_list(gains: list[float]) -> str:
-    return ", ".join(f"{g:g}" for g in gains)
-
-
 def number(value) -> float | None:
     """A swept value as a number: a number, or a list of equal numbers (a common K K_I
     of the per-axis gains); None otherwise."""
@@ -175,7 +171,7 @@ def stability_table(rows: list[Row], jobs: list[Job]) -> list[StabilityLimit]:
         if cycling:
             kinds = sorted({st for _, st in cycling})
             note.append(
-                f"K K_I {_gain_list([g for g, _ in cycling])}: small-signal stable (the error "
+                f"K K_I {', '.join(f'{g:g}' for g, _ in cycling)}: small-signal stable (the error "
                 f"envelope does not grow) but the verdict is {' / '.join(kinds)} (a bounded "
                 "large-signal oscillation or drift): stable <= is the growth's limit, settled "
                 "<= the verdict's"
