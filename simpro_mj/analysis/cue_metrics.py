@@ -38,6 +38,13 @@ CHANNELS = (
 )
 
 
+def _forces(columns: Mapping, side: str) -> tuple[np.ndarray, np.ndarray]:
+    """The specific force and angular velocity (n, 3) of ``side`` (``veh``, ``head``)."""
+    f = np.stack([np.asarray(columns[f"{side}_f{a}_mps2"], float) for a in "xyz"], -1)
+    w = np.stack([np.asarray(columns[f"{side}_w{a}_rad_s"], float) for a in "xyz"], -1)
+    return f, w
+
+
 def cue_metrics(columns: Mapping, scenario: Scenario | Mapping,
                 model: VestibularModel | None = None, *, info: Mapping | None = None,
                 bound: bool = True) -> dict:  # fmt: skip
@@ -93,16 +100,7 @@ def cue_metrics(columns: Mapping, scenario: Scenario | Mapping,
     t = t[:n]
     dt = float(np.median(np.diff(t)))
     col = {c: np.asarray(columns[c], float)[:n] for c in CUE_COLUMNS}
-    veh = model.perceive(
-        np.stack([col[f"veh_f{a}_mps2"] for a in "xyz"], -1),
-        np.stack([col[f"veh_w{a}_rad_s"] for a in "xyz"], -1),
-        dt,
-    )
-    sim = model.perceive(
-        np.stack([col[f"head_f{a}_mps2"] for a in "xyz"], -1),
-        np.stack([col[f"head_w{a}_rad_s"] for a in "xyz"], -1),
-        dt,
-    )
+    veh, sim = (model.perceive(*_forces(col, side), dt) for side in ("veh", "head"))
     out: dict = {"channels": {}, "sample_s": dt}
     for name, vc, sc, kind, ax in CHANNELS:
         pv = (veh.f if kind == "f" else veh.w)[:, ax]
@@ -218,9 +216,7 @@ def bound_block(col: Mapping, dt: float, scenario: Scenario | Mapping, veh,
             "heave_fraction": params.heave_fraction, "stroke_margin": params.stroke_margin
         }  # fmt: skip
         params = MpcParams(**box)
-    f = np.stack([col[f"veh_f{a}_mps2"] for a in "xyz"], -1)
-    w = np.stack([col[f"veh_w{a}_rad_s"] for a in "xyz"], -1)
-    b = cue_bound(f, w, dt, params)
+    b = cue_bound(*_forces(col, "veh"), dt, params)
     sim = model.perceive(b.f, b.w, dt)
     chans = {}
     for name, _, _, kind, ax in CHANNELS:
@@ -263,13 +259,7 @@ def perceived(columns: Mapping, model: VestibularModel | None = None):
     model = VestibularModel() if model is None else model
     t = np.asarray(columns["time_s"], float)
     dt = float(np.median(np.diff(t)))
-
-    def side(prefix):
-        f = np.stack([np.asarray(columns[f"{prefix}_f{a}_mps2"], float) for a in "xyz"], -1)
-        w = np.stack([np.asarray(columns[f"{prefix}_w{a}_rad_s"], float) for a in "xyz"], -1)
-        return model.perceive(f, w, dt)
-
-    return t, side("veh"), side("head")
+    return t, *(model.perceive(*_forces(columns, side), dt) for side in ("veh", "head"))
 
 
 @dataclass(frozen=True)
