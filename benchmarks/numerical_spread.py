@@ -2,6 +2,7 @@
 
     python benchmarks/numerical_spread.py [--seeds 1 .. 10] [--seals 450 750] [--jobs 2]
                                           [--null-seeds 11 .. 20] [--variants shipped ...]
+                                          [--loops fixed|reidentified]
 
 Seals that stick make a settling time a discontinuous function of anything that
 moves a run by a micrometre: a seal breaks away a step earlier or later, the
@@ -18,12 +19,25 @@ allows (the other way is its own limit, where the shipped value sits):
   least);
 * ``stick_impedance`` 0.9999 -> 0.9998 (the yield ``1 - d`` doubled; 0.9999 is
   MuJoCo's greatest);
-* ``integration.substeps`` 1 -> 2 (the pressure step halved).
+* ``integration.substeps`` 1 -> 2 (the pressure step halved);
+* ``stick_noslip_iterations`` 10 -> 5 and 20 (MuJoCo's noslip passes, which stop
+  at its tolerance: a bound on the work, halved and doubled).
 
 and, as a control that is not numerics, ``coulomb_plus_1mN`` (``--variants``):
 every seal's Coulomb force 1 mN higher (2 ppm of 450 N, far below what any
 catalogue or measurement resolves), which shows how far the plant itself
 carries a perturbation that small.
+
+The joint loops (``--loops``): ``fixed`` (default) places them once, on the
+models Fig. 12's experiment identifies on the plant with the shipped numerics
+(``controller.inner.identify: preset`` with those models), and every variant
+runs those same loops, as a controller on a real machine stays the same while
+one asks how its plant is modelled; ``reidentified`` lets every variant run the
+experiment on its own plant and place its own loops (the ``auto`` default of a
+scenario). Where seals stick the experiment's record is itself a stick-slip
+record, so a 2 ppm change of a seal moves the identified models and with them
+every run of that variant at once: ``reidentified`` measures the identification's
+sensitivity on top of the step's.
 
 Prints one JSON document: per variant, scenario and axis, the overshoot (%) and
 2 % settling time (s) of ``metrics.json`` at every seed, their median, range
@@ -59,6 +73,8 @@ VARIANTS = {
     "stick_time_constant_x2": {f"{CYL}.stick_time_constant_ms": 4.0},
     "stick_yield_x2": {f"{CYL}.stick_impedance": 0.9998},
     "substeps_x2": {"actuator.pneumatics.integration.substeps": 2},
+    "noslip_half": {f"{CYL}.stick_noslip_iterations": 5},
+    "noslip_x2": {f"{CYL}.stick_noslip_iterations": 20},
 }
 #: Not numerics: a physical change far below anything measurable, the control that
 #: shows how far the plant itself carries a micro-perturbation (1 mN on 450 N: 2 ppm)
@@ -71,7 +87,7 @@ SWING = (0.05, 0.05, 0.5)  # deg, deg, mm peak to peak
 
 def _one(job: tuple) -> tuple:
     """One run: (variant, scenario, seed) -> its figures per stepped axis."""
-    variant, name, seed, seals = job
+    variant, name, seed, seals, loops = job
     from simpro_mj.api import run
 
     numerics = VARIANTS.get(variant, {})  # the null variant: the shipped numerics
@@ -82,6 +98,7 @@ def _one(job: tuple) -> tuple:
         f"{CYL}.breakaway_friction_n": [seals[1]] * 3,
         "seed": seed,
         **numerics,
+        **loops,
     }
     r = run(name, sets)
     m = r.metrics
@@ -124,19 +141,38 @@ def _summary(runs: list, statuses: list, floor: float) -> dict:
 NULL = "shipped_other_seeds"  # the shipped numerics at the --null-seeds
 
 
-def measure(seeds, seals=(450.0, 750.0), jobs: int = 2, null_seeds=(), variants=None) -> dict:
+def fixed_loops(seals) -> dict:
+    """The ``--set`` entries that hold every variant's joint loops to the ones placed on
+    the models identified on the ``seals`` plant with the shipped numerics."""
+    from simpro_mj.api import load
+    from simpro_mj.identification.auto import identified_models
+
+    sets = {"plant.preset": "heavy_cabin", f"{CYL}.coulomb_friction_n": [seals[0]] * 3,
+            f"{CYL}.breakaway_friction_n": [seals[1]] * 3}  # fmt: skip
+    models, _ = identified_models(load("step_pitch", sets))
+    out: dict = {"controller.inner.identify": "preset"}
+    for act, m in models.items():
+        out.update({f"controller.inner.identified.{act}.{k}": m[k] for k in ("b", "a1", "a0")})
+    return out
+
+
+def measure(
+    seeds, seals=(450.0, 750.0), jobs: int = 2, null_seeds=(), variants=None, loops="fixed"
+) -> dict:
     """Run every variant (or those named), scenario and seed and summarise."""
     from scipy.stats import mannwhitneyu
 
+    held = fixed_loops(seals) if loops == "fixed" else {}
     chosen = ["shipped", *(v for v in variants or VARIANTS if v != "shipped")]
-    todo = [(v, n, s, seals) for v in chosen for n in SCENARIOS for s in seeds]
-    todo += [(NULL, n, s, seals) for n in SCENARIOS for s in null_seeds]
+    todo = [(v, n, s, seals, held) for v in chosen for n in SCENARIOS for s in seeds]
+    todo += [(NULL, n, s, seals, held) for n in SCENARIOS for s in null_seeds]
     ctx = multiprocessing.get_context("spawn")
     with ProcessPoolExecutor(max_workers=jobs, mp_context=ctx) as pool:
         done = list(pool.map(_one, todo))
     names = [*chosen, NULL] if null_seeds else chosen
     out: dict = {"seeds": list(seeds), "null_seeds": list(null_seeds),
-                 "seals_n": list(seals), "variants": {}}  # fmt: skip
+                 "seals_n": list(seals), "loops": loops, "held": held,
+                 "variants": {}}  # fmt: skip
     for v in names:
         per = out["variants"][v] = {}
         for name, floor in SCENARIOS.items():
@@ -213,6 +249,7 @@ def main(argv=None) -> int:
     p.add_argument("--null-seeds", type=int, nargs="*", default=[])
     p.add_argument("--variants", nargs="+", choices=[*VARIANTS, *CONTROLS],
                    default=list(VARIANTS))  # fmt: skip
+    p.add_argument("--loops", choices=["fixed", "reidentified"], default="fixed")
     a = p.parse_args(argv)
     if len(a.seeds) < 3 or any(not 0 <= s < 2**31 for s in a.seeds):
         print("error: invalid value at --seeds: allowed: three or more of 0..2^31-1",
@@ -233,7 +270,7 @@ def main(argv=None) -> int:
     if not 1 <= a.jobs <= 64:
         print("error: invalid value at --jobs: allowed: 1..64", file=sys.stderr)
         return 2
-    out = measure(tuple(a.seeds), tuple(a.seals), a.jobs, tuple(a.null_seeds), a.variants)
+    out = measure(tuple(a.seeds), tuple(a.seals), a.jobs, tuple(a.null_seeds), a.variants, a.loops)
     print(json.dumps(out, indent=1))
     return 0
 

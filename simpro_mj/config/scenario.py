@@ -376,6 +376,7 @@ _HASHED_UNLESS_DEFAULT = (
     "controller.outer.dead_band.release",
     "actuator.pneumatics.cylinder.stick_time_constant_ms",
     "actuator.pneumatics.cylinder.stick_impedance",
+    "actuator.pneumatics.cylinder.stick_noslip_iterations",
 )
 
 

@@ -29,12 +29,16 @@ def set_seal_friction(model: mujoco.MjModel, index: PlantIndex, actuators) -> No
     Whatever steps the model with these actuators sets it first: the step's own
     friction is then only the rest of the seal's curve.
     """
-    dry = [0.0] * 3
+    dry, noslip = [0.0] * 3, 0
     if actuators.kind == "nonlinear":
         dry = dry_friction_forces(actuators.params)
         p = actuators.params
         model.dof_solref[index.slide_dof, 0] = p.stick_solref
         model.dof_solimp[index.slide_dof, :2] = p.stick_solimp
+        noslip = p.stick_noslip if p.friction_model == "stick" else 0
+    # the friction rows solved hard after the soft solve: a stuck seal does not creep
+    # (the model has no contacts, so the pass touches the seals' rows only)
+    model.opt.noslip_iterations = noslip
     model.dof_frictionloss[index.slide_dof] = dry
 
 

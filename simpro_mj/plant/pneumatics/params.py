@@ -298,6 +298,24 @@ class Cylinder(Block):
         ge=0.9,
         le=0.9999,
     )
+    # A stuck seal held without creep: MuJoCo's noslip pass (opt.noslip_iterations, a
+    # projected Gauss-Seidel solve of the friction rows without the constraint's
+    # softness) after each step's solve. Without it a held seal creeps at
+    # (1 - impedance) a0 / b, a0 the acceleration its load alone gives the slide: 4-12
+    # um/s on the cabin's legs at 250-750 N breakaway, enough to walk a held pose out of
+    # the loops' bands within seconds (docs/paper-notes.md, a stick without creep). The
+    # pass stops at MuJoCo's tolerance: the count bounds the work (5 and 20 give the
+    # same runs). 0 (off): the paper's calibration was made without it and its 1.7 N
+    # seals hold too little to creep; heavy_cabin ships 10.
+    stick_noslip_iterations: Whole = param(
+        0,
+        "",
+        "stick only: MuJoCo's noslip passes per step, a stuck seal held without creep "
+        "(opt.noslip_iterations; 0: off)",
+        why="MuJoCo's noslip passes per step: 0 (off) to 1000",
+        ge=0,
+        le=1000,
+    )
 
     @model_validator(mode="after")
     def _seals(self) -> Cylinder:
@@ -493,6 +511,7 @@ class Pneumatics(Block):
             friction_model=cyl.friction_model,
             stick_solref=cyl.stick_time_constant_ms * 1e-3,
             stick_solimp=cyl.stick_impedance,
+            stick_noslip=cyl.stick_noslip_iterations,
             thermal_model=self.thermal.model,
             supply_model=sup.model,
             compressor_flow=sup.compressor_flow_l_per_min * RHO_REF / 60e3,
@@ -588,6 +607,7 @@ class PneumaticParams:
     friction_model: str  # "stick" or "regularised"
     stick_solref: float  # s, the stick model's constraint time constant
     stick_solimp: float  # the stick model's constraint impedance
+    stick_noslip: int  # the stick model's noslip passes per step (0: off)
     thermal_model: str  # "polytropic" or "energy"
     supply_model: str  # "ideal" or "receiver"
     compressor_flow: float  # kg/s
