@@ -187,9 +187,11 @@ def test_the_cabin_settles_with_its_dead_bands_and_hunts_without_them(cache):
     assert pitch["overshoot_pct"] <= 10.0 and pitch["settling_time_s"] <= 3.0
     after = c["time_s"] >= 1.0
     assert np.abs(c["heave_m"][after] - c["heave_ref_m"][after]).max() <= 2e-3
-    # without the joint bands (and the outer band's release, which alone holds them)
+    # without the joint bands (and the outer band's release, which alone holds them) the
+    # legs keep slipping: over the last 3 s of 30 s they still move by 0.2-0.3 mm (seals
+    # held without creep, the hunt is slower: at 15 s the verdict still reads ok)
     _, joints, _, _ = _run(
-        "controller.inner.dead_band_mm=0", "controller.outer.dead_band.release=1"
+        "duration_s=30", "controller.inner.dead_band_mm=0", "controller.outer.dead_band.release=1"
     )
     assert joints["status"] != "ok", joints["reason"]
     # without the outer band the pose keeps hunting: over the last 3 s the heave moves by
