@@ -26,6 +26,7 @@ Parameters (``--set KEY=VALUE``): :class:`AnalyzeParams`.
 from __future__ import annotations
 
 from collections.abc import Iterable, Mapping
+from dataclasses import asdict
 from typing import Annotated, Any, Literal, get_args
 
 import numpy as np
@@ -304,7 +305,7 @@ def _feedforward(p: AnalyzeParams, spec: dict, jac, real_i: RealLoop) -> Feedfor
         h = predict(model, 2 * np.pi * f_hz)["true"]
         ph = np.degrees(np.unwrap(np.angle(h), axis=0))
         freq[mode] = {
-            ax: figures(f_hz, h[:, j, j], ph[:, j, j]).to_json()
+            ax: asdict(figures(f_hz, h[:, j, j], ph[:, j, j]))
             for j, ax in enumerate(("roll", "pitch", "heave"))
         }
     if ff.lag == "joints":

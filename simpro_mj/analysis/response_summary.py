@@ -54,9 +54,6 @@ class CurveFigures:
     phase_deg_at_1_hz: float | None = None
     equivalent_delay_ms: float | None = None
 
-    def to_json(self) -> dict:
-        return asdict(self)
-
 
 @dataclass
 class AxisFigures(CurveFigures):

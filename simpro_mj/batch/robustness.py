@@ -21,7 +21,7 @@ neither a success nor a failure; the table counts those apart as ``unfinished``.
 from __future__ import annotations
 
 from collections import Counter
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -123,9 +123,6 @@ class RobustnessTable:
     cells: list[Cell] = field(default_factory=list)
     payload_edges: list[float] = field(default_factory=list)
     coulomb_edges: list[float] = field(default_factory=list)
-
-    def to_json(self) -> dict:
-        return asdict(self)
 
 
 def robustness_table(rows: list[Row], name: str) -> RobustnessTable | None:

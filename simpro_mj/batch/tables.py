@@ -20,7 +20,7 @@ limits (``stable <=`` by the growth, ``settled <=`` by the verdict).
 from __future__ import annotations
 
 import sys
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -63,9 +63,6 @@ class StabilityLimit:
     simulated_over_analytic: float | None
     note: str | None
 
-    def to_json(self) -> dict:
-        return asdict(self)
-
 
 @dataclass
 class ErrorSpread:
@@ -98,9 +95,6 @@ class MonteCarloSpread:
     finished: int
     unfinished: int
     groups: list[SpreadGroup]
-
-    def to_json(self) -> dict:
-        return asdict(self)
 
 
 def number(value) -> float | None:

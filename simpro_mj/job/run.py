@@ -13,7 +13,7 @@ analysed limit are warned about), steps the co-simulation and measures it
 from __future__ import annotations
 
 import sys
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -105,9 +105,6 @@ class EndStop:
     leg: int
     stop: str
     time_s: float
-
-    def to_json(self) -> dict:
-        return asdict(self)
 
 
 def end_stop_warnings(columns, scenario, stroke) -> tuple[list[str], list[EndStop]]:
