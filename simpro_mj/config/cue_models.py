@@ -43,8 +43,6 @@ from simpro_mj.config.rules import Problem
 from simpro_mj.core.keys import key_text
 from simpro_mj.core.rates import PHYSICS_DT_MS, whole_steps
 
-__all__ = ["Cueing", "check_cueing"]
-
 
 def listed(choices) -> BeforeValidator:
     """An enumeration checked before any type coercion, ``allowed: [...]``."""

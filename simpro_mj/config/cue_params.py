@@ -22,18 +22,6 @@ from controllers.washout import WashoutParams
 if TYPE_CHECKING:
     from simpro_mj.config.cue_models import Cueing, CueManoeuvre
 
-__all__ = [
-    "ALGORITHMS",
-    "INTEGERS",
-    "MPC_PARAMETER_KEYS",
-    "PARAMETER_KEYS",
-    "SINE_CHANNELS",
-    "default_parameters",
-    "manoeuvre_spec",
-    "parameter_keys",
-    "washout_params",
-]
-
 #: The motion-cueing laws (``setpoint.cueing.algorithm``).
 ALGORITHMS = ("classical_washout", "mpc")
 #: Channels a ``sine`` vehicle input may drive (telemetry column names, SI) and their

@@ -56,16 +56,6 @@ from simpro_mj.core.shipped import TELEMETRY_DIR, user_path
 if TYPE_CHECKING:
     from simpro_mj.config.models import Scenario
 
-__all__ = [
-    "resolve_paths",
-    "sine_input",
-    "step_input",
-    "sweep_defaults",
-    "vehicle_input",
-    "cue_poses",
-    "CUE_COLUMNS",
-]
-
 
 def _on_channel(channel: str, signal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``f``, ``w`` (len(signal), 3): the vehicle at rest (``f = (0, 0, g)``, ``w = 0``)

@@ -69,25 +69,6 @@ from simpro_mj.config.games.common import DatagramError
 from simpro_mj.config.games.common import check as _check
 from simpro_mj.config.telemetry import TELEMETRY_COLUMNS, Telemetry, resample
 
-__all__ = [
-    "FORMATS",
-    "SEND_FORMATS",
-    "SIZES",
-    "AutoDecoder",
-    "make_decoder",
-    "OUTSIM_BYTES",
-    "MAX_CSV_BYTES",
-    "car_to_world",
-    "world_to_vehicle",
-    "vehicle_to_world",
-    "decode",
-    "decode_outsim",
-    "decode_csv",
-    "encode_outsim",
-    "encode_csv",
-    "telemetry_datagrams",
-]
-
 #: What ``send`` packs and ``live`` reads (``live`` also takes ``auto``).
 SEND_FORMATS = ("outsim", "csv", "forza_sled", "forza_dash", "forza_horizon", "codemasters",
                 "beamng")  # fmt: skip

@@ -28,8 +28,6 @@ from simpro_mj.config.rules import (
     none_as_empty,
 )
 
-__all__ = ["Components", "Faults"]
-
 #: Largest sensor bias of a fault: 90 deg (imu), 500 mm (a whole stroke).
 _BIAS_BOUND = {"bias_deg": 90.0, "bias_mm": 500.0}
 

@@ -72,16 +72,6 @@ import numpy as np
 from simpro_mj.config.telemetry import Telemetry
 from simpro_mj.core.errors import UserInputError
 
-__all__ = [
-    "MANOEUVRES",
-    "TYRE_OFFSETS",
-    "VEHICLES",
-    "HEAD_OFFSET",
-    "ManoeuvreSpec",
-    "generate",
-    "available",
-]
-
 MANOEUVRES = ("braking", "lane_change", "slalom", "bump", "braking_turn")
 #: ``braking_turn``: the turn starts at ``lead_s`` and lasts TURN_S; the braking starts
 #: BRAKE_AFTER_S into the turn and lasts BRAKE_S; the turn's curvature gives

@@ -68,8 +68,6 @@ from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.keys import value_text
 from simpro_mj.core.rates import whole_steps
 
-__all__ = ["Scenario", "as_scenario", "as_tree", "scenario_model", "merge", "DEFAULT_SCENARIO"]
-
 #: Largest K K_I times the outer period: ten times the delay-free integrator's limit 2.
 MAX_GAIN_PERIOD = 20.0
 

@@ -23,8 +23,6 @@ from simpro_mj.plant.model_params import DEFAULT_MODEL_PARAMS, inertia_tensor
 from simpro_mj.plant.pneumatics.params import ActuatorKind, Pneumatics
 from simpro_mj.plant.sensors import DEFAULT_SENSORS, POT_BITS, POT_BITS_TEXT
 
-__all__ = ["Actuator", "PlantBlock", "SensorsBlock"]
-
 
 class Actuator(Block):
     """The valve + cylinder model of every leg and its parameters."""

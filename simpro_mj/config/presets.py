@@ -43,15 +43,6 @@ from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.keys import closest, read_yaml
 from simpro_mj.core.shipped import PRESETS_DIR, user_path
 
-__all__ = [
-    "DEFAULT_PRESET",
-    "PRESET_KEYS",
-    "shipped_presets",
-    "Preset",
-    "load_preset",
-    "scenario_overlay",
-]
-
 DEFAULT_PRESET = "paper"
 PRESET_KEYS = (
     "name",

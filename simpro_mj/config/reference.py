@@ -20,8 +20,6 @@ from simpro_mj.config.models import Scenario, as_scenario
 from simpro_mj.config.rules import PHYSICS_DT_S, SETPOINT_AXES
 from simpro_mj.core.errors import UserInputError
 
-__all__ = ["SetpointError", "reference", "check_setpoints", "late_setpoints"]
-
 
 class SetpointError(UserInputError, WorkspaceError):
     """A set-point outside the reachable workspace.

@@ -51,8 +51,6 @@ from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.keys import read_yaml, value_text
 from simpro_mj.core.shipped import SCENARIOS_DIR, user_path
 
-__all__ = ["Rig", "RIGS_DIR", "rig_value", "check_rig", "shipped_rigs"]
-
 #: The shipped rigs (``plant.rig: NAME`` picks ``NAME.yaml`` here).
 RIGS_DIR = SCENARIOS_DIR / "rigs"
 #: Farthest point from the base origin (mm, per axis): a driving-simulator base a few

@@ -45,8 +45,6 @@ from simpro_mj.config.manoeuvres import (
 )
 from simpro_mj.config.telemetry import Telemetry
 
-__all__ = ["braking_turn_single_track"]
-
 #: Steering servo bandwidth (1/s) and the brake ramp (s), as the multi-body drives'.
 STEER_SERVO = 20.0
 RAMP_S = 0.4

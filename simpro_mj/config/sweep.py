@@ -90,17 +90,6 @@ from simpro_mj.config.rules import Block, Entry, Problem, Real, Whole, param
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.keys import closest, key_text
 
-__all__ = [
-    "Distribution",
-    "SweepSpec",
-    "parse_sweep",
-    "MAX_VARIANTS",
-    "expand",
-    "draw",
-    "format_value",
-    "broadcast_value",
-]
-
 _NOT_SWEPT = ("name", "sweep")
 #: Most variants of one file (grid product times samples) and of one batch.
 MAX_VARIANTS = 10_000

@@ -58,17 +58,6 @@ import numpy as np
 
 from simpro_mj.core.errors import UserInputError
 
-__all__ = [
-    "TELEMETRY_COLUMNS",
-    "MAX_GAP_S",
-    "Telemetry",
-    "TelemetryError",
-    "read_telemetry",
-    "check_mapping",
-    "write_telemetry",
-    "resample",
-]
-
 #: Required columns, in the order written.
 TELEMETRY_COLUMNS = ("time_s", "fx_mps2", "fy_mps2", "fz_mps2", "wx_rad_s", "wy_rad_s", "wz_rad_s")
 #: Largest allowed interval between two samples (s).

@@ -60,16 +60,6 @@ from controllers.conditioning import BIAS_TAU_S, VIBRATION_HZ, InputConditioner
 from simpro_mj.config.telemetry import Telemetry
 from simpro_mj.core.errors import UserInputError
 
-__all__ = [
-    "FRAMES",
-    "RecordingError",
-    "Recording",
-    "ImportReport",
-    "read_csv_sensors",
-    "read_comma2k19",
-    "import_recording",
-]
-
 #: The frames a recording's axes may be given in.
 FRAMES = ("vehicle", "device", "level", "earth")
 #: Yaw rate below which the car counts as driving straight (rad/s): 0.03 rad/s is a

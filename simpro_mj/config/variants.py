@@ -25,8 +25,6 @@ from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.keys import parse_set
 from simpro_mj.core.messages import one_line
 
-__all__ = ["Variant", "SweepFile", "load_sweep"]
-
 
 @dataclass
 class Variant:

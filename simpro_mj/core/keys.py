@@ -21,17 +21,6 @@ from pydantic import AllowInfNan, BaseModel, BeforeValidator, ConfigDict, Field,
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.safe_yaml import YAMLLimitError, load, read_file
 
-__all__ = [
-    "parse_set",
-    "apply_overrides",
-    "set_path",
-    "closest",
-    "key_text",
-    "short_text",
-    "value_text",
-]
-
-
 # YAML 1.1 reads 5e-3 (no dot) as a string; a numeric field takes it
 _EXP_RE = re.compile(r"^[-+]?(\d+\.?\d*|\.\d+)[eE][-+]?\d+$")
 _PLAIN_KEY = re.compile(r"^[A-Za-z0-9_.\-]+$")

@@ -56,7 +56,7 @@ from controllers.dither import dither_signal
 from controllers.experiment_law import XC
 from simpro_mj.core.errors import PhysicsError, UserInputError
 from simpro_mj.identification.settings import (
-    DEFAULT_IDENTIFY_PARAMS,
+    DEFAULT_IDENTIFY_PARAMS,  # noqa: F401 (the tests shorten the experiment through it)
     FIT_METHODS,
     Experiment,
     check_tree,
@@ -73,20 +73,6 @@ from simpro_mj.plant.platform import set_seal_friction
 from simpro_mj.plant.pneumatics.factory import make_actuators
 from simpro_mj.plant.pneumatics.params import ACTUATOR_KINDS
 from simpro_mj.plant.pneumatics.statics import holding_forces
-
-__all__ = [
-    "DEFAULT_IDENTIFY_PARAMS",
-    "paper_models",
-    "document",
-    "Fit",
-    "Record",
-    "run_experiment",
-    "run_experiment_all_legs",
-    "fit_eq19",
-    "levenberg_marquardt",
-    "simulate_velocity",
-    "identify",
-]
 
 
 @dataclass(frozen=True)

@@ -24,17 +24,6 @@ from simpro_mj.core.keys import Problem, Real, Whole, param
 from simpro_mj.plant.model_params import DEFAULT_MODEL_PARAMS
 from simpro_mj.plant.pneumatics.params import DEFAULT_PNEUMATIC_PARAMS, Legs, PerLeg, Pneumatics
 
-__all__ = [
-    "DEFAULT_IDENTIFY_PARAMS",
-    "Settings",
-    "EXCITATIONS",
-    "FIT_METHODS",
-    "Experiment",
-    "default_tree",
-    "check_tree",
-    "leg_values",
-]
-
 #: The values of ``identify.excitation`` (:data:`DEFAULT_IDENTIFY_PARAMS`).
 EXCITATIONS = ("one_leg", "all_legs")
 #: The values of ``identify.fit_method``: the fit's solver
