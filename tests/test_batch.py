@@ -366,6 +366,7 @@ def test_timeseries_written_as_asked_rows_and_resume_the_same(tmp_path, monkeypa
     assert first[0] == first[1] == first[2]
     # the responses figure overlays the series there are
     assert (out["all"] / "plots" / "g_responses.png").is_file()
+    assert (out["failing"] / "plots" / "g_responses.png").is_file()
     assert not (out["none"] / "plots" / "g_responses.png").exists()
     calls.clear()
     for which, folder in out.items():

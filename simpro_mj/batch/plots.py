@@ -14,7 +14,9 @@ Per scenario file (``<folder>`` is its folder name under OUT):
   overlaid (roll, pitch in deg; heave in mm) with their set-points dashed:
   one black line when every variant has the same, else each variant's in its
   colour; one colour per variant (Monte Carlo: per grid combination);
-  unstable or failed runs in grey behind, the y range that of the others.
+  unstable or failed runs in grey behind, the y range that of the others. It reads
+  the variants' ``timeseries.csv``: under ``--timeseries failing`` it overlays
+  those written (its title says of how many), under ``none`` it is not drawn.
 * ``<folder>_mc_ss_error.png`` (Monte Carlo files): box plots with the
   samples of the absolute steady-state error per axis, one box per grid
   combination (e.g. joint_only vs task_space), log scale.
@@ -281,9 +283,12 @@ def responses_figure(rows: list[Row], info: Mapping, batch_out: Path):
                 line.set_label("_" + line.get_label())
         axes[0].legend(loc="best", fontsize=7)
     what = "set-point" if same_ref else "set-points"
+    # a batch that wrote only some time series (--timeseries failing) says whose these are
+    whose = f"{len(series)} variants"
+    if len(series) < len(runs):
+        whose = f"{len(series)} of {len(runs)} variants (those with a time series)"
     fig.suptitle(
-        f"{info['scenario']}: task-space responses of {len(series)} variants and their "
-        f"{what} (dashed)",
+        f"{info['scenario']}: task-space responses of {whose} and their {what} (dashed)",
         fontsize=10,
     )
     return fig
