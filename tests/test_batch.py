@@ -261,9 +261,9 @@ def test_failing_variant_and_invalid_file_reported_others_complete(tmp_path, mon
     assert not out2.exists()
 
 
-def test_resume_skips_complete_and_recomputes_incomplete(tmp_path, monkeypatch):
+def _counted_runs(monkeypatch) -> list:
+    """The outer gain of every run that steps, in order (the list fills as they run)."""
     import simpro_mj.sim.loop as sim_mod
-    from simpro_mj.report.marker import record
 
     real, calls = sim_mod.CoSimulation.run, []
 
@@ -272,6 +272,13 @@ def test_resume_skips_complete_and_recomputes_incomplete(tmp_path, monkeypatch):
         return real(self, progress, **kwargs)
 
     monkeypatch.setattr(sim_mod.CoSimulation, "run", counting)
+    return calls
+
+
+def test_resume_skips_complete_and_recomputes_incomplete(tmp_path, monkeypatch):
+    from simpro_mj.report.marker import record
+
+    calls = _counted_runs(monkeypatch)
     path = _grid_file(tmp_path, **{"controller.outer.gains": [1, 2, 3]})
     out = tmp_path / "out"
     argv = ["batch", str(path), "--out", str(out), "--jobs", "1", "--no-plots"]
@@ -335,17 +342,10 @@ def test_timeseries_written_as_asked_rows_and_resume_the_same(tmp_path, monkeypa
     ``--resume`` reruns nothing. A folder without the CSV whose ``metrics.json`` does
     not say it was not asked for is incomplete (rerun); a folder without the stored
     stability takes it from its CSV, the same row."""
-    import simpro_mj.sim.loop as sim_mod
     from simpro_mj.batch.worker import MEASURED_STABILITY
     from simpro_mj.report.marker import TIMESERIES_WRITTEN, record
 
-    real, calls = sim_mod.CoSimulation.run, []
-
-    def counting(self, progress=None, **kwargs):
-        calls.append(self.scenario["controller"]["outer"]["gains"][0])
-        return real(self, progress, **kwargs)
-
-    monkeypatch.setattr(sim_mod.CoSimulation, "run", counting)
+    calls = _counted_runs(monkeypatch)
     path = _grid_file(tmp_path, **{"controller.outer.gains": [2, 4, 30]})
     common = [str(path), "--set", "duration_s=3", "--jobs", "1", "--no-plots"]
     out = {w: tmp_path / w for w in ("all", "failing", "none")}
