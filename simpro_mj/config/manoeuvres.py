@@ -111,19 +111,11 @@ class ManoeuvreSpec:
     tyre_offsets: str = "none"
 
     def check(self) -> None:
-        if self.manoeuvre not in MANOEUVRES:
-            raise ManoeuvreError(
-                f"invalid value at manoeuvre: {self.manoeuvre!r}; allowed: {list(MANOEUVRES)}"
-            )
-        if self.tyre_offsets not in TYRE_OFFSETS:
-            raise ManoeuvreError(
-                f"invalid value at tyre_offsets: {self.tyre_offsets!r}; "
-                f"allowed: {list(TYRE_OFFSETS)}"
-            )
-        if self.vehicle not in VEHICLES:
-            raise ManoeuvreError(
-                f"invalid value at vehicle: {self.vehicle!r}; allowed: {sorted(VEHICLES)}"
-            )
+        choices = {"manoeuvre": MANOEUVRES, "tyre_offsets": TYRE_OFFSETS, "vehicle": VEHICLES}
+        for key, allowed in choices.items():
+            if (value := getattr(self, key)) not in allowed:
+                allowed = sorted(allowed) if isinstance(allowed, dict) else list(allowed)
+                raise ManoeuvreError(f"invalid value at {key}: {value!r}; allowed: {allowed}")
         rng = {
             "speed_kmh": (10.0, 180.0),
             "deceleration_mps2": (0.5, 10.0),

@@ -34,8 +34,6 @@ import struct
 
 from simpro_mj.config.games.common import DatagramError, check, gravity_v, tilt_v
 
-__all__ = ["SIZE", "MAGIC", "decode", "encode"]
-
 SIZE = 88
 MAGIC = b"BNG1"
 _PACKET = struct.Struct("<4s21f")

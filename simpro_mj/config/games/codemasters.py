@@ -43,8 +43,6 @@ import struct
 from controllers.frames import GRAVITY
 from simpro_mj.config.games.common import DatagramError, check
 
-__all__ = ["SIZE", "MAX_GAP_S", "Decoder", "encode"]
-
 SIZE = 264
 #: Longest interval (s) differentiated across; beyond it the stream restarts.
 MAX_GAP_S = 0.5

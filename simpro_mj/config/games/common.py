@@ -6,8 +6,6 @@ import math
 
 from controllers.frames import GRAVITY
 
-__all__ = ["DatagramError", "MAX_SPECIFIC_FORCE", "MAX_RATE", "check", "gravity_v", "tilt_v"]
-
 #: Largest accepted specific force component (m/s^2): 10 g, beyond any car's.
 MAX_SPECIFIC_FORCE = 10.0 * GRAVITY
 #: Largest accepted angular rate component (rad/s): a car spinning at 3 turns/s.

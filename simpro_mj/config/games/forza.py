@@ -47,8 +47,6 @@ import struct
 
 from simpro_mj.config.games.common import DatagramError, check, gravity_v, tilt_v
 
-__all__ = ["SIZES", "decode", "encode"]
-
 #: Packet sizes by name.
 SIZES = {"forza_sled": 232, "forza_dash": 311, "forza_horizon": 324}
 _HEAD = struct.Struct("<iI3f3f3f3f3f")  # the first 68 bytes
