@@ -22,7 +22,8 @@ from simpro_mj.config.presets import DEFAULT_PRESET, load_preset
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.keys import Problem, Real, Whole, param
 from simpro_mj.plant.model_params import DEFAULT_MODEL_PARAMS
-from simpro_mj.plant.pneumatics.params import DEFAULT_PNEUMATIC_PARAMS, Legs, PerLeg, Pneumatics
+from simpro_mj.plant.pneumatics.params import DEFAULT_PNEUMATIC_PARAMS, Pneumatics
+from simpro_mj.plant.pneumatics.parts import Legs, PerLeg
 
 #: The values of ``identify.excitation`` (:data:`DEFAULT_IDENTIFY_PARAMS`).
 EXCITATIONS = ("one_leg", "all_legs")
