@@ -13,7 +13,8 @@ import pytest
 from simpro_mj.commands import main as cli
 from simpro_mj.core.keys import apply_overrides
 from simpro_mj.identification.identify import default_tree, fit_eq19, identify, paper_models
-from simpro_mj.plant.model import DEFAULT_MODEL_PARAMS, assemble, load_model
+from simpro_mj.plant.model import assemble, load_model
+from simpro_mj.plant.model_params import DEFAULT_MODEL_PARAMS
 from simpro_mj.plant.pneumatics.nonlinear import NonlinearActuators
 from simpro_mj.plant.pneumatics.params import DEFAULT_PNEUMATIC_PARAMS
 from simpro_mj.plant.pneumatics.statics import holding_forces, slide_mass_matrix

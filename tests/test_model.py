@@ -7,6 +7,7 @@ import pytest
 from controllers.geometry import PAPER_POINTS_MM, nominal_geometry
 from controllers.kinematics import inverse_kinematics
 from simpro_mj.core.errors import UserInputError
+from simpro_mj.core.keys import apply_overrides
 from simpro_mj.plant.model import (
     PlantIndex,
     add_slide_drives,
@@ -16,8 +17,8 @@ from simpro_mj.plant.model import (
     loop_closure_error,
     measured_pose,
     mobility,
-    model_params,
 )
+from simpro_mj.plant.model_params import DEFAULT_MODEL_PARAMS
 from simpro_mj.plant.pneumatics.params import PneumaticParams
 
 G = nominal_geometry()
@@ -77,7 +78,11 @@ def test_mujoco_pose_equals_ik_pose_when_assembled(model):
 
 
 def test_loop_closure_at_rest_under_full_payload():
-    spec = load_spec(model_params(["payload.mass_kg=400", "payload.com_mm=[100, 0, 500]"]))
+    spec = load_spec(
+        apply_overrides(
+            DEFAULT_MODEL_PARAMS, ["payload.mass_kg=400", "payload.com_mm=[100, 0, 500]"]
+        )
+    )
     add_slide_drives(spec)  # slides held at mid-stroke
     heavy = spec.compile()
     data = mujoco.MjData(heavy)
@@ -119,14 +124,14 @@ def test_random_leg_forces_raise_no_warning(model):
 
 def test_loader_overrides_change_the_plant():
     base = load_model()
-    heavy = load_model(model_params(["payload.mass_kg=300"]))
+    heavy = load_model(apply_overrides(DEFAULT_MODEL_PARAMS, ["payload.mass_kg=300"]))
     assert heavy.body_subtreemass[0] - base.body_subtreemass[0] == pytest.approx(50.0)
-    shifted = load_model(model_params(["anchor_offsets_mm.B2=[5, 0, -3]"]))
+    shifted = load_model(apply_overrides(DEFAULT_MODEL_PARAMS, ["anchor_offsets_mm.B2=[5, 0, -3]"]))
     np.testing.assert_allclose(
         shifted.site("B2").pos - base.site("B2").pos, [0.005, 0.0, -0.003], atol=1e-12
     )
     # a longer guide: the closed chain assembles, the platform sits elsewhere
-    longer = load_model(model_params(["guide.radius_offset_mm=10"]))
+    longer = load_model(apply_overrides(DEFAULT_MODEL_PARAMS, ["guide.radius_offset_mm=10"]))
     d = mujoco.MjData(longer)
     idx = PlantIndex.of(longer)
     assemble(longer, d, [0.25, 0.25, 0.25], index=idx)
@@ -137,8 +142,8 @@ def test_loader_overrides_change_the_plant():
 
 def test_loader_rejects_bad_parameters():
     with pytest.raises(UserInputError, match="payload.mass_kg"):
-        load_model(model_params(["payload.mass_kg=-5"]))
+        load_model(apply_overrides(DEFAULT_MODEL_PARAMS, ["payload.mass_kg=-5"]))
     with pytest.raises(UserInputError, match="did you mean 'payload'"):
-        model_params(["paylod.mass_kg=5"])
+        apply_overrides(DEFAULT_MODEL_PARAMS, ["paylod.mass_kg=5"])
     with pytest.raises(UserInputError, match="anchor_offsets_mm.B2"):
-        load_model(model_params(["anchor_offsets_mm.B2=[1, 2]"]))
+        load_model(apply_overrides(DEFAULT_MODEL_PARAMS, ["anchor_offsets_mm.B2=[1, 2]"]))

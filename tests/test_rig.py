@@ -19,7 +19,8 @@ from simpro_mj.config.rig import RIGS_DIR, rig_value
 from simpro_mj.config.scenario import load_scenario
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.keys import read_yaml
-from simpro_mj.plant.model import DEFAULT_MODEL_PARAMS, assemble, load_spec, measured_pose
+from simpro_mj.plant.model import assemble, load_spec, measured_pose
+from simpro_mj.plant.model_params import DEFAULT_MODEL_PARAMS
 
 WIDE = "wide_base"  # the shipped example: every base anchor moved by 100 mm
 

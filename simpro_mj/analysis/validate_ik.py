@@ -39,7 +39,6 @@ from simpro_mj.config.rig import rig_value
 from simpro_mj.config.rules import Block, Real, Whole, block, param
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.plant.model import (
-    DEFAULT_MODEL_PARAMS,
     PlantIndex,
     add_slide_drives,
     assemble,
@@ -48,6 +47,7 @@ from simpro_mj.plant.model import (
     loop_closure_error,
     measured_pose,
 )
+from simpro_mj.plant.model_params import DEFAULT_MODEL_PARAMS
 
 Drive = Literal["dynamic", "kinematic"]
 Positive = Annotated[Real, Field(gt=0)]

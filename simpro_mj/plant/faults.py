@@ -97,16 +97,6 @@ from simpro_mj.plant.sensors import DEFAULT_SENSORS
 if TYPE_CHECKING:  # the typed scenario, read by attribute; the plant does not import it
     from simpro_mj.config.models import Scenario
 
-__all__ = [
-    "FLAG_BITS",
-    "FAULT_COLUMNS",
-    "NEVER",
-    "FaultChanges",
-    "FaultSchedule",
-    "flag_series",
-    "fault_intervals",
-]
-
 #: Bit of each fault type in ``fault_flags``.
 FLAG_BITS = {
     "supply_drop": 1,

@@ -18,8 +18,6 @@ from importlib import metadata
 
 from simpro_mj.core.errors import UserInputError
 
-__all__ = ["KERNEL_CHOICES", "kernel_choice", "kernel_label", "numba_version"]
-
 KERNEL_CHOICES = ("auto", "python", "numba")
 
 _HAVE_NUMBA = importlib.util.find_spec("numba") is not None

@@ -19,102 +19,72 @@ import mujoco
 import numpy as np
 
 from simpro_mj.core.errors import PhysicsError, UserInputError
-from simpro_mj.core.keys import apply_overrides, closest
+from simpro_mj.core.keys import closest
 from simpro_mj.core.messages import one_line
 from simpro_mj.core.shipped import MODEL_DIR, model_path
-from simpro_mj.plant.step_functions import platform_pose
-
-__all__ = [
-    "MODEL_PATH",
-    "DEFAULT_MODEL_PARAMS",
-    "PlantIndex",
-    "load_model",
-    "load_spec",
-    "apply_rig",
-    "add_slide_drives",
-    "model_params",
-    "loop_closure_error",
-    "loop_closure_jacobian",
-    "mobility",
-    "assemble",
-    "measured_pose",
-    "check_physics",
-    "WARNING_NAMES",
-]
-
-#: The shipped model; ``SIMPRO_MODEL`` in the environment points elsewhere
-#: (:func:`simpro_mj.core.shipped.model_path`, checked when a model is loaded).
-MODEL_PATH = MODEL_DIR / "simpro_platform.xml"
-
-# the parameters are plain data in simpro_mj.plant.model_params (scenarios read them
-# without importing MuJoCo); re-exported here
-from simpro_mj.plant.model_params import (  # noqa: E402
+from simpro_mj.plant.model_params import (
     BASE_POINTS,
     DEFAULT_MODEL_PARAMS,
     LEG_POINTS,
     MAX_MODEL_PAYLOAD_KG,
     inertia_tensor,
 )
+from simpro_mj.plant.step_functions import platform_pose
 
-WARNING_NAMES = {int(v): k for k, v in mujoco.mjtWarning.__members__.items() if k != "mjNWARNING"}
-
-
-def model_params(overrides=None, base: dict | None = None) -> dict:
-    """Default model parameters with ``--set``-style overrides applied."""
-    return apply_overrides(DEFAULT_MODEL_PARAMS if base is None else base, overrides or [])
-
-
-def _vec(params: dict, path: str, n: int) -> np.ndarray:
-    node = params
-    for part in path.split("."):
-        node = node[part]
-    arr = np.asarray(node, dtype=float)
-    if arr.shape != (n,) or not np.all(np.isfinite(arr)):
-        raise UserInputError(
-            f"invalid value at model.{path}: expected a list of {n} finite numbers"
-        )
-    return arr
-
+#: The shipped model; ``SIMPRO_MODEL`` in the environment points elsewhere
+#: (:func:`simpro_mj.core.shipped.model_path`, checked when a model is loaded).
+MODEL_PATH = MODEL_DIR / "simpro_platform.xml"
 
 #: A scenario's ``plant`` may name the preset its values came from
 #: (:mod:`simpro_mj.config.presets`); the model itself ignores the name.
 PRESET_KEY = "preset"
 
+#: The model's scalars: dotted path, the test a value passes, what is allowed.
+_SCALARS = (
+    ("payload.mass_kg", lambda v: v >= 0.0, ">= 0 kg, finite"),
+    ("platform_mass_kg", lambda v: v > 0.0, "> 0 kg, finite"),
+    ("loop_timeconst_s", lambda v: v > 0.0, "> 0 s, finite"),
+    ("guide.radius_offset_mm", lambda v: v > -1000.0, "> -1000 mm, finite"),
+    # a heavy payload is refused with its limit by simpro_mj.analysis.preflight first
+    ("payload.mass_kg", lambda v: v <= MAX_MODEL_PAYLOAD_KG, "<= 1e5 kg"),
+)
+
+
+def _at(tree: Any, path: str) -> Any:
+    for part in path.split("."):
+        tree = tree[part]
+    return tree
+
+
+def _vec(tree: dict, path: str, n: int, where: str = "model") -> np.ndarray:
+    """The ``n`` finite numbers at ``path`` of ``tree``; a one-line refusal otherwise."""
+    try:
+        arr = np.asarray(_at(tree, path), dtype=float)
+    except (KeyError, TypeError, ValueError):
+        arr = np.empty(0)
+    if arr.shape != (n,) or not np.all(np.isfinite(arr)):
+        raise UserInputError(
+            f"invalid value at {where}.{path}: expected a list of {n} finite numbers"
+        )
+    return arr
+
 
 def _check_params(params: dict) -> None:
-    unknown = set(params) - set(DEFAULT_MODEL_PARAMS) - {PRESET_KEY}
-    if unknown:
-        k = sorted(unknown)[0]
-        raise UserInputError(
-            f"unknown key at model.{k}: allowed keys are {sorted(DEFAULT_MODEL_PARAMS)}"
-            f"{closest(k, DEFAULT_MODEL_PARAMS)}"
-        )
-    anchors = params["anchor_offsets_mm"]
-    for k in anchors:
-        if k not in DEFAULT_MODEL_PARAMS["anchor_offsets_mm"]:
-            raise UserInputError(
-                f"unknown key at model.anchor_offsets_mm.{k}: allowed keys are "
-                f"{list(DEFAULT_MODEL_PARAMS['anchor_offsets_mm'])}"
-            )
-    for path, lo, lo_open, unit in (
-        ("payload.mass_kg", 0.0, False, " kg"),
-        ("platform_mass_kg", 0.0, True, " kg"),
-        ("loop_timeconst_s", 0.0, True, " s"),
-        ("guide.radius_offset_mm", -1000.0, True, " mm"),
+    anchors = DEFAULT_MODEL_PARAMS["anchor_offsets_mm"]
+    for where, given, known in (
+        ("", set(params) - {PRESET_KEY}, DEFAULT_MODEL_PARAMS),
+        ("anchor_offsets_mm.", params["anchor_offsets_mm"], anchors),
     ):
-        node: Any = params
-        for part in path.split("."):
-            node = node[part]
-        ok = isinstance(node, (int, float)) and not isinstance(node, bool)
-        if not ok or not np.isfinite(node) or node < lo or (lo_open and node == lo):
-            allowed = f"{'>' if lo_open else '>='} {lo:g}{unit}, finite"
-            raise UserInputError(f"invalid value at model.{path}: {node!r}; allowed: {allowed}")
-    # a heavy payload is refused with its limit by simpro_mj.analysis.preflight before a run
-    if params["payload"]["mass_kg"] > MAX_MODEL_PAYLOAD_KG:
-        raise UserInputError(
-            f"invalid value at model.payload.mass_kg: {params['payload']['mass_kg']!r}; "
-            "allowed: <= 1e5 kg"
-        )
+        unknown = sorted(set(given) - set(known))
+        if unknown:
+            raise UserInputError(
+                f"unknown key at model.{where}{unknown[0]}: allowed keys are {sorted(known)}"
+                f"{closest(unknown[0], known)}"
+            )
+    for path, ok, allowed in _SCALARS:
+        v = _at(params, path)
+        if isinstance(v, bool) or not isinstance(v, int | float) or not np.isfinite(v) or not ok(v):
+            raise UserInputError(f"invalid value at model.{path}: {v!r}; allowed: {allowed}")
 
 
 #: What :func:`load_spec` edits, so what an MJCF given as ``SIMPRO_MODEL`` must name.
@@ -159,33 +129,28 @@ def load_spec(params: dict | None = None, path: Path | str | None = None) -> muj
     payload = spec.body("payload")
     payload.pos = _vec(p, "payload.com_mm", 3) * 1e-3
     # mass 0 would make the payload body massless: MuJoCo needs a tiny mass there
-    spec.geom("payload").mass = max(float(p["payload"]["mass_kg"]), 1e-6)
+    mass = max(float(p["payload"]["mass_kg"]), 1e-6)
+    spec.geom("payload").mass = mass
     inertia = p["payload"].get("inertia_kg_m2")
     if inertia is not None:
         # the given inertia instead of the box geom's: the payload body's own inertial
         # (inertiafromgeom "auto" reads geoms only for bodies without one, as the others)
         spec.compiler.inertiafromgeom = mujoco.mjtInertiaFromGeom.mjINERTIAFROMGEOM_AUTO
         payload.explicitinertial = True
-        payload.mass = max(float(p["payload"]["mass_kg"]), 1e-6)
-        payload.ipos = [0.0, 0.0, 0.0]
-        scale = 1.0
-        ref_mass = p["payload"].get("inertia_mass_kg")
-        if ref_mass is not None:  # the same cabin at another mass: inertia ~ mass
-            scale = max(float(p["payload"]["mass_kg"]), 1e-6) / float(ref_mass)
+        payload.mass, payload.ipos = mass, [0.0, 0.0, 0.0]
+        ref_mass = p["payload"].get("inertia_mass_kg")  # set: the same cabin, inertia ~ mass
+        scale = 1.0 if ref_mass is None else mass / float(ref_mass)
         payload.fullinertia = [scale * v for v in inertia_tensor(inertia)]
     spec.geom("platform_frame").mass = float(p["platform_mass_kg"])
     if p.get("rig") is not None:
         apply_rig(spec, p["rig"])
 
-    for name in BASE_POINTS:
-        off = _vec(p, f"anchor_offsets_mm.{name}", 3) * 1e-3
-        leg = int(name[1])
-        spec.site(name).pos = np.asarray(spec.site(name).pos) + off
-        body = spec.body(f"leg{leg}_barrel")
-        body.pos = np.asarray(body.pos) + off
-    for name in LEG_POINTS:
+    for name in BASE_POINTS + LEG_POINTS:
         off = _vec(p, f"anchor_offsets_mm.{name}", 3) * 1e-3
         spec.site(name).pos = np.asarray(spec.site(name).pos) + off
+        if name in BASE_POINTS:  # the leg's barrel sits on its base anchor
+            body = spec.body(f"leg{name[1]}_barrel")
+            body.pos = np.asarray(body.pos) + off
 
     dr = float(p["guide"]["radius_offset_mm"]) * 1e-3
     dc = _vec(p, "guide.centre_offset_mm", 2) * 1e-3
@@ -211,19 +176,6 @@ def load_spec(params: dict | None = None, path: Path | str | None = None) -> muj
     return spec
 
 
-def _rig_point(rig: dict, group: str, name: str) -> np.ndarray:
-    try:
-        arr = np.asarray(rig[group][name], dtype=float) / 1000.0
-    except (KeyError, TypeError, ValueError):
-        arr = np.empty(0)
-    if arr.shape != (3,) or not np.all(np.isfinite(arr)):
-        raise UserInputError(
-            f"invalid value at model.rig.{group}.{name}: expected [x, y, z] mm, finite "
-            "(simpro_mj.config.rig checks a rig file)"
-        )
-    return arr
-
-
 def apply_rig(spec: mujoco.MjSpec, rig: dict) -> None:
     """Rebuild the MJCF's geometry from a rig record (:mod:`simpro_mj.config.rig`, mm).
 
@@ -241,9 +193,13 @@ def apply_rig(spec: mujoco.MjSpec, rig: dict) -> None:
             f"wrong type at model.rig: got {type(rig).__name__}; allowed: null or a rig "
             "record (simpro_mj.config.rig reads a rig file)"
         )
-    a = [_rig_point(rig, "base_anchors_mm", f"A{i}") for i in (1, 2, 3)]
-    b1, b2, b3 = (_rig_point(rig, "platform_anchors_mm", f"B{i}") for i in (1, 2, 3))
-    c1, c2 = (_rig_point(rig, "bracket_mm", k) for k in ("C1", "C2"))
+
+    def point(path):
+        return _vec(rig, path, 3, "model.rig") / 1000.0
+
+    a = [point(f"base_anchors_mm.A{i}") for i in (1, 2, 3)]
+    b1, b2, b3 = (point(f"platform_anchors_mm.B{i}") for i in (1, 2, 3))
+    c1, c2 = point("bracket_mm.C1"), point("bracket_mm.C2")
     dx, dz = (float(v) / 1000.0 for v in rig["guide_centre_from_b1_mm"])
     stroke, q_home = float(rig["stroke_mm"]) / 1000.0, float(rig["home_stroke_mm"]) / 1000.0
     p_home = np.array([0.0, 0.0, b1[2]])
@@ -308,8 +264,9 @@ def load_model(params: dict | None = None, path: Path | str | None = None) -> mu
     Parameters
     ----------
     params : dict, optional
-        A tree like :data:`DEFAULT_MODEL_PARAMS` (use :func:`model_params` to
-        build one from ``--set`` expressions). ``None``: the nominal model.
+        A tree like :data:`~simpro_mj.plant.model_params.DEFAULT_MODEL_PARAMS` (use
+        :func:`~simpro_mj.core.keys.apply_overrides` to apply ``--set`` expressions to
+        it). ``None``: the nominal model.
     path : path, optional
         Another MJCF file (default :data:`MODEL_PATH`).
 
@@ -470,7 +427,7 @@ def check_physics(model, data, warnings_before=None, loop_bound: float | None = 
     if warnings_before is not None and np.any(counts > warnings_before):
         k = int(np.flatnonzero(counts > warnings_before)[0])
         raise PhysicsError(
-            f"MuJoCo warning {WARNING_NAMES.get(k, k)} at t = {data.time:.3f} s "
+            f"MuJoCo warning {mujoco.mjtWarning(k).name} at t = {data.time:.3f} s "
             f"(info {data.warning.lastinfo[k]})"
         )
     if not (np.all(np.isfinite(data.qpos)) and np.all(np.isfinite(data.qvel))):

@@ -10,13 +10,9 @@ from __future__ import annotations
 
 import math
 
-__all__ = [
-    "LEG_POINTS",
-    "BASE_POINTS",
-    "DEFAULT_MODEL_PARAMS",
-    "MAX_MODEL_PAYLOAD_KG",
-    "inertia_tensor",
-]
+import numpy as np
+
+from simpro_mj.core.errors import UserInputError
 
 #: Largest payload the MJCF builder accepts (kg): far above what the cylinders hold
 #: (the preflight refuses a payload with its limit first), below what makes the
@@ -63,15 +59,11 @@ def inertia_tensor(value) -> list[float]:
     """``payload.inertia_kg_m2`` checked: 6 finite numbers [Ixx, Iyy, Izz, Ixy, Ixz, Iyz]
     (kg m^2) of a physical inertia tensor: positive definite, its principal moments
     obeying the triangle inequality. Raises ``UserInputError`` naming the key."""
-    from simpro_mj.core.errors import UserInputError
-
     ok = isinstance(value, list | tuple) and len(value) == 6
     ok = ok and all(
         isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v) for v in value
     )
     if ok:
-        import numpy as np
-
         ixx, iyy, izz, ixy, ixz, iyz = (float(v) for v in value)
         m = np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])
         e = np.linalg.eigvalsh(m)

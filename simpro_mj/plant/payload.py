@@ -14,8 +14,6 @@ import math
 
 import numpy as np
 
-__all__ = ["holding_force_model", "max_payload"]
-
 
 def holding_force_model(model, data, index, probe_kg: float = 1.0):
     """Static slide forces at the present (assembled) pose as ``f_empty + slope m``.

@@ -22,8 +22,6 @@ from simpro_mj.core.rates import steps_per_period
 from simpro_mj.plant.sensor_errors import bias_walk_sigma, noise_sigma
 from simpro_mj.plant.step_functions import SC
 
-__all__ = ["DEFAULT_SENSORS", "POT_BITS", "POT_BITS_TEXT", "SensorConfig"]
-
 #: Resolutions a potentiometer channel may be given (bits); the scenario checks
 #: ``sensors.potentiometer.bits`` against the same range.
 POT_BITS = (4, 24)
