@@ -20,7 +20,7 @@ PS = 6e5 + PA
 
 def _schedule(faults, duration=10.0, seed=1):
     sc = resolve({"duration_s": duration, "faults": faults, "seed": seed}, default_name="t")
-    return sc, FaultSchedule.from_scenario(sc, DT)
+    return sc, FaultSchedule(sc, DT)
 
 
 def _run_events(sched, n):

@@ -46,18 +46,14 @@ electrical reading), frozen, dropout, bias.
 How the co-simulation loop uses it (``simpro_mj.sim.loop``)
 ------------------------------------------------------
 :meth:`CoSimulation.run <simpro_mj.sim.loop.CoSimulation.run>` builds the schedule
-(:meth:`FaultSchedule.from_scenario`) only if the scenario's ``faults`` is not
-empty; such a run steps from Python (the compiled stages when numba is
-there) and :class:`simpro_mj.sim.stages.FaultHooks` acts between the stages:
-
-* ``k == next_event``: :meth:`FaultSchedule.at_event` brings the state to step
-  k; a changed ``supply_pa`` goes to the actuators' state; ``flags`` and
-  ``supply_pa`` go to the log;
-* while ``sensor_active``: the controllers see :meth:`FaultSchedule.apply_sensors`
-  of the readings (the sensors' own state is untouched);
-* while ``valve_active``: the valves get :meth:`FaultSchedule.apply_valves`
-  of the joint loops' command (the controllers' own state keeps their own
-  command).
+only if the scenario's ``faults`` is not empty; such a run steps from Python (the
+compiled stages when numba is there) and :class:`simpro_mj.sim.stages.FaultHooks`
+acts between the stages: at an event step :meth:`FaultSchedule.at_event` (a
+changed ``supply_pa`` to the actuators' state, ``flags`` and ``supply_pa`` to the
+log); while ``sensor_active`` :meth:`FaultSchedule.apply_sensors` on what the
+controllers see (the sensors' own state untouched); while ``valve_active``
+:meth:`FaultSchedule.apply_valves` on the joint loops' command (the controllers
+keep their own).
 
 A fault at ``time_s`` thus acts from the step ``round(time_s / dt)`` on
 (t >= time_s). The log holds the applied voltages (``u*_v``), what the
@@ -85,27 +81,19 @@ column ``fault_flags`` (a float in the CSV, exact for these integers).
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from simpro_mj.plant.pneumatics.params import PneumaticParams
-from simpro_mj.plant.sensors import DEFAULT_SENSORS
 
 if TYPE_CHECKING:  # the typed scenario, read by attribute; the plant does not import it
     from simpro_mj.config.models import Scenario
 
-#: Bit of each fault type in ``fault_flags``.
-FLAG_BITS = {
-    "supply_drop": 1,
-    "valve_stuck": 2,
-    "sensor_frozen": 4,
-    "sensor_dropout": 8,
-    "sensor_bias": 16,
-    "potentiometer_failure": 32,
-}
+#: Bit of each fault type in ``fault_flags``: supply_drop 1, valve_stuck 2, ..., 32.
+_KINDS = "supply_drop valve_stuck sensor_frozen sensor_dropout sensor_bias potentiometer_failure"
+FLAG_BITS = {k: 1 << i for i, k in enumerate(_KINDS.split())}
 #: Time-series columns a run with faults adds (flags; supply pressure, Pa absolute).
 FAULT_COLUMNS = ("fault_flags", "supply_pa")
 #: ``next_event`` when nothing is left to happen (never equal to a step number).
@@ -156,27 +144,19 @@ def _channels(f: Any) -> tuple[int, ...]:
     return _ENC
 
 
-def _every(f: Any, sensors: Mapping, dt: float) -> int:
-    """Update period (steps) of the sensor a fault acts on (dropout draws)."""
-    sensor = "potentiometer" if f.type == "potentiometer_failure" else f.sensor
-    ms = float(sensors.get(sensor, {}).get("rate_ms", 1))
-    return max(1, _steps(ms * 1e-3, dt))
-
-
+@dataclass(eq=False, slots=True)
 class _SensorFault:
     """One sensor fault: channels, window and its state."""
 
-    __slots__ = ("kind", "chans", "k0", "k1", "every", "value", "drops", "dropping", "last")
-
-    def __init__(self, kind, chans, k0, k1, every, value=None, drops=None):
-        self.kind = kind
-        self.chans = np.asarray(chans, dtype=int)
-        self.k0, self.k1 = k0, k1
-        self.every = every
-        self.value = value  # bias (SI) or rail reading; frozen: captured at k0
-        self.drops = drops  # dropout: bool per step of the window
-        self.dropping = False
-        self.last = None  # dropout: last delivered values
+    kind: str
+    chans: np.ndarray
+    k0: int
+    k1: int
+    every: int  # the sensor's sample period, steps (dropout draws)
+    value: Any = None  # bias (SI) or rail reading; frozen: captured at k0
+    drops: Any = None  # dropout: bool per step of the window
+    dropping: bool = False
+    last: Any = None  # dropout: last delivered values
 
 
 class FaultSchedule:
@@ -184,22 +164,12 @@ class FaultSchedule:
 
     Parameters
     ----------
-    faults : sequence
-        The typed scenario's ``faults`` (:mod:`simpro_mj.config.entries`: each
-        with its ``type``, ``time_s`` and the keys of its type as attributes).
+    scenario : Scenario
+        The resolved, typed scenario: its ``faults`` (:mod:`simpro_mj.config.entries`),
+        duration, supply pressure, sensors (rates for dropout, potentiometer scale for
+        the rails) and seed (dropout draws, on a stream of their own).
     dt : float
-        Physics step (s).
-    n_steps : int
-        Steps of the run (events after it are dropped).
-    supply_pa : float
-        Nominal supply pressure, Pa absolute.
-    p_atm : float
-        Atmospheric pressure, Pa (gauge values are relative to it).
-    sensors : mapping, optional
-        The resolved scenario's ``sensors`` tree (rates for dropout, potentiometer
-        scale for the rails). Default: :data:`simpro_mj.plant.sensors.DEFAULT_SENSORS`.
-    seed : int
-        The scenario's seed (dropout draws, on a stream of their own).
+        Physics step (s); events after the run's last step are dropped.
 
     Attributes
     ----------
@@ -218,25 +188,13 @@ class FaultSchedule:
         Stuck legs and their voltages (V).
     """
 
-    def __init__(
-        self,
-        faults: Sequence[Any],
-        dt: float,
-        n_steps: int,
-        *,
-        supply_pa: float,
-        p_atm: float,
-        sensors: Mapping | None = None,
-        seed: int = 0,
-    ):
-        if sensors is None:
-            sensors = DEFAULT_SENSORS
+    def __init__(self, scenario: Scenario, dt: float):
+        params = PneumaticParams.from_tree(scenario.actuator.pneumatics.model_dump())
         self.dt = float(dt)
-        self.n_steps = int(n_steps)
-        self.nominal_supply_pa = float(supply_pa)
-        self.p_atm = float(p_atm)
-        self.faults = list(faults)
-        rng = np.random.default_rng(np.random.SeedSequence([int(seed), _SEED_TAG]))
+        self.n_steps = int(round(scenario.duration_s / dt))
+        self.nominal_supply_pa, self.p_atm = params.p_supply, params.p_atm
+        sensors = scenario.sensors
+        rng = np.random.default_rng(np.random.SeedSequence([int(scenario.seed), _SEED_TAG]))
         end = self.n_steps + 1
         events: set[int] = set()
 
@@ -247,15 +205,15 @@ class FaultSchedule:
         self._sensor_faults: list[_SensorFault] = []
         self._windows: list[tuple[int, int, int]] = []  # (k0, k1, flag) of every fault
 
-        pot = sensors.get("potentiometer", {})
-        vpm = float(pot.get("volts_per_mm", 0.02))  # V/mm
-        rng_v = float(pot.get("range_v", 10.0))
-        lsb_v = 2.0 * rng_v / 2 ** int(pot.get("bits", 14))
+        pot = sensors.potentiometer
+        lsb_v = 2.0 * pot.range_v / 2**pot.bits
         # rails as slide readings (m) through the nominal scale; the feed is the
         # potentiometer's full-stroke voltage (500 mm), clipped to the ADC's top code
-        rails = {"open": 0.0, "short": min(vpm * 500.0, rng_v - lsb_v) / vpm * 1e-3}
+        short = min(pot.volts_per_mm * 500.0, pot.range_v - lsb_v) / pot.volts_per_mm * 1e-3
+        rails = {"open": 0.0, "short": short}
 
-        for f in self.faults:
+        faults: list[Any] = scenario.faults  # each read by the keys of its type
+        for f in faults:
             kind = f.type
             k0 = _steps(f.time_s, dt)
             k1 = end if getattr(f, "end_s", None) is None else _steps(f.end_s, dt)
@@ -273,20 +231,18 @@ class FaultSchedule:
             elif kind == "valve_stuck":
                 self._valves.append((k0, k1, f.leg - 1, float(f.voltage_v)))
             else:
-                chans = _channels(f)
-                every = _every(f, sensors, dt)
-                value, drops = None, None
+                sensor = "potentiometer" if kind == "potentiometer_failure" else f.sensor
+                every = max(1, _steps(getattr(sensors, sensor).rate_ms * 1e-3, dt))
+                fault = _SensorFault(kind, np.array(_channels(f)), k0, k1, every)
                 if kind == "sensor_bias":
-                    if f.bias_deg is not None:
-                        value = math.radians(f.bias_deg)
-                    else:
-                        value = f.bias_mm * 1e-3
+                    fault.value = (
+                        f.bias_mm * 1e-3 if f.bias_deg is None else math.radians(f.bias_deg)
+                    )
                 elif kind == "potentiometer_failure":
-                    value = rails[f.mode]
+                    fault.value = rails[f.mode]
                 elif kind == "sensor_dropout":
-                    n = min(k1, end) - k0
-                    drops = rng.random(max(n, 0)) < float(f.probability)
-                self._sensor_faults.append(_SensorFault(kind, chans, k0, k1, every, value, drops))
+                    fault.drops = rng.random(max(min(k1, end) - k0, 0)) < float(f.probability)
+                self._sensor_faults.append(fault)
         # the order on a channel: failure, frozen, dropout, bias
         order = {"potentiometer_failure": 0, "sensor_frozen": 1, "sensor_dropout": 2}
         self._sensor_faults.sort(key=lambda s: order.get(s.kind, 3))
@@ -301,20 +257,6 @@ class FaultSchedule:
         self.valve_mask = np.zeros(3, dtype=bool)
         self.valve_values = np.zeros(3)
         self._acting: list[_SensorFault] = []
-
-    @classmethod
-    def from_scenario(cls, scenario: Scenario, dt: float) -> FaultSchedule:
-        """The schedule of a resolved, typed scenario at physics step ``dt``."""
-        params = PneumaticParams.from_tree(scenario.actuator.pneumatics.model_dump())
-        return cls(
-            scenario.faults,
-            dt,
-            int(round(scenario.duration_s / dt)),
-            supply_pa=params.p_supply,
-            p_atm=params.p_atm,
-            sensors=scenario.sensors.model_dump(),
-            seed=scenario.seed,
-        )
 
     # ------------------------------------------------------------------ events
     def _supply_at(self, k: int) -> float:

@@ -23,16 +23,6 @@ KERNEL_CHOICES = ("auto", "python", "numba")
 _HAVE_NUMBA = importlib.util.find_spec("numba") is not None
 
 
-def numba_version() -> str | None:
-    """numba's version if it is installed (without importing it), else None."""
-    if not _HAVE_NUMBA:
-        return None
-    try:
-        return metadata.version("numba")
-    except metadata.PackageNotFoundError:  # pragma: no cover - a bare source tree
-        return "unknown"
-
-
 def kernel_choice() -> str:
     """The kernel selected by ``SIMPRO_KERNEL``: ``"python"`` or ``"numba"``.
 
@@ -57,7 +47,8 @@ def kernel_choice() -> str:
 def kernel_label() -> str:
     """``"numba 0.68.1"`` or ``"python"``: how the next run's step will run."""
     try:
-        choice = kernel_choice()
+        return "python" if kernel_choice() == "python" else f"numba {metadata.version('numba')}"
     except UserInputError:
         return "invalid"
-    return f"numba {numba_version()}" if choice == "numba" else "python"
+    except metadata.PackageNotFoundError:  # pragma: no cover - a bare source tree
+        return "numba unknown"

@@ -54,8 +54,6 @@ DEFAULT_SENSORS: dict = {
         "bias_deg": [0.0, 0.0],  # roll, pitch
         # random walk of the bias, deg/sqrt(s), seeded by the scenario
         "bias_walk_deg_per_sqrt_s": 0.0,
-        # share of the accelerometer's tilt (which sees the platform's own linear
-        # acceleration) in the attitude output, 0 (gyro only) .. 1 (accelerometer only)
         # crossover of the attitude's complementary filter, Hz: the accelerometer's tilt
         # below it, the gyro above (0: the gyro alone, the platform's own acceleration
         # unseen)

@@ -327,7 +327,7 @@ class CoSimulation:
         log = self._log
         faults = None
         if self.spec.faults:
-            faults = FaultSchedule.from_scenario(self.spec, self.dt)
+            faults = FaultSchedule(self.spec, self.dt)
         kernel = kernel_choice()
         timer = Profile() if profile is not None else None
         status, reason = "ok", None
