@@ -352,7 +352,7 @@ def test_the_typed_scenario_holds_every_default():
     from pydantic import BaseModel
 
     from simpro_mj.config.models import Scenario
-    from simpro_mj.config.rules import Block
+    from simpro_mj.core.keys import Block
 
     def blocks(model):
         yield model

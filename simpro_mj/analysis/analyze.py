@@ -80,8 +80,8 @@ from simpro_mj.analysis.loop_records import (
 from simpro_mj.analysis.response_summary import figures
 from simpro_mj.config.messages import from_sets
 from simpro_mj.config.models import Outer, Scenario, as_scenario
-from simpro_mj.config.rules import Block, Real, Whole, block, param
 from simpro_mj.core.errors import UserInputError
+from simpro_mj.core.keys import Block, Real, Whole, block, param
 
 #: The paper's statements, for comparison.
 PAPER = {

@@ -36,8 +36,8 @@ from controllers.geometry import geometry_from_rig
 from controllers.kinematics import check_reachable, inverse_kinematics, paper_inverse_kinematics
 from simpro_mj.config.messages import from_sets
 from simpro_mj.config.rig import rig_value
-from simpro_mj.config.rules import Block, Real, Whole, block, param
 from simpro_mj.core.errors import UserInputError
+from simpro_mj.core.keys import Block, Real, Whole, block, param
 from simpro_mj.plant.model import (
     PlantIndex,
     add_slide_drives,

@@ -7,8 +7,8 @@ import numpy as np
 from controllers.geometry import nominal_geometry
 from controllers.workspace import combined_ranges, workspace_ranges
 from simpro_mj.config.messages import from_sets
-from simpro_mj.config.rules import Block, Real, Whole, param
 from simpro_mj.core.jsonout import emit_json
+from simpro_mj.core.keys import Block, Real, Whole, param
 
 HELP = "print the reachable workspace (single-axis ranges and their combinations)"
 

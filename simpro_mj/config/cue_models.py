@@ -39,8 +39,7 @@ from simpro_mj.config.cue_params import (
     washout_params,
 )
 from simpro_mj.config.messages import validated
-from simpro_mj.config.rules import Problem
-from simpro_mj.core.keys import key_text
+from simpro_mj.core.keys import Problem, key_text
 from simpro_mj.core.rates import PHYSICS_DT_MS, whole_steps
 
 

@@ -22,11 +22,9 @@ from simpro_mj.config.rules import (
     FaultAxis,
     FaultSensor,
     PotMode,
-    Problem,
-    Real,
-    Whole,
     none_as_empty,
 )
+from simpro_mj.core.keys import Problem, Real, Whole
 
 #: Largest sensor bias of a fault: 90 deg (imu), 500 mm (a whole stroke).
 _BIAS_BOUND = {"bias_deg": 90.0, "bias_mm": 500.0}

@@ -21,9 +21,9 @@ import annotated_types as at
 from pydantic import BaseModel, ValidationError
 from pydantic.fields import FieldInfo
 
-from simpro_mj.config.rules import ONE_FOR_ALL, Block, Problem
+from simpro_mj.config.rules import ONE_FOR_ALL
 from simpro_mj.core.errors import UserInputError
-from simpro_mj.core.keys import apply_overrides, closest, key_text, value_text
+from simpro_mj.core.keys import Block, Problem, apply_overrides, closest, key_text, value_text
 
 # ------------------------------------------------------------------ walking the models
 

@@ -48,7 +48,6 @@ from simpro_mj.config.rules import (
     MIN_DURATION_S,
     NAME_RE,
     PHYSICS_DT_MS,
-    Block,
     DelaySamples,
     DesignPlant,
     Each,
@@ -57,15 +56,9 @@ from simpro_mj.config.rules import (
     Numbers,
     OuterType,
     Period,
-    Problem,
-    Real,
-    Whole,
-    block,
-    integral,
-    param,
 )
 from simpro_mj.core.errors import UserInputError
-from simpro_mj.core.keys import value_text
+from simpro_mj.core.keys import Block, Problem, Real, Whole, block, integral, param, value_text
 from simpro_mj.core.rates import whole_steps
 
 #: Largest K K_I times the outer period: ten times the delay-free integrator's limit 2.

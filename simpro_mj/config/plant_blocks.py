@@ -17,8 +17,9 @@ from pydantic import AfterValidator, BeforeValidator, StrictStr
 from controllers.geometry import PlatformGeometry, geometry_from_rig
 from simpro_mj.config.presets import DEFAULT_PRESET
 from simpro_mj.config.rig import Rig, rig_value
-from simpro_mj.config.rules import Block, Each, Numbers, Period, Problem, Real, Whole, block, param
+from simpro_mj.config.rules import Each, Numbers, Period
 from simpro_mj.core.errors import UserInputError
+from simpro_mj.core.keys import Block, Problem, Real, Whole, block, param
 from simpro_mj.plant.model_params import DEFAULT_MODEL_PARAMS, inertia_tensor
 from simpro_mj.plant.pneumatics.params import ActuatorKind, Pneumatics
 from simpro_mj.plant.sensors import DEFAULT_SENSORS, POT_BITS, POT_BITS_TEXT

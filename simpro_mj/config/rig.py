@@ -46,9 +46,9 @@ from pydantic import ValidationError
 
 from controllers.geometry import H0, PAPER_RIG_MM
 from simpro_mj.config.messages import user_error
-from simpro_mj.config.rules import Block, Each, Numbers, Real, block, param
+from simpro_mj.config.rules import Each, Numbers
 from simpro_mj.core.errors import UserInputError
-from simpro_mj.core.keys import read_yaml, value_text
+from simpro_mj.core.keys import Block, Real, block, param, read_yaml, value_text
 from simpro_mj.core.shipped import SCENARIOS_DIR, user_path
 
 #: The shipped rigs (``plant.rig: NAME`` picks ``NAME.yaml`` here).

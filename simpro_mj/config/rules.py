@@ -38,16 +38,7 @@ from pydantic import (
 )
 
 # the leaf types, blocks and refusals live in core.keys, where the plant's blocks reach them
-from simpro_mj.core.keys import (  # noqa: F401
-    Block,
-    Problem,
-    Real,
-    Whole,
-    block,
-    integral,
-    param,
-    yaml_number,
-)
+from simpro_mj.core.keys import Problem, Real, integral, yaml_number
 from simpro_mj.core.rates import PHYSICS_DT_MS, PHYSICS_DT_S, whole_steps
 
 Mode = Literal["joint_only", "task_space", "feedforward"]

@@ -117,11 +117,11 @@ from simpro_mj.config.models import merge as _merge
 from simpro_mj.config.presets import scenario_overlay, shipped_presets
 from simpro_mj.config.reference import check_setpoints
 from simpro_mj.config.rig import rig_value
-from simpro_mj.config.rules import ONE_FOR_ALL, PHYSICS_DT_MS, Block, check_period
+from simpro_mj.config.rules import ONE_FOR_ALL, PHYSICS_DT_MS, check_period
 from simpro_mj.config.sweep import broadcast_value, parse_sweep
 from simpro_mj.core.cache import file_digest
 from simpro_mj.core.errors import UserInputError
-from simpro_mj.core.keys import closest, key_text, parse_set, read_yaml
+from simpro_mj.core.keys import Block, closest, key_text, parse_set, read_yaml
 from simpro_mj.core.shipped import (
     PRESETS_DIR,
     SCENARIOS_DIR,

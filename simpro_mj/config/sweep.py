@@ -86,9 +86,9 @@ from pydantic import (
 from simpro_mj.config.cueing import sweep_defaults
 from simpro_mj.config.messages import validated
 from simpro_mj.config.models import DEFAULT_SCENARIO
-from simpro_mj.config.rules import Block, Entry, Problem, Real, Whole, param
+from simpro_mj.config.rules import Entry
 from simpro_mj.core.errors import UserInputError
-from simpro_mj.core.keys import closest, key_text
+from simpro_mj.core.keys import Block, Problem, Real, Whole, closest, key_text, param
 
 _NOT_SWEPT = ("name", "sweep")
 #: Most variants of one file (grid product times samples) and of one batch.
