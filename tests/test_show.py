@@ -84,6 +84,6 @@ def test_a_runs_scenario_yaml_holds_the_supply_pressure(tmp_path):
 def test_the_typed_pneumatics_block_is_the_plants_tree():
     """Every key of the plant's parameter tree is a field with the plant's default, in its
     order: a plant parameter without its field (its unit and meaning) fails here."""
-    from simpro_mj.config.pneumatics import Pneumatics
+    from simpro_mj.plant.pneumatics.params import Pneumatics
 
     assert json.dumps(Pneumatics.defaults()) == json.dumps(DEFAULT_PNEUMATIC_PARAMS)

@@ -52,12 +52,11 @@ from typing import Any
 import numpy as np
 from scipy.optimize import least_squares
 
-from simpro_mj.config.pneumatics import Pneumatics
 from simpro_mj.core.errors import PhysicsError, UserInputError
 from simpro_mj.identification.identify import Fit, identify, paper_models
 from simpro_mj.identification.settings import Experiment, check_tree
 from simpro_mj.plant.model_params import DEFAULT_MODEL_PARAMS
-from simpro_mj.plant.pneumatics.params import DEFAULT_PNEUMATIC_PARAMS
+from simpro_mj.plant.pneumatics.params import DEFAULT_PNEUMATIC_PARAMS, Pneumatics
 
 #: Acceptance band of the fit: relative on wn and b/a0, absolute on zeta.
 TOLERANCES = {"wn_rad_s": 0.15, "zeta": 0.1, "velocity_gain_m_s_per_v": 0.15}

@@ -1,7 +1,7 @@
 """Typed scenario models (pydantic v2): one model per block, validated once at the edge.
 
 Every key of a scenario is a field here (or in :mod:`~simpro_mj.config.plant_blocks`,
-:mod:`~simpro_mj.config.pneumatics`, :mod:`~simpro_mj.config.entries`,
+:class:`~simpro_mj.plant.pneumatics.params.Pneumatics`, :mod:`~simpro_mj.config.entries`,
 :mod:`~simpro_mj.config.cue_models`), declared with :func:`~simpro_mj.config.rules.param`:
 its default, unit, allowed range (pydantic's own constraints) and one line of
 meaning, which are what ``simpro-sim show`` prints and what a refusal says.
