@@ -86,8 +86,6 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from simpro_mj.plant.pneumatics.params import PneumaticParams
-
 if TYPE_CHECKING:  # the typed scenario, read by attribute; the plant does not import it
     from simpro_mj.config.models import Scenario
 
@@ -189,7 +187,7 @@ class FaultSchedule:
     """
 
     def __init__(self, scenario: Scenario, dt: float):
-        params = PneumaticParams.from_tree(scenario.actuator.pneumatics.model_dump())
+        params = scenario.actuator.pneumatics.params()
         self.dt = float(dt)
         self.n_steps = int(round(scenario.duration_s / dt))
         self.nominal_supply_pa, self.p_atm = params.p_supply, params.p_atm

@@ -167,7 +167,7 @@ class CoSimulation:
         self.setpoint_filter = SetpointFilter(sf.type, dt=dt, time=[t * 1e-3 for t in sf.time_ms])
         self.actuators = make_actuators(
             sc.actuator.model,
-            sc.actuator.pneumatics.model_dump(),  # the plant's tree, passed whole
+            sc.actuator.pneumatics,  # the plant's typed block, validated once
             model=m,
             linear_plants=paper_coefficients(sc.paper_units),
         )
