@@ -85,6 +85,15 @@ LAST_S = 3.0  # s: the window whose swing an ok run keeps within SWING
 SWING = (0.05, 0.05, 0.5)  # deg, deg, mm peak to peak
 
 
+def _cabin(coulomb: float, breakaway: float) -> dict:
+    """The ``--set`` entries of the cabin with these seals on every leg (N)."""
+    return {
+        "plant.preset": "heavy_cabin",
+        f"{CYL}.coulomb_friction_n": [coulomb] * 3,
+        f"{CYL}.breakaway_friction_n": [breakaway] * 3,
+    }
+
+
 def _one(job: tuple) -> tuple:
     """One run: (variant, scenario, seed) -> its figures per stepped axis."""
     variant, name, seed, seals, loops = job
@@ -92,14 +101,7 @@ def _one(job: tuple) -> tuple:
 
     numerics = VARIANTS.get(variant, {})  # the null variant: the shipped numerics
     coulomb = seals[0] + CONTROLS.get(variant, 0.0)
-    sets = {
-        "plant.preset": "heavy_cabin",
-        f"{CYL}.coulomb_friction_n": [coulomb] * 3,
-        f"{CYL}.breakaway_friction_n": [seals[1]] * 3,
-        "seed": seed,
-        **numerics,
-        **loops,
-    }
+    sets = {**_cabin(coulomb, seals[1]), "seed": seed, **numerics, **loops}
     r = run(name, sets)
     m = r.metrics
     axes = {}
@@ -147,9 +149,7 @@ def fixed_loops(seals) -> dict:
     from simpro_mj.api import load
     from simpro_mj.identification.auto import identified_models
 
-    sets = {"plant.preset": "heavy_cabin", f"{CYL}.coulomb_friction_n": [seals[0]] * 3,
-            f"{CYL}.breakaway_friction_n": [seals[1]] * 3}  # fmt: skip
-    models, _ = identified_models(load("step_pitch", sets))
+    models, _ = identified_models(load("step_pitch", _cabin(*seals)))
     out: dict = {"controller.inner.identify": "preset"}
     for act, m in models.items():
         out.update({f"controller.inner.identified.{act}.{k}": m[k] for k in ("b", "a1", "a0")})
