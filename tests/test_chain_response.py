@@ -19,11 +19,11 @@ from simpro_mj.analysis.chain_response import (
     chain_scenario,
     chain_summary,
     fit_columns,
-    measure_chain,
+    measure_chain_point,
     omct_periods_ms,
     plan_chain,
 )
-from simpro_mj.analysis.response import SineTask
+from simpro_mj.analysis.response import SineTask, measure
 from simpro_mj.commands.main import main
 from simpro_mj.config.cue_models import check_cueing
 from simpro_mj.config.cue_params import washout_params
@@ -118,7 +118,7 @@ def test_washout_prediction_known_values():
 def cosim_pitch():
     sc = load_scenario("cue_braking.yaml", CLASSICAL).model_dump()  # the plan's dict
     plan = plan_chain(sc, periods_ms=[2513], channels=("wy",), settle_s=4.0, periods=1)
-    return plan, measure_chain(plan, jobs=1)
+    return plan, measure(plan, jobs=1, fn=measure_chain_point, desc="chain response")
 
 
 def test_cosimulated_chain_matches_the_linear_chain(cosim_pitch):

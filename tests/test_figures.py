@@ -327,10 +327,11 @@ def _captured(monkeypatch) -> list:
 
 
 def test_analyze_figures_legends_name_their_series(tmp_path, monkeypatch):
-    from simpro_mj.analysis.analyze import compute, params
+    from simpro_mj.analysis.analyze import AnalyzeParams, compute
+    from simpro_mj.config.messages import from_sets
     from simpro_mj.report.analyze import plot
 
-    p = params()
+    p = from_sets(AnalyzeParams)
     saved = _captured(monkeypatch)
     files = plot(compute(p), p, tmp_path)
     assert len(saved) == len(files) >= 3
@@ -339,11 +340,12 @@ def test_analyze_figures_legends_name_their_series(tmp_path, monkeypatch):
 
 
 def test_validate_ik_figure_legend_names_its_series(tmp_path, monkeypatch):
-    from simpro_mj.analysis.validate_ik import params, plot, validate
+    from simpro_mj.analysis.validate_ik import IkParams, plot, validate
+    from simpro_mj.config.messages import from_sets
 
     saved = _captured(monkeypatch)
     # the same series as the 60 s default draws (the legends name them, not their length)
-    plot(validate(params(["trajectory.duration_s=5"])), tmp_path)
+    plot(validate(from_sets(IkParams, ["trajectory.duration_s=5"])), tmp_path)
     assert len(saved) == 1
     assert legend_mismatches(saved[0]) == []
 

@@ -13,8 +13,9 @@ import pytest
 import simpro_mj as s
 from controllers.geometry import PAPER_RIG_MM, geometry_from_rig, nominal_geometry
 from controllers.kinematics import inverse_kinematics
-from simpro_mj.analysis.validate_ik import params, validate
+from simpro_mj.analysis.validate_ik import IkParams, validate
 from simpro_mj.commands.main import main
+from simpro_mj.config.messages import from_sets
 from simpro_mj.config.rig import RIGS_DIR, rig_value
 from simpro_mj.config.scenario import load_scenario
 from simpro_mj.core.errors import UserInputError
@@ -66,9 +67,11 @@ def test_the_rebuilt_model_assembles_where_the_controllers_ik_says():
 
 
 def test_validate_ik_passes_on_the_moved_rig_within_the_paper_rigs_bounds():
-    kin = validate(params([f"model.rig={WIDE}", "drive=kinematic", "trajectory.duration_s=5"]))
+    kin = validate(
+        from_sets(IkParams, [f"model.rig={WIDE}", "drive=kinematic", "trajectory.duration_s=5"])
+    )
     assert kin.max_position_error_m < 1e-8 and kin.max_angle_error_rad < 1e-8
-    dyn = validate(params([f"model.rig={WIDE}", "trajectory.duration_s=8"]))
+    dyn = validate(from_sets(IkParams, [f"model.rig={WIDE}", "trajectory.duration_s=8"]))
     # the bounds of the paper rig's own test (tests/test_validate_ik.py)
     assert dyn.max_position_error_m < 1e-4
     assert dyn.max_angle_error_rad < np.radians(0.01)

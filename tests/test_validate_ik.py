@@ -5,12 +5,13 @@ import json
 import numpy as np
 import pytest
 
-from simpro_mj.analysis.validate_ik import params, validate
+from simpro_mj.analysis.validate_ik import IkParams, validate
 from simpro_mj.commands.main import main
+from simpro_mj.config.messages import from_sets
 
 
 def test_dynamic_drive_matches_ik_within_bounds():
-    res = validate(params(["trajectory.duration_s=20"]))
+    res = validate(from_sets(IkParams, ["trajectory.duration_s=20"]))
     assert res.max_position_error_m < 1e-4  # 0.1 mm
     assert res.max_angle_error_rad < np.radians(0.01)  # 0.01 deg
     assert res.max_loop_closure_error_m < 5e-4
@@ -22,7 +23,7 @@ def test_dynamic_drive_matches_ik_within_bounds():
 
 
 def test_kinematic_drive_is_exact():
-    res = validate(params(["drive=kinematic", "trajectory.duration_s=10"]))
+    res = validate(from_sets(IkParams, ["drive=kinematic", "trajectory.duration_s=10"]))
     assert res.max_position_error_m < 1e-8
     assert res.max_angle_error_rad < 1e-8
 

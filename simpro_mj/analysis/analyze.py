@@ -25,7 +25,7 @@ Parameters (``--set KEY=VALUE``): :class:`AnalyzeParams`.
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping
+from collections.abc import Mapping
 from dataclasses import asdict
 from typing import Annotated, Any, Literal, get_args
 
@@ -78,7 +78,6 @@ from simpro_mj.analysis.loop_records import (
     SweepRow,
 )
 from simpro_mj.analysis.response_summary import figures
-from simpro_mj.config.messages import from_sets
 from simpro_mj.config.models import Outer, Scenario, as_scenario
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.keys import Block, Real, Whole, block, param
@@ -196,11 +195,6 @@ class AnalyzeParams(Block):
                     f"multiple of inner.dt_s = {dt} s"
                 )
         return self
-
-
-def params(sets: Iterable[str] = ()) -> AnalyzeParams:
-    """The parameters: the defaults with the ``--set`` overrides (:func:`from_sets`)."""
-    return from_sets(AnalyzeParams, sets)
 
 
 def _pairs(z) -> list:

@@ -70,7 +70,6 @@ from simpro_mj.analysis.response import (
     failures,
     fits,
     in_edge,
-    measure,
     run_point,
     saturated_pct,
     sine_plan,
@@ -225,18 +224,6 @@ def measure_chain_point(envelope: Mapping) -> dict:
     """Run one vehicle sine through the chain and fit it (worker side; pickles by name):
     a :class:`SineFit` when ``ok`` (:func:`simpro_mj.analysis.response.run_point`)."""
     return run_point(envelope, _fit_chain)
-
-
-def measure_chain(plan: SinePlan, *, jobs: int = 1, scheduler=None, progress: bool = False):
-    """Run every task of ``plan``; results in task order (:func:`measure_chain_point`)."""
-    return measure(
-        plan,
-        jobs=jobs,
-        scheduler=scheduler,
-        progress=progress,
-        fn=measure_chain_point,
-        desc="chain response",
-    )
 
 
 def head_jacobian(scenario: Mapping, step: float = 1e-4) -> np.ndarray:

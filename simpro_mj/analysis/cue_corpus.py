@@ -13,7 +13,7 @@ the share, the worst onset and the onsets missed, and the raw wrong-way peak.
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -41,9 +41,6 @@ class CorpusRow:
     onsets_missed: int
     raw_wrong_way_mps2: float | None
     floors_missed: str
-
-    def to_json(self) -> dict:
-        return asdict(self)
 
 
 def judge_drive(name: str, block: Mapping, t, f, w, *, bound: bool = True) -> list[CorpusRow]:

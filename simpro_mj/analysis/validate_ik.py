@@ -22,7 +22,6 @@ kinematic simulation, which isolates geometry from compliance.
 from __future__ import annotations
 
 import time
-from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Annotated, Any, Literal
@@ -34,7 +33,6 @@ from pydantic import Field
 from controllers.errors import WorkspaceError
 from controllers.geometry import geometry_from_rig
 from controllers.kinematics import check_reachable, inverse_kinematics, paper_inverse_kinematics
-from simpro_mj.config.messages import from_sets
 from simpro_mj.config.rig import rig_value
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.keys import Block, Real, Whole, block, param
@@ -84,11 +82,6 @@ class IkParams(Block):
     model: dict[str, Any] = param(
         DEFAULT_MODEL_PARAMS, "", "the plant model's parameters (simpro_mj.plant.model)"
     )
-
-
-def params(sets: Iterable[str] = ()) -> IkParams:
-    """The parameters: the defaults with the ``--set`` overrides (:func:`from_sets`)."""
-    return from_sets(IkParams, sets)
 
 
 def trajectory(t: np.ndarray, tr: Trajectory, home: np.ndarray) -> np.ndarray:

@@ -9,7 +9,8 @@ import os
 import sys
 from pathlib import Path
 
-from simpro_mj.analysis.analyze import AnalyzeParams, compute, document, params
+from simpro_mj.analysis.analyze import AnalyzeParams, compute, document
+from simpro_mj.config.messages import from_sets
 from simpro_mj.core.jsonout import emit_json
 from simpro_mj.core.progress import Phases, show_progress
 from simpro_mj.report.analyze import plot, summary
@@ -63,7 +64,7 @@ def _scenario(name: str, sets: list, say) -> dict:
 
 def run(args) -> int:
     own, scenario_sets = _split_sets(args.sets)
-    p = params(own)
+    p = from_sets(AnalyzeParams, own)
     with Phases("analyze", ["loops and limits", "plots"], show_progress(args)) as phase:
         sc = _scenario(args.scenario, scenario_sets, None if args.quiet else _say)
         phase.start("loops and limits")

@@ -30,23 +30,15 @@ def add_arguments(parser) -> None:
 
 def run(args) -> int:
     # the job's modules on use: --help and argparse's refusals import none of them
-    from simpro_mj.config.scenario import find_scenario, load_scenario
     from simpro_mj.core.jsonout import emit_json
     from simpro_mj.core.progress import show_progress
     from simpro_mj.report.compare import compare, table
     from simpro_mj.report.folders import claim
     from simpro_mj.report.marker import record
     from simpro_mj.report.runner import EXIT_INTERRUPTED, interrupted_message
-    from simpro_mj.report.video_options import video_after_run
+    from simpro_mj.report.video_options import scenario_to_run, video_after_run
 
-    source = find_scenario(args.scenario)  # the file that runs, said first
-    scenario = load_scenario(args.scenario, args.sets)
-    if not args.json:
-        print(f"scenario: {source.resolve()}", flush=True)
-    if args.video:
-        from simpro_mj.report.render import require_video  # the renderer only for a video
-
-        require_video()  # the install hint before the run, not after it
+    scenario = scenario_to_run(args)
     out = Path(args.out) if args.out else Path("results") / f"{scenario.name}-compare"
     with claim(out, "compare", inputs=[args.scenario], writes=COMPARE_FILES):
         out.mkdir(parents=True, exist_ok=True)

@@ -39,7 +39,7 @@ def run(args) -> int:
         info = render_video(runs, out, progress=show_progress(args), **opts)
         record_file(out)  # listed in its folder's marker: a re-render may replace it
     if args.json:
-        emit_json(info.to_json())
+        emit_json(info)
     else:
         print(info.said())
     return 0

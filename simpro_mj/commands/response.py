@@ -132,7 +132,7 @@ def run(args) -> int:
         ChainRow,
         chain_summary,
         cue_block,
-        measure_chain,
+        measure_chain_point,
         plan_chain,
     )
     from simpro_mj.analysis.response import check_periods, measure, plan_response
@@ -198,7 +198,8 @@ def run(args) -> int:
             progress=not args.quiet and not args.json,
         )
         if args.chain:
-            summ = chain_summary(plan, measure_chain(plan, **options))
+            results = measure(plan, fn=measure_chain_point, desc="chain response", **options)
+            summ = chain_summary(plan, results)
             part = {
                 "channels_excited": list(plan.inputs),
                 "amplitude": {

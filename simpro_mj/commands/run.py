@@ -40,22 +40,15 @@ def add_arguments(parser) -> None:
 def run(args) -> int:
     # the job's modules on use: --help and argparse's refusals import none of them
     from simpro_mj.analysis.verdict import FINISHED_STATUSES
-    from simpro_mj.config.scenario import find_scenario, load_scenario, scenario_hash
+    from simpro_mj.config.scenario import scenario_hash
     from simpro_mj.core.jsonout import emit_json
     from simpro_mj.core.progress import show_progress
     from simpro_mj.report.folders import claim, default_out, said_replacing
     from simpro_mj.report.results import print_summary
     from simpro_mj.report.runner import EXIT_INTERRUPTED, execute, interrupted_message
-    from simpro_mj.report.video_options import video_after_run
+    from simpro_mj.report.video_options import scenario_to_run, video_after_run
 
-    source = find_scenario(args.scenario)  # the file that runs, said first
-    scenario = load_scenario(args.scenario, args.sets)
-    if not args.json:
-        print(f"scenario: {source.resolve()}", flush=True)
-    if args.video:
-        from simpro_mj.report.render import require_video  # the renderer only for a video
-
-        require_video()  # the install hint before the run, not after it
+    scenario = scenario_to_run(args)
     digest = scenario_hash(scenario)
     base = Path("results") / scenario.name
     out = Path(args.out) if args.out else default_out(base, args.sets or (), digest)

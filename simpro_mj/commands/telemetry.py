@@ -96,7 +96,7 @@ def _judge(args) -> int:
     except (ValueError, TypeError) as exc:  # a parameter the law refuses names itself
         raise UserInputError(f"invalid value at --law: {exc}") from None
     if args.json:
-        emit_json({"changes": changes, "rows": [r.to_json() for r in rows]})
+        emit_json({"changes": changes, "rows": rows})
     else:
         print(table(rows))
     return 0

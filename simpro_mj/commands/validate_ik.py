@@ -20,9 +20,10 @@ def add_arguments(parser) -> None:
 
 def run(args) -> int:
     # the validation loads MuJoCo: after argparse has checked the options
-    from simpro_mj.analysis.validate_ik import params, plot, summary, validate
+    from simpro_mj.analysis.validate_ik import IkParams, plot, summary, validate
+    from simpro_mj.config.messages import from_sets
 
-    p = params(args.sets)
+    p = from_sets(IkParams, args.sets)
     with Phases("validate-ik", ["IK against MuJoCo", "plot"], show_progress(args)) as phase:
         phase.start("IK against MuJoCo")
         if args.no_plots:

@@ -25,7 +25,7 @@ import warnings
 from collections import deque
 from concurrent.futures import ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -130,9 +130,6 @@ class Rendered:
     s_per_frame: float
     worker_cpu_s_per_frame: float
     runs: list[str]
-
-    def to_json(self) -> dict:
-        return asdict(self)
 
     def said(self) -> str:
         """One line about the video."""

@@ -50,6 +50,22 @@ def add_video_options(parser, out: bool) -> None:
             parser.add_argument(flag, help=text, **how)
 
 
+def scenario_to_run(args):
+    """The scenario of ``args`` (its file said first), the video's needs checked before the
+    run, not after it (``run`` and ``compare``)."""
+    from simpro_mj.config.scenario import find_scenario, load_scenario
+
+    source = find_scenario(args.scenario)
+    scenario = load_scenario(args.scenario, args.sets)
+    if not args.json:
+        print(f"scenario: {source.resolve()}", flush=True)
+    if args.video:
+        from simpro_mj.report.render import require_video  # the renderer only for a video
+
+        require_video()
+    return scenario
+
+
 def add_video_flag(parser) -> None:
     """``run/compare --video``: render the result at the end, with render's defaults."""
     parser.add_argument(
