@@ -19,9 +19,8 @@ import numpy as np
 
 
 def _signal():
-    """scipy.signal, imported on first use: it costs about 1 s of import (0.6-1.6 s
-    measured), which every command would otherwise pay before it can refuse a mistake
-    (a scenario's validation imports the washout); a one-line error within a second."""
+    """scipy.signal on first use: its 0.6-1.6 s import would otherwise delay every
+    command's one-line refusal (a scenario's validation imports the washout)."""
     from scipy import signal
 
     return signal

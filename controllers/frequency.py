@@ -221,12 +221,8 @@ def _imu_filter(model: LoopModel):
 
 
 def _eval(sys, z) -> complex:
-    """A SISO ``control`` system's value at ``z``; a state space as ``C (zI - A)^-1 B + D``.
-
-    That is python-control's own evaluation (the same branches: no state, one state,
-    a solve), which first tries slycot's and, with slycot not installed, pays a failed
-    import on every call (a quarter of ``analyze``).
-    """
+    """A SISO ``control`` system's value at ``z`` (``C (zI - A)^-1 B + D``), as python-control
+    evaluates it less its failed slycot import per call (a quarter of ``analyze``)."""
     if not hasattr(sys, "A"):
         return complex(np.asarray(sys(z, squeeze=False)).reshape(-1)[0])
     a, b, c, d = (np.asarray(m) for m in (sys.A, sys.B, sys.C, sys.D))

@@ -102,9 +102,8 @@ class MpcResult:
 
 
 def _plan(x0: np.ndarray, jerks: np.ndarray, period: float, t: np.ndarray) -> np.ndarray:
-    """The planned position, rate and acceleration (3, len(t)) at times ``t`` (from now)
-    of a triple integrator from ``x0`` = (position, rate, acceleration) under the jerks
-    held one period each (the last one held beyond the horizon)."""
+    """Position, rate and acceleration (3, len(t)) at times ``t`` of a triple integrator from
+    ``x0`` under the jerks held one period each (the last one beyond the horizon)."""
     out = np.empty((3, t.size))
     seg = np.minimum((t // period).astype(int), jerks.size - 1)
     x = np.asarray(x0, float).copy()
@@ -425,9 +424,8 @@ class ModelPredictiveCueing:
             self._x[k] = ax.ad @ self._x[k] + ax.bd @ np.r_[u[k, 0], d]
 
     def _pose(self, u: np.ndarray, t: np.ndarray, dt: float) -> np.ndarray:
-        """Base-frame set-points (len(t), 3) of the current plan ``t`` after the solve,
-        consecutive samples ``dt`` apart, through the inverse of the platform loop
-        (:meth:`_loop_inverse`)."""
+        """Base-frame set-points (len(t), 3) of the plan after the solve, ``dt`` apart,
+        through the inverse of the platform loop (:meth:`_loop_inverse`)."""
         p = self.params
         out = np.empty((t.size, 3))
         for k, ax in enumerate(self.axes):

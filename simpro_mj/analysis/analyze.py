@@ -259,16 +259,8 @@ def _real(mode, gain, period, p: AnalyzeParams, spec, jac, duration) -> RealLoop
 
 
 def _feedforward(p: AnalyzeParams, spec: dict, jac, real_i: RealLoop) -> FeedforwardLoop:
-    """The feed-forward scheme (``controller.mode = feedforward``) on the paper's plants.
-
-    Its correction closes the same loop as the I law around the real inner
-    loops (the feed-forward path is outside the loop): the characteristic
-    polynomial, hence the stability limit, is the I law's, for the
-    correction's gain ``feedforward.gain``. What changes is the response: the
-    unit step on pitch and the closed-loop frequency response per axis
-    (:func:`controllers.frequency.predict`), beside the joint-only scheme and
-    the I law at ``outer.gain``.
-    """
+    """The feed-forward scheme on the paper's plants: the I law's limit at the correction's
+    gain (its path is outside the loop), its pitch step and frequency response per axis."""
 
     o, i, ff = p.outer, p.inner, p.feedforward
     reading = p.paper_units

@@ -68,9 +68,8 @@ class Check:
 
 
 def _plant(scenario: Scenario | Mapping, settle: float = 1.0, ideal_supply: bool = False):
-    """The scenario's MuJoCo model and nonlinear actuators on a :class:`Platform` at
-    home, the valves at their holding voltages for ``settle`` s (the closed chain's
-    own static deflection under its load, which the static pressures do not know)."""
+    """The scenario's plant at home, its valves at their holding voltages for ``settle`` s
+    (the chain's own static deflection under its load, unknown to the static pressures)."""
     sc = as_scenario(scenario)
     model = load_model(sc.plant.tree())
     tree = sc.actuator.pneumatics.model_dump()

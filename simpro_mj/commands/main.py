@@ -171,11 +171,8 @@ def _version() -> str:
 
 
 def _check_gl_backend() -> str | None:
-    """MuJoCo loads the OpenGL backend named by ``MUJOCO_GL`` when first imported:
-    a backend whose library is missing makes that import fail (one line, not a
-    traceback). Returns the message, or None. With ``MUJOCO_GL`` unset the
-    import loads no GL library and cannot fail this way: nothing is imported,
-    so a mistake in the arguments is refused without paying for MuJoCo."""
+    """The one-line message when MuJoCo cannot load the ``MUJOCO_GL`` backend, else None
+    (with ``MUJOCO_GL`` unset nothing is imported: no GL library is loaded then)."""
     if not os.environ.get("MUJOCO_GL"):
         return None
     try:

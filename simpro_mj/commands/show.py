@@ -22,7 +22,7 @@ def run(args) -> int:
     if args.changed:
         rows = [r for r in rows if r.value != r.default]
     if args.json:
-        emit_json({"scenario": scenario.name, "parameters": [r.as_dict() for r in rows]})
+        emit_json({"scenario": scenario.name, "parameters": rows})
         return 0
     table = [(r.key, text(r.value), text(r.default), r.unit, r.allowed, r.meaning) for r in rows]
     head = ("key", "value", "default", "unit", "allowed", "meaning")

@@ -196,14 +196,8 @@ def slalom_path(spacing: float = 18.0, amplitude: float = 1.0, cones: int = 6):
 def _run_mb(
     p, v0: float, t_end: float, steer_fn, acc_fn, rate_hz: float, v_stop=None, method="RK45"
 ):
-    """Integrate the multi-body model on a ``rate_hz`` grid to ``t_end``.
-
-    ``v_stop``: end the integration when the speed falls to it (the model
-    turns stiff as its wheels stop below 0.1 m/s); the rest of the grid is
-    then filled with the vehicle at rest (states held, derivatives zero).
-    ``method``: :func:`scipy.integrate.solve_ivp`'s; LSODA where the tyres turn stiff
-    (braking in a turn: an explicit method takes microsecond steps there).
-    """
+    """The multi-body model on a ``rate_hz`` grid to ``t_end``, at rest from ``v_stop`` on (its
+    wheels turn stiff below 0.1 m/s); ``method``: solve_ivp's (LSODA where tyres turn stiff)."""
     from scipy.integrate import solve_ivp  # on use: scipy's import is most of a --help
 
     # commonroad-vehicle-models is an optional extra ([vehicle]): imported when used

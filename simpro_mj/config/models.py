@@ -404,9 +404,8 @@ class Scenario(Block):
 
 
 def _resolve_design_plant(s: Scenario) -> None:
-    """``design_plant: auto``: eqs. (34)-(35) on the preset calibrated to them
-    (``paper``), the plant's own identified models on any other: the paper's
-    procedure, identify then place poles (simpro_mj.identification.auto)."""
+    """``design_plant: auto``: ``paper`` (eqs. 34-35) on the preset calibrated to them, the
+    plant's own identified models on any other (simpro_mj.identification.auto)."""
     inner = s.controller.inner
     if inner.design_plant == "auto":
         inner.design_plant = "paper" if s.plant.preset == DEFAULT_PRESET else "identified"

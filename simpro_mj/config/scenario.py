@@ -96,7 +96,7 @@ import os
 import re
 import sys
 from collections.abc import Iterable, Mapping
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal, get_args, get_origin
 
@@ -333,11 +333,8 @@ def scenario_with(scenario: Scenario | Mapping, changes: Mapping[str, Any]) -> S
 
 
 def _overlay(base: Mapping, doc: Mapping, sets: list) -> dict:
-    """``base``, the document merged over it, the ``--set`` overrides applied.
-
-    One number where the scenario has a list of numbers applies to each element, as
-    in a sweep: ``--set controller.outer.gains=30`` is ``[30, 30, 30]``.
-    """
+    """``base``, the document merged over it, the ``--set`` overrides applied (one number
+    for a list of numbers, as in a sweep: ``gains=30`` is ``[30, 30, 30]``)."""
     tree = _merge(base, doc)
     for expr in sets:
         key, value = parse_set(expr)
@@ -429,9 +426,6 @@ class Parameter:
     unit: str  #: edge unit ("" for a number without one, a choice or a flag)
     allowed: str  #: the allowed values or range
     meaning: str  #: one line
-
-    def as_dict(self) -> dict:
-        return asdict(self)
 
 
 def _allowed(field: FieldInfo) -> str:

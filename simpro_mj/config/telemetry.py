@@ -234,14 +234,8 @@ def _text(raw: bytes, lineno: int, name: str) -> str:
 
 
 def _parse(body: bytes, lineno: int, header, pos, name) -> tuple[np.ndarray, np.ndarray]:
-    """The required columns of the whole lines in ``body`` (the first is line
-    ``lineno + 1``) and each row's line number.
-
-    One parser: every data line (not blank, not a ``#`` comment) must hold as
-    many fields as the header, else it is refused with its line number (a row
-    with a field too many or too few would shift values across columns); the
-    numbers of the data lines are then converted by NumPy in one call, or line
-    by line to name a cell that is not a number."""
+    """The required columns of ``body``'s data lines (the first is line ``lineno + 1``),
+    each as many fields as the header (else refused by line), and each row's line number."""
     width = len(header)
     raw_lines = body.split(b"\n")
     if raw_lines[-1] == b"":

@@ -87,9 +87,8 @@ def _children(node) -> list:
 
 
 def _check_expansion(root) -> None:
-    """Size and depth of the document with every alias expanded, counted over
-    the unique collections (iterative, memoised: linear in the file, not in the
-    expansion); a scalar counts 1."""
+    """Size and depth of the document with every alias expanded (a scalar counts 1),
+    memoised over the unique collections: linear in the file, not in the expansion."""
     if not isinstance(root, (MappingNode, SequenceNode)):
         return
     size: dict[int, int] = {}

@@ -43,11 +43,8 @@ def warn(lines, quiet: bool) -> None:
 
 
 def _stepping(k: int) -> None:
-    """Progress callback (every 1000 steps): readiness once the run has steps to keep.
-
-    Not at k = 0: a signal sent the moment the file appears must still find
-    a partial result with at least one logged second to write.
-    """
+    """Progress callback (every 1000 steps): readiness once a signal would still find a
+    logged second to write (not at k = 0)."""
     if k > 0:
         signal_ready("stepping")
 
