@@ -234,8 +234,7 @@ def plot(res: IkValidation, out: Path) -> Path:
         ax[3].plot(t, res.dq_ours[:, i] * 1e3, f"C{i}-", label=f"q{i + 1} vector loops")
         if res.rig is None:  # eqs. 30-33 are the paper's rig's
             ax[3].plot(t, res.dq_paper[:, i] * 1e3, f"C{i}:", label=f"q{i + 1} eqs. 30-33")
-    ax[3].set_ylabel("leg displacement from home [mm]")
-    ax[3].set_xlabel("time [s]")
+    ax[3].set(ylabel="leg displacement from home [mm]", xlabel="time [s]")
     ax[3].legend(ncol=3, fontsize=7)
     ax[3].grid(alpha=0.3)
     fig.suptitle(

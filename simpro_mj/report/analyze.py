@@ -42,9 +42,7 @@ def plot(res: Analysis, p: AnalyzeParams, out: Path) -> list[str]:
         pl = an.outer_poles(mode, lim, o.period_s, o.delay_samples, o.pi_zero)
         label = f"limit K K_I = {lim:.2f} (paper {r.paper_stability_limit:g})"
         ax.plot(pl.real, pl.imag, "kx", ms=9, label=label)
-        ax.set_aspect("equal")
-        ax.set_xlabel("Re z")
-        ax.set_ylabel("Im z")
+        ax.set(aspect="equal", xlabel="Re z", ylabel="Im z")
         title = f"{mode} law, T = {o.period_s * 1e3:g} ms, one-sample inner delay"
         ax.set_title(f"{title} (cf. Fig. {fig_no})", fontsize=9)
         ax.legend(fontsize=8, loc="lower left")
@@ -62,9 +60,7 @@ def plot(res: Analysis, p: AnalyzeParams, out: Path) -> list[str]:
     label = f"feedforward, K K_I={ff.gain:g}, {lag}, pitch"
     ax.plot(ff._t, ff._y[:, 1], color="C2", label=label)
     ax.axhline(1.0, color="k", lw=0.6)
-    ax.set_ylim(-0.5, 2.0)
-    ax.set_xlabel("t (s)")
-    ax.set_ylabel("task output / step")
+    ax.set(ylim=(-0.5, 2.0), xlabel="t (s)", ylabel="task output / step")
     ax.set_title("Outer-loop unit-step responses", fontsize=9)
     ax.legend(fontsize=8)
     ax.grid(alpha=0.3)

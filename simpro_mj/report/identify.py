@@ -62,9 +62,7 @@ def plot(results: dict, records: dict, path: Path, reading: str = "volts") -> No
         for coef, lab, sty in ((r, "simulation fit", "-"), (p, "paper eq. (34)/(35)", "--")):
             _, y = step(lti([coef.b], [1.0, coef.a1, coef.a0, 0.0]), T=t)
             ax.plot(t, y * 1e3, sty, label=lab)
-        ax.set_title(f"{name}: 1 V step, position")
-        ax.set_xlabel("t (s)")
-        ax.set_ylabel("Δq (mm)")
+        ax.set(title=f"{name}: 1 V step, position", xlabel="t (s)", ylabel="Δq (mm)")
         ax.grid(True, alpha=0.3)
         ax.legend(fontsize=8)
         rec = records[name]
@@ -75,8 +73,7 @@ def plot(results: dict, records: dict, path: Path, reading: str = "volts") -> No
         ax = axes[1, c]
         ax.plot(rec.t[sl], rec.qdot[sl] * 1e3, lw=0.8, label="MuJoCo + pneumatics")
         ax.plot(rec.t[sl], vhat[sl] * 1e3, lw=0.8, label=f"fit ({r.fit_percent:.0f} %)")
-        ax.set_xlabel("t (s)")
-        ax.set_ylabel("qdot (mm/s)")
+        ax.set(xlabel="t (s)", ylabel="qdot (mm/s)")
         ax.grid(True, alpha=0.3)
         ax.legend(fontsize=8)
     fig.tight_layout()

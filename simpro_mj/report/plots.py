@@ -387,8 +387,7 @@ def cueing_figures(columns: Mapping, scenario: Mapping) -> dict[str, Figure]:
                      color=LEG_COLOURS[i], lw=1.0, label=f"leg {i}")  # fmt: skip
     axes[3].axhline(0.0, color="k", lw=0.8, label="end stops")
     axes[3].axhline(500.0, color="k", lw=0.8)
-    axes[3].set_ylabel("stroke [mm]")
-    axes[3].set_xlabel("time [s]")
+    axes[3].set(ylabel="stroke [mm]", xlabel="time [s]")
     axes[3].grid(True, alpha=0.3)
     axes[0].legend(loc="best", fontsize=7)
     axes[3].legend(loc="best", fontsize=7, ncol=4)
