@@ -36,10 +36,10 @@ from matplotlib.figure import Figure
 
 from controllers.geometry import H0
 from simpro_mj.analysis.cue_metrics import FLOORS
-from simpro_mj.analysis.verdict import VERDICTS
+from simpro_mj.analysis.verdict import FINISHED_STATUSES, VERDICTS
 from simpro_mj.batch.robustness import map_figure
 from simpro_mj.batch.stability import Analytic
-from simpro_mj.batch.summary import AXES, RUN_STATUSES, Row
+from simpro_mj.batch.summary import AXES, Row
 from simpro_mj.batch.tables import StabilityLimit, number
 from simpro_mj.config.sweep import format_value
 from simpro_mj.report.figures import envelope, log_ticks, save
@@ -198,7 +198,7 @@ def responses_figure(rows: list[Row], info: Mapping, batch_out: Path):
     """Task-space responses of the variants overlaid (module docstring); None if none
     has a time series."""
     grid = info["grid_paths"]
-    runs = [r for r in rows if r.status in RUN_STATUSES and r.folder][:MAX_OVERLAY]
+    runs = [r for r in rows if r.status in FINISHED_STATUSES and r.folder][:MAX_OVERLAY]
     series = []
     for r in runs:
         path = Path(batch_out) / r.folder / "timeseries.csv"

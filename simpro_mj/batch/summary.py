@@ -38,9 +38,8 @@ if TYPE_CHECKING:
     from simpro_mj.batch.robustness import RobustnessTable
     from simpro_mj.batch.tables import MonteCarloSpread, StabilityLimit
 
-#: Variant statuses, and those a finished run can have.
+#: Variant statuses.
 STATUSES = (*FINISHED_STATUSES, "interrupted", "failed", "invalid", "cancelled")
-RUN_STATUSES = FINISHED_STATUSES
 
 #: (axis, unit of its columns, SI to that unit)
 AXES = (("roll", "deg", 180.0 / math.pi), ("pitch", "deg", 180.0 / math.pi), ("heave", "mm", 1e3))
