@@ -168,6 +168,52 @@ def test_a_signal_stops_a_threaded_batch(tmp_path):
     assert _no_temp_folders(tmp_path)
 
 
+def test_a_signal_a_runs_thread_received_stops_the_threads(tmp_path, monkeypatch):
+    """The kernel gives a signal sent to the process to any of its threads that does
+    not block it; CPython runs the handler in the main thread only, when that thread
+    next runs Python code. Here SIGTERM goes to one of the runs' threads (``pthread_kill``)
+    while the main thread waits for the tasks: the runs are still stopped, each
+    reports ``interrupted``, and the batch sees the signal. (A main thread that
+    slept until a task ended let the two 600 s variants of the test above run to
+    their end, ``ok``, after the SIGTERM.) The tasks' wait is bounded only so that
+    a broken build fails instead of hanging."""
+    import threading
+
+    from simpro_mj.core.interrupts import interruptible
+    from simpro_mj.sim import readiness
+    from simpro_mj.sim.executors import run_threads
+
+    # the handler is installed in the main thread (elsewhere SIGTERM would end pytest)
+    assert threading.current_thread() is threading.main_thread()
+    ready = tmp_path / "ready"
+    monkeypatch.setenv(readiness.ENV, str(ready))
+    statuses: dict[int, str] = {}
+
+    def main_thread_waits() -> bool:  # the tasks submitted, the main thread in a wait
+        if not ready.is_file():
+            return False
+        frame = sys._current_frames().get(threading.main_thread().ident)
+        while frame is not None:
+            if frame.f_code is threading.Condition.wait.__code__:
+                return True
+            frame = frame.f_back
+        return False
+
+    def task(t: dict) -> dict:
+        if t["first"]:
+            _wait_for(main_thread_waits)
+            signal.pthread_kill(threading.get_ident(), signal.SIGTERM)
+        stopped = t["stop"].wait(timeout=60.0)
+        return {"status": "interrupted" if stopped else "ok"}
+
+    def done(key: int, result: dict) -> None:
+        statuses[key] = result["status"]
+
+    with interruptible(), pytest.raises(KeyboardInterrupt, match="SIGTERM"):
+        run_threads([(0, {"first": True}), (1, {"first": False})], 2, done, fn=task)
+    assert statuses == {0: "interrupted", 1: "interrupted"}
+
+
 @linux
 @pytest.mark.slow  # process plumbing: 15 s of the suite
 @pytest.mark.parametrize("command", ["batch", "dask"])

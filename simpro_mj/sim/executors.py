@@ -19,7 +19,13 @@ import sys
 import threading
 import time
 from collections.abc import Callable, Mapping
-from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor, as_completed
+from concurrent.futures import (
+    FIRST_COMPLETED,
+    ProcessPoolExecutor,
+    ThreadPoolExecutor,
+    as_completed,
+    wait,
+)
 
 from tqdm import tqdm
 
@@ -32,6 +38,9 @@ from simpro_mj.sim.workers import init_worker, main_not_imported, run_task, stop
 NO_WORKERS_S = 60.0
 #: Most worker processes (``--jobs``); a run never starts more than it has tasks.
 MAX_JOBS = 256
+#: The longest (s) the main thread waits for a task of :func:`run_threads` without running
+#: Python code: how late, at most, it acts on a signal the kernel gave another thread.
+WAKE_S = 0.1
 
 
 class Progress:
@@ -150,6 +159,21 @@ def _collect(finished, futures: dict, done: Callback, reported: set, stop: bool 
             raise KeyboardInterrupt(result.get("reason") or "interrupted")
 
 
+def _completed(futures, period: float = WAKE_S):
+    """The futures as they finish, like ``as_completed``, waking every ``period`` seconds.
+
+    The kernel hands a signal sent to the process to any thread that does not block
+    it (seen under load: one of the runs' threads took the SIGTERM). CPython runs the
+    handler in the main thread only, the next time it runs Python code; a wait
+    with no timeout would put that off until a task ends (a 600 s variant then
+    runs to its end, ``ok``, after the batch was told to stop).
+    """
+    pending = set(futures)
+    while pending:
+        finished, pending = wait(pending, timeout=period, return_when=FIRST_COMPLETED)
+        yield from finished
+
+
 def run_tasks(
     tasks: list[tuple[int, dict]],
     done: Callback,
@@ -208,9 +232,10 @@ def run_threads(tasks: list[tuple[int, dict]], jobs: int, done: Callback, fn: Wo
     futures: dict = {}
     reported: set = set()
     try:
-        futures = {pool.submit(fn, {**task, "stop": stop}): key for key, task in tasks}
+        for key, task in tasks:  # a signal meanwhile finds those submitted so far
+            futures[pool.submit(fn, {**task, "stop": stop})] = key
         signal_ready("batch")
-        _collect(as_completed(futures), futures, done, reported)
+        _collect(_completed(futures), futures, done, reported)
     except BaseException:
         stop.set()  # the running simulations end at their next chunk
         for fut in futures:
