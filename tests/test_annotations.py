@@ -3,9 +3,9 @@
 The checker runs in this process with the settings of ``[tool.mypy]`` in
 pyproject.toml (the files, the checks, the third-party packages read as ``Any``)
 and its cache in ``.mypy_cache``: about 20 s of CPU on a fresh clone, under a
-second once the cache holds the unchanged modules. Under pytest-xdist it runs
-beside the other tests; its file name sorts near the front so that it starts
-with the first tests rather than ending the run alone.
+second once the cache holds the unchanged modules. It runs first
+(``tests/conftest.py``: ``WHILE_THE_STEP_COMPILES``), beside the step's compile on a
+fresh clone, rather than ending the run alone.
 """
 
 from __future__ import annotations
