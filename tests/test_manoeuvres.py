@@ -3,12 +3,11 @@
 from __future__ import annotations
 
 import math
-import subprocess
-import sys
 
 import numpy as np
 import pytest
 
+from simpro_mj.commands.main import main
 from simpro_mj.config.manoeuvres import ManoeuvreError, ManoeuvreSpec, generate, lane_change_path
 from simpro_mj.config.telemetry import read_telemetry
 
@@ -80,15 +79,16 @@ def test_bad_specs_are_one_line_errors():
         ManoeuvreSpec("braking", 500.0).check()
 
 
-def test_manoeuvre_command_writes_a_telemetry_file(tmp_path):
+def test_manoeuvre_command_writes_a_telemetry_file(tmp_path, capsys):
     out = tmp_path / "b.csv"
-    cmd = [sys.executable, "-m", "simpro_mj.commands.main", "manoeuvre", "bump", "--out", str(out)]
-    r = subprocess.run(cmd + ["--set", "speed_kmh=30"], capture_output=True, text=True, timeout=300)
-    assert r.returncode == 0, r.stderr
+    cmd = ["manoeuvre", "bump", "--out", str(out)]
+    assert main([*cmd, "--set", "speed_kmh=30"]) == 0, capsys.readouterr().err
     tel = read_telemetry(out)
     assert tel.t[-1] > 3.0 and abs(tel.f[0, 2] - 9.81) < 1e-6
-    r = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
-    assert r.returncode == 2 and "exists" in r.stderr and r.stderr.count("\n") == 1
+    capsys.readouterr()
+    assert main(cmd) == 2
+    err = capsys.readouterr().err
+    assert "exists" in err and err.count("\n") == 1
 
 
 def test_the_tyre_offsets_relay_is_a_roll_limit_cycle():

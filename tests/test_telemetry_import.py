@@ -5,13 +5,12 @@ is one line with exit 2."""
 from __future__ import annotations
 
 import math
-import subprocess
-import sys
 
 import numpy as np
 import pytest
 
 from controllers.frames import GRAVITY
+from simpro_mj.commands.main import main
 from simpro_mj.config.telemetry import read_telemetry
 from simpro_mj.config.telemetry_import import Recording, RecordingError, import_recording
 
@@ -92,7 +91,7 @@ def test_a_loggers_named_axes_map_exactly():
         import_recording(rec, "vehicle", axes="x,-x,z")
 
 
-def test_the_cli_writes_a_file_the_chain_reads_and_refuses_a_wrong_column(tmp_path):
+def test_the_cli_writes_a_file_the_chain_reads_and_refuses_a_wrong_column(tmp_path, capsys):
     """A CSV with the accelerometer in g (``--accel-scale``) and the gyroscope in its own
     columns is written as telemetry the cueing chain reads; a column the file lacks is
     one line naming it, exit 2."""
@@ -101,21 +100,21 @@ def test_the_cli_writes_a_file_the_chain_reads_and_refuses_a_wrong_column(tmp_pa
     rows = np.column_stack([t * 1e3, f / 9.80665, w])
     np.savetxt(src, rows, delimiter=",", header="t_ms,ax_g,ay_g,az_g,gx,gy,gz", comments="")
     out = tmp_path / "drive.csv"
-    cmd = [sys.executable, "-m", "simpro_mj.commands.main", "telemetry", "import", str(src),
+    cmd = ["telemetry", "import", str(src),
            "--frame", "vehicle", "--time", "t_ms", "--time-scale", "0.001", "--accel",
            "ax_g,ay_g,az_g", "--accel-scale", "9.80665", "--gyro-columns", "gx,gy,gz",
            "--out", str(out)]  # fmt: skip
-    r = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
-    assert r.returncode == 0, r.stderr
+    assert main(cmd) == 0, capsys.readouterr().err
     tel = read_telemetry(out)
     assert tel.t[-1] == pytest.approx(29.99, abs=1e-6)
     assert np.abs(tel.f[:, 2] - GRAVITY).max() < 1e-6  # no bias, no vibration: g stays
     bad = cmd[:-2] + ["--out", str(tmp_path / "x.csv")]
     bad[bad.index("gx,gy,gz")] = "gx,gy,gyro_z"
-    r = subprocess.run(bad, capture_output=True, text=True, timeout=120)
-    assert r.returncode == 2
-    assert len(r.stderr.strip().splitlines()) == 1
-    assert "missing column gyro_z" in r.stderr
+    capsys.readouterr()
+    assert main(bad) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1
+    assert "missing column gyro_z" in err
     assert not (tmp_path / "x.csv").exists()
 
 
@@ -145,15 +144,13 @@ def test_judge_plays_a_recording_through_the_shipped_law(tmp_path):
     assert "| brake | longitudinal_f |" in table(rows)
 
 
-def test_judge_refuses_a_parameter_the_law_does_not_take(tmp_path):
+def test_judge_refuses_a_parameter_the_law_does_not_take(tmp_path, capsys):
     """A law change out of range is one line naming it, exit 2."""
     path = _braking_file(tmp_path / "brake.csv", 3.0)
-    cmd = [sys.executable, "-m", "simpro_mj.commands.main", "telemetry", "judge", str(path),
-           "--no-shipped", "--law", "lead_x_s=0.9"]  # fmt: skip
-    r = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
-    assert r.returncode == 2
-    assert len(r.stderr.strip().splitlines()) == 1
-    assert "lead_x" in r.stderr
+    assert main(["telemetry", "judge", str(path), "--no-shipped", "--law", "lead_x_s=0.9"]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1
+    assert "lead_x" in err
 
 
 def test_a_real_highway_drive_is_felt_in_shape_at_the_laws_scale():
