@@ -7,24 +7,22 @@ or the plant's own parameter; ``simpro_mj.analysis.plant_checks`` states each.
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 
 import pytest
 
 from simpro_mj.analysis.plant_checks import CHECKS, breakaway, check_plant
+from simpro_mj.commands.main import main
 from simpro_mj.config.scenario import resolve_scenario
 
 pytestmark = pytest.mark.slow
 
 
-def _cli(*args):
-    return subprocess.run(
-        [sys.executable, "-m", "simpro_mj.commands.main", "check-plant", *args],
-        capture_output=True,
-        text=True,
-        timeout=300,
-    )
+def _cli(capsys, *args) -> tuple[int, str, str]:
+    """``simpro-sim check-plant args``: its exit status, stdout and stderr."""
+    capsys.readouterr()
+    code = main(["check-plant", *args])
+    out, err = capsys.readouterr()
+    return code, out, err
 
 
 @pytest.mark.parametrize(
@@ -50,22 +48,22 @@ def test_the_tanh_seal_fails_stiction_and_breakaway():
     assert not b.ok and b.measured < 0.2 * b.expected
 
 
-def test_the_command_prints_the_table_and_exits_by_the_checks():
+def test_the_command_prints_the_table_and_exits_by_the_checks(capsys):
     """The table names the seven checks; a plant that fails one exits 1 (the tanh law
     creeps under a held load), an unknown preset is one line, exit 2. That every check
     holds on both presets is the in-process test above."""
     tanh = ["--set", "actuator.pneumatics.cylinder.friction_model=regularised"]
-    bad = _cli("--preset", "heavy_cabin", *tanh)
-    assert bad.returncode == 1, bad.stderr
-    rows = {line.split(" (")[0]: line for line in bad.stdout.splitlines() if " (" in line}
+    code, out, err = _cli(capsys, "--preset", "heavy_cabin", *tanh)
+    assert code == 1, err
+    rows = {line.split(" (")[0]: line for line in out.splitlines() if " (" in line}
     assert set(rows) >= {
         "stiction", "breakaway force", "sealed chamber energy", "null leakage",
         "chamber filling", "supply sag", "loop closure",
     }  # fmt: skip
     failed = sorted(name for name, line in rows.items() if line.rstrip().endswith("NO"))
     assert failed == ["breakaway force", "stiction"]
-    wrong = _cli("--preset", "nope")
-    assert wrong.returncode == 2 and wrong.stderr.count("\n") == 1 and "allowed" in wrong.stderr
+    code, _, err = _cli(capsys, "--preset", "nope")
+    assert code == 2 and err.count("\n") == 1 and "allowed" in err
 
 
 @pytest.mark.parametrize("hw", [0.0, 30.0, 1e4])
