@@ -123,3 +123,51 @@ def test_the_friction_solves_numbers_do_not_move_the_result():
         again = fit_sensitivity(other.u[:, 0], other.qdot[:, 0], other.dt, skip=200)
         for k in ("b", "a1", "a0"):
             assert getattr(again, k) == pytest.approx(getattr(fit, k), rel=1e-6)
+
+
+@pytest.mark.parametrize("bits", range(2, 25))
+def test_the_sequence_is_scipys_bit_for_bit(bits):
+    """The excitation's maximum-length sequence (mls.max_len_seq) is
+    scipy.signal.max_len_seq's, bit for bit, for every register length the scenario
+    allows (identify.prbs_bits 2-24), and one period of it holds each nonzero state of
+    the register once: 2**(bits-1) ones and 2**(bits-1) - 1 zeros."""
+    from scipy.signal import max_len_seq as scipys
+
+    from simpro_mj.identification.mls import max_len_seq
+
+    got = max_len_seq(bits)
+    want = scipys(bits)[0]
+    assert got.dtype == want.dtype and np.array_equal(got, want)
+    assert int(got.sum()) == 2 ** (bits - 1) and got.size == 2**bits - 1
+
+
+def test_a_register_without_taps_is_refused():
+    from simpro_mj.identification.mls import max_len_seq
+
+    for bits in (1, 25):
+        with pytest.raises(ValueError, match="invalid bits: .*allowed: 2 to 24"):
+            max_len_seq(bits)
+
+
+def test_the_reduced_identification_does_not_import_scipy_signal():
+    """A batch worker identifies a new cabin by identify_reduced: scipy.signal, whose
+    import costs 0.6-1.2 s of CPU per process, stays out of it (the sequence is
+    mls.max_len_seq's). Run in a fresh interpreter, on step_pitch's plant with 1 s
+    records."""
+    import subprocess
+    import sys
+
+    code = (
+        "import sys, copy\n"
+        "from simpro_mj.config.scenario import load_scenario\n"
+        "from simpro_mj.identification.auto import plant_tree\n"
+        "from simpro_mj.identification.reduced_experiment import identify_reduced\n"
+        "tree = copy.deepcopy(plant_tree(load_scenario('step_pitch', [])))\n"
+        "tree['identify']['duration_s'] = 1.0\n"
+        "fits = identify_reduced(tree)\n"
+        "assert sorted(fits) == ['actuator1', 'actuator2', 'actuator3'], fits\n"
+        "print(sorted(m for m in sys.modules if m.startswith('scipy.signal')))\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert out.stdout.strip() == "[]"

@@ -55,6 +55,7 @@ from controllers.design import (
 from controllers.dither import dither_signal
 from controllers.experiment_law import XC
 from simpro_mj.core.errors import PhysicsError, UserInputError
+from simpro_mj.identification.mls import max_len_seq
 from simpro_mj.identification.settings import (
     DEFAULT_IDENTIFY_PARAMS,  # noqa: F401 (the tests shorten the experiment through it)
     FIT_METHODS,
@@ -126,12 +127,9 @@ def paper_models(reading: str = "volts") -> dict[str, Fit]:
 
 
 def _prbs(n_steps: int, clock: int, bits: int, seed: int) -> np.ndarray:
-    """±1 maximum-length sequence, each bit held ``clock`` steps."""
-    # scipy.signal and scipy.optimize are imported where used: importing them
-    # costs about 0.6 s (-X importtime), and every run imports this module for its models
-    from scipy.signal import max_len_seq
-
-    seq = max_len_seq(bits)[0].astype(float) * 2.0 - 1.0
+    """±1 maximum-length sequence (:mod:`simpro_mj.identification.mls`), rolled by
+    ``seed`` bits, each bit held ``clock`` steps."""
+    seq = max_len_seq(bits).astype(float) * 2.0 - 1.0
     seq = np.roll(seq, int(seed))
     n_bits = -(-n_steps // clock)
     reps = -(-n_bits // seq.size)
