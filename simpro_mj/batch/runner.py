@@ -18,14 +18,18 @@ model, runs, writes a normal result folder (:func:`simpro_mj.report.runner.execu
 atomic) and returns a small dict. No model is ever pickled.
 
 * ``--jobs N`` (default ``os.cpu_count()``, at most :data:`MAX_JOBS`): N
-  spawned worker processes (a ``ProcessPoolExecutor``), never more than the
-  variants to run. Each worker pays the fixed start-up (imports, numba's cache of
-  the compiled step, MuJoCo's callback) once and then takes variant after
-  variant; a variant's figures, its ``timeseries.csv`` and its analysis run in
-  Python and hold a process's GIL, so processes keep every core busy where
-  threads would wait on each other. ``--threads``: N threads of this process
-  instead (no process starts, nothing is pickled; the compiled step runs inside
-  ``mj_step``, which releases the GIL, but the rest of a variant does not).
+  worker processes (a ``ProcessPoolExecutor``), never more than the
+  variants to run. They are forked from a forkserver that the batch starts before
+  it plans, which imports the run's modules and loads numba's cache of the compiled
+  step once, while the batch plans (:mod:`simpro_mj.batch.warm`,
+  :func:`simpro_mj.sim.executors.pool_context`: no MuJoCo or thread state of any
+  process is inherited). Each worker then pays the rest of its start-up (MuJoCo's
+  callback) once and takes variant after variant; a variant's figures, its
+  ``timeseries.csv`` and its analysis run in Python and hold a process's GIL, so
+  processes keep every core busy where threads would wait on each other.
+  ``--threads``: N threads of this process instead (no process starts, nothing
+  is pickled; the compiled step runs inside ``mj_step``, which releases the GIL,
+  but the rest of a variant does not).
   ``--jobs 1``, or a batch of one variant to run, runs in this process.
 * ``--scheduler ADDRESS``: the same tasks on a running Dask distributed
   scheduler; ``--scheduler local`` starts a ``LocalCluster`` of ``--jobs``
@@ -235,6 +239,8 @@ def _run_batch(
     processes=False, timeseries="all",
 ) -> Report:  # fmt: skip
 
+    if processes and scheduler is None and jobs > 1:
+        _executors.start_early(run_variant)  # the workers' imports while this plans
     p = plan(paths, sets)
     if strict:
         for job in p.jobs:

@@ -55,8 +55,8 @@ from simpro_mj.report.results import NUMBER_FORMAT
 from simpro_mj.report.runner import execute
 from simpro_mj.sim.workers import activity_queue
 
-__all__ = ["ACTIVITY", "DRAW", "MEASURED_STABILITY", "TIMESERIES", "AsWritten", "install",
-           "run_variant"]  # fmt: skip
+__all__ = ["ACTIVITY", "DRAW", "MEASURED_STABILITY", "PRELOAD", "TIMESERIES", "AsWritten",
+           "install", "run_variant"]  # fmt: skip
 
 #: What a variant's task may ask to draw (``plots``; ``True`` is ``all``, ``False``
 #: ``none``): every run's figures, only a run whose status is not ``ok``, or none.
@@ -69,6 +69,10 @@ TIMESERIES = ("all", "failing", "none")
 #: Key of a variant's ``metrics.json`` holding its measured stability (the fields of
 #: :class:`simpro_mj.batch.stability.Stability`).
 MEASURED_STABILITY = "measured_stability"
+
+#: What a pool worker process imports before its first variant, besides this module
+#: (:func:`simpro_mj.sim.executors.preload_of`): the run's modules and the compiled step.
+PRELOAD = ("simpro_mj.batch.warm",)
 
 #: Worker (a thread's name, or ``pid N`` of a pool worker) -> (variant label, phase,
 #: time.monotonic() the phase began), of the running variants (the progress line reads

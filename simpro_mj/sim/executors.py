@@ -1,4 +1,4 @@
-"""The executors of many simulations: here, threads of this process, a spawn process pool, or Dask.
+"""The executors of many simulations: here, threads of this process, a process pool, or Dask.
 
 ``simpro-sim batch`` (:mod:`simpro_mj.batch.runner`) and ``simpro-sim response``
 (:mod:`simpro_mj.analysis.response`) run their tasks through :func:`run_tasks` with their
@@ -32,7 +32,13 @@ from tqdm import tqdm
 from simpro_mj.core.errors import UserInputError
 from simpro_mj.core.messages import one_line
 from simpro_mj.sim.readiness import signal_ready
-from simpro_mj.sim.workers import init_worker, main_not_imported, run_task, stop_pool
+from simpro_mj.sim.workers import (
+    alive_pipe,
+    init_worker,
+    main_not_imported,
+    run_task,
+    stop_pool,
+)
 
 #: A Dask run whose cluster has had no live worker this long (s) ends with an error.
 NO_WORKERS_S = 60.0
@@ -187,8 +193,8 @@ def run_tasks(
 ) -> None:
     """Run ``fn(task)`` for each ``(key, task)``; ``done(key, result)`` in this process
     as each finishes (``jobs == 1`` here; ``jobs`` threads of this process with
-    ``threads``, else a spawn pool; or Dask with ``scheduler``). A worker that
-    dies fails its task only. ``activity``, on a spawn pool: filled with what the
+    ``threads``, else a process pool, :func:`run_pool`; or Dask with ``scheduler``). A worker that
+    dies fails its task only. ``activity``, on a process pool: filled with what the
     workers say they are doing (:func:`run_pool`).
 
     Raises
@@ -246,6 +252,45 @@ def run_threads(tasks: list[tuple[int, dict]], jobs: int, done: Callback, fn: Wo
     pool.shutdown(wait=True)
 
 
+def preload_of(fn: Worker) -> tuple[str, ...]:
+    """The modules a pool worker running ``fn`` imports before its first task: ``fn``'s
+    module and the names in its ``PRELOAD`` (if it has one)."""
+    module = sys.modules.get(fn.__module__)
+    return (fn.__module__, *getattr(module, "PRELOAD", ()))
+
+
+def pool_context(preload: tuple[str, ...] = ()):
+    """The workers' start method: a forkserver that has imported ``preload``.
+
+    A pool worker is forked from the forkserver, a process of its own started from
+    the interpreter (not forked from this one) that imports ``preload`` and does
+    nothing else: no MuJoCo model, no callback set, no thread of this process
+    (a progress ticker, a BLAS pool in use, a run) and none of its own. So each
+    worker starts with the modules loaded (their imports and numba's cache of the
+    step, paid once, in a process that starts before this one plans its tasks:
+    :func:`start_early`) and with no inherited state, as a spawned one would.
+    ``preload`` takes effect when the forkserver starts (the first pool of this
+    process, or :func:`start_early`); later pools share it. Where there is no
+    forkserver (Windows), spawn.
+    """
+    if "forkserver" not in multiprocessing.get_all_start_methods():
+        return multiprocessing.get_context("spawn")
+    ctx = multiprocessing.get_context("forkserver")
+    ctx.set_forkserver_preload(list(preload))  # no effect once the server runs
+    return ctx
+
+
+def start_early(fn: Worker) -> None:
+    """Start the pool workers' forkserver now, so that its imports (:func:`preload_of`
+    ``fn``) run while this process plans the tasks; nothing where there is no
+    forkserver."""
+    ctx = pool_context(preload_of(fn))
+    if ctx.get_start_method() == "forkserver":
+        from multiprocessing import forkserver
+
+        forkserver.ensure_running()
+
+
 def run_pool(
     tasks: list[tuple[int, dict]],
     jobs: int,
@@ -253,20 +298,21 @@ def run_pool(
     fn: Worker,
     activity: dict | None = None,
 ) -> None:
-    """The tasks on a spawn process pool of at most ``jobs`` workers.
+    """The tasks on a process pool of at most ``jobs`` workers (:func:`pool_context`).
 
     With ``activity``, the workers get a queue (:func:`simpro_mj.sim.workers.activity_queue`)
     on which a task puts ``(worker, label, phase, since)``, or ``(worker, None, None,
     None)`` when it ends; a thread here keeps ``activity[worker]`` = ``(label, phase,
     since)`` from them for the progress line.
     """
-    ctx = multiprocessing.get_context("spawn")  # no inherited MuJoCo/threads state
+    ctx = pool_context(preload_of(fn))
     queue = ctx.Queue() if activity is not None else None
+    alive, keep_alive = alive_pipe()  # the workers' watchdogs read the batch's end
     pool = ProcessPoolExecutor(
         max_workers=min(jobs, len(tasks)),
         mp_context=ctx,
         initializer=init_worker,  # SIGTERM stops a variant; no worker outlives the batch
-        initargs=(os.getpid(), queue),
+        initargs=(os.getpid(), queue, alive, dict(os.environ)),
     )
     futures: dict = {}
     reported: set = set()
@@ -280,10 +326,13 @@ def run_pool(
         stop_pool(pool)  # the workers are gone when this returns
         _finished_meanwhile(futures, reported, done)
         raise
+    else:
+        pool.shutdown(wait=True)
     finally:
         if reader is not None:
             reader.close()
-    pool.shutdown(wait=True)
+        keep_alive.close()  # the workers are gone: nobody reads it
+        alive.close()
 
 
 class _Activity:

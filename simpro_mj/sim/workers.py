@@ -1,7 +1,8 @@
 """Worker processes that stop with their batch and never outlive it.
 
 ``simpro-sim batch`` and ``simpro-sim bench`` run variants in a
-``ProcessPoolExecutor`` of spawned workers. Each worker starts with
+``ProcessPoolExecutor`` of worker processes (forked from a forkserver, or spawned:
+:func:`simpro_mj.sim.executors.pool_context`). Each worker starts with
 :func:`init_worker` (the pool's ``initializer``), which
 
 * ignores SIGINT and SIGHUP: Ctrl-C or a closed terminal reaches the whole
@@ -15,9 +16,15 @@
   exits at once;
 * keeps the queue it was given (:func:`activity_queue`), on which a task may
   say what it is doing for its parent's progress line;
-* starts a watchdog thread that polls ``os.getppid()`` every
-  :data:`POLL_S`: when the parent is gone (``kill -9``, a crash), the worker
-  has been re-parented: an idle worker exits at once, a busy one sends itself
+* takes its batch's environment (``os.environ`` as the batch had it when the pool
+  started: a worker forked from a forkserver started earlier would otherwise hold
+  the forkserver's);
+* starts a watchdog thread that checks, every :data:`POLL_S`, that the batch is
+  alive: by the batch's end of a pipe only the batch holds open
+  (:func:`alive_pipe`; it reads at its end when the batch is gone, whatever
+  process the worker was forked from) or, without one, by ``os.getppid()``
+  (a spawned worker is re-parented when its parent dies). When the batch is gone
+  (``kill -9``, a crash) an idle worker exits at once, a busy one sends itself
   SIGTERM (its variant writes what it had) and exits when the task returns,
   or outright :data:`GRACE_S` later. No worker keeps running, or idles, after
   its batch.
@@ -86,33 +93,61 @@ def _on_sigterm(signum, frame):
     os._exit(128 + signum)
 
 
-def init_worker(parent_pid: int, activity=None) -> None:
-    """Pool initializer: the signal handling, the parent watchdog and the activity
-    queue (module docstring).
+def alive_pipe():
+    """``(reader, writer)``: the batch keeps ``writer`` open while its workers live
+    and gives them ``reader`` (:func:`init_worker`); nothing is ever written, so
+    ``reader`` becomes readable (end of file) only when every ``writer`` is closed:
+    the batch ended or died. The pipe's ends are not inherited by other processes
+    (PEP 446), and forked workers get only the reader."""
+    import multiprocessing
 
-    With ``SIMPRO_READY_FILE`` set, the worker's own readiness file (its
-    variant is stepping) is ``<file>.worker-<pid>``, so it never stands for
-    the parent's.
+    return multiprocessing.Pipe(duplex=False)
+
+
+def init_worker(parent_pid: int, activity=None, alive=None, environ=None) -> None:
+    """Pool initializer: the signal handling, the batch's environment, the batch
+    watchdog and the activity queue (module docstring).
+
+    ``alive``: the reader of :func:`alive_pipe` (else the worker watches
+    ``os.getppid()``); ``environ``: the batch's ``os.environ``. With
+    ``SIMPRO_READY_FILE`` set, the worker's own readiness file (its variant is
+    stepping) is ``<file>.worker-<pid>``, so it never stands for the parent's.
     """
 
     global _activity
     _activity = activity
+    if environ is not None and dict(os.environ) != dict(environ):
+        os.environ.clear()
+        os.environ.update(environ)
     if os.environ.get(ENV):
         os.environ[ENV] = f"{os.environ[ENV]}.worker-{os.getpid()}"
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGHUP, signal.SIG_IGN)  # the terminal's: the parent decides
     signal.signal(signal.SIGTERM, _on_sigterm)
-    watch_parent(parent_pid)
+    watch_parent(parent_pid, alive=alive)
 
 
-def watch_parent(parent_pid: int, poll_s: float = POLL_S, grace_s: float = GRACE_S) -> None:
-    """Start a daemon thread that ends this process when ``parent_pid`` is no
-    longer its parent (SIGTERM to itself, then ``os._exit`` after ``grace_s``)."""
+def watch_parent(
+    parent_pid: int, poll_s: float = POLL_S, grace_s: float = GRACE_S, alive=None
+) -> None:
+    """Start a daemon thread that ends this process when its batch is gone (SIGTERM
+    to itself, then ``os._exit`` after ``grace_s``): ``alive`` (the reader of
+    :func:`alive_pipe`) at its end, or, without it, ``parent_pid`` no longer this
+    process's parent."""
+
+    def gone() -> bool:
+        if alive is None:
+            time.sleep(poll_s)
+            return os.getppid() != parent_pid
+        try:
+            return alive.poll(poll_s)  # readable: end of file, the batch's end closed
+        except (OSError, EOFError, ValueError):
+            return True
 
     def watch() -> None:
         global _ending
-        while os.getppid() == parent_pid:
-            time.sleep(poll_s)
+        while not gone():
+            pass
         _ending = True  # run_task exits once the variant has written what it had
         if not _busy:
             os._exit(1)

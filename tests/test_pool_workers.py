@@ -1,0 +1,86 @@
+"""A batch's pool workers start clean, with the run's modules loaded, in the batch's
+environment.
+
+The workers are forked from a forkserver (:func:`simpro_mj.sim.executors.pool_context`)
+that the batch starts before it plans (:func:`~simpro_mj.sim.executors.start_early`)
+and that has imported the run's modules and the compiled step
+(:mod:`simpro_mj.batch.warm`). Checked in a fresh interpreter, so that this test
+process's own forkserver (started by whichever test came first) plays no part: a
+probe task reports what a worker holds when its task starts.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+from simpro_mj.plant.kernels import kernel_choice
+
+ROOT = Path(__file__).resolve().parents[1]
+
+#: What the probe's forkserver imports: the batch worker's own list.
+PRELOAD = ("simpro_mj.batch.warm",)
+
+
+def probe(task: dict) -> dict:
+    """A pool task (top level: it pickles by name): what this worker holds."""
+    import threading
+
+    import mujoco
+
+    return {
+        "status": "ok",
+        "reason": None,
+        "threads": sorted(t.name for t in threading.enumerate()),
+        "callbacks": [
+            name
+            for name in ("control", "passive", "time", "act_gain", "act_bias", "sensor")
+            if getattr(mujoco, f"get_mjcb_{name}")() is not None
+        ],
+        "loaded": [m for m in task["modules"] if m in sys.modules],
+        "env": os.environ.get("SIMPRO_PROBE"),
+        "pid": os.getpid(),
+    }
+
+
+_SCRIPT = """
+import json, os, sys
+import mujoco
+from simpro_mj.sim import executors
+from test_pool_workers import probe
+
+executors.start_early(probe)  # the server starts with this environment...
+os.environ["SIMPRO_PROBE"] = "set after the server started"  # ...and this comes later
+mujoco.set_mjcb_control(None)
+modules = ["simpro_mj.sim.callback", "simpro_mj.sim.loop",
+           "simpro_mj.identification.reduced_experiment"]
+got = {}
+executors.run_tasks([(i, {"modules": modules}) for i in range(4)],
+                    lambda key, result: got.__setitem__(key, result), fn=probe, jobs=2)
+print(json.dumps([got[i] for i in range(4)]))
+"""
+
+
+def test_a_worker_starts_clean_with_the_runs_modules_and_the_batchs_environment():
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROOT), str(ROOT / "tests")]))
+    env.pop("SIMPRO_PROBE", None)
+    out = subprocess.run([sys.executable, "-c", _SCRIPT], env=env, capture_output=True,
+                         text=True, timeout=300, cwd=ROOT)  # fmt: skip
+    assert out.returncode == 0, out.stderr[-3000:]
+    results = json.loads(out.stdout.strip().splitlines()[-1])
+    assert len({r["pid"] for r in results}) <= 2  # two workers took the four tasks
+    for r in results:
+        assert r["status"] == "ok"
+        # its own watchdog only: none of the batch's threads, none from the imports
+        assert r["threads"] == ["MainThread", "simpro-parent-watch"], r
+        assert r["callbacks"] == [], r  # no MuJoCo callback set before a run sets its own
+        assert r["env"] == "set after the server started"
+        # imported by the server before the worker was forked (the step from numba's
+        # cache when the step runs compiled)
+        want = ["simpro_mj.sim.loop", "simpro_mj.identification.reduced_experiment"]
+        if kernel_choice() == "numba":
+            want.insert(0, "simpro_mj.sim.callback")
+        assert r["loaded"] == want, r
