@@ -121,6 +121,11 @@ def test_experiment_seconds_name_the_variants_that_identify(cache, fake_identify
     )
     ai.identified_models(new)  # now cached: the run alone
     assert ai.experiment_s(new) == 0.0 and expected_cost(variant) == new.duration_s
+    # no experiment: the reduced chain's identification, or the paper's design plants
+    sets = ["controller.inner.identify=reduced", "plant.payload.mass_kg=90"]
+    reduced = load_scenario("step_pitch", sets).model_dump()
+    assert expected_cost(reduced) == reduced["duration_s"]
+    assert expected_cost(paper.model_dump()) == paper.duration_s
 
 
 def test_threads_needing_one_new_plant_run_one_experiment(cache, monkeypatch):

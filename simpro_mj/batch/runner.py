@@ -383,12 +383,22 @@ def _blas_limited(on: bool):
 
 def expected_cost(scenario: Mapping) -> float:
     """A variant's expected cost in simulated run-seconds (module docstring)."""
-    from simpro_mj.identification.auto import experiment_s
+    controller = scenario.get("controller")
+    inner = controller.get("inner") if isinstance(controller, Mapping) else None
+    inner = inner if isinstance(inner, Mapping) else {}
+    exp = 0.0
+    # no experiment (a preset's models, or the reduced chain's): read from the resolved
+    # tree, without importing the identification (MuJoCo) into the batch's process
+    if (
+        inner.get("design_plant", "identified") == "identified"
+        and inner.get("identify", "auto") == "auto"
+    ):
+        from simpro_mj.identification.auto import experiment_s
 
-    try:
-        exp = experiment_s(scenario)
-    except (KeyError, TypeError, ValueError):  # the run itself says what is wrong
-        exp = 0.0
+        try:
+            exp = experiment_s(scenario)
+        except (KeyError, TypeError, ValueError):  # the run itself says what is wrong
+            exp = 0.0
     return float(scenario.get("duration_s", 0.0)) + EXPERIMENT_WEIGHT * exp
 
 
