@@ -27,9 +27,14 @@ compile of about a minute, once, not a batch's figure).
 * ``ratio``: ``wall_s`` over ``stepping_s / jobs``, what the batch costs per
   unit of the step's own cost on the same workers (1: nothing but stepping);
 * ``cpu_s_per_variant``: the mean of the variants' worker-thread CPU time
-  (``cpu_s`` in summary.json, identification included) and
+  (``cpu_s`` in summary.json, identification included; a worker's imports are in it
+  when the worker makes them, not when its forkserver made them before) and
   ``cpu_ratio`` = their sum over ``stepping_s``: process CPU is less inflated
-  than wall time by other work on a shared machine.
+  than wall time by other work on a shared machine;
+* ``cpu_s_total`` (Linux): the CPU time of every process of the batch, this one's
+  (planning, the summary), its spawned children's and its workers' forkserver's with
+  the workers forked from it (read from ``/proc``): what the batch costs in all, less
+  inflated by other work than ``wall_s``.
 
 A speed figure: here, not in a timed test. Meaningful on a quiet machine only.
 """
@@ -82,11 +87,13 @@ def measure(
         else:
             os.environ["SIMPRO_CACHE_DIR"] = cache_dir
 
+        cpu0 = _cpu_s()
         wall0 = time.perf_counter()
         report = run_batch([str(tmp / "throughput.yaml")], tmp / "out", jobs=jobs,
                            plots=False, summary_plots=False, processes=processes,
                            timeseries=timeseries)  # fmt: skip
         wall = time.perf_counter() - wall0
+        cpu_total = _cpu_s(cpu0[2])[0] - cpu0[0] if cpu0[1] else None
     rows = [r for r in report.rows if r.realtime_factor]
     duration = float(text.split("duration_s:")[1].split()[0])
     stepping = sum(duration / r.realtime_factor for r in rows)
@@ -106,7 +113,33 @@ def measure(
         "ratio": wall / (stepping / jobs) if stepping > 0 else None,
         "cpu_s_per_variant": sum(cpu) / len(cpu) if cpu else None,
         "cpu_ratio": sum(cpu) / stepping if stepping > 0 and cpu else None,
+        "cpu_s_total": cpu_total,
     }
+
+
+def _cpu_s(server_pid: int | None = None) -> tuple[float, bool, int | None]:
+    """``(seconds, read, forkserver pid)``: the CPU time so far of this process, of its
+    children it has waited for, and of the workers' forkserver (``server_pid``, or the
+    one running now) with its own waited-for children (the workers), from ``/proc``;
+    ``read`` False where there is no ``/proc``."""
+    import resource
+
+    own = resource.getrusage(resource.RUSAGE_SELF)
+    kids = resource.getrusage(resource.RUSAGE_CHILDREN)
+    total = own.ru_utime + own.ru_stime + kids.ru_utime + kids.ru_stime
+    if server_pid is None:
+        from multiprocessing import forkserver
+
+        server_pid = getattr(forkserver._forkserver, "_forkserver_pid", None)
+    if server_pid is not None:
+        try:
+            fields = Path(f"/proc/{server_pid}/stat").read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            return total, False, server_pid
+        # utime, stime, cutime, cstime: the 14th-17th fields of stat (after pid, comm)
+        ticks = sum(int(x) for x in fields[11:15])
+        total += ticks / os.sysconf("SC_CLK_TCK")
+    return total, Path("/proc/self/stat").exists(), server_pid
 
 
 def main(argv=None) -> int:

@@ -3,10 +3,10 @@ environment.
 
 The workers are forked from a forkserver (:func:`simpro_mj.sim.executors.pool_context`)
 that the batch starts before it plans (:func:`~simpro_mj.sim.executors.start_early`)
-and that has imported the run's modules and the compiled step
-(:mod:`simpro_mj.batch.warm`). Checked in a fresh interpreter, so that this test
-process's own forkserver (started by whichever test came first) plays no part: a
-probe task reports what a worker holds when its task starts.
+and that has loaded the run's modules, the compiled step and the identification's
+compiled functions (:mod:`simpro_mj.batch.warm`). Checked in a fresh interpreter, so
+that this test process's own forkserver (started by whichever test came first) plays
+no part: a probe task reports what a worker holds when its task starts.
 """
 
 from __future__ import annotations
@@ -41,17 +41,36 @@ def probe(task: dict) -> dict:
             if getattr(mujoco, f"get_mjcb_{name}")() is not None
         ],
         "loaded": [m for m in task["modules"] if m in sys.modules],
+        "compiled": _compiled_overloads(),
         "env": os.environ.get("SIMPRO_PROBE"),
         "pid": os.getpid(),
     }
 
 
+def _compiled_overloads() -> list[int]:
+    """How many signatures of the identification's compiled functions this process
+    holds (none until a call, or the forkserver's preload, loads them)."""
+    from simpro_mj.identification import reduced_experiment, sensitivity_fit
+
+    if kernel_choice() != "numba":
+        return []
+    return [len(f.overloads) for f in (reduced_experiment._stepper(),
+                                       *sensitivity_fit._functions())]  # fmt: skip
+
+
 _SCRIPT = """
-import json, os, sys
+import copy, json, os, sys
 import mujoco
+from simpro_mj.config.scenario import load_scenario
+from simpro_mj.identification.auto import plant_tree
+from simpro_mj.identification.reduced_experiment import identify_reduced
 from simpro_mj.sim import executors
 from test_pool_workers import probe
 
+# the identification's compiled functions in numba's cache (compiled here if not yet)
+tree = copy.deepcopy(plant_tree(load_scenario("step_pitch", [])))
+tree["identify"]["duration_s"] = 1.0
+identify_reduced(tree)
 executors.start_early(probe)  # the server starts with this environment...
 os.environ["SIMPRO_PROBE"] = "set after the server started"  # ...and this comes later
 mujoco.set_mjcb_control(None)
@@ -84,3 +103,5 @@ def test_a_worker_starts_clean_with_the_runs_modules_and_the_batchs_environment(
         if kernel_choice() == "numba":
             want.insert(0, "simpro_mj.sim.callback")
         assert r["loaded"] == want, r
+        # and the identification's compiled functions, from numba's cache
+        assert r["compiled"] == ([1, 1, 1] if kernel_choice() == "numba" else []), r
