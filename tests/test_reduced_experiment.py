@@ -147,27 +147,3 @@ def test_a_register_without_taps_is_refused():
     for bits in (1, 25):
         with pytest.raises(ValueError, match="invalid bits: .*allowed: 2 to 24"):
             max_len_seq(bits)
-
-
-def test_the_reduced_identification_does_not_import_scipy_signal():
-    """A batch worker identifies a new cabin by identify_reduced: scipy.signal, whose
-    import costs 0.6-1.2 s of CPU per process, stays out of it (the sequence is
-    mls.max_len_seq's). Run in a fresh interpreter, on step_pitch's plant with 1 s
-    records."""
-    import subprocess
-    import sys
-
-    code = (
-        "import sys, copy\n"
-        "from simpro_mj.config.scenario import load_scenario\n"
-        "from simpro_mj.identification.auto import plant_tree\n"
-        "from simpro_mj.identification.reduced_experiment import identify_reduced\n"
-        "tree = copy.deepcopy(plant_tree(load_scenario('step_pitch', [])))\n"
-        "tree['identify']['duration_s'] = 1.0\n"
-        "fits = identify_reduced(tree)\n"
-        "assert sorted(fits) == ['actuator1', 'actuator2', 'actuator3'], fits\n"
-        "print(sorted(m for m in sys.modules if m.startswith('scipy.signal')))\n"
-    )
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
-    assert out.returncode == 0, out.stderr[-2000:]
-    assert out.stdout.strip() == "[]"

@@ -62,14 +62,14 @@ def _trees(keys, leaves):
     )
 
 
-@settings(max_examples=100)
+@settings(max_examples=40)
 @given(st.dictionaries(_ascii, _trees(_ascii, _leaf), min_size=1, max_size=6))
 def test_plain_text_trees_are_written_as_safe_dump_writes_them(data):
     assert _plain_text(data)
     assert _dumped(data) == _reference(data)
 
 
-@settings(max_examples=100)
+@settings(max_examples=40)
 @given(st.dictionaries(st.text(max_size=8), _trees(st.text(max_size=8), _leaf | st.text()),
                        min_size=1, max_size=6))  # fmt: skip
 def test_any_text_is_written_as_safe_dump_writes_it(data):
