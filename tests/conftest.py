@@ -70,6 +70,7 @@ WHILE_THE_STEP_COMPILES = (
     "test_scenario_messages.py",
     "test_imports.py",
     "test_cli_help.py",
+    "test_results_yaml.py",
 )
 
 

@@ -123,27 +123,3 @@ def test_the_friction_solves_numbers_do_not_move_the_result():
         again = fit_sensitivity(other.u[:, 0], other.qdot[:, 0], other.dt, skip=200)
         for k in ("b", "a1", "a0"):
             assert getattr(again, k) == pytest.approx(getattr(fit, k), rel=1e-6)
-
-
-@pytest.mark.parametrize("bits", range(2, 25))
-def test_the_sequence_is_scipys_bit_for_bit(bits):
-    """The excitation's maximum-length sequence (mls.max_len_seq) is
-    scipy.signal.max_len_seq's, bit for bit, for every register length the scenario
-    allows (identify.prbs_bits 2-24), and one period of it holds each nonzero state of
-    the register once: 2**(bits-1) ones and 2**(bits-1) - 1 zeros."""
-    from scipy.signal import max_len_seq as scipys
-
-    from simpro_mj.identification.mls import max_len_seq
-
-    got = max_len_seq(bits)
-    want = scipys(bits)[0]
-    assert got.dtype == want.dtype and np.array_equal(got, want)
-    assert int(got.sum()) == 2 ** (bits - 1) and got.size == 2**bits - 1
-
-
-def test_a_register_without_taps_is_refused():
-    from simpro_mj.identification.mls import max_len_seq
-
-    for bits in (1, 25):
-        with pytest.raises(ValueError, match="invalid bits: .*allowed: 2 to 24"):
-            max_len_seq(bits)

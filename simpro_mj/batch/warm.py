@@ -7,8 +7,9 @@ itself in its first variant (about 0.8 s of CPU per worker besides the imports, 
 than a new cabin's identification under ``identify: reduced``):
 
 * the modules a variant imports on use: the run, its loop, the identification of
-  a new plant (the experiment on the reduced chain and its fit), ``scipy.optimize``
-  (the loop analysis's root finder, 0.5 s);
+  a new plant (the experiment on the reduced chain and its fit), ``scipy.signal``
+  (the experiment's maximum-length sequence, 0.6-1.2 s), ``scipy.optimize`` (the
+  loop analysis's root finder, 0.5 s);
 * what every result folder records and a process reads once: the packages' versions
   and the machine's fingerprint (:func:`simpro_mj.report.results.versions`);
 * the compiled step from numba's cache (:func:`simpro_mj.sim.compiling.prepare_step`,
@@ -44,6 +45,7 @@ def load_cached(dispatcher) -> int:
 
 with contextlib.suppress(Exception):
     import scipy.optimize  # noqa: F401
+    import scipy.signal  # noqa: F401
 
     import simpro_mj.identification.auto
     import simpro_mj.job.run

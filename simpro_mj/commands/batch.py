@@ -45,7 +45,7 @@ def add_arguments(parser) -> None:
     where.add_argument(
         "--processes",
         action="store_true",
-        help="run the --jobs variants in spawned worker processes (the default)",
+        help="run the --jobs variants in worker processes (the default)",
     )
     where.add_argument(
         "--threads",

@@ -55,7 +55,6 @@ from controllers.design import (
 from controllers.dither import dither_signal
 from controllers.experiment_law import XC
 from simpro_mj.core.errors import PhysicsError, UserInputError
-from simpro_mj.identification.mls import max_len_seq
 from simpro_mj.identification.settings import (
     DEFAULT_IDENTIFY_PARAMS,  # noqa: F401 (the tests shorten the experiment through it)
     FIT_METHODS,
@@ -127,9 +126,13 @@ def paper_models(reading: str = "volts") -> dict[str, Fit]:
 
 
 def _prbs(n_steps: int, clock: int, bits: int, seed: int) -> np.ndarray:
-    """±1 maximum-length sequence (:mod:`simpro_mj.identification.mls`), rolled by
-    ``seed`` bits, each bit held ``clock`` steps."""
-    seq = max_len_seq(bits).astype(float) * 2.0 - 1.0
+    """±1 maximum-length sequence, rolled by ``seed`` bits, each bit held ``clock`` steps."""
+    # scipy.signal is imported where used: its import costs 0.6-1.2 s of CPU, and
+    # every run imports this module for its models (a batch's workers have it from
+    # their forkserver: simpro_mj/batch/warm.py)
+    from scipy.signal import max_len_seq
+
+    seq = max_len_seq(bits)[0].astype(float) * 2.0 - 1.0
     seq = np.roll(seq, int(seed))
     n_bits = -(-n_steps // clock)
     reps = -(-n_bits // seq.size)
