@@ -168,6 +168,20 @@ def test_a_signal_stops_a_threaded_batch(tmp_path):
     assert _no_temp_folders(tmp_path)
 
 
+def _main_thread_waits(ready: Path) -> bool:
+    """The batch's tasks submitted (its readiness file) and the main thread in a wait."""
+    import threading
+
+    if not ready.is_file():
+        return False
+    frame = sys._current_frames().get(threading.main_thread().ident)
+    while frame is not None:
+        if frame.f_code is threading.Condition.wait.__code__:
+            return True
+        frame = frame.f_back
+    return False
+
+
 def test_a_signal_a_runs_thread_received_stops_the_threads(tmp_path, monkeypatch):
     """The kernel gives a signal sent to the process to any of its threads that does
     not block it; CPython runs the handler in the main thread only, when that thread
@@ -189,19 +203,9 @@ def test_a_signal_a_runs_thread_received_stops_the_threads(tmp_path, monkeypatch
     monkeypatch.setenv(readiness.ENV, str(ready))
     statuses: dict[int, str] = {}
 
-    def main_thread_waits() -> bool:  # the tasks submitted, the main thread in a wait
-        if not ready.is_file():
-            return False
-        frame = sys._current_frames().get(threading.main_thread().ident)
-        while frame is not None:
-            if frame.f_code is threading.Condition.wait.__code__:
-                return True
-            frame = frame.f_back
-        return False
-
     def task(t: dict) -> dict:
         if t["first"]:
-            _wait_for(main_thread_waits)
+            _wait_for(lambda: _main_thread_waits(ready))
             signal.pthread_kill(threading.get_ident(), signal.SIGTERM)
         stopped = t["stop"].wait(timeout=60.0)
         return {"status": "interrupted" if stopped else "ok"}
@@ -295,3 +299,40 @@ def test_a_dask_cluster_without_workers_ends_the_batch(tmp_path, capsys, monkeyp
     doc = json.loads((out / "summary.json").read_text())
     assert doc["stopped"].startswith("no live Dask worker")
     assert [v["status"] for v in doc["variants"]] == ["cancelled"]
+
+
+def _sleep_a_minute(task: dict) -> dict:
+    """A pool task that ends ``ok`` after 60 s unless its worker is stopped first."""
+    time.sleep(60.0)
+    return {"status": "ok"}
+
+
+def test_a_signal_another_thread_received_stops_the_pool(tmp_path, monkeypatch):
+    """The same for the process pool: SIGTERM taken by a thread of the batch other
+    than the main one (here one started for it; in a batch the pool's own threads)
+    while the main thread waits for the workers. The batch acts on it at once: its
+    workers are stopped, and neither task reports an end it never reached (a main
+    thread that slept until a task ended would have collected both ``ok`` after a
+    minute). The waits are bounded only so that a broken build fails."""
+    import threading
+
+    from simpro_mj.core.interrupts import interruptible
+    from simpro_mj.sim import readiness
+    from simpro_mj.sim.executors import run_pool
+
+    assert threading.current_thread() is threading.main_thread()
+    ready = tmp_path / "ready"
+    monkeypatch.setenv(readiness.ENV, str(ready))
+    statuses: dict[int, str] = {}
+
+    def send() -> None:  # from this thread, not the main one
+        _wait_for(lambda: _main_thread_waits(ready))
+        signal.pthread_kill(threading.get_ident(), signal.SIGTERM)
+
+    sender = threading.Thread(target=send, name="sender")
+    with interruptible(), pytest.raises(KeyboardInterrupt, match="SIGTERM"):
+        sender.start()
+        run_pool([(0, {}), (1, {})], 2, lambda k, r: statuses.__setitem__(k, r["status"]),
+                 fn=_sleep_a_minute)  # fmt: skip
+    sender.join()
+    assert statuses == {}

@@ -23,7 +23,6 @@ from concurrent.futures import (
     FIRST_COMPLETED,
     ProcessPoolExecutor,
     ThreadPoolExecutor,
-    as_completed,
     wait,
 )
 
@@ -169,7 +168,8 @@ def _completed(futures, period: float = WAKE_S):
     """The futures as they finish, like ``as_completed``, waking every ``period`` seconds.
 
     The kernel hands a signal sent to the process to any thread that does not block
-    it (seen under load: one of the runs' threads took the SIGTERM). CPython runs the
+    it (seen under load: one of the runs' threads took the SIGTERM; a pool's own
+    threads, its manager and its queues' feeders, can take it too). CPython runs the
     handler in the main thread only, the next time it runs Python code; a wait
     with no timeout would put that off until a task ends (a 600 s variant then
     runs to its end, ``ok``, after the batch was told to stop).
@@ -321,7 +321,7 @@ def run_pool(
         with main_not_imported():  # the workers start while the tasks are submitted
             futures = {pool.submit(run_task, fn, task): key for key, task in tasks}
         signal_ready("batch")
-        _collect(as_completed(futures), futures, done, reported, stop=False)
+        _collect(_completed(futures), futures, done, reported, stop=False)
     except BaseException:
         stop_pool(pool)  # the workers are gone when this returns
         _finished_meanwhile(futures, reported, done)
