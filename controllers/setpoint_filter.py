@@ -139,5 +139,6 @@ class SetpointFilter:
             self.reset(q_d)
         q0, q1, q2 = (float(v) for v in q_d[:3])
         out = np.zeros(3)
-        filter_step(self.step_constants, q0, q1, q2, self.step_state, self.ring, out)
+        ring = self.ring.reshape(-1)  # a view: the function takes it flat
+        filter_step(self.step_constants, q0, q1, q2, self.step_state, ring, out)
         return out.tolist()

@@ -210,12 +210,14 @@ def filter_step(fc, q0, q1, q2, fs, ring, out):
 
     Kind 1: first order ``y = a y + b q_d`` per leg; 2: the ramp, the mean of
     the last ``n`` samples, kept as a running sum over a ring of ``ring``
-    (3, n_max) whose oldest entry of leg i is at its head.
+    (3 rows of n_max, flat, row-major: the step keeps it at the end of its
+    state) whose oldest entry of leg i is at its head.
     """
     kind = fc[FC.kind]
     if kind == 0:
         out[0], out[1], out[2] = q0, q1, q2
         return
+    row = ring.shape[0] // 3
     for i in range(3):
         qi = q0 if i == 0 else (q1 if i == 1 else q2)
         if kind == 1:
@@ -224,8 +226,8 @@ def filter_step(fc, q0, q1, q2, fs, ring, out):
         else:
             ni = int(fc[FC.n + i])
             j = int(fs[FS.head + i])
-            fs[FS.sum + i] += qi - ring[i, j]
-            ring[i, j] = qi
+            fs[FS.sum + i] += qi - ring[i * row + j]
+            ring[i * row + j] = qi
             fs[FS.head + i] = (j + 1) % ni
             out[i] = fs[FS.sum + i] / ni
 

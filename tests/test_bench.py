@@ -159,3 +159,35 @@ def test_without_a_checkout_bench_refuses_in_one_line(tmp_path, monkeypatch, cap
     assert main(["bench", "--duration", "0.1", "--repeats", "1", "--no-batch"]) == 2
     err = capsys.readouterr().err.strip()
     assert "\n" not in err and "step_cost.py" in err and "allowed: run it from a clone" in err
+
+
+def _instructions_script():
+    """benchmarks/step_instructions.py, loaded as a module."""
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "benchmarks" / "step_instructions.py"
+    spec = importlib.util.spec_from_file_location("step_instructions", path)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_the_counted_replay_is_the_runs_trajectory(tmp_path, capsys):
+    """The instruction count's bare replay (run natively here, not under valgrind) ends
+    exactly where the recorded run did, at its full length and not before: the model it
+    replays on carries the scenario's options (the seals' dry friction)."""
+    script = _instructions_script()
+    forces = str(tmp_path / "forces.npz")
+    assert script.main(["--child", "record", "--duration", "0.3", "--forces", forces]) == 0
+    script._frozen_clock(forces + ".clock.so")
+    runs = [("bare", 0.3, True), ("bare", 0.2, None), ("bare_frozen_clock", 0.3, True)]
+    for mode, duration, same in runs:
+        argv = ["--child", mode, "--duration", str(duration), "--forces", forces]
+        assert script.main(argv) == 0
+        got = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+        assert got == {"steps": round(duration / 1e-3), "same_trajectory": same}
+    with pytest.raises(SystemExit):
+        script.main(["--durations", "3", "1"])
+    assert "the shorter first" in capsys.readouterr().err

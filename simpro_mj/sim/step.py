@@ -133,7 +133,8 @@ def sense(k, S, C, qpos, qvel, xpos, xmat, noise, walk):
     sc, ss = C[CT.sc : CT.sc + ps.SC.LEN], S[ST.ss : ST.ss + ps.SS.LEN]
     imu = xpos[site : site + 3]
     S[ST.walk_m] += ps.sample_sensors(k, False, q, pose, imu, draws, steps, sc, ss, qm, pm)
-    S[ST.yq : ST.yq + 3], S[ST.yp : ST.yp + 3] = qm, pm
+    for i in range(3):  # element by element: a slice copy costs more than the stage
+        S[ST.yq + i], S[ST.yp + i] = S[ST.qm + i], S[ST.pm + i]
 
 
 def control(k, S, C, ref, qj, uff):
@@ -147,7 +148,8 @@ def control(k, S, C, ref, qj, uff):
     xc = C[CT.xp : CT.xp + xl.XC.LEN]
     if xc[xl.XC.on] != 0.0:  # the P law holding the legs, the excitation by step
         xl.experiment_volts(k, S[ST.q : ST.q + 3], xc, uff, S[ST.u : ST.u + 3])
-        S[ST.ua : ST.ua + 3] = S[ST.u : ST.u + 3]
+        for i in range(3):
+            S[ST.ua + i] = S[ST.u + i]
         return 0
     ts = S[ST.ts : ST.ts + cs.TS.LEN]
     tc, g = C[CT.tc : CT.tc + cs.TC.LEN], C[CT.geom : CT.geom + cs.GEOM.LEN]
@@ -156,7 +158,8 @@ def control(k, S, C, ref, qj, uff):
     m0, m1, m2 = S[ST.yq], S[ST.yq + 1], S[ST.yq + 2]
     err = 0
     if mode == cs.MODE_JOINT:  # q_d = IK(y_d), precomputed
-        S[ST.qdes : ST.qdes + 3], S[ST.pcmd : ST.pcmd + 3] = qj[k], ref[k]
+        for i in range(3):
+            S[ST.qdes + i], S[ST.pcmd + i] = qj[k, i], ref[k, i]
     else:
         if k % int(C[CT.outer]) == 0:
             hold = S[ST.sat] != 0.0
@@ -166,11 +169,11 @@ def control(k, S, C, ref, qj, uff):
             S[ST.sat] = 0.0
         elif mode == cs.MODE_FF:
             err = cs.ff_inner(ref[k, 0], ref[k, 1], ref[k, 2], y0, y1, y2, m0, m1, m2, 2, ts, tc, g)
-        S[ST.qdes : ST.qdes + 3] = ts[cs.TS.qd : cs.TS.qd + 3]
-        S[ST.pcmd : ST.pcmd + 3] = ts[cs.TS.xc : cs.TS.xc + 3]
+        for i in range(3):
+            S[ST.qdes + i], S[ST.pcmd + i] = ts[cs.TS.qd + i], ts[cs.TS.xc + i]
     if err:
         return err
-    qr, ring = S[ST.qr : ST.qr + 3], S[ST.ring :].reshape(3, -1)
+    qr, ring = S[ST.qr : ST.qr + 3], S[ST.ring :]  # 3 rows, flat
     qd0, qd1, qd2 = S[ST.qdes], S[ST.qdes + 1], S[ST.qdes + 2]
     fc, fs = C[CT.fc : CT.fc + cs.FC.LEN], S[ST.fs : ST.fs + cs.FS.LEN]
     cs.filter_step(fc, qd0, qd1, qd2, fs, ring, qr)
@@ -182,7 +185,8 @@ def control(k, S, C, ref, qj, uff):
         S[ST.jx : ST.jx + cs.JS.LEN], jc, qr[0] - m0, qr[1] - m1, qr[2] - m2, f0, f1, f2, u
     )
     lo, hi = jc[cs.JC.lo], jc[cs.JC.hi]
-    S[ST.ua : ST.ua + 3] = u
+    for i in range(3):
+        S[ST.ua + i] = S[ST.u + i]
     if C[CT.hold_sat] != 0.0 and S[ST.sat] == 0.0:
         for i in range(3):
             if not (lo < S[ST.u + i] < hi):
@@ -225,10 +229,12 @@ def record(k, S, C, ref, qpos, sd, log, qlog, hlog):
     loop = S[ST.loop]
     out[ROW.loop], out[ROW.flags] = loop, S[ST.flags]
     out[ROW.ps] = S[ST.ast + ps.ACT.ps]  # the supply at the valves
-    qlog[row] = qpos
+    for j in range(qpos.shape[0]):  # element by element: cheaper than a row's copy
+        qlog[row, j] = qpos[j]
     if C[CT.head] != 0.0:
         a, g = int(C[CT.iha]), int(C[CT.ihg])
-        hlog[row, :3], hlog[row, 3:] = sd[a : a + 3], sd[g : g + 3]
+        for i in range(3):
+            hlog[row, i], hlog[row, 3 + i] = sd[a + i], sd[g + i]
     S[ST.rows] = row + 1
     if loop > S[ST.worst]:
         S[ST.worst] = loop
