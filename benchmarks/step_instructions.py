@@ -71,30 +71,22 @@ def _child(args) -> None:
     if args.child in ("bare", "bare_frozen_clock"):  # MuJoCo alone: a short start-up
         _replay(args, mujoco, np)
         return
+    from simpro_mj.commands.bench import harness
     from simpro_mj.plant.model import load_model
     from simpro_mj.sim.build import Build
 
     sc = _scenario(args.scenario, args.set, args.duration)
     model = load_model(sc["plant"])
-    sim = Build(sc, model=model).simulation()  # it sets the model's options (the seals')
     if args.child == "full":
-        res = sim.run()
+        res = Build(sc, model=model).simulation().run()
         if res.status != "ok":
             raise SystemExit(f"the run did not end ok: {res.reason}")
         print(json.dumps({"steps": int(res.sim["steps"])}))
         return
-    mujoco.mj_saveModel(model, args.forces + ".mjb", None)  # as the run steps it
-    sim._initial_state()
-    spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
-    state0 = np.empty(mujoco.mj_stateSize(model, spec))
-    mujoco.mj_getState(model, sim.data, state0, spec)
-    warm0 = sim.data.qacc_warmstart.copy()
-    res = sim.run()
-    n = int(res.sim["steps"])
-    ctrl = np.zeros((n, model.nu))
-    for i, a in enumerate(sim.idx.actuators):
-        ctrl[:, a] = res.columns[f"f{i + 1}_n"][:n]  # the force applied over step k
-    np.savez(args.forces, state0=state0, warm0=warm0, ctrl=ctrl, qpos=sim.data.qpos)
+    # the bench's recording (benchmarks/step_cost.py); its build sets the model's options
+    state0, warm0, ctrl, qpos = harness()._record(sc, model)
+    mujoco.mj_saveModel(model, args.forces + ".mjb", None)  # the model as the run stepped it
+    np.savez(args.forces, state0=state0, warm0=warm0, ctrl=ctrl, qpos=qpos)
 
 
 def _replay(args, mujoco, np) -> None:
