@@ -43,8 +43,9 @@ from simpro_mj.sim.workers import (
 NO_WORKERS_S = 60.0
 #: Most worker processes (``--jobs``); a run never starts more than it has tasks.
 MAX_JOBS = 256
-#: The longest (s) the main thread waits for a task of :func:`run_threads` without running
-#: Python code: how late, at most, it acts on a signal the kernel gave another thread.
+#: The longest (s) the main thread waits for a task of :func:`run_threads` or
+#: :func:`run_pool` without running Python code: how late, at most, it acts on a signal
+#: the kernel gave another thread (:func:`_completed`).
 WAKE_S = 0.1
 
 
